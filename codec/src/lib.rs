@@ -1,0 +1,11 @@
+//! `mocomp-codec`: the normative half of mocomp.
+//!
+//! Everything a decoder must do bit-exactly lives here, and nothing about how
+//! an encoder searches: picture types now; the bitstream, transforms, motion
+//! compensation and the decoder as they land. It depends on no other crate of
+//! the workspace. See `ARCHITECTURE.md` at the repository root.
+#![warn(missing_docs)]
+
+pub mod picture;
+
+pub use picture::{Frame, PictureError, Plane, MAX_DIMENSION};

@@ -1,0 +1,634 @@
+//! Pictures: padded 8-bit planes and 4:2:0 frames.
+//!
+//! Every plane carries a border of `pad` pixels on each side. After the
+//! visible pixels change, [`Plane::extend_border`] replicates the edge pixels
+//! into the border, so motion compensation can read a block displaced outside
+//! the picture with plain slice indexing (as x264 and H.264's "unrestricted
+//! motion vectors" do). Readers in `mocomp::io` return planes whose borders
+//! are already extended; code that writes pixels calls `extend_border` when
+//! it is done.
+//!
+//! Sizes are checked before anything is allocated: a width or height of 0 or
+//! above [`MAX_DIMENSION`] is an error, never an allocation attempt.
+
+use std::fmt;
+
+/// Largest accepted width or height, in luma pixels.
+pub const MAX_DIMENSION: usize = 16384;
+
+/// Largest accepted border, in pixels.
+pub const MAX_PAD: usize = 1024;
+
+/// Rows are padded to a multiple of this many bytes (a cache line), so that
+/// vector loads of whole rows never straddle two rows' worth of lines.
+const STRIDE_ALIGN: usize = 64;
+
+/// What can go wrong when making a picture.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum PictureError {
+    /// Width or height is zero.
+    #[error("picture size {width}x{height} is empty: width and height must be at least 1")]
+    Empty {
+        /// Requested width.
+        width: usize,
+        /// Requested height.
+        height: usize,
+    },
+    /// Width or height is above [`MAX_DIMENSION`].
+    #[error("picture size {width}x{height} exceeds the maximum of {max}x{max}")]
+    TooLarge {
+        /// Requested width.
+        width: usize,
+        /// Requested height.
+        height: usize,
+        /// The limit, [`MAX_DIMENSION`].
+        max: usize,
+    },
+    /// The border is wider than [`MAX_PAD`].
+    #[error("plane border of {pad} pixels exceeds the maximum of {max}")]
+    PadTooLarge {
+        /// Requested border.
+        pad: usize,
+        /// The limit, [`MAX_PAD`].
+        max: usize,
+    },
+    /// A packed buffer does not hold exactly `width * height` samples.
+    #[error("a {width}x{height} plane needs {expected} bytes, got {actual}")]
+    DataLength {
+        /// Plane width.
+        width: usize,
+        /// Plane height.
+        height: usize,
+        /// `width * height`.
+        expected: usize,
+        /// Length of the buffer given.
+        actual: usize,
+    },
+    /// Planes given to [`Frame::from_planes`] do not form a 4:2:0 frame.
+    #[error(
+        "a {width}x{height} 4:2:0 frame needs {cw}x{ch} chroma planes, got {uw}x{uh} and {vw}x{vh}"
+    )]
+    ChromaSize {
+        /// Luma width.
+        width: usize,
+        /// Luma height.
+        height: usize,
+        /// Expected chroma width, `ceil(width / 2)`.
+        cw: usize,
+        /// Expected chroma height, `ceil(height / 2)`.
+        ch: usize,
+        /// U width given.
+        uw: usize,
+        /// U height given.
+        uh: usize,
+        /// V width given.
+        vw: usize,
+        /// V height given.
+        vh: usize,
+    },
+}
+
+/// Checks a picture size against the limits, before anything is allocated.
+pub fn check_size(width: usize, height: usize) -> Result<(), PictureError> {
+    if width == 0 || height == 0 {
+        return Err(PictureError::Empty { width, height });
+    }
+    if width > MAX_DIMENSION || height > MAX_DIMENSION {
+        return Err(PictureError::TooLarge {
+            width,
+            height,
+            max: MAX_DIMENSION,
+        });
+    }
+    Ok(())
+}
+
+/// One 8-bit sample plane with a replicated border.
+///
+/// ```
+/// use mocomp_codec::picture::Plane;
+/// let mut p = Plane::new(4, 3).unwrap();
+/// p.row_mut(0).copy_from_slice(&[1, 2, 3, 4]);
+/// p.extend_border();
+/// assert_eq!(p.get(3, 0), 4);
+/// // Outside the picture, the border repeats the nearest edge pixel.
+/// assert_eq!(p.at(-5, -2), 1);
+/// assert_eq!(p.pixel_clamped(1000, -1000), 4);
+/// ```
+#[derive(Clone)]
+pub struct Plane {
+    width: usize,
+    height: usize,
+    pad: usize,
+    stride: usize,
+    data: Vec<u8>,
+}
+
+impl Plane {
+    /// Border of planes made by [`Plane::new`] and of luma in [`Frame::new`]:
+    /// enough for a 64-pixel motion vector margin beyond a 16-pixel block
+    /// rounded up to a macroblock, plus an 8-tap interpolation filter.
+    pub const DEFAULT_PAD: usize = 96;
+
+    /// A zero-filled plane with the default border.
+    pub fn new(width: usize, height: usize) -> Result<Plane, PictureError> {
+        Plane::with_padding(width, height, Plane::DEFAULT_PAD)
+    }
+
+    /// A zero-filled plane with a border of `pad` pixels on every side.
+    pub fn with_padding(width: usize, height: usize, pad: usize) -> Result<Plane, PictureError> {
+        check_size(width, height)?;
+        if pad > MAX_PAD {
+            return Err(PictureError::PadTooLarge { pad, max: MAX_PAD });
+        }
+        let stride = (width + 2 * pad).div_ceil(STRIDE_ALIGN) * STRIDE_ALIGN;
+        let rows = height + 2 * pad;
+        Ok(Plane {
+            width,
+            height,
+            pad,
+            stride,
+            data: vec![0; stride * rows],
+        })
+    }
+
+    /// A plane filled with one value (border included).
+    pub fn filled(width: usize, height: usize, value: u8) -> Result<Plane, PictureError> {
+        let mut p = Plane::new(width, height)?;
+        p.data.fill(value);
+        Ok(p)
+    }
+
+    /// A plane from `width * height` packed samples, rows top to bottom.
+    pub fn from_packed(width: usize, height: usize, samples: &[u8]) -> Result<Plane, PictureError> {
+        check_size(width, height)?;
+        if samples.len() != width * height {
+            return Err(PictureError::DataLength {
+                width,
+                height,
+                expected: width * height,
+                actual: samples.len(),
+            });
+        }
+        let mut p = Plane::new(width, height)?;
+        for (dst, src) in p.rows_mut().zip(samples.chunks_exact(width)) {
+            dst.copy_from_slice(src);
+        }
+        p.extend_border();
+        Ok(p)
+    }
+
+    /// A plane whose pixel (x, y) is `f(x, y)`, border extended.
+    pub fn from_fn(
+        width: usize,
+        height: usize,
+        mut f: impl FnMut(usize, usize) -> u8,
+    ) -> Result<Plane, PictureError> {
+        let mut p = Plane::new(width, height)?;
+        for (y, row) in p.rows_mut().enumerate() {
+            for (x, s) in row.iter_mut().enumerate() {
+                *s = f(x, y);
+            }
+        }
+        p.extend_border();
+        Ok(p)
+    }
+
+    /// Visible width in pixels.
+    #[inline]
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Visible height in pixels.
+    #[inline]
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// Border width on each side, in pixels.
+    #[inline]
+    pub fn pad(&self) -> usize {
+        self.pad
+    }
+
+    /// Distance in bytes between vertically adjacent samples.
+    #[inline]
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+
+    /// The whole buffer, border included; pixel (x, y) is at
+    /// `self.index(x, y)`.
+    #[inline]
+    pub fn data(&self) -> &[u8] {
+        &self.data
+    }
+
+    /// The whole buffer, mutable. Call [`Plane::extend_border`] after writing
+    /// visible pixels.
+    #[inline]
+    pub fn data_mut(&mut self) -> &mut [u8] {
+        &mut self.data
+    }
+
+    /// Buffer index of pixel (x, y); valid for `-pad <= x < width + pad` and
+    /// `-pad <= y < height + pad`.
+    #[inline]
+    pub fn index(&self, x: isize, y: isize) -> usize {
+        debug_assert!(self.in_padded(x, y), "({x}, {y}) outside the padded plane");
+        let p = self.pad as isize;
+        ((y + p) as usize) * self.stride + (x + p) as usize
+    }
+
+    /// Whether (x, y) lies inside the picture or its border.
+    #[inline]
+    pub fn in_padded(&self, x: isize, y: isize) -> bool {
+        let p = self.pad as isize;
+        x >= -p && y >= -p && x < self.width as isize + p && y < self.height as isize + p
+    }
+
+    /// The visible pixels of row `y`.
+    #[inline]
+    pub fn row(&self, y: usize) -> &[u8] {
+        assert!(y < self.height, "row {y} of a plane of height {}", self.height);
+        let start = (y + self.pad) * self.stride + self.pad;
+        &self.data[start..start + self.width]
+    }
+
+    /// The visible pixels of row `y`, mutable.
+    #[inline]
+    pub fn row_mut(&mut self, y: usize) -> &mut [u8] {
+        assert!(y < self.height, "row {y} of a plane of height {}", self.height);
+        let start = (y + self.pad) * self.stride + self.pad;
+        &mut self.data[start..start + self.width]
+    }
+
+    /// Row `y` (which may lie in the border, `-pad <= y < height + pad`)
+    /// including its left and right borders: element `pad + x` is pixel x.
+    #[inline]
+    pub fn padded_row(&self, y: isize) -> &[u8] {
+        let start = self.index(-(self.pad as isize), y);
+        &self.data[start..start + self.width + 2 * self.pad]
+    }
+
+    /// The visible rows, top to bottom.
+    pub fn rows(&self) -> impl ExactSizeIterator<Item = &[u8]> + '_ {
+        let (pad, w) = (self.pad, self.width);
+        self.data[pad * self.stride..]
+            .chunks_exact(self.stride)
+            .take(self.height)
+            .map(move |r| &r[pad..pad + w])
+    }
+
+    /// The visible rows, top to bottom, mutable.
+    pub fn rows_mut(&mut self) -> impl ExactSizeIterator<Item = &mut [u8]> + '_ {
+        let (pad, w, h) = (self.pad, self.width, self.height);
+        self.data[pad * self.stride..]
+            .chunks_exact_mut(self.stride)
+            .take(h)
+            .map(move |r| &mut r[pad..pad + w])
+    }
+
+    /// Pixel (x, y) inside the picture.
+    #[inline]
+    pub fn get(&self, x: usize, y: usize) -> u8 {
+        self.row(y)[x]
+    }
+
+    /// Sets pixel (x, y) inside the picture (the border is not updated).
+    #[inline]
+    pub fn set(&mut self, x: usize, y: usize, value: u8) {
+        self.row_mut(y)[x] = value;
+    }
+
+    /// Pixel (x, y) read from the padded buffer: inside the picture or its
+    /// border. Panics beyond the border.
+    #[inline]
+    pub fn at(&self, x: isize, y: isize) -> u8 {
+        assert!(self.in_padded(x, y), "({x}, {y}) outside the padded plane");
+        self.data[self.index(x, y)]
+    }
+
+    /// Pixel (x, y) with coordinates clamped to the picture: any (x, y),
+    /// however far outside, reads the nearest edge pixel. Does not depend on
+    /// the border being extended.
+    #[inline]
+    pub fn pixel_clamped(&self, x: isize, y: isize) -> u8 {
+        let xc = x.clamp(0, self.width as isize - 1) as usize;
+        let yc = y.clamp(0, self.height as isize - 1) as usize;
+        self.get(xc, yc)
+    }
+
+    /// Replicates the edge pixels into the border: left and right first, then
+    /// the top and bottom rows (corners take the corner pixel).
+    pub fn extend_border(&mut self) {
+        let (pad, w, h, stride) = (self.pad, self.width, self.height, self.stride);
+        if pad == 0 {
+            return;
+        }
+        for row in self.data[pad * stride..(pad + h) * stride].chunks_exact_mut(stride) {
+            let (left, right) = (row[pad], row[pad + w - 1]);
+            row[..pad].fill(left);
+            row[pad + w..pad + w + pad].fill(right);
+        }
+        let row_len = w + 2 * pad;
+        let (top, rest) = self.data.split_at_mut(pad * stride);
+        let first = &rest[..row_len];
+        for r in top.chunks_exact_mut(stride) {
+            r[..row_len].copy_from_slice(first);
+        }
+        let (above, bottom) = self.data.split_at_mut((pad + h) * stride);
+        let last = &above[(pad + h - 1) * stride..(pad + h - 1) * stride + row_len];
+        for r in bottom.chunks_exact_mut(stride) {
+            r[..row_len].copy_from_slice(last);
+        }
+    }
+
+    /// Sets every pixel, border included.
+    pub fn fill(&mut self, value: u8) {
+        self.data.fill(value);
+    }
+
+    /// The visible pixels packed row after row (`width * height` bytes).
+    pub fn to_packed(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(self.width * self.height);
+        for row in self.rows() {
+            out.extend_from_slice(row);
+        }
+        out
+    }
+
+    /// Copies the visible pixels of `src` (same size) and extends the border.
+    pub fn copy_from(&mut self, src: &Plane) {
+        assert!(
+            self.width == src.width && self.height == src.height,
+            "copy_from: {}x{} into {}x{}",
+            src.width,
+            src.height,
+            self.width,
+            self.height
+        );
+        for (d, s) in self.rows_mut().zip(src.rows()) {
+            d.copy_from_slice(s);
+        }
+        self.extend_border();
+    }
+}
+
+/// Planes are equal when their sizes and visible pixels are; the border and
+/// the stride do not count.
+impl PartialEq for Plane {
+    fn eq(&self, other: &Plane) -> bool {
+        self.width == other.width
+            && self.height == other.height
+            && self.rows().zip(other.rows()).all(|(a, b)| a == b)
+    }
+}
+
+impl Eq for Plane {}
+
+impl fmt::Debug for Plane {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "Plane({}x{}, pad {})", self.width, self.height, self.pad)
+    }
+}
+
+/// An 8-bit 4:2:0 frame: luma `width x height`, two chroma planes of
+/// `ceil(width / 2) x ceil(height / 2)`.
+///
+/// ```
+/// use mocomp_codec::picture::Frame;
+/// let f = Frame::new(5, 3).unwrap();
+/// assert_eq!((f.u().width(), f.u().height()), (3, 2));
+/// assert!(Frame::new(0, 10).is_err());
+/// assert!(Frame::new(100_000, 10).is_err());
+/// ```
+#[derive(Clone, PartialEq, Eq)]
+pub struct Frame {
+    planes: [Plane; 3],
+}
+
+impl Frame {
+    /// A black-level-zero frame (all samples 0) with the default borders:
+    /// [`Plane::DEFAULT_PAD`] for luma and half of it for chroma.
+    pub fn new(width: usize, height: usize) -> Result<Frame, PictureError> {
+        Frame::with_padding(width, height, Plane::DEFAULT_PAD)
+    }
+
+    /// A zero-filled frame with `luma_pad` pixels of luma border and
+    /// `ceil(luma_pad / 2)` of chroma border.
+    pub fn with_padding(width: usize, height: usize, luma_pad: usize) -> Result<Frame, PictureError> {
+        check_size(width, height)?;
+        let (cw, ch) = Frame::chroma_size(width, height);
+        let cpad = luma_pad.div_ceil(2);
+        Ok(Frame {
+            planes: [
+                Plane::with_padding(width, height, luma_pad)?,
+                Plane::with_padding(cw, ch, cpad)?,
+                Plane::with_padding(cw, ch, cpad)?,
+            ],
+        })
+    }
+
+    /// A frame with every sample of each plane set to `y`, `u`, `v`.
+    pub fn filled(width: usize, height: usize, y: u8, u: u8, v: u8) -> Result<Frame, PictureError> {
+        let mut f = Frame::new(width, height)?;
+        for (p, value) in f.planes.iter_mut().zip([y, u, v]) {
+            p.fill(value);
+        }
+        Ok(f)
+    }
+
+    /// A frame from three planes, checking the 4:2:0 chroma size.
+    pub fn from_planes(y: Plane, u: Plane, v: Plane) -> Result<Frame, PictureError> {
+        let (width, height) = (y.width(), y.height());
+        let (cw, ch) = Frame::chroma_size(width, height);
+        let fits = |p: &Plane| p.width() == cw && p.height() == ch;
+        if !fits(&u) || !fits(&v) {
+            return Err(PictureError::ChromaSize {
+                width,
+                height,
+                cw,
+                ch,
+                uw: u.width(),
+                uh: u.height(),
+                vw: v.width(),
+                vh: v.height(),
+            });
+        }
+        Ok(Frame { planes: [y, u, v] })
+    }
+
+    /// Chroma plane size of a 4:2:0 frame: `(ceil(w / 2), ceil(h / 2))`.
+    #[inline]
+    pub fn chroma_size(width: usize, height: usize) -> (usize, usize) {
+        (width.div_ceil(2), height.div_ceil(2))
+    }
+
+    /// Luma width.
+    #[inline]
+    pub fn width(&self) -> usize {
+        self.planes[0].width()
+    }
+
+    /// Luma height.
+    #[inline]
+    pub fn height(&self) -> usize {
+        self.planes[0].height()
+    }
+
+    /// The luma plane.
+    #[inline]
+    pub fn y(&self) -> &Plane {
+        &self.planes[0]
+    }
+
+    /// The first chroma plane (Cb).
+    #[inline]
+    pub fn u(&self) -> &Plane {
+        &self.planes[1]
+    }
+
+    /// The second chroma plane (Cr).
+    #[inline]
+    pub fn v(&self) -> &Plane {
+        &self.planes[2]
+    }
+
+    /// Plane `i`: 0 = Y, 1 = U, 2 = V.
+    #[inline]
+    pub fn plane(&self, i: usize) -> &Plane {
+        &self.planes[i]
+    }
+
+    /// Plane `i`, mutable: 0 = Y, 1 = U, 2 = V.
+    #[inline]
+    pub fn plane_mut(&mut self, i: usize) -> &mut Plane {
+        &mut self.planes[i]
+    }
+
+    /// All three planes, Y U V.
+    #[inline]
+    pub fn planes(&self) -> &[Plane; 3] {
+        &self.planes
+    }
+
+    /// All three planes, mutable.
+    #[inline]
+    pub fn planes_mut(&mut self) -> &mut [Plane; 3] {
+        &mut self.planes
+    }
+
+    /// Splits the frame into its Y, U, V planes.
+    pub fn into_planes(self) -> [Plane; 3] {
+        self.planes
+    }
+
+    /// Extends the border of every plane.
+    pub fn extend_borders(&mut self) {
+        for p in &mut self.planes {
+            p.extend_border();
+        }
+    }
+}
+
+impl fmt::Debug for Frame {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "Frame({}x{} 4:2:0)", self.width(), self.height())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ramp(w: usize, h: usize) -> Plane {
+        Plane::from_fn(w, h, |x, y| (x * 7 + y * 13) as u8).unwrap()
+    }
+
+    #[test]
+    fn sizes_are_checked_before_allocation() {
+        assert_eq!(
+            Plane::new(0, 5).unwrap_err(),
+            PictureError::Empty {
+                width: 0,
+                height: 5
+            }
+        );
+        assert!(matches!(
+            Plane::new(MAX_DIMENSION + 1, 1),
+            Err(PictureError::TooLarge { .. })
+        ));
+        // usize::MAX would overflow any size computation: it must be refused first.
+        assert!(Frame::new(usize::MAX, usize::MAX).is_err());
+        assert!(Plane::with_padding(4, 4, MAX_PAD + 1).is_err());
+    }
+
+    #[test]
+    fn odd_and_tiny_sizes() {
+        for (w, h) in [(1, 1), (1, 7), (3, 5), (17, 9)] {
+            let f = Frame::new(w, h).unwrap();
+            assert_eq!((f.u().width(), f.u().height()), (w.div_ceil(2), h.div_ceil(2)));
+            assert_eq!(f.v().width(), f.u().width());
+        }
+    }
+
+    #[test]
+    fn border_replicates_nearest_edge_pixel() {
+        let p = ramp(5, 4);
+        let pad = p.pad() as isize;
+        for y in -pad..4 + pad {
+            for x in -pad..5 + pad {
+                assert_eq!(p.at(x, y), p.pixel_clamped(x, y), "at ({x},{y})");
+            }
+        }
+    }
+
+    #[test]
+    fn padded_row_indexes_match() {
+        let p = ramp(6, 3);
+        let r = p.padded_row(-2);
+        assert_eq!(r.len(), 6 + 2 * p.pad());
+        assert_eq!(r[p.pad() + 4], p.get(4, 0));
+        assert_eq!(p.padded_row(1)[p.pad()..p.pad() + 6], *p.row(1));
+    }
+
+    #[test]
+    fn packed_round_trip_and_length_check() {
+        let data: Vec<u8> = (0..15).collect();
+        let p = Plane::from_packed(5, 3, &data).unwrap();
+        assert_eq!(p.to_packed(), data);
+        assert!(matches!(
+            Plane::from_packed(5, 3, &data[..14]),
+            Err(PictureError::DataLength { expected: 15, actual: 14, .. })
+        ));
+    }
+
+    #[test]
+    fn equality_ignores_border_and_padding() {
+        let a = ramp(7, 5);
+        let mut b = Plane::with_padding(7, 5, 3).unwrap();
+        b.copy_from(&a);
+        assert_eq!(a, b);
+        b.set(6, 4, b.get(6, 4) ^ 1);
+        assert_ne!(a, b);
+    }
+
+    #[test]
+    fn from_planes_checks_chroma_size() {
+        let y = Plane::new(5, 5).unwrap();
+        let good = || Plane::new(3, 3).unwrap();
+        assert!(Frame::from_planes(y.clone(), good(), good()).is_ok());
+        let err = Frame::from_planes(y, Plane::new(2, 3).unwrap(), good()).unwrap_err();
+        assert!(err.to_string().contains("needs 3x3 chroma planes"), "{err}");
+    }
+
+    #[test]
+    fn zero_pad_plane_works() {
+        let mut p = Plane::with_padding(3, 2, 0).unwrap();
+        p.set(2, 1, 9);
+        p.extend_border();
+        assert_eq!(p.pixel_clamped(10, 10), 9);
+    }
+}

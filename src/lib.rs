@@ -1,0 +1,1 @@
+pub use mocomp_codec as codec;

@@ -1,1 +1,23 @@
+//! mocomp: motion estimation, optical flow and motion-compensated video
+//! compression.
+//!
+//! The normative half (pictures, bitstream, motion compensation, decoder) is
+//! the `mocomp-codec` crate, re-exported as [`codec`]; everything an encoder
+//! or analyst chooses lives here. See `ARCHITECTURE.md`.
+//!
+//! ```
+//! use mocomp::codec::Frame;
+//! use mocomp::metrics::FrameQuality;
+//! let a = Frame::filled(32, 32, 90, 128, 128).unwrap();
+//! let b = Frame::filled(32, 32, 92, 128, 128).unwrap();
+//! let q = FrameQuality::measure(&a, &b);
+//! assert!((q.psnr.y - 42.11).abs() < 0.01);
+//! ```
+#![warn(missing_docs)]
+
 pub use mocomp_codec as codec;
+
+pub mod flow;
+pub mod io;
+pub mod metrics;
+pub mod raster;

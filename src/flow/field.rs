@@ -1,0 +1,151 @@
+use ndarray::Array2;
+
+/// A dense 2-D motion field with a validity mask.
+///
+/// `u` is the horizontal and `v` the vertical displacement in pixels, indexed
+/// `[[y, x]]`; a pixel whose motion is unknown (occluded, outside the other
+/// frame, or stored as "unknown" in a `.flo` file) has `valid == false` and
+/// `u = v = 0`. Forward flow from frame 1 to frame 2 means
+/// `frame1(p) ~ frame2(p + w(p))`.
+///
+/// ```
+/// use mocomp::flow::Flow;
+/// let f = Flow::from_fn(4, 3, |x, _y| (x as f32 * 0.5, -1.0));
+/// assert_eq!(f.get(2, 1), (1.0, -1.0));
+/// assert_eq!(f.valid_count(), 12);
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct Flow {
+    u: Array2<f32>,
+    v: Array2<f32>,
+    valid: Array2<bool>,
+}
+
+impl Flow {
+    /// Zero motion everywhere, all valid.
+    pub fn zeros(width: usize, height: usize) -> Flow {
+        Flow::from_uv(
+            Array2::zeros((height, width)),
+            Array2::zeros((height, width)),
+        )
+    }
+
+    /// A field from its components, all valid. Panics if the shapes differ.
+    pub fn from_uv(u: Array2<f32>, v: Array2<f32>) -> Flow {
+        let valid = Array2::from_elem(u.dim(), true);
+        Flow::from_parts(u, v, valid)
+    }
+
+    /// A field from its components and validity mask. Panics if the shapes
+    /// differ. Invalid pixels are set to zero motion.
+    pub fn from_parts(mut u: Array2<f32>, mut v: Array2<f32>, valid: Array2<bool>) -> Flow {
+        assert!(
+            u.dim() == v.dim() && u.dim() == valid.dim(),
+            "flow components of different shapes: u {:?}, v {:?}, valid {:?}",
+            u.dim(),
+            v.dim(),
+            valid.dim()
+        );
+        ndarray::Zip::from(&mut u)
+            .and(&mut v)
+            .and(&valid)
+            .for_each(|u, v, &ok| {
+                if !ok {
+                    *u = 0.0;
+                    *v = 0.0;
+                }
+            });
+        Flow { u, v, valid }
+    }
+
+    /// A field whose motion at (x, y) is `f(x, y)`, all valid.
+    pub fn from_fn(width: usize, height: usize, mut f: impl FnMut(usize, usize) -> (f32, f32)) -> Flow {
+        let mut u = Array2::zeros((height, width));
+        let mut v = Array2::zeros((height, width));
+        for y in 0..height {
+            for x in 0..width {
+                let (a, b) = f(x, y);
+                u[[y, x]] = a;
+                v[[y, x]] = b;
+            }
+        }
+        Flow::from_uv(u, v)
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> usize {
+        self.u.ncols()
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> usize {
+        self.u.nrows()
+    }
+
+    /// Horizontal component, `[[y, x]]`.
+    pub fn u(&self) -> &Array2<f32> {
+        &self.u
+    }
+
+    /// Vertical component, `[[y, x]]`.
+    pub fn v(&self) -> &Array2<f32> {
+        &self.v
+    }
+
+    /// Validity mask, `[[y, x]]`.
+    pub fn valid(&self) -> &Array2<bool> {
+        &self.valid
+    }
+
+    /// Mutable components and mask (keep invalid pixels at zero motion).
+    pub fn parts_mut(&mut self) -> (&mut Array2<f32>, &mut Array2<f32>, &mut Array2<bool>) {
+        (&mut self.u, &mut self.v, &mut self.valid)
+    }
+
+    /// Splits into `(u, v, valid)`.
+    pub fn into_parts(self) -> (Array2<f32>, Array2<f32>, Array2<bool>) {
+        (self.u, self.v, self.valid)
+    }
+
+    /// Motion at (x, y).
+    pub fn get(&self, x: usize, y: usize) -> (f32, f32) {
+        (self.u[[y, x]], self.v[[y, x]])
+    }
+
+    /// Whether the motion at (x, y) is known.
+    pub fn is_valid(&self, x: usize, y: usize) -> bool {
+        self.valid[[y, x]]
+    }
+
+    /// Number of valid pixels.
+    pub fn valid_count(&self) -> usize {
+        self.valid.iter().filter(|&&ok| ok).count()
+    }
+
+    /// Largest motion magnitude over valid pixels (0 if none is valid).
+    pub fn max_magnitude(&self) -> f32 {
+        ndarray::Zip::from(&self.u)
+            .and(&self.v)
+            .and(&self.valid)
+            .fold(0.0f32, |m, &u, &v, &ok| if ok { m.max(u.hypot(v)) } else { m })
+    }
+
+    /// Mean motion magnitude over valid pixels (0 if none is valid).
+    pub fn mean_magnitude(&self) -> f64 {
+        let (sum, n) = ndarray::Zip::from(&self.u)
+            .and(&self.v)
+            .and(&self.valid)
+            .fold((0.0f64, 0usize), |(s, n), &u, &v, &ok| {
+                if ok {
+                    (s + f64::from(u.hypot(v)), n + 1)
+                } else {
+                    (s, n)
+                }
+            });
+        if n == 0 {
+            0.0
+        } else {
+            sum / n as f64
+        }
+    }
+}

@@ -1,0 +1,10 @@
+//! Dense motion as float fields: the [`Flow`] type used everywhere, and
+//! warping by a flow.
+//!
+//! Convention (used by every function of mocomp): a forward flow `w` from
+//! frame 1 to frame 2 means `frame1(p) ~ frame2(p + w(p))`.
+
+mod field;
+pub mod warp;
+
+pub use field::Flow;

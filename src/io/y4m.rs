@@ -1,0 +1,540 @@
+//! YUV4MPEG2 (`.y4m`) reading and writing, frame by frame in constant memory.
+//!
+//! Frames are decoded by the [`y4m`] crate. The header is first read and
+//! checked here, so that every 8-bit 4:2:0 variant ffmpeg writes is accepted
+//! (`C420`, `C420jpeg`, `C420mpeg2`, `C420paldv`, no `C` tag, `Ip`, `I?`, any
+//! `A` tag, `X` extensions), anything else is refused with a message naming
+//! what was found and how to convert it, and the picture size is checked
+//! against [`MAX_DIMENSION`](crate::codec::MAX_DIMENSION) before any buffer
+//! is allocated. A frame cut short by the end of the input is an error naming
+//! the frame, never mistaken for the end of the stream.
+//!
+//! ```
+//! use mocomp::codec::Frame;
+//! use mocomp::io::y4m::{Y4mInfo, Y4mReader, Y4mWriter};
+//!
+//! let info = Y4mInfo::new(6, 4, (30, 1));
+//! let mut bytes = Vec::new();
+//! let mut writer = Y4mWriter::new(&mut bytes, &info).unwrap();
+//! writer.write_frame(&Frame::filled(6, 4, 100, 128, 128).unwrap()).unwrap();
+//! writer.finish().unwrap();
+//!
+//! let mut reader = Y4mReader::new(&bytes[..]).unwrap();
+//! assert_eq!(reader.info().fps, (30, 1));
+//! let frame = reader.read_frame().unwrap().unwrap();
+//! assert_eq!(frame.y().get(5, 3), 100);
+//! assert!(reader.read_frame().unwrap().is_none());
+//! ```
+
+use std::fmt;
+use std::io::{self, BufRead, BufReader, Cursor, Read, Write};
+use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+
+use crate::codec::picture::{check_size, Frame, PictureError};
+
+/// The conversion a user can run to get a stream mocomp reads.
+pub const CONVERT_HINT: &str = "ffmpeg -i in -pix_fmt yuv420p -f yuv4mpegpipe out.y4m";
+
+/// Longest header line accepted (as the `y4m` crate and ffmpeg allow).
+const MAX_HEADER_LEN: usize = 1024;
+
+const MAGIC: &[u8] = b"YUV4MPEG2 ";
+
+/// Chroma sample position of a 4:2:0 stream (the `C` tag). The samples are
+/// the same; only their siting differs, and it is kept when writing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ChromaSiting {
+    /// `C420jpeg`: centred between luma samples (JPEG / MPEG-1). ffmpeg's
+    /// `yuv420p` default; also what `C420` and a missing `C` tag mean.
+    #[default]
+    Jpeg,
+    /// `C420`: written as the plain tag, read the same as `Jpeg`.
+    Plain,
+    /// `C420mpeg2`: co-sited horizontally, centred vertically (MPEG-2, H.264).
+    Mpeg2,
+    /// `C420paldv`: PAL DV siting.
+    Paldv,
+}
+
+impl ChromaSiting {
+    /// The header tag, e.g. `C420jpeg`.
+    pub fn tag(self) -> &'static str {
+        match self {
+            ChromaSiting::Jpeg => "C420jpeg",
+            ChromaSiting::Plain => "C420",
+            ChromaSiting::Mpeg2 => "C420mpeg2",
+            ChromaSiting::Paldv => "C420paldv",
+        }
+    }
+
+    fn colorspace(self) -> y4m::Colorspace {
+        match self {
+            ChromaSiting::Jpeg => y4m::Colorspace::C420jpeg,
+            ChromaSiting::Plain => y4m::Colorspace::C420,
+            ChromaSiting::Mpeg2 => y4m::Colorspace::C420mpeg2,
+            ChromaSiting::Paldv => y4m::Colorspace::C420paldv,
+        }
+    }
+}
+
+/// What a Y4M stream header says.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Y4mInfo {
+    /// Luma width.
+    pub width: usize,
+    /// Luma height.
+    pub height: usize,
+    /// Frame rate as numerator, denominator (`F30000:1001`).
+    pub fps: (u64, u64),
+    /// Pixel aspect ratio (`A1:1`); `(0, 0)` means unknown, as in `A0:0`.
+    pub aspect: (u64, u64),
+    /// Chroma siting from the `C` tag.
+    pub siting: ChromaSiting,
+    /// The `X` extension tags, without the `X` (e.g. `COLORRANGE=LIMITED`),
+    /// kept in order so that writing preserves them.
+    pub extensions: Vec<String>,
+}
+
+impl Y4mInfo {
+    /// A header for a `width x height` 4:2:0 stream at `fps`, square pixels,
+    /// centred chroma.
+    pub fn new(width: usize, height: usize, fps: (u64, u64)) -> Y4mInfo {
+        Y4mInfo {
+            width,
+            height,
+            fps,
+            aspect: (1, 1),
+            siting: ChromaSiting::Jpeg,
+            extensions: Vec::new(),
+        }
+    }
+
+    /// Frames per second as a float.
+    pub fn fps_f64(&self) -> f64 {
+        self.fps.0 as f64 / self.fps.1 as f64
+    }
+
+    /// The `XCOLORRANGE=` value, if present (`FULL` or `LIMITED`).
+    pub fn color_range(&self) -> Option<&str> {
+        self.extensions
+            .iter()
+            .find_map(|x| x.strip_prefix("COLORRANGE="))
+    }
+
+    /// Bytes of one frame's samples (Y, U, V; without the `FRAME` line).
+    pub fn frame_bytes(&self) -> u64 {
+        let (cw, ch) = Frame::chroma_size(self.width, self.height);
+        (self.width * self.height + 2 * cw * ch) as u64
+    }
+
+    /// Parses a header line (without its newline), checking everything mocomp
+    /// needs before a byte of frame data is read or allocated.
+    pub fn parse(line: &[u8]) -> Result<Y4mInfo, Y4mError> {
+        let rest = line.strip_prefix(MAGIC).ok_or(Y4mError::NotY4m)?;
+        let mut width = None;
+        let mut height = None;
+        let mut fps = (25, 1); // what ffmpeg assumes when F is missing
+        let mut aspect = (0, 0);
+        let mut siting = ChromaSiting::Jpeg;
+        let mut extensions = Vec::new();
+        for token in rest.split(|&b| b == b' ').filter(|t| !t.is_empty()) {
+            let text = String::from_utf8_lossy(token);
+            let value = &text[1..];
+            match token[0] {
+                b'W' => width = Some(parse_uint(&text, value)?),
+                b'H' => height = Some(parse_uint(&text, value)?),
+                b'F' => {
+                    fps = parse_ratio(&text, value)?;
+                    if fps.0 == 0 || fps.1 == 0 {
+                        return Err(Y4mError::BadHeader(format!(
+                            "frame rate '{text}' must have a non-zero numerator and denominator"
+                        )));
+                    }
+                }
+                b'A' => aspect = parse_ratio(&text, value)?,
+                b'I' => match value {
+                    "p" | "?" => {}
+                    "t" | "b" | "m" => {
+                        let kind = match value {
+                            "t" => "interlaced, top field first",
+                            "b" => "interlaced, bottom field first",
+                            _ => "mixed progressive and interlaced",
+                        };
+                        return Err(Y4mError::Unsupported {
+                            found: text.into_owned(),
+                            what: kind.to_owned(),
+                        });
+                    }
+                    _ => return Err(Y4mError::BadHeader(format!("unknown interlacing tag '{text}'"))),
+                },
+                b'C' => siting = parse_colorspace(value)?,
+                b'X' => extensions.push(value.to_owned()),
+                _ => {} // unknown tags are ignored, as the format asks
+            }
+        }
+        let width = width.ok_or_else(|| Y4mError::BadHeader("no width (W) tag".into()))?;
+        let height = height.ok_or_else(|| Y4mError::BadHeader("no height (H) tag".into()))?;
+        check_size(width, height)?;
+        Ok(Y4mInfo {
+            width,
+            height,
+            fps,
+            aspect,
+            siting,
+            extensions,
+        })
+    }
+}
+
+fn parse_uint(token: &str, value: &str) -> Result<usize, Y4mError> {
+    // Digits only: the size check must see the number, not an overflow.
+    if value.is_empty() || value.len() > 12 || !value.bytes().all(|b| b.is_ascii_digit()) {
+        return Err(Y4mError::BadHeader(format!("'{token}' is not a valid size")));
+    }
+    value
+        .parse()
+        .map_err(|_| Y4mError::BadHeader(format!("'{token}' is not a valid size")))
+}
+
+fn parse_ratio(token: &str, value: &str) -> Result<(u64, u64), Y4mError> {
+    let bad = || Y4mError::BadHeader(format!("'{token}' is not a ratio like 30000:1001"));
+    let (n, d) = value.split_once(':').ok_or_else(bad)?;
+    let digits = |s: &str| !s.is_empty() && s.len() <= 12 && s.bytes().all(|b| b.is_ascii_digit());
+    if !digits(n) || !digits(d) {
+        return Err(bad());
+    }
+    Ok((n.parse().map_err(|_| bad())?, d.parse().map_err(|_| bad())?))
+}
+
+fn parse_colorspace(value: &str) -> Result<ChromaSiting, Y4mError> {
+    let siting = match value {
+        "420jpeg" => ChromaSiting::Jpeg,
+        "420" => ChromaSiting::Plain,
+        "420mpeg2" => ChromaSiting::Mpeg2,
+        "420paldv" => ChromaSiting::Paldv,
+        other => {
+            let subsampling = if other.starts_with("mono") {
+                "monochrome"
+            } else if other.starts_with("444alpha") {
+                "4:4:4 with alpha"
+            } else if other.starts_with("444") {
+                "4:4:4"
+            } else if other.starts_with("422") {
+                "4:2:2"
+            } else if other.starts_with("420") {
+                "4:2:0"
+            } else if other.starts_with("411") {
+                "4:1:1"
+            } else {
+                "an unknown colour space"
+            };
+            let depth = other
+                .rsplit_once('p')
+                .and_then(|(_, bits)| bits.parse::<u32>().ok())
+                .or_else(|| other.strip_prefix("mono").and_then(|b| b.parse().ok()));
+            let what = match depth {
+                Some(bits) => format!("{subsampling} at {bits} bits per sample"),
+                None => subsampling.to_owned(),
+            };
+            return Err(Y4mError::Unsupported {
+                found: format!("C{other}"),
+                what,
+            });
+        }
+    };
+    Ok(siting)
+}
+
+/// What can go wrong reading or writing Y4M.
+#[derive(Debug, thiserror::Error)]
+pub enum Y4mError {
+    /// The underlying reader or writer failed.
+    #[error("{0}")]
+    Io(#[from] io::Error),
+    /// Nothing to read.
+    #[error("empty input: not a Y4M stream")]
+    Empty,
+    /// The input does not start with `YUV4MPEG2 `.
+    #[error("not a Y4M stream (it does not start with 'YUV4MPEG2 ')")]
+    NotY4m,
+    /// No newline within the first 1024 bytes.
+    #[error("Y4M header longer than {MAX_HEADER_LEN} bytes or without a newline")]
+    HeaderTooLong,
+    /// A malformed header tag.
+    #[error("bad Y4M header: {0}")]
+    BadHeader(String),
+    /// A well-formed stream mocomp does not handle.
+    #[error("unsupported Y4M stream: {found} ({what}); mocomp reads 8-bit 4:2:0 progressive video, convert with: {CONVERT_HINT}")]
+    Unsupported {
+        /// The tag found, e.g. `C422`.
+        found: String,
+        /// What it means, e.g. `4:2:2`.
+        what: String,
+    },
+    /// The header's picture size is out of range.
+    #[error("bad Y4M header: {0}")]
+    Size(#[from] PictureError),
+    /// The input ends inside a frame.
+    #[error("frame {frame} is truncated: the input ends after {got} of its {expected} bytes")]
+    Truncated {
+        /// Index of the frame, from 0.
+        frame: usize,
+        /// Bytes of it present, `FRAME` line included.
+        got: u64,
+        /// Bytes a whole frame takes, with a bare `FRAME` line.
+        expected: u64,
+    },
+    /// Something other than a `FRAME` line where a frame should start.
+    #[error("frame {frame}: expected a 'FRAME' line, found something else")]
+    BadFrameHeader {
+        /// Index of the frame, from 0.
+        frame: usize,
+    },
+    /// A frame given to the writer does not match the stream size.
+    #[error("frame is {got_w}x{got_h}, the stream is {width}x{height}")]
+    FrameSize {
+        /// Stream width.
+        width: usize,
+        /// Stream height.
+        height: usize,
+        /// Frame width.
+        got_w: usize,
+        /// Frame height.
+        got_h: usize,
+    },
+}
+
+/// Counts the bytes handed out, so that the end of the input inside a frame
+/// can be told from the end between frames.
+struct Counting<R> {
+    inner: R,
+    count: Arc<AtomicU64>,
+}
+
+impl<R: Read> Read for Counting<R> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.count.fetch_add(n as u64, Ordering::Relaxed);
+        Ok(n)
+    }
+}
+
+type Inner<R> = std::io::Chain<Cursor<Vec<u8>>, Counting<BufReader<R>>>;
+
+/// Reads a Y4M stream frame by frame; one frame's worth of memory whatever
+/// the stream's length.
+pub struct Y4mReader<R: Read> {
+    decoder: y4m::Decoder<Inner<R>>,
+    info: Y4mInfo,
+    consumed: Arc<AtomicU64>,
+    frames_read: usize,
+}
+
+impl Y4mReader<Box<dyn Read + Send>> {
+    /// Opens a Y4M file, or standard input for `-`.
+    pub fn open(path: &Path) -> Result<Self, Y4mError> {
+        Y4mReader::new(super::open_input(path)?)
+    }
+}
+
+impl<R: Read> Y4mReader<R> {
+    /// Reads and checks the stream header.
+    pub fn new(reader: R) -> Result<Self, Y4mError> {
+        let mut reader = BufReader::new(reader);
+        let mut line = Vec::with_capacity(128);
+        (&mut reader)
+            .take(MAX_HEADER_LEN as u64)
+            .read_until(b'\n', &mut line)?;
+        if line.is_empty() {
+            return Err(Y4mError::Empty);
+        }
+        if line.last() != Some(&b'\n') {
+            return Err(if line.starts_with(MAGIC) || MAGIC.starts_with(&line) {
+                Y4mError::HeaderTooLong
+            } else {
+                Y4mError::NotY4m
+            });
+        }
+        let info = Y4mInfo::parse(&line[..line.len() - 1])?;
+        let consumed = Arc::new(AtomicU64::new(0));
+        let counted = Counting {
+            inner: reader,
+            count: consumed.clone(),
+        };
+        // The header was checked above; the decoder re-reads it from memory.
+        let limits = y4m::Limits {
+            bytes: info.frame_bytes() as usize,
+        };
+        let decoder = y4m::Decoder::new_with_limits(Cursor::new(line).chain(counted), limits)
+            .map_err(|e| match e {
+                y4m::Error::IoError(e) => Y4mError::Io(e),
+                other => Y4mError::BadHeader(other.to_string()),
+            })?;
+        Ok(Y4mReader {
+            decoder,
+            info,
+            consumed,
+            frames_read: 0,
+        })
+    }
+
+    /// The stream header.
+    pub fn info(&self) -> &Y4mInfo {
+        &self.info
+    }
+
+    /// How many frames have been read so far.
+    pub fn frames_read(&self) -> usize {
+        self.frames_read
+    }
+
+    /// The next frame, or `None` at the end of the stream.
+    pub fn read_frame(&mut self) -> Result<Option<Frame>, Y4mError> {
+        let mut frame = Frame::new(self.info.width, self.info.height)?;
+        Ok(self.read_frame_into(&mut frame)?.then_some(frame))
+    }
+
+    /// Reads the next frame into `frame` (of the stream's size), reusing its
+    /// buffers; returns `false` at the end of the stream.
+    pub fn read_frame_into(&mut self, frame: &mut Frame) -> Result<bool, Y4mError> {
+        if frame.width() != self.info.width || frame.height() != self.info.height {
+            return Err(Y4mError::FrameSize {
+                width: self.info.width,
+                height: self.info.height,
+                got_w: frame.width(),
+                got_h: frame.height(),
+            });
+        }
+        let start = self.consumed.load(Ordering::Relaxed);
+        let index = self.frames_read;
+        let data = match self.decoder.read_frame() {
+            Ok(data) => data,
+            Err(y4m::Error::EOF) => {
+                let got = self.consumed.load(Ordering::Relaxed) - start;
+                if got == 0 {
+                    return Ok(false);
+                }
+                return Err(Y4mError::Truncated {
+                    frame: index,
+                    got,
+                    expected: self.info.frame_bytes() + 6,
+                });
+            }
+            Err(y4m::Error::IoError(e)) => return Err(Y4mError::Io(e)),
+            Err(_) => return Err(Y4mError::BadFrameHeader { frame: index }),
+        };
+        let planes = [data.get_y_plane(), data.get_u_plane(), data.get_v_plane()];
+        for (plane, src) in frame.planes_mut().iter_mut().zip(planes) {
+            let w = plane.width();
+            for (dst, src_row) in plane.rows_mut().zip(src.chunks_exact(w)) {
+                dst.copy_from_slice(src_row);
+            }
+            plane.extend_border();
+        }
+        self.frames_read += 1;
+        Ok(true)
+    }
+
+    /// Reads the whole stream into memory (for small inputs and tests).
+    pub fn read_all(mut self) -> Result<Vec<Frame>, Y4mError> {
+        let mut frames = Vec::new();
+        while let Some(f) = self.read_frame()? {
+            frames.push(f);
+        }
+        Ok(frames)
+    }
+}
+
+impl<R: Read> Iterator for Y4mReader<R> {
+    type Item = Result<Frame, Y4mError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        self.read_frame().transpose()
+    }
+}
+
+impl<R: Read> fmt::Debug for Y4mReader<R> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Y4mReader")
+            .field("info", &self.info)
+            .field("frames_read", &self.frames_read)
+            .finish()
+    }
+}
+
+/// Writes a Y4M stream frame by frame, keeping the header's frame rate,
+/// aspect, chroma siting and `X` tags.
+pub struct Y4mWriter<W: Write> {
+    encoder: y4m::Encoder<W>,
+    info: Y4mInfo,
+    packed: [Vec<u8>; 3],
+}
+
+impl<W: Write> Y4mWriter<W> {
+    /// Writes the stream header.
+    pub fn new(writer: W, info: &Y4mInfo) -> Result<Self, Y4mError> {
+        check_size(info.width, info.height)?;
+        let fps = y4m::Ratio::new(info.fps.0 as usize, info.fps.1 as usize);
+        let mut builder = y4m::EncoderBuilder::new(info.width, info.height, fps)
+            .with_colorspace(info.siting.colorspace())
+            .with_pixel_aspect(y4m::Ratio::new(info.aspect.0 as usize, info.aspect.1 as usize));
+        for x in &info.extensions {
+            let ext = y4m::VendorExtensionString::new(x.as_bytes().to_vec()).map_err(|_| {
+                Y4mError::BadHeader(format!("extension tag 'X{x}' contains a space"))
+            })?;
+            builder = builder.append_vendor_extension(ext);
+        }
+        let encoder = builder.write_header(writer).map_err(map_write_error)?;
+        Ok(Y4mWriter {
+            encoder,
+            info: info.clone(),
+            packed: Default::default(),
+        })
+    }
+
+    /// The stream header being written.
+    pub fn info(&self) -> &Y4mInfo {
+        &self.info
+    }
+
+    /// Appends one frame.
+    pub fn write_frame(&mut self, frame: &Frame) -> Result<(), Y4mError> {
+        if frame.width() != self.info.width || frame.height() != self.info.height {
+            return Err(Y4mError::FrameSize {
+                width: self.info.width,
+                height: self.info.height,
+                got_w: frame.width(),
+                got_h: frame.height(),
+            });
+        }
+        for (buf, plane) in self.packed.iter_mut().zip(frame.planes()) {
+            buf.clear();
+            for row in plane.rows() {
+                buf.extend_from_slice(row);
+            }
+        }
+        let data = y4m::Frame::new(
+            [&self.packed[0], &self.packed[1], &self.packed[2]],
+            None,
+        );
+        self.encoder.write_frame(&data).map_err(map_write_error)
+    }
+
+    /// Flushes and returns the underlying writer.
+    pub fn finish(self) -> Result<(), Y4mError> {
+        // y4m::Encoder does not give its writer back; frames are written
+        // through to it, so dropping it loses nothing once `W` is flushed by
+        // its owner (OutputFile::commit, or a BufWriter's drop).
+        drop(self.encoder);
+        Ok(())
+    }
+}
+
+fn map_write_error(e: y4m::Error) -> Y4mError {
+    match e {
+        y4m::Error::IoError(e) => Y4mError::Io(e),
+        other => Y4mError::Io(io::Error::other(other.to_string())),
+    }
+}

@@ -17,7 +17,9 @@
 
 pub use mocomp_codec as codec;
 
+pub mod cli;
 pub mod flow;
 pub mod io;
 pub mod metrics;
 pub mod raster;
+pub mod synth;

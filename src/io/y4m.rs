@@ -136,7 +136,7 @@ impl Y4mInfo {
         let mut width = None;
         let mut height = None;
         let mut fps = (25, 1); // what ffmpeg assumes when F is missing
-        let mut aspect = (0, 0);
+        let mut aspect = (1, 1); // no A tag: square pixels (the y4m crate omits A1:1)
         let mut siting = ChromaSiting::Jpeg;
         let mut extensions = Vec::new();
         for token in rest.split(|&b| b == b' ').filter(|t| !t.is_empty()) {

@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# Regenerates the real test pair and the reference figures the tests compare
+# mocomp's metrics against, computed by independent implementations:
+#   - PSNR by ffmpeg's psnr filter (per-frame psnr_y/u/v from its stats file,
+#     and its summary line, the PSNR of the frame-averaged MSE);
+#   - SSIM by scikit-image's structural_similarity with Wang et al.'s
+#     parameters (Gaussian window sigma 1.5, population covariance, L = 255).
+# Needs ffmpeg and Python with numpy and scikit-image. Run from the repository
+# root with the peers' data folder as $1 (default ../shared/data).
+set -euo pipefail
+DATA=${1:-../shared/data}
+S=samples
+ffmpeg -v error -y -i "$DATA/tree_qvga.y4m" -vf crop=176:144:72:48 -frames:v 6 \
+  -pix_fmt yuv420p -f yuv4mpegpipe "$S/tree_qcif.y4m"
+TMP=$(mktemp -d); trap 'rm -rf "$TMP"' EXIT
+ffmpeg -v error -y -i "$S/tree_qcif.y4m" -c:v mpeg4 -q:v 8 -bf 0 -flags:v +bitexact \
+  -fflags +bitexact -f m4v "$TMP/t.m4v"
+ffmpeg -v error -y -i "$TMP/t.m4v" -pix_fmt yuv420p -f yuv4mpegpipe "$S/tree_qcif_mpeg4.y4m"
+summary=$(ffmpeg -hide_banner -nostdin -i "$S/tree_qcif_mpeg4.y4m" -i "$S/tree_qcif.y4m" \
+  -lavfi "psnr=stats_file=$TMP/psnr.log" -f null - 2>&1 | grep -o 'PSNR y:.*')
+python3 - "$S" "$TMP/psnr.log" "$summary" > "$S/reference/tree_qcif_mpeg4.json" <<'PY'
+import json, re, sys
+import numpy as np
+from skimage.metrics import structural_similarity
+
+def y4m_luma(path):
+    data = open(path, "rb").read()
+    header, _, rest = data.partition(b"\n")
+    tags = dict((t[:1], t[1:]) for t in header.split()[1:])
+    w, h = int(tags[b"W"]), int(tags[b"H"])
+    frame = w * h + 2 * ((w + 1) // 2) * ((h + 1) // 2)
+    frames = []
+    while rest:
+        line, _, rest = rest.partition(b"\n")
+        assert line.startswith(b"FRAME")
+        frames.append(np.frombuffer(rest[: w * h], np.uint8).reshape(h, w))
+        rest = rest[frame:]
+    return frames
+
+sdir, stats, summary = sys.argv[1:4]
+ref = y4m_luma(f"{sdir}/tree_qcif.y4m")
+test = y4m_luma(f"{sdir}/tree_qcif_mpeg4.y4m")
+ssim = [structural_similarity(a, b, gaussian_weights=True, sigma=1.5,
+                              use_sample_covariance=False, data_range=255)
+        for a, b in zip(ref, test)]
+frames = []
+for line in open(stats):
+    f = dict(kv.split(":") for kv in line.split())
+    frames.append({k: float(f[k]) for k in ("psnr_y", "psnr_u", "psnr_v", "mse_y")})
+avg = dict(re.findall(r"(\w+):([0-9.]+)", summary))
+json.dump({
+    "reference": "tree_qcif.y4m", "test": "tree_qcif_mpeg4.y4m",
+    "ffmpeg_psnr_per_frame": frames,
+    "ffmpeg_psnr_of_mean_mse": {k: float(avg[k]) for k in ("y", "u", "v")},
+    "skimage_ssim_y_per_frame": ssim,
+}, sys.stdout, indent=1)
+print()
+PY
+echo "wrote $S/tree_qcif.y4m $S/tree_qcif_mpeg4.y4m $S/reference/tree_qcif_mpeg4.json"

@@ -1,0 +1,60 @@
+//! The `mocomp` command line. Each subcommand is a file here; `main.rs` only
+//! calls [`main`].
+
+mod compare;
+mod info;
+mod psnr;
+mod samples;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// Motion estimation, optical flow and motion-compensated compression.
+#[derive(Debug, Parser)]
+#[command(name = "mocomp", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Run the comparison on the bundled sample (the default).
+    Compare(compare::Args),
+    /// Say what a Y4M, .flo or image file holds.
+    Info(info::Args),
+    /// Write the synthetic samples with exact ground-truth flow.
+    Samples(samples::Args),
+    /// PSNR and SSIM of a Y4M against a reference, per frame and overall.
+    Psnr(psnr::Args),
+}
+
+/// Parses the command line, runs it, and reports any error on one line of
+/// standard error.
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        None => compare::run(&compare::Args::default()),
+        Some(Command::Compare(a)) => compare::run(&a),
+        Some(Command::Info(a)) => info::run(&a),
+        Some(Command::Samples(a)) => samples::run(&a),
+        Some(Command::Psnr(a)) => psnr::run(&a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("mocomp: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// A reader of our output went away (`mocomp ... | head`): not an error.
+fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
+}

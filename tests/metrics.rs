@@ -1,0 +1,151 @@
+//! Metrics against hand computation and against independent implementations
+//! (ffmpeg's psnr filter, scikit-image's SSIM) on a real pair.
+//! The reference figures come from `samples/reference/make_tree_reference.sh`.
+
+use std::path::Path;
+
+use mocomp::codec::{Frame, Plane};
+use mocomp::flow::Flow;
+use mocomp::io::y4m::Y4mReader;
+use mocomp::metrics::{flow_errors, frame_psnr, psnr, sse, ssim, FrameQuality, QualityAccumulator, PSNR_CAP_DB};
+use ndarray::Array2;
+
+fn samples() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("samples")
+}
+
+fn reference() -> serde_json::Value {
+    let text = std::fs::read_to_string(samples().join("reference/tree_qcif_mpeg4.json")).unwrap();
+    serde_json::from_str(&text).unwrap()
+}
+
+fn real_pair() -> (Vec<Frame>, Vec<Frame>) {
+    let read = |n: &str| Y4mReader::open(&samples().join(n)).unwrap().read_all().unwrap();
+    (read("tree_qcif.y4m"), read("tree_qcif_mpeg4.y4m"))
+}
+
+#[test]
+fn psnr_of_a_hand_computed_case() {
+    // 4x2 planes; differences 0,1,2,3 / 4,0,0,-6: SSE = 1+4+9+16+36 = 66, MSE = 8.25.
+    let a = Plane::from_packed(4, 2, &[10, 10, 10, 10, 10, 10, 10, 10]).unwrap();
+    let b = Plane::from_packed(4, 2, &[10, 11, 12, 13, 14, 10, 10, 4]).unwrap();
+    assert_eq!(sse(&a, &b), 66);
+    let want = 10.0 * (255.0f64 * 255.0 / 8.25).log10(); // 38.9663 dB
+    assert!((psnr(&a, &b) - want).abs() < 1e-12);
+    assert!((want - 38.9663).abs() < 1e-4);
+}
+
+#[test]
+fn identical_planes_give_the_finite_cap() {
+    let a = Plane::filled(5, 5, 77).unwrap();
+    assert_eq!(psnr(&a, &a), PSNR_CAP_DB);
+    let f = Frame::filled(5, 5, 1, 2, 3).unwrap();
+    let p = frame_psnr(&f, &f);
+    assert_eq!((p.y, p.u, p.v, p.yuv()), (100.0, 100.0, 100.0, 100.0));
+}
+
+#[test]
+fn yuv_psnr_is_weighted_six_one_one() {
+    let a = Frame::filled(8, 8, 100, 100, 100).unwrap();
+    let b = Frame::filled(8, 8, 101, 102, 104).unwrap(); // MSE 1, 4, 16
+    let p = frame_psnr(&a, &b);
+    let db = |mse: f64| 10.0 * (65025.0 / mse).log10();
+    assert!((p.yuv() - (6.0 * db(1.0) + db(4.0) + db(16.0)) / 8.0).abs() < 1e-12);
+}
+
+#[test]
+fn psnr_matches_ffmpeg_on_a_real_pair() {
+    let r = reference();
+    let (a, b) = real_pair();
+    let per_frame = r["ffmpeg_psnr_per_frame"].as_array().unwrap();
+    assert_eq!(per_frame.len(), a.len());
+    let mut acc = QualityAccumulator::default();
+    for ((fa, fb), ff) in a.iter().zip(&b).zip(per_frame) {
+        let q = FrameQuality::measure(fa, fb);
+        // ffmpeg prints per-frame values with two decimals.
+        for (ours, key) in [(q.psnr.y, "psnr_y"), (q.psnr.u, "psnr_u"), (q.psnr.v, "psnr_v"), (q.psnr.mse[0], "mse_y")] {
+            let theirs = ff[key].as_f64().unwrap();
+            assert!((ours - theirs).abs() <= 0.005 + 1e-9, "{key}: {ours} vs ffmpeg {theirs}");
+        }
+        acc.push(&q);
+    }
+    let s = acc.summary().unwrap();
+    // Sequence PSNR as rd_ffmpeg.sh computes it: the mean of ffmpeg's per-frame values.
+    let ff_mean = per_frame.iter().map(|f| f["psnr_y"].as_f64().unwrap()).sum::<f64>() / per_frame.len() as f64;
+    assert!((s.psnr_y - ff_mean).abs() < 0.01, "{} vs {ff_mean}", s.psnr_y);
+    // ffmpeg's summary line (PSNR of the mean MSE) has six decimals.
+    let avg = &r["ffmpeg_psnr_of_mean_mse"];
+    for (ours, key) in [(s.psnr_y_mse, "y"), (s.psnr_u_mse, "u"), (s.psnr_v_mse, "v")] {
+        let theirs = avg[key].as_f64().unwrap();
+        assert!((ours - theirs).abs() < 1e-5, "{key}: {ours} vs ffmpeg {theirs}");
+    }
+}
+
+#[test]
+fn ssim_matches_scikit_image_on_a_real_pair() {
+    // Same definition (Gaussian 11x11, sigma 1.5, population statistics,
+    // mean over the valid region), both in double precision: they agree to
+    // about 1e-15 here; the bound is 1e-9.
+    let r = reference();
+    let (a, b) = real_pair();
+    let want = r["skimage_ssim_y_per_frame"].as_array().unwrap();
+    assert_eq!(want.len(), a.len());
+    for ((fa, fb), w) in a.iter().zip(&b).zip(want) {
+        let (ours, theirs) = (ssim(fa.y(), fb.y()), w.as_f64().unwrap());
+        assert!((ours - theirs).abs() < 1e-9, "{ours} vs scikit-image {theirs}");
+    }
+}
+
+#[test]
+fn ssim_is_symmetric_and_falls_with_distortion() {
+    let (a, b) = real_pair();
+    let (pa, pb) = (a[0].y(), b[0].y());
+    assert!((ssim(pa, pb) - ssim(pb, pa)).abs() < 1e-12);
+    assert_eq!(ssim(pa, pa), 1.0);
+    // More noise, lower SSIM.
+    let noisy = |amp: i32| {
+        Plane::from_fn(pa.width(), pa.height(), |x, y| {
+            let n = ((x * 7919 + y * 104729) % 17) as i32 - 8;
+            (pa.get(x, y) as i32 + n * amp / 8).clamp(0, 255) as u8
+        })
+        .unwrap()
+    };
+    let s: Vec<f64> = [2, 8, 32].iter().map(|&amp| ssim(pa, &noisy(amp))).collect();
+    assert!(s[0] > s[1] && s[1] > s[2], "{s:?}");
+}
+
+#[test]
+fn flow_errors_of_hand_computed_fields() {
+    // Ground truth (1, 0) on the left column, (3, 4) on the right, one invalid pixel.
+    let gt_u = ndarray::arr2(&[[1.0f32, 3.0], [1.0, 3.0]]);
+    let gt_v = ndarray::arr2(&[[0.0f32, 4.0], [0.0, 4.0]]);
+    let mut valid = Array2::from_elem((2, 2), true);
+    valid[[1, 1]] = false;
+    let gt = Flow::from_parts(gt_u, gt_v, valid);
+    let est = Flow::zeros(2, 2);
+    let e = flow_errors(&est, &gt).unwrap();
+    assert_eq!(e.pixels, 3);
+    // EPE: 1, 5, 1 -> 7/3.
+    assert!((e.epe - 7.0 / 3.0).abs() < 1e-12);
+    // AE: acos(1/sqrt(2)) = 45 deg twice; acos(1/sqrt(26)) = 78.690 deg once.
+    let ae_far = (1.0f64 / 26.0f64.sqrt()).acos().to_degrees();
+    assert!((e.ae - (45.0 + 45.0 + ae_far) / 3.0).abs() < 1e-9);
+    assert!((ae_far - 78.690).abs() < 1e-3);
+    assert!((e.r1 - 100.0 / 3.0).abs() < 1e-12, "EPE exactly 1 is not above 1");
+    assert!((e.r3 - 100.0 / 3.0).abs() < 1e-12);
+    // A perfect estimate has zero error; no valid pixel gives None.
+    let perfect = flow_errors(&gt, &gt).unwrap();
+    assert_eq!((perfect.epe, perfect.ae, perfect.r1), (0.0, 0.0, 0.0));
+    let none = Flow::from_parts(Array2::zeros((1, 1)), Array2::zeros((1, 1)), Array2::from_elem((1, 1), false));
+    assert!(flow_errors(&none, &none).is_none());
+}
+
+#[test]
+fn angular_error_sees_small_motion_differences_epe_does_not_scale() {
+    // The 1 as third component makes AE sensitive to errors on small motion.
+    let gt = Flow::from_fn(1, 1, |_, _| (0.1, 0.0));
+    let est = Flow::from_fn(1, 1, |_, _| (0.2, 0.0));
+    let e = flow_errors(&est, &gt).unwrap();
+    let want = ((0.02f64 + 1.0) / ((0.01f64 + 1.0) * (0.04 + 1.0)).sqrt()).acos().to_degrees();
+    assert!((e.ae - want).abs() < 1e-6 && (e.epe - 0.1).abs() < 1e-6);
+}

@@ -23,3 +23,8 @@ pub mod io;
 pub mod metrics;
 pub mod raster;
 pub mod synth;
+
+/// The README's code, compiled and run as a test.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;

@@ -4,7 +4,7 @@
 
 use ndarray::Array2;
 
-use crate::codec::picture::{Plane, PictureError};
+use crate::codec::picture::{PictureError, Plane};
 
 /// The visible pixels of a plane as floats in 0..=255, `[[y, x]]`.
 pub fn plane_to_array(plane: &Plane) -> Array2<f32> {

@@ -27,7 +27,10 @@ fn layout_is_middlebury() {
     flo::write_flo_to(&mut bytes, &flow).unwrap();
     // The magic reads as the float 202021.25.
     assert_eq!(f32::from_le_bytes(bytes[0..4].try_into().unwrap()), 202021.25);
-    let floats: Vec<f32> = bytes[12..].chunks(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect();
+    let floats: Vec<f32> = bytes[12..]
+        .chunks(4)
+        .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+        .collect();
     assert_eq!(&bytes[4..12], &[2, 0, 0, 0, 1, 0, 0, 0]);
     assert_eq!(floats, vec![0.5, -2.0, 1.5, -2.0]);
 }
@@ -51,13 +54,20 @@ fn unknown_flow_reads_as_invalid() {
 fn invalid_pixels_are_written_as_unknown_and_read_back_invalid() {
     let mut valid = Array2::from_elem((3, 4), true);
     valid[[1, 2]] = false;
-    let flow = Flow::from_parts(Array2::from_elem((3, 4), 1.25), Array2::from_elem((3, 4), -0.5), valid);
+    let flow = Flow::from_parts(
+        Array2::from_elem((3, 4), 1.25),
+        Array2::from_elem((3, 4), -0.5),
+        valid,
+    );
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("f.flo");
     flo::write_flo(&path, &flow).unwrap();
     let bytes = std::fs::read(&path).unwrap();
     let at = 12 + 8 * (4 + 2);
-    assert_eq!(f32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()), UNKNOWN_FLOW);
+    assert_eq!(
+        f32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()),
+        UNKNOWN_FLOW
+    );
     assert_eq!(flo::read_flo(&path).unwrap(), flow);
 }
 
@@ -72,10 +82,16 @@ fn malformed_files_are_clear_errors() {
         ("zero width", [header(0, 2), vec![0; 48]].concat()),
         ("negative height", [header(3, -2), vec![0; 48]].concat()),
         ("huge size", header(1 << 30, 1 << 30)),
-        ("too large for the limit", [header(20000, 1), vec![0; 160000]].concat()),
+        (
+            "too large for the limit",
+            [header(20000, 1), vec![0; 160000]].concat(),
+        ),
         ("truncated data", good[..good.len() - 1].to_vec()),
         ("trailing data", [good.clone(), vec![0]].concat()),
-        ("header promises more than present", [header(100, 100), vec![0; 48]].concat()),
+        (
+            "header promises more than present",
+            [header(100, 100), vec![0; 48]].concat(),
+        ),
     ];
     for (what, bytes) in cases {
         let from_file = flo::read_flo(file_with(&bytes).path()).unwrap_err();
@@ -93,7 +109,10 @@ fn malformed_files_are_clear_errors() {
 
 #[test]
 fn a_missing_file_is_an_io_error() {
-    assert!(matches!(flo::read_flo(std::path::Path::new("/no/such/file.flo")), Err(FloError::Io(_))));
+    assert!(matches!(
+        flo::read_flo(std::path::Path::new("/no/such/file.flo")),
+        Err(FloError::Io(_))
+    ));
 }
 
 proptest! {

@@ -7,7 +7,9 @@ use std::path::Path;
 use mocomp::codec::{Frame, Plane};
 use mocomp::flow::Flow;
 use mocomp::io::y4m::Y4mReader;
-use mocomp::metrics::{flow_errors, frame_psnr, psnr, sse, ssim, FrameQuality, QualityAccumulator, PSNR_CAP_DB};
+use mocomp::metrics::{
+    flow_errors, frame_psnr, psnr, sse, ssim, FrameQuality, QualityAccumulator, PSNR_CAP_DB,
+};
 use ndarray::Array2;
 
 fn samples() -> std::path::PathBuf {
@@ -63,15 +65,27 @@ fn psnr_matches_ffmpeg_on_a_real_pair() {
     for ((fa, fb), ff) in a.iter().zip(&b).zip(per_frame) {
         let q = FrameQuality::measure(fa, fb);
         // ffmpeg prints per-frame values with two decimals.
-        for (ours, key) in [(q.psnr.y, "psnr_y"), (q.psnr.u, "psnr_u"), (q.psnr.v, "psnr_v"), (q.psnr.mse[0], "mse_y")] {
+        for (ours, key) in [
+            (q.psnr.y, "psnr_y"),
+            (q.psnr.u, "psnr_u"),
+            (q.psnr.v, "psnr_v"),
+            (q.psnr.mse[0], "mse_y"),
+        ] {
             let theirs = ff[key].as_f64().unwrap();
-            assert!((ours - theirs).abs() <= 0.005 + 1e-9, "{key}: {ours} vs ffmpeg {theirs}");
+            assert!(
+                (ours - theirs).abs() <= 0.005 + 1e-9,
+                "{key}: {ours} vs ffmpeg {theirs}"
+            );
         }
         acc.push(&q);
     }
     let s = acc.summary().unwrap();
     // Sequence PSNR as rd_ffmpeg.sh computes it: the mean of ffmpeg's per-frame values.
-    let ff_mean = per_frame.iter().map(|f| f["psnr_y"].as_f64().unwrap()).sum::<f64>() / per_frame.len() as f64;
+    let ff_mean = per_frame
+        .iter()
+        .map(|f| f["psnr_y"].as_f64().unwrap())
+        .sum::<f64>()
+        / per_frame.len() as f64;
     assert!((s.psnr_y - ff_mean).abs() < 0.01, "{} vs {ff_mean}", s.psnr_y);
     // ffmpeg's summary line (PSNR of the mean MSE) has six decimals.
     let avg = &r["ffmpeg_psnr_of_mean_mse"];
@@ -136,7 +150,11 @@ fn flow_errors_of_hand_computed_fields() {
     // A perfect estimate has zero error; no valid pixel gives None.
     let perfect = flow_errors(&gt, &gt).unwrap();
     assert_eq!((perfect.epe, perfect.ae, perfect.r1), (0.0, 0.0, 0.0));
-    let none = Flow::from_parts(Array2::zeros((1, 1)), Array2::zeros((1, 1)), Array2::from_elem((1, 1), false));
+    let none = Flow::from_parts(
+        Array2::zeros((1, 1)),
+        Array2::zeros((1, 1)),
+        Array2::from_elem((1, 1), false),
+    );
     assert!(flow_errors(&none, &none).is_none());
 }
 
@@ -146,6 +164,8 @@ fn angular_error_sees_small_motion_differences_epe_does_not_scale() {
     let gt = Flow::from_fn(1, 1, |_, _| (0.1, 0.0));
     let est = Flow::from_fn(1, 1, |_, _| (0.2, 0.0));
     let e = flow_errors(&est, &gt).unwrap();
-    let want = ((0.02f64 + 1.0) / ((0.01f64 + 1.0) * (0.04 + 1.0)).sqrt()).acos().to_degrees();
+    let want = ((0.02f64 + 1.0) / ((0.01f64 + 1.0) * (0.04 + 1.0)).sqrt())
+        .acos()
+        .to_degrees();
     assert!((e.ae - want).abs() < 1e-6 && (e.epe - 0.1).abs() < 1e-6);
 }

@@ -40,18 +40,32 @@ fn shifted(flow: &Flow, du: f32) -> Flow {
 fn warping_by_the_true_flow_reproduces_the_neighbour_frame() {
     for spec in standard_scenes() {
         let synth = Synth::new(clean(spec.clone())).unwrap();
-        let frames: Vec<Array2<f32>> = (0..spec.frames).map(|t| plane_to_array(synth.frame(t).y())).collect();
+        let frames: Vec<Array2<f32>> = (0..spec.frames)
+            .map(|t| plane_to_array(synth.frame(t).y()))
+            .collect();
         for t in 0..spec.frames - 1 {
             let fwd = synth.forward_flow(t);
             let bwd = synth.backward_flow(t + 1);
             let err_fwd = valid_mad(&frames[t], &warp_bilinear(&frames[t + 1], &fwd), &fwd);
             let err_bwd = valid_mad(&frames[t + 1], &warp_bilinear(&frames[t], &bwd), &bwd);
             // A flow off by a quarter pixel must do clearly worse, or this test could not fail.
-            let err_off = valid_mad(&frames[t], &warp_bilinear(&frames[t + 1], &shifted(&fwd, 0.25)), &fwd);
+            let err_off = valid_mad(
+                &frames[t],
+                &warp_bilinear(&frames[t + 1], &shifted(&fwd, 0.25)),
+                &fwd,
+            );
             // Measured: 0.46-0.55 levels (8-bit rounding of both frames plus
             // bilinear interpolation), 0.83-0.89 with the quarter-pel error.
-            assert!(err_fwd < 0.65 && err_bwd < 0.65, "{} {t}: {err_fwd} {err_bwd}", spec.name);
-            assert!(err_off > 1.4 * err_fwd, "{} {t}: {err_off} vs {err_fwd}", spec.name);
+            assert!(
+                err_fwd < 0.65 && err_bwd < 0.65,
+                "{} {t}: {err_fwd} {err_bwd}",
+                spec.name
+            );
+            assert!(
+                err_off > 1.4 * err_fwd,
+                "{} {t}: {err_off} vs {err_fwd}",
+                spec.name
+            );
             // Occlusions and exits exist in these scenes, but most pixels are valid.
             let share = fwd.valid_count() as f64 / (spec.width * spec.height) as f64;
             assert!(share > 0.9 && share < 1.0, "{share}");
@@ -62,7 +76,9 @@ fn warping_by_the_true_flow_reproduces_the_neighbour_frame() {
 #[test]
 fn integer_translation_reproduces_pixels_exactly() {
     let (dx, dy) = (4i64, -2i64);
-    let synth = Synth::new(SceneSpec::new("shift", 40, 32, 3).camera(Motion::translation(dx as f64, dy as f64))).unwrap();
+    let synth =
+        Synth::new(SceneSpec::new("shift", 40, 32, 3).camera(Motion::translation(dx as f64, dy as f64)))
+            .unwrap();
     for t in 0..2 {
         let (a, b) = (synth.frame(t), synth.frame(t + 1));
         let flow = synth.forward_flow(t);
@@ -95,7 +111,11 @@ fn integer_translation_reproduces_pixels_exactly() {
 #[test]
 fn occluded_and_uncovered_pixels_are_invalid() {
     // A still background; a 20x12 rectangle centred at (30, 24) moving right 3 px a frame.
-    let spec = SceneSpec::new("occlusion", 64, 48, 2).object(Shape::Rect { hw: 10.0, hh: 6.0 }, (30.0, 24.0), Motion::translation(3.0, 0.0));
+    let spec = SceneSpec::new("occlusion", 64, 48, 2).object(
+        Shape::Rect { hw: 10.0, hh: 6.0 },
+        (30.0, 24.0),
+        Motion::translation(3.0, 0.0),
+    );
     let synth = Synth::new(spec).unwrap();
     let fwd = synth.forward_flow(0);
     let bwd = synth.backward_flow(1);
@@ -104,11 +124,17 @@ fn occluded_and_uncovered_pixels_are_invalid() {
     assert!(bwd.is_valid(33, 24) && bwd.get(33, 24) == (-3.0, 0.0));
     // Background just right of the object (x 41..43) is covered in frame 1.
     for x in 41..=43 {
-        assert!(!fwd.is_valid(x, 24), "covered background at x={x} should be invalid");
+        assert!(
+            !fwd.is_valid(x, 24),
+            "covered background at x={x} should be invalid"
+        );
     }
     // Background just left of the object in frame 1 (x 21..23) was hidden in frame 0.
     for x in 21..=23 {
-        assert!(!bwd.is_valid(x, 24), "uncovered background at x={x} should be invalid");
+        assert!(
+            !bwd.is_valid(x, 24),
+            "uncovered background at x={x} should be invalid"
+        );
     }
     // Background far away is valid and still.
     assert!(fwd.is_valid(5, 5) && fwd.get(5, 5) == (0.0, 0.0));
@@ -122,7 +148,17 @@ fn noise_and_brightness_have_the_requested_size() {
     let noisy = Synth::new(base.noise(2.0).brightness(1.5)).unwrap();
     let t = 2;
     let (a, b) = (clean.frame(t), noisy.frame(t));
-    let d: Vec<f64> = a.y().rows().zip(b.y().rows()).flat_map(|(ra, rb)| ra.iter().zip(rb).map(|(&x, &y)| y as f64 - x as f64).collect::<Vec<_>>()).collect();
+    let d: Vec<f64> = a
+        .y()
+        .rows()
+        .zip(b.y().rows())
+        .flat_map(|(ra, rb)| {
+            ra.iter()
+                .zip(rb)
+                .map(|(&x, &y)| y as f64 - x as f64)
+                .collect::<Vec<_>>()
+        })
+        .collect();
     let mean = d.iter().sum::<f64>() / d.len() as f64;
     let sd = (d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / d.len() as f64).sqrt();
     assert!((mean - 1.5 * t as f64).abs() < 0.1, "brightness offset {mean}");
@@ -134,7 +170,10 @@ fn noise_and_brightness_have_the_requested_size() {
 fn rendering_is_deterministic_and_thread_independent() {
     let spec = standard_scenes().remove(0);
     let render = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
         pool.install(|| {
             let s = Synth::new(spec.clone()).unwrap();
             (s.frame(3), s.forward_flow(3), s.backward_flow(3))
@@ -155,14 +194,23 @@ fn committed_samples_are_what_the_generator_makes() {
         let frames: Vec<Frame> = reader.read_all().unwrap();
         assert_eq!(frames.len(), spec.frames);
         for (t, f) in frames.iter().enumerate() {
-            assert!(*f == synth.frame(t), "{} frame {t} differs from the generator", spec.name);
+            assert!(
+                *f == synth.frame(t),
+                "{} frame {t} differs from the generator",
+                spec.name
+            );
         }
         // Flows are committed for the QCIF sample (see samples/README.md).
         let flow_dir = dir.join(&spec.name);
         for t in 0..spec.frames - 1 {
             let path = flow_dir.join(forward_flow_name(t));
             if path.exists() {
-                assert_eq!(flo::read_flo(&path).unwrap(), synth.forward_flow(t), "{}", path.display());
+                assert_eq!(
+                    flo::read_flo(&path).unwrap(),
+                    synth.forward_flow(t),
+                    "{}",
+                    path.display()
+                );
             }
         }
     }

@@ -43,20 +43,37 @@ fn check_frames(bytes: &[u8], w: usize, h: usize, frames: usize) -> Y4mInfo {
 fn every_420_variant_ffmpeg_writes_is_read() {
     let cases: &[(&str, ChromaSiting)] = &[
         ("W8 H6 F30:1 Ip A1:1 C420jpeg XYSCSS=420JPEG", ChromaSiting::Jpeg),
-        ("W8 H6 F30:1 Ip A0:0 C420jpeg XYSCSS=420JPEG XCOLORRANGE=LIMITED", ChromaSiting::Jpeg),
-        ("W8 H6 F25:1 Ip A1:1 C420mpeg2 XYSCSS=420MPEG2", ChromaSiting::Mpeg2),
-        ("W8 H6 F25:1 Ip A59:54 C420paldv XYSCSS=420PALDV", ChromaSiting::Paldv),
+        (
+            "W8 H6 F30:1 Ip A0:0 C420jpeg XYSCSS=420JPEG XCOLORRANGE=LIMITED",
+            ChromaSiting::Jpeg,
+        ),
+        (
+            "W8 H6 F25:1 Ip A1:1 C420mpeg2 XYSCSS=420MPEG2",
+            ChromaSiting::Mpeg2,
+        ),
+        (
+            "W8 H6 F25:1 Ip A59:54 C420paldv XYSCSS=420PALDV",
+            ChromaSiting::Paldv,
+        ),
         ("W8 H6 F30:1 C420", ChromaSiting::Plain),
         ("W8 H6 F30:1", ChromaSiting::Jpeg),
         ("W8 H6 F30000:1001 I? A0:0", ChromaSiting::Jpeg),
-        ("W8 H6 F24:1 Ip C420jpeg XCOLORRANGE=FULL XFOO=bar", ChromaSiting::Jpeg),
+        (
+            "W8 H6 F24:1 Ip C420jpeg XCOLORRANGE=FULL XFOO=bar",
+            ChromaSiting::Jpeg,
+        ),
         ("H6 W8 C420mpeg2 F60:1", ChromaSiting::Mpeg2),
     ];
     for &(tags, siting) in cases {
         let info = check_frames(&stream(tags, 8, 6, 3), 8, 6, 3);
         assert_eq!(info.siting, siting, "{tags}");
     }
-    let info = check_frames(&stream("W8 H6 F30000:1001 A59:54 XCOLORRANGE=FULL", 8, 6, 1), 8, 6, 1);
+    let info = check_frames(
+        &stream("W8 H6 F30000:1001 A59:54 XCOLORRANGE=FULL", 8, 6, 1),
+        8,
+        6,
+        1,
+    );
     assert_eq!(info.fps, (30000, 1001));
     assert_eq!(info.aspect, (59, 54));
     assert_eq!(info.color_range(), Some("FULL"));
@@ -101,29 +118,39 @@ fn other_formats_are_refused_with_a_conversion_hint() {
         assert!(msg.contains(tag) && msg.contains(what), "{tag}: {msg}");
         assert!(msg.contains(CONVERT_HINT), "{tag}: {msg}");
     }
-    for (tag, what) in [("It", "top field first"), ("Ib", "bottom field first"), ("Im", "mixed")] {
+    for (tag, what) in [
+        ("It", "top field first"),
+        ("Ib", "bottom field first"),
+        ("Im", "mixed"),
+    ] {
         let msg = header_error(&format!("W4 H4 F30:1 {tag} C420jpeg")).to_string();
-        assert!(msg.contains(tag) && msg.contains(what) && msg.contains(CONVERT_HINT), "{msg}");
+        assert!(
+            msg.contains(tag) && msg.contains(what) && msg.contains(CONVERT_HINT),
+            "{msg}"
+        );
     }
 }
 
 #[test]
 fn malformed_headers_are_errors() {
     let bad = [
-        "F30:1 H4",          // no width
-        "W4 F30:1",          // no height
-        "W0 H4",             // empty
-        "W4 H0",             // empty
-        "Wabc H4",           // not a number
-        "W-4 H4",            // negative
-        "W4 H4 F30:0",       // zero denominator
-        "W4 H4 F30",         // not a ratio
-        "W4 H4 Ix",          // unknown interlacing
+        "F30:1 H4",                 // no width
+        "W4 F30:1",                 // no height
+        "W0 H4",                    // empty
+        "W4 H0",                    // empty
+        "Wabc H4",                  // not a number
+        "W-4 H4",                   // negative
+        "W4 H4 F30:0",              // zero denominator
+        "W4 H4 F30",                // not a ratio
+        "W4 H4 Ix",                 // unknown interlacing
         "W99999999999999999999 H4", // overflows
     ];
     for tags in bad {
         let err = header_error(tags);
-        assert!(matches!(err, Y4mError::BadHeader(_) | Y4mError::Size(_)), "{tags}: {err:?}");
+        assert!(
+            matches!(err, Y4mError::BadHeader(_) | Y4mError::Size(_)),
+            "{tags}: {err:?}"
+        );
     }
 }
 
@@ -135,17 +162,32 @@ fn absurd_sizes_are_refused_before_allocation() {
     assert!(matches!(err, Y4mError::Size(_)), "{err:?}");
     // The largest legal size with almost no data: a clean truncation error.
     let mut reader = Y4mReader::new(&b"YUV4MPEG2 W16384 H16384 F30:1\nFRAME\nabc"[..]).unwrap();
-    assert!(matches!(reader.read_frame(), Err(Y4mError::Truncated { frame: 0, .. })));
+    assert!(matches!(
+        reader.read_frame(),
+        Err(Y4mError::Truncated { frame: 0, .. })
+    ));
 }
 
 #[test]
 fn not_y4m_and_empty_inputs_are_errors() {
     assert!(matches!(Y4mReader::new(&b""[..]), Err(Y4mError::Empty)));
-    assert!(matches!(Y4mReader::new(&b"\x89PNG\r\n\x1a\n...."[..]), Err(Y4mError::NotY4m)));
-    assert!(matches!(Y4mReader::new(&b"YUV4MPEG3 W4 H4\n"[..]), Err(Y4mError::NotY4m)));
-    assert!(matches!(Y4mReader::new(&b"YUV4MPEG2 W4 H4"[..]), Err(Y4mError::HeaderTooLong)));
+    assert!(matches!(
+        Y4mReader::new(&b"\x89PNG\r\n\x1a\n...."[..]),
+        Err(Y4mError::NotY4m)
+    ));
+    assert!(matches!(
+        Y4mReader::new(&b"YUV4MPEG3 W4 H4\n"[..]),
+        Err(Y4mError::NotY4m)
+    ));
+    assert!(matches!(
+        Y4mReader::new(&b"YUV4MPEG2 W4 H4"[..]),
+        Err(Y4mError::HeaderTooLong)
+    ));
     let long = format!("YUV4MPEG2 W4 H4 X{}\n", "a".repeat(2000));
-    assert!(matches!(Y4mReader::new(long.as_bytes()), Err(Y4mError::HeaderTooLong)));
+    assert!(matches!(
+        Y4mReader::new(long.as_bytes()),
+        Err(Y4mError::HeaderTooLong)
+    ));
 }
 
 #[test]
@@ -173,12 +215,20 @@ fn garbage_where_a_frame_should_start_is_an_error() {
     bytes.extend_from_slice(b"JUNK\n0123456789012345");
     let mut reader = Y4mReader::new(&bytes[..]).unwrap();
     reader.read_frame().unwrap();
-    assert!(matches!(reader.read_frame(), Err(Y4mError::BadFrameHeader { frame: 1 })));
+    assert!(matches!(
+        reader.read_frame(),
+        Err(Y4mError::BadFrameHeader { frame: 1 })
+    ));
 }
 
 #[test]
 fn writing_keeps_rate_aspect_siting_and_extensions() {
-    let src = stream("W7 H5 F30000:1001 A0:0 C420mpeg2 XYSCSS=420MPEG2 XCOLORRANGE=FULL", 7, 5, 2);
+    let src = stream(
+        "W7 H5 F30000:1001 A0:0 C420mpeg2 XYSCSS=420MPEG2 XCOLORRANGE=FULL",
+        7,
+        5,
+        2,
+    );
     let reader = Y4mReader::new(&src[..]).unwrap();
     let info = reader.info().clone();
     let frames = reader.read_all().unwrap();

@@ -65,9 +65,7 @@ pub enum PictureError {
         actual: usize,
     },
     /// Planes given to [`Frame::from_planes`] do not form a 4:2:0 frame.
-    #[error(
-        "a {width}x{height} 4:2:0 frame needs {cw}x{ch} chroma planes, got {uw}x{uh} and {vw}x{vh}"
-    )]
+    #[error("a {width}x{height} 4:2:0 frame needs {cw}x{ch} chroma planes, got {uw}x{uh} and {vw}x{vh}")]
     ChromaSize {
         /// Luma width.
         width: usize,
@@ -551,10 +549,7 @@ mod tests {
     fn sizes_are_checked_before_allocation() {
         assert_eq!(
             Plane::new(0, 5).unwrap_err(),
-            PictureError::Empty {
-                width: 0,
-                height: 5
-            }
+            PictureError::Empty { width: 0, height: 5 }
         );
         assert!(matches!(
             Plane::new(MAX_DIMENSION + 1, 1),
@@ -601,7 +596,11 @@ mod tests {
         assert_eq!(p.to_packed(), data);
         assert!(matches!(
             Plane::from_packed(5, 3, &data[..14]),
-            Err(PictureError::DataLength { expected: 15, actual: 14, .. })
+            Err(PictureError::DataLength {
+                expected: 15,
+                actual: 14,
+                ..
+            })
         ));
     }
 

@@ -20,7 +20,7 @@ use crate::synth::forward_flow_name;
 /// The bundled sample with exact flow, relative to the repository root.
 const DEFAULT_INPUT: &str = "samples/synth_qcif.y4m";
 
-#[derive(Debug, Default, clap::Args)]
+#[derive(Debug, clap::Args)]
 pub struct Args {
     /// Input Y4M [default: samples/synth_qcif.y4m].
     pub input: Option<PathBuf>,
@@ -47,7 +47,11 @@ fn locate(path: &Path) -> PathBuf {
     }
 }
 
-fn masked_mse(a: &ndarray::Array2<f32>, b: &ndarray::Array2<f32>, mask: Option<&ndarray::Array2<bool>>) -> f64 {
+fn masked_mse(
+    a: &ndarray::Array2<f32>,
+    b: &ndarray::Array2<f32>,
+    mask: Option<&ndarray::Array2<bool>>,
+) -> f64 {
     let (mut sum, mut n) = (0.0f64, 0usize);
     for ((idx, &x), &y) in a.indexed_iter().zip(b.iter()) {
         if mask.is_none_or(|m| m[idx]) {
@@ -82,7 +86,10 @@ pub fn run(args: &Args) -> Result<()> {
         gt_dir.display()
     );
     println!("Luma PSNR (dB) of frame t predicted from frame t+1:");
-    println!("{:>7} {:>12} {:>14} {:>16} {:>7}", "pair", "zero motion", "true motion", "true, valid px", "valid");
+    println!(
+        "{:>7} {:>12} {:>14} {:>16} {:>7}",
+        "pair", "zero motion", "true motion", "true, valid px", "valid"
+    );
     let mut rows = Vec::new();
     for t in 0..frames.len().saturating_sub(1) {
         let path = gt_dir.join(forward_flow_name(t));
@@ -93,18 +100,32 @@ pub fn run(args: &Args) -> Result<()> {
         let cur = plane_to_array(frames[t].y());
         let next = plane_to_array(frames[t + 1].y());
         if flow.width() != info.width || flow.height() != info.height {
-            bail!("{}: flow is {}x{}, the video {}x{}", path.display(), flow.width(), flow.height(), info.width, info.height);
+            bail!(
+                "{}: flow is {}x{}, the video {}x{}",
+                path.display(),
+                flow.width(),
+                flow.height(),
+                info.width,
+                info.height
+            );
         }
         let warped = warp_bilinear(&next, &flow);
         let zero = psnr_from_mse(masked_mse(&cur, &next, None));
         let exact = psnr_from_mse(masked_mse(&cur, &warped, None));
         let exact_valid = psnr_from_mse(masked_mse(&cur, &warped, Some(flow.valid())));
         let valid_share = 100.0 * flow.valid_count() as f64 / (info.width * info.height) as f64;
-        println!("{:>7} {zero:>12.2} {exact:>14.2} {exact_valid:>16.2} {valid_share:>6.1}%", format!("{t}-{}", t + 1));
+        println!(
+            "{:>7} {zero:>12.2} {exact:>14.2} {exact_valid:>16.2} {valid_share:>6.1}%",
+            format!("{t}-{}", t + 1)
+        );
         rows.push((t, zero, exact, exact_valid, valid_share));
     }
     if rows.is_empty() {
-        bail!("no ground-truth flow files ({}) in {}", forward_flow_name(0), gt_dir.display());
+        bail!(
+            "no ground-truth flow files ({}) in {}",
+            forward_flow_name(0),
+            gt_dir.display()
+        );
     }
     let n = rows.len() as f64;
     let mean = |f: fn(&(usize, f64, f64, f64, f64)) -> f64| rows.iter().map(f).sum::<f64>() / n;
@@ -119,7 +140,10 @@ pub fn run(args: &Args) -> Result<()> {
     std::fs::create_dir_all(&args.out).with_context(|| args.out.display().to_string())?;
     let csv = args.out.join("compare.csv");
     let mut out = OutputFile::create(&csv).with_context(|| csv.display().to_string())?;
-    writeln!(out, "pair,psnr_zero,psnr_true_motion,psnr_true_motion_valid,valid_percent")?;
+    writeln!(
+        out,
+        "pair,psnr_zero,psnr_true_motion,psnr_true_motion_valid,valid_percent"
+    )?;
     for (t, zero, exact, exact_valid, share) in &rows {
         writeln!(out, "{t},{zero:.4},{exact:.4},{exact_valid:.4},{share:.2}")?;
     }

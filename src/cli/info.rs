@@ -86,8 +86,14 @@ fn flo_info(args: &Args) -> Result<serde_json::Value> {
     let flow = flo::read_flo(&args.file)?;
     let n = flow.width() * flow.height();
     let range = |a: &ndarray::Array2<f32>| {
-        let vals = a.iter().zip(flow.valid().iter()).filter(|(_, &ok)| ok).map(|(&v, _)| v);
-        let (lo, hi) = vals.fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), v| (l.min(v), h.max(v)));
+        let vals = a
+            .iter()
+            .zip(flow.valid().iter())
+            .filter(|(_, &ok)| ok)
+            .map(|(&v, _)| v);
+        let (lo, hi) = vals.fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), v| {
+            (l.min(v), h.max(v))
+        });
         if lo <= hi {
             format!("{lo:.3} .. {hi:.3}")
         } else {

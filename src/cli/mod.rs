@@ -33,13 +33,17 @@ enum Command {
 /// Parses the command line, runs it, and reports any error on one line of
 /// standard error.
 pub fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let mut cli = Cli::parse();
+    if cli.command.is_none() {
+        // No subcommand: the main job, with the defaults clap documents.
+        cli = Cli::parse_from(["mocomp", "compare"]);
+    }
     let result = match cli.command {
-        None => compare::run(&compare::Args::default()),
         Some(Command::Compare(a)) => compare::run(&a),
         Some(Command::Info(a)) => info::run(&a),
         Some(Command::Samples(a)) => samples::run(&a),
         Some(Command::Psnr(a)) => psnr::run(&a),
+        None => unreachable!("set to compare above"),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -45,7 +45,10 @@ pub fn run(args: &Args) -> Result<()> {
     let mut acc = QualityAccumulator::default();
     let mut rows = Vec::new();
     if !args.json {
-        println!("{:>6} {:>8} {:>8} {:>8} {:>8} {:>8}", "frame", "psnr_y", "psnr_u", "psnr_v", "psnr_yuv", "ssim");
+        println!(
+            "{:>6} {:>8} {:>8} {:>8} {:>8} {:>8}",
+            "frame", "psnr_y", "psnr_u", "psnr_v", "psnr_yuv", "ssim"
+        );
     }
     loop {
         let more_a = reference
@@ -56,7 +59,11 @@ pub fn run(args: &Args) -> Result<()> {
             .with_context(|| args.test.display().to_string())?;
         if !(more_a && more_b) {
             if more_a || more_b {
-                let (longer, shorter) = if more_a { (&args.reference, &args.test) } else { (&args.test, &args.reference) };
+                let (longer, shorter) = if more_a {
+                    (&args.reference, &args.test)
+                } else {
+                    (&args.test, &args.reference)
+                };
                 eprintln!(
                     "mocomp: note: {} has more frames than {}; compared the first {}",
                     longer.display(),

@@ -27,7 +27,10 @@ pub fn run(args: &Args) -> Result<()> {
             bail!("no sample named '{name}'; there are: {}", names.join(", "));
         }
     }
-    for spec in scenes.iter().filter(|s| args.only.is_empty() || args.only.contains(&s.name)) {
+    for spec in scenes
+        .iter()
+        .filter(|s| args.only.is_empty() || args.only.contains(&s.name))
+    {
         let written = write_sample(spec, &args.out, args.backward)?;
         println!(
             "{}: {}x{}, {} frames; {} .flo files in {}",

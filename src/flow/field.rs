@@ -24,10 +24,7 @@ pub struct Flow {
 impl Flow {
     /// Zero motion everywhere, all valid.
     pub fn zeros(width: usize, height: usize) -> Flow {
-        Flow::from_uv(
-            Array2::zeros((height, width)),
-            Array2::zeros((height, width)),
-        )
+        Flow::from_uv(Array2::zeros((height, width)), Array2::zeros((height, width)))
     }
 
     /// A field from its components, all valid. Panics if the shapes differ.
@@ -132,16 +129,16 @@ impl Flow {
 
     /// Mean motion magnitude over valid pixels (0 if none is valid).
     pub fn mean_magnitude(&self) -> f64 {
-        let (sum, n) = ndarray::Zip::from(&self.u)
-            .and(&self.v)
-            .and(&self.valid)
-            .fold((0.0f64, 0usize), |(s, n), &u, &v, &ok| {
+        let (sum, n) = ndarray::Zip::from(&self.u).and(&self.v).and(&self.valid).fold(
+            (0.0f64, 0usize),
+            |(s, n), &u, &v, &ok| {
                 if ok {
                     (s + f64::from(u.hypot(v)), n + 1)
                 } else {
                     (s, n)
                 }
-            });
+            },
+        );
         if n == 0 {
             0.0
         } else {

@@ -18,7 +18,7 @@ use std::path::Path;
 use image::{ColorType, ExtendedColorType, ImageEncoder, ImageReader, Limits};
 
 use super::OutputFile;
-use crate::codec::picture::{check_size, Frame, Plane, PictureError, MAX_DIMENSION};
+use crate::codec::picture::{check_size, Frame, PictureError, Plane, MAX_DIMENSION};
 
 /// What can go wrong with an image file.
 #[derive(Debug, thiserror::Error)]
@@ -86,7 +86,11 @@ fn to_u8(v: f32) -> u8 {
 /// A limited-range BT.601 4:2:0 frame from an image file.
 pub fn read_frame(path: &Path) -> Result<Frame, ImageError> {
     let rgb = open_rgb(path)?;
-    Ok(frame_from_rgb(rgb.width() as usize, rgb.height() as usize, rgb.as_raw())?)
+    Ok(frame_from_rgb(
+        rgb.width() as usize,
+        rgb.height() as usize,
+        rgb.as_raw(),
+    )?)
 }
 
 /// A limited-range BT.601 4:2:0 frame from packed RGB bytes; chroma is the
@@ -147,7 +151,13 @@ pub fn frame_to_rgb(frame: &Frame) -> Vec<u8> {
     out
 }
 
-fn write_png(path: &Path, width: usize, height: usize, bytes: &[u8], color: ColorType) -> Result<(), ImageError> {
+fn write_png(
+    path: &Path,
+    width: usize,
+    height: usize,
+    bytes: &[u8],
+    color: ColorType,
+) -> Result<(), ImageError> {
     check_size(width, height)?;
     let mut out = OutputFile::create(path)?;
     image::codecs::png::PngEncoder::new(&mut out).write_image(
@@ -162,12 +172,24 @@ fn write_png(path: &Path, width: usize, height: usize, bytes: &[u8], color: Colo
 
 /// Writes a plane as an 8-bit grey PNG.
 pub fn write_plane(path: &Path, plane: &Plane) -> Result<(), ImageError> {
-    write_png(path, plane.width(), plane.height(), &plane.to_packed(), ColorType::L8)
+    write_png(
+        path,
+        plane.width(),
+        plane.height(),
+        &plane.to_packed(),
+        ColorType::L8,
+    )
 }
 
 /// Writes a limited-range 4:2:0 frame as an RGB PNG.
 pub fn write_frame(path: &Path, frame: &Frame) -> Result<(), ImageError> {
-    write_png(path, frame.width(), frame.height(), &frame_to_rgb(frame), ColorType::Rgb8)
+    write_png(
+        path,
+        frame.width(),
+        frame.height(),
+        &frame_to_rgb(frame),
+        ColorType::Rgb8,
+    )
 }
 
 /// Writes packed RGB bytes (`3 * width * height`) as a PNG.
@@ -219,7 +241,11 @@ mod tests {
         let rgb: Vec<u8> = (0..w * h)
             .flat_map(|i| {
                 let (x, y) = (i % w / 2, i / w / 2);
-                [(40 + 60 * x) as u8, (200 - 50 * y) as u8, (90 + 30 * x + 20 * y) as u8]
+                [
+                    (40 + 60 * x) as u8,
+                    (200 - 50 * y) as u8,
+                    (90 + 30 * x + 20 * y) as u8,
+                ]
             })
             .collect();
         let back = frame_to_rgb(&frame_from_rgb(w, h, &rgb).unwrap());

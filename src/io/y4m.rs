@@ -118,9 +118,7 @@ impl Y4mInfo {
 
     /// The `XCOLORRANGE=` value, if present (`FULL` or `LIMITED`).
     pub fn color_range(&self) -> Option<&str> {
-        self.extensions
-            .iter()
-            .find_map(|x| x.strip_prefix("COLORRANGE="))
+        self.extensions.iter().find_map(|x| x.strip_prefix("COLORRANGE="))
     }
 
     /// Bytes of one frame's samples (Y, U, V; without the `FRAME` line).
@@ -367,8 +365,8 @@ impl<R: Read> Y4mReader<R> {
         let limits = y4m::Limits {
             bytes: info.frame_bytes() as usize,
         };
-        let decoder = y4m::Decoder::new_with_limits(Cursor::new(line).chain(counted), limits)
-            .map_err(|e| match e {
+        let decoder =
+            y4m::Decoder::new_with_limits(Cursor::new(line).chain(counted), limits).map_err(|e| match e {
                 y4m::Error::IoError(e) => Y4mError::Io(e),
                 other => Y4mError::BadHeader(other.to_string()),
             })?;
@@ -481,9 +479,8 @@ impl<W: Write> Y4mWriter<W> {
             .with_colorspace(info.siting.colorspace())
             .with_pixel_aspect(y4m::Ratio::new(info.aspect.0 as usize, info.aspect.1 as usize));
         for x in &info.extensions {
-            let ext = y4m::VendorExtensionString::new(x.as_bytes().to_vec()).map_err(|_| {
-                Y4mError::BadHeader(format!("extension tag 'X{x}' contains a space"))
-            })?;
+            let ext = y4m::VendorExtensionString::new(x.as_bytes().to_vec())
+                .map_err(|_| Y4mError::BadHeader(format!("extension tag 'X{x}' contains a space")))?;
             builder = builder.append_vendor_extension(ext);
         }
         let encoder = builder.write_header(writer).map_err(map_write_error)?;
@@ -515,10 +512,7 @@ impl<W: Write> Y4mWriter<W> {
                 buf.extend_from_slice(row);
             }
         }
-        let data = y4m::Frame::new(
-            [&self.packed[0], &self.packed[1], &self.packed[2]],
-            None,
-        );
+        let data = y4m::Frame::new([&self.packed[0], &self.packed[1], &self.packed[2]], None);
         self.encoder.write_frame(&data).map_err(map_write_error)
     }
 

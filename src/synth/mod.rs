@@ -262,7 +262,10 @@ impl SceneSpec {
 
     /// Adds an object in front of the others.
     pub fn object(mut self, shape: Shape, centre: (f64, f64), motion: Motion) -> SceneSpec {
-        let seed = self.seed.wrapping_mul(31).wrapping_add(100 + self.objects.len() as u64);
+        let seed = self
+            .seed
+            .wrapping_mul(31)
+            .wrapping_add(100 + self.objects.len() as u64);
         self.objects.push(ObjectSpec {
             shape,
             centre,
@@ -463,7 +466,11 @@ impl Synth {
             return 0.0;
         }
         let key = (t as i64) << 40 | plane << 36 | (y as i64) << 18 | x as i64;
-        sigma * gaussian(hash3(self.spec.seed ^ 0x5EED, key, 1), hash3(self.spec.seed ^ 0x5EED, key, 2))
+        sigma
+            * gaussian(
+                hash3(self.spec.seed ^ 0x5EED, key, 1),
+                hash3(self.spec.seed ^ 0x5EED, key, 2),
+            )
     }
 
     /// Renders frame `t` (`t < frames`).
@@ -580,7 +587,11 @@ impl Synth {
 
     /// Exact forward flow from frame `t` to frame `t + 1`.
     pub fn forward_flow(&self, t: usize) -> Flow {
-        assert!(t + 1 < self.spec.frames, "forward flow of frame {t} of {}", self.spec.frames);
+        assert!(
+            t + 1 < self.spec.frames,
+            "forward flow of frame {t} of {}",
+            self.spec.frames
+        );
         self.flow_between(t, t + 1)
     }
 
@@ -654,7 +665,10 @@ pub fn write_sample(spec: &SceneSpec, dir: &Path, backward: bool) -> Result<Writ
         flo::write_flo(&flow_dir.join(forward_flow_name(t)), &synth.forward_flow(t))?;
         flow_files += 1;
         if backward {
-            flo::write_flo(&flow_dir.join(backward_flow_name(t + 1)), &synth.backward_flow(t + 1))?;
+            flo::write_flo(
+                &flow_dir.join(backward_flow_name(t + 1)),
+                &synth.backward_flow(t + 1),
+            )?;
             flow_files += 1;
         }
     }

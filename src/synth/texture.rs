@@ -33,26 +33,28 @@ pub(crate) fn gaussian(h1: u64, h2: u64) -> f64 {
     (-2.0 * u1.ln()).sqrt() * (TAU * u2).cos()
 }
 
-/// Sixteen unit gradient directions.
+/// Sixteen unit gradient directions, k * 22.5 degrees.
 const GRADIENTS: [(f64, f64); 16] = {
-    // cos/sin of k * 22.5 degrees, written out so the table is a constant.
+    const C: f64 = 0.923_879_532_511_286_7; // cos 22.5 deg
+    const S: f64 = 0.382_683_432_365_089_8; // sin 22.5 deg
+    const H: f64 = std::f64::consts::FRAC_1_SQRT_2;
     [
         (1.0, 0.0),
-        (0.923_879_532_511_286_7, 0.382_683_432_365_089_8),
-        (0.707_106_781_186_547_6, 0.707_106_781_186_547_6),
-        (0.382_683_432_365_089_8, 0.923_879_532_511_286_7),
+        (C, S),
+        (H, H),
+        (S, C),
         (0.0, 1.0),
-        (-0.382_683_432_365_089_8, 0.923_879_532_511_286_7),
-        (-0.707_106_781_186_547_6, 0.707_106_781_186_547_6),
-        (-0.923_879_532_511_286_7, 0.382_683_432_365_089_8),
+        (-S, C),
+        (-H, H),
+        (-C, S),
         (-1.0, 0.0),
-        (-0.923_879_532_511_286_7, -0.382_683_432_365_089_8),
-        (-0.707_106_781_186_547_6, -0.707_106_781_186_547_6),
-        (-0.382_683_432_365_089_8, -0.923_879_532_511_286_7),
+        (-C, -S),
+        (-H, -H),
+        (-S, -C),
         (0.0, -1.0),
-        (0.382_683_432_365_089_8, -0.923_879_532_511_286_7),
-        (0.707_106_781_186_547_6, -0.707_106_781_186_547_6),
-        (0.923_879_532_511_286_7, -0.382_683_432_365_089_8),
+        (S, -C),
+        (H, -H),
+        (C, -S),
     ]
 };
 
@@ -167,7 +169,11 @@ impl Texture {
         if self.mask_wavelength > 0.0 {
             // Fine detail fades to nothing where the mask noise is low,
             // leaving smooth regions (the aperture problem, flat blocks).
-            let m = gradient_noise(self.seed ^ 0xA5A5, x / self.mask_wavelength, y / self.mask_wavelength);
+            let m = gradient_noise(
+                self.seed ^ 0xA5A5,
+                x / self.mask_wavelength,
+                y / self.mask_wavelength,
+            );
             detail *= ((m + 0.4) * 3.0).clamp(0.0, 1.0);
         }
         let mut y_val = self.mean + coarse + detail;
@@ -214,7 +220,7 @@ mod tests {
         let n = 200_000;
         let (mut s, mut s2) = (0.0, 0.0);
         for i in 0..n {
-            let g = gaussian(mix64(i), mix64(i + 1 << 40));
+            let g = gaussian(mix64(i), mix64((i + 1) << 40));
             s += g;
             s2 += g * g;
         }

@@ -1,0 +1,234 @@
+//! The `mocomp` command line: each subcommand end to end, and errors as one
+//! clear line with a non-zero exit, never a panic.
+
+use std::path::{Path, PathBuf};
+
+use assert_cmd::Command;
+use predicates::prelude::*;
+
+fn mocomp() -> Command {
+    Command::new(assert_cmd::cargo::cargo_bin!("mocomp"))
+}
+
+fn sample(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("samples").join(name)
+}
+
+/// Runs `args`, expects failure, and returns standard error, checked to be
+/// one `mocomp: error:` line without a panic.
+fn fails_cleanly(args: &[&str]) -> String {
+    let out = mocomp().args(args).output().unwrap();
+    assert_eq!(out.status.code(), Some(1), "{args:?}");
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(err.starts_with("mocomp: error: "), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(
+        !err.contains("panicked") && !err.contains("internal error"),
+        "{err}"
+    );
+    err
+}
+
+#[test]
+fn help_lists_the_working_subcommands() {
+    let out = mocomp()
+        .arg("--help")
+        .assert()
+        .success()
+        .get_output()
+        .stdout
+        .clone();
+    let text = String::from_utf8(out).unwrap();
+    for cmd in ["compare", "info", "samples", "psnr"] {
+        assert!(text.contains(cmd), "{cmd} missing from --help:\n{text}");
+    }
+}
+
+#[test]
+fn info_describes_y4m_flo_and_png() {
+    mocomp()
+        .args(["info", sample("synth_qcif.y4m").to_str().unwrap(), "--json"])
+        .assert()
+        .success()
+        .stdout(predicate::str::contains(r#""width":176"#).and(predicate::str::contains(r#""frames":10"#)));
+    mocomp()
+        .args(["info", sample("synth_qcif/forward_0000.flo").to_str().unwrap()])
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("Middlebury .flo").and(predicate::str::contains("176")));
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("p.png");
+    mocomp::io::image::write_plane(&png, &mocomp::codec::Plane::filled(9, 7, 3).unwrap()).unwrap();
+    mocomp()
+        .args(["info", png.to_str().unwrap(), "--json"])
+        .assert()
+        .success()
+        .stdout(predicate::str::contains(r#""width":9,"height":7"#));
+}
+
+#[test]
+fn info_reads_standard_input() {
+    let bytes = std::fs::read(sample("tree_qcif.y4m")).unwrap();
+    mocomp()
+        .args(["info", "-", "--json"])
+        .write_stdin(bytes)
+        .assert()
+        .success()
+        .stdout(predicate::str::contains(r#""frames":6"#));
+}
+
+#[test]
+fn psnr_json_has_the_documented_keys_and_ffmpeg_figures() {
+    let out = mocomp()
+        .args([
+            "psnr",
+            sample("tree_qcif.y4m").to_str().unwrap(),
+            sample("tree_qcif_mpeg4.y4m").to_str().unwrap(),
+            "--json",
+        ])
+        .assert()
+        .success()
+        .get_output()
+        .stdout
+        .clone();
+    let v: serde_json::Value = serde_json::from_slice(&out).unwrap();
+    for key in [
+        "frames",
+        "psnr_y",
+        "psnr_u",
+        "psnr_v",
+        "psnr_yuv",
+        "ssim",
+        "psnr_y_mse",
+        "per_frame",
+    ] {
+        assert!(v.get(key).is_some(), "missing {key}: {v}");
+    }
+    assert_eq!(v["frames"], 6);
+    assert_eq!(v["per_frame"].as_array().unwrap().len(), 6);
+    // ffmpeg's psnr filter: mean of per-frame psnr_y 30.4917, summary y:30.465296.
+    assert!((v["psnr_y"].as_f64().unwrap() - 30.4917).abs() < 0.01, "{v}");
+    assert!(
+        (v["psnr_y_mse"].as_f64().unwrap() - 30.465296).abs() < 1e-5,
+        "{v}"
+    );
+}
+
+#[test]
+fn psnr_writes_a_csv_and_reads_stdin() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("per_frame.csv");
+    let test = std::fs::read(sample("tree_qcif_mpeg4.y4m")).unwrap();
+    mocomp()
+        .args([
+            "psnr",
+            sample("tree_qcif.y4m").to_str().unwrap(),
+            "-",
+            "--csv",
+            csv.to_str().unwrap(),
+        ])
+        .write_stdin(test)
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("mean"));
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let lines: Vec<_> = text.lines().collect();
+    assert_eq!(
+        lines[0],
+        "frame,psnr_y,psnr_u,psnr_v,psnr_yuv,ssim,mse_y,mse_u,mse_v"
+    );
+    assert_eq!(lines.len(), 7);
+    assert!(lines[1].starts_with("0,31.59"), "{}", lines[1]);
+}
+
+#[test]
+fn samples_writes_video_and_flow() {
+    let dir = tempfile::tempdir().unwrap();
+    mocomp()
+        .args([
+            "samples",
+            "--out",
+            dir.path().to_str().unwrap(),
+            "--only",
+            "synth_qcif",
+            "--backward",
+        ])
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("18 .flo files"));
+    assert_eq!(
+        std::fs::read(dir.path().join("synth_qcif.y4m")).unwrap(),
+        std::fs::read(sample("synth_qcif.y4m")).unwrap(),
+        "the command regenerates the committed sample byte for byte"
+    );
+    assert!(dir.path().join("synth_qcif/backward_0009.flo").exists());
+    let err = fails_cleanly(&["samples", "--out", dir.path().to_str().unwrap(), "--only", "nope"]);
+    assert!(err.contains("synth_qcif"), "{err}");
+}
+
+#[test]
+fn compare_runs_on_the_bundled_sample_from_anywhere() {
+    let dir = tempfile::tempdir().unwrap();
+    mocomp()
+        .current_dir(dir.path())
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("zero motion").and(predicate::str::contains("mocomp-out")));
+    let csv = std::fs::read_to_string(dir.path().join("mocomp-out/compare.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 9);
+    for r in rows {
+        // True motion predicts better than none, and best on valid pixels.
+        assert!(r[2] > r[1] + 3.0 && r[3] > r[2], "{r:?}");
+    }
+}
+
+#[test]
+fn errors_are_one_clear_line() {
+    let missing = fails_cleanly(&["info", "/no/such/file.y4m"]);
+    assert!(missing.contains("/no/such/file.y4m"), "{missing}");
+
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, bytes: &[u8]| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, bytes).unwrap();
+        p.to_str().unwrap().to_owned()
+    };
+    let c422 = write("c422.y4m", b"YUV4MPEG2 W4 H4 F30:1 C422\nFRAME\n");
+    let err = fails_cleanly(&["psnr", &c422, &c422]);
+    assert!(
+        err.contains("4:2:2") && err.contains("ffmpeg -i in -pix_fmt yuv420p"),
+        "{err}"
+    );
+
+    let mut bytes = std::fs::read(sample("tree_qcif.y4m")).unwrap();
+    bytes.truncate(bytes.len() - 100);
+    let cut = write("cut.y4m", &bytes);
+    let err = fails_cleanly(&["info", &cut]);
+    assert!(err.contains("frame 5 is truncated"), "{err}");
+
+    let empty = write("empty.y4m", b"");
+    assert!(fails_cleanly(&["info", &empty]).contains("not a Y4M, .flo or image"));
+    let empty_stdin = mocomp().args(["info", "-"]).output().unwrap();
+    assert!(String::from_utf8_lossy(&empty_stdin.stderr).contains("empty input"));
+
+    let flo = write("bad.flo", b"PIEH\x05\x00\x00\x00\x05\x00\x00\x00\x00");
+    assert!(fails_cleanly(&["info", &flo]).contains("needs 212 bytes"));
+
+    let small = write(
+        "small.y4m",
+        b"YUV4MPEG2 W2 H2 F30:1\nFRAME\n\x00\x00\x00\x00\x00\x00",
+    );
+    let err = fails_cleanly(&["psnr", sample("tree_qcif.y4m").to_str().unwrap(), &small]);
+    assert!(err.contains("sizes differ"), "{err}");
+}
+
+#[test]
+fn usage_errors_exit_with_two() {
+    mocomp().args(["psnr"]).assert().code(2);
+    mocomp().args(["no-such-command"]).assert().code(2);
+}

@@ -541,12 +541,14 @@ impl fmt::Debug for Frame {
 mod tests {
     use super::*;
 
-    fn ramp(w: usize, h: usize) -> Plane {
-        Plane::from_fn(w, h, |x, y| (x * 7 + y * 13) as u8).unwrap()
+    type Result = std::result::Result<(), PictureError>;
+
+    fn ramp(w: usize, h: usize) -> std::result::Result<Plane, PictureError> {
+        Plane::from_fn(w, h, |x, y| (x * 7 + y * 13) as u8)
     }
 
     #[test]
-    fn sizes_are_checked_before_allocation() {
+    fn sizes_are_checked_before_allocation() -> Result {
         assert_eq!(
             Plane::new(0, 5).unwrap_err(),
             PictureError::Empty { width: 0, height: 5 }
@@ -558,41 +560,45 @@ mod tests {
         // usize::MAX would overflow any size computation: it must be refused first.
         assert!(Frame::new(usize::MAX, usize::MAX).is_err());
         assert!(Plane::with_padding(4, 4, MAX_PAD + 1).is_err());
+        Ok(())
     }
 
     #[test]
-    fn odd_and_tiny_sizes() {
+    fn odd_and_tiny_sizes() -> Result {
         for (w, h) in [(1, 1), (1, 7), (3, 5), (17, 9)] {
-            let f = Frame::new(w, h).unwrap();
+            let f = Frame::new(w, h)?;
             assert_eq!((f.u().width(), f.u().height()), (w.div_ceil(2), h.div_ceil(2)));
             assert_eq!(f.v().width(), f.u().width());
         }
+        Ok(())
     }
 
     #[test]
-    fn border_replicates_nearest_edge_pixel() {
-        let p = ramp(5, 4);
+    fn border_replicates_nearest_edge_pixel() -> Result {
+        let p = ramp(5, 4)?;
         let pad = p.pad() as isize;
         for y in -pad..4 + pad {
             for x in -pad..5 + pad {
                 assert_eq!(p.at(x, y), p.pixel_clamped(x, y), "at ({x},{y})");
             }
         }
+        Ok(())
     }
 
     #[test]
-    fn padded_row_indexes_match() {
-        let p = ramp(6, 3);
+    fn padded_row_indexes_match() -> Result {
+        let p = ramp(6, 3)?;
         let r = p.padded_row(-2);
         assert_eq!(r.len(), 6 + 2 * p.pad());
         assert_eq!(r[p.pad() + 4], p.get(4, 0));
         assert_eq!(p.padded_row(1)[p.pad()..p.pad() + 6], *p.row(1));
+        Ok(())
     }
 
     #[test]
-    fn packed_round_trip_and_length_check() {
+    fn packed_round_trip_and_length_check() -> Result {
         let data: Vec<u8> = (0..15).collect();
-        let p = Plane::from_packed(5, 3, &data).unwrap();
+        let p = Plane::from_packed(5, 3, &data)?;
         assert_eq!(p.to_packed(), data);
         assert!(matches!(
             Plane::from_packed(5, 3, &data[..14]),
@@ -602,32 +608,36 @@ mod tests {
                 ..
             })
         ));
+        Ok(())
     }
 
     #[test]
-    fn equality_ignores_border_and_padding() {
-        let a = ramp(7, 5);
-        let mut b = Plane::with_padding(7, 5, 3).unwrap();
+    fn equality_ignores_border_and_padding() -> Result {
+        let a = ramp(7, 5)?;
+        let mut b = Plane::with_padding(7, 5, 3)?;
         b.copy_from(&a);
         assert_eq!(a, b);
         b.set(6, 4, b.get(6, 4) ^ 1);
         assert_ne!(a, b);
+        Ok(())
     }
 
     #[test]
-    fn from_planes_checks_chroma_size() {
-        let y = Plane::new(5, 5).unwrap();
-        let good = || Plane::new(3, 3).unwrap();
-        assert!(Frame::from_planes(y.clone(), good(), good()).is_ok());
-        let err = Frame::from_planes(y, Plane::new(2, 3).unwrap(), good()).unwrap_err();
+    fn from_planes_checks_chroma_size() -> Result {
+        let y = Plane::new(5, 5)?;
+        let good = Plane::new(3, 3)?;
+        assert!(Frame::from_planes(y.clone(), good.clone(), good.clone()).is_ok());
+        let err = Frame::from_planes(y, Plane::new(2, 3)?, good).unwrap_err();
         assert!(err.to_string().contains("needs 3x3 chroma planes"), "{err}");
+        Ok(())
     }
 
     #[test]
-    fn zero_pad_plane_works() {
-        let mut p = Plane::with_padding(3, 2, 0).unwrap();
+    fn zero_pad_plane_works() -> Result {
+        let mut p = Plane::with_padding(3, 2, 0)?;
         p.set(2, 1, 9);
         p.extend_border();
         assert_eq!(p.pixel_clamped(10, 10), 9);
+        Ok(())
     }
 }

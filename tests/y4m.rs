@@ -132,6 +132,26 @@ fn other_formats_are_refused_with_a_conversion_hint() {
 }
 
 #[test]
+fn non_ascii_header_tokens_are_errors_not_panics() {
+    // A token starting with a multi-byte UTF-8 character, and invalid UTF-8.
+    for line in [
+        &b"YUV4MPEG2 W4 H4 \xc3\xa9x\n"[..],
+        b"YUV4MPEG2 W\xff H4\n",
+        b"YUV4MPEG2 W4 H4 C\xe2\x82\xac\n",
+    ] {
+        let _ = Y4mReader::new(line);
+    }
+    assert!(
+        Y4mReader::new(&b"YUV4MPEG2 W4 H4 \xc3\xa9x\n"[..]).is_ok(),
+        "unknown tags are ignored"
+    );
+    assert!(matches!(
+        Y4mReader::new(&b"YUV4MPEG2 W\xff H4\n"[..]),
+        Err(Y4mError::BadHeader(_))
+    ));
+}
+
+#[test]
 fn malformed_headers_are_errors() {
     let bad = [
         "F30:1 H4",                 // no width
@@ -237,14 +257,14 @@ fn writing_keeps_rate_aspect_siting_and_extensions() {
     for f in &frames {
         writer.write_frame(f).unwrap();
     }
-    writer.finish().unwrap();
+    drop(writer);
     let back = Y4mReader::new(&out[..]).unwrap();
     assert_eq!(back.info(), &info);
     assert_eq!(back.read_all().unwrap(), frames);
     // Square pixels round-trip too, though the y4m crate leaves out A1:1.
     let square = Y4mInfo::new(4, 4, (25, 1));
     let mut out = Vec::new();
-    Y4mWriter::new(&mut out, &square).unwrap().finish().unwrap();
+    drop(Y4mWriter::new(&mut out, &square).unwrap());
     assert_eq!(Y4mReader::new(&out[..]).unwrap().info(), &square);
 }
 
@@ -293,7 +313,7 @@ proptest! {
         for f in &frames {
             writer.write_frame(f).unwrap();
         }
-        writer.finish().unwrap();
+        drop(writer);
         let back = Y4mReader::new(&bytes[..]).unwrap().read_all().unwrap();
         prop_assert_eq!(back, frames);
     }
@@ -314,5 +334,13 @@ proptest! {
     #[test]
     fn any_header_line_never_panics(line in "YUV4MPEG2 [ -~]{0,80}\n") {
         let _ = Y4mReader::new(line.as_bytes()).map(|r| r.read_all());
+    }
+
+    #[test]
+    fn any_header_bytes_never_panic(tail in proptest::collection::vec(any::<u8>(), 0..120)) {
+        let mut bytes = b"YUV4MPEG2 ".to_vec();
+        bytes.extend(tail.iter().map(|&b| if b == b'\n' { b' ' } else { b }));
+        bytes.push(b'\n');
+        let _ = Y4mReader::new(&bytes[..]).map(|r| r.read_all());
     }
 }

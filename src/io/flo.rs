@@ -106,12 +106,8 @@ fn expected_len(width: usize, height: usize) -> u64 {
     HEADER_LEN + 8 * (width as u64) * (height as u64)
 }
 
-/// Reads a `.flo` file, checking its length against its header first.
-pub fn read_flo(path: &Path) -> Result<Flow, FloError> {
-    let file = File::open(path)?;
-    let actual = file.metadata()?.len();
-    let mut reader = BufReader::new(file);
-    let (width, height) = read_header(&mut reader, actual)?;
+/// The length a `width x height` file must have, or the error saying so.
+fn check_length(width: usize, height: usize, actual: u64) -> Result<u64, FloError> {
     let expected = expected_len(width, height);
     if actual != expected {
         return Err(FloError::Length {
@@ -121,6 +117,16 @@ pub fn read_flo(path: &Path) -> Result<Flow, FloError> {
             actual,
         });
     }
+    Ok(expected)
+}
+
+/// Reads a `.flo` file, checking its length against its header first.
+pub fn read_flo(path: &Path) -> Result<Flow, FloError> {
+    let file = File::open(path)?;
+    let actual = file.metadata()?.len();
+    let mut reader = BufReader::new(file);
+    let (width, height) = read_header(&mut reader)?;
+    let expected = check_length(width, height, actual)?;
     read_body(&mut reader, width, height, expected)
 }
 
@@ -128,25 +134,17 @@ pub fn read_flo(path: &Path) -> Result<Flow, FloError> {
 /// actually present, so a lying header cannot force a large allocation.
 pub fn read_flo_from(reader: impl Read) -> Result<Flow, FloError> {
     let mut reader = BufReader::new(reader);
-    let (width, height) = read_header(&mut reader, u64::MAX)?;
+    let (width, height) = read_header(&mut reader)?;
     let expected = expected_len(width, height);
     let mut body = Vec::new();
     (&mut reader)
         .take(expected - HEADER_LEN + 1)
         .read_to_end(&mut body)?;
-    let actual = HEADER_LEN + body.len() as u64;
-    if actual != expected {
-        return Err(FloError::Length {
-            width,
-            height,
-            expected,
-            actual,
-        });
-    }
+    check_length(width, height, HEADER_LEN + body.len() as u64)?;
     read_body(&mut &body[..], width, height, expected)
 }
 
-fn read_header(reader: &mut impl Read, file_len: u64) -> Result<(usize, usize), FloError> {
+fn read_header(reader: &mut impl Read) -> Result<(usize, usize), FloError> {
     let mut header = [0u8; 12];
     let mut got = 0;
     while got < header.len() {
@@ -156,9 +154,7 @@ fn read_header(reader: &mut impl Read, file_len: u64) -> Result<(usize, usize), 
         }
     }
     if got < header.len() {
-        return Err(FloError::ShortHeader {
-            got: (got as u64).min(file_len),
-        });
+        return Err(FloError::ShortHeader { got: got as u64 });
     }
     check_header(&header)
 }

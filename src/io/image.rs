@@ -93,10 +93,7 @@ pub fn read_frame(path: &Path) -> Result<Frame, ImageError> {
     )?)
 }
 
-/// A limited-range BT.601 4:2:0 frame from packed RGB bytes; chroma is the
-/// mean over each 2x2 block (edge pixels repeated for odd sizes).
-pub fn frame_from_rgb(width: usize, height: usize, rgb: &[u8]) -> Result<Frame, PictureError> {
-    check_size(width, height)?;
+fn check_rgb_len(width: usize, height: usize, rgb: &[u8]) -> Result<(), PictureError> {
     if rgb.len() != 3 * width * height {
         return Err(PictureError::DataLength {
             width,
@@ -105,6 +102,14 @@ pub fn frame_from_rgb(width: usize, height: usize, rgb: &[u8]) -> Result<Frame, 
             actual: rgb.len(),
         });
     }
+    Ok(())
+}
+
+/// A limited-range BT.601 4:2:0 frame from packed RGB bytes; chroma is the
+/// mean over each 2x2 block (edge pixels repeated for odd sizes).
+pub fn frame_from_rgb(width: usize, height: usize, rgb: &[u8]) -> Result<Frame, PictureError> {
+    check_size(width, height)?;
+    check_rgb_len(width, height, rgb)?;
     let mut frame = Frame::new(width, height)?;
     let px = |x: usize, y: usize| {
         let i = 3 * (y.min(height - 1) * width + x.min(width - 1));
@@ -194,15 +199,7 @@ pub fn write_frame(path: &Path, frame: &Frame) -> Result<(), ImageError> {
 
 /// Writes packed RGB bytes (`3 * width * height`) as a PNG.
 pub fn write_rgb(path: &Path, width: usize, height: usize, rgb: &[u8]) -> Result<(), ImageError> {
-    if rgb.len() != 3 * width * height {
-        return Err(PictureError::DataLength {
-            width,
-            height,
-            expected: 3 * width * height,
-            actual: rgb.len(),
-        }
-        .into());
-    }
+    check_rgb_len(width, height, rgb)?;
     write_png(path, width, height, rgb, ColorType::Rgb8)
 }
 

@@ -17,7 +17,7 @@
 //! let mut bytes = Vec::new();
 //! let mut writer = Y4mWriter::new(&mut bytes, &info).unwrap();
 //! writer.write_frame(&Frame::filled(6, 4, 100, 128, 128).unwrap()).unwrap();
-//! writer.finish().unwrap();
+//! drop(writer);
 //!
 //! let mut reader = Y4mReader::new(&bytes[..]).unwrap();
 //! assert_eq!(reader.info().fps, (30, 1));
@@ -138,8 +138,11 @@ impl Y4mInfo {
         let mut siting = ChromaSiting::Jpeg;
         let mut extensions = Vec::new();
         for token in rest.split(|&b| b == b' ').filter(|t| !t.is_empty()) {
+            // Split off the tag byte before decoding: the value may be any
+            // bytes, and a tag may be the start of a multi-byte character.
             let text = String::from_utf8_lossy(token);
-            let value = &text[1..];
+            let value_text = String::from_utf8_lossy(&token[1..]);
+            let value = value_text.as_ref();
             match token[0] {
                 b'W' => width = Some(parse_uint(&text, value)?),
                 b'H' => height = Some(parse_uint(&text, value)?),
@@ -397,14 +400,7 @@ impl<R: Read> Y4mReader<R> {
     /// Reads the next frame into `frame` (of the stream's size), reusing its
     /// buffers; returns `false` at the end of the stream.
     pub fn read_frame_into(&mut self, frame: &mut Frame) -> Result<bool, Y4mError> {
-        if frame.width() != self.info.width || frame.height() != self.info.height {
-            return Err(Y4mError::FrameSize {
-                width: self.info.width,
-                height: self.info.height,
-                got_w: frame.width(),
-                got_h: frame.height(),
-            });
-        }
+        check_frame_size(&self.info, frame)?;
         let start = self.consumed.load(Ordering::Relaxed);
         let index = self.frames_read;
         let data = match self.decoder.read_frame() {
@@ -463,7 +459,11 @@ impl<R: Read> fmt::Debug for Y4mReader<R> {
 }
 
 /// Writes a Y4M stream frame by frame, keeping the header's frame rate,
-/// aspect, chroma siting and `X` tags.
+/// aspect, chroma siting and `X` tags. Each frame is written straight through
+/// to `W`; whoever owns `W` flushes it (or commits an [`OutputFile`]) after
+/// the writer is dropped.
+///
+/// [`OutputFile`]: crate::io::OutputFile
 pub struct Y4mWriter<W: Write> {
     encoder: y4m::Encoder<W>,
     info: Y4mInfo,
@@ -498,14 +498,7 @@ impl<W: Write> Y4mWriter<W> {
 
     /// Appends one frame.
     pub fn write_frame(&mut self, frame: &Frame) -> Result<(), Y4mError> {
-        if frame.width() != self.info.width || frame.height() != self.info.height {
-            return Err(Y4mError::FrameSize {
-                width: self.info.width,
-                height: self.info.height,
-                got_w: frame.width(),
-                got_h: frame.height(),
-            });
-        }
+        check_frame_size(&self.info, frame)?;
         for (buf, plane) in self.packed.iter_mut().zip(frame.planes()) {
             buf.clear();
             for row in plane.rows() {
@@ -515,15 +508,18 @@ impl<W: Write> Y4mWriter<W> {
         let data = y4m::Frame::new([&self.packed[0], &self.packed[1], &self.packed[2]], None);
         self.encoder.write_frame(&data).map_err(map_write_error)
     }
+}
 
-    /// Flushes and returns the underlying writer.
-    pub fn finish(self) -> Result<(), Y4mError> {
-        // y4m::Encoder does not give its writer back; frames are written
-        // through to it, so dropping it loses nothing once `W` is flushed by
-        // its owner (OutputFile::commit, or a BufWriter's drop).
-        drop(self.encoder);
-        Ok(())
+fn check_frame_size(info: &Y4mInfo, frame: &Frame) -> Result<(), Y4mError> {
+    if frame.width() != info.width || frame.height() != info.height {
+        return Err(Y4mError::FrameSize {
+            width: info.width,
+            height: info.height,
+            got_w: frame.width(),
+            got_h: frame.height(),
+        });
     }
+    Ok(())
 }
 
 fn map_write_error(e: y4m::Error) -> Y4mError {

@@ -652,13 +652,11 @@ pub fn write_sample(spec: &SceneSpec, dir: &Path, backward: bool) -> Result<Writ
     let flow_dir = dir.join(&spec.name);
     std::fs::create_dir_all(&flow_dir)?;
     let mut out = OutputFile::create(&y4m_path).map_err(Y4mError::Io)?;
-    {
-        let mut writer = Y4mWriter::new(&mut out, &synth.y4m_info())?;
-        for t in 0..spec.frames {
-            writer.write_frame(&synth.frame(t))?;
-        }
-        writer.finish()?;
+    let mut writer = Y4mWriter::new(&mut out, &synth.y4m_info())?;
+    for t in 0..spec.frames {
+        writer.write_frame(&synth.frame(t))?;
     }
+    drop(writer);
     out.commit().map_err(Y4mError::Io)?;
     let mut flow_files = 0;
     for t in 0..spec.frames.saturating_sub(1) {

@@ -6,6 +6,7 @@
 //! the workspace. See `ARCHITECTURE.md` at the repository root.
 #![warn(missing_docs)]
 
+pub mod bits;
 pub mod picture;
 
 pub use picture::{Frame, PictureError, Plane, MAX_DIMENSION};

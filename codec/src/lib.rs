@@ -8,5 +8,6 @@
 
 pub mod bits;
 pub mod picture;
+pub mod transform;
 
 pub use picture::{Frame, PictureError, Plane, MAX_DIMENSION};

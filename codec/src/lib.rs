@@ -7,6 +7,7 @@
 #![warn(missing_docs)]
 
 pub mod bits;
+pub mod interp;
 pub mod picture;
 pub mod transform;
 

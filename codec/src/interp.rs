@@ -1,0 +1,373 @@
+//! Sub-pixel interpolation for motion compensation (normative).
+//!
+//! * Luma: quarter-pel, HEVC's separable 8-tap filters (H.265 8.5.3.3.3.1).
+//!   A horizontal pass keeps full precision (gain 64), a vertical pass
+//!   divides by 64, and the result is rounded `(v + 32) >> 6` and clipped
+//!   to 0..=255. Integer positions are plain copies.
+//! * Chroma: bilinear at 1/8 pel (as H.264 8.4.2.2.2):
+//!   `((8-fx)(8-fy) A + fx(8-fy) B + (8-fx)fy C + fx fy D + 32) >> 6`.
+//!   A luma vector in quarter-pel units is the chroma vector in eighth-pel
+//!   units (chroma has half the resolution).
+//!
+//! The reference picture extends without limit by repeating its edge
+//! samples: any vector is valid. The plane's border holds that extension,
+//! and a block displaced further out than the border is moved back inside
+//! it, which reads the same samples as long as the border is at least the
+//! block size plus 8 (checked).
+//!
+//! ```
+//! use mocomp_codec::interp::predict_luma;
+//! use mocomp_codec::picture::Plane;
+//! let reference = Plane::from_fn(32, 32, |x, _| (x * 4) as u8).unwrap();
+//! let mut out = [0u8; 16];
+//! // Half a pixel to the right of (8, 8) on a ramp of slope 4: +2.
+//! predict_luma(&reference, 8, 8, 2, 0, 4, 4, &mut out, 4);
+//! assert_eq!(out[0], 34);
+//! ```
+
+use crate::picture::Plane;
+
+/// Luma filter taps for phases 0, 1/4, 1/2, 3/4; each sums to 64. Tap `k`
+/// applies to the sample at offset `k - 3`.
+pub const LUMA_TAPS: [[i32; 8]; 4] = [
+    [0, 0, 0, 64, 0, 0, 0, 0],
+    [-1, 4, -10, 58, 17, -5, 1, 0],
+    [-1, 4, -11, 40, 40, -11, 4, -1],
+    [0, 1, -5, 17, 58, -10, 4, -1],
+];
+
+/// Largest block the predictors accept, per side.
+pub const MAX_BLOCK: usize = 64;
+
+/// Samples the 8-tap filter reads before and after the block.
+const TAPS_BEFORE: isize = 3;
+const TAPS_AFTER: isize = 4;
+
+/// Moves a block's top-left coordinate (with `before` and `after` extra
+/// samples read around a block of `size`) back into the plane's border
+/// when it lies beyond it: the samples read are unchanged, since every
+/// sample out there repeats the same edge sample.
+#[inline]
+fn clamp_into_border(
+    pos: isize,
+    size: usize,
+    extent: usize,
+    pad: usize,
+    before: isize,
+    after: isize,
+) -> isize {
+    let pad = pad as isize;
+    let lo = -pad + before;
+    let hi = extent as isize + pad - size as isize - after;
+    pos.clamp(lo, hi.max(lo))
+}
+
+fn check_block(reference: &Plane, w: usize, h: usize, out: &[u8], out_stride: usize) {
+    assert!(
+        w <= MAX_BLOCK && h <= MAX_BLOCK && w > 0 && h > 0,
+        "block {w}x{h}"
+    );
+    assert!(
+        reference.pad() >= w.max(h) + 8,
+        "plane border {} too small for {w}x{h} blocks",
+        reference.pad()
+    );
+    assert!(
+        out_stride >= w && out.len() >= (h - 1) * out_stride + w,
+        "output too small"
+    );
+}
+
+/// Luma prediction of the `w x h` block at (x, y) displaced by the
+/// quarter-pel vector (mvx, mvy), into `out` (row stride `out_stride`).
+#[allow(clippy::too_many_arguments)]
+pub fn predict_luma(
+    reference: &Plane,
+    x: isize,
+    y: isize,
+    mvx: i32,
+    mvy: i32,
+    w: usize,
+    h: usize,
+    out: &mut [u8],
+    out_stride: usize,
+) {
+    check_block(reference, w, h, out, out_stride);
+    let (fx, fy) = ((mvx & 3) as usize, (mvy & 3) as usize);
+    let px = clamp_into_border(
+        x + (mvx >> 2) as isize,
+        w,
+        reference.width(),
+        reference.pad(),
+        TAPS_BEFORE,
+        TAPS_AFTER,
+    );
+    let py = clamp_into_border(
+        y + (mvy >> 2) as isize,
+        h,
+        reference.height(),
+        reference.pad(),
+        TAPS_BEFORE,
+        TAPS_AFTER,
+    );
+    let data = reference.data();
+    let stride = reference.stride();
+    let at = |xx: isize, yy: isize| reference.index(xx, yy);
+    match (fx, fy) {
+        (0, 0) => {
+            for r in 0..h {
+                let src = at(px, py + r as isize);
+                out[r * out_stride..r * out_stride + w].copy_from_slice(&data[src..src + w]);
+            }
+        }
+        (_, 0) => {
+            let taps = &LUMA_TAPS[fx];
+            for r in 0..h {
+                let src = at(px - TAPS_BEFORE, py + r as isize);
+                let row = &data[src..src + w + 7];
+                for (c, o) in out[r * out_stride..r * out_stride + w].iter_mut().enumerate() {
+                    let s: i32 = (0..8).map(|k| taps[k] * i32::from(row[c + k])).sum();
+                    *o = ((s + 32) >> 6).clamp(0, 255) as u8;
+                }
+            }
+        }
+        (0, _) => {
+            let taps = &LUMA_TAPS[fy];
+            for r in 0..h {
+                let src = at(px, py + r as isize - TAPS_BEFORE);
+                for (c, o) in out[r * out_stride..r * out_stride + w].iter_mut().enumerate() {
+                    let s: i32 = (0..8)
+                        .map(|k| taps[k] * i32::from(data[src + k * stride + c]))
+                        .sum();
+                    *o = ((s + 32) >> 6).clamp(0, 255) as u8;
+                }
+            }
+        }
+        _ => {
+            // Horizontal pass over h + 7 rows at full precision, then vertical.
+            let (th, tv) = (&LUMA_TAPS[fx], &LUMA_TAPS[fy]);
+            let rows = h + 7;
+            let mut tmp = [0i32; MAX_BLOCK * (MAX_BLOCK + 7)];
+            for r in 0..rows {
+                let src = at(px - TAPS_BEFORE, py + r as isize - TAPS_BEFORE);
+                let row = &data[src..src + w + 7];
+                for c in 0..w {
+                    tmp[r * w + c] = (0..8).map(|k| th[k] * i32::from(row[c + k])).sum();
+                }
+            }
+            for r in 0..h {
+                for (c, o) in out[r * out_stride..r * out_stride + w].iter_mut().enumerate() {
+                    let s: i32 = (0..8).map(|k| tv[k] * tmp[(r + k) * w + c]).sum::<i32>() >> 6;
+                    *o = ((s + 32) >> 6).clamp(0, 255) as u8;
+                }
+            }
+        }
+    }
+}
+
+/// Chroma prediction of the `w x h` block at chroma position (x, y)
+/// displaced by the eighth-pel vector (mvx, mvy) (the luma quarter-pel
+/// vector), into `out`.
+#[allow(clippy::too_many_arguments)]
+pub fn predict_chroma(
+    reference: &Plane,
+    x: isize,
+    y: isize,
+    mvx: i32,
+    mvy: i32,
+    w: usize,
+    h: usize,
+    out: &mut [u8],
+    out_stride: usize,
+) {
+    check_block(reference, w, h, out, out_stride);
+    let (fx, fy) = (mvx & 7, mvy & 7);
+    let px = clamp_into_border(
+        x + (mvx >> 3) as isize,
+        w,
+        reference.width(),
+        reference.pad(),
+        0,
+        1,
+    );
+    let py = clamp_into_border(
+        y + (mvy >> 3) as isize,
+        h,
+        reference.height(),
+        reference.pad(),
+        0,
+        1,
+    );
+    let data = reference.data();
+    let stride = reference.stride();
+    let (wa, wb, wc, wd) = ((8 - fx) * (8 - fy), fx * (8 - fy), (8 - fx) * fy, fx * fy);
+    for r in 0..h {
+        let src = reference.index(px, py + r as isize);
+        for (c, o) in out[r * out_stride..r * out_stride + w].iter_mut().enumerate() {
+            let i = src + c;
+            let s = wa * i32::from(data[i])
+                + wb * i32::from(data[i + 1])
+                + wc * i32::from(data[i + stride])
+                + wd * i32::from(data[i + stride + 1]);
+            *o = ((s + 32) >> 6) as u8;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// The luma equations written directly: every sample read through
+    /// `pixel_clamped` (an infinitely extended picture), no border, no
+    /// separable pass.
+    fn reference_luma(p: &Plane, x: isize, y: isize, mvx: i32, mvy: i32, w: usize, h: usize) -> Vec<u8> {
+        let (ix, iy) = (x + (mvx >> 2) as isize, y + (mvy >> 2) as isize);
+        let (fx, fy) = ((mvx & 3) as usize, (mvy & 3) as usize);
+        let mut out = Vec::with_capacity(w * h);
+        for r in 0..h as isize {
+            for c in 0..w as isize {
+                let sample = |dx: isize, dy: isize| i64::from(p.pixel_clamped(ix + c + dx, iy + r + dy));
+                let v = if fx == 0 && fy == 0 {
+                    sample(0, 0)
+                } else if fy == 0 {
+                    ((0..8)
+                        .map(|k| i64::from(LUMA_TAPS[fx][k]) * sample(k as isize - 3, 0))
+                        .sum::<i64>()
+                        + 32)
+                        >> 6
+                } else if fx == 0 {
+                    ((0..8)
+                        .map(|k| i64::from(LUMA_TAPS[fy][k]) * sample(0, k as isize - 3))
+                        .sum::<i64>()
+                        + 32)
+                        >> 6
+                } else {
+                    let hpass = |dy: isize| {
+                        (0..8)
+                            .map(|k| i64::from(LUMA_TAPS[fx][k]) * sample(k as isize - 3, dy))
+                            .sum::<i64>()
+                    };
+                    let v = (0..8)
+                        .map(|k| i64::from(LUMA_TAPS[fy][k]) * hpass(k as isize - 3))
+                        .sum::<i64>()
+                        >> 6;
+                    (v + 32) >> 6
+                };
+                out.push(v.clamp(0, 255) as u8);
+            }
+        }
+        out
+    }
+
+    fn reference_chroma(p: &Plane, x: isize, y: isize, mvx: i32, mvy: i32, w: usize, h: usize) -> Vec<u8> {
+        let (ix, iy) = (x + (mvx >> 3) as isize, y + (mvy >> 3) as isize);
+        let (fx, fy) = (i64::from(mvx & 7), i64::from(mvy & 7));
+        let mut out = Vec::with_capacity(w * h);
+        for r in 0..h as isize {
+            for c in 0..w as isize {
+                let s = |dx, dy| i64::from(p.pixel_clamped(ix + c + dx, iy + r + dy));
+                let v = (8 - fx) * (8 - fy) * s(0, 0)
+                    + fx * (8 - fy) * s(1, 0)
+                    + (8 - fx) * fy * s(0, 1)
+                    + fx * fy * s(1, 1);
+                out.push(((v + 32) >> 6) as u8);
+            }
+        }
+        out
+    }
+
+    fn noise_plane(w: usize, h: usize, seed: u32) -> Plane {
+        Plane::from_fn(w, h, |x, y| {
+            let v = (x as u32).wrapping_mul(2_654_435_761) ^ (y as u32).wrapping_mul(40_503) ^ seed;
+            (v.wrapping_mul(2_246_822_519) >> 24) as u8
+        })
+        .unwrap()
+    }
+
+    #[test]
+    fn taps_sum_to_64_and_half_pel_is_symmetric() {
+        for t in LUMA_TAPS {
+            assert_eq!(t.iter().sum::<i32>(), 64);
+        }
+        let half = LUMA_TAPS[2];
+        assert_eq!(
+            half,
+            [half[7], half[6], half[5], half[4], half[3], half[2], half[1], half[0]]
+        );
+        // The quarter and three-quarter filters mirror each other.
+        let (q, tq) = (LUMA_TAPS[1], LUMA_TAPS[3]);
+        for k in 0..8 {
+            assert_eq!(q[k], tq[7 - k]);
+        }
+    }
+
+    #[test]
+    fn every_phase_matches_the_direct_formula() {
+        let p = noise_plane(37, 29, 7);
+        let mut out = vec![0u8; 16 * 16];
+        for mvy in -9..=9 {
+            for mvx in -9..=9 {
+                for (x, y, w, h) in [(0, 0, 16, 16), (21, 13, 16, 16), (5, 7, 4, 8), (33, 25, 8, 4)] {
+                    predict_luma(&p, x, y, mvx, mvy, w, h, &mut out, w);
+                    assert_eq!(
+                        out[..w * h],
+                        reference_luma(&p, x, y, mvx, mvy, w, h)[..],
+                        "luma mv ({mvx},{mvy}) at ({x},{y})"
+                    );
+                }
+            }
+        }
+        let c = noise_plane(19, 15, 3);
+        for mvy in -17..=17 {
+            for mvx in -17..=17 {
+                for (x, y, w, h) in [(0, 0, 8, 8), (11, 7, 8, 8), (16, 12, 4, 4)] {
+                    predict_chroma(&c, x, y, mvx, mvy, w, h, &mut out, w);
+                    assert_eq!(
+                        out[..w * h],
+                        reference_chroma(&c, x, y, mvx, mvy, w, h)[..],
+                        "chroma mv ({mvx},{mvy})"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn integer_vectors_copy_and_flat_pictures_stay_flat() {
+        let p = noise_plane(40, 40, 1);
+        let mut out = [0u8; 64];
+        predict_luma(&p, 8, 8, 4 * 3, 4 * -2, 8, 8, &mut out, 8);
+        for r in 0..8 {
+            for c in 0..8 {
+                assert_eq!(out[r * 8 + c], p.get(11 + c, 6 + r));
+            }
+        }
+        let flat = Plane::filled(20, 20, 173).unwrap();
+        for phase in 0..16 {
+            predict_luma(&flat, 2, 2, phase % 4 + 4, phase / 4 - 8, 8, 8, &mut out, 8);
+            assert!(out.iter().all(|&v| v == 173));
+            predict_chroma(&flat, 2, 2, phase % 8, phase / 2 - 3, 8, 8, &mut out, 8);
+            assert!(out.iter().all(|&v| v == 173));
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn any_vector_reads_the_extended_picture(
+            mvx in -40_000i32..40_000, mvy in -40_000i32..40_000,
+            x in -20isize..60, y in -20isize..60, size in prop_oneof![Just(4usize), Just(8), Just(16), Just(32)]
+        ) {
+            let p = noise_plane(45, 38, 11);
+            let mut out = vec![0u8; size * size];
+            predict_luma(&p, x, y, mvx, mvy, size, size, &mut out, size);
+            prop_assert_eq!(&out, &reference_luma(&p, x, y, mvx, mvy, size, size));
+            let c = noise_plane(23, 19, 5);
+            let cs = (size / 2).max(2);
+            let mut out = vec![0u8; cs * cs];
+            predict_chroma(&c, x / 2, y / 2, mvx, mvy, cs, cs, &mut out, cs);
+            prop_assert_eq!(&out, &reference_chroma(&c, x / 2, y / 2, mvx, mvy, cs, cs));
+        }
+    }
+}

@@ -8,6 +8,7 @@
 
 pub mod bits;
 pub mod interp;
+pub mod intra;
 pub mod picture;
 pub mod transform;
 

@@ -9,6 +9,7 @@
 pub mod bits;
 pub mod interp;
 pub mod intra;
+pub mod mv;
 pub mod picture;
 pub mod transform;
 

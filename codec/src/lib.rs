@@ -10,6 +10,7 @@ pub mod bits;
 pub mod interp;
 pub mod intra;
 pub mod mv;
+pub mod obmc;
 pub mod picture;
 pub mod transform;
 

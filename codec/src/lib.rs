@@ -13,5 +13,6 @@ pub mod mv;
 pub mod obmc;
 pub mod picture;
 pub mod transform;
+pub mod warp;
 
 pub use picture::{Frame, PictureError, Plane, MAX_DIMENSION};

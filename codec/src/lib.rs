@@ -12,6 +12,7 @@ pub mod intra;
 pub mod mv;
 pub mod obmc;
 pub mod picture;
+pub mod residual;
 pub mod transform;
 pub mod warp;
 

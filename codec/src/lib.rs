@@ -7,12 +7,15 @@
 #![warn(missing_docs)]
 
 pub mod bits;
+pub mod decoder;
 pub mod interp;
 pub mod intra;
 pub mod mv;
 pub mod obmc;
 pub mod picture;
+pub mod recon;
 pub mod residual;
+pub mod syntax;
 pub mod transform;
 pub mod warp;
 

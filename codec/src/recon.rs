@@ -1,0 +1,309 @@
+//! Reconstruction (normative): prediction of each macroblock, plus its
+//! dequantised, inverse-transformed residual. The decoder and the encoder
+//! both call these functions, which is what makes the encoder's
+//! reconstruction equal the decoder's output byte for byte.
+//!
+//! Pictures are reconstructed at the coded size (a whole number of
+//! macroblocks); [`crop`] gives the visible picture.
+
+use crate::interp::{predict_chroma, predict_luma};
+use crate::intra::{self, Neighbours};
+use crate::mv::Mv;
+use crate::obmc::{self, Neighbourhood};
+use crate::picture::{Frame, PictureError, Plane};
+use crate::residual::MbResidual;
+use crate::syntax::{mb_vector, FrameSyntax, FrameType, MbKind, MotionTool, SequenceHeader, MB};
+use crate::transform::{dequantize, inverse_4x4, Block4};
+use crate::warp::warp_frame;
+
+/// Chroma QP from luma QP (H.264 Table 8-15).
+pub fn chroma_qp(qp: u8) -> u8 {
+    const ABOVE_29: [u8; 22] = [
+        29, 30, 31, 32, 32, 33, 34, 34, 35, 35, 36, 36, 37, 37, 37, 38, 38, 38, 39, 39, 39, 39,
+    ];
+    if qp < 30 {
+        qp
+    } else {
+        ABOVE_29[usize::from(qp.min(51)) - 30]
+    }
+}
+
+/// The prediction of one macroblock: 16x16 luma, two 8x8 chroma blocks.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MbPrediction {
+    /// Luma, row-major.
+    pub luma: [u8; 256],
+    /// Cb and Cr, row-major.
+    pub chroma: [[u8; 64]; 2],
+}
+
+impl Default for MbPrediction {
+    fn default() -> MbPrediction {
+        MbPrediction {
+            luma: [0; 256],
+            chroma: [[0; 64]; 2],
+        }
+    }
+}
+
+/// What inter prediction of a frame needs.
+#[derive(Debug, Clone, Copy)]
+pub struct InterContext<'a> {
+    /// The previous reconstructed frame (coded size).
+    pub reference: &'a Frame,
+    /// The frame's motion tool.
+    pub tool: MotionTool,
+    /// Every macroblock's vector (`None` for intra), for OBMC.
+    pub vectors: &'a [Option<Mv>],
+    /// The whole reference warped by the grid, for grid frames.
+    pub warped: Option<&'a Frame>,
+    /// Macroblocks per row.
+    pub mb_cols: usize,
+}
+
+/// Intra prediction of macroblock (mb_x, mb_y) from the reconstruction
+/// so far. The modes must be allowed there
+/// ([`crate::syntax::intra_mode_allowed`]); panics otherwise.
+pub fn predict_intra(
+    recon: &Frame,
+    mb_x: usize,
+    mb_y: usize,
+    luma: intra::IntraMode,
+    chroma: intra::IntraMode,
+) -> MbPrediction {
+    let mut pred = MbPrediction::default();
+    let one = |plane: &Plane, size: usize, mode, out: &mut [u8]| {
+        let (x0, y0) = (mb_x * size, mb_y * size);
+        let top = (mb_y > 0).then(|| &plane.row(y0 - 1)[x0..x0 + size]);
+        let left: Option<Vec<u8>> =
+            (mb_x > 0).then(|| (0..size).map(|r| plane.get(x0 - 1, y0 + r)).collect());
+        let top_left = (mb_x > 0 && mb_y > 0).then(|| plane.get(x0 - 1, y0 - 1));
+        let n = Neighbours {
+            top,
+            left: left.as_deref(),
+            top_left,
+        };
+        let done = intra::predict(mode, size, &n, out, size);
+        assert!(
+            done.is_ok(),
+            "intra mode {mode:?} not allowed at macroblock ({mb_x}, {mb_y})"
+        );
+    };
+    one(recon.y(), MB, luma, &mut pred.luma);
+    one(recon.u(), MB / 2, chroma, &mut pred.chroma[0]);
+    one(recon.v(), MB / 2, chroma, &mut pred.chroma[1]);
+    pred
+}
+
+/// Inter prediction of macroblock (mb_x, mb_y) with vector `mv` (ignored in
+/// grid frames).
+pub fn predict_inter(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mv: Mv) -> MbPrediction {
+    let mut pred = MbPrediction::default();
+    let (x, y) = ((mb_x * MB) as isize, (mb_y * MB) as isize);
+    let (cx, cy) = (x / 2, y / 2);
+    let r = ctx.reference;
+    match ctx.tool {
+        MotionTool::Block => {
+            predict_luma(r.y(), x, y, mv.x, mv.y, MB, MB, &mut pred.luma, MB);
+            for p in 0..2 {
+                predict_chroma(
+                    r.plane(p + 1),
+                    cx,
+                    cy,
+                    mv.x,
+                    mv.y,
+                    MB / 2,
+                    MB / 2,
+                    &mut pred.chroma[p],
+                    MB / 2,
+                );
+            }
+        }
+        MotionTool::Obmc => {
+            let rows = ctx.vectors.len() / ctx.mb_cols;
+            let mut around: Neighbourhood = [[None; 3]; 3];
+            for (dy, row) in around.iter_mut().enumerate() {
+                for (dx, slot) in row.iter_mut().enumerate() {
+                    let (nx, ny) = (mb_x as isize + dx as isize - 1, mb_y as isize + dy as isize - 1);
+                    if nx >= 0 && ny >= 0 && (nx as usize) < ctx.mb_cols && (ny as usize) < rows {
+                        *slot = ctx.vectors[ny as usize * ctx.mb_cols + nx as usize];
+                    }
+                }
+            }
+            obmc::predict_block(r.y(), false, x, y, MB, mv, &around, &mut pred.luma, MB);
+            for p in 0..2 {
+                obmc::predict_block(
+                    r.plane(p + 1),
+                    true,
+                    cx,
+                    cy,
+                    MB / 2,
+                    mv,
+                    &around,
+                    &mut pred.chroma[p],
+                    MB / 2,
+                );
+            }
+        }
+        MotionTool::Grid(_) => {
+            let warped = ctx.warped.unwrap_or(r);
+            let copy = |plane: &Plane, size: usize, out: &mut [u8]| {
+                let (x0, y0) = (mb_x * size, mb_y * size);
+                for row in 0..size {
+                    out[row * size..(row + 1) * size].copy_from_slice(&plane.row(y0 + row)[x0..x0 + size]);
+                }
+            };
+            copy(warped.y(), MB, &mut pred.luma);
+            copy(warped.u(), MB / 2, &mut pred.chroma[0]);
+            copy(warped.v(), MB / 2, &mut pred.chroma[1]);
+        }
+    }
+    pred
+}
+
+/// Adds one 4x4 block of levels, dequantised at `qp`, to the prediction
+/// and writes the clipped result.
+fn add_block(
+    pred: &[u8],
+    pred_stride: usize,
+    levels: &Block4,
+    qp: u8,
+    out: &mut [u8],
+    out_stride: usize,
+    at: (usize, usize),
+) {
+    let (bx, by) = at;
+    let zero = levels.iter().all(|r| r.iter().all(|&v| v == 0));
+    let residual = if zero {
+        [[0; 4]; 4]
+    } else {
+        let mut c = *levels;
+        dequantize(&mut c, qp);
+        inverse_4x4(&c)
+    };
+    for r in 0..4 {
+        for c in 0..4 {
+            let p = i32::from(pred[(by + r) * pred_stride + bx + c]);
+            out[(by + r) * out_stride + bx + c] = (p + residual[r][c]).clamp(0, 255) as u8;
+        }
+    }
+}
+
+/// Writes macroblock (mb_x, mb_y) of `recon`: `pred` plus `residual`
+/// dequantised at `qp` (chroma at [`chroma_qp`]). Borders are not extended.
+pub fn reconstruct_mb(
+    pred: &MbPrediction,
+    residual: &MbResidual,
+    qp: u8,
+    recon: &mut Frame,
+    mb_x: usize,
+    mb_y: usize,
+) {
+    let mut luma = [0u8; 256];
+    for (i, levels) in residual.luma.iter().enumerate() {
+        add_block(
+            &pred.luma,
+            MB,
+            levels,
+            qp,
+            &mut luma,
+            MB,
+            ((i % 4) * 4, (i / 4) * 4),
+        );
+    }
+    let (x0, y0) = (mb_x * MB, mb_y * MB);
+    for r in 0..MB {
+        recon.plane_mut(0).row_mut(y0 + r)[x0..x0 + MB].copy_from_slice(&luma[r * MB..(r + 1) * MB]);
+    }
+    let cqp = chroma_qp(qp);
+    for p in 0..2 {
+        let mut chroma = [0u8; 64];
+        for (i, levels) in residual.chroma[p].iter().enumerate() {
+            add_block(
+                &pred.chroma[p],
+                8,
+                levels,
+                cqp,
+                &mut chroma,
+                8,
+                ((i % 2) * 4, (i / 2) * 4),
+            );
+        }
+        let (cx, cy) = (x0 / 2, y0 / 2);
+        for r in 0..8 {
+            recon.plane_mut(p + 1).row_mut(cy + r)[cx..cx + 8].copy_from_slice(&chroma[r * 8..(r + 1) * 8]);
+        }
+    }
+}
+
+/// The vectors of every macroblock of a frame (`None` for intra).
+pub fn frame_vectors(seq: &SequenceHeader, frame: &FrameSyntax) -> Vec<Option<Mv>> {
+    let cols = seq.mb_cols();
+    let mut vectors = Vec::with_capacity(frame.mbs.len());
+    for (i, mb) in frame.mbs.iter().enumerate() {
+        let v = mb_vector(&mb.kind, &vectors, i % cols, i / cols, cols);
+        vectors.push(v);
+    }
+    vectors
+}
+
+/// Reconstructs a whole frame at the coded size, borders extended. P frames
+/// need the previous reconstruction as `reference` (panics without one; the
+/// decoder checks first).
+pub fn reconstruct_frame(
+    seq: &SequenceHeader,
+    frame: &FrameSyntax,
+    reference: Option<&Frame>,
+) -> Result<Frame, PictureError> {
+    let (cols, w, h) = (seq.mb_cols(), seq.coded_width(), seq.coded_height());
+    let mut recon = Frame::new(w, h)?;
+    let header = &frame.header;
+    let vectors = frame_vectors(seq, frame);
+    let warped = match (&frame.grid, reference) {
+        (Some(grid), Some(r)) => {
+            let mut out = Frame::new(w, h)?;
+            warp_frame(r, grid, &mut out);
+            Some(out)
+        }
+        _ => None,
+    };
+    assert!(
+        header.frame_type == FrameType::Intra || reference.is_some(),
+        "a P frame needs a reference"
+    );
+    for (i, mb) in frame.mbs.iter().enumerate() {
+        let (mb_x, mb_y) = (i % cols, i / cols);
+        let pred = match (mb.kind, reference) {
+            (MbKind::Intra { luma, chroma }, _) => predict_intra(&recon, mb_x, mb_y, luma, chroma),
+            (_, Some(reference)) => {
+                let ctx = InterContext {
+                    reference,
+                    tool: header.tool,
+                    vectors: &vectors,
+                    warped: warped.as_ref(),
+                    mb_cols: cols,
+                };
+                predict_inter(&ctx, mb_x, mb_y, vectors[i].unwrap_or_default())
+            }
+            (_, None) => MbPrediction::default(),
+        };
+        reconstruct_mb(&pred, mb.residual(), header.qp, &mut recon, mb_x, mb_y);
+    }
+    recon.extend_borders();
+    Ok(recon)
+}
+
+/// A coded-size frame's visible `width x height` part.
+pub fn crop(frame: &Frame, width: usize, height: usize) -> Result<Frame, PictureError> {
+    let mut out = Frame::new(width, height)?;
+    for p in 0..3 {
+        let (pw, ph) = (out.plane(p).width(), out.plane(p).height());
+        for r in 0..ph {
+            out.plane_mut(p)
+                .row_mut(r)
+                .copy_from_slice(&frame.plane(p).row(r)[..pw]);
+        }
+    }
+    out.extend_borders();
+    Ok(out)
+}

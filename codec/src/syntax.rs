@@ -1,0 +1,669 @@
+//! The stream syntax: sequence header, frame framing and header, and the
+//! macroblock layer. `FORMAT.md` is the specification; this is its code.
+//!
+//! A [`FrameSyntax`] is everything one coded frame says. The encoder fills
+//! one and writes it with [`write_frame`]; the decoder gets it back from
+//! [`read_frame`]; both reconstruct it with [`crate::recon`], so their
+//! pictures are equal by construction.
+
+use crate::bits::{BitError, BitReader, BitWriter};
+use crate::intra::IntraMode;
+use crate::mv::{predict_mv, Mv, MV_LIMIT};
+use crate::picture::{check_size, MAX_DIMENSION};
+use crate::residual::{MbResidual, ResidualError};
+use crate::transform::MAX_QP;
+use crate::warp::{MotionGrid, SPACINGS};
+
+/// The first four bytes of every stream.
+pub const MAGIC: [u8; 4] = *b"MOCO";
+
+/// The format version this code writes and reads.
+pub const VERSION: u8 = 1;
+
+/// Bytes of the sequence header.
+pub const SEQUENCE_HEADER_LEN: usize = 23;
+
+/// Byte that starts a frame.
+pub const FRAME_START: u8 = 0xA5;
+
+/// Byte that ends the stream.
+pub const STREAM_END: u8 = 0x5A;
+
+/// Macroblock size in luma samples.
+pub const MB: usize = 16;
+
+/// What the sequence header says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SequenceHeader {
+    /// Picture width in luma samples, 1..=16384.
+    pub width: usize,
+    /// Picture height in luma samples, 1..=16384.
+    pub height: usize,
+    /// Frame rate numerator (non-zero).
+    pub fps_num: u32,
+    /// Frame rate denominator (non-zero).
+    pub fps_den: u32,
+    /// Number of frames, or 0 when not known in advance.
+    pub frame_count: u32,
+}
+
+/// Why a sequence header is refused.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum HeaderError {
+    /// Fewer bytes than a header.
+    #[error("stream of {0} bytes is shorter than the {SEQUENCE_HEADER_LEN}-byte sequence header")]
+    Short(usize),
+    /// Not `MOCO`.
+    #[error("not a mocomp stream: it starts with {0:02x?}, not \"MOCO\"")]
+    Magic([u8; 4]),
+    /// Another version.
+    #[error("stream version {0} is not supported (this decoder reads version {VERSION})")]
+    Version(u8),
+    /// A field out of range.
+    #[error("sequence header: {what} = {value} is out of range")]
+    Field {
+        /// The field.
+        what: &'static str,
+        /// Its value.
+        value: u64,
+    },
+}
+
+impl SequenceHeader {
+    /// Macroblock columns.
+    pub fn mb_cols(&self) -> usize {
+        self.width.div_ceil(MB)
+    }
+
+    /// Macroblock rows.
+    pub fn mb_rows(&self) -> usize {
+        self.height.div_ceil(MB)
+    }
+
+    /// Width of the coded (macroblock-aligned) picture.
+    pub fn coded_width(&self) -> usize {
+        self.mb_cols() * MB
+    }
+
+    /// Height of the coded (macroblock-aligned) picture.
+    pub fn coded_height(&self) -> usize {
+        self.mb_rows() * MB
+    }
+
+    /// The largest `frame_length` a frame of this size may declare: six
+    /// times the raw coded picture (no valid frame comes near) plus 1 KiB.
+    /// A decoder never buffers more than this per frame.
+    pub fn max_frame_bytes(&self) -> u64 {
+        let samples = (self.coded_width() * self.coded_height() * 3 / 2) as u64;
+        6 * samples + 1024
+    }
+
+    /// Writes the 23 bytes.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut w = BitWriter::new();
+        w.put_bytes(&MAGIC);
+        w.put(u64::from(VERSION), 8);
+        w.put(self.width as u64 - 1, 16);
+        w.put(self.height as u64 - 1, 16);
+        w.put(1, 8); // chroma format: 4:2:0
+        w.put(8, 8); // bit depth
+        w.put(u64::from(self.fps_num), 32);
+        w.put(u64::from(self.fps_den), 32);
+        w.put(u64::from(self.frame_count), 32);
+        w.into_bytes()
+    }
+
+    /// Parses and checks the first 23 bytes of a stream.
+    pub fn parse(bytes: &[u8]) -> Result<SequenceHeader, HeaderError> {
+        if bytes.len() < SEQUENCE_HEADER_LEN {
+            if bytes.len() >= 4 && bytes[..4] != MAGIC {
+                return Err(HeaderError::Magic([bytes[0], bytes[1], bytes[2], bytes[3]]));
+            }
+            return Err(HeaderError::Short(bytes.len()));
+        }
+        let mut r = BitReader::new(&bytes[..SEQUENCE_HEADER_LEN]);
+        let field = |r: &mut BitReader<'_>, n| r.get(n).map_err(|_| HeaderError::Short(bytes.len()));
+        let magic = [bytes[0], bytes[1], bytes[2], bytes[3]];
+        if magic != MAGIC {
+            return Err(HeaderError::Magic(magic));
+        }
+        field(&mut r, 32)?;
+        let version = field(&mut r, 8)? as u8;
+        if version != VERSION {
+            return Err(HeaderError::Version(version));
+        }
+        let width = field(&mut r, 16)? as usize + 1;
+        let height = field(&mut r, 16)? as usize + 1;
+        let check = |what: &'static str, value: u64, ok: bool| {
+            if ok {
+                Ok(())
+            } else {
+                Err(HeaderError::Field { what, value })
+            }
+        };
+        check("width", width as u64, width <= MAX_DIMENSION)?;
+        check("height", height as u64, height <= MAX_DIMENSION)?;
+        let chroma = field(&mut r, 8)?;
+        check("chroma_format", chroma, chroma == 1)?;
+        let depth = field(&mut r, 8)?;
+        check("bit_depth", depth, depth == 8)?;
+        let fps_num = field(&mut r, 32)? as u32;
+        check("fps_num", u64::from(fps_num), fps_num != 0)?;
+        let fps_den = field(&mut r, 32)? as u32;
+        check("fps_den", u64::from(fps_den), fps_den != 0)?;
+        let frame_count = field(&mut r, 32)? as u32;
+        debug_assert!(check_size(width, height).is_ok());
+        Ok(SequenceHeader {
+            width,
+            height,
+            fps_num,
+            fps_den,
+            frame_count,
+        })
+    }
+}
+
+/// Intra (I) or predicted (P).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FrameType {
+    /// Every macroblock intra; needs no reference.
+    Intra,
+    /// Macroblocks skip, inter or intra, from the previous frame.
+    Inter,
+}
+
+/// How a P frame's inter macroblocks are predicted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MotionTool {
+    /// One vector per macroblock, plain block motion compensation.
+    Block,
+    /// One vector per macroblock, overlapped block motion compensation.
+    Obmc,
+    /// A dense motion grid with this spacing (4, 8 or 16), warped.
+    Grid(usize),
+}
+
+/// The frame header.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameHeader {
+    /// I or P.
+    pub frame_type: FrameType,
+    /// Quantisation parameter, 0..=51.
+    pub qp: u8,
+    /// Motion tool (always `Block` in I frames).
+    pub tool: MotionTool,
+}
+
+/// How one macroblock is coded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MbKind {
+    /// The prediction alone: the predicted vector (block, OBMC) or the warp
+    /// (grid); no residual.
+    Skip,
+    /// Motion-compensated prediction plus residual. `mv` is the vector
+    /// (block, OBMC); ignored (zero) with a grid.
+    Inter {
+        /// The macroblock's vector, quarter-pel.
+        mv: Mv,
+    },
+    /// Intra prediction plus residual.
+    Intra {
+        /// Luma 16x16 mode.
+        luma: IntraMode,
+        /// Chroma 8x8 mode.
+        chroma: IntraMode,
+    },
+}
+
+/// One coded macroblock.
+///
+/// Levels are stored only when some are non-zero, so a frame of many
+/// skipped macroblocks (which a few bytes can declare) stays small.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CodedMb {
+    /// How it is predicted.
+    pub kind: MbKind,
+    residual: Option<Box<MbResidual>>,
+}
+
+/// All-zero levels.
+const NO_RESIDUAL: MbResidual = MbResidual {
+    luma: [[[0; 4]; 4]; 16],
+    chroma: [[[[0; 4]; 4]; 4]; 2],
+};
+
+impl CodedMb {
+    /// A macroblock of `kind` with these levels.
+    pub fn new(kind: MbKind, residual: MbResidual) -> CodedMb {
+        CodedMb {
+            kind,
+            residual: (!residual.is_empty()).then(|| Box::new(residual)),
+        }
+    }
+
+    /// A macroblock of `kind` without residual.
+    pub fn without_residual(kind: MbKind) -> CodedMb {
+        CodedMb { kind, residual: None }
+    }
+
+    /// Its levels (all zero when none were coded).
+    pub fn residual(&self) -> &MbResidual {
+        self.residual.as_deref().unwrap_or(&NO_RESIDUAL)
+    }
+}
+
+/// Everything one coded frame says.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct FrameSyntax {
+    /// The header.
+    pub header: FrameHeader,
+    /// The motion grid, for grid frames.
+    pub grid: Option<MotionGrid>,
+    /// Macroblocks in raster order.
+    pub mbs: Vec<CodedMb>,
+}
+
+/// Bits written per category, for rate statistics.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct BitCounts {
+    /// Framing, frame header, macroblock types, skip runs, intra modes.
+    pub header: u64,
+    /// Vector differences and grid vectors.
+    pub motion: u64,
+    /// Coded block patterns, flags and levels.
+    pub residual: u64,
+}
+
+impl BitCounts {
+    /// All bits.
+    pub fn total(&self) -> u64 {
+        self.header + self.motion + self.residual
+    }
+}
+
+/// The vector a macroblock uses: its own for inter, the prediction for
+/// skip, none for intra (which counts as unavailable to its neighbours).
+/// `vectors` holds the vectors of the macroblocks before it in raster order.
+pub fn mb_vector(
+    kind: &MbKind,
+    vectors: &[Option<Mv>],
+    mb_x: usize,
+    mb_y: usize,
+    mb_cols: usize,
+) -> Option<Mv> {
+    match kind {
+        MbKind::Skip => Some(mv_prediction(vectors, mb_x, mb_y, mb_cols)),
+        MbKind::Inter { mv } => Some(*mv),
+        MbKind::Intra { .. } => None,
+    }
+}
+
+/// The predicted vector of macroblock (mb_x, mb_y) from the vectors of the
+/// macroblocks before it in raster order (`None` for intra ones).
+pub fn mv_prediction(vectors: &[Option<Mv>], mb_x: usize, mb_y: usize, mb_cols: usize) -> Mv {
+    let at = |x: usize, y: usize| vectors[y * mb_cols + x];
+    let left = if mb_x > 0 { at(mb_x - 1, mb_y) } else { None };
+    let top = if mb_y > 0 { at(mb_x, mb_y - 1) } else { None };
+    let top_right = if mb_y > 0 && mb_x + 1 < mb_cols {
+        at(mb_x + 1, mb_y - 1)
+    } else {
+        None
+    };
+    let top_left = if mb_y > 0 && mb_x > 0 {
+        at(mb_x - 1, mb_y - 1)
+    } else {
+        None
+    };
+    predict_mv(left, top, top_right, top_left)
+}
+
+/// The predicted vector of grid node (col, row) from the nodes before it.
+fn grid_prediction(grid: &MotionGrid, col: usize, row: usize) -> Mv {
+    let at = |c: usize, r: usize| Some(grid.get(c, r));
+    let left = if col > 0 { at(col - 1, row) } else { None };
+    let top = if row > 0 { at(col, row - 1) } else { None };
+    let top_right = if row > 0 && col + 1 < grid.cols() {
+        at(col + 1, row - 1)
+    } else {
+        None
+    };
+    let top_left = if row > 0 && col > 0 {
+        at(col - 1, row - 1)
+    } else {
+        None
+    };
+    predict_mv(left, top, top_right, top_left)
+}
+
+fn write_intra_modes(w: &mut BitWriter, luma: IntraMode, chroma: IntraMode) {
+    w.put_ue(luma as u32);
+    w.put_ue(chroma as u32);
+}
+
+/// Writes a frame (start code, length, header, payload) after `seq`'s
+/// sequence header. Panics if the syntax does not fit the sequence
+/// (encoder bug): wrong macroblock count, a P frame tool in an I frame,
+/// vectors out of range.
+pub fn write_frame(seq: &SequenceHeader, frame: &FrameSyntax) -> (Vec<u8>, BitCounts) {
+    let (cols, rows) = (seq.mb_cols(), seq.mb_rows());
+    assert_eq!(frame.mbs.len(), cols * rows, "macroblock count");
+    let h = &frame.header;
+    assert!(h.qp <= MAX_QP);
+    let mut w = BitWriter::new();
+    let mut counts = BitCounts::default();
+    let mut mark = 0usize;
+    let mut charge = |w: &BitWriter, slot: &mut u64| {
+        *slot += (w.len() - mark) as u64;
+        mark = w.len();
+    };
+    w.put(u64::from(h.frame_type == FrameType::Inter), 1);
+    w.put(u64::from(h.qp), 6);
+    let tool_code = match h.tool {
+        MotionTool::Block => 0,
+        MotionTool::Obmc => 1,
+        MotionTool::Grid(_) => 2,
+    };
+    assert!(
+        h.frame_type == FrameType::Inter || tool_code == 0,
+        "I frames use the block tool"
+    );
+    w.put(tool_code, 2);
+    if let MotionTool::Grid(spacing) = h.tool {
+        let code = SPACINGS.iter().position(|&s| s == spacing);
+        assert!(code.is_some(), "grid spacing {spacing} is not 4, 8 or 16");
+        w.put(code.unwrap_or_default() as u64, 2);
+    }
+    charge(&w, &mut counts.header);
+    if let (MotionTool::Grid(spacing), Some(grid)) = (h.tool, &frame.grid) {
+        assert_eq!(grid.spacing(), spacing, "grid spacing differs from the header's");
+        for row in 0..grid.rows() {
+            for col in 0..grid.cols() {
+                let mv = grid.get(col, row);
+                assert!(mv.in_range(), "grid vector {mv:?} out of range");
+                let d = mv - grid_prediction(grid, col, row);
+                w.put_se(d.x);
+                w.put_se(d.y);
+            }
+        }
+        charge(&w, &mut counts.motion);
+    }
+    assert!(
+        matches!(h.tool, MotionTool::Grid(_)) == frame.grid.is_some(),
+        "grid frames, and only they, carry a grid"
+    );
+    let uses_mvs = matches!(h.tool, MotionTool::Block | MotionTool::Obmc);
+    let mut vectors: Vec<Option<Mv>> = Vec::with_capacity(cols * rows);
+    let mut skip_run = 0u32;
+    for (i, mb) in frame.mbs.iter().enumerate() {
+        let (mb_x, mb_y) = (i % cols, i / cols);
+        if h.frame_type == FrameType::Intra {
+            assert!(
+                matches!(mb.kind, MbKind::Intra { .. }),
+                "I frames hold only intra macroblocks"
+            );
+            if let MbKind::Intra { luma, chroma } = mb.kind {
+                write_intra_modes(&mut w, luma, chroma);
+            }
+            charge(&w, &mut counts.header);
+        } else {
+            if mb.kind == MbKind::Skip {
+                assert!(mb.residual.is_none(), "skipped macroblocks have no residual");
+                skip_run += 1;
+                vectors.push(mb_vector(&mb.kind, &vectors, mb_x, mb_y, cols));
+                continue;
+            }
+            w.put_ue(skip_run);
+            skip_run = 0;
+            match mb.kind {
+                MbKind::Inter { mv } => {
+                    w.put_ue(0);
+                    charge(&w, &mut counts.header);
+                    assert!(
+                        uses_mvs || mv == Mv::ZERO,
+                        "inter macroblocks of grid frames have no vector"
+                    );
+                    if uses_mvs {
+                        assert!(mv.in_range(), "vector {mv:?} out of range");
+                        let d = mv - mv_prediction(&vectors, mb_x, mb_y, cols);
+                        w.put_se(d.x);
+                        w.put_se(d.y);
+                        charge(&w, &mut counts.motion);
+                    }
+                }
+                MbKind::Intra { luma, chroma } => {
+                    w.put_ue(1);
+                    write_intra_modes(&mut w, luma, chroma);
+                    charge(&w, &mut counts.header);
+                }
+                MbKind::Skip => {} // handled above
+            }
+        }
+        vectors.push(mb_vector(&mb.kind, &vectors, mb_x, mb_y, cols));
+        mb.residual().write(&mut w);
+        charge(&w, &mut counts.residual);
+    }
+    if skip_run > 0 {
+        w.put_ue(skip_run);
+    }
+    w.align();
+    charge(&w, &mut counts.header);
+    let payload = w.into_bytes();
+    let mut out = Vec::with_capacity(payload.len() + 5);
+    out.push(FRAME_START);
+    out.extend_from_slice(&(payload.len() as u32).to_be_bytes());
+    out.extend_from_slice(&payload);
+    counts.header += 40;
+    (out, counts)
+}
+
+/// A whole stream: the sequence header, every frame, the end marker.
+/// Returns the bytes and the bits per category summed over the frames (the
+/// sequence header and end marker count as header bits).
+pub fn write_stream(seq: &SequenceHeader, frames: &[FrameSyntax]) -> (Vec<u8>, BitCounts) {
+    let mut out = seq.to_bytes();
+    let mut total = BitCounts {
+        header: 8 * (SEQUENCE_HEADER_LEN as u64 + 1),
+        ..BitCounts::default()
+    };
+    for f in frames {
+        let (bytes, counts) = write_frame(seq, f);
+        out.extend_from_slice(&bytes);
+        total.header += counts.header;
+        total.motion += counts.motion;
+        total.residual += counts.residual;
+    }
+    out.push(STREAM_END);
+    (out, total)
+}
+
+/// Why a frame's payload is invalid; `bit` counts from the first bit after
+/// the frame's length field.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{what} at bit {bit} of the frame")]
+pub struct SyntaxError {
+    /// What is wrong.
+    pub what: String,
+    /// Where.
+    pub bit: usize,
+}
+
+impl From<BitError> for SyntaxError {
+    fn from(e: BitError) -> SyntaxError {
+        let bit = match e {
+            BitError::EndOfData { pos, .. }
+            | BitError::ExpGolombTooLong { pos }
+            | BitError::ExpGolombRange { pos } => pos,
+        };
+        SyntaxError {
+            what: e.to_string(),
+            bit,
+        }
+    }
+}
+
+impl From<ResidualError> for SyntaxError {
+    fn from(e: ResidualError) -> SyntaxError {
+        match e {
+            ResidualError::Bits(b) => b.into(),
+            ResidualError::Range { what, value, pos } => SyntaxError {
+                what: format!("{what} = {value} out of range"),
+                bit: pos,
+            },
+        }
+    }
+}
+
+fn invalid(what: String, bit: usize) -> SyntaxError {
+    SyntaxError { what, bit }
+}
+
+/// Whether intra `mode` has its neighbours at macroblock (mb_x, mb_y):
+/// the row above exists below the top row, the column to the left right of
+/// the first column, the corner with both.
+pub fn intra_mode_allowed(mode: IntraMode, mb_x: usize, mb_y: usize) -> bool {
+    match mode {
+        IntraMode::Vertical => mb_y > 0,
+        IntraMode::Horizontal => mb_x > 0,
+        IntraMode::Dc => true,
+        IntraMode::Plane => mb_x > 0 && mb_y > 0,
+    }
+}
+
+fn read_intra_modes(
+    r: &mut BitReader<'_>,
+    mb_x: usize,
+    mb_y: usize,
+) -> Result<(IntraMode, IntraMode), SyntaxError> {
+    let one = |r: &mut BitReader<'_>, what: &str| {
+        let pos = r.position();
+        let code = r.get_ue()?;
+        let mode =
+            IntraMode::from_code(code).ok_or_else(|| invalid(format!("{what} {code} is not a mode"), pos))?;
+        if !intra_mode_allowed(mode, mb_x, mb_y) {
+            return Err(invalid(
+                format!("{what} {mode:?} needs neighbours outside the picture"),
+                pos,
+            ));
+        }
+        Ok(mode)
+    };
+    Ok((one(r, "luma intra mode")?, one(r, "chroma intra mode")?))
+}
+
+fn read_vector(r: &mut BitReader<'_>, predicted: Mv) -> Result<Mv, SyntaxError> {
+    let pos = r.position();
+    let (dx, dy) = (r.get_se()?, r.get_se()?);
+    let mv = Mv::new(
+        predicted.x.checked_add(dx).unwrap_or(i32::MAX),
+        predicted.y.checked_add(dy).unwrap_or(i32::MAX),
+    );
+    if !mv.in_range() {
+        return Err(invalid(
+            format!("vector ({}, {}) beyond +-{MV_LIMIT}", mv.x, mv.y),
+            pos,
+        ));
+    }
+    Ok(mv)
+}
+
+/// Reads a frame's payload (the bytes after its length field). The whole
+/// payload must be used, up to the zero bits that align its end.
+pub fn read_frame(seq: &SequenceHeader, payload: &[u8]) -> Result<FrameSyntax, SyntaxError> {
+    let (cols, rows) = (seq.mb_cols(), seq.mb_rows());
+    let mut r = BitReader::new(payload);
+    let frame_type = if r.get(1)? == 1 {
+        FrameType::Inter
+    } else {
+        FrameType::Intra
+    };
+    let pos = r.position();
+    let qp = r.get(6)? as u8;
+    if qp > MAX_QP {
+        return Err(invalid(format!("qp {qp} above {MAX_QP}"), pos));
+    }
+    let pos = r.position();
+    let tool = match r.get(2)? {
+        0 => MotionTool::Block,
+        1 => MotionTool::Obmc,
+        2 => {
+            let pos = r.position();
+            let code = r.get(2)? as usize;
+            MotionTool::Grid(
+                *SPACINGS
+                    .get(code)
+                    .ok_or_else(|| invalid(format!("grid spacing code {code}"), pos))?,
+            )
+        }
+        code => return Err(invalid(format!("motion tool {code}"), pos)),
+    };
+    if frame_type == FrameType::Intra && tool != MotionTool::Block {
+        return Err(invalid("an I frame with a motion tool".into(), pos));
+    }
+    let header = FrameHeader { frame_type, qp, tool };
+    let grid = match tool {
+        MotionTool::Grid(spacing) => {
+            let mut grid = MotionGrid::new(seq.coded_width(), seq.coded_height(), spacing)
+                .map_err(|e| invalid(e.to_string(), r.position()))?;
+            for row in 0..grid.rows() {
+                for col in 0..grid.cols() {
+                    let mv = read_vector(&mut r, grid_prediction(&grid, col, row))?;
+                    grid.set(col, row, mv);
+                }
+            }
+            Some(grid)
+        }
+        _ => None,
+    };
+    let uses_mvs = matches!(tool, MotionTool::Block | MotionTool::Obmc);
+    let total = cols * rows;
+    let mut mbs = Vec::with_capacity(total);
+    let mut vectors: Vec<Option<Mv>> = Vec::with_capacity(total);
+    while mbs.len() < total {
+        if frame_type == FrameType::Inter {
+            let pos = r.position();
+            let run = r.get_ue()? as usize;
+            if run > total - mbs.len() {
+                return Err(invalid(format!("skip run {run} past the last macroblock"), pos));
+            }
+            for _ in 0..run {
+                let (x, y) = (mbs.len() % cols, mbs.len() / cols);
+                vectors.push(mb_vector(&MbKind::Skip, &vectors, x, y, cols));
+                mbs.push(CodedMb::without_residual(MbKind::Skip));
+            }
+            if mbs.len() == total {
+                break;
+            }
+        }
+        let (mb_x, mb_y) = (mbs.len() % cols, mbs.len() / cols);
+        let kind = if frame_type == FrameType::Intra {
+            let (luma, chroma) = read_intra_modes(&mut r, mb_x, mb_y)?;
+            MbKind::Intra { luma, chroma }
+        } else {
+            let pos = r.position();
+            match r.get_ue()? {
+                0 if uses_mvs => MbKind::Inter {
+                    mv: read_vector(&mut r, mv_prediction(&vectors, mb_x, mb_y, cols))?,
+                },
+                0 => MbKind::Inter { mv: Mv::ZERO },
+                1 => {
+                    let (luma, chroma) = read_intra_modes(&mut r, mb_x, mb_y)?;
+                    MbKind::Intra { luma, chroma }
+                }
+                t => return Err(invalid(format!("macroblock type {t}"), pos)),
+            }
+        };
+        vectors.push(mb_vector(&kind, &vectors, mb_x, mb_y, cols));
+        let residual = MbResidual::read(&mut r)?;
+        mbs.push(CodedMb::new(kind, residual));
+    }
+    // What is left must be the zero bits aligning the end.
+    let pos = r.position();
+    let pad = r.remaining();
+    if pad >= 8 || r.get(pad as u32)? != 0 {
+        return Err(invalid(
+            format!("{} bytes after the last macroblock", pad / 8),
+            pos,
+        ));
+    }
+    Ok(FrameSyntax { header, grid, mbs })
+}

@@ -1,0 +1,581 @@
+//! Streams end to end: hand-built streams against hand-computed pictures,
+//! syntax round trips, decoding equal to the reconstruction the writer side
+//! made for every motion tool, and malformed input: clear errors, never a
+//! panic, over more than 10,000 mutated, truncated and random streams.
+
+use mocomp_codec::decoder::{decode, DecodeError};
+use mocomp_codec::intra::IntraMode;
+use mocomp_codec::mv::Mv;
+use mocomp_codec::picture::{Frame, Plane};
+use mocomp_codec::recon::{crop, frame_vectors, predict_inter, predict_intra, reconstruct_mb, InterContext};
+use mocomp_codec::residual::MbResidual;
+use mocomp_codec::syntax::{
+    read_frame, write_frame, write_stream, CodedMb, FrameHeader, FrameSyntax, FrameType, MbKind, MotionTool,
+    SequenceHeader,
+};
+use mocomp_codec::transform::{forward_4x4, quantize};
+use mocomp_codec::warp::{warp_frame, MotionGrid};
+
+fn seq(width: usize, height: usize, frames: u32) -> SequenceHeader {
+    SequenceHeader {
+        width,
+        height,
+        fps_num: 30,
+        fps_den: 1,
+        frame_count: frames,
+    }
+}
+
+fn intra_dc() -> MbKind {
+    MbKind::Intra {
+        luma: IntraMode::Dc,
+        chroma: IntraMode::Dc,
+    }
+}
+
+fn empty(kind: MbKind) -> CodedMb {
+    CodedMb::without_residual(kind)
+}
+
+fn i_header(qp: u8) -> FrameHeader {
+    FrameHeader {
+        frame_type: FrameType::Intra,
+        qp,
+        tool: MotionTool::Block,
+    }
+}
+
+fn p_header(qp: u8, tool: MotionTool) -> FrameHeader {
+    FrameHeader {
+        frame_type: FrameType::Inter,
+        qp,
+        tool,
+    }
+}
+
+fn plane_is(p: &Plane, f: impl Fn(usize, usize) -> u8) {
+    for y in 0..p.height() {
+        for x in 0..p.width() {
+            assert_eq!(p.get(x, y), f(x, y), "({x}, {y})");
+        }
+    }
+}
+
+#[test]
+fn hand_built_intra_frame() {
+    // One macroblock, DC with no neighbours: 128. A DC level of 1 in luma
+    // block 0 at QP 28: dequantised 1 * 16 << 4 = 256, inverse transform
+    // (256 + 32) >> 6 = 4 everywhere in the block: 132.
+    let s = seq(16, 16, 1);
+    let mut residual = MbResidual::default();
+    residual.luma[0][0][0] = 1;
+    let mb = CodedMb::new(intra_dc(), residual);
+    let frame = FrameSyntax {
+        header: i_header(28),
+        grid: None,
+        mbs: vec![mb],
+    };
+    let (bytes, _) = write_stream(&s, &[frame]);
+    let (header, frames) = decode(&bytes).unwrap();
+    assert_eq!(header, s);
+    assert_eq!(frames.len(), 1);
+    plane_is(frames[0].y(), |x, y| if x < 4 && y < 4 { 132 } else { 128 });
+    plane_is(frames[0].u(), |_, _| 128);
+    plane_is(frames[0].v(), |_, _| 128);
+}
+
+/// An I frame of two macroblocks: left 128, right 132 (a DC level in every
+/// luma block of the right one).
+fn two_tone_intra() -> FrameSyntax {
+    let mut residual = MbResidual::default();
+    for b in &mut residual.luma {
+        b[0][0] = 1;
+    }
+    let right = CodedMb::new(intra_dc(), residual);
+    FrameSyntax {
+        header: i_header(28),
+        grid: None,
+        mbs: vec![empty(intra_dc()), right],
+    }
+}
+
+#[test]
+fn hand_built_inter_and_skip() {
+    // Reference: x < 16 -> 128, x >= 16 -> 132 (the right macroblock's DC
+    // from its left neighbour is 128, plus 4).
+    let s = seq(32, 16, 2);
+    // MB 0 moves 8 px right (32 quarter-pel): columns 8..24 of the
+    // reference. MB 1 is skipped: its predicted vector is MB 0's (only the
+    // left neighbour exists), so it reads columns 24..40, the last 8 being
+    // the edge repeated: all 132.
+    let p = FrameSyntax {
+        header: p_header(28, MotionTool::Block),
+        grid: None,
+        mbs: vec![
+            empty(MbKind::Inter {
+                mv: Mv::full_pel(8, 0),
+            }),
+            empty(MbKind::Skip),
+        ],
+    };
+    let (bytes, counts) = write_stream(&s, &[two_tone_intra(), p]);
+    assert!(counts.motion > 0 && counts.residual > 0);
+    let (_, frames) = decode(&bytes).unwrap();
+    plane_is(frames[0].y(), |x, _| if x < 16 { 128 } else { 132 });
+    plane_is(frames[1].y(), |x, _| if x < 8 { 128 } else { 132 });
+    plane_is(frames[1].u(), |_, _| 128);
+}
+
+#[test]
+fn hand_built_intra_in_a_p_frame_and_obmc_and_grid() {
+    let s = seq(32, 16, 4);
+    // Intra in a P frame: horizontal from the left macroblock's last column.
+    let p_intra = FrameSyntax {
+        header: p_header(28, MotionTool::Block),
+        grid: None,
+        mbs: vec![
+            empty(MbKind::Skip),
+            empty(MbKind::Intra {
+                luma: IntraMode::Horizontal,
+                chroma: IntraMode::Dc,
+            }),
+        ],
+    };
+    // OBMC with every vector zero: a copy.
+    let p_obmc = FrameSyntax {
+        header: p_header(30, MotionTool::Obmc),
+        grid: None,
+        mbs: vec![empty(MbKind::Inter { mv: Mv::ZERO }), empty(MbKind::Skip)],
+    };
+    // A grid of constant (-4, 0) px: every pixel takes the one 4 px to its left.
+    let mut grid = MotionGrid::new(32, 16, 16).unwrap();
+    for r in 0..grid.rows() {
+        for c in 0..grid.cols() {
+            grid.set(c, r, Mv::full_pel(-4, 0));
+        }
+    }
+    let p_grid = FrameSyntax {
+        header: p_header(30, MotionTool::Grid(16)),
+        grid: Some(grid),
+        mbs: vec![empty(MbKind::Skip), empty(MbKind::Inter { mv: Mv::ZERO })],
+    };
+    let (bytes, _) = write_stream(&s, &[two_tone_intra(), p_intra, p_obmc, p_grid]);
+    let (_, frames) = decode(&bytes).unwrap();
+    // Frame 1: the left half skips (copy: 128), the right repeats column 15: 128.
+    plane_is(frames[1].y(), |_, _| 128);
+    plane_is(frames[2].y(), |_, _| 128);
+    let two = two_tone_intra();
+    let (bytes, _) = write_stream(
+        &seq(32, 16, 2),
+        &[two, {
+            let mut g = MotionGrid::new(32, 16, 16).unwrap();
+            for r in 0..g.rows() {
+                for c in 0..g.cols() {
+                    g.set(c, r, Mv::full_pel(-4, 0));
+                }
+            }
+            FrameSyntax {
+                header: p_header(30, MotionTool::Grid(16)),
+                grid: Some(g),
+                mbs: vec![empty(MbKind::Skip), empty(MbKind::Skip)],
+            }
+        }],
+    );
+    let (_, frames) = decode(&bytes).unwrap();
+    // Shifted right by 4: the edge between 128 and 132 moves from 16 to 20.
+    plane_is(frames[1].y(), |x, _| if x < 20 { 128 } else { 132 });
+}
+
+/// A small encoder for tests: every macroblock's kind comes from `choose`;
+/// residuals are the quantised difference to the prediction, so pictures
+/// carry real content. Returns the syntax and the writer side's own
+/// reconstruction (coded size).
+fn code_frame(
+    s: &SequenceHeader,
+    source: &Frame,
+    reference: Option<&Frame>,
+    header: FrameHeader,
+    grid: Option<MotionGrid>,
+    choose: &dyn Fn(usize, usize) -> MbKind,
+) -> (FrameSyntax, Frame) {
+    let (cols, rows) = (s.mb_cols(), s.mb_rows());
+    let kinds: Vec<MbKind> = (0..cols * rows).map(|i| choose(i % cols, i / cols)).collect();
+    let mut syntax = FrameSyntax {
+        header,
+        grid,
+        mbs: kinds.iter().map(|&k| empty(k)).collect(),
+    };
+    let vectors = frame_vectors(s, &syntax);
+    let mut recon = Frame::new(s.coded_width(), s.coded_height()).unwrap();
+    let warped = match (&syntax.grid, reference) {
+        (Some(g), Some(r)) => {
+            let mut w = Frame::new(s.coded_width(), s.coded_height()).unwrap();
+            warp_frame(r, g, &mut w);
+            Some(w)
+        }
+        _ => None,
+    };
+    for (i, kind) in kinds.iter().enumerate() {
+        let (mb_x, mb_y) = (i % cols, i / cols);
+        let pred = match *kind {
+            MbKind::Intra { luma, chroma } => predict_intra(&recon, mb_x, mb_y, luma, chroma),
+            _ => {
+                let ctx = InterContext {
+                    reference: reference.unwrap(),
+                    tool: header.tool,
+                    vectors: &vectors,
+                    warped: warped.as_ref(),
+                    mb_cols: cols,
+                };
+                predict_inter(&ctx, mb_x, mb_y, vectors[i].unwrap_or_default())
+            }
+        };
+        let mut residual = MbResidual::default();
+        if *kind != MbKind::Skip {
+            let block = |plane: &Plane, pred: &[u8], size: usize, bx: usize, by: usize| {
+                let mut b = [[0i32; 4]; 4];
+                for r in 0..4 {
+                    for c in 0..4 {
+                        let (x, y) = (mb_x * size + bx * 4 + c, mb_y * size + by * 4 + r);
+                        b[r][c] = plane.get(x, y) as i32 - pred[(by * 4 + r) * size + bx * 4 + c] as i32;
+                    }
+                }
+                b
+            };
+            for k in 0..16 {
+                let mut c = forward_4x4(&block(source.y(), &pred.luma, 16, k % 4, k / 4));
+                quantize(&mut c, header.qp, 1.0 / 3.0);
+                residual.luma[k] = c;
+            }
+            for p in 0..2 {
+                for k in 0..4 {
+                    let mut c = forward_4x4(&block(source.plane(p + 1), &pred.chroma[p], 8, k % 2, k / 2));
+                    quantize(&mut c, mocomp_codec::recon::chroma_qp(header.qp), 1.0 / 3.0);
+                    residual.chroma[p][k] = c;
+                }
+            }
+        }
+        reconstruct_mb(&pred, &residual, header.qp, &mut recon, mb_x, mb_y);
+        syntax.mbs[i] = CodedMb::new(*kind, residual);
+    }
+    recon.extend_borders();
+    (syntax, recon)
+}
+
+/// A textured source frame of the coded size.
+fn source(s: &SequenceHeader, t: usize) -> Frame {
+    let f = |x: usize, y: usize, k: usize| {
+        let (x, y) = ((x + 3 * t) as f64, (y + t) as f64);
+        (128.0 + 60.0 * ((x * 0.21 + k as f64).sin() * (y * 0.17).cos()) + 20.0 * ((x + y) * 0.05).sin())
+            as u8
+    };
+    let (w, h) = (s.coded_width(), s.coded_height());
+    let (cw, ch) = (w / 2, h / 2);
+    Frame::from_planes(
+        Plane::from_fn(w, h, |x, y| f(x, y, 0)).unwrap(),
+        Plane::from_fn(cw, ch, |x, y| f(2 * x, 2 * y, 1) / 2 + 64).unwrap(),
+        Plane::from_fn(cw, ch, |x, y| f(2 * x, 2 * y, 2) / 2 + 64).unwrap(),
+    )
+    .unwrap()
+}
+
+/// A stream of 5 frames (I, then P with each tool and a mix of kinds) and
+/// the writer side's reconstructions, cropped.
+fn coded_stream(width: usize, height: usize, qp: u8) -> (Vec<u8>, Vec<Frame>) {
+    let s = seq(width, height, 5);
+    let mut frames = Vec::new();
+    let mut recons: Vec<Frame> = Vec::new();
+    let mut grid = MotionGrid::new(s.coded_width(), s.coded_height(), 8).unwrap();
+    for r in 0..grid.rows() {
+        for c in 0..grid.cols() {
+            grid.set(c, r, Mv::new(-12 + (c as i32 % 3), -4 + (r as i32 % 2) * 3));
+        }
+    }
+    let tools = [
+        (FrameType::Intra, MotionTool::Block),
+        (FrameType::Inter, MotionTool::Block),
+        (FrameType::Inter, MotionTool::Obmc),
+        (FrameType::Inter, MotionTool::Grid(8)),
+        (FrameType::Inter, MotionTool::Block),
+    ];
+    for (t, (ft, tool)) in tools.into_iter().enumerate() {
+        let header = FrameHeader {
+            frame_type: ft,
+            qp,
+            tool,
+        };
+        let g = matches!(tool, MotionTool::Grid(_)).then(|| grid.clone());
+        let choose = move |x: usize, y: usize| -> MbKind {
+            if ft == FrameType::Intra {
+                let mode = |m: usize| {
+                    [
+                        IntraMode::Dc,
+                        IntraMode::Vertical,
+                        IntraMode::Horizontal,
+                        IntraMode::Plane,
+                    ][m]
+                };
+                let pick = (x + 2 * y + t) % 4;
+                let ok = match pick {
+                    1 => y > 0,
+                    2 => x > 0,
+                    3 => x > 0 && y > 0,
+                    _ => true,
+                };
+                let m = if ok { mode(pick) } else { IntraMode::Dc };
+                return MbKind::Intra { luma: m, chroma: m };
+            }
+            match (x + y + t) % 5 {
+                0 => MbKind::Skip,
+                1 => intra_dc(),
+                _ if matches!(tool, MotionTool::Grid(_)) => MbKind::Inter { mv: Mv::ZERO },
+                k => MbKind::Inter {
+                    mv: Mv::new(-13 + 3 * k as i32, 5 - (x as i32 % 3)),
+                },
+            }
+        };
+        let (syntax, recon) = code_frame(&s, &source(&s, t), recons.last(), header, g, &choose);
+        frames.push(syntax);
+        recons.push(recon);
+    }
+    let (bytes, _) = write_stream(&s, &frames);
+    let cropped = recons.iter().map(|r| crop(r, width, height).unwrap()).collect();
+    (bytes, cropped)
+}
+
+#[test]
+fn decoding_equals_the_writer_sides_reconstruction() {
+    for (w, h, qp) in [
+        (48, 32, 26),
+        (35, 19, 12),
+        (16, 16, 40),
+        (1, 1, 30),
+        (50, 7, 0),
+        (33, 40, 51),
+    ] {
+        let (bytes, recons) = coded_stream(w, h, qp);
+        let (_, frames) = decode(&bytes).unwrap();
+        assert_eq!(frames, recons, "{w}x{h} at QP {qp}");
+    }
+}
+
+#[test]
+fn syntax_round_trips() {
+    // Bytes -> syntax -> bytes: every frame of coded streams comes back identical.
+    for (w, h, qp) in [(48, 32, 20), (35, 19, 3)] {
+        let (bytes, _) = coded_stream(w, h, qp);
+        let s = SequenceHeader::parse(&bytes).unwrap();
+        let mut at = 23;
+        let mut frames = 0;
+        while bytes[at] == 0xA5 {
+            let len = u32::from_be_bytes(bytes[at + 1..at + 5].try_into().unwrap()) as usize;
+            let original = &bytes[at..at + 5 + len];
+            let syntax = read_frame(&s, &original[5..]).unwrap();
+            assert_eq!(write_frame(&s, &syntax).0, original, "frame {frames}");
+            at += 5 + len;
+            frames += 1;
+        }
+        assert_eq!((frames, bytes[at], at + 1), (5, 0x5A, bytes.len()));
+    }
+}
+
+fn expect_err(bytes: &[u8]) -> DecodeError {
+    match decode(bytes) {
+        Err(e) => e,
+        Ok(_) => panic!("decoded a stream that should fail"),
+    }
+}
+
+#[test]
+fn malformed_streams_are_clear_errors() {
+    let (good, _) = coded_stream(48, 32, 26);
+    // Bad magic, other version, size out of range.
+    let mut b = good.clone();
+    b[0] = b'X';
+    assert!(expect_err(&b).to_string().contains("not a mocomp stream"));
+    let mut b = good.clone();
+    b[4] = 2;
+    assert!(expect_err(&b).to_string().contains("version 2 is not supported"));
+    let mut b = good.clone();
+    b[5] = 0xFF; // width - 1 = 0xFF?? > 16383
+    assert!(expect_err(&b).to_string().contains("width"));
+    // A wrong start code.
+    let mut b = good.clone();
+    b[23] = 0x00;
+    assert!(matches!(
+        expect_err(&b),
+        DecodeError::StartCode { byte: 23, found: 0 }
+    ));
+    // A frame length beyond any frame of this size.
+    let mut b = good.clone();
+    b[24..28].copy_from_slice(&u32::MAX.to_be_bytes());
+    assert!(matches!(
+        expect_err(&b),
+        DecodeError::FrameLength { frame: 0, .. }
+    ));
+    // Data after the end marker; a missing end marker.
+    let mut b = good.clone();
+    b.push(0);
+    assert!(matches!(expect_err(&b), DecodeError::TrailingData { .. }));
+    let b = &good[..good.len() - 1];
+    assert!(matches!(expect_err(b), DecodeError::Truncated { .. }));
+    // The header announces 5 frames: 4 or 6 are errors.
+    let mut b = good.clone();
+    b[22] = 4;
+    assert!(matches!(
+        expect_err(&b),
+        DecodeError::FrameCount { expected: 4, .. }
+    ));
+    let mut b = good.clone();
+    b[22] = 6;
+    assert!(matches!(
+        expect_err(&b),
+        DecodeError::FrameCount {
+            expected: 6,
+            found: 5
+        }
+    ));
+    // The largest picture with ten bytes of frame: an error, at once (the
+    // decoder holds per-macroblock syntax sparsely, so this allocates little).
+    let mut b = seq(16384, 16384, 0).to_bytes();
+    b.push(0xA5);
+    b.extend_from_slice(&10u32.to_be_bytes());
+    b.extend_from_slice(&[0x0F; 10]);
+    b.push(0x5A);
+    assert!(matches!(expect_err(&b), DecodeError::Syntax { frame: 0, .. }));
+    // Every truncation is an error, never a panic.
+    for cut in 0..good.len() {
+        assert!(decode(&good[..cut]).is_err(), "cut at {cut}");
+    }
+}
+
+#[test]
+fn invalid_frame_syntax_is_located() {
+    let s = seq(32, 16, 0);
+    let frame = |header, mbs| FrameSyntax {
+        header,
+        grid: None,
+        mbs,
+    };
+    let stream = |f: &FrameSyntax| {
+        let mut b = s.to_bytes();
+        b.extend(write_frame(&s, f).0);
+        b.push(0x5A);
+        b
+    };
+    // A P frame first.
+    let p_first = frame(
+        p_header(20, MotionTool::Block),
+        vec![empty(MbKind::Skip), empty(MbKind::Skip)],
+    );
+    let e = expect_err(&stream(&p_first));
+    assert!(e.to_string().contains("no frame before it"), "{e}");
+    // Vertical intra on the top row: written by hand, since the writer
+    // would not produce it. Payload: type 0, qp 20, tool 0; then per MB
+    // ue(luma) ue(chroma) ue(cbp): Vertical = ue(0) = 1.
+    let mut w = mocomp_codec::bits::BitWriter::new();
+    w.put(0, 1);
+    w.put(20, 6);
+    w.put(0, 2);
+    w.put_ue(0); // luma Vertical: no row above
+    w.put_ue(2);
+    w.put_ue(0);
+    w.align();
+    let payload = w.into_bytes();
+    let mut b = s.to_bytes();
+    b.push(0xA5);
+    b.extend_from_slice(&(payload.len() as u32).to_be_bytes());
+    b.extend_from_slice(&payload);
+    b.push(0x5A);
+    let e = expect_err(&b);
+    assert!(
+        matches!(
+            &e,
+            DecodeError::Syntax {
+                frame: 0,
+                byte: 29,
+                bit: 1,
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    assert!(e.to_string().contains("Vertical needs neighbours"), "{e}");
+    // Junk after the last macroblock.
+    let i = frame(i_header(20), vec![empty(intra_dc()), empty(intra_dc())]);
+    let (mut fb, _) = write_frame(&s, &i);
+    fb.push(0xFF);
+    let len = (fb.len() - 5) as u32;
+    fb[1..5].copy_from_slice(&len.to_be_bytes());
+    let mut b = s.to_bytes();
+    b.extend(fb);
+    b.push(0x5A);
+    assert!(expect_err(&b).to_string().contains("after the last macroblock"));
+}
+
+/// xorshift64*: deterministic pseudo-random numbers for the mutation test.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n.max(1) as u64) as usize
+    }
+}
+
+#[test]
+fn ten_thousand_mutated_streams_never_panic() {
+    let seeds: Vec<Vec<u8>> = [(48, 32, 26), (35, 19, 8), (16, 16, 45)]
+        .iter()
+        .map(|&(w, h, qp)| coded_stream(w, h, qp).0)
+        .collect();
+    let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
+    let (mut ok, mut err) = (0, 0);
+    for i in 0..12_000 {
+        let mut b = seeds[i % seeds.len()].clone();
+        match rng.below(6) {
+            0 => {
+                // Flip 1 to 8 bits anywhere after the sequence header.
+                for _ in 0..1 + rng.below(8) {
+                    let at = 23 + rng.below(b.len() - 23);
+                    b[at] ^= 1 << rng.below(8);
+                }
+            }
+            1 => b.truncate(rng.below(b.len())),
+            2 => {
+                let at = rng.below(b.len());
+                b.insert(at, rng.next() as u8);
+            }
+            3 => {
+                let at = rng.below(b.len());
+                b.remove(at);
+            }
+            4 => {
+                // Overwrite a run with random bytes.
+                let at = 23 + rng.below(b.len() - 23);
+                let n = (1 + rng.below(16)).min(b.len() - at);
+                for k in 0..n {
+                    b[at + k] = rng.next() as u8;
+                }
+            }
+            _ => {
+                // A valid header, then random bytes.
+                b.truncate(23);
+                let n = rng.below(400);
+                b.extend((0..n).map(|_| rng.next() as u8));
+            }
+        }
+        match decode(&b) {
+            Ok(_) => ok += 1,
+            Err(_) => err += 1,
+        }
+    }
+    assert_eq!(ok + err, 12_000);
+    // Mutations must mostly break streams, and some survive (flips in levels).
+    assert!(err > 6_000 && ok > 50, "ok {ok}, err {err}");
+}

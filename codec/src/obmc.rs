@@ -25,23 +25,29 @@ use crate::interp::{predict_chroma, predict_luma};
 use crate::mv::Mv;
 use crate::picture::Plane;
 
+/// Window for 16-sample blocks: `w[n] = round(64 sin^2(pi (n + 1/2) / 32))`
+/// for n < 8, the rest from `w[15 - n] = 64 - w[n]` and
+/// `w[n + 16] = 64 - w[n]`. Constants, so that no decoder depends on a
+/// maths library's `sin` (a test recomputes them).
+const WINDOW_16: [i32; 32] = [
+    0, 1, 4, 7, 12, 17, 23, 29, 35, 41, 47, 52, 57, 60, 63, 64, 64, 63, 60, 57, 52, 47, 41, 35, 29, 23, 17,
+    12, 7, 4, 1, 0,
+];
+
+/// Window for 8-sample blocks, built the same way.
+const WINDOW_8: [i32; 16] = [1, 5, 14, 26, 38, 50, 59, 63, 63, 59, 50, 38, 26, 14, 5, 1];
+
 /// The 1-D window for blocks of `size` samples (8 or 16): `2 * size`
 /// integer weights, symmetric, with `w[n] + w[n + size] == 64`.
-pub fn window(size: usize) -> Vec<i32> {
-    assert!(size == 8 || size == 16, "OBMC block size {size}");
-    let len = 2 * size;
-    let mut w = vec![0i32; len];
-    // The rising half from the first quarter; the rest follows from the
-    // symmetries, so they hold exactly in integers.
-    for n in 0..size / 2 {
-        let t = std::f64::consts::PI * (n as f64 + 0.5) / len as f64;
-        w[n] = (64.0 * t.sin().powi(2)).round() as i32;
-        w[size - 1 - n] = 64 - w[n];
+pub fn window(size: usize) -> &'static [i32] {
+    match size {
+        8 => &WINDOW_8,
+        16 => &WINDOW_16,
+        _ => {
+            assert!(size == 8 || size == 16, "OBMC block size {size}");
+            &[]
+        }
     }
-    for n in 0..size {
-        w[n + size] = 64 - w[n];
-    }
-    w
 }
 
 /// The vectors around a block, `None` where there is none (outside the
@@ -103,6 +109,23 @@ mod tests {
 
     fn noise(w: usize, h: usize) -> Plane {
         Plane::from_fn(w, h, |x, y| (((x * 2_654_435_761) ^ (y * 40_503)) >> 3) as u8).unwrap()
+    }
+
+    #[test]
+    fn windows_follow_the_raised_cosine() {
+        for size in [8usize, 16] {
+            let len = 2 * size;
+            let mut w = vec![0i32; len];
+            for n in 0..size / 2 {
+                let t = std::f64::consts::PI * (n as f64 + 0.5) / len as f64;
+                w[n] = (64.0 * t.sin().powi(2)).round() as i32;
+                w[size - 1 - n] = 64 - w[n];
+            }
+            for n in 0..size {
+                w[n + size] = 64 - w[n];
+            }
+            assert_eq!(window(size), &w[..]);
+        }
     }
 
     #[test]

@@ -579,3 +579,18 @@ fn ten_thousand_mutated_streams_never_panic() {
     // Mutations must mostly break streams, and some survive (flips in levels).
     assert!(err > 6_000 && ok > 50, "ok {ok}, err {err}");
 }
+
+/// Writes the streams above as seeds for the decoder fuzz target:
+/// `MOCOMP_FUZZ_SEEDS=fuzz/seeds/decoder cargo test -p mocomp-codec --test stream -- --ignored`
+#[test]
+#[ignore = "writes files; run by hand to seed the fuzzer"]
+fn write_fuzz_seeds() {
+    let Ok(dir) = std::env::var("MOCOMP_FUZZ_SEEDS") else {
+        return;
+    };
+    std::fs::create_dir_all(&dir).unwrap();
+    for (i, (w, h, qp)) in [(16, 16, 30), (48, 32, 26), (35, 19, 8), (17, 9, 45), (1, 1, 20)].into_iter().enumerate() {
+        let (bytes, _) = coded_stream(w, h, qp);
+        std::fs::write(format!("{dir}/stream_{i}.mcv"), bytes).unwrap();
+    }
+}

@@ -43,7 +43,10 @@ impl Mv {
 
     /// Whether both components are within the coded range `[-MV_LIMIT, MV_LIMIT]`.
     pub fn in_range(self) -> bool {
-        self.x.abs() <= MV_LIMIT && self.y.abs() <= MV_LIMIT
+        // A range test, not abs(): components come from the stream and may
+        // be i32::MIN.
+        let ok = |v: i32| (-MV_LIMIT..=MV_LIMIT).contains(&v);
+        ok(self.x) && ok(self.y)
     }
 }
 
@@ -138,6 +141,8 @@ mod tests {
         // dx = 1 (3 bits), dy = -2 (5 bits).
         assert_eq!(mvd_bits(Mv::new(6, -5), Mv::new(5, -3)), 8);
         assert!(Mv::new(MV_LIMIT, -MV_LIMIT).in_range() && !Mv::new(MV_LIMIT + 1, 0).in_range());
+        // Found by the decoder fuzzer: i32::MIN must not overflow.
+        assert!(!Mv::new(i32::MIN, 0).in_range() && !Mv::new(0, i32::MIN).in_range());
         assert_eq!(Mv::full_pel(2, -3), Mv::new(8, -12));
     }
 }

@@ -589,8 +589,25 @@ fn write_fuzz_seeds() {
         return;
     };
     std::fs::create_dir_all(&dir).unwrap();
-    for (i, (w, h, qp)) in [(16, 16, 30), (48, 32, 26), (35, 19, 8), (17, 9, 45), (1, 1, 20)].into_iter().enumerate() {
+    for (i, (w, h, qp)) in [(16, 16, 30), (48, 32, 26), (35, 19, 8), (17, 9, 45), (1, 1, 20)]
+        .into_iter()
+        .enumerate()
+    {
         let (bytes, _) = coded_stream(w, h, qp);
         std::fs::write(format!("{dir}/stream_{i}.mcv"), bytes).unwrap();
     }
+}
+
+/// Inputs the fuzzer once crashed the decoder with (`codec/tests/regressions/`):
+/// each must now be a clean error.
+#[test]
+fn fuzzer_findings_stay_fixed() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/regressions");
+    let mut n = 0;
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let bytes = std::fs::read(entry.unwrap().path()).unwrap();
+        assert!(decode(&bytes).is_err());
+        n += 1;
+    }
+    assert!(n >= 1);
 }

@@ -298,31 +298,13 @@ pub fn mb_vector(
     }
 }
 
-/// The predicted vector of macroblock (mb_x, mb_y) from the vectors of the
-/// macroblocks before it in raster order (`None` for intra ones).
-pub fn mv_prediction(vectors: &[Option<Mv>], mb_x: usize, mb_y: usize, mb_cols: usize) -> Mv {
-    let at = |x: usize, y: usize| vectors[y * mb_cols + x];
-    let left = if mb_x > 0 { at(mb_x - 1, mb_y) } else { None };
-    let top = if mb_y > 0 { at(mb_x, mb_y - 1) } else { None };
-    let top_right = if mb_y > 0 && mb_x + 1 < mb_cols {
-        at(mb_x + 1, mb_y - 1)
-    } else {
-        None
-    };
-    let top_left = if mb_y > 0 && mb_x > 0 {
-        at(mb_x - 1, mb_y - 1)
-    } else {
-        None
-    };
-    predict_mv(left, top, top_right, top_left)
-}
-
-/// The predicted vector of grid node (col, row) from the nodes before it.
-fn grid_prediction(grid: &MotionGrid, col: usize, row: usize) -> Mv {
-    let at = |c: usize, r: usize| Some(grid.get(c, r));
+/// The predicted vector of the element at (col, row) of a grid `cols`
+/// wide, from the elements before it in raster order: `at(c, r)` is an
+/// element's vector, `None` when it has none (section 5 of FORMAT.md).
+fn predict_in_grid(cols: usize, col: usize, row: usize, at: impl Fn(usize, usize) -> Option<Mv>) -> Mv {
     let left = if col > 0 { at(col - 1, row) } else { None };
     let top = if row > 0 { at(col, row - 1) } else { None };
-    let top_right = if row > 0 && col + 1 < grid.cols() {
+    let top_right = if row > 0 && col + 1 < cols {
         at(col + 1, row - 1)
     } else {
         None
@@ -333,6 +315,17 @@ fn grid_prediction(grid: &MotionGrid, col: usize, row: usize) -> Mv {
         None
     };
     predict_mv(left, top, top_right, top_left)
+}
+
+/// The predicted vector of macroblock (mb_x, mb_y) from the vectors of the
+/// macroblocks before it in raster order (`None` for intra ones).
+pub fn mv_prediction(vectors: &[Option<Mv>], mb_x: usize, mb_y: usize, mb_cols: usize) -> Mv {
+    predict_in_grid(mb_cols, mb_x, mb_y, |x, y| vectors[y * mb_cols + x])
+}
+
+/// The predicted vector of grid node (col, row) from the nodes before it.
+fn grid_prediction(grid: &MotionGrid, col: usize, row: usize) -> Mv {
+    predict_in_grid(grid.cols(), col, row, |c, r| Some(grid.get(c, r)))
 }
 
 fn write_intra_modes(w: &mut BitWriter, luma: IntraMode, chroma: IntraMode) {

@@ -20,6 +20,7 @@ pub use mocomp_codec as codec;
 pub mod cli;
 pub mod flow;
 pub mod io;
+pub mod me;
 pub mod metrics;
 pub mod raster;
 pub mod synth;

@@ -301,7 +301,7 @@ pub fn mb_vector(
 /// The predicted vector of the element at (col, row) of a grid `cols`
 /// wide, from the elements before it in raster order: `at(c, r)` is an
 /// element's vector, `None` when it has none (section 5 of FORMAT.md).
-fn predict_in_grid(cols: usize, col: usize, row: usize, at: impl Fn(usize, usize) -> Option<Mv>) -> Mv {
+pub fn predict_in_grid(cols: usize, col: usize, row: usize, at: impl Fn(usize, usize) -> Option<Mv>) -> Mv {
     let left = if col > 0 { at(col - 1, row) } else { None };
     let top = if row > 0 { at(col, row - 1) } else { None };
     let top_right = if row > 0 && col + 1 < cols {

@@ -1,0 +1,175 @@
+//! Block matching costs: SAD, SSD, SATD.
+//!
+//! Each kernel compares a `w x h` block of `a` (row stride `sa`) with one of
+//! `b` (row stride `sb`). These are the scalar reference versions; faster
+//! kernels must return exactly the same values.
+//!
+//! SATD is the sum of absolute values of the 4x4 Hadamard transform of the
+//! difference, tile by tile, halved (as x264's `satd`), so it is on the
+//! scale of SAD. Blocks for SATD have sides that are multiples of 4.
+
+use std::fmt;
+use std::str::FromStr;
+
+/// A block distortion measure.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum Metric {
+    /// Sum of absolute differences.
+    #[default]
+    Sad,
+    /// Sum of squared differences.
+    Ssd,
+    /// Sum of absolute 4x4 Hadamard-transformed differences, halved.
+    Satd,
+}
+
+impl Metric {
+    /// Every metric, in the order the CLI lists them.
+    pub const ALL: [Metric; 3] = [Metric::Sad, Metric::Ssd, Metric::Satd];
+
+    /// The name used on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Metric::Sad => "sad",
+            Metric::Ssd => "ssd",
+            Metric::Satd => "satd",
+        }
+    }
+
+    /// The cost of block `a` against block `b`.
+    #[inline]
+    #[allow(clippy::too_many_arguments)]
+    pub fn cost(self, a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
+        match self {
+            Metric::Sad => sad(a, sa, b, sb, w, h),
+            Metric::Ssd => ssd(a, sa, b, sb, w, h),
+            Metric::Satd => satd(a, sa, b, sb, w, h),
+        }
+    }
+}
+
+impl fmt::Display for Metric {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Metric {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Metric, String> {
+        Metric::ALL
+            .into_iter()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| format!("unknown metric '{s}' (sad, ssd, satd)"))
+    }
+}
+
+/// Sum of absolute differences.
+pub fn sad(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
+    let mut sum = 0u32;
+    for r in 0..h {
+        let (ra, rb) = (&a[r * sa..r * sa + w], &b[r * sb..r * sb + w]);
+        sum += ra
+            .iter()
+            .zip(rb)
+            .map(|(&x, &y)| u32::from(x.abs_diff(y)))
+            .sum::<u32>();
+    }
+    sum
+}
+
+/// Sum of squared differences.
+pub fn ssd(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
+    let mut sum = 0u32;
+    for r in 0..h {
+        let (ra, rb) = (&a[r * sa..r * sa + w], &b[r * sb..r * sb + w]);
+        sum += ra
+            .iter()
+            .zip(rb)
+            .map(|(&x, &y)| {
+                let d = u32::from(x.abs_diff(y));
+                d * d
+            })
+            .sum::<u32>();
+    }
+    sum
+}
+
+/// SATD of one 4x4 tile: `sum |H D H^T| / 2` with H the 4x4 Hadamard
+/// matrix (rounded up, as x264 does).
+fn satd_4x4(a: &[u8], sa: usize, b: &[u8], sb: usize) -> u32 {
+    let mut d = [[0i32; 4]; 4];
+    for (r, row) in d.iter_mut().enumerate() {
+        for (c, v) in row.iter_mut().enumerate() {
+            *v = i32::from(a[r * sa + c]) - i32::from(b[r * sb + c]);
+        }
+    }
+    let mut t = [[0i32; 4]; 4];
+    for r in 0..4 {
+        let (s01, d01) = (d[r][0] + d[r][1], d[r][0] - d[r][1]);
+        let (s23, d23) = (d[r][2] + d[r][3], d[r][2] - d[r][3]);
+        t[r] = [s01 + s23, s01 - s23, d01 - d23, d01 + d23];
+    }
+    let mut sum = 0u32;
+    for c in 0..4 {
+        let (s01, d01) = (t[0][c] + t[1][c], t[0][c] - t[1][c]);
+        let (s23, d23) = (t[2][c] + t[3][c], t[2][c] - t[3][c]);
+        sum += (s01 + s23).unsigned_abs()
+            + (s01 - s23).unsigned_abs()
+            + (d01 - d23).unsigned_abs()
+            + (d01 + d23).unsigned_abs();
+    }
+    sum.div_ceil(2)
+}
+
+/// SATD over 4x4 tiles (`w` and `h` multiples of 4).
+pub fn satd(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
+    debug_assert!(
+        w % 4 == 0 && h % 4 == 0,
+        "SATD needs sides that are multiples of 4"
+    );
+    let mut sum = 0;
+    for ty in (0..h).step_by(4) {
+        for tx in (0..w).step_by(4) {
+            sum += satd_4x4(&a[ty * sa + tx..], sa, &b[ty * sb + tx..], sb);
+        }
+    }
+    sum
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hand_computed_costs() {
+        let a = [10u8, 20, 30, 40, 50, 60, 70, 80];
+        let b = [12u8, 18, 30, 45, 50, 61, 60, 80];
+        // Differences -2, 2, 0, -5 / 0, -1, 10, 0.
+        assert_eq!(sad(&a, 4, &b, 4, 4, 2), 20);
+        assert_eq!(ssd(&a, 4, &b, 4, 4, 2), 4 + 4 + 25 + 1 + 100);
+        // A stride wider than the block: only the first 2 columns.
+        assert_eq!(sad(&a, 4, &b, 4, 2, 2), 2 + 2 + 1);
+    }
+
+    #[test]
+    fn satd_of_a_constant_difference_is_its_dc() {
+        // A constant difference d: only the DC coefficient, 16 d, halved: 8 d.
+        let a = [100u8; 16];
+        let b = [97u8; 16];
+        assert_eq!(satd(&a, 4, &b, 4, 4, 4), 8 * 3);
+        // One differing sample spreads over all 16 coefficients with |d|: 16 |d| / 2.
+        let mut c = [100u8; 16];
+        c[5] = 90;
+        assert_eq!(satd(&a, 4, &c, 4, 4, 4), 8 * 10);
+        assert_eq!(satd(&a, 4, &a, 4, 4, 4), 0);
+    }
+
+    #[test]
+    fn names_parse() {
+        for m in Metric::ALL {
+            assert_eq!(m.name().parse::<Metric>(), Ok(m));
+        }
+        assert!("mse".parse::<Metric>().is_err());
+    }
+}

@@ -1,0 +1,461 @@
+//! Block-matching motion estimation.
+//!
+//! [`estimate`] finds one vector per block of the current picture such that
+//! the block matches the reference at `block position + vector`, with the
+//! cost of the match. Methods have ffmpeg `mestimate`'s names ([`Method`]);
+//! costs are SAD, SSD or SATD ([`Metric`]) plus, optionally, a rate term
+//! `lambda * R(mv - mvp)` where `R` is the bit length of the codec's vector
+//! code and `mvp` the codec's median predictor, so the search prices vectors
+//! as the encoder will pay for them.
+//!
+//! Full-pel candidates lie within `range` pixels of the block in each
+//! direction; they may point outside the picture, into the reference's
+//! replicated border, up to `range` pixels beyond the edge (unrestricted
+//! vectors). Sub-pel refinement evaluates exactly the prediction the decoder
+//! forms (`codec::interp`).
+//!
+//! Ties are broken the same way by every method: lower cost, then smaller
+//! `dx^2 + dy^2`, then raster order (`dy`, then `dx`). `esa` therefore
+//! returns the true minimum over the window, deterministically.
+//!
+//! Blocks run in parallel (rayon). When a block's result depends on its
+//! neighbours' (a rate term, EPZS candidates), blocks are processed in
+//! diagonal wavefronts so that every neighbour a block reads is final:
+//! results never depend on the number of threads.
+//!
+//! ```
+//! use mocomp::codec::Plane;
+//! use mocomp::me::{estimate, MeConfig, Method};
+//! let reference = Plane::from_fn(64, 64, |x, y| ((x * 7) ^ (y * 13)) as u8).unwrap();
+//! // The current picture is the reference moved 3 px right, 1 down.
+//! let current = Plane::from_fn(64, 64, |x, y| reference.pixel_clamped(x as isize - 3, y as isize - 1)).unwrap();
+//! let field = estimate(&current, &reference, &MeConfig::new(Method::Esa, 16, 8)).unwrap();
+//! assert_eq!(field.vector(1, 1).x, -3 * 4); // quarter-pel units
+//! assert_eq!(field.vector(1, 1).y, -1 * 4);
+//! ```
+
+pub mod cost;
+mod search;
+
+use std::fmt;
+use std::str::FromStr;
+
+use rayon::prelude::*;
+
+use crate::codec::interp::predict_luma;
+use crate::codec::mv::{mvd_bits, Mv};
+use crate::codec::syntax::predict_in_grid;
+use crate::codec::Plane;
+pub use cost::Metric;
+
+/// A search method, named as in ffmpeg's `mestimate` filter.
+///
+/// Reach: `esa` sees the whole window. `tss` and `ntss` reach the sum of
+/// their steps, `ceil(range/2)` halved down to 1: 7 pixels at range 7 or 8,
+/// 15 at range 16 (the window's last pixel can be out of reach).
+/// `tdls`, `fss`, `ds`, `hexbs` and `epzs` walk without a step limit, inside
+/// the window; `hexbs` needs one pixel of room inside it for its hexagon.
+/// On a smooth, unimodal cost every method finds the minimum within its
+/// reach; on real pictures the fast ones can stop in a local minimum.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Method {
+    /// Exhaustive search of the whole window: the true minimum.
+    Esa,
+    /// Three-step search: 8 points at a step that halves from about half the
+    /// range down to 1, moving to the best each time.
+    Tss,
+    /// New three-step search (Li, Zeng, Liou 1994): the first step adds the 8
+    /// neighbours at distance 1 and stops early when the minimum is at or
+    /// next to the centre.
+    Ntss,
+    /// Two-dimensional logarithmic search: a + pattern whose step halves
+    /// when the centre wins, then the 8 neighbours at step 1.
+    Tdls,
+    /// Four-step search (Po, Ma 1996): 9 points at step 2 up to three times,
+    /// then the 8 neighbours at step 1.
+    Fss,
+    /// Diamond search (Zhu, Ma 2000): the large diamond (8 points at distance
+    /// 2) until the centre wins, then the small diamond (4 at distance 1).
+    Ds,
+    /// Hexagon search (Zhu et al. 2002): a 6-point hexagon of radius 2 until
+    /// the centre wins, then the 4 points at distance 1.
+    Hexbs,
+    /// Predictive zonal search (Tourapis 2002): the zero, median, left, top,
+    /// top-right and co-located (previous field) candidates, then the small
+    /// diamond from the best until the centre wins.
+    Epzs,
+}
+
+impl Method {
+    /// Every method, cheapest-to-explain first.
+    pub const ALL: [Method; 8] = [
+        Method::Esa,
+        Method::Tss,
+        Method::Ntss,
+        Method::Tdls,
+        Method::Fss,
+        Method::Ds,
+        Method::Hexbs,
+        Method::Epzs,
+    ];
+
+    /// The ffmpeg `mestimate` name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Esa => "esa",
+            Method::Tss => "tss",
+            Method::Ntss => "ntss",
+            Method::Tdls => "tdls",
+            Method::Fss => "fss",
+            Method::Ds => "ds",
+            Method::Hexbs => "hexbs",
+            Method::Epzs => "epzs",
+        }
+    }
+
+    /// Whether the method reads neighbouring blocks' results.
+    fn uses_neighbours(self) -> bool {
+        matches!(self, Method::Epzs)
+    }
+}
+
+impl fmt::Display for Method {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Method {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Method, String> {
+        Method::ALL.into_iter().find(|m| m.name() == s).ok_or_else(|| {
+            let names: Vec<_> = Method::ALL.iter().map(|m| m.name()).collect();
+            format!("unknown search method '{s}' (one of {})", names.join(", "))
+        })
+    }
+}
+
+/// Sub-pel refinement after the full-pel search.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum Subpel {
+    /// Full-pel vectors only.
+    #[default]
+    None,
+    /// Half-pel: the 8 half-pel neighbours of the best full-pel vector.
+    Half,
+    /// Half-pel, then the 8 quarter-pel neighbours of the best half-pel one.
+    Quarter,
+}
+
+impl FromStr for Subpel {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Subpel, String> {
+        match s {
+            "none" => Ok(Subpel::None),
+            "half" => Ok(Subpel::Half),
+            "quarter" => Ok(Subpel::Quarter),
+            _ => Err(format!("unknown sub-pel level '{s}' (none, half, quarter)")),
+        }
+    }
+}
+
+/// Block sizes [`estimate`] accepts.
+pub const BLOCK_SIZES: [usize; 4] = [4, 8, 16, 32];
+
+/// Largest search range.
+pub const MAX_RANGE: i32 = 64;
+
+/// How to search.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MeConfig {
+    /// The search pattern.
+    pub method: Method,
+    /// Square block side: 4, 8, 16 or 32.
+    pub block: usize,
+    /// Full-pel search range, 1..=64.
+    pub range: i32,
+    /// Sub-pel refinement.
+    pub subpel: Subpel,
+    /// Distortion measure.
+    pub metric: Metric,
+    /// Weight of the vector's bits, or 0 for none. See [`lambda_for_qp`].
+    pub lambda: f64,
+}
+
+impl MeConfig {
+    /// `method` with `block` x `block` blocks and `range`; SAD, full-pel, no
+    /// rate term.
+    pub fn new(method: Method, block: usize, range: i32) -> MeConfig {
+        MeConfig {
+            method,
+            block,
+            range,
+            subpel: Subpel::None,
+            metric: Metric::Sad,
+            lambda: 0.0,
+        }
+    }
+
+    fn check(&self) -> Result<(), MeError> {
+        if !BLOCK_SIZES.contains(&self.block) {
+            return Err(MeError::Block(self.block));
+        }
+        if !(1..=MAX_RANGE).contains(&self.range) {
+            return Err(MeError::Range(self.range));
+        }
+        if !(self.lambda >= 0.0 && self.lambda < 1e6) {
+            return Err(MeError::Lambda(self.lambda));
+        }
+        Ok(())
+    }
+}
+
+/// The H.264 reference encoder's motion lambda for `qp`: the weight of one
+/// bit against SAD or SATD is `sqrt(0.85 * 2^((qp - 12) / 3))`; against SSD
+/// its square.
+pub fn lambda_for_qp(metric: Metric, qp: u8) -> f64 {
+    let l2 = 0.85 * 2f64.powf((f64::from(qp) - 12.0) / 3.0);
+    match metric {
+        Metric::Ssd => l2,
+        Metric::Sad | Metric::Satd => l2.sqrt(),
+    }
+}
+
+/// Why a search cannot run.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MeError {
+    /// Unsupported block size.
+    #[error("block size {0} is not one of 4, 8, 16, 32")]
+    Block(usize),
+    /// Range outside 1..=64.
+    #[error("search range {0} is outside 1..=64")]
+    Range(i32),
+    /// Negative or absurd lambda.
+    #[error("lambda {0} is out of range")]
+    Lambda(f64),
+    /// The pictures differ in size, or their border is too narrow.
+    #[error("{0}")]
+    Pictures(String),
+}
+
+/// One vector and its cost per block.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MotionField {
+    block: usize,
+    cols: usize,
+    rows: usize,
+    vectors: Vec<Mv>,
+    costs: Vec<u32>,
+}
+
+impl MotionField {
+    /// A zero field for a `width x height` picture in `block`-sized blocks
+    /// (the last column and row may be partial).
+    pub fn new(width: usize, height: usize, block: usize) -> MotionField {
+        let (cols, rows) = (width.div_ceil(block), height.div_ceil(block));
+        MotionField {
+            block,
+            cols,
+            rows,
+            vectors: vec![Mv::ZERO; cols * rows],
+            costs: vec![0; cols * rows],
+        }
+    }
+
+    /// Block side in pixels.
+    pub fn block(&self) -> usize {
+        self.block
+    }
+
+    /// Blocks per row.
+    pub fn cols(&self) -> usize {
+        self.cols
+    }
+
+    /// Rows of blocks.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// The vector of block (col, row), quarter-pel.
+    pub fn vector(&self, col: usize, row: usize) -> Mv {
+        self.vectors[row * self.cols + col]
+    }
+
+    /// The cost of block (col, row) (distortion plus rate term).
+    pub fn cost(&self, col: usize, row: usize) -> u32 {
+        self.costs[row * self.cols + col]
+    }
+
+    /// All vectors, row after row.
+    pub fn vectors(&self) -> &[Mv] {
+        &self.vectors
+    }
+
+    /// All costs, row after row.
+    pub fn costs(&self) -> &[u32] {
+        &self.costs
+    }
+
+    /// The codec's predicted vector for block (col, row) from the blocks
+    /// before it in raster order.
+    pub fn predictor(&self, col: usize, row: usize) -> Mv {
+        predict_in_grid(self.cols, col, row, |c, r| Some(self.vectors[r * self.cols + c]))
+    }
+}
+
+/// Everything one block's search reads.
+pub(crate) struct BlockSearch<'a> {
+    cur: &'a Plane,
+    reference: &'a Plane,
+    x: isize,
+    y: isize,
+    cfg: &'a MeConfig,
+    mvp: Mv,
+    lambda_q8: u64,
+}
+
+impl BlockSearch<'_> {
+    /// Distortion of the block against the reference at full-pel offset (dx, dy).
+    fn distortion(&self, dx: i32, dy: i32) -> u32 {
+        let b = self.cfg.block;
+        let a = &self.cur.data()[self.cur.index(self.x, self.y)..];
+        let r = &self.reference.data()[self.reference.index(self.x + dx as isize, self.y + dy as isize)..];
+        self.cfg
+            .metric
+            .cost(a, self.cur.stride(), r, self.reference.stride(), b, b)
+    }
+
+    /// Rate term of a quarter-pel vector, in cost units.
+    fn rate(&self, mv: Mv) -> u64 {
+        if self.lambda_q8 == 0 {
+            return 0;
+        }
+        (self.lambda_q8 * u64::from(mvd_bits(mv, self.mvp)) + 128) >> 8
+    }
+
+    /// Full cost of full-pel (dx, dy).
+    fn full_pel_cost(&self, dx: i32, dy: i32) -> u64 {
+        u64::from(self.distortion(dx, dy)) + self.rate(Mv::full_pel(dx, dy))
+    }
+
+    /// Full cost of a quarter-pel vector, on the decoder's prediction.
+    fn sub_pel_cost(&self, mv: Mv, scratch: &mut [u8]) -> u64 {
+        let b = self.cfg.block;
+        predict_luma(self.reference, self.x, self.y, mv.x, mv.y, b, b, scratch, b);
+        let a = &self.cur.data()[self.cur.index(self.x, self.y)..];
+        u64::from(self.cfg.metric.cost(a, self.cur.stride(), scratch, b, b, b)) + self.rate(mv)
+    }
+}
+
+/// A candidate and its cost, ordered by the common tie-break.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Candidate {
+    pub cost: u64,
+    pub mv: Mv,
+}
+
+impl Candidate {
+    fn key(&self) -> (u64, i64, i32, i32) {
+        let (x, y) = (i64::from(self.mv.x), i64::from(self.mv.y));
+        (self.cost, x * x + y * y, self.mv.y, self.mv.x)
+    }
+
+    /// Whether `self` beats `other`.
+    pub fn beats(&self, other: &Candidate) -> bool {
+        self.key() < other.key()
+    }
+}
+
+fn check_pictures(cur: &Plane, reference: &Plane, cfg: &MeConfig) -> Result<(), MeError> {
+    if cur.width() != reference.width() || cur.height() != reference.height() {
+        return Err(MeError::Pictures(format!(
+            "current {}x{} and reference {}x{} differ in size",
+            cur.width(),
+            cur.height(),
+            reference.width(),
+            reference.height()
+        )));
+    }
+    // Full-pel reads reach range + block - 1 past the picture; sub-pel ones
+    // go through the codec predictor, which needs block + 8.
+    let need = cfg.range as usize + cfg.block + 8;
+    for (name, p) in [("current", cur), ("reference", reference)] {
+        if p.pad() < need {
+            return Err(MeError::Pictures(format!(
+                "the {name} picture's border is {} pixels, the search needs {need}",
+                p.pad()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Estimates the motion of `cur` against `reference` (same size, borders
+/// extended), without a previous field for predictive candidates.
+pub fn estimate(cur: &Plane, reference: &Plane, cfg: &MeConfig) -> Result<MotionField, MeError> {
+    estimate_with_prior(cur, reference, cfg, None)
+}
+
+/// As [`estimate`], with the previous picture's field (same block size) as
+/// the source of co-located candidates for predictive methods.
+pub fn estimate_with_prior(
+    cur: &Plane,
+    reference: &Plane,
+    cfg: &MeConfig,
+    prior: Option<&MotionField>,
+) -> Result<MotionField, MeError> {
+    cfg.check()?;
+    check_pictures(cur, reference, cfg)?;
+    let mut field = MotionField::new(cur.width(), cur.height(), cfg.block);
+    let prior = prior.filter(|p| p.cols == field.cols && p.rows == field.rows && p.block == field.block);
+    let lambda_q8 = (cfg.lambda * 256.0).round() as u64;
+    let (cols, rows) = (field.cols, field.rows);
+    let search_one = |field: &MotionField, col: usize, row: usize| -> Candidate {
+        let s = BlockSearch {
+            cur,
+            reference,
+            x: (col * cfg.block) as isize,
+            y: (row * cfg.block) as isize,
+            cfg,
+            mvp: if lambda_q8 > 0 || cfg.method.uses_neighbours() {
+                field.predictor(col, row)
+            } else {
+                Mv::ZERO
+            },
+            lambda_q8,
+        };
+        let neighbours = search::Neighbours::of(field, prior, col, row);
+        let best = search::full_pel(&s, &neighbours);
+        search::refine(&s, best)
+    };
+    if lambda_q8 > 0 || cfg.method.uses_neighbours() {
+        // Wavefronts: block (c, r) reads (c-1, r), (c-1, r-1), (c, r-1) and
+        // (c+1, r-1), all on earlier diagonals c + 2r.
+        for wave in 0..cols + 2 * rows {
+            let blocks: Vec<(usize, usize)> = (0..rows)
+                .filter_map(|r| wave.checked_sub(2 * r).filter(|&c| c < cols).map(|c| (c, r)))
+                .collect();
+            let results: Vec<Candidate> = blocks
+                .par_iter()
+                .map(|&(c, r)| search_one(&field, c, r))
+                .collect();
+            for ((c, r), best) in blocks.into_iter().zip(results) {
+                field.vectors[r * cols + c] = best.mv;
+                field.costs[r * cols + c] = best.cost.min(u64::from(u32::MAX)) as u32;
+            }
+        }
+    } else {
+        let results: Vec<Vec<Candidate>> = (0..rows)
+            .into_par_iter()
+            .map(|r| (0..cols).map(|c| search_one(&field, c, r)).collect())
+            .collect();
+        for (r, row) in results.into_iter().enumerate() {
+            for (c, best) in row.into_iter().enumerate() {
+                field.vectors[r * cols + c] = best.mv;
+                field.costs[r * cols + c] = best.cost.min(u64::from(u32::MAX)) as u32;
+            }
+        }
+    }
+    Ok(field)
+}

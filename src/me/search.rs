@@ -1,0 +1,225 @@
+//! The search patterns: full-pel search per method, then sub-pel refinement.
+
+use super::{BlockSearch, Candidate, Method, MotionField, Subpel};
+use crate::codec::mv::Mv;
+
+/// Candidate vectors from neighbouring blocks, for predictive methods.
+pub(crate) struct Neighbours {
+    candidates: Vec<Mv>,
+}
+
+impl Neighbours {
+    /// The left, top and top-right blocks of `field` (final when read: see
+    /// the wavefront in `estimate_with_prior`), the median predictor, and the
+    /// co-located, right and lower blocks of the previous field.
+    pub(crate) fn of(field: &MotionField, prior: Option<&MotionField>, col: usize, row: usize) -> Neighbours {
+        let mut candidates = vec![field.predictor(col, row)];
+        if col > 0 {
+            candidates.push(field.vector(col - 1, row));
+        }
+        if row > 0 {
+            candidates.push(field.vector(col, row - 1));
+            if col + 1 < field.cols() {
+                candidates.push(field.vector(col + 1, row - 1));
+            }
+        }
+        if let Some(p) = prior {
+            candidates.push(p.vector(col, row));
+            if col + 1 < p.cols() {
+                candidates.push(p.vector(col + 1, row));
+            }
+            if row + 1 < p.rows() {
+                candidates.push(p.vector(col, row + 1));
+            }
+        }
+        Neighbours { candidates }
+    }
+}
+
+/// A walk over full-pel positions of the window, remembering the best and
+/// which positions were already evaluated.
+struct Walk<'s, 'p> {
+    s: &'s BlockSearch<'p>,
+    range: i32,
+    side: usize,
+    seen: Vec<bool>,
+    best: Candidate,
+}
+
+impl<'s, 'p> Walk<'s, 'p> {
+    fn new(s: &'s BlockSearch<'p>) -> Walk<'s, 'p> {
+        let range = s.cfg.range;
+        let side = (2 * range + 1) as usize;
+        let mut walk = Walk {
+            s,
+            range,
+            side,
+            seen: vec![false; side * side],
+            best: Candidate {
+                cost: u64::MAX,
+                mv: Mv::ZERO,
+            },
+        };
+        walk.try_at(0, 0);
+        walk
+    }
+
+    /// Evaluates (dx, dy) if inside the window and new; true if it became the best.
+    fn try_at(&mut self, dx: i32, dy: i32) -> bool {
+        if dx.abs() > self.range || dy.abs() > self.range {
+            return false;
+        }
+        let i = (dy + self.range) as usize * self.side + (dx + self.range) as usize;
+        if std::mem::replace(&mut self.seen[i], true) {
+            return false;
+        }
+        let c = Candidate {
+            cost: self.s.full_pel_cost(dx, dy),
+            mv: Mv::full_pel(dx, dy),
+        };
+        let better = c.beats(&self.best);
+        if better {
+            self.best = c;
+        }
+        better
+    }
+
+    /// The best position so far, full-pel.
+    fn centre(&self) -> (i32, i32) {
+        (self.best.mv.x / 4, self.best.mv.y / 4)
+    }
+
+    /// Evaluates `offsets * step` around the current best; true if it moved.
+    fn pattern(&mut self, offsets: &[(i32, i32)], step: i32) -> bool {
+        let (cx, cy) = self.centre();
+        let mut moved = false;
+        for &(ox, oy) in offsets {
+            moved |= self.try_at(cx + ox * step, cy + oy * step);
+        }
+        moved
+    }
+}
+
+const SQUARE: [(i32, i32); 8] = [
+    (-1, -1),
+    (0, -1),
+    (1, -1),
+    (-1, 0),
+    (1, 0),
+    (-1, 1),
+    (0, 1),
+    (1, 1),
+];
+const CROSS: [(i32, i32); 4] = [(0, -1), (-1, 0), (1, 0), (0, 1)];
+const LARGE_DIAMOND: [(i32, i32); 8] = [
+    (0, -2),
+    (-1, -1),
+    (1, -1),
+    (-2, 0),
+    (2, 0),
+    (-1, 1),
+    (1, 1),
+    (0, 2),
+];
+const HEXAGON: [(i32, i32); 6] = [(-1, -2), (1, -2), (-2, 0), (2, 0), (-1, 2), (1, 2)];
+
+/// The full-pel search of one block.
+pub(crate) fn full_pel(s: &BlockSearch<'_>, neighbours: &Neighbours) -> Candidate {
+    let mut w = Walk::new(s);
+    let r = s.cfg.range;
+    // Half the range, rounded (ffmpeg's ROUNDED_DIV(range, 2)): the first step
+    // of the logarithmic searches.
+    let half = (r + 1) / 2;
+    match s.cfg.method {
+        Method::Esa => {
+            for dy in -r..=r {
+                for dx in -r..=r {
+                    w.try_at(dx, dy);
+                }
+            }
+        }
+        Method::Tss => {
+            let mut step = half;
+            while step > 0 {
+                w.pattern(&SQUARE, step);
+                step /= 2;
+            }
+        }
+        Method::Ntss => {
+            let mut step = half;
+            w.pattern(&SQUARE, step);
+            w.pattern(&SQUARE, 1);
+            let (cx, cy) = w.centre();
+            if (cx, cy) == (0, 0) {
+                return w.best;
+            }
+            if cx.abs() <= 1 && cy.abs() <= 1 {
+                // The minimum is next to the centre: its neighbours, then stop.
+                w.pattern(&SQUARE, 1);
+                return w.best;
+            }
+            step /= 2;
+            while step > 0 {
+                w.pattern(&SQUARE, step);
+                step /= 2;
+            }
+        }
+        Method::Tdls => {
+            let mut step = half;
+            while step > 0 {
+                if !w.pattern(&CROSS, step) {
+                    step /= 2;
+                }
+            }
+        }
+        Method::Fss => {
+            let mut step = 2;
+            while step > 0 {
+                if !w.pattern(&SQUARE, step) {
+                    step /= 2;
+                }
+            }
+        }
+        Method::Ds => {
+            while w.pattern(&LARGE_DIAMOND, 1) {}
+            w.pattern(&CROSS, 1);
+        }
+        Method::Hexbs => {
+            while w.pattern(&HEXAGON, 1) {}
+            w.pattern(&CROSS, 1);
+        }
+        Method::Epzs => {
+            for mv in &neighbours.candidates {
+                // Quarter-pel candidates, rounded to the nearest full pel.
+                w.try_at((mv.x + 2) >> 2, (mv.y + 2) >> 2);
+            }
+            while w.pattern(&CROSS, 1) {}
+        }
+    }
+    w.best
+}
+
+/// Half-pel, then quarter-pel refinement around the full-pel best, on the
+/// codec's interpolation.
+pub(crate) fn refine(s: &BlockSearch<'_>, mut best: Candidate) -> Candidate {
+    let steps: &[i32] = match s.cfg.subpel {
+        Subpel::None => return best,
+        Subpel::Half => &[2],
+        Subpel::Quarter => &[2, 1],
+    };
+    let mut scratch = vec![0u8; s.cfg.block * s.cfg.block];
+    for &step in steps {
+        let centre = best.mv;
+        for (ox, oy) in SQUARE {
+            let mv = Mv::new(centre.x + ox * step, centre.y + oy * step);
+            let c = Candidate {
+                cost: s.sub_pel_cost(mv, &mut scratch),
+                mv,
+            };
+            if c.beats(&best) {
+                best = c;
+            }
+        }
+    }
+    best
+}

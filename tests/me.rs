@@ -1,0 +1,255 @@
+//! Block matching against motion known independently of the search:
+//! integer and sub-pel translations of synthetic scenes.
+
+use mocomp::codec::mv::Mv;
+use mocomp::codec::Plane;
+use mocomp::me::{estimate, lambda_for_qp, MeConfig, Method, Metric, MotionField, Subpel};
+use mocomp::synth::{Motion, SceneSpec, Synth};
+
+/// Frames 1 and 0 (current, reference) of a noise-free synthetic scene
+/// translated by (dx, dy) px per frame.
+fn translated_pair(w: usize, h: usize, dx: f64, dy: f64, seed: u64) -> (Plane, Plane) {
+    let s = Synth::new(
+        SceneSpec::new("t", w, h, 2)
+            .seed(seed)
+            .camera(Motion::translation(dx, dy)),
+    )
+    .unwrap();
+    let (f0, f1) = (s.frame(0), s.frame(1));
+    (f1.y().clone(), f0.y().clone())
+}
+
+/// A picture whose matching cost rises like a cone around the true vector:
+/// one isotropic Gaussian blob (sigma 4) in the middle of every 16x16 block,
+/// moved by (shift_x, shift_y). This is the smooth, unimodal cost the fast
+/// searches are designed for. (Smooth textures with long wavelengths are
+/// not: within a block they are nearly a ramp, whose cost has a valley
+/// along the ramp's level lines, and the patterns stop in the valley.)
+fn blobs(w: usize, h: usize, shift_x: f64, shift_y: f64) -> Plane {
+    Plane::from_fn(w, h, |x, y| {
+        let (x, y) = (x as f64 - shift_x, y as f64 - shift_y);
+        let mut v = 40.0;
+        for by in -1..=(h / 16) as i32 {
+            for bx in -1..=(w / 16) as i32 {
+                let (cx, cy) = (16.0 * f64::from(bx) + 8.0, 16.0 * f64::from(by) + 8.0);
+                v += 180.0 * (-((x - cx).powi(2) + (y - cy).powi(2)) / 32.0).exp();
+            }
+        }
+        v.round() as u8
+    })
+    .unwrap()
+}
+
+/// A band-limited picture with detail in every direction, moved by a
+/// sub-pixel amount exactly (rendered analytically).
+fn waves(w: usize, h: usize, shift_x: f64, shift_y: f64) -> Plane {
+    use std::f64::consts::TAU;
+    Plane::from_fn(w, h, |x, y| {
+        let (x, y) = (x as f64 - shift_x, y as f64 - shift_y);
+        (128.0
+            + 30.0 * (TAU * x / 11.0 + 0.3).cos()
+            + 30.0 * (TAU * y / 9.0 + 1.1).cos()
+            + 25.0 * (TAU * (x + y) / 15.0).sin()
+            + 20.0 * (TAU * (x - 2.0 * y) / 23.0).cos())
+        .round() as u8
+    })
+    .unwrap()
+}
+
+/// Blocks whose displaced position stays inside the picture and whose
+/// pixels vary (variance above 25).
+fn interior_textured(cur: &Plane, block: usize, mv: (i32, i32), range: i32) -> Vec<(usize, usize)> {
+    let (cols, rows) = (cur.width() / block, cur.height() / block);
+    let mut out = Vec::new();
+    for r in 0..rows {
+        for c in 0..cols {
+            let (x, y) = ((c * block) as i32, (r * block) as i32);
+            let inside = x + mv.0 - range >= 0
+                && y + mv.1 - range >= 0
+                && x + mv.0 + range + block as i32 <= cur.width() as i32
+                && y + mv.1 + range + block as i32 <= cur.height() as i32;
+            let vals: Vec<f64> = (0..block * block)
+                .map(|i| f64::from(cur.get(c * block + i % block, r * block + i / block)))
+                .collect();
+            let mean = vals.iter().sum::<f64>() / vals.len() as f64;
+            let var = vals.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / vals.len() as f64;
+            if inside && var > 25.0 {
+                out.push((c, r));
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn esa_finds_integer_translations_exactly() {
+    for (dx, dy, block, range) in [
+        (3, -2, 16, 7),
+        (-6, 5, 8, 8),
+        (12, 9, 16, 16),
+        (-1, 0, 4, 3),
+        (20, -15, 32, 24),
+    ] {
+        let (cur, reference) = translated_pair(160, 128, dx as f64, dy as f64, 3);
+        let field = estimate(&cur, &reference, &MeConfig::new(Method::Esa, block, range)).unwrap();
+        let blocks = interior_textured(&cur, block, (-dx, -dy), 0);
+        assert!(blocks.len() > 10, "too few blocks to test");
+        for (c, r) in blocks {
+            assert_eq!(
+                field.vector(c, r),
+                Mv::full_pel(-dx, -dy),
+                "block ({c},{r}), shift ({dx},{dy})"
+            );
+            assert_eq!(field.cost(c, r), 0);
+        }
+    }
+}
+
+#[test]
+fn fast_methods_find_translations_within_their_reach_on_smooth_cost_pictures() {
+    // Range 8: every shift below is within every method's documented reach
+    // (hexbs needs a pixel of room inside the window for its hexagon).
+    for method in Method::ALL {
+        for (dx, dy) in [(3, -2), (-5, 4), (0, 6), (7, -7), (1, 1), (-6, -3), (2, 7)] {
+            let reference = blobs(128, 128, 0.0, 0.0);
+            let cur = blobs(128, 128, dx as f64, dy as f64);
+            let field = estimate(&cur, &reference, &MeConfig::new(method, 16, 8)).unwrap();
+            let blocks = interior_textured(&cur, 16, (-dx, -dy), 0);
+            assert!(blocks.len() > 5);
+            let wrong: Vec<_> = blocks
+                .iter()
+                .filter(|&&(c, r)| field.vector(c, r) != Mv::full_pel(-dx, -dy))
+                .collect();
+            assert!(wrong.is_empty(), "{method} shift ({dx},{dy}): wrong at {wrong:?}");
+        }
+    }
+}
+
+#[test]
+fn quarter_pel_refinement_lands_within_a_quarter_pixel() {
+    for (dx, dy) in [(1.25, -0.5), (-2.75, 1.0), (0.5, 0.25), (3.75, -1.25)] {
+        let (cur, reference) = (waves(160, 128, dx, dy), waves(160, 128, 0.0, 0.0));
+        let mut cfg = MeConfig::new(Method::Esa, 16, 6);
+        cfg.subpel = Subpel::Quarter;
+        let field = estimate(&cur, &reference, &cfg).unwrap();
+        let blocks = interior_textured(&cur, 16, (0, 0), 8);
+        assert!(blocks.len() > 10);
+        let (tx, ty) = (-dx * 4.0, -dy * 4.0);
+        for &(c, r) in &blocks {
+            let v = field.vector(c, r);
+            assert!(
+                (f64::from(v.x) - tx).abs() <= 1.0 && (f64::from(v.y) - ty).abs() <= 1.0,
+                "shift ({dx},{dy}): block ({c},{r}) found {v:?}, want ({tx},{ty}) quarter-pel"
+            );
+        }
+        // Half-pel refinement lands within half a pixel, on even quarter-pel values.
+        cfg.subpel = Subpel::Half;
+        let field = estimate(&cur, &reference, &cfg).unwrap();
+        for &(c, r) in &blocks {
+            let v = field.vector(c, r);
+            assert!((f64::from(v.x) - tx).abs() <= 2.0 && (f64::from(v.y) - ty).abs() <= 2.0);
+            assert!(v.x % 2 == 0 && v.y % 2 == 0);
+        }
+    }
+}
+
+#[test]
+fn esa_is_never_beaten() {
+    let s = Synth::new(mocomp::synth::standard_scenes().remove(0)).unwrap();
+    let (cur, reference) = (s.frame(4), s.frame(3));
+    for metric in Metric::ALL {
+        for range in [4, 9] {
+            let cfg = |m| MeConfig {
+                metric,
+                ..MeConfig::new(m, 8, range)
+            };
+            let best = estimate(cur.y(), reference.y(), &cfg(Method::Esa)).unwrap();
+            for m in Method::ALL {
+                let other = estimate(cur.y(), reference.y(), &cfg(m)).unwrap();
+                for (i, (&e, &o)) in best.costs().iter().zip(other.costs()).enumerate() {
+                    assert!(e <= o, "{metric} range {range}: esa {e} > {m} {o} at block {i}");
+                }
+            }
+        }
+    }
+}
+
+fn with_threads(n: usize, f: impl FnOnce() -> MotionField + Send) -> MotionField {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(n)
+        .build()
+        .unwrap()
+        .install(f)
+}
+
+#[test]
+fn parallel_results_equal_serial_ones() {
+    let s = Synth::new(mocomp::synth::standard_scenes().remove(0)).unwrap();
+    let (cur, reference) = (s.frame(6), s.frame(5));
+    for method in Method::ALL {
+        let mut cfg = MeConfig::new(method, 8, 12);
+        cfg.subpel = Subpel::Quarter;
+        cfg.lambda = lambda_for_qp(Metric::Sad, 28);
+        let one = with_threads(1, || estimate(cur.y(), reference.y(), &cfg).unwrap());
+        let four = with_threads(4, || estimate(cur.y(), reference.y(), &cfg).unwrap());
+        assert_eq!(one, four, "{method}");
+    }
+}
+
+#[test]
+fn ties_go_to_the_shortest_vector_then_raster_order() {
+    // A flat picture: every candidate costs 0, so (0, 0) wins.
+    let flat = Plane::filled(64, 64, 90).unwrap();
+    let field = estimate(&flat, &flat, &MeConfig::new(Method::Esa, 16, 8)).unwrap();
+    assert!(field.vectors().iter().all(|&v| v == Mv::ZERO));
+    // Vertical stripes of period 4: shifts of -4, 0, +4 columns all match;
+    // the current picture is moved by 2, so -2 and +2 tie: raster order
+    // (dy, then dx) picks dx = -2.
+    let stripes = |shift: usize| {
+        Plane::from_fn(64, 64, move |x, _| if (x + shift) % 4 < 2 { 40 } else { 200 }).unwrap()
+    };
+    let field = estimate(&stripes(2), &stripes(0), &MeConfig::new(Method::Esa, 16, 3)).unwrap();
+    assert_eq!(field.vector(1, 1), Mv::full_pel(-2, 0));
+}
+
+#[test]
+fn a_large_rate_term_pulls_vectors_to_the_predictor() {
+    let (cur, reference) = translated_pair(128, 96, 2.0, 1.0, 9);
+    let mut cfg = MeConfig::new(Method::Esa, 16, 6);
+    let free = estimate(&cur, &reference, &cfg).unwrap();
+    assert!(
+        free.vectors()
+            .iter()
+            .filter(|&&v| v == Mv::full_pel(-2, -1))
+            .count()
+            > 20
+    );
+    cfg.lambda = 1e5;
+    let priced = estimate(&cur, &reference, &cfg).unwrap();
+    // With vectors this expensive, each block takes its predictor (all zero).
+    assert!(
+        priced.vectors().iter().all(|&v| v == Mv::ZERO),
+        "{:?}",
+        priced.vectors()
+    );
+}
+
+#[test]
+fn bad_configurations_are_errors() {
+    let p = Plane::new(32, 32).unwrap();
+    assert!(estimate(&p, &p, &MeConfig::new(Method::Esa, 12, 8)).is_err());
+    assert!(estimate(&p, &p, &MeConfig::new(Method::Esa, 16, 0)).is_err());
+    assert!(estimate(&p, &p, &MeConfig::new(Method::Esa, 16, 65)).is_err());
+    assert!(estimate(
+        &p,
+        &Plane::new(32, 16).unwrap(),
+        &MeConfig::new(Method::Esa, 16, 8)
+    )
+    .is_err());
+    let thin = Plane::with_padding(32, 32, 16).unwrap();
+    assert!(estimate(&thin, &thin, &MeConfig::new(Method::Esa, 16, 8)).is_err());
+    for m in Method::ALL {
+        assert_eq!(m.name().parse::<Method>(), Ok(m));
+    }
+    assert!("umh".parse::<Method>().is_err());
+}

@@ -110,15 +110,17 @@ fn satd_4x4(a: &[u8], sa: usize, b: &[u8], sb: usize) -> u32 {
         let (s23, d23) = (d[r][2] + d[r][3], d[r][2] - d[r][3]);
         t[r] = [s01 + s23, s01 - s23, d01 - d23, d01 + d23];
     }
-    let mut sum = 0u32;
-    for c in 0..4 {
-        let (s01, d01) = (t[0][c] + t[1][c], t[0][c] - t[1][c]);
-        let (s23, d23) = (t[2][c] + t[3][c], t[2][c] - t[3][c]);
-        sum += (s01 + s23).unsigned_abs()
-            + (s01 - s23).unsigned_abs()
-            + (d01 - d23).unsigned_abs()
-            + (d01 + d23).unsigned_abs();
-    }
+    let column = |c: usize| [t[0][c], t[1][c], t[2][c], t[3][c]];
+    let sum: u32 = (0..4)
+        .map(column)
+        .map(|[a, b, c, d]| {
+            let (s01, d01, s23, d23) = (a + b, a - b, c + d, c - d);
+            (s01 + s23).unsigned_abs()
+                + (s01 - s23).unsigned_abs()
+                + (d01 - d23).unsigned_abs()
+                + (d01 + d23).unsigned_abs()
+        })
+        .sum();
     sum.div_ceil(2)
 }
 

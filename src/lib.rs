@@ -24,6 +24,7 @@ pub mod me;
 pub mod metrics;
 pub mod raster;
 pub mod synth;
+pub mod viz;
 
 /// The README's code, compiled and run as a test.
 #[cfg(doctest)]

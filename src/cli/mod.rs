@@ -3,6 +3,7 @@
 
 mod compare;
 mod info;
+mod me;
 mod psnr;
 mod samples;
 
@@ -24,6 +25,8 @@ enum Command {
     Compare(compare::Args),
     /// Say what a Y4M, .flo or image file holds.
     Info(info::Args),
+    /// Block motion estimation of each frame against the previous one.
+    Me(me::Args),
     /// Write the synthetic samples with exact ground-truth flow.
     Samples(samples::Args),
     /// PSNR and SSIM of a Y4M against a reference, per frame and overall.
@@ -41,6 +44,7 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Some(Command::Compare(a)) => compare::run(&a),
         Some(Command::Info(a)) => info::run(&a),
+        Some(Command::Me(a)) => me::run(&a),
         Some(Command::Samples(a)) => samples::run(&a),
         Some(Command::Psnr(a)) => psnr::run(&a),
         None => unreachable!("set to compare above"),

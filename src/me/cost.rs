@@ -1,8 +1,9 @@
 //! Block matching costs: SAD, SSD, SATD.
 //!
 //! Each kernel compares a `w x h` block of `a` (row stride `sa`) with one of
-//! `b` (row stride `sb`). These are the scalar reference versions; faster
-//! kernels must return exactly the same values.
+//! `b` (row stride `sb`). These are the scalar reference versions; the SIMD
+//! kernels of [`super::simd`] must return exactly the same values, and
+//! [`Metric::cost`] goes through them.
 //!
 //! SATD is the sum of absolute values of the 4x4 Hadamard transform of the
 //! difference, tile by tile, halved (as x264's `satd`), so it is on the
@@ -41,7 +42,7 @@ impl Metric {
     #[allow(clippy::too_many_arguments)]
     pub fn cost(self, a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
         match self {
-            Metric::Sad => sad(a, sa, b, sb, w, h),
+            Metric::Sad => (super::simd::kernels().sad)(a, sa, b, sb, w, h),
             Metric::Ssd => ssd(a, sa, b, sb, w, h),
             Metric::Satd => satd(a, sa, b, sb, w, h),
         }

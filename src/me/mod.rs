@@ -36,6 +36,7 @@
 
 pub mod cost;
 mod search;
+pub mod simd;
 
 use std::fmt;
 use std::str::FromStr;

@@ -1,0 +1,191 @@
+//! SIMD cost kernels behind one dispatch point, each with the scalar twin in
+//! [`super::cost`] that tests hold it equal to.
+//!
+//! On x86-64 the SAD kernels use `psadbw`: SSE2 (always present) for rows of
+//! 8 and 16 samples, AVX2 (detected at run time) for rows of 16 two at a
+//! time and rows of 32. Other widths, and other architectures, use the
+//! scalar kernel. The choice is made once, by [`kernels`].
+
+use std::sync::OnceLock;
+
+use super::cost;
+
+/// Signature of a block cost kernel: `(a, a_stride, b, b_stride, w, h)`.
+pub type CostFn = fn(&[u8], usize, &[u8], usize, usize, usize) -> u32;
+
+/// The kernels selected for this machine.
+#[derive(Clone, Copy)]
+pub struct Kernels {
+    /// Sum of absolute differences.
+    pub sad: CostFn,
+    /// Name of the instruction set in use, for reports.
+    pub isa: &'static str,
+}
+
+impl std::fmt::Debug for Kernels {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Kernels").field("isa", &self.isa).finish()
+    }
+}
+
+/// The scalar kernels (the reference every other set must equal).
+pub const SCALAR: Kernels = Kernels {
+    sad: cost::sad,
+    isa: "scalar",
+};
+
+/// The best kernels this CPU runs, chosen on first use.
+pub fn kernels() -> &'static Kernels {
+    static CHOICE: OnceLock<Kernels> = OnceLock::new();
+    CHOICE.get_or_init(|| {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                return x86::AVX2;
+            }
+            x86::SSE2
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            SCALAR
+        }
+    })
+}
+
+/// Every kernel set this CPU can run, scalar first (for tests and benches).
+pub fn available() -> Vec<Kernels> {
+    #[allow(unused_mut)]
+    let mut out = vec![SCALAR];
+    #[cfg(target_arch = "x86_64")]
+    {
+        out.push(x86::SSE2);
+        if std::arch::is_x86_feature_detected!("avx2") {
+            out.push(x86::AVX2);
+        }
+    }
+    out
+}
+
+/// Panics unless both blocks lie inside their slices: the SIMD kernels read
+/// through raw pointers and rely on this.
+#[inline]
+fn check_bounds(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) {
+    assert!(
+        h == 0 || ((h - 1) * sa + w <= a.len() && (h - 1) * sb + w <= b.len()),
+        "block {w}x{h} outside its slice"
+    );
+}
+
+#[cfg(target_arch = "x86_64")]
+mod x86 {
+    use std::arch::x86_64::*;
+
+    use super::{check_bounds, cost, Kernels};
+
+    pub const SSE2: Kernels = Kernels {
+        sad: sad_sse2,
+        isa: "sse2",
+    };
+    pub const AVX2: Kernels = Kernels {
+        sad: sad_avx2,
+        isa: "avx2",
+    };
+
+    fn sad_sse2(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
+        check_bounds(a, sa, b, sb, w, h);
+        // SAFETY: SSE2 is part of x86-64; bounds checked above.
+        unsafe {
+            match w {
+                16 => sad_w16_sse2(a.as_ptr(), sa, b.as_ptr(), sb, h),
+                8 => sad_w8_sse2(a.as_ptr(), sa, b.as_ptr(), sb, h),
+                _ if w % 16 == 0 => (0..w / 16)
+                    .map(|k| sad_w16_sse2(a.as_ptr().add(16 * k), sa, b.as_ptr().add(16 * k), sb, h))
+                    .sum(),
+                _ => cost::sad(a, sa, b, sb, w, h),
+            }
+        }
+    }
+
+    fn sad_avx2(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
+        check_bounds(a, sa, b, sb, w, h);
+        // SAFETY: AVX2 was detected before this set was chosen; bounds
+        // checked above.
+        unsafe {
+            match w {
+                16 => sad_w16_avx2(a.as_ptr(), sa, b.as_ptr(), sb, h),
+                32 => sad_w32_avx2(a.as_ptr(), sa, b.as_ptr(), sb, h),
+                _ => sad_sse2(a, sa, b, sb, w, h),
+            }
+        }
+    }
+
+    #[inline]
+    #[target_feature(enable = "sse2")]
+    unsafe fn hsum_sad(v: __m128i) -> u32 {
+        // psadbw leaves two 64-bit partial sums.
+        (_mm_cvtsi128_si32(v) + _mm_cvtsi128_si32(_mm_unpackhi_epi64(v, v))) as u32
+    }
+
+    #[target_feature(enable = "sse2")]
+    unsafe fn sad_w16_sse2(a: *const u8, sa: usize, b: *const u8, sb: usize, h: usize) -> u32 {
+        let mut acc = _mm_setzero_si128();
+        for r in 0..h {
+            let x = _mm_loadu_si128(a.add(r * sa) as *const __m128i);
+            let y = _mm_loadu_si128(b.add(r * sb) as *const __m128i);
+            acc = _mm_add_epi64(acc, _mm_sad_epu8(x, y));
+        }
+        hsum_sad(acc)
+    }
+
+    #[target_feature(enable = "sse2")]
+    unsafe fn sad_w8_sse2(a: *const u8, sa: usize, b: *const u8, sb: usize, h: usize) -> u32 {
+        let mut acc = _mm_setzero_si128();
+        for r in 0..h {
+            let x = _mm_loadl_epi64(a.add(r * sa) as *const __m128i);
+            let y = _mm_loadl_epi64(b.add(r * sb) as *const __m128i);
+            acc = _mm_add_epi64(acc, _mm_sad_epu8(x, y));
+        }
+        hsum_sad(acc)
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn hsum_sad256(v: __m256i) -> u32 {
+        let s = _mm_add_epi64(_mm256_castsi256_si128(v), _mm256_extracti128_si256(v, 1));
+        hsum_sad(s)
+    }
+
+    #[target_feature(enable = "avx2")]
+    unsafe fn sad_w16_avx2(a: *const u8, sa: usize, b: *const u8, sb: usize, h: usize) -> u32 {
+        let mut acc = _mm256_setzero_si256();
+        let mut r = 0;
+        while r + 1 < h {
+            let x = _mm256_loadu2_m128i(
+                a.add((r + 1) * sa) as *const __m128i,
+                a.add(r * sa) as *const __m128i,
+            );
+            let y = _mm256_loadu2_m128i(
+                b.add((r + 1) * sb) as *const __m128i,
+                b.add(r * sb) as *const __m128i,
+            );
+            acc = _mm256_add_epi64(acc, _mm256_sad_epu8(x, y));
+            r += 2;
+        }
+        let mut sum = hsum_sad256(acc);
+        if r < h {
+            sum += sad_w16_sse2(a.add(r * sa), sa, b.add(r * sb), sb, 1);
+        }
+        sum
+    }
+
+    #[target_feature(enable = "avx2")]
+    unsafe fn sad_w32_avx2(a: *const u8, sa: usize, b: *const u8, sb: usize, h: usize) -> u32 {
+        let mut acc = _mm256_setzero_si256();
+        for r in 0..h {
+            let x = _mm256_loadu_si256(a.add(r * sa) as *const __m256i);
+            let y = _mm256_loadu_si256(b.add(r * sb) as *const __m256i);
+            acc = _mm256_add_epi64(acc, _mm256_sad_epu8(x, y));
+        }
+        hsum_sad256(acc)
+    }
+}

@@ -1,0 +1,96 @@
+//! SIMD kernels equal their scalar twins on random blocks, unaligned rows,
+//! odd strides and picture edges.
+
+use mocomp::codec::Plane;
+use mocomp::me::cost;
+use mocomp::me::simd::{available, kernels};
+use proptest::prelude::*;
+
+/// xorshift bytes, with runs of 0 and 255 to hit the extremes.
+fn bytes(seed: u64, n: usize) -> Vec<u8> {
+    let mut s = seed | 1;
+    (0..n)
+        .map(|i| {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            match (i / 37) % 5 {
+                0 => 0,
+                1 => 255,
+                _ => s as u8,
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn every_kernel_set_equals_scalar_on_every_size() {
+    let sets = available();
+    assert!(sets.iter().any(|k| k.isa == "scalar"));
+    let a = bytes(1, 200 * 80);
+    let b = bytes(2, 200 * 80);
+    for k in &sets {
+        for w in [1, 3, 4, 8, 12, 16, 24, 32, 48, 64] {
+            for h in [1, 2, 3, 4, 7, 8, 15, 16, 31, 32, 64] {
+                // Unaligned starts and strides of every parity.
+                for (oa, ob, sa, sb) in [
+                    (0, 0, 64, 64),
+                    (1, 3, 65, 97),
+                    (7, 29, 131, 70),
+                    (15, 16, 200, 199),
+                ] {
+                    if (h - 1) * sa.max(sb) + w + oa.max(ob) > a.len() || w > sa || w > sb {
+                        continue;
+                    }
+                    let want = cost::sad(&a[oa..], sa, &b[ob..], sb, w, h);
+                    assert_eq!(
+                        (k.sad)(&a[oa..], sa, &b[ob..], sb, w, h),
+                        want,
+                        "{} {w}x{h} offsets ({oa},{ob})",
+                        k.isa
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn blocks_at_picture_edges_read_only_their_slice() {
+    // The last block of a padded plane ends exactly at the buffer's end.
+    let p = Plane::from_fn(48, 32, |x, y| (x * 5 + y * 11) as u8).unwrap();
+    let q = Plane::from_fn(48, 32, |x, y| (x * 3 + y * 7) as u8).unwrap();
+    let (pad, stride) = (p.pad() as isize, p.stride());
+    let last = p.index(48 + pad - 32, 32 + pad - 32);
+    for k in available() {
+        let got = (k.sad)(&p.data()[last..], stride, &q.data()[last..], stride, 32, 32);
+        assert_eq!(
+            got,
+            cost::sad(&p.data()[last..], stride, &q.data()[last..], stride, 32, 32),
+            "{}",
+            k.isa
+        );
+    }
+}
+
+#[test]
+fn the_dispatched_set_is_one_of_the_available_ones() {
+    assert!(available().iter().any(|k| k.isa == kernels().isa));
+}
+
+proptest! {
+    #[test]
+    fn random_blocks_agree(
+        seed in any::<u64>(),
+        size in prop_oneof![Just(4usize), Just(8), Just(16), Just(32)],
+        h in 1usize..=32, off in 0usize..32, extra in 0usize..40
+    ) {
+        let stride = size + extra;
+        let a = bytes(seed, off + stride * h + size);
+        let b = bytes(seed ^ 0xABCD, off + stride * h + size);
+        let want = cost::sad(&a[off..], stride, &b[off / 2..], stride, size, h);
+        for k in available() {
+            prop_assert_eq!((k.sad)(&a[off..], stride, &b[off / 2..], stride, size, h), want);
+        }
+    }
+}

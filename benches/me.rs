@@ -3,7 +3,7 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use mocomp::codec::Plane;
-use mocomp::me::cost::{satd, ssd};
+use mocomp::me::cost::ssd;
 use mocomp::me::simd::available;
 use mocomp::me::{estimate, MeConfig, Method};
 use mocomp::synth::{Motion, SceneSpec, Synth};
@@ -27,24 +27,23 @@ fn kernels(c: &mut Criterion) {
         let mut g = c.benchmark_group(format!("cost_{size}x{size}"));
         g.throughput(Throughput::Elements((size * size) as u64));
         for k in available() {
-            g.bench_function(BenchmarkId::new("sad", k.isa), |bench| {
-                bench.iter(|| {
-                    (k.sad)(
-                        std::hint::black_box(&a[1..]),
-                        64,
-                        std::hint::black_box(&b[3..]),
-                        64,
-                        size,
-                        size,
-                    )
-                })
-            });
+            for (name, kernel) in [("sad", k.sad), ("satd", k.satd)] {
+                g.bench_function(BenchmarkId::new(name, k.isa), |bench| {
+                    bench.iter(|| {
+                        kernel(
+                            std::hint::black_box(&a[1..]),
+                            64,
+                            std::hint::black_box(&b[3..]),
+                            64,
+                            size,
+                            size,
+                        )
+                    })
+                });
+            }
         }
         g.bench_function("ssd/scalar", |bench| {
             bench.iter(|| ssd(std::hint::black_box(&a), 64, &b, 64, size, size))
-        });
-        g.bench_function("satd/scalar", |bench| {
-            bench.iter(|| satd(std::hint::black_box(&a), 64, &b, 64, size, size))
         });
         g.finish();
     }

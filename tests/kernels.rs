@@ -89,8 +89,13 @@ proptest! {
         let a = bytes(seed, off + stride * h + size);
         let b = bytes(seed ^ 0xABCD, off + stride * h + size);
         let want = cost::sad(&a[off..], stride, &b[off / 2..], stride, size, h);
+        let h4 = h - h % 4;
+        let want_satd = cost::satd(&a[off..], stride, &b[off / 2..], stride, size, h4);
         for k in available() {
             prop_assert_eq!((k.sad)(&a[off..], stride, &b[off / 2..], stride, size, h), want);
+            if h4 > 0 {
+                prop_assert_eq!((k.satd)(&a[off..], stride, &b[off / 2..], stride, size, h4), want_satd);
+            }
         }
     }
 }

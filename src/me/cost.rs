@@ -6,8 +6,9 @@
 //! [`Metric::cost`] goes through them.
 //!
 //! SATD is the sum of absolute values of the 4x4 Hadamard transform of the
-//! difference, tile by tile, halved (as x264's `satd`), so it is on the
-//! scale of SAD. Blocks for SATD have sides that are multiples of 4.
+//! difference, tile by tile, halved (as x264's `satd`) once for the whole
+//! block and rounded up, so it is on the scale of SAD. Blocks for SATD have
+//! sides that are multiples of 4.
 
 use std::fmt;
 use std::str::FromStr;
@@ -44,7 +45,7 @@ impl Metric {
         match self {
             Metric::Sad => (super::simd::kernels().sad)(a, sa, b, sb, w, h),
             Metric::Ssd => ssd(a, sa, b, sb, w, h),
-            Metric::Satd => satd(a, sa, b, sb, w, h),
+            Metric::Satd => (super::simd::kernels().satd)(a, sa, b, sb, w, h),
         }
     }
 }
@@ -96,9 +97,9 @@ pub fn ssd(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 
     sum
 }
 
-/// SATD of one 4x4 tile: `sum |H D H^T| / 2` with H the 4x4 Hadamard
-/// matrix (rounded up, as x264 does).
-fn satd_4x4(a: &[u8], sa: usize, b: &[u8], sb: usize) -> u32 {
+/// `sum |H D H^T|` of one 4x4 tile, with H the 4x4 Hadamard matrix (not
+/// halved).
+fn hadamard_abs_4x4(a: &[u8], sa: usize, b: &[u8], sb: usize) -> u32 {
     let mut d = [[0i32; 4]; 4];
     for (r, row) in d.iter_mut().enumerate() {
         for (c, v) in row.iter_mut().enumerate() {
@@ -122,7 +123,7 @@ fn satd_4x4(a: &[u8], sa: usize, b: &[u8], sb: usize) -> u32 {
                 + (d01 + d23).unsigned_abs()
         })
         .sum();
-    sum.div_ceil(2)
+    sum
 }
 
 /// SATD over 4x4 tiles (`w` and `h` multiples of 4).
@@ -131,13 +132,13 @@ pub fn satd(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32
         w % 4 == 0 && h % 4 == 0,
         "SATD needs sides that are multiples of 4"
     );
-    let mut sum = 0;
+    let mut sum = 0u32;
     for ty in (0..h).step_by(4) {
         for tx in (0..w).step_by(4) {
-            sum += satd_4x4(&a[ty * sa + tx..], sa, &b[ty * sb + tx..], sb);
+            sum += hadamard_abs_4x4(&a[ty * sa + tx..], sa, &b[ty * sb + tx..], sb);
         }
     }
-    sum
+    sum.div_ceil(2)
 }
 
 #[cfg(test)]

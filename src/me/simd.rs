@@ -25,6 +25,8 @@ pub type CostFn = fn(&[u8], usize, &[u8], usize, usize, usize) -> u32;
 pub struct Kernels {
     /// Sum of absolute differences.
     pub sad: CostFn,
+    /// Sum of absolute 4x4 Hadamard coefficients, halved.
+    pub satd: CostFn,
     /// Name of the instruction set in use, for reports.
     pub isa: &'static str,
 }
@@ -38,6 +40,7 @@ impl std::fmt::Debug for Kernels {
 /// The scalar kernels (the reference every other set must equal).
 pub const SCALAR: Kernels = Kernels {
     sad: cost::sad,
+    satd: cost::satd,
     isa: "scalar",
 };
 
@@ -91,12 +94,73 @@ mod x86 {
 
     pub const SSE2: Kernels = Kernels {
         sad: sad_sse2,
+        satd: satd_sse2,
         isa: "sse2",
     };
     pub const AVX2: Kernels = Kernels {
         sad: sad_avx2,
+        satd: satd_sse2,
         isa: "avx2",
     };
+
+    fn satd_sse2(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
+        check_bounds(a, sa, b, sb, w, h);
+        if w % 8 != 0 || h % 4 != 0 {
+            return cost::satd(a, sa, b, sb, w, h);
+        }
+        let mut sum = 0u32;
+        for ty in (0..h).step_by(4) {
+            for tx in (0..w).step_by(8) {
+                // SAFETY: SSE2 is part of x86-64; the 8x4 region lies inside
+                // the checked block.
+                sum += unsafe {
+                    hadamard_abs_8x4_sse2(a.as_ptr().add(ty * sa + tx), sa, b.as_ptr().add(ty * sb + tx), sb)
+                };
+            }
+        }
+        sum.div_ceil(2)
+    }
+
+    /// `sum |H D H^T|` over two side-by-side 4x4 tiles of `a - b`.
+    #[target_feature(enable = "sse2")]
+    unsafe fn hadamard_abs_8x4_sse2(a: *const u8, sa: usize, b: *const u8, sb: usize) -> u32 {
+        let zero = _mm_setzero_si128();
+        let row = |r: usize| {
+            let x = _mm_unpacklo_epi8(_mm_loadl_epi64(a.add(r * sa) as *const __m128i), zero);
+            let y = _mm_unpacklo_epi8(_mm_loadl_epi64(b.add(r * sb) as *const __m128i), zero);
+            _mm_sub_epi16(x, y)
+        };
+        let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
+        // Vertical butterflies (across rows), both tiles at once.
+        let (s01, d01) = (_mm_add_epi16(r0, r1), _mm_sub_epi16(r0, r1));
+        let (s23, d23) = (_mm_add_epi16(r2, r3), _mm_sub_epi16(r2, r3));
+        let v0 = _mm_add_epi16(s01, s23);
+        let v1 = _mm_sub_epi16(s01, s23);
+        let v2 = _mm_sub_epi16(d01, d23);
+        let v3 = _mm_add_epi16(d01, d23);
+        // Transpose each tile into vectors holding two columns of four.
+        let (t0, t1) = (_mm_unpacklo_epi16(v0, v1), _mm_unpacklo_epi16(v2, v3));
+        let (t2, t3) = (_mm_unpackhi_epi16(v0, v1), _mm_unpackhi_epi16(v2, v3));
+        let mut acc = _mm_setzero_si128();
+        for (lo, hi) in [(t0, t1), (t2, t3)] {
+            let c01 = _mm_unpacklo_epi32(lo, hi); // columns 0 | 1
+            let c23 = _mm_unpackhi_epi32(lo, hi); // columns 2 | 3
+                                                  // Horizontal butterflies (across columns).
+            let x = _mm_unpacklo_epi64(c01, c23); // c0 | c2
+            let y = _mm_unpackhi_epi64(c01, c23); // c1 | c3
+            let (s, d) = (_mm_add_epi16(x, y), _mm_sub_epi16(x, y));
+            let p = _mm_unpacklo_epi64(s, d); // c0+c1 | c0-c1
+            let q = _mm_unpackhi_epi64(s, d); // c2+c3 | c2-c3
+            for v in [_mm_add_epi16(p, q), _mm_sub_epi16(p, q)] {
+                // |v| for 16-bit lanes as max(v, -v): values stay within +-4080.
+                let abs = _mm_max_epi16(v, _mm_sub_epi16(zero, v));
+                acc = _mm_add_epi32(acc, _mm_madd_epi16(abs, _mm_set1_epi16(1)));
+            }
+        }
+        let s = _mm_add_epi32(acc, _mm_shuffle_epi32(acc, 0b01_00_11_10));
+        let s = _mm_add_epi32(s, _mm_shuffle_epi32(s, 0b10_11_00_01));
+        _mm_cvtsi128_si32(s) as u32
+    }
 
     fn sad_sse2(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
         check_bounds(a, sa, b, sb, w, h);

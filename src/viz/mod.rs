@@ -92,7 +92,7 @@ mod tests {
     fn lines_cover_their_end_points_and_clip() {
         let mut img = Rgb::from_luma(&Plane::filled(10, 6, 0).unwrap());
         img.line((1, 1), (8, 4), [255, 0, 0]);
-        assert_eq!(&img.data[3 * (6 + 1)..3 * (6 + 1) + 3], &[255, 0, 0]);
+        assert_eq!(&img.data[3 * (10 + 1)..3 * (10 + 1) + 3], &[255, 0, 0]);
         assert_eq!(&img.data[3 * (4 * 10 + 8)..3 * (4 * 10 + 8) + 3], &[255, 0, 0]);
         let lit = img.data.chunks(3).filter(|p| p[0] == 255).count();
         assert_eq!(lit, 8, "one pixel per column of a shallow line");

@@ -66,35 +66,28 @@ impl FromStr for Metric {
     }
 }
 
+/// Sum over the block of `f(|a - b|)`.
+#[inline]
+fn sum_of(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize, f: impl Fn(u32) -> u32) -> u32 {
+    (0..h)
+        .map(|r| {
+            let (ra, rb) = (&a[r * sa..r * sa + w], &b[r * sb..r * sb + w]);
+            ra.iter()
+                .zip(rb)
+                .map(|(&x, &y)| f(u32::from(x.abs_diff(y))))
+                .sum::<u32>()
+        })
+        .sum()
+}
+
 /// Sum of absolute differences.
 pub fn sad(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
-    let mut sum = 0u32;
-    for r in 0..h {
-        let (ra, rb) = (&a[r * sa..r * sa + w], &b[r * sb..r * sb + w]);
-        sum += ra
-            .iter()
-            .zip(rb)
-            .map(|(&x, &y)| u32::from(x.abs_diff(y)))
-            .sum::<u32>();
-    }
-    sum
+    sum_of(a, sa, b, sb, w, h, |d| d)
 }
 
 /// Sum of squared differences.
 pub fn ssd(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
-    let mut sum = 0u32;
-    for r in 0..h {
-        let (ra, rb) = (&a[r * sa..r * sa + w], &b[r * sb..r * sb + w]);
-        sum += ra
-            .iter()
-            .zip(rb)
-            .map(|(&x, &y)| {
-                let d = u32::from(x.abs_diff(y));
-                d * d
-            })
-            .sum::<u32>();
-    }
-    sum
+    sum_of(a, sa, b, sb, w, h, |d| d * d)
 }
 
 /// `sum |H D H^T|` of one 4x4 tile, with H the 4x4 Hadamard matrix (not

@@ -1,6 +1,8 @@
-//! Pictures of motion: vectors drawn over a frame.
+//! Pictures of motion: vectors drawn over a frame, and flow fields in the
+//! Middlebury colour coding.
 
 use crate::codec::Plane;
+use crate::flow::Flow;
 use crate::me::MotionField;
 
 /// An RGB picture, 3 bytes per pixel, row after row.
@@ -84,9 +86,115 @@ pub fn draw_field(frame: &Plane, field: &MotionField) -> Rgb {
     img
 }
 
+/// The Middlebury colour wheel (Baker et al., "A Database and Evaluation
+/// Methodology for Optical Flow"): 55 hues, red to yellow (15), yellow to
+/// green (6), green to cyan (4), cyan to blue (11), blue to magenta (13),
+/// magenta to red (6).
+fn colour_wheel() -> Vec<[f32; 3]> {
+    let mut wheel = Vec::with_capacity(55);
+    // Integer steps, as the reference C++ (`255 * i / RY` on ints).
+    let ramp = |i: usize, n: usize| (255 * i / n) as f32;
+    (0..15).for_each(|i| wheel.push([255.0, ramp(i, 15), 0.0]));
+    (0..6).for_each(|i| wheel.push([255.0 - ramp(i, 6), 255.0, 0.0]));
+    (0..4).for_each(|i| wheel.push([0.0, 255.0, ramp(i, 4)]));
+    (0..11).for_each(|i| wheel.push([0.0, 255.0 - ramp(i, 11), 255.0]));
+    (0..13).for_each(|i| wheel.push([ramp(i, 13), 0.0, 255.0]));
+    (0..6).for_each(|i| wheel.push([255.0, 0.0, 255.0 - ramp(i, 6)]));
+    wheel
+}
+
+/// The colour of a motion (u, v) already divided by the normalising radius:
+/// hue from the direction, saturation from the length (white at rest, full
+/// colour at length 1, darkened beyond), as Middlebury's `computeColor`.
+pub fn flow_colour(wheel: &[[f32; 3]], u: f32, v: f32) -> [u8; 3] {
+    // Double precision, as the reference code: floor(255 col) sits on
+    // integer boundaries for some directions.
+    let (u, v) = (f64::from(u), f64::from(v));
+    let n = wheel.len();
+    let rad = (u * u + v * v).sqrt();
+    let a = (-v).atan2(-u) / std::f64::consts::PI;
+    let fk = (a + 1.0) / 2.0 * (n - 1) as f64;
+    let k0 = (fk.floor() as usize).min(n - 1);
+    let k1 = (k0 + 1) % n;
+    let f = fk - k0 as f64;
+    let mut out = [0u8; 3];
+    for c in 0..3 {
+        let col = (1.0 - f) * f64::from(wheel[k0][c]) / 255.0 + f * f64::from(wheel[k1][c]) / 255.0;
+        let col = if rad <= 1.0 {
+            1.0 - rad * (1.0 - col)
+        } else {
+            col * 0.75
+        };
+        out[c] = (255.0 * col).floor().clamp(0.0, 255.0) as u8;
+    }
+    out
+}
+
+/// A flow in the Middlebury colour coding, normalised by `max_radius` or,
+/// when `None`, by the largest motion among valid pixels. Invalid pixels
+/// are black.
+pub fn flow_to_rgb(flow: &Flow, max_radius: Option<f32>) -> Rgb {
+    let wheel = colour_wheel();
+    let norm = max_radius
+        .unwrap_or_else(|| flow.max_magnitude())
+        .max(f32::EPSILON);
+    let (w, h) = (flow.width(), flow.height());
+    let mut data = Vec::with_capacity(3 * w * h);
+    for y in 0..h {
+        for x in 0..w {
+            if flow.is_valid(x, y) {
+                let (u, v) = flow.get(x, y);
+                data.extend_from_slice(&flow_colour(&wheel, u / norm, v / norm));
+            } else {
+                data.extend_from_slice(&[0, 0, 0]);
+            }
+        }
+    }
+    Rgb {
+        width: w,
+        height: h,
+        data,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn compass_directions_have_the_middlebury_colours() {
+        // Expected values from an independent implementation of the same
+        // code: the `flow_vis` Python package 0.1, `flow_uv_to_colors` at
+        // length 0.9 (y points down, so north is v < 0).
+        let want: [(&str, f32, f32, [u8; 3]); 8] = [
+            ("E", 1.0, 0.0, [255, 25, 25]),
+            ("NE", 1.0, -1.0, [223, 25, 255]),
+            ("N", 0.0, -1.0, [104, 25, 255]),
+            ("NW", -1.0, -1.0, [25, 72, 255]),
+            ("W", -1.0, 0.0, [25, 213, 255]),
+            ("SW", -1.0, 1.0, [54, 255, 25]),
+            ("S", 0.0, 1.0, [255, 232, 25]),
+            ("SE", 1.0, 1.0, [255, 128, 25]),
+        ];
+        let wheel = colour_wheel();
+        assert_eq!(wheel.len(), 55);
+        for (name, dx, dy, rgb) in want {
+            let n = 0.9 / f32::hypot(dx, dy);
+            assert_eq!(flow_colour(&wheel, dx * n, dy * n), rgb, "{name}");
+        }
+        // No motion is white; beyond the normalising radius colours darken.
+        assert_eq!(flow_colour(&wheel, 0.0, 0.0), [255, 255, 255]);
+        assert_eq!(flow_colour(&wheel, 2.0, 0.0), [191, 0, 0]);
+    }
+
+    #[test]
+    fn flow_pictures_normalise_by_the_largest_motion() {
+        let flow = Flow::from_fn(2, 1, |x, _| (if x == 0 { 4.0 } else { 2.0 }, 0.0));
+        let img = flow_to_rgb(&flow, None);
+        // The largest motion is at full saturation: pure red.
+        assert_eq!(&img.data[0..3], &[255, 0, 0]);
+        assert_eq!(&img.data[3..6], &flow_colour(&colour_wheel(), 0.5, 0.0));
+    }
 
     #[test]
     fn lines_cover_their_end_points_and_clip() {

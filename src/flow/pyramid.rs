@@ -1,0 +1,195 @@
+//! Float picture operations for flow: separable filtering, Gaussian
+//! pyramids, image gradients. Borders repeat the edge samples. Everything
+//! works on contiguous row-major `Array2<f32>` (`[[y, x]]`).
+
+use ndarray::Array2;
+
+/// A normalised 1-D Gaussian of standard deviation `sigma`, truncated at
+/// `ceil(3 sigma)` on each side (at least one tap each side).
+pub fn gaussian_kernel(sigma: f32) -> Vec<f32> {
+    let radius = (3.0 * sigma).ceil().max(1.0) as usize;
+    let mut k: Vec<f32> = (0..=2 * radius)
+        .map(|i| {
+            let d = i as f32 - radius as f32;
+            (-d * d / (2.0 * sigma * sigma)).exp()
+        })
+        .collect();
+    let sum: f32 = k.iter().sum();
+    k.iter_mut().for_each(|v| *v /= sum);
+    k
+}
+
+/// Convolves every row with `kernel` (odd length, centred), edges repeated.
+fn filter_rows(src: &Array2<f32>, kernel: &[f32], dst: &mut Array2<f32>) {
+    let (h, w) = src.dim();
+    let r = kernel.len() / 2;
+    let src = src.as_slice().expect("contiguous");
+    let out = dst.as_slice_mut().expect("contiguous");
+    let mut padded = vec![0f32; w + 2 * r];
+    for y in 0..h {
+        let row = &src[y * w..(y + 1) * w];
+        padded[..r].fill(row[0]);
+        padded[r..r + w].copy_from_slice(row);
+        padded[r + w..].fill(row[w - 1]);
+        let dst_row = &mut out[y * w..(y + 1) * w];
+        for (x, d) in dst_row.iter_mut().enumerate() {
+            let window = &padded[x..x + kernel.len()];
+            *d = window.iter().zip(kernel).map(|(a, b)| a * b).sum();
+        }
+    }
+}
+
+/// Convolves every column with `kernel`, edges repeated. Works on whole rows
+/// at a time so that the inner loop runs along memory.
+fn filter_cols(src: &Array2<f32>, kernel: &[f32], dst: &mut Array2<f32>) {
+    let (h, w) = src.dim();
+    let r = kernel.len() as isize / 2;
+    let src = src.as_slice().expect("contiguous");
+    let out = dst.as_slice_mut().expect("contiguous");
+    for y in 0..h {
+        let dst_row = &mut out[y * w..(y + 1) * w];
+        dst_row.fill(0.0);
+        for (k, &kv) in kernel.iter().enumerate() {
+            let sy = (y as isize + k as isize - r).clamp(0, h as isize - 1) as usize;
+            let src_row = &src[sy * w..(sy + 1) * w];
+            for (d, &s) in dst_row.iter_mut().zip(src_row) {
+                *d += kv * s;
+            }
+        }
+    }
+}
+
+/// Separable convolution with the same kernel along both axes.
+pub fn separable(src: &Array2<f32>, kernel: &[f32]) -> Array2<f32> {
+    let mut tmp = Array2::zeros(src.dim());
+    let mut out = Array2::zeros(src.dim());
+    filter_rows(&standard(src), kernel, &mut tmp);
+    filter_cols(&tmp, kernel, &mut out);
+    out
+}
+
+/// `src` in standard (row-major, contiguous) layout.
+fn standard(src: &Array2<f32>) -> Array2<f32> {
+    if src.is_standard_layout() {
+        src.clone()
+    } else {
+        src.as_standard_layout().to_owned()
+    }
+}
+
+/// Gaussian blur with standard deviation `sigma`.
+pub fn blur(src: &Array2<f32>, sigma: f32) -> Array2<f32> {
+    separable(src, &gaussian_kernel(sigma))
+}
+
+/// Half-size picture: blurred (sigma 1, which removes what 2x decimation
+/// would alias) and sampled at every second pixel (pixel centres of the
+/// small picture at 2x + 0.5 of the large one, averaged over the pair).
+pub fn downsample(src: &Array2<f32>) -> Array2<f32> {
+    let blurred = blur(src, 1.0);
+    let (h, w) = src.dim();
+    let (nh, nw) = (h.div_ceil(2), w.div_ceil(2));
+    Array2::from_shape_fn((nh, nw), |(y, x)| {
+        let (x0, y0) = (2 * x, 2 * y);
+        let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+        0.25 * (blurred[[y0, x0]] + blurred[[y0, x1]] + blurred[[y1, x0]] + blurred[[y1, x1]])
+    })
+}
+
+/// A Gaussian pyramid: level 0 is the picture, each next level half the
+/// size of the one before, until `levels` levels or the picture would fall
+/// below `min_size` pixels on a side.
+pub fn pyramid(src: &Array2<f32>, levels: usize, min_size: usize) -> Vec<Array2<f32>> {
+    let mut out = vec![standard(src)];
+    while out.len() < levels.max(1) {
+        let last = &out[out.len() - 1];
+        let (h, w) = last.dim();
+        if h.div_ceil(2) < min_size || w.div_ceil(2) < min_size {
+            break;
+        }
+        out.push(downsample(last));
+    }
+    out
+}
+
+/// Horizontal and vertical derivatives with the 5-tap central difference
+/// `(1, -8, 0, 8, -1) / 12` (exact for cubic polynomials), edges repeated.
+pub fn gradients(src: &Array2<f32>) -> (Array2<f32>, Array2<f32>) {
+    let (h, w) = src.dim();
+    let s = standard(src);
+    let at = |x: isize, y: isize| {
+        s[[
+            y.clamp(0, h as isize - 1) as usize,
+            x.clamp(0, w as isize - 1) as usize,
+        ]]
+    };
+    let gx = Array2::from_shape_fn((h, w), |(y, x)| {
+        let (x, y) = (x as isize, y as isize);
+        (at(x - 2, y) - 8.0 * at(x - 1, y) + 8.0 * at(x + 1, y) - at(x + 2, y)) / 12.0
+    });
+    let gy = Array2::from_shape_fn((h, w), |(y, x)| {
+        let (x, y) = (x as isize, y as isize);
+        (at(x, y - 2) - 8.0 * at(x, y - 1) + 8.0 * at(x, y + 1) - at(x, y + 2)) / 12.0
+    });
+    (gx, gy)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kernels_are_normalised_and_symmetric() {
+        for sigma in [0.5f32, 1.0, 2.5] {
+            let k = gaussian_kernel(sigma);
+            assert!((k.iter().sum::<f32>() - 1.0).abs() < 1e-6);
+            assert_eq!(k.len() % 2, 1);
+            for i in 0..k.len() {
+                assert_eq!(k[i], k[k.len() - 1 - i]);
+            }
+        }
+    }
+
+    #[test]
+    fn blur_keeps_constants_and_linear_ramps() {
+        let ramp = Array2::from_shape_fn((20, 30), |(y, x)| 3.0 * x as f32 - 2.0 * y as f32 + 7.0);
+        let b = blur(&ramp, 1.5);
+        // Away from the edges (where the repeated border bends the ramp) a
+        // symmetric blur leaves a linear function unchanged.
+        for y in 6..14 {
+            for x in 6..24 {
+                assert!((b[[y, x]] - ramp[[y, x]]).abs() < 1e-3, "({x},{y})");
+            }
+        }
+    }
+
+    #[test]
+    fn gradients_of_a_cubic_are_exact_inside() {
+        let f = |x: f32, y: f32| 0.01 * x * x * x - 0.5 * y * y + 2.0 * x * y;
+        let img = Array2::from_shape_fn((16, 16), |(y, x)| f(x as f32, y as f32));
+        let (gx, gy) = gradients(&img);
+        for y in 2..14 {
+            for x in 2..14 {
+                let (xf, yf) = (x as f32, y as f32);
+                assert!((gx[[y, x]] - (0.03 * xf * xf + 2.0 * yf)).abs() < 1e-3);
+                assert!((gy[[y, x]] - (-yf + 2.0 * xf)).abs() < 1e-3);
+            }
+        }
+    }
+
+    #[test]
+    fn pyramids_halve_and_stop_at_the_minimum_size() {
+        let img = Array2::from_shape_fn((37, 50), |(y, x)| (x * y) as f32);
+        let p = pyramid(&img, 10, 8);
+        let dims: Vec<_> = p.iter().map(|l| l.dim()).collect();
+        assert_eq!(dims, vec![(37, 50), (19, 25), (10, 13)]);
+        assert_eq!(pyramid(&img, 1, 8).len(), 1);
+    }
+
+    #[test]
+    fn downsampling_a_constant_is_constant() {
+        let img = Array2::from_elem((9, 11), 42.0f32);
+        let d = downsample(&img);
+        assert!(d.iter().all(|&v| (v - 42.0).abs() < 1e-4));
+    }
+}

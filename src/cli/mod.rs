@@ -2,6 +2,7 @@
 //! calls [`main`].
 
 mod compare;
+mod flow;
 mod info;
 mod me;
 mod psnr;
@@ -23,6 +24,8 @@ struct Cli {
 enum Command {
     /// Run the comparison on the bundled sample (the default).
     Compare(compare::Args),
+    /// Dense optical flow between two pictures.
+    Flow(flow::Args),
     /// Say what a Y4M, .flo or image file holds.
     Info(info::Args),
     /// Block motion estimation of each frame against the previous one.
@@ -43,6 +46,7 @@ pub fn main() -> ExitCode {
     }
     let result = match cli.command {
         Some(Command::Compare(a)) => compare::run(&a),
+        Some(Command::Flow(a)) => flow::run(&a),
         Some(Command::Info(a)) => info::run(&a),
         Some(Command::Me(a)) => me::run(&a),
         Some(Command::Samples(a)) => samples::run(&a),

@@ -20,10 +20,10 @@
 //! level. The returned confidence is that smaller eigenvalue at the finest
 //! level; pixels below `min_eigen` are the ones that fell back.
 
-use ndarray::{Array2, Zip};
+use ndarray::Array2;
 
-use super::pyramid::{gaussian_kernel, gradients, pyramid, separable};
-use super::warp::sample_bilinear;
+use super::pyramid::{gaussian_kernel, gradients, pyramid, separable_into, upsample2};
+use super::warp::sample_bicubic;
 use super::Flow;
 
 /// Settings of dense Lucas-Kanade.
@@ -39,15 +39,19 @@ pub struct LkParams {
     /// mean squared gradients, grey levels^2) below which a pixel keeps the
     /// coarser level's flow.
     pub min_eigen: f32,
+    /// Finest pyramid level computed (0 = full size); the flow of that
+    /// level is upsampled to full size. 1 costs a quarter of the work.
+    pub finest: usize,
 }
 
 impl Default for LkParams {
     fn default() -> LkParams {
         LkParams {
             levels: 4,
-            sigma: 3.0,
-            iterations: 3,
+            sigma: 4.0,
+            iterations: 1,
             min_eigen: 1.0,
+            finest: 0,
         }
     }
 }
@@ -68,9 +72,7 @@ pub struct LkResult {
 /// Upsamples a flow component to `(h, w)`: each pixel samples the coarse
 /// field at its own centre ((x - 0.5) / 2) and doubles the motion.
 fn upsample(u: &Array2<f32>, h: usize, w: usize) -> Array2<f32> {
-    Array2::from_shape_fn((h, w), |(y, x)| {
-        2.0 * sample_bilinear(u, (x as f32 - 0.5) / 2.0, (y as f32 - 0.5) / 2.0)
-    })
+    upsample2(u, h, w, 2.0)
 }
 
 #[inline]
@@ -78,6 +80,99 @@ fn min_eigen(a: f32, b: f32, c: f32) -> f32 {
     let half_trace = 0.5 * (a + c);
     let half_diff = 0.5 * (a - c);
     half_trace - (half_diff * half_diff + b * b).sqrt()
+}
+
+/// Buffers reused across the iterations of one level.
+struct Level {
+    w: usize,
+    gx: Array2<f32>,
+    gy: Array2<f32>,
+    products: [Array2<f32>; 3],
+    tensor: [Array2<f32>; 3],
+    masked: Array2<f32>,
+    it: Array2<f32>,
+    bx: Array2<f32>,
+    by: Array2<f32>,
+    tmp: Array2<f32>,
+}
+
+impl Level {
+    fn new(a1: &Array2<f32>) -> Level {
+        let dim = a1.dim();
+        let (gx, gy) = gradients(a1);
+        let products = [&gx * &gx, &gx * &gy, &gy * &gy];
+        let z = || Array2::zeros(dim);
+        Level {
+            w: dim.1,
+            gx,
+            gy,
+            products,
+            tensor: [z(), z(), z()],
+            masked: z(),
+            it: z(),
+            bx: z(),
+            by: z(),
+            tmp: z(),
+        }
+    }
+
+    /// `it = i2(p + w(p)) - i1(p)` (bicubic) and the mask of pixels whose
+    /// warped position stays inside; returns whether any left the picture.
+    fn temporal(
+        &mut self,
+        a1: &Array2<f32>,
+        a2: &Array2<f32>,
+        u: &Array2<f32>,
+        v: &Array2<f32>,
+        inside: &mut Array2<f32>,
+    ) -> bool {
+        let (h, w) = a1.dim();
+        let (s1, s2) = (a1.as_slice().expect("standard"), a2.as_slice().expect("standard"));
+        let (su, sv) = (u.as_slice().expect("standard"), v.as_slice().expect("standard"));
+        let it = self.it.as_slice_mut().expect("standard");
+        let m = inside.as_slice_mut().expect("standard");
+        let (wmax, hmax) = ((w - 1) as f32, (h - 1) as f32);
+        let mut any_outside = false;
+        for y in 0..h {
+            for x in 0..w {
+                let i = y * w + x;
+                let (px, py) = (x as f32 + su[i], y as f32 + sv[i]);
+                if !(px >= 0.0 && py >= 0.0 && px <= wmax && py <= hmax) {
+                    it[i] = 0.0;
+                    m[i] = 0.0;
+                    any_outside = true;
+                    continue;
+                }
+                m[i] = 1.0;
+                // Inside by at least a pixel: the 4x4 footprint needs no clamping.
+                let (ix, iy) = (px as usize, py as usize);
+                it[i] = if ix >= 1 && iy >= 1 && ix + 2 < w && iy + 2 < h {
+                    let (wx, wy) = (cubic(px - ix as f32), cubic(py - iy as f32));
+                    let mut acc = 0.0;
+                    for (j, &wyj) in wy.iter().enumerate() {
+                        let row = &s2[(iy + j - 1) * w + ix - 1..(iy + j - 1) * w + ix + 3];
+                        acc += wyj * (wx[0] * row[0] + wx[1] * row[1] + wx[2] * row[2] + wx[3] * row[3]);
+                    }
+                    acc
+                } else {
+                    sample_bicubic(a2, px, py)
+                } - s1[i];
+            }
+        }
+        any_outside
+    }
+}
+
+/// Keys' cubic weights (a = -0.5) at fraction `t`, as `warp::sample_bicubic`.
+#[inline]
+fn cubic(t: f32) -> [f32; 4] {
+    let (t2, t3) = (t * t, t * t * t);
+    [
+        -0.5 * t3 + t2 - 0.5 * t,
+        1.5 * t3 - 2.5 * t2 + 1.0,
+        -1.5 * t3 + 2.0 * t2 + 0.5 * t,
+        0.5 * t3 - 0.5 * t2,
+    ]
 }
 
 /// Dense flow from `i1` to `i2` (same size, grey levels 0..255).
@@ -95,59 +190,99 @@ fn min_eigen(a: f32, b: f32, c: f32) -> f32 {
 pub fn dense_lk(i1: &Array2<f32>, i2: &Array2<f32>, p: &LkParams) -> LkResult {
     assert_eq!(i1.dim(), i2.dim(), "dense_lk: pictures of different sizes");
     let window = gaussian_kernel(p.sigma);
-    let min_size = window.len().max(8);
+    // Coarse levels may be smaller than the window (borders repeat): what
+    // matters is that the coarsest level sees the motion as under a pixel.
+    let min_size = 8;
     let (p1, p2) = (pyramid(i1, p.levels, min_size), pyramid(i2, p.levels, min_size));
     let coarsest = p1.len() - 1;
+    let finest = p.finest.min(coarsest);
     let (mut u, mut v) = {
         let (h, w) = p1[coarsest].dim();
         (Array2::<f32>::zeros((h, w)), Array2::<f32>::zeros((h, w)))
     };
-    let mut confidence = Array2::zeros(i1.dim());
-    let mut fallback = Array2::from_elem(i1.dim(), false);
-    for level in (0..=coarsest).rev() {
+    let mut lambda = Array2::zeros(p1[coarsest].dim());
+    for level in (finest..=coarsest).rev() {
         let (a1, a2) = (&p1[level], &p2[level]);
         let (h, w) = a1.dim();
         if u.dim() != (h, w) {
             u = upsample(&u, h, w);
             v = upsample(&v, h, w);
         }
-        let (gx, gy) = gradients(a1);
-        let txx = separable(&(&gx * &gx), &window);
-        let txy = separable(&(&gx * &gy), &window);
-        let tyy = separable(&(&gy * &gy), &window);
-        let lambda = Zip::from(&txx)
-            .and(&txy)
-            .and(&tyy)
-            .map_collect(|&a, &b, &c| min_eigen(a, b, c));
-        let good = lambda.mapv(|l| l >= p.min_eigen);
+        let mut buf = Level::new(a1);
+        let mut inside = Array2::from_elem((h, w), 1.0f32);
+        lambda = Array2::zeros((h, w));
+        let mut tensor_unmasked = false;
         for _ in 0..p.iterations {
-            // Temporal difference after warping the second picture by the flow.
-            let it = Array2::from_shape_fn((h, w), |(y, x)| {
-                sample_bilinear(a2, x as f32 + u[[y, x]], y as f32 + v[[y, x]]) - a1[[y, x]]
-            });
-            let bx = separable(&(&gx * &it), &window);
-            let by = separable(&(&gy * &it), &window);
-            let slices = [&txx, &txy, &tyy, &bx, &by].map(|a| a.as_slice().expect("standard layout"));
-            let [sa, sb, sc, sbx, sby] = slices;
-            let ok = good.as_slice().expect("standard layout");
-            let (us, vs) = (
-                u.as_slice_mut().expect("standard layout"),
-                v.as_slice_mut().expect("standard layout"),
+            let any_outside = buf.temporal(a1, a2, &u, &v, &mut inside);
+            // The window tensor, without the pixels whose warped position
+            // left the picture (they see only the repeated edge); filtered
+            // once while no pixel is out.
+            if any_outside || !tensor_unmasked {
+                for k in 0..3 {
+                    if any_outside {
+                        ndarray::Zip::from(&mut buf.masked)
+                            .and(&buf.products[k])
+                            .and(&inside)
+                            .for_each(|m, &g, &i| *m = g * i);
+                        separable_into(&buf.masked, &window, &mut buf.tmp, &mut buf.tensor[k]);
+                    } else {
+                        separable_into(&buf.products[k], &window, &mut buf.tmp, &mut buf.tensor[k]);
+                    }
+                }
+                tensor_unmasked = !any_outside;
+            }
+            ndarray::Zip::from(&mut buf.masked)
+                .and(&buf.gx)
+                .and(&buf.it)
+                .for_each(|m, &g, &t| *m = g * t);
+            separable_into(&buf.masked, &window, &mut buf.tmp, &mut buf.bx);
+            ndarray::Zip::from(&mut buf.masked)
+                .and(&buf.gy)
+                .and(&buf.it)
+                .for_each(|m, &g, &t| *m = g * t);
+            separable_into(&buf.masked, &window, &mut buf.tmp, &mut buf.by);
+            let [sa, sb, sc] = [0, 1, 2].map(|k| buf.tensor[k].as_slice().expect("standard"));
+            let (sbx, sby) = (
+                buf.bx.as_slice().expect("standard"),
+                buf.by.as_slice().expect("standard"),
             );
+            let (us, vs) = (
+                u.as_slice_mut().expect("standard"),
+                v.as_slice_mut().expect("standard"),
+            );
+            let ls = lambda.as_slice_mut().expect("standard");
             for i in 0..us.len() {
-                if ok[i] {
-                    let (a, b, c) = (sa[i], sb[i], sc[i]);
+                let (a, b, c) = (sa[i], sb[i], sc[i]);
+                ls[i] = min_eigen(a, b, c);
+                if ls[i] >= p.min_eigen {
                     let det = a * c - b * b;
                     us[i] -= (c * sbx[i] - b * sby[i]) / det;
                     vs[i] -= (a * sby[i] - b * sbx[i]) / det;
                 }
             }
         }
-        if level == 0 {
-            confidence = lambda;
-            fallback = good.mapv(|g| !g);
+        debug_assert_eq!(buf.w, w);
+    }
+    // From the finest level computed up to full size.
+    let (h0, w0) = i1.dim();
+    let mut level = finest;
+    while level > 0 {
+        let (h, w) = p1[level - 1].dim();
+        u = upsample(&u, h, w);
+        v = upsample(&v, h, w);
+        level -= 1;
+    }
+    let scale = 1usize << finest;
+    let mut confidence = Array2::zeros((h0, w0));
+    let (lh, lw) = lambda.dim();
+    let ls = lambda.as_slice().expect("standard");
+    for (y, mut row) in confidence.rows_mut().into_iter().enumerate() {
+        let src = &ls[(y / scale).min(lh - 1) * lw..][..lw];
+        for (x, c) in row.iter_mut().enumerate() {
+            *c = src[(x / scale).min(lw - 1)];
         }
     }
+    let fallback = confidence.mapv(|l| l < p.min_eigen);
     LkResult {
         flow: Flow::from_uv(u, v),
         confidence,

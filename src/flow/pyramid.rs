@@ -20,6 +20,8 @@ pub fn gaussian_kernel(sigma: f32) -> Vec<f32> {
 }
 
 /// Convolves every row with `kernel` (odd length, centred), edges repeated.
+/// Tap by tap over a padded copy of the row, so the inner loop is a plain
+/// multiply-add along memory that the compiler vectorises.
 fn filter_rows(src: &Array2<f32>, kernel: &[f32], dst: &mut Array2<f32>) {
     let (h, w) = src.dim();
     let r = kernel.len() / 2;
@@ -32,9 +34,11 @@ fn filter_rows(src: &Array2<f32>, kernel: &[f32], dst: &mut Array2<f32>) {
         padded[r..r + w].copy_from_slice(row);
         padded[r + w..].fill(row[w - 1]);
         let dst_row = &mut out[y * w..(y + 1) * w];
-        for (x, d) in dst_row.iter_mut().enumerate() {
-            let window = &padded[x..x + kernel.len()];
-            *d = window.iter().zip(kernel).map(|(a, b)| a * b).sum();
+        dst_row.fill(0.0);
+        for (k, &kv) in kernel.iter().enumerate() {
+            for (d, &s) in dst_row.iter_mut().zip(&padded[k..k + w]) {
+                *d += kv * s;
+            }
         }
     }
 }
@@ -59,22 +63,22 @@ fn filter_cols(src: &Array2<f32>, kernel: &[f32], dst: &mut Array2<f32>) {
     }
 }
 
-/// Separable convolution with the same kernel along both axes.
-pub fn separable(src: &Array2<f32>, kernel: &[f32]) -> Array2<f32> {
-    let mut tmp = Array2::zeros(src.dim());
-    let mut out = Array2::zeros(src.dim());
-    filter_rows(&standard(src), kernel, &mut tmp);
-    filter_cols(&tmp, kernel, &mut out);
-    out
+/// Separable convolution with the same kernel along both axes, into `out`,
+/// using `tmp` (both of `src`'s size, standard layout) for the row pass.
+pub fn separable_into(src: &Array2<f32>, kernel: &[f32], tmp: &mut Array2<f32>, out: &mut Array2<f32>) {
+    assert!(src.is_standard_layout() && tmp.dim() == src.dim() && out.dim() == src.dim());
+    filter_rows(src, kernel, tmp);
+    filter_cols(tmp, kernel, out);
 }
 
-/// `src` in standard (row-major, contiguous) layout.
-fn standard(src: &Array2<f32>) -> Array2<f32> {
-    if src.is_standard_layout() {
-        src.clone()
-    } else {
-        src.as_standard_layout().to_owned()
-    }
+/// Separable convolution with the same kernel along both axes.
+pub fn separable(src: &Array2<f32>, kernel: &[f32]) -> Array2<f32> {
+    let src = src.as_standard_layout();
+    let mut tmp = Array2::zeros(src.dim());
+    let mut out = Array2::zeros(src.dim());
+    filter_rows(&src.to_owned(), kernel, &mut tmp);
+    filter_cols(&tmp, kernel, &mut out);
+    out
 }
 
 /// Gaussian blur with standard deviation `sigma`.
@@ -89,18 +93,58 @@ pub fn downsample(src: &Array2<f32>) -> Array2<f32> {
     let blurred = blur(src, 1.0);
     let (h, w) = src.dim();
     let (nh, nw) = (h.div_ceil(2), w.div_ceil(2));
-    Array2::from_shape_fn((nh, nw), |(y, x)| {
-        let (x0, y0) = (2 * x, 2 * y);
-        let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
-        0.25 * (blurred[[y0, x0]] + blurred[[y0, x1]] + blurred[[y1, x0]] + blurred[[y1, x1]])
-    })
+    let b = blurred.as_slice().expect("standard");
+    let mut out = Array2::zeros((nh, nw));
+    let o = out.as_slice_mut().expect("standard");
+    for y in 0..nh {
+        let (r0, r1) = (2 * y * w, (2 * y + 1).min(h - 1) * w);
+        for x in 0..nw {
+            let (x0, x1) = (2 * x, (2 * x + 1).min(w - 1));
+            o[y * nw + x] = 0.25 * (b[r0 + x0] + b[r0 + x1] + b[r1 + x0] + b[r1 + x1]);
+        }
+    }
+    out
+}
+
+/// Twice-size picture of `h x w` (each at most twice the input's, at least
+/// twice minus one), linear between samples, for the pyramid's geometry:
+/// output pixel x sits at input position (x - 0.5) / 2, so even outputs
+/// take 3/4 of the sample on their right... of their own sample and 1/4 of
+/// the one before, odd outputs 3/4 of their own and 1/4 of the one after.
+/// Edges repeat. Multiplies every value by `scale`.
+pub fn upsample2(src: &Array2<f32>, h: usize, w: usize, scale: f32) -> Array2<f32> {
+    let (sh, sw) = src.dim();
+    let s = src.as_standard_layout();
+    let s = s.as_slice().expect("standard");
+    let idx = |i: isize, n: usize| i.clamp(0, n as isize - 1) as usize;
+    // Rows first: (sh, w).
+    let mut rows = vec![0f32; sh * w];
+    for y in 0..sh {
+        let row = &s[y * sw..(y + 1) * sw];
+        for x in 0..w {
+            let k = (x / 2) as isize;
+            let other = if x % 2 == 0 { k - 1 } else { k + 1 };
+            rows[y * w + x] = 0.75 * row[idx(k, sw)] + 0.25 * row[idx(other, sw)];
+        }
+    }
+    let mut out = Array2::zeros((h, w));
+    let o = out.as_slice_mut().expect("standard");
+    for y in 0..h {
+        let k = (y / 2) as isize;
+        let other = if y % 2 == 0 { k - 1 } else { k + 1 };
+        let (a, b) = (&rows[idx(k, sh) * w..][..w], &rows[idx(other, sh) * w..][..w]);
+        for ((d, &p), &q) in o[y * w..(y + 1) * w].iter_mut().zip(a).zip(b) {
+            *d = scale * (0.75 * p + 0.25 * q);
+        }
+    }
+    out
 }
 
 /// A Gaussian pyramid: level 0 is the picture, each next level half the
 /// size of the one before, until `levels` levels or the picture would fall
 /// below `min_size` pixels on a side.
 pub fn pyramid(src: &Array2<f32>, levels: usize, min_size: usize) -> Vec<Array2<f32>> {
-    let mut out = vec![standard(src)];
+    let mut out = vec![src.as_standard_layout().to_owned()];
     while out.len() < levels.max(1) {
         let last = &out[out.len() - 1];
         let (h, w) = last.dim();
@@ -112,25 +156,18 @@ pub fn pyramid(src: &Array2<f32>, levels: usize, min_size: usize) -> Vec<Array2<
     out
 }
 
-/// Horizontal and vertical derivatives with the 5-tap central difference
-/// `(1, -8, 0, 8, -1) / 12` (exact for cubic polynomials), edges repeated.
+/// The 5-tap central difference `(1, -8, 0, 8, -1) / 12`, as a correlation
+/// kernel (exact for cubic polynomials).
+const DERIVATIVE: [f32; 5] = [1.0 / 12.0, -8.0 / 12.0, 0.0, 8.0 / 12.0, -1.0 / 12.0];
+
+/// Horizontal and vertical derivatives with the 5-tap central difference,
+/// edges repeated.
 pub fn gradients(src: &Array2<f32>) -> (Array2<f32>, Array2<f32>) {
-    let (h, w) = src.dim();
-    let s = standard(src);
-    let at = |x: isize, y: isize| {
-        s[[
-            y.clamp(0, h as isize - 1) as usize,
-            x.clamp(0, w as isize - 1) as usize,
-        ]]
-    };
-    let gx = Array2::from_shape_fn((h, w), |(y, x)| {
-        let (x, y) = (x as isize, y as isize);
-        (at(x - 2, y) - 8.0 * at(x - 1, y) + 8.0 * at(x + 1, y) - at(x + 2, y)) / 12.0
-    });
-    let gy = Array2::from_shape_fn((h, w), |(y, x)| {
-        let (x, y) = (x as isize, y as isize);
-        (at(x, y - 2) - 8.0 * at(x, y - 1) + 8.0 * at(x, y + 1) - at(x, y + 2)) / 12.0
-    });
+    let src = src.as_standard_layout().to_owned();
+    let mut gx = Array2::zeros(src.dim());
+    let mut gy = Array2::zeros(src.dim());
+    filter_rows(&src, &DERIVATIVE, &mut gx);
+    filter_cols(&src, &DERIVATIVE, &mut gy);
     (gx, gy)
 }
 
@@ -184,6 +221,27 @@ mod tests {
         let dims: Vec<_> = p.iter().map(|l| l.dim()).collect();
         assert_eq!(dims, vec![(37, 50), (19, 25), (10, 13)]);
         assert_eq!(pyramid(&img, 1, 8).len(), 1);
+    }
+
+    #[test]
+    fn upsampling_matches_bilinear_sampling_at_the_pixel_centres() {
+        let small = Array2::from_shape_fn((7, 9), |(y, x)| (x * x) as f32 + 3.0 * y as f32);
+        let big = upsample2(&small, 13, 18, 2.0);
+        for y in 0..13 {
+            for x in 0..18 {
+                let want = 2.0
+                    * crate::flow::warp::sample_bilinear(
+                        &small,
+                        (x as f32 - 0.5) / 2.0,
+                        (y as f32 - 0.5) / 2.0,
+                    );
+                assert!(
+                    (big[[y, x]] - want).abs() < 1e-4,
+                    "({x},{y}): {} vs {want}",
+                    big[[y, x]]
+                );
+            }
+        }
     }
 
     #[test]

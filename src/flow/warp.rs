@@ -19,6 +19,60 @@ pub fn sample_bilinear(img: &Array2<f32>, x: f32, y: f32) -> f32 {
     top + fy * (bottom - top)
 }
 
+/// Keys' cubic convolution weights (a = -0.5, Catmull-Rom) for the four
+/// samples around a point at fraction `t` in [0, 1).
+#[inline]
+fn cubic_weights(t: f32) -> [f32; 4] {
+    let (t2, t3) = (t * t, t * t * t);
+    [
+        -0.5 * t3 + t2 - 0.5 * t,
+        1.5 * t3 - 2.5 * t2 + 1.0,
+        -1.5 * t3 + 2.0 * t2 + 0.5 * t,
+        0.5 * t3 - 0.5 * t2,
+    ]
+}
+
+/// Bicubic (Keys, a = -0.5) sample of `img` at (x, y), coordinates clamped
+/// to the picture. Exact on quadratic functions, and sharper than bilinear:
+/// it does not smooth sub-pixel shifts the way bilinear does, which would
+/// bias flow towards whole pixels.
+#[inline]
+pub fn sample_bicubic(img: &Array2<f32>, x: f32, y: f32) -> f32 {
+    let (h, w) = img.dim();
+    let x = x.clamp(0.0, (w - 1) as f32);
+    let y = y.clamp(0.0, (h - 1) as f32);
+    let (x0, y0) = (x.floor(), y.floor());
+    let (wx, wy) = (cubic_weights(x - x0), cubic_weights(y - y0));
+    let (x0, y0) = (x0 as isize, y0 as isize);
+    let data = img.as_slice().expect("standard layout");
+    let mut acc = 0.0;
+    for (j, wyj) in wy.iter().enumerate() {
+        let yy = (y0 + j as isize - 1).clamp(0, h as isize - 1) as usize;
+        let row = &data[yy * w..(yy + 1) * w];
+        let mut r = 0.0;
+        for (i, wxi) in wx.iter().enumerate() {
+            let xx = (x0 + i as isize - 1).clamp(0, w as isize - 1) as usize;
+            r += wxi * row[xx];
+        }
+        acc += wyj * r;
+    }
+    acc
+}
+
+/// Backward warp: `out(p) = img(p + flow(p))`, bicubic, edges extended.
+pub fn warp_bicubic(img: &Array2<f32>, flow: &Flow) -> Array2<f32> {
+    assert_eq!(
+        img.dim(),
+        (flow.height(), flow.width()),
+        "warp: picture and flow sizes differ"
+    );
+    let img = img.as_standard_layout().to_owned();
+    Array2::from_shape_fn(img.dim(), |(y, x)| {
+        let (u, v) = flow.get(x, y);
+        sample_bicubic(&img, x as f32 + u, y as f32 + v)
+    })
+}
+
 /// Backward warp: `out(p) = img(p + flow(p))`, bilinear, edges extended.
 ///
 /// With `flow` the forward flow from frame 1 to frame 2 and `img` frame 2,

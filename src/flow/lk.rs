@@ -22,7 +22,9 @@
 
 use ndarray::Array2;
 
-use super::pyramid::{gaussian_kernel, gradients, pyramid, separable_into, upsample2};
+use super::pyramid::{
+    filter_cols_slice, filter_rows_slice, gaussian_kernel, pyramid, separable_slice, upsample2, DERIVATIVE,
+};
 use super::warp::sample_bicubic;
 use super::Flow;
 
@@ -82,55 +84,57 @@ fn min_eigen(a: f32, b: f32, c: f32) -> f32 {
     half_trace - (half_diff * half_diff + b * b).sqrt()
 }
 
-/// Buffers reused across the iterations of one level.
-struct Level {
-    w: usize,
-    gx: Array2<f32>,
-    gy: Array2<f32>,
-    products: [Array2<f32>; 3],
-    tensor: [Array2<f32>; 3],
-    masked: Array2<f32>,
-    it: Array2<f32>,
-    bx: Array2<f32>,
-    by: Array2<f32>,
-    tmp: Array2<f32>,
+/// Work buffers, allocated once at the finest level's size and reused, in
+/// their leading `h * w` part, by every level.
+struct Scratch {
+    gx: Vec<f32>,
+    gy: Vec<f32>,
+    products: [Vec<f32>; 3],
+    tensor: [Vec<f32>; 3],
+    masked: Vec<f32>,
+    it: Vec<f32>,
+    inside: Vec<f32>,
+    bx: Vec<f32>,
+    by: Vec<f32>,
+    tmp: Vec<f32>,
 }
 
-impl Level {
-    fn new(a1: &Array2<f32>) -> Level {
-        let dim = a1.dim();
-        let (gx, gy) = gradients(a1);
-        let products = [&gx * &gx, &gx * &gy, &gy * &gy];
-        let z = || Array2::zeros(dim);
-        Level {
-            w: dim.1,
-            gx,
-            gy,
-            products,
+impl Scratch {
+    fn new(n: usize) -> Scratch {
+        let z = || vec![0f32; n];
+        Scratch {
+            gx: z(),
+            gy: z(),
+            products: [z(), z(), z()],
             tensor: [z(), z(), z()],
             masked: z(),
             it: z(),
+            inside: z(),
             bx: z(),
             by: z(),
             tmp: z(),
         }
     }
 
+    /// Gradients of `a1` and their products, for a level of `h x w`.
+    fn prepare(&mut self, a1: &[f32], h: usize, w: usize) {
+        let n = h * w;
+        filter_rows_slice(a1, h, w, &DERIVATIVE, &mut self.gx);
+        filter_cols_slice(a1, h, w, &DERIVATIVE, &mut self.gy);
+        let (gx, gy) = (&self.gx[..n], &self.gy[..n]);
+        let [pxx, pxy, pyy] = &mut self.products;
+        for i in 0..n {
+            pxx[i] = gx[i] * gx[i];
+            pxy[i] = gx[i] * gy[i];
+            pyy[i] = gy[i] * gy[i];
+        }
+    }
+
     /// `it = i2(p + w(p)) - i1(p)` (bicubic) and the mask of pixels whose
     /// warped position stays inside; returns whether any left the picture.
-    fn temporal(
-        &mut self,
-        a1: &Array2<f32>,
-        a2: &Array2<f32>,
-        u: &Array2<f32>,
-        v: &Array2<f32>,
-        inside: &mut Array2<f32>,
-    ) -> bool {
-        let (h, w) = a1.dim();
-        let (s1, s2) = (a1.as_slice().expect("standard"), a2.as_slice().expect("standard"));
-        let (su, sv) = (u.as_slice().expect("standard"), v.as_slice().expect("standard"));
-        let it = self.it.as_slice_mut().expect("standard");
-        let m = inside.as_slice_mut().expect("standard");
+    fn temporal(&mut self, s1: &[f32], a2: &Array2<f32>, su: &[f32], sv: &[f32], h: usize, w: usize) -> bool {
+        let s2 = a2.as_slice().expect("standard");
+        let (it, m) = (&mut self.it[..h * w], &mut self.inside[..h * w]);
         let (wmax, hmax) = ((w - 1) as f32, (h - 1) as f32);
         let mut any_outside = false;
         for y in 0..h {
@@ -201,57 +205,60 @@ pub fn dense_lk(i1: &Array2<f32>, i2: &Array2<f32>, p: &LkParams) -> LkResult {
         (Array2::<f32>::zeros((h, w)), Array2::<f32>::zeros((h, w)))
     };
     let mut lambda = Array2::zeros(p1[coarsest].dim());
+    let mut buf = Scratch::new(p1[finest].len());
     for level in (finest..=coarsest).rev() {
         let (a1, a2) = (&p1[level], &p2[level]);
         let (h, w) = a1.dim();
+        let n = h * w;
         if u.dim() != (h, w) {
             u = upsample(&u, h, w);
             v = upsample(&v, h, w);
         }
-        let mut buf = Level::new(a1);
-        let mut inside = Array2::from_elem((h, w), 1.0f32);
+        let s1 = a1.as_slice().expect("standard");
+        buf.prepare(s1, h, w);
         lambda = Array2::zeros((h, w));
         let mut tensor_unmasked = false;
         for _ in 0..p.iterations {
-            let any_outside = buf.temporal(a1, a2, &u, &v, &mut inside);
+            let any_outside = buf.temporal(
+                s1,
+                a2,
+                u.as_slice().expect("standard"),
+                v.as_slice().expect("standard"),
+                h,
+                w,
+            );
             // The window tensor, without the pixels whose warped position
             // left the picture (they see only the repeated edge); filtered
             // once while no pixel is out.
             if any_outside || !tensor_unmasked {
                 for k in 0..3 {
                     if any_outside {
-                        ndarray::Zip::from(&mut buf.masked)
-                            .and(&buf.products[k])
-                            .and(&inside)
-                            .for_each(|m, &g, &i| *m = g * i);
-                        separable_into(&buf.masked, &window, &mut buf.tmp, &mut buf.tensor[k]);
+                        for i in 0..n {
+                            buf.masked[i] = buf.products[k][i] * buf.inside[i];
+                        }
+                        separable_slice(&buf.masked, h, w, &window, &mut buf.tmp, &mut buf.tensor[k]);
                     } else {
-                        separable_into(&buf.products[k], &window, &mut buf.tmp, &mut buf.tensor[k]);
+                        separable_slice(&buf.products[k], h, w, &window, &mut buf.tmp, &mut buf.tensor[k]);
                     }
                 }
                 tensor_unmasked = !any_outside;
             }
-            ndarray::Zip::from(&mut buf.masked)
-                .and(&buf.gx)
-                .and(&buf.it)
-                .for_each(|m, &g, &t| *m = g * t);
-            separable_into(&buf.masked, &window, &mut buf.tmp, &mut buf.bx);
-            ndarray::Zip::from(&mut buf.masked)
-                .and(&buf.gy)
-                .and(&buf.it)
-                .for_each(|m, &g, &t| *m = g * t);
-            separable_into(&buf.masked, &window, &mut buf.tmp, &mut buf.by);
-            let [sa, sb, sc] = [0, 1, 2].map(|k| buf.tensor[k].as_slice().expect("standard"));
-            let (sbx, sby) = (
-                buf.bx.as_slice().expect("standard"),
-                buf.by.as_slice().expect("standard"),
-            );
+            for i in 0..n {
+                buf.masked[i] = buf.gx[i] * buf.it[i];
+            }
+            separable_slice(&buf.masked, h, w, &window, &mut buf.tmp, &mut buf.bx);
+            for i in 0..n {
+                buf.masked[i] = buf.gy[i] * buf.it[i];
+            }
+            separable_slice(&buf.masked, h, w, &window, &mut buf.tmp, &mut buf.by);
+            let [sa, sb, sc] = [0, 1, 2].map(|k| &buf.tensor[k][..n]);
+            let (sbx, sby) = (&buf.bx[..n], &buf.by[..n]);
             let (us, vs) = (
                 u.as_slice_mut().expect("standard"),
                 v.as_slice_mut().expect("standard"),
             );
             let ls = lambda.as_slice_mut().expect("standard");
-            for i in 0..us.len() {
+            for i in 0..n {
                 let (a, b, c) = (sa[i], sb[i], sc[i]);
                 ls[i] = min_eigen(a, b, c);
                 if ls[i] >= p.min_eigen {
@@ -261,7 +268,6 @@ pub fn dense_lk(i1: &Array2<f32>, i2: &Array2<f32>, p: &LkParams) -> LkResult {
                 }
             }
         }
-        debug_assert_eq!(buf.w, w);
     }
     // From the finest level computed up to full size.
     let (h0, w0) = i1.dim();

@@ -19,48 +19,162 @@ pub fn gaussian_kernel(sigma: f32) -> Vec<f32> {
     k
 }
 
-/// Convolves every row with `kernel` (odd length, centred), edges repeated.
-/// Tap by tap over a padded copy of the row, so the inner loop is a plain
-/// multiply-add along memory that the compiler vectorises.
-fn filter_rows(src: &Array2<f32>, kernel: &[f32], dst: &mut Array2<f32>) {
-    let (h, w) = src.dim();
+/// Outputs accumulated together in registers by the filters.
+const CHUNK: usize = 16;
+
+/// `dst[x] = sum_k kernel[k] * src[x + k]` for `dst.len()` outputs (`src` is
+/// `kernel.len() - 1` longer): all taps of a chunk of outputs accumulate in
+/// registers before one store. Each output adds its terms in tap order, so
+/// every instruction set gives the same bits.
+#[inline(always)]
+fn correlate_row(src: &[f32], kernel: &[f32], dst: &mut [f32]) {
+    let n = dst.len();
+    let mut x = 0;
+    while x + CHUNK <= n {
+        let mut acc = [0f32; CHUNK];
+        for (k, &kv) in kernel.iter().enumerate() {
+            let s = &src[x + k..x + k + CHUNK];
+            for i in 0..CHUNK {
+                acc[i] += kv * s[i];
+            }
+        }
+        dst[x..x + CHUNK].copy_from_slice(&acc);
+        x += CHUNK;
+    }
+    for (i, d) in dst[x..].iter_mut().enumerate() {
+        *d = kernel
+            .iter()
+            .enumerate()
+            .map(|(k, &kv)| kv * src[x + i + k])
+            .fold(0.0, |a, b| a + b);
+    }
+}
+
+/// `dst[x] = sum_k kernel[k] * rows[k][x]`: the vertical filter of one
+/// output row from `kernel.len()` input rows, chunk by chunk in registers.
+#[inline(always)]
+fn combine_rows(rows: &[&[f32]], kernel: &[f32], dst: &mut [f32]) {
+    let n = dst.len();
+    let mut x = 0;
+    while x + CHUNK <= n {
+        let mut acc = [0f32; CHUNK];
+        for (row, &kv) in rows.iter().zip(kernel) {
+            let s = &row[x..x + CHUNK];
+            for i in 0..CHUNK {
+                acc[i] += kv * s[i];
+            }
+        }
+        dst[x..x + CHUNK].copy_from_slice(&acc);
+        x += CHUNK;
+    }
+    for (i, d) in dst[x..].iter_mut().enumerate() {
+        *d = rows
+            .iter()
+            .zip(kernel)
+            .map(|(row, &kv)| kv * row[x + i])
+            .fold(0.0, |a, b| a + b);
+    }
+}
+
+/// Row and column passes over raw row-major buffers of `h x w`.
+#[inline(always)]
+fn filter_rows_impl(src: &[f32], h: usize, w: usize, kernel: &[f32], out: &mut [f32]) {
     let r = kernel.len() / 2;
-    let src = src.as_slice().expect("contiguous");
-    let out = dst.as_slice_mut().expect("contiguous");
     let mut padded = vec![0f32; w + 2 * r];
     for y in 0..h {
         let row = &src[y * w..(y + 1) * w];
         padded[..r].fill(row[0]);
         padded[r..r + w].copy_from_slice(row);
         padded[r + w..].fill(row[w - 1]);
-        let dst_row = &mut out[y * w..(y + 1) * w];
-        dst_row.fill(0.0);
-        for (k, &kv) in kernel.iter().enumerate() {
-            for (d, &s) in dst_row.iter_mut().zip(&padded[k..k + w]) {
-                *d += kv * s;
-            }
-        }
+        correlate_row(&padded, kernel, &mut out[y * w..(y + 1) * w]);
     }
 }
 
-/// Convolves every column with `kernel`, edges repeated. Works on whole rows
-/// at a time so that the inner loop runs along memory.
+#[inline(always)]
+fn filter_cols_impl(src: &[f32], h: usize, w: usize, kernel: &[f32], out: &mut [f32]) {
+    let r = kernel.len() as isize / 2;
+    let mut rows: Vec<&[f32]> = Vec::with_capacity(kernel.len());
+    for y in 0..h {
+        rows.clear();
+        for k in 0..kernel.len() as isize {
+            let sy = (y as isize + k - r).clamp(0, h as isize - 1) as usize;
+            rows.push(&src[sy * w..(sy + 1) * w]);
+        }
+        combine_rows(&rows, kernel, &mut out[y * w..(y + 1) * w]);
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod wide {
+    // The same code compiled for AVX2 (no FMA, so the results are the same
+    // bits as the baseline build's).
+    #[target_feature(enable = "avx2")]
+    pub unsafe fn filter_rows(src: &[f32], h: usize, w: usize, kernel: &[f32], out: &mut [f32]) {
+        super::filter_rows_impl(src, h, w, kernel, out)
+    }
+
+    #[target_feature(enable = "avx2")]
+    pub unsafe fn filter_cols(src: &[f32], h: usize, w: usize, kernel: &[f32], out: &mut [f32]) {
+        super::filter_cols_impl(src, h, w, kernel, out)
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+fn has_avx2() -> bool {
+    static AVX2: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *AVX2.get_or_init(|| std::arch::is_x86_feature_detected!("avx2"))
+}
+
+/// Convolves every row of the row-major `h x w` picture `src` with `kernel`
+/// (odd length, centred), edges repeated, into `out`.
+pub fn filter_rows_slice(src: &[f32], h: usize, w: usize, kernel: &[f32], out: &mut [f32]) {
+    assert!(src.len() >= h * w && out.len() >= h * w && kernel.len() % 2 == 1);
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2() {
+        // SAFETY: AVX2 is present, checked above.
+        return unsafe { wide::filter_rows(src, h, w, kernel, out) };
+    }
+    filter_rows_impl(src, h, w, kernel, out)
+}
+
+/// Convolves every column of the row-major `h x w` picture `src` with
+/// `kernel`, edges repeated, into `out`.
+pub fn filter_cols_slice(src: &[f32], h: usize, w: usize, kernel: &[f32], out: &mut [f32]) {
+    assert!(src.len() >= h * w && out.len() >= h * w && kernel.len() % 2 == 1);
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2() {
+        // SAFETY: AVX2 is present, checked above.
+        return unsafe { wide::filter_cols(src, h, w, kernel, out) };
+    }
+    filter_cols_impl(src, h, w, kernel, out)
+}
+
+/// Separable convolution of a row-major `h x w` picture, through `tmp`.
+pub fn separable_slice(src: &[f32], h: usize, w: usize, kernel: &[f32], tmp: &mut [f32], out: &mut [f32]) {
+    filter_rows_slice(src, h, w, kernel, tmp);
+    filter_cols_slice(tmp, h, w, kernel, out);
+}
+
+fn filter_rows(src: &Array2<f32>, kernel: &[f32], dst: &mut Array2<f32>) {
+    let (h, w) = src.dim();
+    filter_rows_slice(
+        src.as_slice().expect("contiguous"),
+        h,
+        w,
+        kernel,
+        dst.as_slice_mut().expect("contiguous"),
+    )
+}
+
 fn filter_cols(src: &Array2<f32>, kernel: &[f32], dst: &mut Array2<f32>) {
     let (h, w) = src.dim();
-    let r = kernel.len() as isize / 2;
-    let src = src.as_slice().expect("contiguous");
-    let out = dst.as_slice_mut().expect("contiguous");
-    for y in 0..h {
-        let dst_row = &mut out[y * w..(y + 1) * w];
-        dst_row.fill(0.0);
-        for (k, &kv) in kernel.iter().enumerate() {
-            let sy = (y as isize + k as isize - r).clamp(0, h as isize - 1) as usize;
-            let src_row = &src[sy * w..(sy + 1) * w];
-            for (d, &s) in dst_row.iter_mut().zip(src_row) {
-                *d += kv * s;
-            }
-        }
-    }
+    filter_cols_slice(
+        src.as_slice().expect("contiguous"),
+        h,
+        w,
+        kernel,
+        dst.as_slice_mut().expect("contiguous"),
+    )
 }
 
 /// Separable convolution with the same kernel along both axes, into `out`,
@@ -158,7 +272,7 @@ pub fn pyramid(src: &Array2<f32>, levels: usize, min_size: usize) -> Vec<Array2<
 
 /// The 5-tap central difference `(1, -8, 0, 8, -1) / 12`, as a correlation
 /// kernel (exact for cubic polynomials).
-const DERIVATIVE: [f32; 5] = [1.0 / 12.0, -8.0 / 12.0, 0.0, 8.0 / 12.0, -1.0 / 12.0];
+pub const DERIVATIVE: [f32; 5] = [1.0 / 12.0, -8.0 / 12.0, 0.0, 8.0 / 12.0, -1.0 / 12.0];
 
 /// Horizontal and vertical derivatives with the 5-tap central difference,
 /// edges repeated.

@@ -8,6 +8,7 @@ use anyhow::{bail, Context, Result};
 use ndarray::Array2;
 use serde_json::json;
 
+use crate::flow::hs::{horn_schunck, HsParams};
 use crate::flow::lk::{dense_lk, LkParams};
 use crate::flow::warp::warp_bilinear;
 use crate::flow::Flow;
@@ -32,6 +33,8 @@ pub enum Preset {
 pub enum FlowMethod {
     /// Dense pyramidal Lucas-Kanade.
     Lk,
+    /// Horn-Schunck, coarse to fine with warping.
+    Hs,
 }
 
 #[derive(Debug, clap::Args)]
@@ -55,9 +58,16 @@ pub struct Args {
     /// LK: window standard deviation in pixels (overrides the preset).
     #[arg(long)]
     pub sigma: Option<f32>,
-    /// Iterations per level (overrides the preset).
+    /// Iterations per level (overrides the preset): Gauss-Newton steps for
+    /// LK, the most SOR sweeps per warp for HS.
     #[arg(long)]
     pub iterations: Option<usize>,
+    /// HS: smoothness weight alpha (overrides the preset).
+    #[arg(long)]
+    pub alpha: Option<f32>,
+    /// HS: warps per level (overrides the preset).
+    #[arg(long)]
+    pub warps: Option<usize>,
     /// Finest pyramid level computed, 0 = full size (overrides the preset).
     #[arg(long)]
     pub finest: Option<usize>,
@@ -104,6 +114,25 @@ pub fn lk_preset(preset: Preset) -> LkParams {
             iterations: 1,
             min_eigen: 1.0,
             finest: 0,
+        },
+    }
+}
+
+/// The HS settings of each preset (alpha 20). On the flowpair: fast (one
+/// warp, at most 30 sweeps) EPE 0.074 px in 129 ms; medium (one warp, 60
+/// sweeps) 0.065 px in 225 ms; accurate adds warps for larger motion.
+pub fn hs_preset(preset: Preset) -> HsParams {
+    match preset {
+        Preset::Fast => HsParams {
+            iterations: 30,
+            ..HsParams::default()
+        },
+        Preset::Medium => HsParams::default(),
+        Preset::Accurate => HsParams {
+            warps: 3,
+            iterations: 100,
+            tolerance: 0.0005,
+            ..HsParams::default()
         },
     }
 }
@@ -170,6 +199,22 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(f) = args.finest {
         params.finest = f;
     }
+    let mut hs = hs_preset(args.preset);
+    if let Some(l) = args.levels {
+        hs.levels = l.max(1);
+    }
+    if let Some(i) = args.iterations {
+        hs.iterations = i.max(1);
+    }
+    if let Some(a) = args.alpha {
+        if !(a > 0.0 && a < 1e4) {
+            bail!("--alpha {a} must be positive");
+        }
+        hs.alpha = a;
+    }
+    if let Some(wp) = args.warps {
+        hs.warps = wp.max(1);
+    }
     let method = args.method.unwrap_or(FlowMethod::Lk);
     if args.runs == 0 {
         bail!("--runs must be at least 1");
@@ -180,6 +225,7 @@ pub fn run(args: &Args) -> Result<()> {
         let start = Instant::now();
         flow = match method {
             FlowMethod::Lk => dense_lk(&i1, &i2, &params).flow,
+            FlowMethod::Hs => horn_schunck(&i1, &i2, &hs).0,
         };
         times.push(start.elapsed().as_secs_f64() * 1000.0);
     }
@@ -222,7 +268,7 @@ pub fn run(args: &Args) -> Result<()> {
     }
     if args.json {
         let mut obj = json!({
-            "method": "lk",
+            "method": match method { FlowMethod::Lk => "lk", FlowMethod::Hs => "hs" },
             "preset": format!("{:?}", args.preset).to_lowercase(),
             "width": flow.width(),
             "height": flow.height(),

@@ -5,6 +5,7 @@
 //! frame 1 to frame 2 means `frame1(p) ~ frame2(p + w(p))`.
 
 mod field;
+pub mod hs;
 pub mod lk;
 pub mod pyramid;
 pub mod warp;

@@ -4,6 +4,7 @@
 //! Convention (used by every function of mocomp): a forward flow `w` from
 //! frame 1 to frame 2 means `frame1(p) ~ frame2(p + w(p))`.
 
+pub mod consistency;
 mod field;
 pub mod hs;
 pub mod lk;

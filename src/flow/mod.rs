@@ -9,6 +9,7 @@ mod field;
 pub mod hs;
 pub mod lk;
 pub mod pyramid;
+pub mod track;
 pub mod warp;
 
 pub use field::Flow;

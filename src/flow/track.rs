@@ -1,0 +1,233 @@
+//! Sparse tracking: Shi-Tomasi corners followed by a pyramidal Lucas-Kanade
+//! point tracker with a forward-backward check.
+//!
+//! [`good_features`] keeps pixels whose structure tensor's smaller
+//! eigenvalue (Shi and Tomasi 1994) is a local maximum, above `quality`
+//! times the best one, at least `min_distance` apart, strongest first.
+//! [`track`] follows each point from one picture to the next with
+//! Lucas-Kanade on a square patch (Bouguet's pyramidal scheme, as OpenCV's
+//! `calcOpticalFlowPyrLK`): sub-pixel positions through bilinear sampling,
+//! coarse to fine, iterating until the step is below `epsilon` or
+//! `iterations` steps are done. A point is lost when it leaves the picture
+//! or its patch has no texture; with the forward-backward check, also when
+//! tracking it back does not return within `fb_threshold` pixels of where it
+//! started (occlusions and drift).
+
+use ndarray::Array2;
+
+use super::pyramid::{gaussian_kernel, gradients, pyramid, separable};
+use super::warp::sample_bilinear;
+
+/// A tracked point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Track {
+    /// Position in the second picture (x).
+    pub x: f32,
+    /// Position in the second picture (y).
+    pub y: f32,
+    /// Whether the point was followed.
+    pub found: bool,
+    /// Mean absolute difference between the patches, grey levels.
+    pub error: f32,
+}
+
+/// Settings of the point tracker.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackParams {
+    /// Patch half-size: the patch is `2 * radius + 1` square.
+    pub radius: usize,
+    /// Pyramid levels.
+    pub levels: usize,
+    /// Most Lucas-Kanade steps per level.
+    pub iterations: usize,
+    /// Steps stop below this length, pixels.
+    pub epsilon: f32,
+    /// Smallest eigenvalue of the patch tensor (mean squared gradient)
+    /// below which a point is lost.
+    pub min_eigen: f32,
+    /// Forward-backward distance above which a point is dropped; `None`
+    /// disables the check.
+    pub fb_threshold: Option<f32>,
+}
+
+impl Default for TrackParams {
+    fn default() -> TrackParams {
+        TrackParams {
+            radius: 7,
+            levels: 3,
+            iterations: 20,
+            epsilon: 0.01,
+            min_eigen: 1.0,
+            fb_threshold: Some(0.5),
+        }
+    }
+}
+
+/// Shi-Tomasi corners of `img`: at most `max` points, strongest first.
+///
+/// ```
+/// use mocomp::flow::track::good_features;
+/// use ndarray::Array2;
+/// // One bright square: its four corners are the best features.
+/// let img = Array2::from_shape_fn((40, 40), |(y, x)| if (10..30).contains(&x) && (10..30).contains(&y) { 200.0 } else { 20.0 });
+/// let pts = good_features(&img, 4, 0.1, 5.0);
+/// assert_eq!(pts.len(), 4);
+/// ```
+pub fn good_features(img: &Array2<f32>, max: usize, quality: f32, min_distance: f32) -> Vec<(f32, f32)> {
+    let (h, w) = img.dim();
+    let (gx, gy) = gradients(img);
+    let k = gaussian_kernel(1.5);
+    let (a, b, c) = (
+        separable(&(&gx * &gx), &k),
+        separable(&(&gx * &gy), &k),
+        separable(&(&gy * &gy), &k),
+    );
+    let lambda = Array2::from_shape_fn((h, w), |(y, x)| {
+        let (a, b, c) = (a[[y, x]], b[[y, x]], c[[y, x]]);
+        0.5 * (a + c) - (0.25 * (a - c) * (a - c) + b * b).sqrt()
+    });
+    let best = lambda.iter().copied().fold(0f32, f32::max);
+    if best <= 0.0 {
+        return Vec::new();
+    }
+    let threshold = quality * best;
+    // Local maxima (3x3) above the threshold, away from the border.
+    let mut candidates: Vec<(f32, usize, usize)> = Vec::new();
+    for y in 2..h.saturating_sub(2) {
+        for x in 2..w.saturating_sub(2) {
+            let l = lambda[[y, x]];
+            if l < threshold {
+                continue;
+            }
+            let is_max = (y - 1..=y + 1).all(|yy| (x - 1..=x + 1).all(|xx| lambda[[yy, xx]] <= l));
+            if is_max {
+                candidates.push((l, x, y));
+            }
+        }
+    }
+    // Strongest first; ties in raster order, so the result is deterministic.
+    candidates.sort_by(|p, q| q.0.total_cmp(&p.0).then((p.2, p.1).cmp(&(q.2, q.1))));
+    let mut kept: Vec<(f32, f32)> = Vec::new();
+    let d2 = min_distance * min_distance;
+    for (_, x, y) in candidates {
+        if kept.len() >= max {
+            break;
+        }
+        let (fx, fy) = (x as f32, y as f32);
+        if kept
+            .iter()
+            .all(|&(kx, ky)| (kx - fx).powi(2) + (ky - fy).powi(2) >= d2)
+        {
+            kept.push((fx, fy));
+        }
+    }
+    kept
+}
+
+/// One direction of tracking: every point from `p1` (pyramid of the first
+/// picture) to `p2`.
+fn track_one_way(
+    p1: &[Array2<f32>],
+    g1: &[(Array2<f32>, Array2<f32>)],
+    p2: &[Array2<f32>],
+    points: &[(f32, f32)],
+    p: &TrackParams,
+) -> Vec<Track> {
+    let r = p.radius as isize;
+    let n = ((2 * r + 1) * (2 * r + 1)) as f32;
+    points
+        .iter()
+        .map(|&(x0, y0)| {
+            let (mut dx, mut dy) = (0f32, 0f32); // motion at the current level
+            let mut found = true;
+            for level in (0..p1.len()).rev() {
+                let scale = (1u32 << level) as f32;
+                let (cx, cy) = (x0 / scale, y0 / scale);
+                let (img1, img2) = (&p1[level], &p2[level]);
+                let (gx, gy) = (&g1[level].0, &g1[level].1);
+                // Patch tensor (fixed on the first picture).
+                let (mut a, mut b, mut c) = (0f32, 0f32, 0f32);
+                let mut patch = Vec::with_capacity(n as usize);
+                for j in -r..=r {
+                    for i in -r..=r {
+                        let (px, py) = (cx + i as f32, cy + j as f32);
+                        let (ix, iy) = (sample_bilinear(gx, px, py), sample_bilinear(gy, px, py));
+                        patch.push((sample_bilinear(img1, px, py), ix, iy));
+                        a += ix * ix;
+                        b += ix * iy;
+                        c += iy * iy;
+                    }
+                }
+                let det = a * c - b * b;
+                let min_eig = (0.5 * (a + c) - (0.25 * (a - c) * (a - c) + b * b).sqrt()) / n;
+                if min_eig < p.min_eigen || det.abs() < f32::EPSILON {
+                    found = false;
+                    break;
+                }
+                for _ in 0..p.iterations {
+                    let (mut ex, mut ey) = (0f32, 0f32);
+                    let mut k = 0;
+                    for j in -r..=r {
+                        for i in -r..=r {
+                            let (v1, ix, iy) = patch[k];
+                            k += 1;
+                            let diff = sample_bilinear(img2, cx + dx + i as f32, cy + dy + j as f32) - v1;
+                            ex += ix * diff;
+                            ey += iy * diff;
+                        }
+                    }
+                    let (sx, sy) = (-(c * ex - b * ey) / det, -(a * ey - b * ex) / det);
+                    dx += sx;
+                    dy += sy;
+                    if sx * sx + sy * sy < p.epsilon * p.epsilon {
+                        break;
+                    }
+                }
+                if level > 0 {
+                    dx *= 2.0;
+                    dy *= 2.0;
+                }
+            }
+            let (x, y) = (x0 + dx, y0 + dy);
+            let (h, w) = p2[0].dim();
+            if found && (x < 0.0 || y < 0.0 || x > (w - 1) as f32 || y > (h - 1) as f32) {
+                found = false;
+            }
+            let mut error = 0f32;
+            if found {
+                for j in -r..=r {
+                    for i in -r..=r {
+                        let (ox, oy) = (i as f32, j as f32);
+                        error += (sample_bilinear(&p2[0], x + ox, y + oy)
+                            - sample_bilinear(&p1[0], x0 + ox, y0 + oy))
+                        .abs();
+                    }
+                }
+                error /= n;
+            }
+            Track { x, y, found, error }
+        })
+        .collect()
+}
+
+/// Follows `points` from `i1` to `i2`.
+pub fn track(i1: &Array2<f32>, i2: &Array2<f32>, points: &[(f32, f32)], p: &TrackParams) -> Vec<Track> {
+    assert_eq!(i1.dim(), i2.dim(), "track: pictures of different sizes");
+    let min_size = 2 * p.radius + 1;
+    let (p1, p2) = (pyramid(i1, p.levels, min_size), pyramid(i2, p.levels, min_size));
+    let levels = p1.len().min(p2.len());
+    let (p1, p2) = (&p1[..levels], &p2[..levels]);
+    let g1: Vec<_> = p1.iter().map(gradients).collect();
+    let mut forward = track_one_way(p1, &g1, p2, points, p);
+    if let Some(limit) = p.fb_threshold {
+        let g2: Vec<_> = p2.iter().map(gradients).collect();
+        let ends: Vec<(f32, f32)> = forward.iter().map(|t| (t.x, t.y)).collect();
+        let back = track_one_way(p2, &g2, p1, &ends, p);
+        for ((t, b), &(x0, y0)) in forward.iter_mut().zip(&back).zip(points) {
+            if t.found && (!b.found || (b.x - x0).hypot(b.y - y0) > limit) {
+                t.found = false;
+            }
+        }
+    }
+    forward
+}

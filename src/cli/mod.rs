@@ -7,6 +7,7 @@ mod info;
 mod me;
 mod psnr;
 mod samples;
+mod track;
 
 use std::process::ExitCode;
 
@@ -34,6 +35,8 @@ enum Command {
     Samples(samples::Args),
     /// PSNR and SSIM of a Y4M against a reference, per frame and overall.
     Psnr(psnr::Args),
+    /// Follow corners through a sequence (sparse pyramidal LK).
+    Track(track::Args),
 }
 
 /// Parses the command line, runs it, and reports any error on one line of
@@ -51,6 +54,7 @@ pub fn main() -> ExitCode {
         Some(Command::Me(a)) => me::run(&a),
         Some(Command::Samples(a)) => samples::run(&a),
         Some(Command::Psnr(a)) => psnr::run(&a),
+        Some(Command::Track(a)) => track::run(&a),
         None => unreachable!("set to compare above"),
     };
     match result {

@@ -366,3 +366,42 @@ fn the_forward_backward_check_drops_points_that_get_covered() {
         far.len()
     );
 }
+
+#[test]
+fn results_do_not_depend_on_the_number_of_threads() {
+    use mocomp::flow::track::{good_features, track, TrackParams};
+    let synth = Synth::new(standard_scenes().remove(0)).unwrap();
+    let (a, b) = (
+        plane_to_array(synth.frame(5).y()),
+        plane_to_array(synth.frame(6).y()),
+    );
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let lk = dense_lk(&a, &b, &LkParams::default());
+            let points = good_features(&a, 100, 0.01, 5.0);
+            let tracks = track(&a, &b, &points, &TrackParams::default());
+            let hs = horn_schunck(
+                &a,
+                &b,
+                &HsParams {
+                    iterations: 10,
+                    ..HsParams::default()
+                },
+            )
+            .0;
+            (lk.flow, lk.confidence, tracks, hs)
+        })
+    };
+    let one = run(1);
+    let four = run(4);
+    assert!(
+        one.0 == four.0 && one.1 == four.1,
+        "LK differs between 1 and 4 threads"
+    );
+    assert_eq!(one.2, four.2, "tracks differ");
+    assert!(one.3 == four.3, "HS differs");
+}

@@ -21,9 +21,11 @@
 //! level; pixels below `min_eigen` are the ones that fell back.
 
 use ndarray::Array2;
+use rayon::prelude::*;
 
 use super::pyramid::{
-    filter_cols_slice, filter_rows_slice, gaussian_kernel, pyramid, separable_slice, upsample2, DERIVATIVE,
+    filter_cols_slice, filter_rows_slice, gaussian_kernel, pyramid, rows_per_task, separable_slice,
+    upsample2, DERIVATIVE,
 };
 use super::warp::sample_bicubic;
 use super::Flow;
@@ -134,36 +136,44 @@ impl Scratch {
     /// warped position stays inside; returns whether any left the picture.
     fn temporal(&mut self, s1: &[f32], a2: &Array2<f32>, su: &[f32], sv: &[f32], h: usize, w: usize) -> bool {
         let s2 = a2.as_slice().expect("standard");
-        let (it, m) = (&mut self.it[..h * w], &mut self.inside[..h * w]);
         let (wmax, hmax) = ((w - 1) as f32, (h - 1) as f32);
-        let mut any_outside = false;
-        for y in 0..h {
-            for x in 0..w {
-                let i = y * w + x;
-                let (px, py) = (x as f32 + su[i], y as f32 + sv[i]);
-                if !(px >= 0.0 && py >= 0.0 && px <= wmax && py <= hmax) {
-                    it[i] = 0.0;
-                    m[i] = 0.0;
-                    any_outside = true;
-                    continue;
-                }
-                m[i] = 1.0;
-                // Inside by at least a pixel: the 4x4 footprint needs no clamping.
-                let (ix, iy) = (px as usize, py as usize);
-                it[i] = if ix >= 1 && iy >= 1 && ix + 2 < w && iy + 2 < h {
-                    let (wx, wy) = (cubic(px - ix as f32), cubic(py - iy as f32));
-                    let mut acc = 0.0;
-                    for (j, &wyj) in wy.iter().enumerate() {
-                        let row = &s2[(iy + j - 1) * w + ix - 1..(iy + j - 1) * w + ix + 3];
-                        acc += wyj * (wx[0] * row[0] + wx[1] * row[1] + wx[2] * row[2] + wx[3] * row[3]);
+        // Rows in parallel: each pixel is computed the same way whatever
+        // the number of threads.
+        let band = rows_per_task(w);
+        self.it[..h * w]
+            .par_chunks_mut(band * w)
+            .zip(self.inside[..h * w].par_chunks_mut(band * w))
+            .enumerate()
+            .map(|(t, (it, m))| {
+                let mut any_outside = false;
+                for k in 0..it.len() {
+                    let (y, x) = (t * band + k / w, k % w);
+                    let i = y * w + x;
+                    let (px, py) = (x as f32 + su[i], y as f32 + sv[i]);
+                    if !(px >= 0.0 && py >= 0.0 && px <= wmax && py <= hmax) {
+                        it[k] = 0.0;
+                        m[k] = 0.0;
+                        any_outside = true;
+                        continue;
                     }
-                    acc
-                } else {
-                    sample_bicubic(a2, px, py)
-                } - s1[i];
-            }
-        }
-        any_outside
+                    m[k] = 1.0;
+                    // Inside by at least a pixel: the 4x4 footprint needs no clamping.
+                    let (ix, iy) = (px as usize, py as usize);
+                    it[k] = if ix >= 1 && iy >= 1 && ix + 2 < w && iy + 2 < h {
+                        let (wx, wy) = (cubic(px - ix as f32), cubic(py - iy as f32));
+                        let mut acc = 0.0;
+                        for (j, &wyj) in wy.iter().enumerate() {
+                            let row = &s2[(iy + j - 1) * w + ix - 1..(iy + j - 1) * w + ix + 3];
+                            acc += wyj * (wx[0] * row[0] + wx[1] * row[1] + wx[2] * row[2] + wx[3] * row[3]);
+                        }
+                        acc
+                    } else {
+                        sample_bicubic(a2, px, py)
+                    } - s1[i];
+                }
+                any_outside
+            })
+            .reduce(|| false, |a, b| a || b)
     }
 }
 
@@ -193,6 +203,11 @@ fn cubic(t: f32) -> [f32; 4] {
 /// ```
 pub fn dense_lk(i1: &Array2<f32>, i2: &Array2<f32>, p: &LkParams) -> LkResult {
     assert_eq!(i1.dim(), i2.dim(), "dense_lk: pictures of different sizes");
+    assert!(
+        p.sigma > 0.0 && p.sigma <= 10.0,
+        "dense_lk: window sigma {} outside (0, 10]",
+        p.sigma
+    );
     let window = gaussian_kernel(p.sigma);
     // Coarse levels may be smaller than the window (borders repeat): what
     // matters is that the coarsest level sees the motion as under a pixel.

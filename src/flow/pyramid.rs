@@ -3,6 +3,7 @@
 //! works on contiguous row-major `Array2<f32>` (`[[y, x]]`).
 
 use ndarray::Array2;
+use rayon::prelude::*;
 
 /// A normalised 1-D Gaussian of standard deviation `sigma`, truncated at
 /// `ceil(3 sigma)` on each side (at least one tap each side).
@@ -76,32 +77,27 @@ fn combine_rows(rows: &[&[f32]], kernel: &[f32], dst: &mut [f32]) {
     }
 }
 
-/// Row and column passes over raw row-major buffers of `h x w`.
+/// One output row of the horizontal pass (`padded` holds the row with
+/// `kernel.len() / 2` repeated edge samples on each side).
 #[inline(always)]
-fn filter_rows_impl(src: &[f32], h: usize, w: usize, kernel: &[f32], out: &mut [f32]) {
-    let r = kernel.len() / 2;
-    let mut padded = vec![0f32; w + 2 * r];
-    for y in 0..h {
-        let row = &src[y * w..(y + 1) * w];
-        padded[..r].fill(row[0]);
-        padded[r..r + w].copy_from_slice(row);
-        padded[r + w..].fill(row[w - 1]);
-        correlate_row(&padded, kernel, &mut out[y * w..(y + 1) * w]);
-    }
+fn row_pass(row: &[f32], padded: &mut [f32], kernel: &[f32], out: &mut [f32]) {
+    let (r, w) = (kernel.len() / 2, row.len());
+    padded[..r].fill(row[0]);
+    padded[r..r + w].copy_from_slice(row);
+    padded[r + w..r + w + r].fill(row[w - 1]);
+    correlate_row(&padded[..w + 2 * r], kernel, out);
 }
 
+/// One output row `y` of the vertical pass over the `h x w` picture `src`.
 #[inline(always)]
-fn filter_cols_impl(src: &[f32], h: usize, w: usize, kernel: &[f32], out: &mut [f32]) {
+fn col_pass(src: &[f32], h: usize, w: usize, y: usize, kernel: &[f32], out: &mut [f32]) {
     let r = kernel.len() as isize / 2;
-    let mut rows: Vec<&[f32]> = Vec::with_capacity(kernel.len());
-    for y in 0..h {
-        rows.clear();
-        for k in 0..kernel.len() as isize {
-            let sy = (y as isize + k - r).clamp(0, h as isize - 1) as usize;
-            rows.push(&src[sy * w..(sy + 1) * w]);
-        }
-        combine_rows(&rows, kernel, &mut out[y * w..(y + 1) * w]);
+    let mut rows: [&[f32]; 64] = [&[]; 64];
+    for (k, slot) in rows.iter_mut().enumerate().take(kernel.len()) {
+        let sy = (y as isize + k as isize - r).clamp(0, h as isize - 1) as usize;
+        *slot = &src[sy * w..(sy + 1) * w];
     }
+    combine_rows(&rows[..kernel.len()], kernel, out);
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -109,13 +105,13 @@ mod wide {
     // The same code compiled for AVX2 (no FMA, so the results are the same
     // bits as the baseline build's).
     #[target_feature(enable = "avx2")]
-    pub unsafe fn filter_rows(src: &[f32], h: usize, w: usize, kernel: &[f32], out: &mut [f32]) {
-        super::filter_rows_impl(src, h, w, kernel, out)
+    pub unsafe fn row_pass(row: &[f32], padded: &mut [f32], kernel: &[f32], out: &mut [f32]) {
+        super::row_pass(row, padded, kernel, out)
     }
 
     #[target_feature(enable = "avx2")]
-    pub unsafe fn filter_cols(src: &[f32], h: usize, w: usize, kernel: &[f32], out: &mut [f32]) {
-        super::filter_cols_impl(src, h, w, kernel, out)
+    pub unsafe fn col_pass(src: &[f32], h: usize, w: usize, y: usize, kernel: &[f32], out: &mut [f32]) {
+        super::col_pass(src, h, w, y, kernel, out)
     }
 }
 
@@ -125,28 +121,56 @@ fn has_avx2() -> bool {
     *AVX2.get_or_init(|| std::arch::is_x86_feature_detected!("avx2"))
 }
 
+/// Rows per parallel task: about 4096 samples, so that small pyramid levels
+/// are not split into tasks too short to pay for themselves.
+pub(crate) fn rows_per_task(w: usize) -> usize {
+    (4096 / w.max(1)).max(1)
+}
+
 /// Convolves every row of the row-major `h x w` picture `src` with `kernel`
-/// (odd length, centred), edges repeated, into `out`.
+/// (odd length, centred, at most 63 taps), edges repeated, into `out`.
+/// Bands of rows run in parallel; each row is computed the same way whatever
+/// the number of threads.
 pub fn filter_rows_slice(src: &[f32], h: usize, w: usize, kernel: &[f32], out: &mut [f32]) {
-    assert!(src.len() >= h * w && out.len() >= h * w && kernel.len() % 2 == 1);
-    #[cfg(target_arch = "x86_64")]
-    if has_avx2() {
-        // SAFETY: AVX2 is present, checked above.
-        return unsafe { wide::filter_rows(src, h, w, kernel, out) };
-    }
-    filter_rows_impl(src, h, w, kernel, out)
+    assert!(src.len() >= h * w && out.len() >= h * w && kernel.len() % 2 == 1 && kernel.len() < 64);
+    let r = kernel.len() / 2;
+    out[..h * w]
+        .par_chunks_mut(w)
+        .zip(src[..h * w].par_chunks(w))
+        .for_each_init(
+            || vec![0f32; w + 2 * r],
+            |padded, (dst, row)| {
+                #[cfg(target_arch = "x86_64")]
+                if has_avx2() {
+                    // SAFETY: AVX2 is present, checked above.
+                    return unsafe { wide::row_pass(row, padded, kernel, dst) };
+                }
+                row_pass(row, padded, kernel, dst)
+            },
+        );
 }
 
 /// Convolves every column of the row-major `h x w` picture `src` with
-/// `kernel`, edges repeated, into `out`.
+/// `kernel` (odd length, at most 63 taps), edges repeated, into `out`; rows
+/// of the output in parallel.
 pub fn filter_cols_slice(src: &[f32], h: usize, w: usize, kernel: &[f32], out: &mut [f32]) {
-    assert!(src.len() >= h * w && out.len() >= h * w && kernel.len() % 2 == 1);
-    #[cfg(target_arch = "x86_64")]
-    if has_avx2() {
-        // SAFETY: AVX2 is present, checked above.
-        return unsafe { wide::filter_cols(src, h, w, kernel, out) };
-    }
-    filter_cols_impl(src, h, w, kernel, out)
+    assert!(src.len() >= h * w && out.len() >= h * w && kernel.len() % 2 == 1 && kernel.len() < 64);
+    let rows = rows_per_task(w);
+    out[..h * w]
+        .par_chunks_mut(rows * w)
+        .enumerate()
+        .for_each(|(t, dst)| {
+            for (k, d) in dst.chunks_mut(w).enumerate() {
+                let y = t * rows + k;
+                #[cfg(target_arch = "x86_64")]
+                if has_avx2() {
+                    // SAFETY: AVX2 is present, checked above.
+                    unsafe { wide::col_pass(src, h, w, y, kernel, d) };
+                    continue;
+                }
+                col_pass(src, h, w, y, kernel, d)
+            }
+        });
 }
 
 /// Separable convolution of a row-major `h x w` picture, through `tmp`.

@@ -14,6 +14,7 @@
 //! started (occlusions and drift).
 
 use ndarray::Array2;
+use rayon::prelude::*;
 
 use super::pyramid::{gaussian_kernel, gradients, pyramid, separable};
 use super::warp::sample_bilinear;
@@ -135,8 +136,10 @@ fn track_one_way(
 ) -> Vec<Track> {
     let r = p.radius as isize;
     let n = ((2 * r + 1) * (2 * r + 1)) as f32;
+    // Points in parallel, each on its own: the same result for any number
+    // of threads.
     points
-        .iter()
+        .par_iter()
         .map(|&(x0, y0)| {
             let (mut dx, mut dy) = (0f32, 0f32); // motion at the current level
             let mut found = true;

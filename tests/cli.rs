@@ -329,6 +329,7 @@ fn flow_reports_errors_against_ground_truth_and_writes_its_pictures() {
             "--warp",
             warp.to_str().unwrap(),
         ])
+        .args(["--arrows", dir.path().join("arrows.png").to_str().unwrap()])
         .assert()
         .success()
         .get_output()
@@ -347,7 +348,7 @@ fn flow_reports_errors_against_ground_truth_and_writes_its_pictures() {
     assert_eq!((back.width(), back.height()), (176, 144));
     let img = image::open(&viz).unwrap();
     assert_eq!((img.width(), img.height()), (176, 144));
-    assert!(warp.exists());
+    assert!(warp.exists() && dir.path().join("arrows.png").exists());
     // Two images work too, and mismatched inputs are one-line errors.
     let (a, b) = (dir.path().join("a.png"), dir.path().join("b.png"));
     mocomp::io::image::write_plane(

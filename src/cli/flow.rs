@@ -15,7 +15,7 @@ use crate::flow::Flow;
 use crate::io::{flo, image, y4m::Y4mReader};
 use crate::metrics::{flow_errors, psnr_from_mse};
 use crate::raster::{array_to_plane, plane_to_array};
-use crate::viz::flow_to_rgb;
+use crate::viz::{draw_flow_arrows, flow_to_rgb};
 
 /// Speed / accuracy trade-offs, as x264 and DIS have them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -83,6 +83,9 @@ pub struct Args {
     /// Write the second picture warped back by the flow as PNG.
     #[arg(long, value_name = "FILE")]
     pub warp: Option<PathBuf>,
+    /// Write the first picture with flow arrows (one per 16x16 cell) as PNG.
+    #[arg(long, value_name = "FILE")]
+    pub arrows: Option<PathBuf>,
     /// Worker threads (default: all cores; 1 for the one-thread comparison).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -273,6 +276,11 @@ pub fn run(args: &Args) -> Result<()> {
     }
     if let Some(path) = &args.viz {
         let img = flow_to_rgb(&flow, None);
+        image::write_rgb(path, img.width, img.height, &img.data)
+            .with_context(|| path.display().to_string())?;
+    }
+    if let Some(path) = &args.arrows {
+        let img = draw_flow_arrows(&array_to_plane(&i1)?, &flow, 16, 2.0);
         image::write_rgb(path, img.width, img.height, &img.data)
             .with_context(|| path.display().to_string())?;
     }

@@ -86,6 +86,56 @@ pub fn draw_field(frame: &Plane, field: &MotionField) -> Rgb {
     img
 }
 
+/// The frame with an arrow every `step` pixels showing the flow there (the
+/// mean over the `step x step` cell, drawn from the cell's centre, scaled by
+/// `scale`), red with a yellow head; cells without a valid pixel are skipped.
+pub fn draw_flow_arrows(frame: &Plane, flow: &Flow, step: usize, scale: f32) -> Rgb {
+    assert!(step > 0, "arrow step must be positive");
+    let mut img = Rgb::from_luma(frame);
+    for cy in (0..flow.height()).step_by(step) {
+        for cx in (0..flow.width()).step_by(step) {
+            let (mut su, mut sv, mut n) = (0f32, 0f32, 0usize);
+            for y in cy..(cy + step).min(flow.height()) {
+                for x in cx..(cx + step).min(flow.width()) {
+                    if flow.is_valid(x, y) {
+                        let (u, v) = flow.get(x, y);
+                        su += u;
+                        sv += v;
+                        n += 1;
+                    }
+                }
+            }
+            if n == 0 {
+                continue;
+            }
+            let (u, v) = (scale * su / n as f32, scale * sv / n as f32);
+            let (x0, y0) = ((cx + step / 2) as f32, (cy + step / 2) as f32);
+            let (x1, y1) = (x0 + u, y0 + v);
+            img.line(
+                (x0 as i64, y0 as i64),
+                (x1.round() as i64, y1.round() as i64),
+                [255, 40, 40],
+            );
+            // Two barbs at +-25 degrees behind the tip.
+            let len = (u * u + v * v).sqrt();
+            if len >= 2.0 {
+                let (dx, dy) = (u / len, v / len);
+                let barb = (len * 0.3).clamp(2.0, 6.0);
+                for s in [-1.0f32, 1.0] {
+                    let (c, sn) = (0.906f32, 0.423 * s);
+                    let (bx, by) = (-(dx * c - dy * sn), -(dx * sn + dy * c));
+                    img.line(
+                        (x1.round() as i64, y1.round() as i64),
+                        ((x1 + barb * bx).round() as i64, (y1 + barb * by).round() as i64),
+                        [255, 230, 0],
+                    );
+                }
+            }
+        }
+    }
+    img
+}
+
 /// The Middlebury colour wheel (Baker et al., "A Database and Evaluation
 /// Methodology for Optical Flow"): 55 hues, red to yellow (15), yellow to
 /// green (6), green to cyan (4), cyan to blue (11), blue to magenta (13),
@@ -194,6 +244,18 @@ mod tests {
         // The largest motion is at full saturation: pure red.
         assert_eq!(&img.data[0..3], &[255, 0, 0]);
         assert_eq!(&img.data[3..6], &flow_colour(&colour_wheel(), 0.5, 0.0));
+    }
+
+    #[test]
+    fn arrows_point_along_the_flow() {
+        let frame = Plane::filled(32, 32, 0).unwrap();
+        let flow = Flow::from_fn(32, 32, |_, _| (6.0, 0.0));
+        let img = draw_flow_arrows(&frame, &flow, 16, 1.0);
+        let red =
+            |x: usize, y: usize| img.data[3 * (y * 32 + x)] == 255 && img.data[3 * (y * 32 + x) + 1] == 40;
+        // From the first cell's centre (8, 8) six pixels to the right.
+        assert!((8..14).all(|x| red(x, 8)));
+        assert!(!red(7, 8) && !red(8, 9));
     }
 
     #[test]

@@ -1,0 +1,60 @@
+//! Dense flow per method and preset on a CIF and a 720p pair (one thread),
+//! and the sparse tracker.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use mocomp::flow::hs::{horn_schunck, HsParams};
+use mocomp::flow::lk::{dense_lk, LkParams};
+use mocomp::flow::track::{good_features, track, TrackParams};
+use mocomp::raster::plane_to_array;
+use mocomp::synth::{Motion, SceneSpec, Synth};
+use ndarray::Array2;
+
+fn pair(w: usize, h: usize) -> (Array2<f32>, Array2<f32>) {
+    let motion = Motion::translation(1.8, -1.0).with_zoom(1.012).with_rotation(0.8);
+    let s = Synth::new(SceneSpec::new("bench", w, h, 2).seed(5).camera(motion).noise(1.0)).unwrap();
+    (plane_to_array(s.frame(0).y()), plane_to_array(s.frame(1).y()))
+}
+
+fn flow(c: &mut Criterion) {
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    let lk = [
+        (
+            "lk_fast",
+            LkParams {
+                sigma: 2.5,
+                finest: 2,
+                ..LkParams::default()
+            },
+        ),
+        ("lk_medium", LkParams::default()),
+        (
+            "lk_accurate",
+            LkParams {
+                sigma: 5.0,
+                levels: 5,
+                ..LkParams::default()
+            },
+        ),
+    ];
+    for (name, w, h) in [("cif", 352, 288), ("720p", 1280, 720)] {
+        let (a, b) = pair(w, h);
+        let mut g = c.benchmark_group(format!("flow_{name}"));
+        g.sample_size(10);
+        for (label, p) in lk {
+            g.bench_function(BenchmarkId::new(label, name), |bench| {
+                bench.iter(|| pool.install(|| dense_lk(&a, &b, &p)))
+            });
+        }
+        g.bench_function(BenchmarkId::new("hs_medium", name), |bench| {
+            bench.iter(|| pool.install(|| horn_schunck(&a, &b, &HsParams::default())))
+        });
+        let points = good_features(&a, 300, 0.01, 8.0);
+        g.bench_function(BenchmarkId::new("track_300", name), |bench| {
+            bench.iter(|| pool.install(|| track(&a, &b, &points, &TrackParams::default())))
+        });
+        g.finish();
+    }
+}
+
+criterion_group!(benches, flow);
+criterion_main!(benches);

@@ -24,8 +24,8 @@ use ndarray::Array2;
 use rayon::prelude::*;
 
 use super::pyramid::{
-    filter_cols_slice, filter_rows_slice, gaussian_kernel, pyramid, rows_per_task, separable_slice,
-    upsample2, DERIVATIVE,
+    filter_cols_slice, filter_rows_slice, gaussian_kernel, parallel_worth, pyramid, rows_per_task,
+    separable_slice, upsample2, DERIVATIVE,
 };
 use super::warp::sample_bicubic;
 use super::Flow;
@@ -140,26 +140,23 @@ impl Scratch {
         // Rows in parallel: each pixel is computed the same way whatever
         // the number of threads.
         let band = rows_per_task(w);
-        self.it[..h * w]
-            .par_chunks_mut(band * w)
-            .zip(self.inside[..h * w].par_chunks_mut(band * w))
-            .enumerate()
-            .map(|(t, (it, m))| {
-                let mut any_outside = false;
-                for k in 0..it.len() {
-                    let (y, x) = (t * band + k / w, k % w);
+        let row_band = |(t, (it, m)): (usize, (&mut [f32], &mut [f32]))| {
+            let mut any_outside = false;
+            for (r, (it, m)) in it.chunks_mut(w).zip(m.chunks_mut(w)).enumerate() {
+                let y = t * band + r;
+                for x in 0..w {
                     let i = y * w + x;
                     let (px, py) = (x as f32 + su[i], y as f32 + sv[i]);
                     if !(px >= 0.0 && py >= 0.0 && px <= wmax && py <= hmax) {
-                        it[k] = 0.0;
-                        m[k] = 0.0;
+                        it[x] = 0.0;
+                        m[x] = 0.0;
                         any_outside = true;
                         continue;
                     }
-                    m[k] = 1.0;
+                    m[x] = 1.0;
                     // Inside by at least a pixel: the 4x4 footprint needs no clamping.
                     let (ix, iy) = (px as usize, py as usize);
-                    it[k] = if ix >= 1 && iy >= 1 && ix + 2 < w && iy + 2 < h {
+                    it[x] = if ix >= 1 && iy >= 1 && ix + 2 < w && iy + 2 < h {
                         let (wx, wy) = (cubic(px - ix as f32), cubic(py - iy as f32));
                         let mut acc = 0.0;
                         for (j, &wyj) in wy.iter().enumerate() {
@@ -171,9 +168,28 @@ impl Scratch {
                         sample_bicubic(a2, px, py)
                     } - s1[i];
                 }
-                any_outside
-            })
-            .reduce(|| false, |a, b| a || b)
+            }
+            any_outside
+        };
+        let (it, inside) = (&mut self.it[..h * w], &mut self.inside[..h * w]);
+        if parallel_worth(h * w) {
+            it.par_chunks_mut(band * w)
+                .zip(inside.par_chunks_mut(band * w))
+                .enumerate()
+                .map(row_band)
+                .reduce(|| false, |a, b| a || b)
+        } else {
+            // Every band must run (it writes its rows): no short-circuit.
+            let mut any_outside = false;
+            for band_rows in it
+                .chunks_mut(band * w)
+                .zip(inside.chunks_mut(band * w))
+                .enumerate()
+            {
+                any_outside |= row_band(band_rows);
+            }
+            any_outside
+        }
     }
 }
 

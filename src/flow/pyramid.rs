@@ -127,6 +127,13 @@ pub(crate) fn rows_per_task(w: usize) -> usize {
     (4096 / w.max(1)).max(1)
 }
 
+/// Whether a pass over `n` samples is worth splitting across threads: not
+/// with one thread (rayon's bookkeeping would be pure cost) nor for small
+/// pyramid levels. Either way each row is computed the same way.
+pub(crate) fn parallel_worth(n: usize) -> bool {
+    n >= 32768 && rayon::current_num_threads() > 1
+}
+
 /// Convolves every row of the row-major `h x w` picture `src` with `kernel`
 /// (odd length, centred, at most 63 taps), edges repeated, into `out`.
 /// Bands of rows run in parallel; each row is computed the same way whatever

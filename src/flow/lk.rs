@@ -24,8 +24,8 @@ use ndarray::Array2;
 use rayon::prelude::*;
 
 use super::pyramid::{
-    filter_cols_slice, filter_rows_slice, gaussian_kernel, parallel_worth, pyramid, rows_per_task,
-    separable_slice, upsample2, DERIVATIVE,
+    filter_cols_slice, filter_rows_slice, gaussian_kernel, parallel_worth, rows_per_task, separable_slice,
+    upsample2, Pyramid, DERIVATIVE,
 };
 use super::warp::sample_bicubic;
 use super::Flow;
@@ -87,7 +87,8 @@ fn min_eigen(a: f32, b: f32, c: f32) -> f32 {
 }
 
 /// Work buffers, allocated once at the finest level's size and reused, in
-/// their leading `h * w` part, by every level.
+/// their leading `h * w` part, by every level (and by later calls).
+#[derive(Debug)]
 struct Scratch {
     gx: Vec<f32>,
     gy: Vec<f32>,
@@ -218,111 +219,154 @@ fn cubic(t: f32) -> [f32; 4] {
 /// assert!((u - 1.5).abs() < 0.05 && (v + 0.5).abs() < 0.05);
 /// ```
 pub fn dense_lk(i1: &Array2<f32>, i2: &Array2<f32>, p: &LkParams) -> LkResult {
-    assert_eq!(i1.dim(), i2.dim(), "dense_lk: pictures of different sizes");
-    assert!(
-        p.sigma > 0.0 && p.sigma <= 10.0,
-        "dense_lk: window sigma {} outside (0, 10]",
-        p.sigma
-    );
-    let window = gaussian_kernel(p.sigma);
-    // Coarse levels may be smaller than the window (borders repeat): what
-    // matters is that the coarsest level sees the motion as under a pixel.
-    let min_size = 8;
-    let (p1, p2) = (pyramid(i1, p.levels, min_size), pyramid(i2, p.levels, min_size));
-    let coarsest = p1.len() - 1;
-    let finest = p.finest.min(coarsest);
-    let (mut u, mut v) = {
-        let (h, w) = p1[coarsest].dim();
-        (Array2::<f32>::zeros((h, w)), Array2::<f32>::zeros((h, w)))
-    };
-    let mut lambda = Array2::zeros(p1[coarsest].dim());
-    let mut buf = Scratch::new(p1[finest].len());
-    for level in (finest..=coarsest).rev() {
-        let (a1, a2) = (&p1[level], &p2[level]);
-        let (h, w) = a1.dim();
-        let n = h * w;
-        if u.dim() != (h, w) {
-            u = upsample(&u, h, w);
-            v = upsample(&v, h, w);
+    Lk::new(*p).compute(i1, i2)
+}
+
+/// Dense Lucas-Kanade that keeps its pyramids and work buffers from one call
+/// to the next (pictures of the same size then cost no allocation beyond
+/// the result), for sequences and for timing the method rather than the
+/// allocator.
+#[derive(Debug)]
+pub struct Lk {
+    params: LkParams,
+    p1: Pyramid,
+    p2: Pyramid,
+    scratch: Option<Scratch>,
+}
+
+impl Lk {
+    /// An estimator with these settings.
+    pub fn new(params: LkParams) -> Lk {
+        assert!(
+            params.sigma > 0.0 && params.sigma <= 10.0,
+            "dense_lk: window sigma {} outside (0, 10]",
+            params.sigma
+        );
+        Lk {
+            params,
+            p1: Pyramid::default(),
+            p2: Pyramid::default(),
+            scratch: None,
         }
-        let s1 = a1.as_slice().expect("standard");
-        buf.prepare(s1, h, w);
-        lambda = Array2::zeros((h, w));
-        let mut tensor_unmasked = false;
-        for _ in 0..p.iterations {
-            let any_outside = buf.temporal(
-                s1,
-                a2,
-                u.as_slice().expect("standard"),
-                v.as_slice().expect("standard"),
-                h,
-                w,
-            );
-            // The window tensor, without the pixels whose warped position
-            // left the picture (they see only the repeated edge); filtered
-            // once while no pixel is out.
-            if any_outside || !tensor_unmasked {
-                for k in 0..3 {
-                    if any_outside {
-                        for i in 0..n {
-                            buf.masked[i] = buf.products[k][i] * buf.inside[i];
+    }
+
+    /// Dense flow from `i1` to `i2` (same size, grey levels 0..255).
+    pub fn compute(&mut self, i1: &Array2<f32>, i2: &Array2<f32>) -> LkResult {
+        assert_eq!(i1.dim(), i2.dim(), "dense_lk: pictures of different sizes");
+        let p = self.params;
+        let window = gaussian_kernel(p.sigma);
+        // Coarse levels may be smaller than the window (borders repeat): what
+        // matters is that the coarsest level sees the motion as under a pixel.
+        let min_size = 8;
+        self.p1.build(i1, p.levels, min_size);
+        self.p2.build(i2, p.levels, min_size);
+        let (p1, p2) = (&self.p1.levels, &self.p2.levels);
+        let coarsest = p1.len() - 1;
+        let finest = p.finest.min(coarsest);
+        let (mut u, mut v) = {
+            let (h, w) = p1[coarsest].dim();
+            (Array2::<f32>::zeros((h, w)), Array2::<f32>::zeros((h, w)))
+        };
+        let needed = p1[finest].len();
+        if self.scratch.as_ref().is_none_or(|s| s.gx.len() < needed) {
+            self.scratch = Some(Scratch::new(needed));
+        }
+        let buf = self.scratch.as_mut().expect("just made");
+        let mut lambda = Array2::zeros(p1[coarsest].dim());
+        for level in (finest..=coarsest).rev() {
+            let (a1, a2) = (&p1[level], &p2[level]);
+            let (h, w) = a1.dim();
+            let n = h * w;
+            if u.dim() != (h, w) {
+                u = upsample(&u, h, w);
+                v = upsample(&v, h, w);
+            }
+            let s1 = a1.as_slice().expect("standard");
+            buf.prepare(s1, h, w);
+            lambda = Array2::zeros((h, w));
+            let mut tensor_unmasked = false;
+            for _ in 0..p.iterations {
+                let any_outside = buf.temporal(
+                    s1,
+                    a2,
+                    u.as_slice().expect("standard"),
+                    v.as_slice().expect("standard"),
+                    h,
+                    w,
+                );
+                // The window tensor, without the pixels whose warped position
+                // left the picture (they see only the repeated edge); filtered
+                // once while no pixel is out.
+                if any_outside || !tensor_unmasked {
+                    for k in 0..3 {
+                        if any_outside {
+                            for i in 0..n {
+                                buf.masked[i] = buf.products[k][i] * buf.inside[i];
+                            }
+                            separable_slice(&buf.masked, h, w, &window, &mut buf.tmp, &mut buf.tensor[k]);
+                        } else {
+                            separable_slice(
+                                &buf.products[k],
+                                h,
+                                w,
+                                &window,
+                                &mut buf.tmp,
+                                &mut buf.tensor[k],
+                            );
                         }
-                        separable_slice(&buf.masked, h, w, &window, &mut buf.tmp, &mut buf.tensor[k]);
-                    } else {
-                        separable_slice(&buf.products[k], h, w, &window, &mut buf.tmp, &mut buf.tensor[k]);
+                    }
+                    tensor_unmasked = !any_outside;
+                }
+                for i in 0..n {
+                    buf.masked[i] = buf.gx[i] * buf.it[i];
+                }
+                separable_slice(&buf.masked, h, w, &window, &mut buf.tmp, &mut buf.bx);
+                for i in 0..n {
+                    buf.masked[i] = buf.gy[i] * buf.it[i];
+                }
+                separable_slice(&buf.masked, h, w, &window, &mut buf.tmp, &mut buf.by);
+                let [sa, sb, sc] = [0, 1, 2].map(|k| &buf.tensor[k][..n]);
+                let (sbx, sby) = (&buf.bx[..n], &buf.by[..n]);
+                let (us, vs) = (
+                    u.as_slice_mut().expect("standard"),
+                    v.as_slice_mut().expect("standard"),
+                );
+                let ls = lambda.as_slice_mut().expect("standard");
+                for i in 0..n {
+                    let (a, b, c) = (sa[i], sb[i], sc[i]);
+                    ls[i] = min_eigen(a, b, c);
+                    if ls[i] >= p.min_eigen {
+                        let det = a * c - b * b;
+                        us[i] -= (c * sbx[i] - b * sby[i]) / det;
+                        vs[i] -= (a * sby[i] - b * sbx[i]) / det;
                     }
                 }
-                tensor_unmasked = !any_outside;
-            }
-            for i in 0..n {
-                buf.masked[i] = buf.gx[i] * buf.it[i];
-            }
-            separable_slice(&buf.masked, h, w, &window, &mut buf.tmp, &mut buf.bx);
-            for i in 0..n {
-                buf.masked[i] = buf.gy[i] * buf.it[i];
-            }
-            separable_slice(&buf.masked, h, w, &window, &mut buf.tmp, &mut buf.by);
-            let [sa, sb, sc] = [0, 1, 2].map(|k| &buf.tensor[k][..n]);
-            let (sbx, sby) = (&buf.bx[..n], &buf.by[..n]);
-            let (us, vs) = (
-                u.as_slice_mut().expect("standard"),
-                v.as_slice_mut().expect("standard"),
-            );
-            let ls = lambda.as_slice_mut().expect("standard");
-            for i in 0..n {
-                let (a, b, c) = (sa[i], sb[i], sc[i]);
-                ls[i] = min_eigen(a, b, c);
-                if ls[i] >= p.min_eigen {
-                    let det = a * c - b * b;
-                    us[i] -= (c * sbx[i] - b * sby[i]) / det;
-                    vs[i] -= (a * sby[i] - b * sbx[i]) / det;
-                }
             }
         }
-    }
-    // From the finest level computed up to full size.
-    let (h0, w0) = i1.dim();
-    let mut level = finest;
-    while level > 0 {
-        let (h, w) = p1[level - 1].dim();
-        u = upsample(&u, h, w);
-        v = upsample(&v, h, w);
-        level -= 1;
-    }
-    let scale = 1usize << finest;
-    let mut confidence = Array2::zeros((h0, w0));
-    let (lh, lw) = lambda.dim();
-    let ls = lambda.as_slice().expect("standard");
-    for (y, mut row) in confidence.rows_mut().into_iter().enumerate() {
-        let src = &ls[(y / scale).min(lh - 1) * lw..][..lw];
-        for (x, c) in row.iter_mut().enumerate() {
-            *c = src[(x / scale).min(lw - 1)];
+        // From the finest level computed up to full size.
+        let (h0, w0) = i1.dim();
+        let mut level = finest;
+        while level > 0 {
+            let (h, w) = p1[level - 1].dim();
+            u = upsample(&u, h, w);
+            v = upsample(&v, h, w);
+            level -= 1;
         }
-    }
-    let fallback = confidence.mapv(|l| l < p.min_eigen);
-    LkResult {
-        flow: Flow::from_uv(u, v),
-        confidence,
-        fallback,
+        let scale = 1usize << finest;
+        let mut confidence = Array2::zeros((h0, w0));
+        let (lh, lw) = lambda.dim();
+        let ls = lambda.as_slice().expect("standard");
+        for (y, mut row) in confidence.rows_mut().into_iter().enumerate() {
+            let src = &ls[(y / scale).min(lh - 1) * lw..][..lw];
+            for (x, c) in row.iter_mut().enumerate() {
+                *c = src[(x / scale).min(lw - 1)];
+            }
+        }
+        let fallback = confidence.mapv(|l| l < p.min_eigen);
+        LkResult {
+            flow: Flow::from_uv(u, v),
+            confidence,
+            fallback,
+        }
     }
 }

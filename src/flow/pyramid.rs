@@ -77,27 +77,35 @@ fn combine_rows(rows: &[&[f32]], kernel: &[f32], dst: &mut [f32]) {
     }
 }
 
-/// One output row of the horizontal pass (`padded` holds the row with
-/// `kernel.len() / 2` repeated edge samples on each side).
+/// The horizontal pass over a band of whole rows (`src` and `out` hold the
+/// same rows), one padded copy of each row at a time.
 #[inline(always)]
-fn row_pass(row: &[f32], padded: &mut [f32], kernel: &[f32], out: &mut [f32]) {
-    let (r, w) = (kernel.len() / 2, row.len());
-    padded[..r].fill(row[0]);
-    padded[r..r + w].copy_from_slice(row);
-    padded[r + w..r + w + r].fill(row[w - 1]);
-    correlate_row(&padded[..w + 2 * r], kernel, out);
+fn rows_band(src: &[f32], w: usize, kernel: &[f32], out: &mut [f32]) {
+    let r = kernel.len() / 2;
+    let mut padded = vec![0f32; w + 2 * r];
+    for (row, dst) in src.chunks_exact(w).zip(out.chunks_exact_mut(w)) {
+        padded[..r].fill(row[0]);
+        padded[r..r + w].copy_from_slice(row);
+        padded[r + w..].fill(row[w - 1]);
+        correlate_row(&padded, kernel, dst);
+    }
 }
 
-/// One output row `y` of the vertical pass over the `h x w` picture `src`.
+/// The vertical pass for output rows `y0..` (as many as `out` holds) of
+/// the `h x w` picture `src`.
 #[inline(always)]
-fn col_pass(src: &[f32], h: usize, w: usize, y: usize, kernel: &[f32], out: &mut [f32]) {
+fn cols_band(src: &[f32], h: usize, w: usize, y0: usize, kernel: &[f32], out: &mut [f32]) {
     let r = kernel.len() as isize / 2;
-    let mut rows: [&[f32]; 64] = [&[]; 64];
-    for (k, slot) in rows.iter_mut().enumerate().take(kernel.len()) {
-        let sy = (y as isize + k as isize - r).clamp(0, h as isize - 1) as usize;
-        *slot = &src[sy * w..(sy + 1) * w];
+    let mut rows: Vec<&[f32]> = Vec::with_capacity(kernel.len());
+    for (k, dst) in out.chunks_exact_mut(w).enumerate() {
+        let y = y0 + k;
+        rows.clear();
+        for t in 0..kernel.len() as isize {
+            let sy = (y as isize + t - r).clamp(0, h as isize - 1) as usize;
+            rows.push(&src[sy * w..(sy + 1) * w]);
+        }
+        combine_rows(&rows, kernel, dst);
     }
-    combine_rows(&rows[..kernel.len()], kernel, out);
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -105,13 +113,13 @@ mod wide {
     // The same code compiled for AVX2 (no FMA, so the results are the same
     // bits as the baseline build's).
     #[target_feature(enable = "avx2")]
-    pub unsafe fn row_pass(row: &[f32], padded: &mut [f32], kernel: &[f32], out: &mut [f32]) {
-        super::row_pass(row, padded, kernel, out)
+    pub unsafe fn rows_band(src: &[f32], w: usize, kernel: &[f32], out: &mut [f32]) {
+        super::rows_band(src, w, kernel, out)
     }
 
     #[target_feature(enable = "avx2")]
-    pub unsafe fn col_pass(src: &[f32], h: usize, w: usize, y: usize, kernel: &[f32], out: &mut [f32]) {
-        super::col_pass(src, h, w, y, kernel, out)
+    pub unsafe fn cols_band(src: &[f32], h: usize, w: usize, y0: usize, kernel: &[f32], out: &mut [f32]) {
+        super::cols_band(src, h, w, y0, kernel, out)
     }
 }
 
@@ -119,6 +127,24 @@ mod wide {
 fn has_avx2() -> bool {
     static AVX2: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     *AVX2.get_or_init(|| std::arch::is_x86_feature_detected!("avx2"))
+}
+
+fn rows_band_dispatch(src: &[f32], w: usize, kernel: &[f32], out: &mut [f32]) {
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2() {
+        // SAFETY: AVX2 is present, checked above.
+        return unsafe { wide::rows_band(src, w, kernel, out) };
+    }
+    rows_band(src, w, kernel, out)
+}
+
+fn cols_band_dispatch(src: &[f32], h: usize, w: usize, y0: usize, kernel: &[f32], out: &mut [f32]) {
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2() {
+        // SAFETY: AVX2 is present, checked above.
+        return unsafe { wide::cols_band(src, h, w, y0, kernel, out) };
+    }
+    cols_band(src, h, w, y0, kernel, out)
 }
 
 /// Rows per parallel task: about 4096 samples, so that small pyramid levels
@@ -135,49 +161,36 @@ pub(crate) fn parallel_worth(n: usize) -> bool {
 }
 
 /// Convolves every row of the row-major `h x w` picture `src` with `kernel`
-/// (odd length, centred, at most 63 taps), edges repeated, into `out`.
-/// Bands of rows run in parallel; each row is computed the same way whatever
-/// the number of threads.
+/// (odd length, centred), edges repeated, into `out`. Bands of rows run in
+/// parallel when that pays; each row is computed the same way whatever the
+/// number of threads.
 pub fn filter_rows_slice(src: &[f32], h: usize, w: usize, kernel: &[f32], out: &mut [f32]) {
-    assert!(src.len() >= h * w && out.len() >= h * w && kernel.len() % 2 == 1 && kernel.len() < 64);
-    let r = kernel.len() / 2;
-    out[..h * w]
-        .par_chunks_mut(w)
-        .zip(src[..h * w].par_chunks(w))
-        .for_each_init(
-            || vec![0f32; w + 2 * r],
-            |padded, (dst, row)| {
-                #[cfg(target_arch = "x86_64")]
-                if has_avx2() {
-                    // SAFETY: AVX2 is present, checked above.
-                    return unsafe { wide::row_pass(row, padded, kernel, dst) };
-                }
-                row_pass(row, padded, kernel, dst)
-            },
-        );
+    assert!(src.len() >= h * w && out.len() >= h * w && kernel.len() % 2 == 1);
+    let (src, out) = (&src[..h * w], &mut out[..h * w]);
+    if parallel_worth(h * w) {
+        let band = rows_per_task(w) * w;
+        out.par_chunks_mut(band)
+            .zip(src.par_chunks(band))
+            .for_each(|(o, s)| rows_band_dispatch(s, w, kernel, o));
+    } else {
+        rows_band_dispatch(src, w, kernel, out);
+    }
 }
 
 /// Convolves every column of the row-major `h x w` picture `src` with
-/// `kernel` (odd length, at most 63 taps), edges repeated, into `out`; rows
-/// of the output in parallel.
+/// `kernel` (odd length), edges repeated, into `out`; bands of output rows
+/// in parallel when that pays.
 pub fn filter_cols_slice(src: &[f32], h: usize, w: usize, kernel: &[f32], out: &mut [f32]) {
-    assert!(src.len() >= h * w && out.len() >= h * w && kernel.len() % 2 == 1 && kernel.len() < 64);
-    let rows = rows_per_task(w);
-    out[..h * w]
-        .par_chunks_mut(rows * w)
-        .enumerate()
-        .for_each(|(t, dst)| {
-            for (k, d) in dst.chunks_mut(w).enumerate() {
-                let y = t * rows + k;
-                #[cfg(target_arch = "x86_64")]
-                if has_avx2() {
-                    // SAFETY: AVX2 is present, checked above.
-                    unsafe { wide::col_pass(src, h, w, y, kernel, d) };
-                    continue;
-                }
-                col_pass(src, h, w, y, kernel, d)
-            }
-        });
+    assert!(src.len() >= h * w && out.len() >= h * w && kernel.len() % 2 == 1);
+    let (src, out) = (&src[..h * w], &mut out[..h * w]);
+    if parallel_worth(h * w) {
+        let rows = rows_per_task(w);
+        out.par_chunks_mut(rows * w)
+            .enumerate()
+            .for_each(|(t, o)| cols_band_dispatch(src, h, w, t * rows, kernel, o));
+    } else {
+        cols_band_dispatch(src, h, w, 0, kernel, out);
+    }
 }
 
 /// Separable convolution of a row-major `h x w` picture, through `tmp`.
@@ -232,23 +245,72 @@ pub fn blur(src: &Array2<f32>, sigma: f32) -> Array2<f32> {
 }
 
 /// Half-size picture: blurred (sigma 1, which removes what 2x decimation
-/// would alias) and sampled at every second pixel (pixel centres of the
-/// small picture at 2x + 0.5 of the large one, averaged over the pair).
+/// would alias) and averaged over each 2x2 pair of samples (pixel centres
+/// of the small picture at 2x + 0.5 of the large one). The blur and the
+/// average are one filter, `0.5 (g[t] + g[t - 1])`, evaluated only where
+/// the small picture has samples: every other column in the row pass, every
+/// other row in the column pass.
 pub fn downsample(src: &Array2<f32>) -> Array2<f32> {
-    let blurred = blur(src, 1.0);
+    let (h, w) = src.dim();
+    let mut out = Array2::zeros((h.div_ceil(2), w.div_ceil(2)));
+    downsample_into(&src.as_standard_layout().to_owned(), &mut Vec::new(), &mut out);
+    out
+}
+
+/// [`downsample`] into `out` (of the half size), with `tmp` as the row
+/// pass's buffer (grown as needed): no allocation once sizes settle.
+pub fn downsample_into(src: &Array2<f32>, tmp: &mut Vec<f32>, out: &mut Array2<f32>) {
+    let s = src.as_slice().expect("standard");
     let (h, w) = src.dim();
     let (nh, nw) = (h.div_ceil(2), w.div_ceil(2));
-    let b = blurred.as_slice().expect("standard");
-    let mut out = Array2::zeros((nh, nw));
-    let o = out.as_slice_mut().expect("standard");
-    for y in 0..nh {
-        let (r0, r1) = (2 * y * w, (2 * y + 1).min(h - 1) * w);
-        for x in 0..nw {
-            let (x0, x1) = (2 * x, (2 * x + 1).min(w - 1));
-            o[y * nw + x] = 0.25 * (b[r0 + x0] + b[r0 + x1] + b[r1 + x0] + b[r1 + x1]);
+    assert_eq!(out.dim(), (nh, nw), "downsample_into: output size");
+    let g = gaussian_kernel(1.0);
+    let r = (g.len() / 2) as isize;
+    // Taps for input offsets -r ..= r + 1 around 2x.
+    let taps: Vec<f32> = (-r..=r + 1)
+        .map(|t| {
+            let at = |k: isize| {
+                if (-r..=r).contains(&k) {
+                    g[(k + r) as usize]
+                } else {
+                    0.0
+                }
+            };
+            0.5 * (at(t) + at(t - 1))
+        })
+        .collect();
+    let clamp = |i: isize, n: usize| i.clamp(0, n as isize - 1) as usize;
+    // Row pass at even columns: h x nw.
+    tmp.resize(h * nw, 0.0);
+    for y in 0..h {
+        let row = &s[y * w..(y + 1) * w];
+        let dst = &mut tmp[y * nw..(y + 1) * nw];
+        for (x, o) in dst.iter_mut().enumerate() {
+            let base = 2 * x as isize - r;
+            let interior = base >= 0 && base + taps.len() as isize <= w as isize;
+            *o = if interior {
+                let window = &row[base as usize..base as usize + taps.len()];
+                window.iter().zip(&taps).map(|(a, b)| a * b).sum()
+            } else {
+                taps.iter()
+                    .enumerate()
+                    .map(|(k, &t)| t * row[clamp(base + k as isize, w)])
+                    .sum()
+            };
         }
     }
-    out
+    // Column pass at even rows: nh x nw.
+    let o = out.as_slice_mut().expect("standard");
+    o.fill(0.0);
+    for y in 0..nh {
+        let dst = &mut o[y * nw..(y + 1) * nw];
+        for (k, &t) in taps.iter().enumerate() {
+            let sy = clamp(2 * y as isize - r + k as isize, h);
+            for (d, &v) in dst.iter_mut().zip(&tmp[sy * nw..(sy + 1) * nw]) {
+                *d += t * v;
+            }
+        }
+    }
 }
 
 /// Twice-size picture of `h x w` (each at most twice the input's, at least
@@ -289,16 +351,45 @@ pub fn upsample2(src: &Array2<f32>, h: usize, w: usize, scale: f32) -> Array2<f3
 /// size of the one before, until `levels` levels or the picture would fall
 /// below `min_size` pixels on a side.
 pub fn pyramid(src: &Array2<f32>, levels: usize, min_size: usize) -> Vec<Array2<f32>> {
-    let mut out = vec![src.as_standard_layout().to_owned()];
-    while out.len() < levels.max(1) {
-        let last = &out[out.len() - 1];
-        let (h, w) = last.dim();
-        if h.div_ceil(2) < min_size || w.div_ceil(2) < min_size {
-            break;
+    let mut p = Pyramid::default();
+    p.build(src, levels, min_size);
+    p.levels
+}
+
+/// A pyramid whose levels are rebuilt in place when the picture size does
+/// not change (no allocation after the first build).
+#[derive(Debug, Default, Clone)]
+pub struct Pyramid {
+    /// Level 0 (full size) first.
+    pub levels: Vec<Array2<f32>>,
+    tmp: Vec<f32>,
+}
+
+impl Pyramid {
+    /// Rebuilds the levels from `src`, as [`pyramid`] does.
+    pub fn build(&mut self, src: &Array2<f32>, levels: usize, min_size: usize) {
+        let mut dims = vec![src.dim()];
+        while dims.len() < levels.max(1) {
+            let (h, w) = dims[dims.len() - 1];
+            if h.div_ceil(2) < min_size || w.div_ceil(2) < min_size {
+                break;
+            }
+            dims.push((h.div_ceil(2), w.div_ceil(2)));
         }
-        out.push(downsample(last));
+        self.levels.truncate(dims.len());
+        for (i, &d) in dims.iter().enumerate() {
+            if i >= self.levels.len() {
+                self.levels.push(Array2::zeros(d));
+            } else if self.levels[i].dim() != d {
+                self.levels[i] = Array2::zeros(d);
+            }
+        }
+        self.levels[0].assign(src);
+        for i in 1..dims.len() {
+            let (lower, upper) = self.levels.split_at_mut(i);
+            downsample_into(&lower[i - 1], &mut self.tmp, &mut upper[0]);
+        }
     }
-    out
 }
 
 /// The 5-tap central difference `(1, -8, 0, 8, -1) / 12`, as a correlation

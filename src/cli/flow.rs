@@ -225,16 +225,7 @@ pub fn run(args: &Args) -> Result<()> {
     if args.runs == 0 {
         bail!("--runs must be at least 1");
     }
-    let pool = {
-        let mut b = rayon::ThreadPoolBuilder::new();
-        if let Some(n) = args.threads {
-            if n == 0 {
-                bail!("--threads must be at least 1");
-            }
-            b = b.num_threads(n);
-        }
-        b.build()?
-    };
+    let pool = super::thread_pool(args.threads)?;
     let mut times = Vec::with_capacity(args.runs);
     let mut flow = Flow::zeros(1, 1);
     // The estimator is made once, outside the timing, as the OpenCV peer

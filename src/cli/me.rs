@@ -137,16 +137,7 @@ pub fn run(args: &Args) -> Result<()> {
         cfg.lambda = lambda_for_qp(args.metric, qp);
     }
     let (first, last) = parse_frames(args.frames.as_deref())?;
-    let pool = {
-        let mut b = rayon::ThreadPoolBuilder::new();
-        if let Some(n) = args.threads {
-            if n == 0 {
-                bail!("--threads must be at least 1");
-            }
-            b = b.num_threads(n);
-        }
-        b.build()?
-    };
+    let pool = super::thread_pool(args.threads)?;
     let name = args.input.display().to_string();
     let mut reader = Y4mReader::open(&args.input).with_context(|| name.clone())?;
     let (w, h) = (reader.info().width, reader.info().height);

@@ -27,7 +27,7 @@ use super::pyramid::{
     filter_cols_slice, filter_rows_slice, gaussian_kernel, parallel_worth, rows_per_task, separable_slice,
     upsample2, Pyramid, DERIVATIVE,
 };
-use super::warp::sample_bicubic;
+use super::warp::{cubic_weights, sample_bicubic};
 use super::Flow;
 
 /// Settings of dense Lucas-Kanade.
@@ -158,7 +158,7 @@ impl Scratch {
                     // Inside by at least a pixel: the 4x4 footprint needs no clamping.
                     let (ix, iy) = (px as usize, py as usize);
                     it[x] = if ix >= 1 && iy >= 1 && ix + 2 < w && iy + 2 < h {
-                        let (wx, wy) = (cubic(px - ix as f32), cubic(py - iy as f32));
+                        let (wx, wy) = (cubic_weights(px - ix as f32), cubic_weights(py - iy as f32));
                         let mut acc = 0.0;
                         for (j, &wyj) in wy.iter().enumerate() {
                             let row = &s2[(iy + j - 1) * w + ix - 1..(iy + j - 1) * w + ix + 3];
@@ -192,18 +192,6 @@ impl Scratch {
             any_outside
         }
     }
-}
-
-/// Keys' cubic weights (a = -0.5) at fraction `t`, as `warp::sample_bicubic`.
-#[inline]
-fn cubic(t: f32) -> [f32; 4] {
-    let (t2, t3) = (t * t, t * t * t);
-    [
-        -0.5 * t3 + t2 - 0.5 * t,
-        1.5 * t3 - 2.5 * t2 + 1.0,
-        -1.5 * t3 + 2.0 * t2 + 0.5 * t,
-        0.5 * t3 - 0.5 * t2,
-    ]
 }
 
 /// Dense flow from `i1` to `i2` (same size, grey levels 0..255).

@@ -22,7 +22,7 @@ pub fn sample_bilinear(img: &Array2<f32>, x: f32, y: f32) -> f32 {
 /// Keys' cubic convolution weights (a = -0.5, Catmull-Rom) for the four
 /// samples around a point at fraction `t` in [0, 1).
 #[inline]
-fn cubic_weights(t: f32) -> [f32; 4] {
+pub(crate) fn cubic_weights(t: f32) -> [f32; 4] {
     let (t2, t3) = (t * t, t * t * t);
     [
         -0.5 * t3 + t2 - 0.5 * t,

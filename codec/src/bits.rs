@@ -456,9 +456,9 @@ mod tests {
             let mut r = BitReader::new(&bytes);
             for e in &elements {
                 match *e {
-                    Element::Bits(v, n) => prop_assert_eq!(r.get(n).unwrap(), v),
-                    Element::Ue(v) => prop_assert_eq!(r.get_ue().unwrap(), v),
-                    Element::Se(v) => prop_assert_eq!(r.get_se().unwrap(), v),
+                    Element::Bits(v, n) => prop_assert_eq!(r.get(n), Ok(v)),
+                    Element::Ue(v) => prop_assert_eq!(r.get_ue(), Ok(v)),
+                    Element::Se(v) => prop_assert_eq!(r.get_se(), Ok(v)),
                     Element::Align => r.align(),
                 }
             }

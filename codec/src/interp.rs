@@ -217,6 +217,7 @@ pub fn predict_chroma(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::picture::PictureError;
     use proptest::prelude::*;
 
     /// The luma equations written directly: every sample read through
@@ -278,16 +279,15 @@ mod tests {
         out
     }
 
-    fn noise_plane(w: usize, h: usize, seed: u32) -> Plane {
+    fn noise_plane(w: usize, h: usize, seed: u32) -> Result<Plane, PictureError> {
         Plane::from_fn(w, h, |x, y| {
             let v = (x as u32).wrapping_mul(2_654_435_761) ^ (y as u32).wrapping_mul(40_503) ^ seed;
             (v.wrapping_mul(2_246_822_519) >> 24) as u8
         })
-        .unwrap()
     }
 
     #[test]
-    fn taps_sum_to_64_and_half_pel_is_symmetric() {
+    fn taps_sum_to_64_and_half_pel_is_symmetric() -> Result<(), PictureError> {
         for t in LUMA_TAPS {
             assert_eq!(t.iter().sum::<i32>(), 64);
         }
@@ -301,11 +301,12 @@ mod tests {
         for k in 0..8 {
             assert_eq!(q[k], tq[7 - k]);
         }
+        Ok(())
     }
 
     #[test]
-    fn every_phase_matches_the_direct_formula() {
-        let p = noise_plane(37, 29, 7);
+    fn every_phase_matches_the_direct_formula() -> Result<(), PictureError> {
+        let p = noise_plane(37, 29, 7)?;
         let mut out = vec![0u8; 16 * 16];
         for mvy in -9..=9 {
             for mvx in -9..=9 {
@@ -319,7 +320,7 @@ mod tests {
                 }
             }
         }
-        let c = noise_plane(19, 15, 3);
+        let c = noise_plane(19, 15, 3)?;
         for mvy in -17..=17 {
             for mvx in -17..=17 {
                 for (x, y, w, h) in [(0, 0, 8, 8), (11, 7, 8, 8), (16, 12, 4, 4)] {
@@ -332,11 +333,12 @@ mod tests {
                 }
             }
         }
+        Ok(())
     }
 
     #[test]
-    fn integer_vectors_copy_and_flat_pictures_stay_flat() {
-        let p = noise_plane(40, 40, 1);
+    fn integer_vectors_copy_and_flat_pictures_stay_flat() -> Result<(), PictureError> {
+        let p = noise_plane(40, 40, 1)?;
         let mut out = [0u8; 64];
         predict_luma(&p, 8, 8, 4 * 3, 4 * -2, 8, 8, &mut out, 8);
         for r in 0..8 {
@@ -344,13 +346,14 @@ mod tests {
                 assert_eq!(out[r * 8 + c], p.get(11 + c, 6 + r));
             }
         }
-        let flat = Plane::filled(20, 20, 173).unwrap();
+        let flat = Plane::filled(20, 20, 173)?;
         for phase in 0..16 {
             predict_luma(&flat, 2, 2, phase % 4 + 4, phase / 4 - 8, 8, 8, &mut out, 8);
             assert!(out.iter().all(|&v| v == 173));
             predict_chroma(&flat, 2, 2, phase % 8, phase / 2 - 3, 8, 8, &mut out, 8);
             assert!(out.iter().all(|&v| v == 173));
         }
+        Ok(())
     }
 
     proptest! {
@@ -359,11 +362,11 @@ mod tests {
             mvx in -40_000i32..40_000, mvy in -40_000i32..40_000,
             x in -20isize..60, y in -20isize..60, size in prop_oneof![Just(4usize), Just(8), Just(16), Just(32)]
         ) {
-            let p = noise_plane(45, 38, 11);
+            let p = noise_plane(45, 38, 11)?;
             let mut out = vec![0u8; size * size];
             predict_luma(&p, x, y, mvx, mvy, size, size, &mut out, size);
             prop_assert_eq!(&out, &reference_luma(&p, x, y, mvx, mvy, size, size));
-            let c = noise_plane(23, 19, 5);
+            let c = noise_plane(23, 19, 5)?;
             let cs = (size / 2).max(2);
             let mut out = vec![0u8; cs * cs];
             predict_chroma(&c, x / 2, y / 2, mvx, mvy, cs, cs, &mut out, cs);

@@ -106,13 +106,14 @@ pub fn predict_block(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::picture::PictureError;
 
-    fn noise(w: usize, h: usize) -> Plane {
-        Plane::from_fn(w, h, |x, y| (((x * 2_654_435_761) ^ (y * 40_503)) >> 3) as u8).unwrap()
+    fn noise(w: usize, h: usize) -> Result<Plane, PictureError> {
+        Plane::from_fn(w, h, |x, y| (((x * 2_654_435_761) ^ (y * 40_503)) >> 3) as u8)
     }
 
     #[test]
-    fn windows_follow_the_raised_cosine() {
+    fn windows_follow_the_raised_cosine() -> Result<(), PictureError> {
         for size in [8usize, 16] {
             let len = 2 * size;
             let mut w = vec![0i32; len];
@@ -126,10 +127,11 @@ mod tests {
             }
             assert_eq!(window(size), &w[..]);
         }
+        Ok(())
     }
 
     #[test]
-    fn windows_are_symmetric_and_rise_smoothly() {
+    fn windows_are_symmetric_and_rise_smoothly() -> Result<(), PictureError> {
         for size in [8, 16] {
             let w = window(size);
             for n in 0..2 * size {
@@ -138,10 +140,11 @@ mod tests {
             }
             assert!(w[..size].windows(2).all(|p| p[0] <= p[1]), "{w:?}");
         }
+        Ok(())
     }
 
     #[test]
-    fn the_four_weights_sum_to_the_unit_at_every_pixel() {
+    fn the_four_weights_sum_to_the_unit_at_every_pixel() -> Result<(), PictureError> {
         for size in [8usize, 16] {
             let w = window(size);
             let half = size / 2;
@@ -155,11 +158,12 @@ mod tests {
                 }
             }
         }
+        Ok(())
     }
 
     #[test]
-    fn equal_vectors_give_plain_motion_compensation() {
-        let p = noise(64, 48);
+    fn equal_vectors_give_plain_motion_compensation() -> Result<(), PictureError> {
+        let p = noise(64, 48)?;
         let mv = Mv::new(5, -7);
         let around = [[Some(mv); 3]; 3];
         let (mut obmc, mut plain) = ([0u8; 256], [0u8; 256]);
@@ -171,13 +175,14 @@ mod tests {
         predict_block(&p, true, 4, 4, 8, mv, &alone, &mut obmc[..64], 8);
         predict_chroma(&p, 4, 4, mv.x, mv.y, 8, 8, &mut plain[..64], 8);
         assert_eq!(obmc[..64], plain[..64]);
+        Ok(())
     }
 
     #[test]
-    fn a_neighbours_vector_blends_in_towards_its_side() {
+    fn a_neighbours_vector_blends_in_towards_its_side() -> Result<(), PictureError> {
         // Flat picture halves: predictions with the two vectors differ by a
         // constant, so the blend shows the weights directly.
-        let p = Plane::from_fn(96, 64, |x, _| if x < 48 { 0 } else { 200 }).unwrap();
+        let p = Plane::from_fn(96, 64, |x, _| if x < 48 { 0 } else { 200 })?;
         let own = Mv::full_pel(-24, 0); // reads x 8..24: 0
         let right = Mv::full_pel(24, 0); // reads x 56..72: 200
         let mut around = [[None; 3]; 3];
@@ -198,5 +203,6 @@ mod tests {
             assert_eq!(i32::from(out[5 * 16 + x]), want, "x {x}");
         }
         assert!(out[15] > out[12] && out[12] > out[8]);
+        Ok(())
     }
 }

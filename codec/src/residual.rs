@@ -349,7 +349,7 @@ mod tests {
             let bits = w.len();
             let bytes = w.into_bytes();
             let mut r = BitReader::new(&bytes);
-            prop_assert_eq!(MbResidual::read(&mut r).unwrap(), res);
+            prop_assert_eq!(MbResidual::read(&mut r), Ok(res));
             prop_assert_eq!(r.position(), bits);
         }
 

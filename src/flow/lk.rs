@@ -73,12 +73,6 @@ pub struct LkResult {
     pub fallback: Array2<bool>,
 }
 
-/// Upsamples a flow component to `(h, w)`: each pixel samples the coarse
-/// field at its own centre ((x - 0.5) / 2) and doubles the motion.
-fn upsample(u: &Array2<f32>, h: usize, w: usize) -> Array2<f32> {
-    upsample2(u, h, w, 2.0)
-}
-
 #[inline]
 fn min_eigen(a: f32, b: f32, c: f32) -> f32 {
     let half_trace = 0.5 * (a + c);
@@ -266,8 +260,8 @@ impl Lk {
             let (h, w) = a1.dim();
             let n = h * w;
             if u.dim() != (h, w) {
-                u = upsample(&u, h, w);
-                v = upsample(&v, h, w);
+                u = upsample2(&u, h, w, 2.0);
+                v = upsample2(&v, h, w, 2.0);
             }
             let s1 = a1.as_slice().expect("standard");
             buf.prepare(s1, h, w);
@@ -336,8 +330,8 @@ impl Lk {
         let mut level = finest;
         while level > 0 {
             let (h, w) = p1[level - 1].dim();
-            u = upsample(&u, h, w);
-            v = upsample(&v, h, w);
+            u = upsample2(&u, h, w, 2.0);
+            v = upsample2(&v, h, w, 2.0);
             level -= 1;
         }
         let scale = 1usize << finest;

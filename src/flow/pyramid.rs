@@ -24,35 +24,18 @@ pub fn gaussian_kernel(sigma: f32) -> Vec<f32> {
 const CHUNK: usize = 16;
 
 /// `dst[x] = sum_k kernel[k] * src[x + k]` for `dst.len()` outputs (`src` is
-/// `kernel.len() - 1` longer): all taps of a chunk of outputs accumulate in
-/// registers before one store. Each output adds its terms in tap order, so
-/// every instruction set gives the same bits.
+/// `kernel.len() - 1` longer): [`combine_rows`] over the shifted copies
+/// `src[k..]`, so both passes share one accumulation loop.
 #[inline(always)]
 fn correlate_row(src: &[f32], kernel: &[f32], dst: &mut [f32]) {
     let n = dst.len();
-    let mut x = 0;
-    while x + CHUNK <= n {
-        let mut acc = [0f32; CHUNK];
-        for (k, &kv) in kernel.iter().enumerate() {
-            let s = &src[x + k..x + k + CHUNK];
-            for i in 0..CHUNK {
-                acc[i] += kv * s[i];
-            }
-        }
-        dst[x..x + CHUNK].copy_from_slice(&acc);
-        x += CHUNK;
-    }
-    for (i, d) in dst[x..].iter_mut().enumerate() {
-        *d = kernel
-            .iter()
-            .enumerate()
-            .map(|(k, &kv)| kv * src[x + i + k])
-            .fold(0.0, |a, b| a + b);
-    }
+    let shifted: Vec<&[f32]> = (0..kernel.len()).map(|k| &src[k..k + n]).collect();
+    combine_rows(&shifted, kernel, dst);
 }
 
-/// `dst[x] = sum_k kernel[k] * rows[k][x]`: the vertical filter of one
-/// output row from `kernel.len()` input rows, chunk by chunk in registers.
+/// `dst[x] = sum_k kernel[k] * rows[k][x]`, chunk by chunk: all taps of a
+/// chunk of outputs accumulate in registers before one store. Each output
+/// adds its terms in tap order, so every instruction set gives the same bits.
 #[inline(always)]
 fn combine_rows(rows: &[&[f32]], kernel: &[f32], dst: &mut [f32]) {
     let n = dst.len();
@@ -219,14 +202,6 @@ fn filter_cols(src: &Array2<f32>, kernel: &[f32], dst: &mut Array2<f32>) {
         kernel,
         dst.as_slice_mut().expect("contiguous"),
     )
-}
-
-/// Separable convolution with the same kernel along both axes, into `out`,
-/// using `tmp` (both of `src`'s size, standard layout) for the row pass.
-pub fn separable_into(src: &Array2<f32>, kernel: &[f32], tmp: &mut Array2<f32>, out: &mut Array2<f32>) {
-    assert!(src.is_standard_layout() && tmp.dim() == src.dim() && out.dim() == src.dim());
-    filter_rows(src, kernel, tmp);
-    filter_cols(tmp, kernel, out);
 }
 
 /// Separable convolution with the same kernel along both axes.

@@ -95,3 +95,24 @@ pub fn warp_bilinear(img: &Array2<f32>, flow: &Flow) -> Array2<f32> {
         sample_bilinear(img, x as f32 + u, y as f32 + v)
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bicubic_is_exact_on_quadratics_and_shifts_by_whole_pixels() {
+        let q = |x: f32, y: f32| 0.5 * x * x - 0.25 * x * y + 2.0 * y + 3.0;
+        let img = Array2::from_shape_fn((12, 12), |(y, x)| q(x as f32, y as f32));
+        for (x, y) in [(4.25, 5.5), (6.75, 3.125), (5.0, 5.0)] {
+            assert!((sample_bicubic(&img, x, y) - q(x, y)).abs() < 1e-3, "({x},{y})");
+        }
+        let flow = Flow::from_fn(12, 12, |_, _| (2.0, -1.0));
+        let warped = warp_bicubic(&img, &flow);
+        assert_eq!(warped[[5, 4]], img[[4, 6]]);
+        // Bilinear and bicubic agree on a linear ramp.
+        let ramp = Array2::from_shape_fn((8, 8), |(y, x)| 3.0 * x as f32 + y as f32);
+        let half = Flow::from_fn(8, 8, |_, _| (0.5, 0.25));
+        assert!((warp_bicubic(&ramp, &half)[[3, 3]] - warp_bilinear(&ramp, &half)[[3, 3]]).abs() < 1e-4);
+    }
+}

@@ -154,7 +154,8 @@ fn read_pair(args: &Args) -> Result<(Array2<f32>, Array2<f32>)> {
         let mut reader = Y4mReader::open(&args.first).with_context(|| name.clone())?;
         let (mut fa, mut fb) = (None, None);
         let mut t = 0;
-        while let Some(frame) = reader.read_frame().with_context(|| name.clone())? {
+        let mut frame = crate::codec::Frame::new(reader.info().width, reader.info().height)?;
+        while reader.read_frame_into(&mut frame).with_context(|| name.clone())? {
             if t == a {
                 fa = Some(plane_to_array(frame.y()));
             }

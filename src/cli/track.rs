@@ -67,7 +67,8 @@ pub fn run(args: &Args) -> Result<()> {
     let mut prev: Option<ndarray::Array2<f32>> = None;
     let (mut frames, mut track_ms, mut followed, mut lost, mut finished_ages) =
         (0usize, 0.0f64, 0usize, 0usize, Vec::new());
-    while let Some(frame) = reader.read_frame().with_context(|| name.clone())? {
+    let mut frame = crate::codec::Frame::new(reader.info().width, reader.info().height)?;
+    while reader.read_frame_into(&mut frame).with_context(|| name.clone())? {
         let img = plane_to_array(frame.y());
         let mut steps: Vec<((f32, f32), (f32, f32))> = Vec::new();
         if let Some(prev_img) = &prev {

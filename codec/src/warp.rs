@@ -30,7 +30,7 @@
 
 use crate::interp::{predict_chroma, predict_luma, MAX_BLOCK};
 use crate::mv::Mv;
-use crate::picture::{check_size, Frame, PictureError};
+use crate::picture::{check_size, Frame, PictureError, Plane};
 
 /// Grid spacings the format allows.
 pub const SPACINGS: [usize; 3] = [4, 8, 16];
@@ -139,7 +139,7 @@ pub fn warp_frame(reference: &Frame, grid: &MotionGrid, out: &mut Frame) {
             *m = grid.pixel_motion(x, y);
         }
         let row = out.plane_mut(0).row_mut(y);
-        for_runs(&motion, |start, len, mv| {
+        for_runs(&motion, longest_run(reference.y()), |start, len, mv| {
             predict_luma(
                 reference.y(),
                 start as isize,
@@ -161,7 +161,7 @@ pub fn warp_frame(reference: &Frame, grid: &MotionGrid, out: &mut Frame) {
         }
         for p in 1..3 {
             let row = out.plane_mut(p).row_mut(cy);
-            for_runs(&motion, |start, len, mv| {
+            for_runs(&motion, longest_run(reference.plane(p)), |start, len, mv| {
                 predict_chroma(
                     reference.plane(p),
                     start as isize,
@@ -180,14 +180,20 @@ pub fn warp_frame(reference: &Frame, grid: &MotionGrid, out: &mut Frame) {
     out.extend_borders();
 }
 
-/// Calls `f(start, len, mv)` for each run of equal vectors (at most
-/// `MAX_BLOCK` long).
-fn for_runs(motion: &[Mv], mut f: impl FnMut(usize, usize, Mv)) {
+/// The longest block the predictors take from `plane`: they need a border
+/// of the block's size plus 8 (a chroma plane's default border is 48).
+fn longest_run(plane: &Plane) -> usize {
+    MAX_BLOCK.min(plane.pad().saturating_sub(8)).max(1)
+}
+
+/// Calls `f(start, len, mv)` for each run of equal vectors (at most `longest`
+/// long).
+fn for_runs(motion: &[Mv], longest: usize, mut f: impl FnMut(usize, usize, Mv)) {
     let mut start = 0;
     while start < motion.len() {
         let mv = motion[start];
         let mut end = start + 1;
-        while end < motion.len() && motion[end] == mv && end - start < MAX_BLOCK {
+        while end < motion.len() && motion[end] == mv && end - start < longest {
             end += 1;
         }
         f(start, end - start, mv);
@@ -200,14 +206,19 @@ mod tests {
     use super::*;
     use crate::picture::Plane;
 
+    /// Noise in a frame with the default borders (96 luma, 48 chroma), as
+    /// the decoder's reference has.
     fn noise_frame(w: usize, h: usize) -> Result<Frame, PictureError> {
-        let noise = |pw, ph, seed: usize| {
-            Plane::from_fn(pw, ph, move |x, y| {
-                (((x * 2_654_435_761) ^ (y * 40_503) ^ seed) >> 5) as u8
-            })
-        };
-        let (cw, ch) = Frame::chroma_size(w, h);
-        Frame::from_planes(noise(w, h, 1)?, noise(cw, ch, 2)?, noise(cw, ch, 3)?)
+        let mut f = Frame::new(w, h)?;
+        for (p, plane) in f.planes_mut().iter_mut().enumerate() {
+            for y in 0..plane.height() {
+                for x in 0..plane.width() {
+                    plane.set(x, y, (((x * 2_654_435_761) ^ (y * 40_503) ^ (p + 1)) >> 5) as u8);
+                }
+            }
+        }
+        f.extend_borders();
+        Ok(f)
     }
 
     #[test]
@@ -254,7 +265,9 @@ mod tests {
 
     #[test]
     fn a_constant_grid_equals_block_motion_compensation() -> Result<(), GridError> {
-        let (w, h) = (48, 40);
+        // Wide enough for runs of equal chroma vectors longer than the
+        // chroma border allows in one block (88 > 48 - 8).
+        let (w, h) = (176, 40);
         let reference = noise_frame(w, h)?;
         for spacing in SPACINGS {
             for mv in [Mv::new(0, 0), Mv::new(5, -3), Mv::new(-13, 22), Mv::new(400, -7)] {

@@ -18,6 +18,7 @@
 pub use mocomp_codec as codec;
 
 pub mod cli;
+pub mod encode;
 pub mod flow;
 pub mod io;
 pub mod me;

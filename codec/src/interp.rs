@@ -80,6 +80,10 @@ fn check_block(reference: &Plane, w: usize, h: usize, out: &[u8], out_stride: us
 
 /// Luma prediction of the `w x h` block at (x, y) displaced by the
 /// quarter-pel vector (mvx, mvy), into `out` (row stride `out_stride`).
+///
+/// On x86-64 with AVX2 the same code runs compiled for AVX2 (chosen once at
+/// run time); the arithmetic is integer, so both give the same samples,
+/// which a test holds.
 #[allow(clippy::too_many_arguments)]
 pub fn predict_luma(
     reference: &Plane,
@@ -93,6 +97,58 @@ pub fn predict_luma(
     out_stride: usize,
 ) {
     check_block(reference, w, h, out, out_stride);
+    #[cfg(target_arch = "x86_64")]
+    {
+        if has_avx2() {
+            // SAFETY: the CPU has AVX2 (checked above); the function is
+            // the safe scalar code compiled with AVX2 enabled.
+            unsafe { predict_luma_avx2(reference, x, y, mvx, mvy, w, h, out, out_stride) };
+            return;
+        }
+    }
+    predict_luma_body(reference, x, y, mvx, mvy, w, h, out, out_stride);
+}
+
+/// Whether the CPU has AVX2 (asked once).
+#[cfg(target_arch = "x86_64")]
+fn has_avx2() -> bool {
+    use std::sync::OnceLock;
+    static AVX2: OnceLock<bool> = OnceLock::new();
+    *AVX2.get_or_init(|| std::arch::is_x86_feature_detected!("avx2"))
+}
+
+/// [`predict_luma_body`] compiled for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn predict_luma_avx2(
+    reference: &Plane,
+    x: isize,
+    y: isize,
+    mvx: i32,
+    mvy: i32,
+    w: usize,
+    h: usize,
+    out: &mut [u8],
+    out_stride: usize,
+) {
+    predict_luma_body(reference, x, y, mvx, mvy, w, h, out, out_stride);
+}
+
+/// The luma predictor, for any instruction set.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn predict_luma_body(
+    reference: &Plane,
+    x: isize,
+    y: isize,
+    mvx: i32,
+    mvy: i32,
+    w: usize,
+    h: usize,
+    out: &mut [u8],
+    out_stride: usize,
+) {
     let (fx, fy) = ((mvx & 3) as usize, (mvy & 3) as usize);
     let px = clamp_into_border(
         x + (mvx >> 2) as isize,
@@ -113,6 +169,16 @@ pub fn predict_luma(
     let data = reference.data();
     let stride = reference.stride();
     let at = |xx: isize, yy: isize| reference.index(xx, yy);
+    if w == 16 && h == 16 && (fx, fy) != (0, 0) {
+        // The macroblock case, with sizes the compiler knows.
+        let src = at(px - TAPS_BEFORE, py - TAPS_BEFORE);
+        let mut block = [0u8; 256];
+        luma_16x16(&data[src..], stride, fx, fy, &mut block);
+        for (r, row) in block.chunks_exact(16).enumerate() {
+            out[r * out_stride..r * out_stride + 16].copy_from_slice(row);
+        }
+        return;
+    }
     match (fx, fy) {
         (0, 0) => {
             for r in 0..h {
@@ -122,46 +188,161 @@ pub fn predict_luma(
         }
         (_, 0) => {
             let taps = &LUMA_TAPS[fx];
+            let mut acc = [0i32; MAX_BLOCK];
             for r in 0..h {
                 let src = at(px - TAPS_BEFORE, py + r as isize);
-                let row = &data[src..src + w + 7];
-                for (c, o) in out[r * out_stride..r * out_stride + w].iter_mut().enumerate() {
-                    let s: i32 = (0..8).map(|k| taps[k] * i32::from(row[c + k])).sum();
-                    *o = ((s + 32) >> 6).clamp(0, 255) as u8;
-                }
+                filter_row(taps, |k| &data[src + k..src + k + w], &mut acc[..w]);
+                round_into(&acc[..w], 6, &mut out[r * out_stride..r * out_stride + w]);
             }
         }
         (0, _) => {
             let taps = &LUMA_TAPS[fy];
+            let mut acc = [0i32; MAX_BLOCK];
             for r in 0..h {
                 let src = at(px, py + r as isize - TAPS_BEFORE);
-                for (c, o) in out[r * out_stride..r * out_stride + w].iter_mut().enumerate() {
-                    let s: i32 = (0..8)
-                        .map(|k| taps[k] * i32::from(data[src + k * stride + c]))
-                        .sum();
-                    *o = ((s + 32) >> 6).clamp(0, 255) as u8;
-                }
+                filter_row(
+                    taps,
+                    |k| &data[src + k * stride..src + k * stride + w],
+                    &mut acc[..w],
+                );
+                round_into(&acc[..w], 6, &mut out[r * out_stride..r * out_stride + w]);
             }
         }
         _ => {
-            // Horizontal pass over h + 7 rows at full precision, then vertical.
-            let (th, tv) = (&LUMA_TAPS[fx], &LUMA_TAPS[fy]);
+            // Horizontal pass over h + 7 rows at full precision (it fits
+            // 16 bits: -6120..=22440), then vertical. Small blocks, the
+            // common case, use a small buffer.
             let rows = h + 7;
-            let mut tmp = [0i32; MAX_BLOCK * (MAX_BLOCK + 7)];
+            let mut small = [0i16; 16 * 23];
+            let mut large = Vec::new();
+            let tmp: &mut [i16] = if w * rows <= small.len() {
+                &mut small[..w * rows]
+            } else {
+                large.resize(w * rows, 0);
+                &mut large
+            };
+            let (th, tv) = (&LUMA_TAPS[fx], &LUMA_TAPS[fy]);
+            let mut acc = [0i32; MAX_BLOCK];
             for r in 0..rows {
                 let src = at(px - TAPS_BEFORE, py + r as isize - TAPS_BEFORE);
-                let row = &data[src..src + w + 7];
-                for c in 0..w {
-                    tmp[r * w + c] = (0..8).map(|k| th[k] * i32::from(row[c + k])).sum();
+                filter_row(th, |k| &data[src + k..src + k + w], &mut acc[..w]);
+                for (t, &a) in tmp[r * w..(r + 1) * w].iter_mut().zip(&acc[..w]) {
+                    *t = a as i16;
                 }
             }
+            let mut acc = [0i32; MAX_BLOCK];
             for r in 0..h {
-                for (c, o) in out[r * out_stride..r * out_stride + w].iter_mut().enumerate() {
-                    let s: i32 = (0..8).map(|k| tv[k] * tmp[(r + k) * w + c]).sum::<i32>() >> 6;
-                    *o = ((s + 32) >> 6).clamp(0, 255) as u8;
+                let acc = &mut acc[..w];
+                acc.fill(0);
+                for (k, &t) in tv.iter().enumerate() {
+                    if t != 0 {
+                        for (a, &v) in acc.iter_mut().zip(&tmp[(r + k) * w..(r + k + 1) * w]) {
+                            *a += t * i32::from(v);
+                        }
+                    }
                 }
+                for a in acc.iter_mut() {
+                    *a >>= 6;
+                }
+                round_into(acc, 6, &mut out[r * out_stride..r * out_stride + w]);
             }
         }
+    }
+}
+
+const N16: usize = 16;
+
+/// Row `r` of a 16x16 block's neighbourhood: 16 + 7 samples.
+#[inline(always)]
+fn row23(data: &[u8], stride: usize, r: usize) -> &[u8; N16 + 7] {
+    let s = &data[r * stride..r * stride + N16 + 7];
+    s.try_into().unwrap_or(&[0; N16 + 7])
+}
+
+/// The horizontal 8-tap filter of 16 samples, full precision.
+#[inline(always)]
+fn hpass16(r: &[u8; N16 + 7], taps: &[i32; 8]) -> [i32; N16] {
+    let mut acc = [0i32; N16];
+    for (k, &t) in taps.iter().enumerate() {
+        let s = &r[k..k + N16];
+        for (a, &v) in acc.iter_mut().zip(s) {
+            *a += t * i32::from(v);
+        }
+    }
+    acc
+}
+
+/// `clip((acc + 32) >> 6)` of 16 values.
+#[inline(always)]
+fn round16(acc: &[i32; N16], o: &mut [u8]) {
+    for (o, &a) in o.iter_mut().zip(acc) {
+        *o = ((a + 32) >> 6).clamp(0, 255) as u8;
+    }
+}
+
+/// A 16x16 luma prediction at phase (fx, fy), not both 0, from `data`
+/// starting 3 rows above and 3 columns left of the block. (Functions, not
+/// closures: closures do not inherit the caller's target features.)
+#[inline(always)]
+fn luma_16x16(data: &[u8], stride: usize, fx: usize, fy: usize, out: &mut [u8; 256]) {
+    const N: usize = N16;
+    const B: usize = TAPS_BEFORE as usize;
+    if fy == 0 {
+        for r in 0..N {
+            let acc = hpass16(row23(data, stride, r + B), &LUMA_TAPS[fx]);
+            round16(&acc, &mut out[r * N..(r + 1) * N]);
+        }
+        return;
+    }
+    let mut tmp = [[0i32; N]; N + 7];
+    for (r, t) in tmp.iter_mut().enumerate() {
+        let src = row23(data, stride, r);
+        if fx == 0 {
+            // Scaled by 64 so that one vertical pass serves both cases; its
+            // >> 6 below is then exact, as the direct vertical filter's
+            // single rounding needs.
+            for (t, &v) in t.iter_mut().zip(&src[B..B + N]) {
+                *t = i32::from(v) << 6;
+            }
+        } else {
+            *t = hpass16(src, &LUMA_TAPS[fx]);
+        }
+    }
+    let tv = &LUMA_TAPS[fy];
+    for (r, window) in tmp.windows(8).enumerate() {
+        let mut acc = [0i32; N];
+        for (&t, row) in tv.iter().zip(window) {
+            for (a, &v) in acc.iter_mut().zip(row) {
+                *a += t * v;
+            }
+        }
+        for a in acc.iter_mut() {
+            *a >>= 6;
+        }
+        round16(&acc, &mut out[r * N..(r + 1) * N]);
+    }
+}
+
+/// `acc[c] = sum_k taps[k] * row(k)[c]` over the 8 taps (zero taps
+/// skipped); written tap-outer so that the compiler vectorises it.
+#[inline(always)]
+fn filter_row<'a>(taps: &[i32; 8], row: impl Fn(usize) -> &'a [u8], acc: &mut [i32]) {
+    acc.fill(0);
+    for (k, &t) in taps.iter().enumerate() {
+        if t != 0 {
+            for (a, &v) in acc.iter_mut().zip(row(k)) {
+                *a += t * i32::from(v);
+            }
+        }
+    }
+}
+
+/// `out = clip((acc + 2^(shift-1)) >> shift)`.
+#[inline(always)]
+fn round_into(acc: &[i32], shift: u32, out: &mut [u8]) {
+    let half = 1 << (shift - 1);
+    for (o, &a) in out.iter_mut().zip(acc) {
+        *o = ((a + half) >> shift).clamp(0, 255) as u8;
     }
 }
 

@@ -15,7 +15,7 @@
 //! sign bit (1 = negative). Runs that would carry a level past position 15,
 //! and levels above [`MAX_LEVEL`], are errors.
 
-use crate::bits::{BitError, BitReader, BitWriter};
+use crate::bits::{ue_len, BitError, BitReader, BitWriter};
 use crate::transform::Block4;
 
 /// H.264's 4x4 frame zig-zag scan: `ZIGZAG[k]` is the raster index
@@ -107,6 +107,27 @@ impl MbResidual {
         }
     }
 
+    /// The bits [`MbResidual::write`] writes, without writing them (the
+    /// encoder's rate term).
+    pub fn bit_len(&self) -> u32 {
+        let cbp = self.cbp();
+        let mut bits = ue_len(cbp);
+        for q in 0..4 {
+            if cbp & (1 << q) != 0 {
+                bits += quadrant_blocks(q)
+                    .iter()
+                    .map(|&b| 1 + block_len(&self.luma[b]))
+                    .sum::<u32>();
+            }
+        }
+        for p in 0..2 {
+            if cbp & (1 << (4 + p)) != 0 {
+                bits += self.chroma[p].iter().map(|b| 1 + block_len(b)).sum::<u32>();
+            }
+        }
+        bits
+    }
+
     /// Reads what [`MbResidual::write`] writes.
     pub fn read(r: &mut BitReader<'_>) -> Result<MbResidual, ResidualError> {
         let pos = r.position();
@@ -172,6 +193,29 @@ pub fn write_block(w: &mut BitWriter, b: &Block4) {
         w.put_ue(v.unsigned_abs() - 1);
         w.put_bit(v < 0);
         run = 0;
+    }
+}
+
+/// The bits [`write_block`] writes for `b` (0 for an all-zero block,
+/// which it does not write).
+fn block_len(b: &Block4) -> u32 {
+    let mut total = 0;
+    let mut bits = 0;
+    let mut run = 0;
+    for &i in &ZIGZAG {
+        let v = b[i / 4][i % 4];
+        if v == 0 {
+            run += 1;
+            continue;
+        }
+        total += 1;
+        bits += ue_len(run) + ue_len(v.unsigned_abs() - 1) + 1;
+        run = 0;
+    }
+    if total == 0 {
+        0
+    } else {
+        bits + ue_len(total - 1)
     }
 }
 
@@ -347,6 +391,7 @@ mod tests {
             let mut w = BitWriter::new();
             res.write(&mut w);
             let bits = w.len();
+            prop_assert_eq!(res.bit_len() as usize, bits);
             let bytes = w.into_bytes();
             let mut r = BitReader::new(&bytes);
             prop_assert_eq!(MbResidual::read(&mut r), Ok(res));

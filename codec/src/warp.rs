@@ -204,7 +204,6 @@ fn for_runs(motion: &[Mv], longest: usize, mut f: impl FnMut(usize, usize, Mv)) 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::picture::Plane;
 
     /// Noise in a frame with the default borders (96 luma, 48 chroma), as
     /// the decoder's reference has.

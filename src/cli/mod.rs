@@ -2,6 +2,8 @@
 //! calls [`main`].
 
 mod compare;
+mod decode;
+mod encode;
 mod flow;
 mod info;
 mod me;
@@ -25,6 +27,10 @@ struct Cli {
 enum Command {
     /// Run the comparison on the bundled sample (the default).
     Compare(compare::Args),
+    /// Decode a stream to Y4M.
+    Decode(decode::Args),
+    /// Encode a Y4M into a stream, with rate and quality statistics.
+    Encode(encode::Args),
     /// Dense optical flow between two pictures.
     Flow(flow::Args),
     /// Say what a Y4M, .flo or image file holds.
@@ -49,6 +55,8 @@ pub fn main() -> ExitCode {
     }
     let result = match cli.command {
         Some(Command::Compare(a)) => compare::run(&a),
+        Some(Command::Decode(a)) => decode::run(&a),
+        Some(Command::Encode(a)) => encode::run(&a),
         Some(Command::Flow(a)) => flow::run(&a),
         Some(Command::Info(a)) => info::run(&a),
         Some(Command::Me(a)) => me::run(&a),

@@ -1,0 +1,224 @@
+//! `mocomp encode IN.y4m -o OUT.mcv`: a Y4M in, a stream out, and where
+//! the bits went.
+
+use std::io::{IsTerminal, Write};
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::encode::{encode_y4m, EncoderConfig, FlowMethod, FrameStats, Predictor, Summary};
+use crate::io::y4m::{Y4mReader, Y4mWriter};
+use crate::io::OutputFile;
+use crate::me::{Method, Subpel};
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The source Y4M (4:2:0, 8 bits; `-` for standard input).
+    pub input: PathBuf,
+    /// The stream to write.
+    #[arg(short, long, value_name = "OUT.mcv")]
+    pub output: PathBuf,
+    /// Quantisation parameter, 0..=51.
+    #[arg(long, default_value_t = 28)]
+    pub qp: u8,
+    /// P-frame predictor: zero, block, flow-block, dense-lk, dense-hs,
+    /// obmc (a `:METHOD` or `:lk|hs` suffix also works).
+    #[arg(long, default_value = "block")]
+    pub predictor: String,
+    /// Block search of `block` and `obmc`: esa, tss, ntss, tdls, fss, ds,
+    /// hexbs, epzs.
+    #[arg(long, value_name = "METHOD")]
+    pub me: Option<Method>,
+    /// Full-pel search range of `block` and `obmc`.
+    #[arg(long)]
+    pub range: Option<i32>,
+    /// Sub-pel refinement of `block` and `obmc`: none, half, quarter.
+    #[arg(long)]
+    pub subpel: Option<Subpel>,
+    /// Flow of `flow-block`: lk or hs.
+    #[arg(long)]
+    pub flow: Option<FlowMethod>,
+    /// `flow-block`: full-pel search radius around the flow's vector (0 =
+    /// the flow's vector as it is).
+    #[arg(long)]
+    pub refine: Option<i32>,
+    /// `dense-lk`, `dense-hs`: motion grid spacing, 4, 8 or 16.
+    #[arg(long)]
+    pub grid: Option<usize>,
+    /// I-frame period (0 = only the first frame is intra).
+    #[arg(long, default_value_t = 0)]
+    pub gop: usize,
+    /// Code at most this many frames.
+    #[arg(long)]
+    pub frames: Option<usize>,
+    /// Multiply the mode-decision lambda.
+    #[arg(long, default_value_t = 1.0)]
+    pub lambda_scale: f64,
+    /// Also write the reconstruction (what the decoder outputs) as Y4M.
+    #[arg(long, value_name = "REC.y4m")]
+    pub recon: Option<PathBuf>,
+    /// Write per-frame statistics as CSV.
+    #[arg(long, value_name = "FILE.csv")]
+    pub stats: Option<PathBuf>,
+    /// Print the summary as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+/// The configuration the options describe.
+pub fn config(args: &Args) -> Result<EncoderConfig> {
+    let mut predictor: Predictor = args.predictor.parse().map_err(anyhow::Error::msg)?;
+    let only = |what: &str, ok: bool| -> Result<()> {
+        anyhow::ensure!(ok, "{what} does not apply to predictor '{}'", args.predictor);
+        Ok(())
+    };
+    if let Some(s) = predictor.search_mut() {
+        if let Some(m) = args.me {
+            s.method = m;
+        }
+        if let Some(r) = args.range {
+            s.range = r;
+        }
+        if let Some(p) = args.subpel {
+            s.subpel = p;
+        }
+    } else {
+        only(
+            "--me/--range/--subpel",
+            args.me.is_none() && args.range.is_none() && args.subpel.is_none(),
+        )?;
+    }
+    match &mut predictor {
+        Predictor::FlowBlock { flow, refine } => {
+            *flow = args.flow.unwrap_or(*flow);
+            *refine = args.refine.unwrap_or(*refine);
+            only("--grid", args.grid.is_none())?;
+        }
+        Predictor::Dense { grid, .. } => {
+            *grid = args.grid.unwrap_or(*grid);
+            only("--flow/--refine", args.flow.is_none() && args.refine.is_none())?;
+        }
+        _ => only(
+            "--flow/--refine/--grid",
+            args.flow.is_none() && args.refine.is_none() && args.grid.is_none(),
+        )?,
+    }
+    let config = EncoderConfig::new()
+        .qp(args.qp)
+        .gop(args.gop)
+        .predictor(predictor)
+        .lambda_scale(args.lambda_scale);
+    config.check().map_err(anyhow::Error::msg)?;
+    Ok(config)
+}
+
+pub fn run(args: &Args) -> Result<()> {
+    let config = config(args)?;
+    let pool = super::thread_pool(args.threads)?;
+    let input = args.input.display().to_string();
+    let mut reader = Y4mReader::open(&args.input).with_context(|| input.clone())?;
+    let info = reader.info().clone();
+    let mut out = OutputFile::create(&args.output).with_context(|| args.output.display().to_string())?;
+    let mut recon_file = match &args.recon {
+        Some(p) => Some(OutputFile::create(p).with_context(|| p.display().to_string())?),
+        None => None,
+    };
+    let mut recon = match recon_file.as_mut() {
+        Some(f) => Some(Y4mWriter::new(f, &info)?),
+        None => None,
+    };
+    let mut stats_rows = args
+        .stats
+        .as_ref()
+        .map(|_| vec![FrameStats::CSV_HEADER.to_string()]);
+    let bar = if args.quiet || args.json || !std::io::stderr().is_terminal() {
+        ProgressBar::hidden()
+    } else {
+        let b = ProgressBar::new(args.frames.map_or(0, |n| n as u64));
+        b.set_style(
+            ProgressStyle::with_template("{spinner} {pos} frames  {per_sec}  {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+        );
+        b
+    };
+    let summary = pool.install(|| {
+        encode_y4m(&mut reader, &mut out, config, args.frames, |coded| {
+            if let Some(w) = recon.as_mut() {
+                w.write_frame(&coded.recon)?;
+            }
+            if let Some(rows) = stats_rows.as_mut() {
+                rows.push(coded.stats.csv_row());
+            }
+            bar.inc(1);
+            bar.set_message(format!("{:.2} dB  {} B", coded.stats.psnr_y, coded.stats.bytes));
+            Ok(())
+        })
+    });
+    bar.finish_and_clear();
+    let summary = summary.with_context(|| input.clone())?;
+    out.commit().with_context(|| args.output.display().to_string())?;
+    drop(recon);
+    if let (Some(f), Some(path)) = (recon_file, &args.recon) {
+        f.commit().with_context(|| path.display().to_string())?;
+    }
+    if let (Some(rows), Some(path)) = (stats_rows, &args.stats) {
+        let mut f = OutputFile::create(path).with_context(|| path.display().to_string())?;
+        for r in rows {
+            writeln!(f, "{r}")?;
+        }
+        f.commit()?;
+    }
+    print_summary(args, &config, &summary)
+}
+
+fn print_summary(args: &Args, config: &EncoderConfig, s: &Summary) -> Result<()> {
+    let mut stdout = std::io::stdout().lock();
+    if args.json {
+        let mut v = serde_json::to_value(s)?;
+        if let Some(o) = v.as_object_mut() {
+            o.insert("predictor".into(), config.predictor.label().into());
+            o.insert("qp".into(), config.qp.into());
+        }
+        writeln!(stdout, "{v}")?;
+        return Ok(());
+    }
+    let total = (s.bits_header + s.bits_motion + s.bits_residual).max(1) as f64;
+    let share = |b: u64| 100.0 * b as f64 / total;
+    writeln!(
+        stdout,
+        "{}: {} frames, QP {}, {}",
+        args.output.display(),
+        s.frames,
+        config.qp,
+        config.predictor.describe()
+    )?;
+    writeln!(stdout, "  {} bytes, {:.2} kbit/s", s.bytes, s.kbps)?;
+    writeln!(
+        stdout,
+        "  PSNR Y {:.3} U {:.3} V {:.3} dB, SSIM {:.5}",
+        s.psnr_y, s.psnr_u, s.psnr_v, s.ssim
+    )?;
+    writeln!(
+        stdout,
+        "  bits: header {} ({:.1} %), motion {} ({:.1} %), residual {} ({:.1} %)",
+        s.bits_header,
+        share(s.bits_header),
+        s.bits_motion,
+        share(s.bits_motion),
+        s.bits_residual,
+        share(s.bits_residual)
+    )?;
+    writeln!(
+        stdout,
+        "  {:.1} ms ({:.1} fps), of which motion {:.1} ms",
+        s.encode_ms, s.fps, s.me_ms
+    )?;
+    Ok(())
+}

@@ -1,0 +1,311 @@
+//! What the encoder is asked to do: QP, GOP, and the P-frame predictor.
+
+use std::fmt;
+use std::str::FromStr;
+
+use crate::codec::transform::MAX_QP;
+use crate::me::{Method, Subpel, MAX_RANGE};
+
+/// Which dense flow guides a flow-based predictor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum FlowMethod {
+    /// Pyramidal Lucas-Kanade (`crate::flow::lk`, medium preset).
+    Lk,
+    /// Horn-Schunck (`crate::flow::hs`, default settings).
+    Hs,
+}
+
+impl FlowMethod {
+    /// `lk` or `hs`.
+    pub fn name(self) -> &'static str {
+        match self {
+            FlowMethod::Lk => "lk",
+            FlowMethod::Hs => "hs",
+        }
+    }
+}
+
+impl FromStr for FlowMethod {
+    type Err = String;
+    fn from_str(s: &str) -> Result<FlowMethod, String> {
+        match s {
+            "lk" => Ok(FlowMethod::Lk),
+            "hs" => Ok(FlowMethod::Hs),
+            _ => Err(format!("unknown flow method '{s}' (lk or hs)")),
+        }
+    }
+}
+
+/// How block vectors are searched (the `block` and `obmc` predictors).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct BlockSearch {
+    /// Search pattern.
+    pub method: Method,
+    /// Full-pel range, 1..=64.
+    pub range: i32,
+    /// Sub-pel refinement.
+    pub subpel: Subpel,
+}
+
+impl Default for BlockSearch {
+    fn default() -> BlockSearch {
+        BlockSearch {
+            method: Method::Epzs,
+            range: 16,
+            subpel: Subpel::Quarter,
+        }
+    }
+}
+
+/// How P frames are predicted. Each is a complete path to the bitstream.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Predictor {
+    /// The previous reconstruction with vector 0 (frame difference).
+    Zero,
+    /// One searched vector per macroblock, rate-constrained.
+    Block(BlockSearch),
+    /// One vector per macroblock from a dense flow of the source frames
+    /// (the component-wise median over the block), then a search of
+    /// `refine` full pixels around it and sub-pel refinement (`refine` 0:
+    /// the flow's vector as it is).
+    FlowBlock {
+        /// The flow.
+        flow: FlowMethod,
+        /// Full-pel refinement radius, 0..=16.
+        refine: i32,
+    },
+    /// The flow sampled on the codec's motion grid and warped.
+    Dense {
+        /// The flow.
+        flow: FlowMethod,
+        /// Grid spacing: 4, 8 or 16.
+        grid: usize,
+    },
+    /// Block vectors, predicted with overlapped block motion compensation.
+    Obmc(BlockSearch),
+}
+
+impl Default for Predictor {
+    fn default() -> Predictor {
+        Predictor::Block(BlockSearch::default())
+    }
+}
+
+impl Predictor {
+    /// The short label used in tables and CSV: `zero`, `block:esa`,
+    /// `flow-block:lk`, `dense-hs`, `obmc`... Options other than the
+    /// method are left out; [`Predictor::describe`] gives them all.
+    pub fn label(&self) -> String {
+        match self {
+            Predictor::Zero => "zero".into(),
+            Predictor::Block(s) => format!("block:{}", s.method),
+            Predictor::FlowBlock { flow, .. } => format!("flow-block:{}", flow.name()),
+            Predictor::Dense { flow, .. } => format!("dense-{}", flow.name()),
+            Predictor::Obmc(s) if s.method == BlockSearch::default().method => "obmc".into(),
+            Predictor::Obmc(s) => format!("obmc:{}", s.method),
+        }
+    }
+
+    /// Every setting, for reports.
+    pub fn describe(&self) -> String {
+        let search = |s: &BlockSearch| format!("{} range {} subpel {:?}", s.method, s.range, s.subpel);
+        match self {
+            Predictor::Zero => "zero".into(),
+            Predictor::Block(s) => format!("block ({})", search(s)),
+            Predictor::FlowBlock { flow, refine } => format!("flow-block ({}, refine {refine})", flow.name()),
+            Predictor::Dense { flow, grid } => format!("dense-{} (grid {grid})", flow.name()),
+            Predictor::Obmc(s) => format!("obmc ({})", search(s)),
+        }
+    }
+
+    /// The block search, for predictors that have one.
+    pub fn search_mut(&mut self) -> Option<&mut BlockSearch> {
+        match self {
+            Predictor::Block(s) | Predictor::Obmc(s) => Some(s),
+            _ => None,
+        }
+    }
+
+    pub(crate) fn check(&self) -> Result<(), String> {
+        match *self {
+            Predictor::Block(s) | Predictor::Obmc(s) if !(1..=MAX_RANGE).contains(&s.range) => {
+                Err(format!("search range {} is not in 1..={MAX_RANGE}", s.range))
+            }
+            Predictor::FlowBlock { refine, .. } if !(0..=16).contains(&refine) => {
+                Err(format!("refinement radius {refine} is not in 0..=16"))
+            }
+            Predictor::Dense { grid, .. } if !crate::codec::warp::SPACINGS.contains(&grid) => {
+                Err(format!("grid spacing {grid} is not 4, 8 or 16"))
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+impl fmt::Display for Predictor {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.label())
+    }
+}
+
+/// Default refinement radius of `flow-block`.
+pub const DEFAULT_REFINE: i32 = 2;
+
+/// Default grid spacing of `dense-lk` and `dense-hs`.
+pub const DEFAULT_GRID: usize = 16;
+
+impl FromStr for Predictor {
+    type Err = String;
+    /// `zero`, `block`, `block:METHOD`, `flow-block`, `flow-block:lk|hs`,
+    /// `dense-lk`, `dense-hs`, `obmc`, `obmc:METHOD`; other options keep
+    /// their defaults.
+    fn from_str(s: &str) -> Result<Predictor, String> {
+        let (name, option) = match s.split_once(':') {
+            Some((n, o)) => (n, Some(o)),
+            None => (s, None),
+        };
+        let search = |option: Option<&str>| -> Result<BlockSearch, String> {
+            let mut b = BlockSearch::default();
+            if let Some(m) = option {
+                b.method = m.parse()?;
+            }
+            Ok(b)
+        };
+        let no_option = |p: Predictor| match option {
+            None => Ok(p),
+            Some(o) => Err(format!("predictor '{name}' takes no option (got ':{o}')")),
+        };
+        match name {
+            "zero" => no_option(Predictor::Zero),
+            "block" => Ok(Predictor::Block(search(option)?)),
+            "obmc" => Ok(Predictor::Obmc(search(option)?)),
+            "flow-block" => Ok(Predictor::FlowBlock {
+                flow: option.map_or(Ok(FlowMethod::Lk), str::parse)?,
+                refine: DEFAULT_REFINE,
+            }),
+            "dense-lk" => no_option(Predictor::Dense {
+                flow: FlowMethod::Lk,
+                grid: DEFAULT_GRID,
+            }),
+            "dense-hs" => no_option(Predictor::Dense {
+                flow: FlowMethod::Hs,
+                grid: DEFAULT_GRID,
+            }),
+            _ => Err(format!(
+                "unknown predictor '{s}' (zero, block[:METHOD], flow-block[:lk|hs], dense-lk, dense-hs, obmc[:METHOD])"
+            )),
+        }
+    }
+}
+
+/// Everything the encoder is told, built in the builder style:
+///
+/// ```
+/// use mocomp::encode::{EncoderConfig, Predictor};
+/// let config = EncoderConfig::new().qp(32).gop(30).predictor("block:esa".parse().unwrap());
+/// assert_eq!(config.qp, 32);
+/// assert_eq!(config.predictor.label(), "block:esa");
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EncoderConfig {
+    /// Quantisation parameter of every frame, 0..=51.
+    pub qp: u8,
+    /// I-frame period: 0 = only the first frame is intra, N = every N-th.
+    pub gop: usize,
+    /// How P frames are predicted.
+    pub predictor: Predictor,
+    /// Multiplies the mode-decision lambda `0.85 * 2^((QP - 12) / 3)`.
+    pub lambda_scale: f64,
+    /// Measure SSIM of every frame (the rest of the statistics are cheap).
+    pub ssim: bool,
+}
+
+impl Default for EncoderConfig {
+    fn default() -> EncoderConfig {
+        EncoderConfig {
+            qp: 28,
+            gop: 0,
+            predictor: Predictor::default(),
+            lambda_scale: 1.0,
+            ssim: true,
+        }
+    }
+}
+
+impl EncoderConfig {
+    /// QP 28, one I frame, `block` with EPZS, range 16, quarter-pel.
+    pub fn new() -> EncoderConfig {
+        EncoderConfig::default()
+    }
+
+    /// Sets the QP.
+    pub fn qp(mut self, qp: u8) -> EncoderConfig {
+        self.qp = qp;
+        self
+    }
+
+    /// Sets the I-frame period (0 = only the first).
+    pub fn gop(mut self, gop: usize) -> EncoderConfig {
+        self.gop = gop;
+        self
+    }
+
+    /// Sets the P-frame predictor.
+    pub fn predictor(mut self, predictor: Predictor) -> EncoderConfig {
+        self.predictor = predictor;
+        self
+    }
+
+    /// Scales the mode-decision lambda.
+    pub fn lambda_scale(mut self, scale: f64) -> EncoderConfig {
+        self.lambda_scale = scale;
+        self
+    }
+
+    /// Turns SSIM measurement on or off.
+    pub fn ssim(mut self, on: bool) -> EncoderConfig {
+        self.ssim = on;
+        self
+    }
+
+    pub(crate) fn check(&self) -> Result<(), String> {
+        if self.qp > MAX_QP {
+            return Err(format!("QP {} is not in 0..={MAX_QP}", self.qp));
+        }
+        if !(self.lambda_scale > 0.0 && self.lambda_scale < 1e3) {
+            return Err(format!("lambda scale {} is not in (0, 1000)", self.lambda_scale));
+        }
+        self.predictor.check()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_label_parses_back_to_its_predictor() {
+        for s in [
+            "zero",
+            "block:esa",
+            "block:tss",
+            "flow-block:lk",
+            "flow-block:hs",
+            "dense-lk",
+            "dense-hs",
+            "obmc",
+        ] {
+            let p: Predictor = s.parse().unwrap();
+            assert_eq!(p.label(), s);
+        }
+        assert_eq!("block".parse::<Predictor>().unwrap(), Predictor::default());
+    }
+
+    #[test]
+    fn bad_names_are_errors() {
+        for s in ["", "blok", "block:xyz", "zero:esa", "dense-lk:3", "flow-block:tv"] {
+            assert!(s.parse::<Predictor>().is_err(), "{s}");
+        }
+        assert!(EncoderConfig::new().qp(52).check().is_err());
+    }
+}

@@ -1,0 +1,262 @@
+//! One frame: rate-distortion mode decision over the macroblocks, in
+//! raster order, with reconstruction through the codec's functions.
+
+use super::macroblock::{mvd_len, MbCoder, MbSource};
+use super::motion::FrameMotion;
+use crate::codec::bits::ue_len;
+use crate::codec::mv::Mv;
+use crate::codec::recon::{predict_inter, predict_intra, reconstruct_mb, InterContext, MbPrediction};
+use crate::codec::residual::MbResidual;
+use crate::codec::syntax::{
+    mb_vector, mv_prediction, CodedMb, FrameHeader, FrameSyntax, FrameType, MbKind, MotionTool,
+    SequenceHeader,
+};
+use crate::codec::warp::warp_frame;
+use crate::codec::{Frame, PictureError};
+
+/// Header bits the mode decision charges: the skip run that a coded
+/// macroblock ends (about one bit) and its type.
+const SKIP_BITS: u32 = 1;
+const INTER_BITS: u32 = 2;
+const INTRA_BITS: u32 = 4;
+
+/// A coded frame before it is written.
+pub(crate) struct CodedFrame {
+    pub syntax: FrameSyntax,
+    /// The reconstruction at the coded size, borders extended.
+    pub recon: Frame,
+    /// Squared error of the prediction (before the residual) over the
+    /// visible luma.
+    pub prediction_sse: u64,
+    /// Macroblocks coded as skip, inter, intra.
+    pub kinds: [usize; 3],
+}
+
+/// The squared luma error of `pred` against `src` over the visible part of
+/// macroblock (mb_x, mb_y).
+fn visible_luma_sse(
+    src: &MbSource,
+    pred: &MbPrediction,
+    mb_x: usize,
+    mb_y: usize,
+    seq: &SequenceHeader,
+) -> u64 {
+    let w = (seq.width - mb_x * 16).min(16);
+    let h = (seq.height - mb_y * 16).min(16);
+    let mut sse = 0u64;
+    for r in 0..h {
+        for c in 0..w {
+            let e = i32::from(src.luma[r * 16 + c]) - i32::from(pred.luma[r * 16 + c]);
+            sse += (e * e) as u64;
+        }
+    }
+    sse
+}
+
+fn kind_index(kind: &MbKind) -> usize {
+    match kind {
+        MbKind::Skip => 0,
+        MbKind::Inter { .. } => 1,
+        MbKind::Intra { .. } => 2,
+    }
+}
+
+/// An I frame: every macroblock intra, modes by SATD.
+pub(crate) fn code_intra(
+    seq: &SequenceHeader,
+    coder: &MbCoder,
+    src: &Frame,
+) -> Result<CodedFrame, PictureError> {
+    let cols = seq.mb_cols();
+    let mut recon = Frame::new(seq.coded_width(), seq.coded_height())?;
+    let mut mbs = Vec::with_capacity(cols * seq.mb_rows());
+    let mut prediction_sse = 0;
+    for i in 0..cols * seq.mb_rows() {
+        let (mb_x, mb_y) = (i % cols, i / cols);
+        let s = MbSource::load(src, mb_x, mb_y);
+        let (luma, chroma, pred) = coder.best_intra(&s, &recon, mb_x, mb_y);
+        let coded = coder.code(&s, &pred, true, &mut recon, mb_x, mb_y);
+        prediction_sse += visible_luma_sse(&s, &pred, mb_x, mb_y, seq);
+        mbs.push(CodedMb::new(MbKind::Intra { luma, chroma }, coded.residual));
+    }
+    recon.extend_borders();
+    Ok(CodedFrame {
+        syntax: FrameSyntax {
+            header: FrameHeader {
+                frame_type: FrameType::Intra,
+                qp: coder.qp,
+                tool: MotionTool::Block,
+            },
+            grid: None,
+            mbs,
+        },
+        recon,
+        prediction_sse,
+        kinds: [0, 0, cols * seq.mb_rows()],
+    })
+}
+
+/// One way to code a macroblock, with its cost.
+struct Choice {
+    cost: f64,
+    kind: MbKind,
+    pred: MbPrediction,
+    residual: MbResidual,
+}
+
+/// A P frame predicted from `reference` with `motion` and `tool`.
+pub(crate) fn code_inter(
+    seq: &SequenceHeader,
+    coder: &MbCoder,
+    src: &Frame,
+    reference: &Frame,
+    motion: FrameMotion,
+    tool: MotionTool,
+) -> Result<CodedFrame, PictureError> {
+    let (cols, n) = (seq.mb_cols(), seq.mb_cols() * seq.mb_rows());
+    let (w, h) = (seq.coded_width(), seq.coded_height());
+    let mut recon = Frame::new(w, h)?;
+    let (searched, grid, warped) = match motion {
+        FrameMotion::Vectors(v) => (v, None, None),
+        FrameMotion::Grid(g) => {
+            let mut out = Frame::new(w, h)?;
+            warp_frame(reference, &g, &mut out);
+            (vec![Mv::ZERO; n], Some(g), Some(out))
+        }
+    };
+    let uses_mvs = grid.is_none();
+    // OBMC predicts a block from its neighbours' vectors too: the ones not
+    // decided yet are taken as searched.
+    let mut context: Vec<Option<Mv>> = searched.iter().copied().map(Some).collect();
+    let mut decided: Vec<Option<Mv>> = Vec::with_capacity(n);
+    let mut mbs = Vec::with_capacity(n);
+    let mut prediction_sse = 0;
+    let mut kinds = [0; 3];
+    for i in 0..n {
+        let (mb_x, mb_y) = (i % cols, i / cols);
+        let s = MbSource::load(src, mb_x, mb_y);
+        let mvp = if uses_mvs {
+            mv_prediction(&decided, mb_x, mb_y, cols)
+        } else {
+            Mv::ZERO
+        };
+        let ctx = InterContext {
+            reference,
+            tool,
+            vectors: &context,
+            warped: warped.as_ref(),
+            mb_cols: cols,
+        };
+        let skip_pred = predict_inter(&ctx, mb_x, mb_y, mvp);
+        let mut best = Choice {
+            cost: coder.cost(s.ssd(&skip_pred), SKIP_BITS),
+            kind: MbKind::Skip,
+            pred: skip_pred.clone(),
+            residual: MbResidual::default(),
+        };
+        let mut candidates = vec![mvp];
+        if uses_mvs && searched[i] != mvp {
+            candidates.push(searched[i]);
+        }
+        for mv in candidates {
+            let pred = if mv == mvp {
+                skip_pred.clone()
+            } else {
+                predict_inter(&ctx, mb_x, mb_y, mv)
+            };
+            let coded = coder.code(&s, &pred, false, &mut recon, mb_x, mb_y);
+            let bits = INTER_BITS + if uses_mvs { mvd_len(mv, mvp) } else { 0 } + coded.bits;
+            let cost = coder.cost(coded.ssd, bits);
+            if cost < best.cost {
+                best = Choice {
+                    cost,
+                    kind: MbKind::Inter { mv },
+                    pred,
+                    residual: coded.residual,
+                };
+            }
+        }
+        let (luma, chroma, pred) = coder.best_intra(&s, &recon, mb_x, mb_y);
+        let coded = coder.code(&s, &pred, true, &mut recon, mb_x, mb_y);
+        let bits = INTRA_BITS + ue_len(luma as u32) + ue_len(chroma as u32) + coded.bits;
+        let cost = coder.cost(coded.ssd, bits);
+        if cost < best.cost {
+            best = Choice {
+                cost,
+                kind: MbKind::Intra { luma, chroma },
+                pred,
+                residual: coded.residual,
+            };
+        }
+        reconstruct_mb(&best.pred, &best.residual, coder.qp, &mut recon, mb_x, mb_y);
+        prediction_sse += visible_luma_sse(&s, &best.pred, mb_x, mb_y, seq);
+        let v = mb_vector(&best.kind, &decided, mb_x, mb_y, cols);
+        decided.push(v);
+        context[i] = v;
+        kinds[kind_index(&best.kind)] += 1;
+        mbs.push(CodedMb::new(best.kind, best.residual));
+    }
+    let mut frame = CodedFrame {
+        syntax: FrameSyntax {
+            header: FrameHeader {
+                frame_type: FrameType::Inter,
+                qp: coder.qp,
+                tool,
+            },
+            grid,
+            mbs,
+        },
+        recon,
+        prediction_sse,
+        kinds,
+    };
+    if tool == MotionTool::Obmc {
+        // Decisions saw neighbours' searched vectors; code the residuals
+        // again against the final prediction, which uses the decided ones.
+        recode(seq, coder, src, reference, &mut frame)?;
+    }
+    frame.recon.extend_borders();
+    Ok(frame)
+}
+
+/// Codes every macroblock's residual again, keeping the decisions, against
+/// the prediction the decoder will form.
+fn recode(
+    seq: &SequenceHeader,
+    coder: &MbCoder,
+    src: &Frame,
+    reference: &Frame,
+    frame: &mut CodedFrame,
+) -> Result<(), PictureError> {
+    let cols = seq.mb_cols();
+    let vectors = crate::codec::recon::frame_vectors(seq, &frame.syntax);
+    let mut recon = Frame::new(seq.coded_width(), seq.coded_height())?;
+    frame.prediction_sse = 0;
+    let ctx = InterContext {
+        reference,
+        tool: frame.syntax.header.tool,
+        vectors: &vectors,
+        warped: None,
+        mb_cols: cols,
+    };
+    for (i, mb) in frame.syntax.mbs.iter_mut().enumerate() {
+        let (mb_x, mb_y) = (i % cols, i / cols);
+        let s = MbSource::load(src, mb_x, mb_y);
+        let (pred, intra) = match mb.kind {
+            MbKind::Intra { luma, chroma } => (predict_intra(&recon, mb_x, mb_y, luma, chroma), true),
+            _ => (
+                predict_inter(&ctx, mb_x, mb_y, vectors[i].unwrap_or_default()),
+                false,
+            ),
+        };
+        frame.prediction_sse += visible_luma_sse(&s, &pred, mb_x, mb_y, seq);
+        if mb.kind == MbKind::Skip {
+            reconstruct_mb(&pred, &MbResidual::default(), coder.qp, &mut recon, mb_x, mb_y);
+        } else {
+            let coded = coder.code(&s, &pred, intra, &mut recon, mb_x, mb_y);
+            *mb = CodedMb::new(mb.kind, coded.residual);
+        }
+    }
+    frame.recon = recon;
+    Ok(())
+}

@@ -1,0 +1,272 @@
+//! One macroblock: its residual (transform, quantisation, the small-block
+//! zeroing H.264's reference encoder does), its exact rate, and the
+//! rate-distortion cost J = SSD + lambda * bits of each way to code it.
+
+use crate::codec::bits::{se_len, ue_len};
+use crate::codec::intra::IntraMode;
+use crate::codec::mv::Mv;
+use crate::codec::recon::{chroma_qp, predict_intra, reconstruct_mb, MbPrediction};
+use crate::codec::residual::{MbResidual, ZIGZAG};
+use crate::codec::syntax::{intra_mode_allowed, MB};
+use crate::codec::transform::{forward_4x4, quantize, Block4};
+use crate::codec::Frame;
+use crate::me::Metric;
+
+/// Quantiser rounding offsets (fractions of a step), as in the H.264
+/// reference encoder: a wider dead zone for inter residuals, which are
+/// mostly noise.
+const ROUND_INTRA: f64 = 1.0 / 3.0;
+const ROUND_INTER: f64 = 1.0 / 6.0;
+
+/// The source samples of one macroblock.
+#[derive(Debug, Clone)]
+pub(crate) struct MbSource {
+    pub luma: [u8; 256],
+    pub chroma: [[u8; 64]; 2],
+}
+
+impl MbSource {
+    /// Macroblock (mb_x, mb_y) of a coded-size frame.
+    pub fn load(frame: &Frame, mb_x: usize, mb_y: usize) -> MbSource {
+        let mut s = MbSource {
+            luma: [0; 256],
+            chroma: [[0; 64]; 2],
+        };
+        let (x0, y0) = (mb_x * MB, mb_y * MB);
+        for r in 0..MB {
+            s.luma[r * MB..(r + 1) * MB].copy_from_slice(&frame.y().row(y0 + r)[x0..x0 + MB]);
+        }
+        for p in 0..2 {
+            for r in 0..8 {
+                s.chroma[p][r * 8..(r + 1) * 8]
+                    .copy_from_slice(&frame.plane(p + 1).row(y0 / 2 + r)[x0 / 2..x0 / 2 + 8]);
+            }
+        }
+        s
+    }
+
+    /// Squared error of a prediction (or reconstruction), luma and chroma.
+    pub fn ssd(&self, p: &MbPrediction) -> u64 {
+        let d = |a: &[u8], b: &[u8]| -> u64 {
+            a.iter()
+                .zip(b)
+                .map(|(&x, &y)| {
+                    let e = i32::from(x) - i32::from(y);
+                    (e * e) as u64
+                })
+                .sum()
+        };
+        d(&self.luma, &p.luma) + d(&self.chroma[0], &p.chroma[0]) + d(&self.chroma[1], &p.chroma[1])
+    }
+}
+
+/// A residual with its rate and the reconstruction it gives.
+#[derive(Debug, Clone)]
+pub(crate) struct Coded {
+    pub residual: MbResidual,
+    /// Bits of the coded block pattern, flags and levels.
+    pub bits: u32,
+    /// Squared error of the reconstruction.
+    pub ssd: u64,
+}
+
+/// The per-frame constants of macroblock coding.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct MbCoder {
+    pub qp: u8,
+    /// Weight of one bit against squared error.
+    pub lambda: f64,
+}
+
+/// Residual bits as the writer spends them.
+pub(crate) fn residual_bits(residual: &MbResidual) -> u32 {
+    residual.bit_len()
+}
+
+/// H.264 reference-encoder cost of a 4x4 block's levels for the zeroing
+/// decision: a level above 1 makes it worth keeping; a lone ±1 costs by
+/// how few zeros precede it.
+fn coefficient_cost(b: &Block4) -> u32 {
+    const COST: [u32; 16] = [3, 2, 2, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0];
+    let mut cost = 0;
+    let mut run = 0;
+    for &k in &ZIGZAG {
+        let v = b[k / 4][k % 4];
+        if v == 0 {
+            run += 1;
+        } else if v.abs() > 1 {
+            return 999;
+        } else {
+            cost += COST[run];
+            run = 0;
+        }
+    }
+    cost
+}
+
+impl MbCoder {
+    pub fn new(qp: u8, lambda_scale: f64) -> MbCoder {
+        MbCoder {
+            qp,
+            lambda: lambda_scale * 0.85 * 2f64.powf((f64::from(qp) - 12.0) / 3.0),
+        }
+    }
+
+    /// Transforms and quantises `src - pred`, writes the reconstruction to
+    /// macroblock (mb_x, mb_y) of `recon` (through the codec, as the
+    /// decoder will) and measures it.
+    pub fn code(
+        &self,
+        src: &MbSource,
+        pred: &MbPrediction,
+        intra: bool,
+        recon: &mut Frame,
+        mb_x: usize,
+        mb_y: usize,
+    ) -> Coded {
+        let rounding = if intra { ROUND_INTRA } else { ROUND_INTER };
+        let mut residual = MbResidual::default();
+        let levels = |s: &[u8], p: &[u8], size: usize, bx: usize, by: usize, qp: u8| {
+            let mut b = [[0i32; 4]; 4];
+            for (r, row) in b.iter_mut().enumerate() {
+                let i = (by * 4 + r) * size + bx * 4;
+                for (c, v) in row.iter_mut().enumerate() {
+                    *v = i32::from(s[i + c]) - i32::from(p[i + c]);
+                }
+            }
+            let mut c = forward_4x4(&b);
+            quantize(&mut c, qp, rounding);
+            c
+        };
+        for (k, block) in residual.luma.iter_mut().enumerate() {
+            *block = levels(&src.luma, &pred.luma, MB, k % 4, k / 4, self.qp);
+        }
+        if !intra {
+            // Lone small levels cost more bits than they save distortion:
+            // drop an 8x8 quadrant whose levels cost < 4, and all luma when
+            // the macroblock's total is < 6 (JM's thresholds).
+            let mut total = 0;
+            for q in 0..4 {
+                let blocks = [0, 1, 4, 5].map(|o| (q % 2) * 2 + (q / 2) * 8 + o);
+                let cost: u32 = blocks.iter().map(|&k| coefficient_cost(&residual.luma[k])).sum();
+                if cost < 4 {
+                    for k in blocks {
+                        residual.luma[k] = [[0; 4]; 4];
+                    }
+                } else {
+                    total += cost;
+                }
+            }
+            if total < 6 {
+                residual.luma = [[[0; 4]; 4]; 16];
+            }
+        }
+        let cqp = chroma_qp(self.qp);
+        for p in 0..2 {
+            for (k, block) in residual.chroma[p].iter_mut().enumerate() {
+                *block = levels(&src.chroma[p], &pred.chroma[p], 8, k % 2, k / 2, cqp);
+            }
+            if !intra && residual.chroma[p].iter().map(coefficient_cost).sum::<u32>() < 4 {
+                residual.chroma[p] = [[[0; 4]; 4]; 4];
+            }
+        }
+        reconstruct_mb(pred, &residual, self.qp, recon, mb_x, mb_y);
+        let ssd = src.ssd(&MbSource::load(recon, mb_x, mb_y).as_prediction());
+        Coded {
+            bits: residual_bits(&residual),
+            residual,
+            ssd,
+        }
+    }
+
+    /// J = SSD + lambda * bits.
+    pub fn cost(&self, ssd: u64, bits: u32) -> f64 {
+        ssd as f64 + self.lambda * f64::from(bits)
+    }
+
+    /// The intra modes allowed at (mb_x, mb_y) with the smallest SATD
+    /// (luma) and SAD (chroma) plus the modes' bits, and their prediction.
+    pub fn best_intra(
+        &self,
+        src: &MbSource,
+        recon: &Frame,
+        mb_x: usize,
+        mb_y: usize,
+    ) -> (IntraMode, IntraMode, MbPrediction) {
+        let sad_lambda = self.lambda.sqrt();
+        let allowed: Vec<IntraMode> = IntraMode::ALL
+            .into_iter()
+            .filter(|&m| intra_mode_allowed(m, mb_x, mb_y))
+            .collect();
+        let mut best = (
+            f64::INFINITY,
+            IntraMode::Dc,
+            IntraMode::Dc,
+            MbPrediction::default(),
+        );
+        // Luma and chroma modes are independent: choose luma with DC chroma,
+        // then chroma with the chosen luma.
+        for &m in &allowed {
+            let p = predict_intra(recon, mb_x, mb_y, m, IntraMode::Dc);
+            let c = f64::from(Metric::Satd.cost(&src.luma, MB, &p.luma, MB, MB, MB))
+                + sad_lambda * f64::from(ue_len(m as u32));
+            if c < best.0 {
+                best = (c, m, IntraMode::Dc, p);
+            }
+        }
+        let luma = best.1;
+        let mut best_c = f64::INFINITY;
+        for &m in &allowed {
+            let p = predict_intra(recon, mb_x, mb_y, luma, m);
+            let c = (0..2)
+                .map(|k| f64::from(Metric::Sad.cost(&src.chroma[k], 8, &p.chroma[k], 8, 8, 8)))
+                .sum::<f64>()
+                + sad_lambda * f64::from(ue_len(m as u32));
+            if c < best_c {
+                best_c = c;
+                best.2 = m;
+                best.3 = p;
+            }
+        }
+        (best.1, best.2, best.3)
+    }
+}
+
+impl MbSource {
+    fn as_prediction(&self) -> MbPrediction {
+        MbPrediction {
+            luma: self.luma,
+            chroma: self.chroma,
+        }
+    }
+}
+
+/// Bits of a vector difference.
+pub(crate) fn mvd_len(mv: Mv, mvp: Mv) -> u32 {
+    se_len(mv.x - mvp.x) + se_len(mv.y - mvp.y)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn coefficient_cost_keeps_large_levels_and_prices_lone_ones() {
+        let mut b = [[0; 4]; 4];
+        assert_eq!(coefficient_cost(&b), 0);
+        b[0][0] = 1; // first in scan order, no zeros before it
+        assert_eq!(coefficient_cost(&b), 3);
+        b[3][3] = -1; // last, after 14 zeros
+        assert_eq!(coefficient_cost(&b), 3);
+        b[1][1] = 2;
+        assert_eq!(coefficient_cost(&b), 999);
+    }
+
+    #[test]
+    fn residual_bits_count_what_the_writer_writes() {
+        let mut r = MbResidual::default();
+        let empty = residual_bits(&r);
+        r.luma[5][0][1] = 3;
+        assert!(residual_bits(&r) > empty);
+    }
+}

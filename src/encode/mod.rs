@@ -1,0 +1,274 @@
+//! The encoder: IPPP coding at a fixed QP, one reference (the previous
+//! reconstruction), per-macroblock rate-distortion mode decision over skip,
+//! inter and intra, and a choice of P-frame predictors ([`Predictor`]).
+//!
+//! Everything here is encoder choice; what a frame decodes to is fixed by
+//! the codec crate, whose functions do all reconstruction, so the
+//! encoder's reconstruction is the decoder's output byte for byte.
+//!
+//! ```
+//! use mocomp::codec::{decoder, Frame};
+//! use mocomp::encode::{Encoder, EncoderConfig};
+//!
+//! let config = EncoderConfig::new().qp(30).predictor("block:esa".parse().unwrap());
+//! let mut encoder = Encoder::new(40, 24, (30, 1), config).unwrap();
+//! let mut stream = encoder.header();
+//! let mut recon = Vec::new();
+//! for t in 0..3 {
+//!     let frame = Frame::filled(40, 24, 60 + 20 * t as u8, 128, 128).unwrap();
+//!     let coded = encoder.encode(&frame).unwrap();
+//!     stream.extend_from_slice(&coded.bytes);
+//!     recon.push(coded.recon);
+//! }
+//! stream.extend_from_slice(&Encoder::trailer());
+//! let decoded = decoder::decode(&stream).unwrap();
+//! assert_eq!(decoded.len(), 3);
+//! assert_eq!(decoded, recon); // bit-exact
+//! ```
+
+mod config;
+mod frame;
+mod macroblock;
+mod motion;
+mod stats;
+
+use std::io::{Read, Write};
+use std::time::Instant;
+
+pub use config::{BlockSearch, EncoderConfig, FlowMethod, Predictor, DEFAULT_GRID, DEFAULT_REFINE};
+pub use stats::{FrameStats, Summary, SummaryBuilder};
+
+use crate::codec::recon::crop;
+use crate::codec::syntax::{write_frame, FrameType, MotionTool, SequenceHeader, STREAM_END};
+use crate::codec::{Frame, PictureError};
+use crate::io::y4m::{Y4mError, Y4mReader};
+use crate::metrics::{frame_psnr, psnr_from_mse, ssim};
+use macroblock::MbCoder;
+use motion::MotionAnalyser;
+
+/// Why encoding stops.
+#[derive(Debug, thiserror::Error)]
+pub enum EncodeError {
+    /// A setting out of range.
+    #[error("{0}")]
+    Config(String),
+    /// A picture of the wrong size, or one too large.
+    #[error(transparent)]
+    Picture(#[from] PictureError),
+    /// A frame of another size than the sequence.
+    #[error("frame is {got_w}x{got_h}, the sequence is {width}x{height}")]
+    FrameSize {
+        /// Frame width.
+        got_w: usize,
+        /// Frame height.
+        got_h: usize,
+        /// Sequence width.
+        width: usize,
+        /// Sequence height.
+        height: usize,
+    },
+    /// Reading the input.
+    #[error(transparent)]
+    Input(#[from] Y4mError),
+    /// Writing the stream.
+    #[error("writing the stream: {0}")]
+    Output(#[from] std::io::Error),
+}
+
+/// One coded frame.
+#[derive(Debug, Clone)]
+pub struct EncodedFrame {
+    /// The frame's bytes in the stream (start code to end).
+    pub bytes: Vec<u8>,
+    /// What the decoder will output for it (visible size).
+    pub recon: Frame,
+    /// Rate, quality and time.
+    pub stats: FrameStats,
+}
+
+/// Encodes a sequence frame by frame. See the [module](self) example.
+pub struct Encoder {
+    seq: SequenceHeader,
+    config: EncoderConfig,
+    coder: MbCoder,
+    analyser: MotionAnalyser,
+    /// The previous reconstruction, coded size, borders extended.
+    reference: Option<Frame>,
+    /// The previous source, coded size (flow predictors read it).
+    prev_source: Option<Frame>,
+    index: usize,
+}
+
+impl Encoder {
+    /// An encoder for `width x height` pictures at `fps` (numerator,
+    /// denominator).
+    pub fn new(
+        width: usize,
+        height: usize,
+        fps: (u32, u32),
+        config: EncoderConfig,
+    ) -> Result<Encoder, EncodeError> {
+        config.check().map_err(EncodeError::Config)?;
+        crate::codec::picture::check_size(width, height)?;
+        if fps.0 == 0 || fps.1 == 0 {
+            return Err(EncodeError::Config(format!(
+                "frame rate {}/{} is not positive",
+                fps.0, fps.1
+            )));
+        }
+        let seq = SequenceHeader {
+            width,
+            height,
+            fps_num: fps.0,
+            fps_den: fps.1,
+            frame_count: 0,
+        };
+        Ok(Encoder {
+            seq,
+            config,
+            coder: MbCoder::new(config.qp, config.lambda_scale),
+            analyser: MotionAnalyser::new(config.predictor, config.qp),
+            reference: None,
+            prev_source: None,
+            index: 0,
+        })
+    }
+
+    /// The sequence header that starts the stream (frame count 0: not
+    /// known in advance).
+    pub fn header(&self) -> Vec<u8> {
+        self.seq.to_bytes()
+    }
+
+    /// The byte that ends the stream.
+    pub fn trailer() -> [u8; 1] {
+        [STREAM_END]
+    }
+
+    /// The sequence header.
+    pub fn sequence(&self) -> &SequenceHeader {
+        &self.seq
+    }
+
+    /// Codes the next frame.
+    pub fn encode(&mut self, source: &Frame) -> Result<EncodedFrame, EncodeError> {
+        if (source.width(), source.height()) != (self.seq.width, self.seq.height) {
+            return Err(EncodeError::FrameSize {
+                got_w: source.width(),
+                got_h: source.height(),
+                width: self.seq.width,
+                height: self.seq.height,
+            });
+        }
+        let start = Instant::now();
+        let src = pad_to_coded(source, self.seq.coded_width(), self.seq.coded_height())?;
+        let intra = self.config.gop > 0 && self.index % self.config.gop == 0;
+        let mut me_ms = 0.0;
+        let coded = match (&self.reference, &self.prev_source, intra) {
+            (Some(reference), Some(prev), false) => {
+                let t = Instant::now();
+                let motion = self.analyser.analyse(&src, prev, reference);
+                me_ms = t.elapsed().as_secs_f64() * 1e3;
+                let tool = match self.config.predictor {
+                    Predictor::Obmc(_) => MotionTool::Obmc,
+                    Predictor::Dense { grid, .. } => MotionTool::Grid(grid),
+                    _ => MotionTool::Block,
+                };
+                frame::code_inter(&self.seq, &self.coder, &src, reference, motion, tool)?
+            }
+            _ => frame::code_intra(&self.seq, &self.coder, &src)?,
+        };
+        let (bytes, bits) = write_frame(&self.seq, &coded.syntax);
+        let recon = crop(&coded.recon, self.seq.width, self.seq.height)?;
+        let psnr = frame_psnr(source, &recon);
+        let stats = FrameStats {
+            index: self.index,
+            frame_type: if coded.syntax.header.frame_type == FrameType::Intra {
+                'I'
+            } else {
+                'P'
+            },
+            bytes: bytes.len(),
+            bits_header: bits.header,
+            bits_motion: bits.motion,
+            bits_residual: bits.residual,
+            psnr_y: psnr.y,
+            psnr_u: psnr.u,
+            psnr_v: psnr.v,
+            ssim: if self.config.ssim {
+                ssim(source.y(), recon.y())
+            } else {
+                f64::NAN
+            },
+            prediction_psnr_y: psnr_from_mse(
+                coded.prediction_sse as f64 / (self.seq.width * self.seq.height) as f64,
+            ),
+            skip_mbs: coded.kinds[0],
+            inter_mbs: coded.kinds[1],
+            intra_mbs: coded.kinds[2],
+            me_ms,
+            total_ms: start.elapsed().as_secs_f64() * 1e3,
+        };
+        self.reference = Some(coded.recon);
+        self.prev_source = Some(src);
+        self.index += 1;
+        Ok(EncodedFrame { bytes, recon, stats })
+    }
+}
+
+/// `frame` at the coded size: the right column and bottom row repeated
+/// into the macroblocks' padding (which costs few bits and no distortion
+/// that anyone sees), borders extended.
+fn pad_to_coded(frame: &Frame, width: usize, height: usize) -> Result<Frame, PictureError> {
+    let mut out = Frame::new(width, height)?;
+    for p in 0..3 {
+        let src = frame.plane(p);
+        let dst = out.plane_mut(p);
+        let (sw, sh) = (src.width(), src.height());
+        for y in 0..dst.height() {
+            let row = src.row(y.min(sh - 1));
+            let d = dst.row_mut(y);
+            d[..sw].copy_from_slice(row);
+            let last = row[sw - 1];
+            d[sw..].fill(last);
+        }
+    }
+    out.extend_borders();
+    Ok(out)
+}
+
+/// Encodes a whole Y4M into `out` (sequence header, frames, end marker):
+/// at most `max_frames` frames, calling `on_frame` after each. Returns the
+/// summary.
+pub fn encode_y4m<R: Read, W: Write>(
+    reader: &mut Y4mReader<R>,
+    mut out: W,
+    config: EncoderConfig,
+    max_frames: Option<usize>,
+    mut on_frame: impl FnMut(&EncodedFrame) -> Result<(), EncodeError>,
+) -> Result<Summary, EncodeError> {
+    let info = reader.info().clone();
+    let fps = (
+        u32::try_from(info.fps.0)
+            .map_err(|_| EncodeError::Config("frame rate numerator too large".into()))?,
+        u32::try_from(info.fps.1)
+            .map_err(|_| EncodeError::Config("frame rate denominator too large".into()))?,
+    );
+    let mut encoder = Encoder::new(info.width, info.height, fps, config)?;
+    let header = encoder.header();
+    out.write_all(&header)?;
+    let mut summary = SummaryBuilder::new(info.fps_f64(), header.len() + 1);
+    let mut frame = Frame::new(info.width, info.height)?;
+    while max_frames.is_none_or(|n| summary.frames() < n) && reader.read_frame_into(&mut frame)? {
+        let coded = encoder.encode(&frame)?;
+        out.write_all(&coded.bytes)?;
+        summary.push(&coded.stats);
+        on_frame(&coded)?;
+    }
+    out.write_all(&Encoder::trailer())?;
+    out.flush()?;
+    if summary.frames() == 0 {
+        return Err(EncodeError::Config("the input holds no frames".into()));
+    }
+    Ok(summary.finish())
+}

@@ -1,0 +1,239 @@
+//! Motion analysis of a P frame (encoder side, not normative): each
+//! predictor's vectors for the macroblocks, or its motion grid.
+
+use ndarray::Array2;
+
+use super::config::{BlockSearch, FlowMethod, Predictor};
+use crate::codec::interp::predict_luma;
+use crate::codec::mv::Mv;
+use crate::codec::syntax::{mv_prediction, MB};
+use crate::codec::warp::MotionGrid;
+use crate::codec::{Frame, Plane};
+use crate::flow::hs::{horn_schunck, HsParams};
+use crate::flow::lk::{Lk, LkParams};
+use crate::flow::Flow;
+use crate::me::{self, lambda_for_qp, MeConfig, Metric, MotionField};
+use crate::raster::plane_to_array;
+
+/// What motion analysis hands to mode decision.
+#[derive(Debug, Clone)]
+pub(crate) enum FrameMotion {
+    /// One candidate vector per macroblock (raster order).
+    Vectors(Vec<Mv>),
+    /// A motion grid to warp with.
+    Grid(MotionGrid),
+}
+
+/// The state motion analysis keeps between frames.
+pub(crate) struct MotionAnalyser {
+    predictor: Predictor,
+    qp: u8,
+    /// The previous frame's field, for EPZS's co-located candidates.
+    prior: Option<MotionField>,
+    lk: Option<Lk>,
+}
+
+impl MotionAnalyser {
+    pub fn new(predictor: Predictor, qp: u8) -> MotionAnalyser {
+        MotionAnalyser {
+            predictor,
+            qp,
+            prior: None,
+            lk: None,
+        }
+    }
+
+    /// Motion of `source` (coded size) against `reference` (the previous
+    /// reconstruction); flow predictors look at `prev_source` instead.
+    pub fn analyse(&mut self, source: &Frame, prev_source: &Frame, reference: &Frame) -> FrameMotion {
+        let cols = source.width() / MB;
+        let rows = source.height() / MB;
+        match self.predictor {
+            Predictor::Zero => FrameMotion::Vectors(vec![Mv::ZERO; cols * rows]),
+            Predictor::Block(s) | Predictor::Obmc(s) => {
+                FrameMotion::Vectors(self.search(source.y(), reference.y(), s))
+            }
+            Predictor::FlowBlock { flow, refine } => {
+                let f = self.flow(flow, source.y(), prev_source.y());
+                let lambda = lambda_for_qp(Metric::Satd, self.qp);
+                let mut vectors: Vec<Option<Mv>> = Vec::with_capacity(cols * rows);
+                for r in 0..rows {
+                    for c in 0..cols {
+                        let seed = block_median(&f, c * MB, r * MB, MB);
+                        let mv = if refine > 0 {
+                            let mvp = mv_prediction(&vectors, c, r, cols);
+                            refine_around(
+                                source.y(),
+                                reference.y(),
+                                c * MB,
+                                r * MB,
+                                seed,
+                                refine,
+                                mvp,
+                                lambda,
+                            )
+                        } else {
+                            seed
+                        };
+                        vectors.push(Some(mv));
+                    }
+                }
+                FrameMotion::Vectors(vectors.into_iter().flatten().collect())
+            }
+            Predictor::Dense { flow, grid } => {
+                let f = self.flow(flow, source.y(), prev_source.y());
+                FrameMotion::Grid(grid_from_flow(&f, source.width(), source.height(), grid))
+            }
+        }
+    }
+
+    fn search(&mut self, cur: &Plane, reference: &Plane, s: BlockSearch) -> Vec<Mv> {
+        let mut cfg = MeConfig::new(s.method, MB, s.range);
+        cfg.subpel = s.subpel;
+        cfg.metric = Metric::Satd;
+        cfg.lambda = lambda_for_qp(Metric::Satd, self.qp);
+        // The configuration was checked when the encoder was made and the
+        // frames are the encoder's own, so the search cannot refuse them.
+        match me::estimate_with_prior(cur, reference, &cfg, self.prior.as_ref()) {
+            Ok(field) => {
+                let v = field.vectors().to_vec();
+                self.prior = Some(field);
+                v
+            }
+            Err(_) => vec![Mv::ZERO; (cur.width() / MB) * (cur.height() / MB)],
+        }
+    }
+
+    /// Flow from `cur` to `prev`: `cur(x) ~ prev(x + flow(x))`, which is the
+    /// codec's vector convention.
+    fn flow(&mut self, method: FlowMethod, cur: &Plane, prev: &Plane) -> Flow {
+        let (a, b) = (plane_to_array(cur), plane_to_array(prev));
+        match method {
+            FlowMethod::Lk => {
+                self.lk
+                    .get_or_insert_with(|| Lk::new(LkParams::default()))
+                    .compute(&a, &b)
+                    .flow
+            }
+            FlowMethod::Hs => horn_schunck(&a, &b, &HsParams::default()).0,
+        }
+    }
+}
+
+/// Quarter-pel rounding of a flow value, kept inside the codec's range.
+fn to_qpel(v: f32) -> i32 {
+    let limit = (crate::codec::mv::MV_LIMIT - 1) as f32;
+    (v * 4.0).round().clamp(-limit, limit) as i32
+}
+
+/// The component-wise median of the flow over a `size` block at (x0, y0):
+/// robust to the occlusion edges and outliers a mean would follow.
+pub(crate) fn block_median(flow: &Flow, x0: usize, y0: usize, size: usize) -> Mv {
+    let (u, v) = (flow.u(), flow.v());
+    let mut us = Vec::with_capacity(size * size);
+    let mut vs = Vec::with_capacity(size * size);
+    for y in y0..(y0 + size).min(flow.height()) {
+        for x in x0..(x0 + size).min(flow.width()) {
+            us.push(u[[y, x]]);
+            vs.push(v[[y, x]]);
+        }
+    }
+    let median = |s: &mut Vec<f32>| -> f32 {
+        if s.is_empty() {
+            return 0.0;
+        }
+        let mid = s.len() / 2;
+        *s.select_nth_unstable_by(mid, f32::total_cmp).1
+    };
+    Mv::new(to_qpel(median(&mut us)), to_qpel(median(&mut vs)))
+}
+
+/// Searches full-pel vectors within `radius` of `seed` (rounded), then
+/// half- and quarter-pel around the best, by SATD + lambda * vector bits;
+/// the seed itself is a candidate.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn refine_around(
+    cur: &Plane,
+    reference: &Plane,
+    x: usize,
+    y: usize,
+    seed: Mv,
+    radius: i32,
+    mvp: Mv,
+    lambda: f64,
+) -> Mv {
+    let src = &cur.data()[cur.index(x as isize, y as isize)..];
+    let mut pred = [0u8; MB * MB];
+    let mut cost = |mv: Mv| -> f64 {
+        predict_luma(
+            reference, x as isize, y as isize, mv.x, mv.y, MB, MB, &mut pred, MB,
+        );
+        f64::from(Metric::Satd.cost(src, cur.stride(), &pred, MB, MB, MB))
+            + lambda * f64::from(super::macroblock::mvd_len(mv, mvp))
+    };
+    let mut best = (cost(seed), seed);
+    let centre = Mv::new((seed.x + 2) & !3, (seed.y + 2) & !3);
+    for dy in -radius..=radius {
+        for dx in -radius..=radius {
+            let mv = Mv::new(centre.x + 4 * dx, centre.y + 4 * dy);
+            let c = cost(mv);
+            if c < best.0 {
+                best = (c, mv);
+            }
+        }
+    }
+    for step in [2, 1] {
+        let c0 = best.1;
+        for dy in [-step, 0, step] {
+            for dx in [-step, 0, step] {
+                if dx == 0 && dy == 0 {
+                    continue;
+                }
+                let mv = Mv::new(c0.x + dx, c0.y + dy);
+                let c = cost(mv);
+                if c < best.0 {
+                    best = (c, mv);
+                }
+            }
+        }
+    }
+    best.1
+}
+
+/// A `spacing` grid for a `width x height` picture from a dense flow: each
+/// node the average of the flow under its bilinear hat (the weights with
+/// which the node reaches each pixel), so the warp follows the flow in the
+/// least-blurred way the grid can.
+pub(crate) fn grid_from_flow(flow: &Flow, width: usize, height: usize, spacing: usize) -> MotionGrid {
+    // The picture sizes come from the encoder (checked), and spacing was
+    // checked with the configuration.
+    let Ok(mut grid) = MotionGrid::new(width, height, spacing) else {
+        unreachable!("checked sizes and spacing")
+    };
+    let s = spacing as isize;
+    let (fw, fh) = (flow.width() as isize, flow.height() as isize);
+    let (u, v): (&Array2<f32>, &Array2<f32>) = (flow.u(), flow.v());
+    for row in 0..grid.rows() {
+        for col in 0..grid.cols() {
+            let (nx, ny) = (col as isize * s, row as isize * s);
+            let (mut su, mut sv, mut sw) = (0f64, 0f64, 0f64);
+            for y in (ny - s + 1).max(0)..(ny + s).min(fh) {
+                let wy = (s - (y - ny).abs()) as f64;
+                for x in (nx - s + 1).max(0)..(nx + s).min(fw) {
+                    let w = wy * (s - (x - nx).abs()) as f64;
+                    su += w * f64::from(u[[y as usize, x as usize]]);
+                    sv += w * f64::from(v[[y as usize, x as usize]]);
+                    sw += w;
+                }
+            }
+            if sw > 0.0 {
+                grid.set(
+                    col,
+                    row,
+                    Mv::new(to_qpel((su / sw) as f32), to_qpel((sv / sw) as f32)),
+                );
+            }
+        }
+    }
+    grid
+}

@@ -1,0 +1,208 @@
+//! Per-frame and per-sequence statistics of an encode.
+
+use serde::Serialize;
+
+/// What one frame cost and gave.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FrameStats {
+    /// Frame number, from 0.
+    pub index: usize,
+    /// `I` or `P`.
+    pub frame_type: char,
+    /// Bytes in the stream.
+    pub bytes: usize,
+    /// Framing, frame header, macroblock types, skip runs, intra modes.
+    pub bits_header: u64,
+    /// Vector differences and grid vectors.
+    pub bits_motion: u64,
+    /// Coded block patterns and levels.
+    pub bits_residual: u64,
+    /// PSNR of the reconstruction, dB.
+    pub psnr_y: f64,
+    /// Cb PSNR, dB.
+    pub psnr_u: f64,
+    /// Cr PSNR, dB.
+    pub psnr_v: f64,
+    /// Luma SSIM (NaN when not measured).
+    pub ssim: f64,
+    /// Luma PSNR of the prediction before the residual, dB.
+    pub prediction_psnr_y: f64,
+    /// Macroblocks skipped.
+    pub skip_mbs: usize,
+    /// Macroblocks inter-coded with a residual or a vector.
+    pub inter_mbs: usize,
+    /// Macroblocks intra-coded.
+    pub intra_mbs: usize,
+    /// Motion estimation or flow time, ms.
+    pub me_ms: f64,
+    /// Time to code the frame, measurements included, ms.
+    pub total_ms: f64,
+}
+
+impl FrameStats {
+    /// The CSV header of [`FrameStats::csv_row`].
+    pub const CSV_HEADER: &'static str =
+        "frame,type,bytes,bits_header,bits_motion,bits_residual,psnr_y,psnr_u,psnr_v,\
+ssim,prediction_psnr_y,skip_mbs,inter_mbs,intra_mbs,me_ms,total_ms";
+
+    /// One CSV row.
+    pub fn csv_row(&self) -> String {
+        format!(
+            "{},{},{},{},{},{},{:.4},{:.4},{:.4},{:.6},{:.4},{},{},{},{:.3},{:.3}",
+            self.index,
+            self.frame_type,
+            self.bytes,
+            self.bits_header,
+            self.bits_motion,
+            self.bits_residual,
+            self.psnr_y,
+            self.psnr_u,
+            self.psnr_v,
+            self.ssim,
+            self.prediction_psnr_y,
+            self.skip_mbs,
+            self.inter_mbs,
+            self.intra_mbs,
+            self.me_ms,
+            self.total_ms
+        )
+    }
+}
+
+/// A whole encode.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Summary {
+    /// Frames coded.
+    pub frames: usize,
+    /// Stream size, bytes (sequence header and end marker included).
+    pub bytes: u64,
+    /// Bit rate at the sequence's frame rate, kbit/s.
+    pub kbps: f64,
+    /// Mean over frames of luma PSNR, dB (as ffmpeg's psnr stats and HM).
+    pub psnr_y: f64,
+    /// Mean Cb PSNR, dB.
+    pub psnr_u: f64,
+    /// Mean Cr PSNR, dB.
+    pub psnr_v: f64,
+    /// Mean luma SSIM (NaN when not measured).
+    pub ssim: f64,
+    /// Header bits (the sequence header and end marker included).
+    pub bits_header: u64,
+    /// Motion bits.
+    pub bits_motion: u64,
+    /// Residual bits.
+    pub bits_residual: u64,
+    /// Coding time, ms (reading and writing files not included).
+    pub encode_ms: f64,
+    /// Of which motion estimation or flow, ms.
+    pub me_ms: f64,
+    /// Frames per second coded.
+    pub fps: f64,
+}
+
+/// Adds frames up into a [`Summary`].
+#[derive(Debug, Clone)]
+pub struct SummaryBuilder {
+    frame_rate: f64,
+    s: Summary,
+}
+
+impl SummaryBuilder {
+    /// At `frame_rate` frames per second, with `stream_bytes` outside the
+    /// frames (sequence header, end marker).
+    pub fn new(frame_rate: f64, stream_bytes: usize) -> SummaryBuilder {
+        SummaryBuilder {
+            frame_rate,
+            s: Summary {
+                frames: 0,
+                bytes: stream_bytes as u64,
+                kbps: 0.0,
+                psnr_y: 0.0,
+                psnr_u: 0.0,
+                psnr_v: 0.0,
+                ssim: 0.0,
+                bits_header: 8 * stream_bytes as u64,
+                bits_motion: 0,
+                bits_residual: 0,
+                encode_ms: 0.0,
+                me_ms: 0.0,
+                fps: 0.0,
+            },
+        }
+    }
+
+    /// Frames so far.
+    pub fn frames(&self) -> usize {
+        self.s.frames
+    }
+
+    /// Adds a frame.
+    pub fn push(&mut self, f: &FrameStats) {
+        let s = &mut self.s;
+        s.frames += 1;
+        s.bytes += f.bytes as u64;
+        s.psnr_y += f.psnr_y;
+        s.psnr_u += f.psnr_u;
+        s.psnr_v += f.psnr_v;
+        s.ssim += f.ssim;
+        s.bits_header += f.bits_header;
+        s.bits_motion += f.bits_motion;
+        s.bits_residual += f.bits_residual;
+        s.encode_ms += f.total_ms;
+        s.me_ms += f.me_ms;
+    }
+
+    /// The means and rates.
+    pub fn finish(&self) -> Summary {
+        let mut s = self.s;
+        let n = s.frames.max(1) as f64;
+        s.psnr_y /= n;
+        s.psnr_u /= n;
+        s.psnr_v /= n;
+        s.ssim /= n;
+        s.kbps = s.bytes as f64 * 8.0 / (n / self.frame_rate) / 1000.0;
+        s.fps = if s.encode_ms > 0.0 {
+            n / (s.encode_ms / 1000.0)
+        } else {
+            0.0
+        };
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kbps_follows_the_frame_rate_and_means_are_per_frame() {
+        let mut b = SummaryBuilder::new(25.0, 24);
+        let f = FrameStats {
+            index: 0,
+            frame_type: 'I',
+            bytes: 976,
+            bits_header: 100,
+            bits_motion: 0,
+            bits_residual: 7708,
+            psnr_y: 40.0,
+            psnr_u: 42.0,
+            psnr_v: 43.0,
+            ssim: 0.9,
+            prediction_psnr_y: 20.0,
+            skip_mbs: 0,
+            inter_mbs: 0,
+            intra_mbs: 99,
+            me_ms: 0.0,
+            total_ms: 10.0,
+        };
+        b.push(&f);
+        b.push(&FrameStats { psnr_y: 30.0, ..f });
+        let s = b.finish();
+        // 2000 bytes over 2 frames at 25 fps = 16000 bits in 0.08 s.
+        assert_eq!(s.bytes, 2000);
+        assert!((s.kbps - 200.0).abs() < 1e-9);
+        assert!((s.psnr_y - 35.0).abs() < 1e-12);
+        assert_eq!(s.bits_header, 24 * 8 + 200);
+        assert!((s.fps - 100.0).abs() < 1e-9);
+    }
+}

@@ -39,7 +39,7 @@ fn help_lists_the_working_subcommands() {
         .stdout
         .clone();
     let text = String::from_utf8(out).unwrap();
-    for cmd in ["compare", "info", "samples", "psnr"] {
+    for cmd in ["compare", "encode", "decode", "info", "samples", "psnr"] {
         assert!(text.contains(cmd), "{cmd} missing from --help:\n{text}");
     }
 }
@@ -417,4 +417,161 @@ fn track_follows_corners_through_a_sequence() {
         assert!((pair[1][2] - pair[0][2]).hypot(pair[1][3] - pair[0][3]) < 6.0);
     }
     assert!(overlay.join("track_0009.png").exists());
+}
+
+#[test]
+fn encode_then_decode_gives_the_reconstruction_and_the_documented_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_owned();
+    let input = sample("tree_qcif.y4m");
+    let out = mocomp()
+        .args(["encode", input.to_str().unwrap(), "-o", &p("a.mcv"), "--qp", "30"])
+        .args([
+            "--predictor",
+            "block",
+            "--me",
+            "tss",
+            "--range",
+            "8",
+            "--subpel",
+            "half",
+            "--gop",
+            "4",
+        ])
+        .args([
+            "--frames",
+            "6",
+            "--recon",
+            &p("rec.y4m"),
+            "--stats",
+            &p("s.csv"),
+            "--json",
+        ])
+        .assert()
+        .success()
+        .get_output()
+        .stdout
+        .clone();
+    let v: serde_json::Value = serde_json::from_slice(&out).unwrap();
+    for key in [
+        "frames",
+        "bytes",
+        "kbps",
+        "psnr_y",
+        "psnr_u",
+        "psnr_v",
+        "ssim",
+        "bits_header",
+        "bits_motion",
+        "bits_residual",
+        "encode_ms",
+    ] {
+        assert!(v.get(key).is_some(), "{key} missing: {v}");
+    }
+    assert_eq!(v["frames"], 6);
+    let bytes = std::fs::metadata(p("a.mcv")).unwrap().len();
+    assert_eq!(v["bytes"], bytes);
+    let bits = ["bits_header", "bits_motion", "bits_residual"].map(|k| v[k].as_u64().unwrap());
+    assert_eq!(
+        bits.iter().sum::<u64>(),
+        8 * bytes,
+        "the bit categories add up to the stream"
+    );
+    assert!(v["psnr_y"].as_f64().unwrap() > 30.0, "{v}");
+    // Per-frame CSV: a header and six rows, I frames at 0 and 4.
+    let csv = std::fs::read_to_string(p("s.csv")).unwrap();
+    let types: Vec<&str> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(1).unwrap())
+        .collect();
+    assert_eq!(types, ["I", "P", "P", "P", "I", "P"]);
+
+    // Decoding to a file and to standard output both give the
+    // reconstruction the encoder wrote.
+    mocomp()
+        .args(["decode", &p("a.mcv"), "-o", &p("dec.y4m")])
+        .assert()
+        .success();
+    let stdout = mocomp()
+        .args(["decode", &p("a.mcv"), "-o", "-"])
+        .output()
+        .unwrap()
+        .stdout;
+    let frames = |bytes: &[u8]| {
+        mocomp::io::y4m::Y4mReader::new(bytes)
+            .unwrap()
+            .read_all()
+            .unwrap()
+    };
+    let rec = frames(&std::fs::read(p("rec.y4m")).unwrap());
+    assert_eq!(rec.len(), 6);
+    assert_eq!(frames(&std::fs::read(p("dec.y4m")).unwrap()), rec);
+    assert_eq!(frames(&stdout), rec);
+
+    // The text summary says where the bits went.
+    let text = mocomp()
+        .args([
+            "encode",
+            input.to_str().unwrap(),
+            "-o",
+            &p("b.mcv"),
+            "--frames",
+            "2",
+            "--predictor",
+            "dense-lk",
+        ])
+        .output()
+        .unwrap();
+    let text = String::from_utf8(text.stdout).unwrap();
+    assert!(
+        text.contains("kbit/s") && text.contains("motion") && text.contains("residual"),
+        "{text}"
+    );
+}
+
+#[test]
+fn encode_and_decode_errors_are_one_line_and_leave_no_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_owned();
+    std::fs::write(p("empty.y4m"), b"").unwrap();
+    std::fs::write(p("noframes.y4m"), b"YUV4MPEG2 W16 H16 F25:1\n").unwrap();
+    std::fs::write(p("c444.y4m"), b"YUV4MPEG2 W4 H4 F30:1 C444\nFRAME\n").unwrap();
+    std::fs::write(p("junk.mcv"), b"MOCO\x01 this is not a stream").unwrap();
+    for bad in ["empty.y4m", "noframes.y4m", "c444.y4m"] {
+        let err = fails_cleanly(&["encode", &p(bad), "-o", &p("out.mcv")]);
+        assert!(err.contains(bad), "{err}");
+        assert!(!Path::new(&p("out.mcv")).exists(), "{bad} left an output file");
+    }
+    let mut cut = std::fs::read(sample("tree_qcif.y4m")).unwrap();
+    cut.truncate(cut.len() - 100);
+    std::fs::write(p("cut.y4m"), cut).unwrap();
+    let err = fails_cleanly(&["encode", &p("cut.y4m"), "-o", &p("out.mcv")]);
+    assert!(err.contains("truncated"), "{err}");
+    assert!(!Path::new(&p("out.mcv")).exists());
+
+    let err = fails_cleanly(&["decode", &p("junk.mcv"), "-o", &p("out.y4m")]);
+    assert!(err.contains("junk.mcv"), "{err}");
+    assert!(!Path::new(&p("out.y4m")).exists());
+    let tree = sample("tree_qcif.y4m");
+    let err = fails_cleanly(&["decode", tree.to_str().unwrap(), "-o", &p("out.y4m")]);
+    assert!(err.contains("not a mocomp stream"), "{err}");
+
+    let tree = tree.to_str().unwrap();
+    assert!(
+        fails_cleanly(&["encode", tree, "-o", &p("o.mcv"), "--predictor", "nope"])
+            .contains("unknown predictor")
+    );
+    assert!(fails_cleanly(&["encode", tree, "-o", &p("o.mcv"), "--qp", "52"]).contains("QP 52"));
+    assert!(fails_cleanly(&[
+        "encode",
+        tree,
+        "-o",
+        &p("o.mcv"),
+        "--predictor",
+        "zero",
+        "--me",
+        "esa"
+    ])
+    .contains("does not apply"));
 }

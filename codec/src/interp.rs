@@ -486,6 +486,24 @@ mod tests {
     }
 
     #[test]
+    fn the_dispatched_predictor_equals_its_scalar_twin() -> Result<(), PictureError> {
+        // On an AVX2 machine predict_luma runs the AVX2 build; the body
+        // called directly here is the baseline build.
+        let p = noise_plane(70, 50, 11)?;
+        let (mut a, mut b) = (vec![0u8; 64 * 64], vec![0u8; 64 * 64]);
+        for mvy in -4..=4 {
+            for mvx in -4..=4 {
+                for (x, y, w, h) in [(3, 5, 16, 16), (40, 20, 16, 16), (1, 2, 12, 3), (0, 0, 64, 40)] {
+                    predict_luma(&p, x, y, mvx, mvy, w, h, &mut a, w);
+                    predict_luma_body(&p, x, y, mvx, mvy, w, h, &mut b, w);
+                    assert_eq!(a[..w * h], b[..w * h], "mv ({mvx},{mvy}) {w}x{h}");
+                }
+            }
+        }
+        Ok(())
+    }
+
+    #[test]
     fn every_phase_matches_the_direct_formula() -> Result<(), PictureError> {
         let p = noise_plane(37, 29, 7)?;
         let mut out = vec![0u8; 16 * 16];

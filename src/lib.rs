@@ -24,6 +24,7 @@ pub mod io;
 pub mod me;
 pub mod metrics;
 pub mod raster;
+pub mod rd;
 pub mod synth;
 pub mod viz;
 

@@ -1,0 +1,3 @@
+//! Rate-distortion tooling: BD-rate, sweeps over QPs and predictors, plots.
+
+pub mod bdrate;

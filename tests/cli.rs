@@ -166,25 +166,190 @@ fn samples_writes_video_and_flow() {
     assert!(err.contains("synth_qcif"), "{err}");
 }
 
+/// Reads a CSV into (header, rows of fields).
+fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap().split(',').map(String::from).collect();
+    let rows = lines.map(|l| l.split(',').map(String::from).collect()).collect();
+    (header, rows)
+}
+
+/// The number of line series in an SVG: polylines of three points or more
+/// (legend swatches and cross markers have two).
+fn polylines(svg: &str) -> usize {
+    svg.split("<polyline")
+        .skip(1)
+        .filter(|e| {
+            let points = e
+                .split("points=\"")
+                .nth(1)
+                .and_then(|p| p.split('"').next())
+                .unwrap_or("");
+            points.split_whitespace().count() >= 3
+        })
+        .count()
+}
+
 #[test]
-fn compare_runs_on_the_bundled_sample_from_anywhere() {
+fn compare_runs_every_predictor_on_the_bundled_sample_from_anywhere() {
     let dir = tempfile::tempdir().unwrap();
-    mocomp()
+    let out = mocomp()
         .current_dir(dir.path())
         .assert()
         .success()
-        .stdout(predicate::str::contains("zero motion").and(predicate::str::contains("mocomp-out")));
-    let csv = std::fs::read_to_string(dir.path().join("mocomp-out/compare.csv")).unwrap();
-    let rows: Vec<Vec<f64>> = csv
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
-        .collect();
-    assert_eq!(rows.len(), 9);
-    for r in rows {
-        // True motion predicts better than none, and best on valid pixels.
-        assert!(r[2] > r[1] + 3.0 && r[3] > r[2], "{r:?}");
+        .get_output()
+        .stdout
+        .clone();
+    let text = String::from_utf8(out).unwrap();
+    assert!(
+        text.contains("| obmc |") && text.contains("mocomp-out/rd.csv"),
+        "{text}"
+    );
+    let (header, rows) = read_csv(&dir.path().join("mocomp-out/rd.csv"));
+    assert_eq!(header, mocomp::rd::CSV_COLUMNS);
+    assert_eq!(rows.len(), 8 * 4, "8 predictors at 4 QPs");
+    // For every predictor, bits fall as QP rises.
+    for chunk in rows.chunks(4) {
+        let bytes: Vec<u64> = chunk.iter().map(|r| r[2].parse().unwrap()).collect();
+        assert!(
+            bytes.windows(2).all(|w| w[0] > w[1]),
+            "{}: {bytes:?}",
+            chunk[0][0]
+        );
     }
+    // Plots: one line series per predictor, and the PNGs decode.
+    let svg = std::fs::read_to_string(dir.path().join("mocomp-out/rd.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("PSNR-Y (dB)") && svg.contains("kbit/s"));
+    assert_eq!(polylines(&svg), 8, "one series per predictor");
+    for png in ["rd.png", "rd_bits.png"] {
+        let img = image::open(dir.path().join("mocomp-out").join(png)).unwrap();
+        assert!(img.width() >= 900 && img.height() >= 600, "{png}");
+    }
+    let bits = std::fs::read_to_string(dir.path().join("mocomp-out/rd_bits.svg")).unwrap();
+    for part in ["header", "motion", "residual", "block:esa", "dense-hs"] {
+        assert!(bits.contains(part), "{part} missing from the bit plot");
+    }
+}
+
+#[test]
+fn rd_sweeps_with_a_peer_csv_as_anchor_and_bdrate_reads_both() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_owned();
+    let input = sample("tree_qcif.y4m");
+    mocomp()
+        .args([
+            "rd",
+            input.to_str().unwrap(),
+            "--qp",
+            "24,30,36,42",
+            "--predictors",
+            "zero,block:tss,obmc",
+        ])
+        .args([
+            "--frames",
+            "3",
+            "-o",
+            &p("rd.csv"),
+            "--json",
+            &p("rd.json"),
+            "--plot",
+            &p("p.svg"),
+            "--threads",
+            "2",
+        ])
+        .args(["--anchor", "block:tss"])
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("| zero |").and(predicate::str::contains("anchor: block:tss")));
+    let (_, rows) = read_csv(Path::new(&p("rd.csv")));
+    assert_eq!(rows.len(), 12);
+    assert!(rows.iter().all(|r| r[6] == "tree_qcif" && r[3] == "3"));
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(p("rd.json")).unwrap()).unwrap();
+    assert_eq!(json["points"].as_array().unwrap().len(), 12);
+    let tss = &json["comparison"].as_array().unwrap()[1];
+    assert_eq!(tss["codec"], "block:tss");
+    assert!(
+        tss["bd_rate_cubic"].as_f64().unwrap().abs() < 1e-9,
+        "the anchor against itself"
+    );
+    assert_eq!(polylines(&std::fs::read_to_string(p("p.svg")).unwrap()), 3);
+    assert!(Path::new(&p("p.png")).exists() && Path::new(&p("p_bits.png")).exists());
+
+    // A peer-format CSV as the anchor: our block:tss rates times 1.25, so
+    // block:tss needs exactly 20 % fewer bits.
+    let mut peer = String::from("codec,q,bytes,frames,kbps,psnr_y\n");
+    for r in rows.iter().filter(|r| r[0] == "block:tss") {
+        let kbps: f64 = r[4].parse().unwrap();
+        peer += &format!("mpeg4,{},{},{},{},{}\n", r[1], r[2], r[3], kbps * 1.25, r[5]);
+    }
+    std::fs::write(p("peer.csv"), peer).unwrap();
+    let out = mocomp()
+        .args([
+            "bdrate",
+            &format!("{}:mpeg4", p("peer.csv")),
+            &format!("{}:block:tss", p("rd.csv")),
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for key in ["bd_rate_cubic", "bd_rate_pchip"] {
+        assert!((v[key].as_f64().unwrap() + 20.0).abs() < 1e-3, "{v}");
+    }
+    mocomp()
+        .args([
+            "rd",
+            input.to_str().unwrap(),
+            "--qp",
+            "24,30,36,42",
+            "--predictors",
+            "block:tss",
+        ])
+        .args([
+            "--frames",
+            "2",
+            "-o",
+            &p("rd2.csv"),
+            "--anchor-csv",
+            &p("peer.csv"),
+            "--quiet",
+        ])
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("anchor: mpeg4"));
+
+    // Errors: fewer than four points, no overlap, unknown codec, anchor
+    // not swept.
+    std::fs::write(
+        p("three.csv"),
+        "codec,q,bytes,frames,kbps,psnr_y\na,1,1,1,100,30\na,2,1,1,200,33\na,3,1,1,400,36\n",
+    )
+    .unwrap();
+    assert!(fails_cleanly(&["bdrate", &p("three.csv"), &p("three.csv")]).contains("at least 4"));
+    std::fs::write(
+        p("far.csv"),
+        "codec,q,bytes,frames,kbps,psnr_y\nb,1,1,1,100,50\nb,2,1,1,200,53\nb,3,1,1,400,56\nb,4,1,1,800,59\n",
+    )
+    .unwrap();
+    assert!(
+        fails_cleanly(&["bdrate", &format!("{}:mpeg4", p("peer.csv")), &p("far.csv")])
+            .contains("do not overlap")
+    );
+    assert!(
+        fails_cleanly(&["bdrate", &format!("{}:x265", p("rd.csv")), &p("far.csv")])
+            .contains("no codec 'x265'")
+    );
+    let err = fails_cleanly(&[
+        "rd",
+        input.to_str().unwrap(),
+        "--predictors",
+        "zero",
+        "-o",
+        &p("x.csv"),
+    ]);
+    assert!(err.contains("anchor block:esa is not among"), "{err}");
 }
 
 #[test]

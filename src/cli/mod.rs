@@ -8,6 +8,7 @@ mod flow;
 mod info;
 mod me;
 mod psnr;
+mod rd;
 mod samples;
 mod track;
 
@@ -27,6 +28,8 @@ struct Cli {
 enum Command {
     /// Run the comparison on the bundled sample (the default).
     Compare(compare::Args),
+    /// BD-rate and BD-PSNR between two RD curves from CSV files.
+    Bdrate(rd::BdArgs),
     /// Decode a stream to Y4M.
     Decode(decode::Args),
     /// Encode a Y4M into a stream, with rate and quality statistics.
@@ -37,6 +40,8 @@ enum Command {
     Info(info::Args),
     /// Block motion estimation of each frame against the previous one.
     Me(me::Args),
+    /// Rate-distortion sweep: sequences x QPs x predictors, BD tables, plots.
+    Rd(rd::Args),
     /// Write the synthetic samples with exact ground-truth flow.
     Samples(samples::Args),
     /// PSNR and SSIM of a Y4M against a reference, per frame and overall.
@@ -55,11 +60,13 @@ pub fn main() -> ExitCode {
     }
     let result = match cli.command {
         Some(Command::Compare(a)) => compare::run(&a),
+        Some(Command::Bdrate(a)) => rd::run_bdrate(&a),
         Some(Command::Decode(a)) => decode::run(&a),
         Some(Command::Encode(a)) => encode::run(&a),
         Some(Command::Flow(a)) => flow::run(&a),
         Some(Command::Info(a)) => info::run(&a),
         Some(Command::Me(a)) => me::run(&a),
+        Some(Command::Rd(a)) => rd::run(&a),
         Some(Command::Samples(a)) => samples::run(&a),
         Some(Command::Psnr(a)) => psnr::run(&a),
         Some(Command::Track(a)) => track::run(&a),

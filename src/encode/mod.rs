@@ -272,3 +272,21 @@ pub fn encode_y4m<R: Read, W: Write>(
     }
     Ok(summary.finish())
 }
+
+/// Encodes frames held in memory, keeping only the statistics (the stream
+/// is measured, not kept): what rate-distortion sweeps need.
+pub fn encode_frames(
+    frames: &[Frame],
+    fps: (u32, u32),
+    config: EncoderConfig,
+) -> Result<Summary, EncodeError> {
+    let first = frames
+        .first()
+        .ok_or_else(|| EncodeError::Config("no frames to encode".into()))?;
+    let mut encoder = Encoder::new(first.width(), first.height(), fps, config)?;
+    let mut summary = SummaryBuilder::new(f64::from(fps.0) / f64::from(fps.1), encoder.header().len() + 1);
+    for f in frames {
+        summary.push(&encoder.encode(f)?.stats);
+    }
+    Ok(summary.finish())
+}

@@ -103,7 +103,11 @@ fn mean_difference(a: &[(f64, f64)], t: &[(f64, f64)], fit: Fit, axis: &'static 
 fn cubic_integral(pts: &[(f64, f64)], lo: f64, hi: f64) -> f64 {
     let n = pts.len() as f64;
     let centre = pts.iter().map(|p| p.0).sum::<f64>() / n;
-    let scale = pts.iter().map(|p| (p.0 - centre).abs()).fold(0.0, f64::max).max(1e-12);
+    let scale = pts
+        .iter()
+        .map(|p| (p.0 - centre).abs())
+        .fold(0.0, f64::max)
+        .max(1e-12);
     // Normal equations M c = v for y = c0 + c1 u + c2 u^2 + c3 u^3.
     let mut m = [[0.0; 5]; 4];
     for &(x, y) in pts {
@@ -139,15 +143,20 @@ fn solve4(mut m: [[f64; 5]; 4]) -> [f64; 4] {
         for row in 0..4 {
             if row != col {
                 let f = m[row][col] / d;
-                for k in col..5 {
-                    m[row][k] -= f * m[col][k];
+                let pivot_row = m[col];
+                for (v, p) in m[row][col..].iter_mut().zip(&pivot_row[col..]) {
+                    *v -= f * p;
                 }
             }
         }
     }
     let mut c = [0.0; 4];
     for i in 0..4 {
-        c[i] = if m[i][i].abs() < 1e-300 { 0.0 } else { m[i][4] / m[i][i] };
+        c[i] = if m[i][i].abs() < 1e-300 {
+            0.0
+        } else {
+            m[i][4] / m[i][i]
+        };
     }
     c
 }
@@ -257,7 +266,10 @@ mod tests {
         assert_eq!(bd_rate(&a, &far, Fit::Cubic), Err(BdError::NoOverlap("PSNR")));
         assert_eq!(bd_rate(&a, &a[..3], Fit::Cubic), Err(BdError::TooFewPoints(3)));
         let zero = curve([0.0, 200.0, 400.0, 800.0], [30.0, 33.0, 36.0, 39.0]);
-        assert!(matches!(bd_rate(&a, &zero, Fit::Pchip), Err(BdError::BadPoint(..))));
+        assert!(matches!(
+            bd_rate(&a, &zero, Fit::Pchip),
+            Err(BdError::BadPoint(..))
+        ));
         let dup = curve([100.0, 200.0, 400.0, 800.0], [30.0, 33.0, 33.0, 39.0]);
         assert_eq!(bd_rate(&a, &dup, Fit::Pchip), Err(BdError::Duplicate("PSNR")));
     }

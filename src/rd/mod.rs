@@ -1,3 +1,7 @@
 //! Rate-distortion tooling: BD-rate, sweeps over QPs and predictors, plots.
 
 pub mod bdrate;
+pub mod plot;
+pub mod sweep;
+
+pub use sweep::{compare, markdown, read_csv, sweep, write_csv, Comparison, RdPoint, Sequence, CSV_COLUMNS};

@@ -1,0 +1,252 @@
+//! Plots of a sweep with `plotters`: PSNR-Y against bit rate per
+//! predictor, and the bits split into header / motion / residual per
+//! predictor and QP. Each as SVG and as PNG (text drawn with the bundled
+//! DejaVu Sans, so no system font is needed).
+
+use std::path::{Path, PathBuf};
+use std::sync::Once;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use super::sweep::RdPoint;
+
+/// The files a plot call wrote.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PlotFiles {
+    /// RD curves, SVG then PNG.
+    pub rd: [PathBuf; 2],
+    /// Stacked bits, SVG then PNG.
+    pub bits: [PathBuf; 2],
+}
+
+fn register_fonts() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        // The font is a constant of the binary: registering cannot fail on
+        // input, and if it did the PNG would only lack its text.
+        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular());
+    });
+}
+
+type PlotResult<T> = Result<T, String>;
+
+fn err<E: std::fmt::Display>(e: E) -> String {
+    e.to_string()
+}
+
+/// Series label: the codec, prefixed by the sequence when there are several.
+fn series(points: &[RdPoint]) -> Vec<(String, Vec<&RdPoint>)> {
+    let many = points.iter().any(|p| p.sequence != points[0].sequence);
+    let mut out: Vec<(String, Vec<&RdPoint>)> = Vec::new();
+    for p in points {
+        let name = if many {
+            format!("{} {}", p.sequence, p.codec)
+        } else {
+            p.codec.clone()
+        };
+        match out.iter_mut().find(|(n, _)| *n == name) {
+            Some((_, v)) => v.push(p),
+            None => out.push((name, vec![p])),
+        }
+    }
+    for (_, v) in &mut out {
+        v.sort_by(|a, b| a.kbps.total_cmp(&b.kbps));
+    }
+    out
+}
+
+fn draw_rd<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    points: &[RdPoint],
+    title: &str,
+) -> PlotResult<()> {
+    root.fill(&WHITE).map_err(err)?;
+    let series = series(points);
+    let (mut r0, mut r1, mut p0, mut p1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for p in points {
+        r0 = r0.min(p.kbps);
+        r1 = r1.max(p.kbps);
+        p0 = p0.min(p.psnr_y);
+        p1 = p1.max(p.psnr_y);
+    }
+    let (r0, r1) = (r0 * 0.9, r1 * 1.1);
+    let (p0, p1) = (p0 - 0.5, p1 + 0.5);
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 22))
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(55)
+        .build_cartesian_2d((r0..r1).log_scale(), p0..p1)
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc("bit rate (kbit/s, log scale)")
+        .y_desc("PSNR-Y (dB)")
+        .label_style(("sans-serif", 14))
+        .draw()
+        .map_err(err)?;
+    for (i, (name, pts)) in series.iter().enumerate() {
+        let color = Palette99::pick(i).to_rgba();
+        let xy: Vec<(f64, f64)> = pts.iter().map(|p| (p.kbps, p.psnr_y)).collect();
+        chart
+            .draw_series(LineSeries::new(xy.clone(), color.stroke_width(2)))
+            .map_err(err)?
+            .label(name.as_str())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+        // Distinct markers as well as colours.
+        match i % 3 {
+            0 => chart.draw_series(xy.iter().map(|&c| Circle::new(c, 4, color.filled()))),
+            1 => chart.draw_series(xy.iter().map(|&c| TriangleMarker::new(c, 5, color.filled()))),
+            _ => chart.draw_series(xy.iter().map(|&c| Cross::new(c, 5, color.stroke_width(2)))),
+        }
+        .map_err(err)?;
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()
+        .map_err(err)?;
+    root.present().map_err(err)
+}
+
+fn draw_bits<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    points: &[RdPoint],
+    title: &str,
+) -> PlotResult<()> {
+    root.fill(&WHITE).map_err(err)?;
+    // One bar per point, grouped by series then QP; kbit/s per category.
+    let mut bars: Vec<(String, [f64; 3])> = Vec::new();
+    // Each series' name, first bar and bar count, for the group captions.
+    let mut groups: Vec<(String, usize, usize)> = Vec::new();
+    for (name, pts) in series(points) {
+        let mut pts = pts;
+        pts.sort_by(|a, b| a.q.total_cmp(&b.q));
+        groups.push((name.clone(), bars.len(), pts.len()));
+        for p in pts {
+            let seconds = p.bytes as f64 * 8.0 / (p.kbps * 1000.0).max(1e-9);
+            let k = |b: u64| b as f64 / seconds.max(1e-9) / 1000.0;
+            bars.push((
+                format!("{}", p.q),
+                [k(p.bits_header), k(p.bits_motion), k(p.bits_residual)],
+            ));
+        }
+    }
+    let top = bars
+        .iter()
+        .map(|(_, b)| b.iter().sum::<f64>())
+        .fold(1.0, f64::max)
+        * 1.1;
+    let n = bars.len();
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 22))
+        .margin(12)
+        .x_label_area_size(50)
+        .y_label_area_size(60)
+        .build_cartesian_2d((0..n).into_segmented(), 0f64..top)
+        .map_err(err)?;
+    let labels: Vec<String> = bars.iter().map(|(l, _)| l.clone()).collect();
+    chart
+        .configure_mesh()
+        .disable_x_mesh()
+        .x_labels(n.max(1))
+        .x_label_formatter(&|x| match x {
+            SegmentValue::CenterOf(i) => labels.get(*i).cloned().unwrap_or_default(),
+            _ => String::new(),
+        })
+        .x_label_style(("sans-serif", 12))
+        .x_desc("QP, grouped by predictor")
+        .y_desc("bit rate (kbit/s)")
+        .label_style(("sans-serif", 13))
+        .draw()
+        .map_err(err)?;
+    let parts = [
+        ("header", BLUE.mix(0.6)),
+        ("motion", RED.mix(0.7)),
+        ("residual", GREEN.mix(0.6)),
+    ];
+    for (k, (name, color)) in parts.iter().enumerate() {
+        let color = *color;
+        chart
+            .draw_series(bars.iter().enumerate().map(|(i, (_, b))| {
+                let base: f64 = b[..k].iter().sum();
+                let mut bar = Rectangle::new(
+                    [
+                        (SegmentValue::Exact(i), base),
+                        (SegmentValue::Exact(i + 1), base + b[k]),
+                    ],
+                    color.filled(),
+                );
+                bar.set_margin(0, 0, 3, 3);
+                bar
+            }))
+            .map_err(err)?
+            .label(*name)
+            .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 12, y + 5)], color.filled()));
+    }
+    for (name, first, count) in &groups {
+        let height = bars[*first..first + count]
+            .iter()
+            .map(|(_, b)| b.iter().sum::<f64>())
+            .fold(0.0, f64::max);
+        chart
+            .draw_series(std::iter::once(Text::new(
+                name.clone(),
+                (SegmentValue::Exact(*first), height + top * 0.035),
+                ("sans-serif", 13),
+            )))
+            .map_err(err)?;
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()
+        .map_err(err)?;
+    root.present().map_err(err)
+}
+
+/// Writes `path` (SVG) and the PNG beside it with the RD curves, and
+/// `<stem>_bits.svg` / `.png` with the bit split. `title` heads both.
+pub fn plot(points: &[RdPoint], path: &Path, title: &str) -> PlotResult<PlotFiles> {
+    if points.is_empty() {
+        return Err("nothing to plot".into());
+    }
+    register_fonts();
+    let stem = path.with_extension("");
+    let name = |suffix: &str, ext: &str| PathBuf::from(format!("{}{suffix}.{ext}", stem.display()));
+    let files = PlotFiles {
+        rd: [name("", "svg"), name("", "png")],
+        bits: [name("_bits", "svg"), name("_bits", "png")],
+    };
+    let size = (960, 640);
+    let bits_size = (960.max(40 * points.len() as u32 + 200), 640);
+    draw_rd(
+        SVGBackend::new(&files.rd[0], size).into_drawing_area(),
+        points,
+        title,
+    )?;
+    draw_rd(
+        BitMapBackend::new(&files.rd[1], size).into_drawing_area(),
+        points,
+        title,
+    )?;
+    let bits_title = format!("{title}: where the bits go");
+    draw_bits(
+        SVGBackend::new(&files.bits[0], bits_size).into_drawing_area(),
+        points,
+        &bits_title,
+    )?;
+    draw_bits(
+        BitMapBackend::new(&files.bits[1], bits_size).into_drawing_area(),
+        points,
+        &bits_title,
+    )?;
+    Ok(files)
+}

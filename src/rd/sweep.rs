@@ -1,0 +1,342 @@
+//! Sweeps: every (sequence, QP, predictor) encode, in parallel; the CSV
+//! they make (peer format first); BD tables against an anchor.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::io::{Read, Write};
+
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::bdrate::{bd_psnr, bd_rate, Fit};
+use crate::codec::Frame;
+use crate::encode::{encode_frames, EncodeError, EncoderConfig, Predictor};
+
+/// One point of a rate-distortion curve.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RdPoint {
+    /// The predictor's label (or a peer codec's name).
+    pub codec: String,
+    /// QP (or the peer's quantiser).
+    pub q: f64,
+    /// Stream bytes.
+    pub bytes: u64,
+    /// Frames.
+    pub frames: usize,
+    /// kbit/s at the sequence's frame rate.
+    pub kbps: f64,
+    /// Mean luma PSNR over frames, dB.
+    pub psnr_y: f64,
+    /// The sequence's name (empty in peer CSVs).
+    pub sequence: String,
+    /// Mean Cb PSNR, dB.
+    pub psnr_u: f64,
+    /// Mean Cr PSNR, dB.
+    pub psnr_v: f64,
+    /// Mean luma SSIM.
+    pub ssim: f64,
+    /// Header bits.
+    pub bits_header: u64,
+    /// Motion bits.
+    pub bits_motion: u64,
+    /// Residual bits.
+    pub bits_residual: u64,
+    /// Encode time, ms.
+    pub encode_ms: f64,
+    /// Of which motion estimation or flow, ms.
+    pub me_ms: f64,
+}
+
+/// The CSV columns: `../shared/peers/rd_ffmpeg.sh`'s, then ours.
+pub const CSV_COLUMNS: [&str; 15] = [
+    "codec",
+    "q",
+    "bytes",
+    "frames",
+    "kbps",
+    "psnr_y",
+    "sequence",
+    "psnr_u",
+    "psnr_v",
+    "ssim",
+    "bits_header",
+    "bits_motion",
+    "bits_residual",
+    "encode_ms",
+    "me_ms",
+];
+
+/// A sequence to sweep.
+#[derive(Debug, Clone)]
+pub struct Sequence {
+    /// Its name in tables (the file stem).
+    pub name: String,
+    /// Its frames.
+    pub frames: Vec<Frame>,
+    /// Frame rate, numerator and denominator.
+    pub fps: (u32, u32),
+}
+
+/// Encodes every sequence at every QP with every predictor, jobs in
+/// parallel on the current rayon pool; `done` is called after each job.
+/// Points come back in (sequence, predictor, QP) order.
+pub fn sweep(
+    sequences: &[Sequence],
+    qps: &[u8],
+    predictors: &[Predictor],
+    done: impl Fn() + Sync,
+) -> Result<Vec<RdPoint>, EncodeError> {
+    let mut jobs = Vec::new();
+    for (s, seq) in sequences.iter().enumerate() {
+        for p in predictors {
+            for &qp in qps {
+                jobs.push((s, *p, qp, seq));
+            }
+        }
+    }
+    jobs.par_iter()
+        .map(|&(_, predictor, qp, seq)| {
+            let config = EncoderConfig::new().qp(qp).predictor(predictor);
+            let s = encode_frames(&seq.frames, seq.fps, config)?;
+            done();
+            Ok(RdPoint {
+                codec: predictor.label(),
+                q: f64::from(qp),
+                bytes: s.bytes,
+                frames: s.frames,
+                kbps: s.kbps,
+                psnr_y: s.psnr_y,
+                sequence: seq.name.clone(),
+                psnr_u: s.psnr_u,
+                psnr_v: s.psnr_v,
+                ssim: s.ssim,
+                bits_header: s.bits_header,
+                bits_motion: s.bits_motion,
+                bits_residual: s.bits_residual,
+                encode_ms: s.encode_ms,
+                me_ms: s.me_ms,
+            })
+        })
+        .collect()
+}
+
+/// Writes points as CSV with [`CSV_COLUMNS`].
+pub fn write_csv(points: &[RdPoint], out: impl Write) -> csv::Result<()> {
+    let mut w = csv::Writer::from_writer(out);
+    w.write_record(CSV_COLUMNS)?;
+    for p in points {
+        w.write_record([
+            p.codec.clone(),
+            format!("{}", p.q),
+            p.bytes.to_string(),
+            p.frames.to_string(),
+            format!("{:.3}", p.kbps),
+            format!("{:.4}", p.psnr_y),
+            p.sequence.clone(),
+            format!("{:.4}", p.psnr_u),
+            format!("{:.4}", p.psnr_v),
+            format!("{:.6}", p.ssim),
+            p.bits_header.to_string(),
+            p.bits_motion.to_string(),
+            p.bits_residual.to_string(),
+            format!("{:.1}", p.encode_ms),
+            format!("{:.1}", p.me_ms),
+        ])?;
+    }
+    w.flush()?;
+    Ok(())
+}
+
+/// Reads a CSV in the peer format (`codec,q,bytes,frames,kbps,psnr_y`,
+/// more columns optional, in any order). Missing optional values are 0 or
+/// empty.
+pub fn read_csv(input: impl Read) -> Result<Vec<RdPoint>, String> {
+    let mut r = csv::Reader::from_reader(input);
+    let headers = r.headers().map_err(|e| e.to_string())?.clone();
+    let col = |name: &str| headers.iter().position(|h| h.trim() == name);
+    for required in &CSV_COLUMNS[..6] {
+        if col(required).is_none() {
+            return Err(format!(
+                "no '{required}' column (the peer format starts codec,q,bytes,frames,kbps,psnr_y)"
+            ));
+        }
+    }
+    let mut out = Vec::new();
+    for (line, record) in r.records().enumerate() {
+        let record = record.map_err(|e| e.to_string())?;
+        let text = |name: &str| {
+            col(name)
+                .and_then(|i| record.get(i))
+                .unwrap_or("")
+                .trim()
+                .to_string()
+        };
+        let num = |name: &str| -> Result<f64, String> {
+            let t = text(name);
+            if t.is_empty() && !CSV_COLUMNS[..6].contains(&name) {
+                return Ok(0.0);
+            }
+            t.parse::<f64>()
+                .map_err(|_| format!("row {}: '{name}' is '{t}', not a number", line + 2))
+        };
+        out.push(RdPoint {
+            codec: text("codec"),
+            q: num("q")?,
+            bytes: num("bytes")? as u64,
+            frames: num("frames")? as usize,
+            kbps: num("kbps")?,
+            psnr_y: num("psnr_y")?,
+            sequence: text("sequence"),
+            psnr_u: num("psnr_u")?,
+            psnr_v: num("psnr_v")?,
+            ssim: num("ssim")?,
+            bits_header: num("bits_header")? as u64,
+            bits_motion: num("bits_motion")? as u64,
+            bits_residual: num("bits_residual")? as u64,
+            encode_ms: num("encode_ms")?,
+            me_ms: num("me_ms")?,
+        });
+    }
+    Ok(out)
+}
+
+/// The (kbps, PSNR-Y) points of one codec (and sequence, when given).
+pub fn curve(points: &[RdPoint], codec: &str, sequence: Option<&str>) -> Vec<(f64, f64)> {
+    points
+        .iter()
+        .filter(|p| p.codec == codec && sequence.is_none_or(|s| p.sequence.is_empty() || p.sequence == s))
+        .map(|p| (p.kbps, p.psnr_y))
+        .collect()
+}
+
+/// One row of a comparison table.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Comparison {
+    /// Sequence.
+    pub sequence: String,
+    /// Predictor or codec.
+    pub codec: String,
+    /// BD-rate against the anchor, percent, cubic and pchip (None when the
+    /// curves do not overlap).
+    pub bd_rate_cubic: Option<f64>,
+    /// See `bd_rate_cubic`.
+    pub bd_rate_pchip: Option<f64>,
+    /// BD-PSNR against the anchor, dB.
+    pub bd_psnr_cubic: Option<f64>,
+    /// See `bd_psnr_cubic`.
+    pub bd_psnr_pchip: Option<f64>,
+    /// Motion bits over all bits, percent, over the QPs.
+    pub motion_share: f64,
+    /// Mean encode time per frame, ms.
+    pub ms_per_frame: f64,
+}
+
+/// Compares every codec of `points` with the anchor curve, per sequence.
+/// `anchor` is a codec in `points`, or given as its own points (a peer
+/// CSV); `anchor_name` labels it.
+pub fn compare(points: &[RdPoint], anchor: &[RdPoint], anchor_name: &str) -> Vec<Comparison> {
+    let mut sequences: Vec<&str> = Vec::new();
+    let mut codecs: Vec<&str> = Vec::new();
+    for p in points {
+        if !sequences.contains(&p.sequence.as_str()) {
+            sequences.push(&p.sequence);
+        }
+        if !codecs.contains(&p.codec.as_str()) {
+            codecs.push(&p.codec);
+        }
+    }
+    let mut out = Vec::new();
+    for &seq in &sequences {
+        let a = curve(anchor, anchor_name, Some(seq));
+        for &codec in &codecs {
+            let mine: Vec<&RdPoint> = points
+                .iter()
+                .filter(|p| p.codec == codec && p.sequence == seq)
+                .collect();
+            let t: Vec<(f64, f64)> = mine.iter().map(|p| (p.kbps, p.psnr_y)).collect();
+            let bits: u64 = mine
+                .iter()
+                .map(|p| p.bits_header + p.bits_motion + p.bits_residual)
+                .sum();
+            let frames: usize = mine.iter().map(|p| p.frames).sum();
+            out.push(Comparison {
+                sequence: seq.to_string(),
+                codec: codec.to_string(),
+                bd_rate_cubic: bd_rate(&a, &t, Fit::Cubic).ok(),
+                bd_rate_pchip: bd_rate(&a, &t, Fit::Pchip).ok(),
+                bd_psnr_cubic: bd_psnr(&a, &t, Fit::Cubic).ok(),
+                bd_psnr_pchip: bd_psnr(&a, &t, Fit::Pchip).ok(),
+                motion_share: 100.0 * mine.iter().map(|p| p.bits_motion).sum::<u64>() as f64
+                    / bits.max(1) as f64,
+                ms_per_frame: mine.iter().map(|p| p.encode_ms).sum::<f64>() / frames.max(1) as f64,
+            });
+        }
+    }
+    out
+}
+
+/// Markdown tables: one per sequence, then the mean over sequences.
+pub fn markdown(rows: &[Comparison], anchor_name: &str) -> String {
+    let fmt = |v: Option<f64>, unit: &str| v.map_or("n/a".to_string(), |v| format!("{v:+.2}{unit}"));
+    let header = concat!(
+        "| predictor | BD-rate cubic | BD-rate pchip | BD-PSNR cubic | BD-PSNR pchip | motion bits | ms/frame |\n",
+        "|---|---:|---:|---:|---:|---:|---:|\n"
+    );
+    let mut s = String::new();
+    let mut by_seq: BTreeMap<&str, Vec<&Comparison>> = BTreeMap::new();
+    for r in rows {
+        by_seq.entry(&r.sequence).or_default().push(r);
+    }
+    let mut table = |title: &str, rows: &[Comparison]| {
+        let _ = writeln!(s, "\n### {title} (anchor: {anchor_name})\n");
+        s.push_str(header);
+        for r in rows {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} | {:.1} % | {:.1} |",
+                r.codec,
+                fmt(r.bd_rate_cubic, " %"),
+                fmt(r.bd_rate_pchip, " %"),
+                fmt(r.bd_psnr_cubic, " dB"),
+                fmt(r.bd_psnr_pchip, " dB"),
+                r.motion_share,
+                r.ms_per_frame
+            );
+        }
+    };
+    for (seq, rows) in &by_seq {
+        let rows: Vec<Comparison> = rows.iter().map(|&r| r.clone()).collect();
+        table(seq, &rows);
+    }
+    if by_seq.len() > 1 {
+        let mut codecs: Vec<&str> = Vec::new();
+        for r in rows {
+            if !codecs.contains(&r.codec.as_str()) {
+                codecs.push(&r.codec);
+            }
+        }
+        let mean = |v: Vec<Option<f64>>| -> Option<f64> {
+            let n = v.len() as f64;
+            v.into_iter().sum::<Option<f64>>().map(|s| s / n)
+        };
+        let avg: Vec<Comparison> = codecs
+            .iter()
+            .map(|&c| {
+                let of: Vec<&Comparison> = rows.iter().filter(|r| r.codec == c).collect();
+                let n = of.len() as f64;
+                Comparison {
+                    sequence: "mean".into(),
+                    codec: c.to_string(),
+                    bd_rate_cubic: mean(of.iter().map(|r| r.bd_rate_cubic).collect()),
+                    bd_rate_pchip: mean(of.iter().map(|r| r.bd_rate_pchip).collect()),
+                    bd_psnr_cubic: mean(of.iter().map(|r| r.bd_psnr_cubic).collect()),
+                    bd_psnr_pchip: mean(of.iter().map(|r| r.bd_psnr_pchip).collect()),
+                    motion_share: of.iter().map(|r| r.motion_share).sum::<f64>() / n,
+                    ms_per_frame: of.iter().map(|r| r.ms_per_frame).sum::<f64>() / n,
+                }
+            })
+            .collect();
+        table(&format!("mean over {} sequences", by_seq.len()), &avg);
+    }
+    s
+}

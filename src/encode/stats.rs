@@ -180,7 +180,7 @@ mod tests {
         let f = FrameStats {
             index: 0,
             frame_type: 'I',
-            bytes: 976,
+            bytes: 988,
             bits_header: 100,
             bits_motion: 0,
             bits_residual: 7708,

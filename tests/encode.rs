@@ -159,18 +159,21 @@ fn block_vectors_follow_a_known_translation() {
                     continue; // the object (centre (43, 48), radii 21 x 19) and its edges
                 }
                 checked += 1;
-                if vectors[i] == Some(truth) {
+                // Within a quarter pel: the search ranks quarter-pel
+                // candidates on averaged half-pel samples, and skip keeps
+                // the predicted vector when that costs fewer bits.
+                if vectors[i].is_some_and(|v| (v.x - truth.x).abs() <= 1 && (v.y - truth.y).abs() <= 1) {
                     right += 1;
                 }
             }
         }
         assert!(!vectors.is_empty());
         assert!(checked >= 10, "{p}: {checked}");
-        // OBMC and skip decisions may keep a neighbour's vector where the
-        // blend predicts as well: 85 % (measured: 87.5 % for obmc, the rest 100 %).
+        // The motion edge next to the object moves a few vectors further:
+        // 85 % (measured: 15 or 16 of 16 for each predictor).
         assert!(
             right * 20 >= checked * 17,
-            "{p}: {right} of {checked} vectors are {truth:?}"
+            "{p}: {right} of {checked} vectors are within 1/4 px of {truth:?}"
         );
         // Prediction is good where the motion is found.
         assert!(

@@ -197,8 +197,8 @@ pub fn write_block(w: &mut BitWriter, b: &Block4) {
 }
 
 /// The bits [`write_block`] writes for `b` (0 for an all-zero block,
-/// which it does not write).
-fn block_len(b: &Block4) -> u32 {
+/// which it does not write), without its coded-block flag.
+pub fn block_len(b: &Block4) -> u32 {
     let mut total = 0;
     let mut bits = 0;
     let mut run = 0;

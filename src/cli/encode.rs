@@ -52,9 +52,12 @@ pub struct Args {
     /// Code at most this many frames.
     #[arg(long)]
     pub frames: Option<usize>,
-    /// Multiply the mode-decision lambda.
-    #[arg(long, default_value_t = 1.0)]
+    /// Multiply the mode-decision lambda `0.85 * 2^((QP - 12) / 3)`.
+    #[arg(long, default_value_t = 1.4)]
     pub lambda_scale: f64,
+    /// No rate-distortion optimised quantisation.
+    #[arg(long)]
+    pub no_rdoq: bool,
     /// Also write the reconstruction (what the decoder outputs) as Y4M.
     #[arg(long, value_name = "REC.y4m")]
     pub recon: Option<PathBuf>,
@@ -114,7 +117,8 @@ pub fn config(args: &Args) -> Result<EncoderConfig> {
         .qp(args.qp)
         .gop(args.gop)
         .predictor(predictor)
-        .lambda_scale(args.lambda_scale);
+        .lambda_scale(args.lambda_scale)
+        .rdoq(!args.no_rdoq);
     config.check().map_err(anyhow::Error::msg)?;
     Ok(config)
 }

@@ -215,7 +215,13 @@ pub struct EncoderConfig {
     /// How P frames are predicted.
     pub predictor: Predictor,
     /// Multiplies the mode-decision lambda `0.85 * 2^((QP - 12) / 3)`.
+    /// The default, 1.4, was the best of 0.5-2.0 on 20 frames of
+    /// `tree_qvga` and `pan_cif` with RDOQ (BD-rate -5.6 % and -3.2 %
+    /// against 1.0 without RDOQ).
     pub lambda_scale: f64,
+    /// Rate-distortion optimised quantisation: each level moves toward
+    /// zero when that lowers SSD + lambda * bits.
+    pub rdoq: bool,
     /// Measure SSIM of every frame (the rest of the statistics are cheap).
     pub ssim: bool,
 }
@@ -226,14 +232,16 @@ impl Default for EncoderConfig {
             qp: 28,
             gop: 0,
             predictor: Predictor::default(),
-            lambda_scale: 1.0,
+            lambda_scale: 1.4,
+            rdoq: true,
             ssim: true,
         }
     }
 }
 
 impl EncoderConfig {
-    /// QP 28, one I frame, `block` with EPZS, range 16, quarter-pel.
+    /// QP 28, one I frame, `block` with EPZS, range 16, quarter-pel,
+    /// RDOQ, lambda scale 1.4.
     pub fn new() -> EncoderConfig {
         EncoderConfig::default()
     }
@@ -259,6 +267,12 @@ impl EncoderConfig {
     /// Scales the mode-decision lambda.
     pub fn lambda_scale(mut self, scale: f64) -> EncoderConfig {
         self.lambda_scale = scale;
+        self
+    }
+
+    /// Turns rate-distortion optimised quantisation on or off.
+    pub fn rdoq(mut self, on: bool) -> EncoderConfig {
+        self.rdoq = on;
         self
     }
 

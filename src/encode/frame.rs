@@ -53,6 +53,11 @@ fn visible_luma_sse(
     sse
 }
 
+/// Luma SATD of a prediction.
+fn luma_satd(src: &MbSource, pred: &MbPrediction) -> u32 {
+    crate::me::Metric::Satd.cost(&src.luma, 16, &pred.luma, 16, 16, 16)
+}
+
 fn kind_index(kind: &MbKind) -> usize {
     match kind {
         MbKind::Skip => 0,
@@ -74,7 +79,7 @@ pub(crate) fn code_intra(
     for i in 0..cols * seq.mb_rows() {
         let (mb_x, mb_y) = (i % cols, i / cols);
         let s = MbSource::load(src, mb_x, mb_y);
-        let (luma, chroma, pred) = coder.best_intra(&s, &recon, mb_x, mb_y);
+        let (luma, chroma, pred, _) = coder.best_intra(&s, &recon, mb_x, mb_y);
         let coded = coder.code(&s, &pred, true, &mut recon, mb_x, mb_y);
         prediction_sse += visible_luma_sse(&s, &pred, mb_x, mb_y, seq);
         mbs.push(CodedMb::new(MbKind::Intra { luma, chroma }, coded.residual));
@@ -154,16 +159,21 @@ pub(crate) fn code_inter(
             pred: skip_pred.clone(),
             residual: MbResidual::default(),
         };
+        // Every other choice spends at least its type and a coded block
+        // pattern: when skip costs no more, nothing can beat it.
+        let exhaustive = best.cost > coder.cost(0, INTER_BITS + 1);
         let mut candidates = vec![mvp];
         if uses_mvs && searched[i] != mvp {
             candidates.push(searched[i]);
         }
-        for mv in candidates {
+        let mut inter_satd = u32::MAX;
+        for mv in candidates.into_iter().filter(|_| exhaustive) {
             let pred = if mv == mvp {
                 skip_pred.clone()
             } else {
                 predict_inter(&ctx, mb_x, mb_y, mv)
             };
+            inter_satd = inter_satd.min(luma_satd(&s, &pred));
             let coded = coder.code(&s, &pred, false, &mut recon, mb_x, mb_y);
             let bits = INTER_BITS + if uses_mvs { mvd_len(mv, mvp) } else { 0 } + coded.bits;
             let cost = coder.cost(coded.ssd, bits);
@@ -176,17 +186,23 @@ pub(crate) fn code_inter(
                 };
             }
         }
-        let (luma, chroma, pred) = coder.best_intra(&s, &recon, mb_x, mb_y);
-        let coded = coder.code(&s, &pred, true, &mut recon, mb_x, mb_y);
-        let bits = INTRA_BITS + ue_len(luma as u32) + ue_len(chroma as u32) + coded.bits;
-        let cost = coder.cost(coded.ssd, bits);
-        if cost < best.cost {
-            best = Choice {
-                cost,
-                kind: MbKind::Intra { luma, chroma },
-                pred,
-                residual: coded.residual,
-            };
+        if exhaustive {
+            let (luma, chroma, pred, intra_satd) = coder.best_intra(&s, &recon, mb_x, mb_y);
+            // Intra is coded only when its prediction is not clearly worse
+            // than inter's (as the H.264 reference encoder's fast modes).
+            if intra_satd < inter_satd {
+                let coded = coder.code(&s, &pred, true, &mut recon, mb_x, mb_y);
+                let bits = INTRA_BITS + ue_len(luma as u32) + ue_len(chroma as u32) + coded.bits;
+                let cost = coder.cost(coded.ssd, bits);
+                if cost < best.cost {
+                    best = Choice {
+                        cost,
+                        kind: MbKind::Intra { luma, chroma },
+                        pred,
+                        residual: coded.residual,
+                    };
+                }
+            }
         }
         reconstruct_mb(&best.pred, &best.residual, coder.qp, &mut recon, mb_x, mb_y);
         prediction_sse += visible_luma_sse(&s, &best.pred, mb_x, mb_y, seq);

@@ -6,9 +6,9 @@ use crate::codec::bits::{se_len, ue_len};
 use crate::codec::intra::IntraMode;
 use crate::codec::mv::Mv;
 use crate::codec::recon::{chroma_qp, predict_intra, reconstruct_mb, MbPrediction};
-use crate::codec::residual::{MbResidual, ZIGZAG};
+use crate::codec::residual::{block_len, MbResidual, ZIGZAG};
 use crate::codec::syntax::{intra_mode_allowed, MB};
-use crate::codec::transform::{forward_4x4, quantize, Block4};
+use crate::codec::transform::{dequantize, forward_4x4, inverse_4x4, quantize, Block4};
 use crate::codec::Frame;
 use crate::me::Metric;
 
@@ -76,6 +76,8 @@ pub(crate) struct MbCoder {
     pub qp: u8,
     /// Weight of one bit against squared error.
     pub lambda: f64,
+    /// Rate-distortion optimised quantisation (see [`lower_levels`]).
+    pub rdoq: bool,
 }
 
 /// Residual bits as the writer spends them.
@@ -104,11 +106,54 @@ fn coefficient_cost(b: &Block4) -> u32 {
     cost
 }
 
+/// Squared error between a residual and what `levels` reconstruct to.
+fn block_error(residual: &Block4, levels: &Block4, qp: u8) -> i64 {
+    let mut d = *levels;
+    dequantize(&mut d, qp);
+    let r = inverse_4x4(&d);
+    let mut e = 0i64;
+    for (a, b) in residual.iter().flatten().zip(r.iter().flatten()) {
+        let x = i64::from(a - b);
+        e += x * x;
+    }
+    e
+}
+
+/// Rate-distortion optimised quantisation, greedy: from the last level in
+/// scan order to the first, each level moves one step toward zero when
+/// that lowers squared error + lambda * bits (the exact bits of the
+/// block's run-level code; the error measured after the inverse transform,
+/// so the transform's unequal gains are accounted for).
+fn lower_levels(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64) {
+    if levels.iter().flatten().all(|&v| v == 0) {
+        return;
+    }
+    let mut error = block_error(residual, levels, qp);
+    let mut bits = block_len(levels);
+    for &k in ZIGZAG.iter().rev() {
+        let (r, c) = (k / 4, k % 4);
+        let v = levels[r][c];
+        if v == 0 {
+            continue;
+        }
+        let mut trial = *levels;
+        trial[r][c] = v - v.signum();
+        let e = block_error(residual, &trial, qp);
+        let b = block_len(&trial);
+        if (e - error) as f64 + lambda * (f64::from(b) - f64::from(bits)) < 0.0 {
+            *levels = trial;
+            error = e;
+            bits = b;
+        }
+    }
+}
+
 impl MbCoder {
-    pub fn new(qp: u8, lambda_scale: f64) -> MbCoder {
+    pub fn new(qp: u8, lambda_scale: f64, rdoq: bool) -> MbCoder {
         MbCoder {
             qp,
             lambda: lambda_scale * 0.85 * 2f64.powf((f64::from(qp) - 12.0) / 3.0),
+            rdoq,
         }
     }
 
@@ -136,6 +181,9 @@ impl MbCoder {
             }
             let mut c = forward_4x4(&b);
             quantize(&mut c, qp, rounding);
+            if self.rdoq {
+                lower_levels(&b, &mut c, qp, self.lambda);
+            }
             c
         };
         for (k, block) in residual.luma.iter_mut().enumerate() {
@@ -185,14 +233,15 @@ impl MbCoder {
     }
 
     /// The intra modes allowed at (mb_x, mb_y) with the smallest SATD
-    /// (luma) and SAD (chroma) plus the modes' bits, and their prediction.
+    /// (luma) and SAD (chroma) plus the modes' bits, their prediction, and
+    /// the luma SATD.
     pub fn best_intra(
         &self,
         src: &MbSource,
         recon: &Frame,
         mb_x: usize,
         mb_y: usize,
-    ) -> (IntraMode, IntraMode, MbPrediction) {
+    ) -> (IntraMode, IntraMode, MbPrediction, u32) {
         let sad_lambda = self.lambda.sqrt();
         let allowed: Vec<IntraMode> = IntraMode::ALL
             .into_iter()
@@ -215,6 +264,7 @@ impl MbCoder {
             }
         }
         let luma = best.1;
+        let satd = Metric::Satd.cost(&src.luma, MB, &best.3.luma, MB, MB, MB);
         let mut best_c = f64::INFINITY;
         for &m in &allowed {
             let p = predict_intra(recon, mb_x, mb_y, luma, m);
@@ -228,7 +278,7 @@ impl MbCoder {
                 best.3 = p;
             }
         }
-        (best.1, best.2, best.3)
+        (best.1, best.2, best.3, satd)
     }
 }
 

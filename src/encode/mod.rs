@@ -126,7 +126,7 @@ impl Encoder {
         Ok(Encoder {
             seq,
             config,
-            coder: MbCoder::new(config.qp, config.lambda_scale),
+            coder: MbCoder::new(config.qp, config.lambda_scale, config.rdoq),
             analyser: MotionAnalyser::new(config.predictor, config.qp),
             reference: None,
             prev_source: None,

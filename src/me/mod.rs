@@ -35,6 +35,7 @@
 //! ```
 
 pub mod cost;
+mod halfpel;
 mod search;
 pub mod simd;
 
@@ -314,6 +315,7 @@ pub(crate) struct BlockSearch<'a> {
     cfg: &'a MeConfig,
     mvp: Mv,
     lambda_q8: u64,
+    halfpel: Option<&'a halfpel::HalfPel>,
 }
 
 impl BlockSearch<'_> {
@@ -340,10 +342,17 @@ impl BlockSearch<'_> {
         u64::from(self.distortion(dx, dy)) + self.rate(Mv::full_pel(dx, dy))
     }
 
-    /// Full cost of a quarter-pel vector, on the decoder's prediction.
+    /// Full cost of a quarter-pel vector: on the reference's half-pel
+    /// planes where they reach (quarter-pel positions approximated), else on
+    /// the decoder's prediction.
     fn sub_pel_cost(&self, mv: Mv, scratch: &mut [u8]) -> u64 {
         let b = self.cfg.block;
-        predict_luma(self.reference, self.x, self.y, mv.x, mv.y, b, b, scratch, b);
+        let done = self
+            .halfpel
+            .is_some_and(|h| h.predict(self.reference, self.x, self.y, mv.x, mv.y, b, scratch));
+        if !done {
+            predict_luma(self.reference, self.x, self.y, mv.x, mv.y, b, b, scratch, b);
+        }
         let a = &self.cur.data()[self.cur.index(self.x, self.y)..];
         u64::from(self.cfg.metric.cost(a, self.cur.stride(), scratch, b, b, b)) + self.rate(mv)
     }
@@ -412,6 +421,12 @@ pub fn estimate_with_prior(
     let prior = prior.filter(|p| p.cols == field.cols && p.rows == field.rows && p.block == field.block);
     let lambda_q8 = (cfg.lambda * 256.0).round() as u64;
     let (cols, rows) = (field.cols, field.rows);
+    // Half-pel planes over the window's reach (range, plus one for the
+    // sub-pel steps), when the border holds them.
+    let halfpel = match cfg.subpel {
+        Subpel::None => None,
+        _ => halfpel::HalfPel::new(reference, (cfg.range as usize + 2).div_ceil(16) * 16),
+    };
     let search_one = |field: &MotionField, col: usize, row: usize| -> Candidate {
         let s = BlockSearch {
             cur,
@@ -425,6 +440,7 @@ pub fn estimate_with_prior(
                 Mv::ZERO
             },
             lambda_q8,
+            halfpel: halfpel.as_ref(),
         };
         let neighbours = search::Neighbours::of(field, prior, col, row);
         let best = search::full_pel(&s, &neighbours);

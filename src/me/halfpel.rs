@@ -1,0 +1,162 @@
+//! Half-pel planes of a reference, for sub-pel search (x264's approach).
+//!
+//! The three half-pel phases (horizontal, vertical, both) are computed once
+//! per reference with the codec's own filter, so every half-pel candidate
+//! costs a copy; a quarter-pel candidate is the rounded average of its two
+//! nearest full- or half-pel samples, as H.264 interpolates. That average
+//! only approximates the codec's 8-tap quarter-pel filter: the search uses
+//! it to rank candidates, and what the encoder then predicts with is the
+//! codec's exact interpolation.
+
+use crate::codec::interp::predict_luma;
+use crate::codec::Plane;
+
+/// Tile side used to fill the planes.
+const TILE: usize = 16;
+
+/// The reference's half-pel phases over the picture and a margin around it.
+pub(crate) struct HalfPel {
+    /// Horizontal, vertical and diagonal half-pel samples: entry (x, y) is
+    /// the sample at (x + 1/2, y), (x, y + 1/2), (x + 1/2, y + 1/2).
+    planes: [Plane; 3],
+    /// How far outside the picture the planes are filled.
+    margin: isize,
+}
+
+impl HalfPel {
+    /// The half-pel planes of `reference`, filled `margin` pixels (a
+    /// multiple of 16) beyond each edge; `margin + 16` must not exceed the
+    /// reference's border.
+    pub fn new(reference: &Plane, margin: usize) -> Option<HalfPel> {
+        let (w, h, pad) = (reference.width(), reference.height(), reference.pad());
+        if margin + TILE > pad {
+            return None;
+        }
+        let mut planes = [(); 3].map(|_| Plane::with_padding(w, h, pad).ok());
+        let m = margin as isize;
+        let mut tile = [0u8; TILE * TILE];
+        for (p, (mvx, mvy)) in [(2, 0), (0, 2), (2, 2)].into_iter().enumerate() {
+            let plane = planes[p].as_mut()?;
+            let stride = plane.stride();
+            let mut y = -m;
+            while y < h as isize + m {
+                let mut x = -m;
+                while x < w as isize + m {
+                    predict_luma(reference, x, y, mvx, mvy, TILE, TILE, &mut tile, TILE);
+                    let at = plane.index(x, y);
+                    let data = plane.data_mut();
+                    for r in 0..TILE {
+                        data[at + r * stride..at + r * stride + TILE]
+                            .copy_from_slice(&tile[r * TILE..(r + 1) * TILE]);
+                    }
+                    x += TILE as isize;
+                }
+                y += TILE as isize;
+            }
+        }
+        let [a, b, c] = planes;
+        Some(HalfPel {
+            planes: [a?, b?, c?],
+            margin: m,
+        })
+    }
+
+    /// The `b x b` block at (x, y) displaced by the quarter-pel vector
+    /// (mvx, mvy), into `out`; `false` (nothing written) when it reaches
+    /// beyond the filled margin.
+    #[allow(clippy::too_many_arguments)]
+    pub fn predict(
+        &self,
+        reference: &Plane,
+        x: isize,
+        y: isize,
+        mvx: i32,
+        mvy: i32,
+        b: usize,
+        out: &mut [u8],
+    ) -> bool {
+        let (bx, by) = (x + (mvx >> 2) as isize, y + (mvy >> 2) as isize);
+        let (w, h) = (reference.width() as isize, reference.height() as isize);
+        // Samples read: one beyond the block on each side at most.
+        if bx - 1 < -self.margin
+            || by - 1 < -self.margin
+            || bx + b as isize + 1 > w + self.margin
+            || by + b as isize + 1 > h + self.margin
+        {
+            return false;
+        }
+        let (fx, fy) = (mvx & 3, mvy & 3);
+        // A point of the half-pel grid, in quarter-pels from (bx, by):
+        // its plane and integer offset.
+        let point = |px: i32, py: i32| -> (&Plane, isize, isize) {
+            let plane = match (px & 3, py & 3) {
+                (0, 0) => reference,
+                (2, 0) => &self.planes[0],
+                (0, 2) => &self.planes[1],
+                _ => &self.planes[2],
+            };
+            (plane, bx + (px >> 2) as isize, by + (py >> 2) as isize)
+        };
+        let copy = |(p, px, py): (&Plane, isize, isize), out: &mut [u8]| {
+            for r in 0..b {
+                let row = &p.data()[p.index(px, py + r as isize)..];
+                out[r * b..(r + 1) * b].copy_from_slice(&row[..b]);
+            }
+        };
+        let average =
+            |(p, px, py): (&Plane, isize, isize), (q, qx, qy): (&Plane, isize, isize), out: &mut [u8]| {
+                for r in 0..b {
+                    let a = &p.data()[p.index(px, py + r as isize)..];
+                    let c = &q.data()[q.index(qx, qy + r as isize)..];
+                    for (o, (&u, &v)) in out[r * b..(r + 1) * b].iter_mut().zip(a.iter().zip(c)) {
+                        *o = ((u16::from(u) + u16::from(v) + 1) >> 1) as u8;
+                    }
+                }
+            };
+        match (fx & 1, fy & 1) {
+            (0, 0) => copy(point(fx, fy), out),
+            (1, 0) => average(point(fx - 1, fy), point(fx + 1, fy), out),
+            (0, 1) => average(point(fx, fy - 1), point(fx, fy + 1), out),
+            _ => average(point(2, 4 * (fy / 2)), point(4 * (fx / 2), 2), out),
+        }
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn textured(w: usize, h: usize) -> Plane {
+        Plane::from_fn(w, h, |x, y| {
+            let (x, y) = (x as f64, y as f64);
+            (128.0 + 60.0 * (x * 0.31).sin() * (y * 0.23).cos() + 30.0 * ((x + 2.0 * y) * 0.11).sin()) as u8
+        })
+        .unwrap()
+    }
+
+    #[test]
+    fn half_pel_phases_equal_the_codec_and_quarter_pel_is_close() {
+        let r = textured(64, 48);
+        let hp = HalfPel::new(&r, 32).unwrap();
+        let (mut a, mut b) = ([0u8; 256], [0u8; 256]);
+        for mvy in -9..=9 {
+            for mvx in -9..=9 {
+                for (x, y) in [(0, 0), (16, 16), (48, 32)] {
+                    assert!(hp.predict(&r, x, y, mvx, mvy, 16, &mut a));
+                    predict_luma(&r, x, y, mvx, mvy, 16, 16, &mut b, 16);
+                    if mvx % 2 == 0 && mvy % 2 == 0 {
+                        assert_eq!(a, b, "half-pel ({mvx}, {mvy}) at ({x}, {y})");
+                    } else {
+                        // The average of neighbours against the 8-tap
+                        // filter: close on a smooth texture.
+                        let worst = a.iter().zip(&b).map(|(&u, &v)| u.abs_diff(v)).max().unwrap();
+                        assert!(worst <= 3, "quarter-pel ({mvx}, {mvy}): {worst}");
+                    }
+                }
+            }
+        }
+        // Beyond the margin: refused, so that the caller uses the codec.
+        assert!(!hp.predict(&r, 0, 0, -4 * 40, 0, 16, &mut a));
+    }
+}

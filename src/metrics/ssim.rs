@@ -96,6 +96,7 @@ unsafe fn band_sum_avx2(a: &Plane, b: &Plane, g: &[f64; WIN], y0: usize, rows: u
 /// Separable Gaussian statistics, one array per statistic (x, y, x^2, y^2,
 /// xy) so that the tap-outer loops vectorise.
 #[inline(always)]
+#[allow(clippy::needless_range_loop)] // five statistics indexed in step
 fn band_sum_body(a: &Plane, b: &Plane, g: &[f64; WIN], y0: usize, rows: usize, ow: usize) -> f64 {
     let w = a.width();
     let in_rows = rows + WIN - 1;

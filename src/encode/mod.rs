@@ -21,7 +21,7 @@
 //!     recon.push(coded.recon);
 //! }
 //! stream.extend_from_slice(&Encoder::trailer());
-//! let decoded = decoder::decode(&stream).unwrap();
+//! let (_, decoded) = decoder::decode(&stream).unwrap();
 //! assert_eq!(decoded.len(), 3);
 //! assert_eq!(decoded, recon); // bit-exact
 //! ```

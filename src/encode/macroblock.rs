@@ -146,6 +146,13 @@ fn lower_levels(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64) {
             bits = b;
         }
     }
+    // Last, the whole block against none of it.
+    if bits > 0 {
+        let zero = [[0; 4]; 4];
+        if (block_error(residual, &zero, qp) - error) as f64 <= lambda * f64::from(bits) {
+            *levels = zero;
+        }
+    }
 }
 
 impl MbCoder {

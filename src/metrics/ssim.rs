@@ -66,13 +66,35 @@ pub fn ssim(a: &Plane, b: &Plane) -> f64 {
     let tasks: Vec<usize> = (0..oh).step_by(ROWS_PER_TASK).collect();
     let partial: Vec<f64> = tasks
         .par_iter()
-        .map(|&y0| band_sum(a, b, &g, y0, ROWS_PER_TASK.min(oh - y0), ow))
+        .map_init(BandScratch::default, |scratch, &y0| {
+            band_sum(scratch, a, b, &g, y0, ROWS_PER_TASK.min(oh - y0), ow)
+        })
         .collect();
     partial.iter().sum::<f64>() / (ow * oh) as f64
 }
 
+/// Buffers of one band, kept between the bands a worker computes (fresh
+/// ones cost more in page faults than the filtering).
+#[derive(Default)]
+struct BandScratch {
+    /// Horizontally filtered statistics.
+    hf: [Vec<f64>; 5],
+    /// One input row's x, y, x^2, y^2, xy.
+    products: [Vec<f64>; 5],
+    /// One output row's statistics.
+    stats: [Vec<f64>; 5],
+}
+
 /// The sum of the SSIM map over output rows y0 .. y0 + rows.
-fn band_sum(a: &Plane, b: &Plane, g: &[f64; WIN], y0: usize, rows: usize, ow: usize) -> f64 {
+fn band_sum(
+    scratch: &mut BandScratch,
+    a: &Plane,
+    b: &Plane,
+    g: &[f64; WIN],
+    y0: usize,
+    rows: usize,
+    ow: usize,
+) -> f64 {
     #[cfg(target_arch = "x86_64")]
     {
         use std::sync::OnceLock;
@@ -81,27 +103,49 @@ fn band_sum(a: &Plane, b: &Plane, g: &[f64; WIN], y0: usize, rows: usize, ow: us
             // SAFETY: the CPU has AVX2; the function is the safe code below
             // compiled with AVX2 (no FMA, so every sum rounds as in the
             // baseline build).
-            return unsafe { band_sum_avx2(a, b, g, y0, rows, ow) };
+            return unsafe { band_sum_avx2(scratch, a, b, g, y0, rows, ow) };
         }
     }
-    band_sum_body(a, b, g, y0, rows, ow)
+    band_sum_body(scratch, a, b, g, y0, rows, ow)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn band_sum_avx2(a: &Plane, b: &Plane, g: &[f64; WIN], y0: usize, rows: usize, ow: usize) -> f64 {
-    band_sum_body(a, b, g, y0, rows, ow)
+unsafe fn band_sum_avx2(
+    scratch: &mut BandScratch,
+    a: &Plane,
+    b: &Plane,
+    g: &[f64; WIN],
+    y0: usize,
+    rows: usize,
+    ow: usize,
+) -> f64 {
+    band_sum_body(scratch, a, b, g, y0, rows, ow)
 }
 
 /// Separable Gaussian statistics, one array per statistic (x, y, x^2, y^2,
 /// xy) so that the tap-outer loops vectorise.
 #[inline(always)]
 #[allow(clippy::needless_range_loop)] // five statistics indexed in step
-fn band_sum_body(a: &Plane, b: &Plane, g: &[f64; WIN], y0: usize, rows: usize, ow: usize) -> f64 {
+fn band_sum_body(
+    scratch: &mut BandScratch,
+    a: &Plane,
+    b: &Plane,
+    g: &[f64; WIN],
+    y0: usize,
+    rows: usize,
+    ow: usize,
+) -> f64 {
     let w = a.width();
     let in_rows = rows + WIN - 1;
-    let mut hf: [Vec<f64>; 5] = std::array::from_fn(|_| vec![0.0; in_rows * ow]);
-    let mut products: [Vec<f64>; 5] = std::array::from_fn(|_| vec![0.0; w]);
+    let BandScratch { hf, products, stats } = scratch;
+    for v in hf.iter_mut() {
+        v.clear();
+        v.resize(in_rows * ow, 0.0);
+    }
+    for v in products.iter_mut().chain(stats.iter_mut()) {
+        v.resize(w.max(ow), 0.0);
+    }
     for r in 0..in_rows {
         let (ra, rb) = (a.row(y0 + r), b.row(y0 + r));
         for x in 0..w {
@@ -112,7 +156,7 @@ fn band_sum_body(a: &Plane, b: &Plane, g: &[f64; WIN], y0: usize, rows: usize, o
             products[3][x] = q * q;
             products[4][x] = p * q;
         }
-        for (out, src) in hf.iter_mut().zip(&products) {
+        for (out, src) in hf.iter_mut().zip(products.iter()) {
             let out = &mut out[r * ow..(r + 1) * ow];
             for (k, &gk) in g.iter().enumerate() {
                 for (o, &v) in out.iter_mut().zip(&src[k..k + ow]) {
@@ -122,9 +166,9 @@ fn band_sum_body(a: &Plane, b: &Plane, g: &[f64; WIN], y0: usize, rows: usize, o
         }
     }
     let mut sum = 0.0;
-    let mut stats: [Vec<f64>; 5] = std::array::from_fn(|_| vec![0.0; ow]);
     for r in 0..rows {
-        for (out, src) in stats.iter_mut().zip(&hf) {
+        for (out, src) in stats.iter_mut().zip(hf.iter()) {
+            let out = &mut out[..ow];
             out.fill(0.0);
             for (k, &gk) in g.iter().enumerate() {
                 for (o, &v) in out.iter_mut().zip(&src[(r + k) * ow..(r + k + 1) * ow]) {
@@ -190,8 +234,8 @@ mod tests {
         let g = gaussian_window();
         let (ow, oh) = (70 - WIN + 1, 40 - WIN + 1);
         assert_eq!(
-            band_sum(&a, &b, &g, 3, oh - 3, ow),
-            band_sum_body(&a, &b, &g, 3, oh - 3, ow)
+            band_sum(&mut BandScratch::default(), &a, &b, &g, 3, oh - 3, ow),
+            band_sum_body(&mut BandScratch::default(), &a, &b, &g, 3, oh - 3, ow)
         );
     }
 

@@ -66,14 +66,15 @@ fn kind_index(kind: &MbKind) -> usize {
     }
 }
 
-/// An I frame: every macroblock intra, modes by SATD.
+/// An I frame: every macroblock intra, modes by SATD; reconstructed into
+/// `recon` (coded size, contents all overwritten).
 pub(crate) fn code_intra(
     seq: &SequenceHeader,
     coder: &MbCoder,
     src: &Frame,
+    mut recon: Frame,
 ) -> Result<CodedFrame, PictureError> {
     let cols = seq.mb_cols();
-    let mut recon = Frame::new(seq.coded_width(), seq.coded_height())?;
     let mut mbs = Vec::with_capacity(cols * seq.mb_rows());
     let mut prediction_sse = 0;
     for i in 0..cols * seq.mb_rows() {
@@ -109,7 +110,8 @@ struct Choice {
     residual: MbResidual,
 }
 
-/// A P frame predicted from `reference` with `motion` and `tool`.
+/// A P frame predicted from `reference` with `motion` and `tool`,
+/// reconstructed into `recon` (coded size, contents all overwritten).
 pub(crate) fn code_inter(
     seq: &SequenceHeader,
     coder: &MbCoder,
@@ -117,10 +119,10 @@ pub(crate) fn code_inter(
     reference: &Frame,
     motion: FrameMotion,
     tool: MotionTool,
+    mut recon: Frame,
 ) -> Result<CodedFrame, PictureError> {
     let (cols, n) = (seq.mb_cols(), seq.mb_cols() * seq.mb_rows());
     let (w, h) = (seq.coded_width(), seq.coded_height());
-    let mut recon = Frame::new(w, h)?;
     let (searched, grid, warped) = match motion {
         FrameMotion::Vectors(v) => (v, None, None),
         FrameMotion::Grid(g) => {

@@ -96,6 +96,10 @@ pub struct Encoder {
     reference: Option<Frame>,
     /// The previous source, coded size (flow predictors read it).
     prev_source: Option<Frame>,
+    /// Coded-size frames to reuse (the reference and source before the
+    /// previous ones): fresh ones cost page faults every frame.
+    spare_recon: Option<Frame>,
+    spare_source: Option<Frame>,
     index: usize,
 }
 
@@ -130,6 +134,8 @@ impl Encoder {
             analyser: MotionAnalyser::new(config.predictor, config.qp),
             reference: None,
             prev_source: None,
+            spare_recon: None,
+            spare_source: None,
             index: 0,
         })
     }
@@ -161,7 +167,12 @@ impl Encoder {
             });
         }
         let start = Instant::now();
-        let src = pad_to_coded(source, self.seq.coded_width(), self.seq.coded_height())?;
+        let (cw, ch) = (self.seq.coded_width(), self.seq.coded_height());
+        let src = pad_to_coded(source, self.spare_source.take(), cw, ch)?;
+        let recon = match self.spare_recon.take() {
+            Some(f) => f,
+            None => Frame::new(cw, ch)?,
+        };
         let intra = self.config.gop > 0 && self.index % self.config.gop == 0;
         let mut me_ms = 0.0;
         let coded = match (&self.reference, &self.prev_source, intra) {
@@ -174,9 +185,9 @@ impl Encoder {
                     Predictor::Dense { grid, .. } => MotionTool::Grid(grid),
                     _ => MotionTool::Block,
                 };
-                frame::code_inter(&self.seq, &self.coder, &src, reference, motion, tool)?
+                frame::code_inter(&self.seq, &self.coder, &src, reference, motion, tool, recon)?
             }
-            _ => frame::code_intra(&self.seq, &self.coder, &src)?,
+            _ => frame::code_intra(&self.seq, &self.coder, &src, recon)?,
         };
         let (bytes, bits) = write_frame(&self.seq, &coded.syntax);
         let recon = crop(&coded.recon, self.seq.width, self.seq.height)?;
@@ -209,8 +220,8 @@ impl Encoder {
             me_ms,
             total_ms: start.elapsed().as_secs_f64() * 1e3,
         };
-        self.reference = Some(coded.recon);
-        self.prev_source = Some(src);
+        self.spare_recon = self.reference.replace(coded.recon);
+        self.spare_source = self.prev_source.replace(src);
         self.index += 1;
         Ok(EncodedFrame { bytes, recon, stats })
     }
@@ -218,9 +229,17 @@ impl Encoder {
 
 /// `frame` at the coded size: the right column and bottom row repeated
 /// into the macroblocks' padding (which costs few bits and no distortion
-/// that anyone sees), borders extended.
-fn pad_to_coded(frame: &Frame, width: usize, height: usize) -> Result<Frame, PictureError> {
-    let mut out = Frame::new(width, height)?;
+/// that anyone sees), borders extended; written into `reuse` when given.
+fn pad_to_coded(
+    frame: &Frame,
+    reuse: Option<Frame>,
+    width: usize,
+    height: usize,
+) -> Result<Frame, PictureError> {
+    let mut out = match reuse {
+        Some(f) => f,
+        None => Frame::new(width, height)?,
+    };
     for p in 0..3 {
         let src = frame.plane(p);
         let dst = out.plane_mut(p);

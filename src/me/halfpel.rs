@@ -8,8 +8,28 @@
 //! it to rank candidates, and what the encoder then predicts with is the
 //! codec's exact interpolation.
 
+use std::cell::RefCell;
+
 use crate::codec::interp::predict_luma;
 use crate::codec::Plane;
+
+thread_local! {
+    /// Planes of earlier references, reused: a search per frame would
+    /// otherwise fault in three fresh planes every time.
+    static SPARE: RefCell<Vec<Plane>> = const { RefCell::new(Vec::new()) };
+}
+
+/// A plane of this size and border from the spares, or a new one.
+fn take_plane(w: usize, h: usize, pad: usize) -> Option<Plane> {
+    let reused = SPARE.with(|s| {
+        let mut s = s.borrow_mut();
+        let i = s
+            .iter()
+            .position(|p| (p.width(), p.height(), p.pad()) == (w, h, pad))?;
+        Some(s.swap_remove(i))
+    });
+    reused.or_else(|| Plane::with_padding(w, h, pad).ok())
+}
 
 /// Tile side used to fill the planes.
 const TILE: usize = 16;
@@ -18,7 +38,8 @@ const TILE: usize = 16;
 pub(crate) struct HalfPel {
     /// Horizontal, vertical and diagonal half-pel samples: entry (x, y) is
     /// the sample at (x + 1/2, y), (x, y + 1/2), (x + 1/2, y + 1/2).
-    planes: [Plane; 3],
+    /// (Only the picture and margin are written; nothing reads beyond.)
+    planes: Vec<Plane>,
     /// How far outside the picture the planes are filled.
     margin: isize,
 }
@@ -32,11 +53,14 @@ impl HalfPel {
         if margin + TILE > pad {
             return None;
         }
-        let mut planes = [(); 3].map(|_| Plane::with_padding(w, h, pad).ok());
+        let mut planes = Vec::with_capacity(3);
+        for _ in 0..3 {
+            planes.push(take_plane(w, h, pad)?);
+        }
         let m = margin as isize;
         let mut tile = [0u8; TILE * TILE];
         for (p, (mvx, mvy)) in [(2, 0), (0, 2), (2, 2)].into_iter().enumerate() {
-            let plane = planes[p].as_mut()?;
+            let plane = &mut planes[p];
             let stride = plane.stride();
             let mut y = -m;
             while y < h as isize + m {
@@ -54,11 +78,7 @@ impl HalfPel {
                 y += TILE as isize;
             }
         }
-        let [a, b, c] = planes;
-        Some(HalfPel {
-            planes: [a?, b?, c?],
-            margin: m,
-        })
+        Some(HalfPel { planes, margin: m })
     }
 
     /// The `b x b` block at (x, y) displaced by the quarter-pel vector
@@ -120,6 +140,18 @@ impl HalfPel {
             _ => average(point(2, 4 * (fy / 2)), point(4 * (fx / 2), 2), out),
         }
         true
+    }
+}
+
+impl Drop for HalfPel {
+    fn drop(&mut self) {
+        SPARE.with(|s| {
+            let mut s = s.borrow_mut();
+            s.append(&mut self.planes);
+            // Enough for two sizes in turn; older ones go.
+            let excess = s.len().saturating_sub(6);
+            s.drain(..excess);
+        });
     }
 }
 

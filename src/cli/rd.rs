@@ -75,7 +75,6 @@ pub fn load_curve(spec: &str) -> Result<(Vec<RdPoint>, String)> {
         .map_err(anyhow::Error::msg)
         .with_context(|| path.to_string())?;
     let mut codecs: Vec<&str> = points.iter().map(|p| p.codec.as_str()).collect();
-    codecs.dedup();
     codecs.sort_unstable();
     codecs.dedup();
     let label = match label {

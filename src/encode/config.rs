@@ -108,7 +108,14 @@ impl Predictor {
 
     /// Every setting, for reports.
     pub fn describe(&self) -> String {
-        let search = |s: &BlockSearch| format!("{} range {} subpel {:?}", s.method, s.range, s.subpel);
+        let search = |s: &BlockSearch| {
+            let subpel = match s.subpel {
+                Subpel::None => "full-pel",
+                Subpel::Half => "half-pel",
+                Subpel::Quarter => "quarter-pel",
+            };
+            format!("{}, range {}, {subpel}", s.method, s.range)
+        };
         match self {
             Predictor::Zero => "zero".into(),
             Predictor::Block(s) => format!("block ({})", search(s)),

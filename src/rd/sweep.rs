@@ -87,15 +87,15 @@ pub fn sweep(
     done: impl Fn() + Sync,
 ) -> Result<Vec<RdPoint>, EncodeError> {
     let mut jobs = Vec::new();
-    for (s, seq) in sequences.iter().enumerate() {
+    for seq in sequences {
         for p in predictors {
             for &qp in qps {
-                jobs.push((s, *p, qp, seq));
+                jobs.push((*p, qp, seq));
             }
         }
     }
     jobs.par_iter()
-        .map(|&(_, predictor, qp, seq)| {
+        .map(|&(predictor, qp, seq)| {
             let config = EncoderConfig::new().qp(qp).predictor(predictor);
             let s = encode_frames(&seq.frames, seq.fps, config)?;
             done();

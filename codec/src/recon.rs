@@ -75,14 +75,13 @@ pub fn predict_intra(
     let one = |plane: &Plane, size: usize, mode, out: &mut [u8]| {
         let (x0, y0) = (mb_x * size, mb_y * size);
         let top = (mb_y > 0).then(|| &plane.row(y0 - 1)[x0..x0 + size]);
-        let left: Option<Vec<u8>> =
-            (mb_x > 0).then(|| (0..size).map(|r| plane.get(x0 - 1, y0 + r)).collect());
+        let mut column = [0u8; MB];
+        for (r, v) in column[..size].iter_mut().enumerate() {
+            *v = plane.at(x0 as isize - 1, (y0 + r) as isize);
+        }
+        let left = (mb_x > 0).then_some(&column[..size]);
         let top_left = (mb_x > 0 && mb_y > 0).then(|| plane.get(x0 - 1, y0 - 1));
-        let n = Neighbours {
-            top,
-            left: left.as_deref(),
-            top_left,
-        };
+        let n = Neighbours { top, left, top_left };
         let done = intra::predict(mode, size, &n, out, size);
         assert!(
             done.is_ok(),

@@ -164,12 +164,9 @@ pub(crate) fn code_inter(
         // Every other choice spends at least its type and a coded block
         // pattern: when skip costs no more, nothing can beat it.
         let exhaustive = best.cost > coder.cost(0, INTER_BITS + 1);
-        let mut candidates = vec![mvp];
-        if uses_mvs && searched[i] != mvp {
-            candidates.push(searched[i]);
-        }
+        let searched_mv = (uses_mvs && searched[i] != mvp).then_some(searched[i]);
         let mut inter_satd = u32::MAX;
-        for mv in candidates.into_iter().filter(|_| exhaustive) {
+        for mv in std::iter::once(mvp).chain(searched_mv).filter(|_| exhaustive) {
             let pred = if mv == mvp {
                 skip_pred.clone()
             } else {

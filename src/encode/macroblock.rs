@@ -250,10 +250,11 @@ impl MbCoder {
         mb_y: usize,
     ) -> (IntraMode, IntraMode, MbPrediction, u32) {
         let sad_lambda = self.lambda.sqrt();
-        let allowed: Vec<IntraMode> = IntraMode::ALL
-            .into_iter()
-            .filter(|&m| intra_mode_allowed(m, mb_x, mb_y))
-            .collect();
+        let allowed = || {
+            IntraMode::ALL
+                .into_iter()
+                .filter(move |&m| intra_mode_allowed(m, mb_x, mb_y))
+        };
         let mut best = (
             f64::INFINITY,
             IntraMode::Dc,
@@ -262,7 +263,7 @@ impl MbCoder {
         );
         // Luma and chroma modes are independent: choose luma with DC chroma,
         // then chroma with the chosen luma.
-        for &m in &allowed {
+        for m in allowed() {
             let p = predict_intra(recon, mb_x, mb_y, m, IntraMode::Dc);
             let c = f64::from(Metric::Satd.cost(&src.luma, MB, &p.luma, MB, MB, MB))
                 + sad_lambda * f64::from(ue_len(m as u32));
@@ -273,7 +274,7 @@ impl MbCoder {
         let luma = best.1;
         let satd = Metric::Satd.cost(&src.luma, MB, &best.3.luma, MB, MB, MB);
         let mut best_c = f64::INFINITY;
-        for &m in &allowed {
+        for m in allowed() {
             let p = predict_intra(recon, mb_x, mb_y, luma, m);
             let c = (0..2)
                 .map(|k| f64::from(Metric::Sad.cost(&src.chroma[k], 8, &p.chroma[k], 8, 8, 8)))

@@ -80,11 +80,6 @@ pub(crate) struct MbCoder {
     pub rdoq: bool,
 }
 
-/// Residual bits as the writer spends them.
-pub(crate) fn residual_bits(residual: &MbResidual) -> u32 {
-    residual.bit_len()
-}
-
 /// H.264 reference-encoder cost of a 4x4 block's levels for the zeroing
 /// decision: a level above 1 makes it worth keeping; a lone ±1 costs by
 /// how few zeros precede it.
@@ -228,7 +223,7 @@ impl MbCoder {
         reconstruct_mb(pred, &residual, self.qp, recon, mb_x, mb_y);
         let ssd = src.ssd(&MbSource::load(recon, mb_x, mb_y).as_prediction());
         Coded {
-            bits: residual_bits(&residual),
+            bits: residual.bit_len(),
             residual,
             ssd,
         }
@@ -321,10 +316,25 @@ mod tests {
     }
 
     #[test]
-    fn residual_bits_count_what_the_writer_writes() {
-        let mut r = MbResidual::default();
-        let empty = residual_bits(&r);
-        r.luma[5][0][1] = 3;
-        assert!(residual_bits(&r) > empty);
+    fn rdoq_only_moves_levels_toward_zero_and_never_raises_the_cost() {
+        let qp = 28;
+        let lambda = MbCoder::new(qp, 1.4, true).lambda;
+        let mut seed = 12345u32;
+        for _ in 0..500 {
+            let mut residual = [[0i32; 4]; 4];
+            for v in residual.iter_mut().flatten() {
+                seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
+                *v = ((seed >> 16) % 61) as i32 - 30;
+            }
+            let mut levels = forward_4x4(&residual);
+            quantize(&mut levels, qp, ROUND_INTER);
+            let before = levels;
+            lower_levels(&residual, &mut levels, qp, lambda);
+            let cost = |l: &Block4| block_error(&residual, l, qp) as f64 + lambda * f64::from(block_len(l));
+            assert!(cost(&levels) <= cost(&before) + 1e-9);
+            for (a, b) in levels.iter().flatten().zip(before.iter().flatten()) {
+                assert!(a.abs() <= b.abs() && a * b >= 0, "{a} from {b}");
+            }
+        }
     }
 }

@@ -99,7 +99,8 @@ pub fn predict_luma(
     check_block(reference, w, h, out, out_stride);
     #[cfg(target_arch = "x86_64")]
     {
-        if has_avx2() {
+        // std caches the answer after the first call.
+        if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2 (checked above); the function is
             // the safe scalar code compiled with AVX2 enabled.
             unsafe { predict_luma_avx2(reference, x, y, mvx, mvy, w, h, out, out_stride) };
@@ -107,14 +108,6 @@ pub fn predict_luma(
         }
     }
     predict_luma_body(reference, x, y, mvx, mvy, w, h, out, out_stride);
-}
-
-/// Whether the CPU has AVX2 (asked once).
-#[cfg(target_arch = "x86_64")]
-fn has_avx2() -> bool {
-    use std::sync::OnceLock;
-    static AVX2: OnceLock<bool> = OnceLock::new();
-    *AVX2.get_or_init(|| std::arch::is_x86_feature_detected!("avx2"))
 }
 
 /// [`predict_luma_body`] compiled for AVX2.

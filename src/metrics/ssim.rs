@@ -97,9 +97,8 @@ fn band_sum(
 ) -> f64 {
     #[cfg(target_arch = "x86_64")]
     {
-        use std::sync::OnceLock;
-        static AVX2: OnceLock<bool> = OnceLock::new();
-        if *AVX2.get_or_init(|| std::arch::is_x86_feature_detected!("avx2")) {
+        // std caches the answer after the first call.
+        if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2; the function is the safe code below
             // compiled with AVX2 (no FMA, so every sum rounds as in the
             // baseline build).

@@ -8,6 +8,7 @@
 
 pub mod bits;
 pub mod decoder;
+pub mod entropy;
 pub mod interp;
 pub mod intra;
 pub mod mv;

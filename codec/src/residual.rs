@@ -1,21 +1,34 @@
-//! Coding of quantised transform coefficients (normative syntax).
+//! Coding of quantised transform coefficients (normative syntax, FORMAT.md
+//! section 3.4).
 //!
-//! A macroblock's residual is 16 luma and 2 x 4 chroma 4x4 blocks of levels.
-//! Which blocks carry anything is said in two steps:
+//! A macroblock's residual is 16 luma and 2 x 4 chroma 4x4 blocks of levels,
+//! coded in the frame's residual partition with the adaptive binary range
+//! coder of [`crate::entropy`], binarised as H.264's CABAC does:
 //!
-//! * `coded_block_pattern`, `ue(v)` in 0..=63: bit `q` (0..=3) is set when
-//!   luma 8x8 quadrant `q` (raster order) has a non-zero level; bit 4 for
-//!   Cb, bit 5 for Cr;
-//! * for every 4x4 block of a flagged quadrant or chroma plane,
-//!   `coded_block_flag`, `u(1)`.
+//! * the coded block pattern, one bin per luma 8x8 quadrant and one per
+//!   chroma plane, each in a context chosen by whether the neighbouring
+//!   quadrant (or the neighbouring macroblocks' plane) left and above had
+//!   levels;
+//! * per 4x4 block of a flagged quadrant or plane, a coded-block flag whose
+//!   context counts the coded blocks left and above (the fourth flag of a
+//!   group whose first three are 0 is implied);
+//! * per coded block, the significance map in zig-zag order (a
+//!   `significant` bin per position, each followed when set by a `last`
+//!   bin, both with a context per position), then the levels from the last
+//!   to the first: `|level| > 1` in a context counting the levels of 1 and
+//!   above 1 seen so far, `|level| - 2` in unary (contexts by the levels
+//!   above 1 seen) up to 14 and Exp-Golomb (k = 0) in bypass bins beyond,
+//!   and a bypass sign bin.
 //!
-//! A coded 4x4 block is scanned in H.264's zig-zag order and written as
-//! `ue(total - 1)` (1..=16 non-zero levels), then for each non-zero level in
-//! scan order `ue(run)` (zeros skipped before it), `ue(|level| - 1)` and a
-//! sign bit (1 = negative). Runs that would carry a level past position 15,
-//! and levels above [`MAX_LEVEL`], are errors.
+//! Each of the four block classes (luma or chroma, of intra or inter
+//! macroblocks) has its own contexts. [`ResidualCoder`] holds the contexts
+//! and the neighbours' coded flags of one frame; the same binarisation
+//! writes ([`ResidualCoder::write`]), reads ([`ResidualCoder::read`]),
+//! adapts without writing ([`ResidualCoder::commit`]) and prices
+//! ([`ResidualCoder::cost`]), so the encoder's rate term follows the coder
+//! exactly as it adapts.
 
-use crate::bits::{ue_len, BitError, BitReader, BitWriter};
+use crate::entropy::{Context, RangeDecoder, RangeEncoder, BYPASS_COST};
 use crate::transform::Block4;
 
 /// H.264's 4x4 frame zig-zag scan: `ZIGZAG[k]` is the raster index
@@ -26,20 +39,24 @@ pub const ZIGZAG: [usize; 16] = [0, 1, 4, 8, 5, 2, 3, 6, 9, 12, 13, 10, 7, 11, 1
 /// residuals quantise to at QP 0, about 1700).
 pub const MAX_LEVEL: u32 = 1 << 15;
 
+/// Levels up to `2 + UNARY_MAX - 1` above 1 are coded in unary; beyond,
+/// an Exp-Golomb suffix follows.
+const UNARY_MAX: u32 = 14;
+
+/// Longest Exp-Golomb prefix a reader accepts (enough for [`MAX_LEVEL`]).
+const MAX_EG_PREFIX: u32 = 16;
+
 /// Why coefficient data is invalid.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum ResidualError {
-    /// The bits themselves.
-    #[error(transparent)]
-    Bits(#[from] BitError),
     /// A value outside its range.
-    #[error("{what} is {value}, out of range, at bit {pos}")]
+    #[error("{what} is {value}, out of range, at byte {pos} of the residual partition")]
     Range {
         /// The syntax element.
         what: &'static str,
         /// Its value.
         value: u64,
-        /// Bit position where it starts.
+        /// Byte of the residual partition being read.
         pos: usize,
     },
 }
@@ -71,7 +88,8 @@ impl MbResidual {
         self.luma.iter().all(is_zero) && self.chroma.iter().flatten().all(is_zero)
     }
 
-    /// The coded block pattern of these levels.
+    /// The coded block pattern of these levels: bit q for luma quadrant q,
+    /// bit 4 for Cb, bit 5 for Cr.
     pub fn cbp(&self) -> u32 {
         let mut cbp = 0;
         for q in 0..4 {
@@ -86,183 +104,545 @@ impl MbResidual {
         }
         cbp
     }
+}
 
-    /// Writes the pattern and every coded block.
-    pub fn write(&self, w: &mut BitWriter) {
-        let cbp = self.cbp();
-        w.put_ue(cbp);
-        for q in 0..4 {
-            if cbp & (1 << q) != 0 {
-                for b in quadrant_blocks(q) {
-                    write_block_with_flag(w, &self.luma[b]);
-                }
+// Context layout: four block classes, then the coded-block-pattern
+// contexts of intra and of inter macroblocks.
+const CBF: usize = 0; // 3: coded neighbours left + above
+const SIG: usize = 3; // 15: scan position
+const LAST: usize = SIG + 15; // 15: scan position
+const GT1: usize = LAST + 15; // 5
+const ABS: usize = GT1 + 5; // 5
+const CLASS_CONTEXTS: usize = ABS + 5;
+const CBP: usize = 4 * CLASS_CONTEXTS;
+/// Per kind: 4 luma (left + 2 above), 3 Cb (left + above), 6 Cr (left +
+/// above + 3 Cb).
+const CBP_CONTEXTS: usize = 13;
+const CONTEXTS: usize = CBP + 2 * CBP_CONTEXTS;
+
+/// First context of a block class.
+fn class(chroma: bool, intra: bool) -> usize {
+    (usize::from(chroma) * 2 + usize::from(intra)) * CLASS_CONTEXTS
+}
+
+/// Where bins go: written, only adapted, or only priced.
+trait Bins {
+    fn bin(&mut self, ctx: usize, bit: bool);
+    fn bypass(&mut self, bit: bool);
+}
+
+struct Writer<'a> {
+    enc: &'a mut RangeEncoder,
+    contexts: &'a mut [Context; CONTEXTS],
+}
+
+impl Bins for Writer<'_> {
+    fn bin(&mut self, ctx: usize, bit: bool) {
+        self.enc.encode(&mut self.contexts[ctx], bit);
+    }
+    fn bypass(&mut self, bit: bool) {
+        self.enc.encode_bypass(bit);
+    }
+}
+
+struct Adapter<'a>(&'a mut [Context; CONTEXTS]);
+
+impl Bins for Adapter<'_> {
+    fn bin(&mut self, ctx: usize, bit: bool) {
+        self.0[ctx].update(bit);
+    }
+    fn bypass(&mut self, _: bool) {}
+}
+
+/// Prices bins in the contexts' present state (1/256 bit), without
+/// adapting them: an estimate within a macroblock, exact at its first bin.
+struct Pricer<'a> {
+    contexts: &'a [Context; CONTEXTS],
+    cost: u32,
+}
+
+impl Bins for Pricer<'_> {
+    fn bin(&mut self, ctx: usize, bit: bool) {
+        self.cost += self.contexts[ctx].cost(bit);
+    }
+    fn bypass(&mut self, _: bool) {
+        self.cost += BYPASS_COST;
+    }
+}
+
+/// Coded flags of the 4x4 blocks across a macroblock's left and top edges
+/// (false outside the picture and for macroblocks without residual).
+#[derive(Debug, Clone, Copy, Default)]
+struct Edges {
+    /// Luma blocks left of rows 0..4, above columns 0..4.
+    luma_left: [bool; 4],
+    luma_above: [bool; 4],
+    /// Per chroma plane, blocks left of rows 0..2, above columns 0..2.
+    chroma_left: [[bool; 2]; 2],
+    chroma_above: [[bool; 2]; 2],
+}
+
+/// Context increment of a block's coded flag: coded blocks left and above,
+/// inside the macroblock from `blocks` (raster, `width` blocks a row),
+/// across its edges from `left` / `above`.
+fn cbf_ctx(blocks: &[Block4], width: usize, k: usize, left: &[bool], above: &[bool]) -> usize {
+    let (x, y) = (k % width, k / width);
+    let l = if x > 0 { !is_zero(&blocks[k - 1]) } else { left[y] };
+    let a = if y > 0 {
+        !is_zero(&blocks[k - width])
+    } else {
+        above[x]
+    };
+    usize::from(l) + usize::from(a)
+}
+
+/// Context increment of luma quadrant `q`'s pattern bin: the quadrant left
+/// (its pattern bit inside the macroblock, the two adjacent 4x4 blocks
+/// across the edge) plus twice the one above.
+fn luma_cbp_ctx(e: &Edges, cbp: u32, q: usize) -> usize {
+    let (qx, qy) = (q % 2, q / 2);
+    let left = if qx == 1 {
+        cbp & (1 << (q - 1)) != 0
+    } else {
+        e.luma_left[2 * qy] || e.luma_left[2 * qy + 1]
+    };
+    let above = if qy == 1 {
+        cbp & (1 << (q - 2)) != 0
+    } else {
+        e.luma_above[2 * qx] || e.luma_above[2 * qx + 1]
+    };
+    usize::from(left) + 2 * usize::from(above)
+}
+
+/// Context increment of chroma plane `p`'s pattern bin (`cb_coded`: the
+/// Cb bin, for Cr).
+fn chroma_cbp_ctx(e: &Edges, p: usize, cb_coded: bool) -> usize {
+    let left = e.chroma_left[p][0] || e.chroma_left[p][1];
+    let above = e.chroma_above[p][0] || e.chroma_above[p][1];
+    let n = usize::from(left) + usize::from(above);
+    if p == 0 {
+        n
+    } else {
+        3 + n + 3 * usize::from(cb_coded)
+    }
+}
+
+fn cbp_base(intra: bool) -> usize {
+    CBP + usize::from(intra) * CBP_CONTEXTS
+}
+
+/// A group of four blocks (quadrant or chroma plane) whose pattern bit is
+/// set: flags (the last implied when the others are 0) and blocks.
+fn code_group<B: Bins>(
+    b: &mut B,
+    cls: usize,
+    blocks: &[Block4],
+    width: usize,
+    group: [usize; 4],
+    left: &[bool],
+    above: &[bool],
+) {
+    let mut any = false;
+    for (i, &k) in group.iter().enumerate() {
+        let coded = !is_zero(&blocks[k]);
+        if i < 3 || any {
+            b.bin(cls + CBF + cbf_ctx(blocks, width, k, left, above), coded);
+        }
+        any |= coded;
+        if coded {
+            code_block(b, cls, &blocks[k]);
+        }
+    }
+}
+
+fn code_mb<B: Bins>(b: &mut B, e: &Edges, intra: bool, res: &MbResidual) {
+    let cbp = res.cbp();
+    let base = cbp_base(intra);
+    for q in 0..4 {
+        b.bin(base + luma_cbp_ctx(e, cbp, q), cbp & (1 << q) != 0);
+    }
+    let cb = cbp & 16 != 0;
+    b.bin(base + 4 + chroma_cbp_ctx(e, 0, false), cb);
+    b.bin(base + 4 + chroma_cbp_ctx(e, 1, cb), cbp & 32 != 0);
+    let cls = class(false, intra);
+    for q in 0..4 {
+        if cbp & (1 << q) != 0 {
+            code_group(
+                b,
+                cls,
+                &res.luma,
+                4,
+                quadrant_blocks(q),
+                &e.luma_left,
+                &e.luma_above,
+            );
+        }
+    }
+    let cls = class(true, intra);
+    for p in 0..2 {
+        if cbp & (16 << p) != 0 {
+            code_group(
+                b,
+                cls,
+                &res.chroma[p],
+                2,
+                [0, 1, 2, 3],
+                &e.chroma_left[p],
+                &e.chroma_above[p],
+            );
+        }
+    }
+}
+
+/// One block with at least one non-zero level.
+fn code_block<B: Bins>(b: &mut B, cls: usize, block: &Block4) {
+    let scan = ZIGZAG.map(|i| block[i / 4][i % 4]);
+    let last = scan.iter().rposition(|&v| v != 0).unwrap_or(0);
+    for (i, &v) in scan.iter().enumerate().take(15) {
+        b.bin(cls + SIG + i, v != 0);
+        if v != 0 {
+            b.bin(cls + LAST + i, i == last);
+            if i == last {
+                break;
+            }
+        }
+    }
+    let (mut eq1, mut gt1) = (0usize, 0usize);
+    for &v in scan[..=last].iter().rev().filter(|&&v| v != 0) {
+        let a = v.unsigned_abs();
+        let ctx = if gt1 > 0 { 0 } else { (1 + eq1).min(4) };
+        b.bin(cls + GT1 + ctx, a > 1);
+        if a > 1 {
+            let ctx = cls + ABS + gt1.min(4);
+            let m = a - 2;
+            for _ in 0..m.min(UNARY_MAX) {
+                b.bin(ctx, true);
+            }
+            if m < UNARY_MAX {
+                b.bin(ctx, false);
+            } else {
+                exp_golomb(b, m - UNARY_MAX);
+            }
+            gt1 += 1;
+        } else {
+            eq1 += 1;
+        }
+        b.bypass(v < 0);
+    }
+}
+
+/// Exp-Golomb (k = 0) in bypass bins: ones while the value covers the next
+/// power of two, a zero, then the remainder's bits, most significant first.
+fn exp_golomb<B: Bins>(b: &mut B, mut v: u32) {
+    let mut k = 0;
+    while v >= 1 << k {
+        b.bypass(true);
+        v -= 1 << k;
+        k += 1;
+    }
+    b.bypass(false);
+    while k > 0 {
+        k -= 1;
+        b.bypass((v >> k) & 1 != 0);
+    }
+}
+
+/// The residual coder of one frame: the contexts and the coded flags of
+/// the macroblocks coded so far (which choose the contexts of the next).
+///
+/// ```
+/// use mocomp_codec::entropy::{RangeDecoder, RangeEncoder};
+/// use mocomp_codec::residual::{MbResidual, ResidualCoder};
+/// let mut res = MbResidual::default();
+/// res.luma[5][0][1] = -3;
+/// res.chroma[1][0][0][0] = 1;
+/// let mut coder = ResidualCoder::new(2, 1);
+/// let mut enc = RangeEncoder::new();
+/// coder.write(&mut enc, 0, 0, false, &res);
+/// coder.write(&mut enc, 1, 0, true, &res);
+/// let bytes = enc.finish();
+/// let mut coder = ResidualCoder::new(2, 1);
+/// let mut dec = RangeDecoder::new(&bytes);
+/// assert_eq!(coder.read(&mut dec, 0, 0, false), Ok(res.clone()));
+/// assert_eq!(coder.read(&mut dec, 1, 0, true), Ok(res));
+/// ```
+#[derive(Debug, Clone)]
+pub struct ResidualCoder {
+    contexts: Box<[Context; CONTEXTS]>,
+    mb_cols: usize,
+    mb_rows: usize,
+    /// Coded flags of the luma 4x4 blocks, `4 mb_cols` a row.
+    luma: Vec<bool>,
+    /// Per plane, of the chroma 4x4 blocks, `2 mb_cols` a row.
+    chroma: [Vec<bool>; 2],
+}
+
+impl ResidualCoder {
+    /// A coder at the start of a frame of `mb_cols x mb_rows` macroblocks.
+    pub fn new(mb_cols: usize, mb_rows: usize) -> ResidualCoder {
+        ResidualCoder {
+            contexts: Box::new([Context::new(); CONTEXTS]),
+            mb_cols,
+            mb_rows,
+            luma: vec![false; 16 * mb_cols * mb_rows],
+            chroma: [
+                vec![false; 4 * mb_cols * mb_rows],
+                vec![false; 4 * mb_cols * mb_rows],
+            ],
+        }
+    }
+
+    fn edges(&self, mb_x: usize, mb_y: usize) -> Edges {
+        debug_assert!(mb_x < self.mb_cols && mb_y < self.mb_rows);
+        let mut e = Edges::default();
+        let lw = 4 * self.mb_cols;
+        let cw = 2 * self.mb_cols;
+        for i in 0..4 {
+            if mb_x > 0 {
+                e.luma_left[i] = self.luma[(4 * mb_y + i) * lw + 4 * mb_x - 1];
+            }
+            if mb_y > 0 {
+                e.luma_above[i] = self.luma[(4 * mb_y - 1) * lw + 4 * mb_x + i];
             }
         }
         for p in 0..2 {
-            if cbp & (1 << (4 + p)) != 0 {
-                for b in &self.chroma[p] {
-                    write_block_with_flag(w, b);
+            for i in 0..2 {
+                if mb_x > 0 {
+                    e.chroma_left[p][i] = self.chroma[p][(2 * mb_y + i) * cw + 2 * mb_x - 1];
                 }
+                if mb_y > 0 {
+                    e.chroma_above[p][i] = self.chroma[p][(2 * mb_y - 1) * cw + 2 * mb_x + i];
+                }
+            }
+        }
+        e
+    }
+
+    fn record(&mut self, mb_x: usize, mb_y: usize, res: &MbResidual) {
+        let lw = 4 * self.mb_cols;
+        for (k, b) in res.luma.iter().enumerate() {
+            self.luma[(4 * mb_y + k / 4) * lw + 4 * mb_x + k % 4] = !is_zero(b);
+        }
+        let cw = 2 * self.mb_cols;
+        for p in 0..2 {
+            for (k, b) in res.chroma[p].iter().enumerate() {
+                self.chroma[p][(2 * mb_y + k / 2) * cw + 2 * mb_x + k % 2] = !is_zero(b);
             }
         }
     }
 
-    /// The bits [`MbResidual::write`] writes, without writing them (the
-    /// encoder's rate term).
-    pub fn bit_len(&self) -> u32 {
-        let cbp = self.cbp();
-        let mut bits = ue_len(cbp);
-        for q in 0..4 {
-            if cbp & (1 << q) != 0 {
-                bits += quadrant_blocks(q)
-                    .iter()
-                    .map(|&b| 1 + block_len(&self.luma[b]))
-                    .sum::<u32>();
-            }
-        }
-        for p in 0..2 {
-            if cbp & (1 << (4 + p)) != 0 {
-                bits += self.chroma[p].iter().map(|b| 1 + block_len(b)).sum::<u32>();
-            }
-        }
-        bits
+    /// The rate estimate, in 1/256 bit, of coding `res` as macroblock
+    /// (mb_x, mb_y) now: the contexts' present state, not adapted within
+    /// the macroblock. Not normative (the encoder's rate term).
+    pub fn cost(&self, mb_x: usize, mb_y: usize, intra: bool, res: &MbResidual) -> u32 {
+        let mut p = Pricer {
+            contexts: &self.contexts,
+            cost: 0,
+        };
+        code_mb(&mut p, &self.edges(mb_x, mb_y), intra, res);
+        p.cost
     }
 
-    /// Reads what [`MbResidual::write`] writes.
-    pub fn read(r: &mut BitReader<'_>) -> Result<MbResidual, ResidualError> {
-        let pos = r.position();
-        let cbp = r.get_ue()?;
-        if cbp > 63 {
-            return Err(ResidualError::Range {
-                what: "coded_block_pattern",
-                value: u64::from(cbp),
-                pos,
-            });
+    /// What coding `block` adds, in 1/256 bit, over an all-zero block in
+    /// its place (0 for an all-zero block): its levels and the change of
+    /// its coded flag, priced with one coded neighbour. Not normative (for
+    /// per-block rate-distortion decisions).
+    pub fn block_cost(&self, chroma: bool, intra: bool, block: &Block4) -> u32 {
+        if is_zero(block) {
+            return 0;
         }
+        let cls = class(chroma, intra);
+        let flag = &self.contexts[cls + CBF + 1];
+        let mut p = Pricer {
+            contexts: &self.contexts,
+            cost: flag.cost(true),
+        };
+        code_block(&mut p, cls, block);
+        p.cost.saturating_sub(flag.cost(false))
+    }
+
+    /// Adapts the contexts and records the coded flags as
+    /// [`ResidualCoder::write`] does, without writing.
+    pub fn commit(&mut self, mb_x: usize, mb_y: usize, intra: bool, res: &MbResidual) {
+        let e = self.edges(mb_x, mb_y);
+        code_mb(&mut Adapter(&mut self.contexts), &e, intra, res);
+        self.record(mb_x, mb_y, res);
+    }
+
+    /// Writes macroblock (mb_x, mb_y)'s levels (`intra`: whether it is
+    /// intra-coded). Macroblocks without residual syntax (skipped) are not
+    /// written. Levels above [`MAX_LEVEL`] are an encoder bug: they would
+    /// not decode.
+    pub fn write(&mut self, enc: &mut RangeEncoder, mb_x: usize, mb_y: usize, intra: bool, res: &MbResidual) {
+        debug_assert!(res
+            .luma
+            .iter()
+            .chain(res.chroma.iter().flatten())
+            .flatten()
+            .flatten()
+            .all(|v| v.unsigned_abs() <= MAX_LEVEL));
+        let e = self.edges(mb_x, mb_y);
+        let mut w = Writer {
+            enc,
+            contexts: &mut self.contexts,
+        };
+        code_mb(&mut w, &e, intra, res);
+        self.record(mb_x, mb_y, res);
+    }
+
+    /// Reads what [`ResidualCoder::write`] writes.
+    pub fn read(
+        &mut self,
+        dec: &mut RangeDecoder<'_>,
+        mb_x: usize,
+        mb_y: usize,
+        intra: bool,
+    ) -> Result<MbResidual, ResidualError> {
+        let e = self.edges(mb_x, mb_y);
+        let c = &mut self.contexts;
+        let base = cbp_base(intra);
+        let mut cbp = 0u32;
+        for q in 0..4 {
+            if dec.decode(&mut c[base + luma_cbp_ctx(&e, cbp, q)]) {
+                cbp |= 1 << q;
+            }
+        }
+        let cb = dec.decode(&mut c[base + 4 + chroma_cbp_ctx(&e, 0, false)]);
+        let cr = dec.decode(&mut c[base + 4 + chroma_cbp_ctx(&e, 1, cb)]);
+        cbp |= u32::from(cb) << 4 | u32::from(cr) << 5;
         let mut out = MbResidual::default();
+        let cls = class(false, intra);
         for q in 0..4 {
             if cbp & (1 << q) != 0 {
-                for b in quadrant_blocks(q) {
-                    out.luma[b] = read_block_with_flag(r)?;
-                }
+                read_group(
+                    dec,
+                    c,
+                    cls,
+                    &mut out.luma,
+                    4,
+                    quadrant_blocks(q),
+                    &e.luma_left,
+                    &e.luma_above,
+                )?;
             }
         }
+        let cls = class(true, intra);
         for p in 0..2 {
-            if cbp & (1 << (4 + p)) != 0 {
-                for b in &mut out.chroma[p] {
-                    *b = read_block_with_flag(r)?;
-                }
+            if cbp & (16 << p) != 0 {
+                read_group(
+                    dec,
+                    c,
+                    cls,
+                    &mut out.chroma[p],
+                    2,
+                    [0, 1, 2, 3],
+                    &e.chroma_left[p],
+                    &e.chroma_above[p],
+                )?;
             }
         }
+        self.record(mb_x, mb_y, &out);
         Ok(out)
     }
 }
 
-fn write_block_with_flag(w: &mut BitWriter, b: &Block4) {
-    let coded = !is_zero(b);
-    w.put_bit(coded);
-    if coded {
-        write_block(w, b);
-    }
-}
-
-fn read_block_with_flag(r: &mut BitReader<'_>) -> Result<Block4, ResidualError> {
-    if r.get_bit()? {
-        read_block(r)
-    } else {
-        Ok([[0; 4]; 4])
-    }
-}
-
-/// Writes one 4x4 block with at least one non-zero level (run-level, see
-/// the module documentation). Panics on an all-zero block or a level above
-/// [`MAX_LEVEL`] (encoder bugs).
-pub fn write_block(w: &mut BitWriter, b: &Block4) {
-    let scan = ZIGZAG.map(|i| b[i / 4][i % 4]);
-    let total = scan.iter().filter(|&&v| v != 0).count();
-    assert!(total > 0, "write_block: all-zero block");
-    w.put_ue(total as u32 - 1);
-    let mut run = 0;
-    for &v in &scan {
-        if v == 0 {
-            run += 1;
-            continue;
-        }
-        assert!(v.unsigned_abs() <= MAX_LEVEL, "level {v} above {MAX_LEVEL}");
-        w.put_ue(run);
-        w.put_ue(v.unsigned_abs() - 1);
-        w.put_bit(v < 0);
-        run = 0;
-    }
-}
-
-/// The bits [`write_block`] writes for `b` (0 for an all-zero block,
-/// which it does not write), without its coded-block flag.
-pub fn block_len(b: &Block4) -> u32 {
-    let mut total = 0;
-    let mut bits = 0;
-    let mut run = 0;
-    for &i in &ZIGZAG {
-        let v = b[i / 4][i % 4];
-        if v == 0 {
-            run += 1;
-            continue;
-        }
-        total += 1;
-        bits += ue_len(run) + ue_len(v.unsigned_abs() - 1) + 1;
-        run = 0;
-    }
-    if total == 0 {
-        0
-    } else {
-        bits + ue_len(total - 1)
-    }
-}
-
-/// Reads one 4x4 block written by [`write_block`].
-pub fn read_block(r: &mut BitReader<'_>) -> Result<Block4, ResidualError> {
-    let pos = r.position();
-    let total = r.get_ue()? as u64 + 1;
-    if total > 16 {
-        return Err(ResidualError::Range {
-            what: "total_coeff",
-            value: total,
-            pos,
-        });
-    }
-    let mut b = [[0i32; 4]; 4];
-    let mut next = 0u64; // first scan position the next level may take
-    for i in 0..total {
-        let pos = r.position();
-        let run = u64::from(r.get_ue()?);
-        let at = next + run;
-        // Room must remain for the levels still to come.
-        if at + (total - 1 - i) > 15 {
-            return Err(ResidualError::Range {
-                what: "run",
-                value: run,
-                pos,
-            });
-        }
-        let pos = r.position();
-        let magnitude = u64::from(r.get_ue()?) + 1;
-        if magnitude > u64::from(MAX_LEVEL) {
-            return Err(ResidualError::Range {
-                what: "level",
-                value: magnitude,
-                pos,
-            });
-        }
-        let negative = r.get_bit()?;
-        let idx = ZIGZAG[at as usize];
-        b[idx / 4][idx % 4] = if negative {
-            -(magnitude as i32)
+#[allow(clippy::too_many_arguments)]
+fn read_group(
+    dec: &mut RangeDecoder<'_>,
+    c: &mut [Context; CONTEXTS],
+    cls: usize,
+    blocks: &mut [Block4],
+    width: usize,
+    group: [usize; 4],
+    left: &[bool],
+    above: &[bool],
+) -> Result<(), ResidualError> {
+    let mut any = false;
+    for (i, &k) in group.iter().enumerate() {
+        let coded = if i < 3 || any {
+            dec.decode(&mut c[cls + CBF + cbf_ctx(blocks, width, k, left, above)])
         } else {
-            magnitude as i32
+            true
         };
-        next = at + 1;
+        any |= coded;
+        if coded {
+            blocks[k] = read_block(dec, c, cls)?;
+        }
     }
-    Ok(b)
+    Ok(())
+}
+
+fn read_block(
+    dec: &mut RangeDecoder<'_>,
+    c: &mut [Context; CONTEXTS],
+    cls: usize,
+) -> Result<Block4, ResidualError> {
+    let mut significant = [false; 16];
+    let mut last = 15;
+    for (i, s) in significant.iter_mut().enumerate().take(15) {
+        *s = dec.decode(&mut c[cls + SIG + i]);
+        if *s && dec.decode(&mut c[cls + LAST + i]) {
+            last = i;
+            break;
+        }
+    }
+    significant[last] = true;
+    let mut block = [[0i32; 4]; 4];
+    let (mut eq1, mut gt1) = (0usize, 0usize);
+    for i in (0..=last).rev().filter(|&i| significant[i]) {
+        let ctx = if gt1 > 0 { 0 } else { (1 + eq1).min(4) };
+        let mut a = 1u32;
+        if dec.decode(&mut c[cls + GT1 + ctx]) {
+            let ctx = cls + ABS + gt1.min(4);
+            let mut m = 0;
+            while m < UNARY_MAX && dec.decode(&mut c[ctx]) {
+                m += 1;
+            }
+            if m == UNARY_MAX {
+                m += read_exp_golomb(dec)?;
+            }
+            a = 2 + m;
+            if a > MAX_LEVEL {
+                return Err(ResidualError::Range {
+                    what: "level",
+                    value: u64::from(a),
+                    pos: dec.position(),
+                });
+            }
+            gt1 += 1;
+        } else {
+            eq1 += 1;
+        }
+        let v = if dec.decode_bypass() {
+            -(a as i32)
+        } else {
+            a as i32
+        };
+        let idx = ZIGZAG[i];
+        block[idx / 4][idx % 4] = v;
+    }
+    Ok(block)
+}
+
+fn read_exp_golomb(dec: &mut RangeDecoder<'_>) -> Result<u32, ResidualError> {
+    let mut k = 0;
+    let mut v = 0u32;
+    while dec.decode_bypass() {
+        v += 1 << k;
+        k += 1;
+        if k > MAX_EG_PREFIX {
+            return Err(ResidualError::Range {
+                what: "Exp-Golomb prefix",
+                value: u64::from(k),
+                pos: dec.position(),
+            });
+        }
+    }
+    let mut suffix = 0;
+    for _ in 0..k {
+        suffix = (suffix << 1) | u32::from(dec.decode_bypass());
+    }
+    Ok(v + suffix)
 }
 
 #[cfg(test)]
@@ -287,120 +667,189 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_hand_coded_block() -> Result<(), ResidualError> {
-        // Levels 3 at DC and -1 at scan position 2 (raster 4): total 2 ->
-        // ue(1) = 010; run 0 -> 1, |3|-1 = 2 -> 011, sign 0; run 1 -> 010,
-        // |-1|-1 = 0 -> 1, sign 1.
-        let mut b = [[0; 4]; 4];
-        b[0][0] = 3;
-        b[1][0] = -1;
-        let mut w = BitWriter::new();
-        write_block(&mut w, &b);
-        assert_eq!(w.len(), 3 + 1 + 3 + 1 + 3 + 1 + 1);
-        let bytes = w.into_bytes();
-        assert_eq!(bytes, [0b0101_0110, 0b0101_1000]);
-        assert_eq!(read_block(&mut BitReader::new(&bytes))?, b);
-        Ok(())
+    /// Writes `res` with bins of our own choosing, bypassing the writer's
+    /// check on level sizes (to make invalid streams).
+    fn write_unchecked(res: &MbResidual) -> Vec<u8> {
+        let mut enc = RangeEncoder::new();
+        let mut contexts = Box::new([Context::new(); CONTEXTS]);
+        let mut w = Writer {
+            enc: &mut enc,
+            contexts: &mut contexts,
+        };
+        code_mb(&mut w, &Edges::default(), false, res);
+        enc.finish()
     }
 
     #[test]
-    fn bad_runs_counts_and_levels_are_errors() {
-        let encode = |f: &dyn Fn(&mut BitWriter)| {
-            let mut w = BitWriter::new();
-            f(&mut w);
-            w.into_bytes()
-        };
-        // 17 levels.
-        let b = encode(&|w| w.put_ue(16));
-        assert!(matches!(
-            read_block(&mut BitReader::new(&b)),
-            Err(ResidualError::Range {
-                what: "total_coeff",
-                ..
+    fn oversized_levels_are_errors() {
+        let mut res = MbResidual::default();
+        // Within the Exp-Golomb prefix limit, one above the level limit.
+        res.luma[0][0][0] = MAX_LEVEL as i32 + 1;
+        let bytes = write_unchecked(&res);
+        let got = ResidualCoder::new(1, 1).read(&mut RangeDecoder::new(&bytes), 0, 0, false);
+        assert!(
+            matches!(got, Err(ResidualError::Range { what: "level", .. })),
+            "{got:?}"
+        );
+        // A prefix beyond the limit.
+        res.luma[0][0][0] = 1 << 20;
+        let bytes = write_unchecked(&res);
+        let got = ResidualCoder::new(1, 1).read(&mut RangeDecoder::new(&bytes), 0, 0, false);
+        assert!(
+            matches!(
+                got,
+                Err(ResidualError::Range {
+                    what: "Exp-Golomb prefix",
+                    ..
+                })
+            ),
+            "{got:?}"
+        );
+        // The largest allowed level reads back.
+        res.luma[0][0][0] = -(MAX_LEVEL as i32);
+        let bytes = write_unchecked(&res);
+        assert_eq!(
+            ResidualCoder::new(1, 1).read(&mut RangeDecoder::new(&bytes), 0, 0, false),
+            Ok(res)
+        );
+    }
+
+    #[test]
+    fn the_implied_flag_saves_the_bin() {
+        // One coded block, the last of its quadrant: three 0 flags, no fourth.
+        let mut one = MbResidual::default();
+        one.luma[5][0][0] = 1;
+        let mut two = one.clone();
+        two.luma[4][0][0] = 1;
+        let coder = ResidualCoder::new(1, 1);
+        let cls = class(false, false);
+        let block_bits = coder.block_cost(false, false, &one.luma[5]);
+        assert!(block_bits > 0);
+        // Pricing follows the coder: with the flag implied, coding block 5
+        // costs the flags of 0, 1, 4 (all 0) and no flag of its own.
+        let flags: u32 = [0usize, 1, 4]
+            .iter()
+            .map(|&k| {
+                coder.contexts[cls + CBF + cbf_ctx(&one.luma, 4, k, &[false; 4], &[false; 4])].cost(false)
             })
-        ));
-        // One level after a run of 16.
-        let b = encode(&|w| {
-            w.put_ue(0);
-            w.put_ue(16);
-            w.put_ue(0);
-            w.put_bit(false);
-        });
-        assert!(matches!(
-            read_block(&mut BitReader::new(&b)),
-            Err(ResidualError::Range { what: "run", .. })
-        ));
-        // Two levels, the first at position 15: no room for the second.
-        let b = encode(&|w| {
-            w.put_ue(1);
-            w.put_ue(15);
-        });
-        assert!(matches!(
-            read_block(&mut BitReader::new(&b)),
-            Err(ResidualError::Range { what: "run", .. })
-        ));
-        // A level of 2^15 + 1.
-        let b = encode(&|w| {
-            w.put_ue(0);
-            w.put_ue(0);
-            w.put_ue(MAX_LEVEL);
-            w.put_bit(false);
-        });
-        assert!(matches!(
-            read_block(&mut BitReader::new(&b)),
-            Err(ResidualError::Range { what: "level", .. })
-        ));
-        // A pattern above 63.
-        let b = encode(&|w| w.put_ue(64));
-        assert!(matches!(
-            MbResidual::read(&mut BitReader::new(&b)),
-            Err(ResidualError::Range { .. })
-        ));
+            .sum();
+        let pattern = coder.cost(0, 0, false, &MbResidual::default());
+        let mut p = Pricer {
+            contexts: &coder.contexts,
+            cost: 0,
+        };
+        code_block(&mut p, cls, &one.luma[5]);
+        // The pattern's first bin differs (quadrant 0 coded): price it apart.
+        let base = cbp_base(false);
+        let pattern_one = pattern - coder.contexts[base].cost(false) + coder.contexts[base].cost(true);
+        assert_eq!(coder.cost(0, 0, false, &one), pattern_one + flags + p.cost);
+        assert!(coder.cost(0, 0, false, &two) > coder.cost(0, 0, false, &one));
     }
 
     fn block_strategy() -> impl Strategy<Value = Block4> {
         // Mostly zeros, as after quantisation.
         proptest::collection::vec(
-            prop_oneof![6 => Just(0i32), 3 => -3i32..=3, 1 => -40_000i32..=40_000],
+            prop_oneof![12 => Just(0i32), 6 => -2i32..=2, 2 => -40i32..=40, 1 => -(MAX_LEVEL as i32)..=MAX_LEVEL as i32],
             16,
         )
         .prop_map(|v| {
             let mut b = [[0; 4]; 4];
             for (i, x) in v.into_iter().enumerate() {
-                b[i / 4][i % 4] = x.clamp(-(MAX_LEVEL as i32), MAX_LEVEL as i32);
+                b[i / 4][i % 4] = x;
             }
             b
         })
     }
 
+    fn mb_strategy() -> impl Strategy<Value = (MbResidual, bool)> {
+        (
+            proptest::collection::vec(block_strategy(), 24),
+            any::<u32>(),
+            any::<bool>(),
+        )
+            .prop_map(|(blocks, empty_mask, intra)| {
+                let mut res = MbResidual::default();
+                for (i, b) in blocks.into_iter().enumerate() {
+                    if empty_mask & (1 << i) == 0 {
+                        match i {
+                            0..=15 => res.luma[i] = b,
+                            _ => res.chroma[(i - 16) / 4][i % 4] = b,
+                        }
+                    }
+                }
+                (res, intra)
+            })
+    }
+
     proptest! {
         #[test]
-        fn macroblock_residuals_round_trip(
-            luma in proptest::collection::vec(block_strategy(), 16),
-            chroma in proptest::collection::vec(block_strategy(), 8),
-            empty_mask in any::<u32>()
+        fn frames_of_macroblocks_round_trip(
+            mbs in proptest::collection::vec(proptest::option::of(mb_strategy()), 6)
         ) {
-            let mut res = MbResidual::default();
-            for (i, b) in luma.into_iter().enumerate() {
-                if empty_mask & (1 << i) == 0 { res.luma[i] = b; }
+            // 3 x 2 macroblocks; None = skipped (no residual syntax).
+            let mut writer = ResidualCoder::new(3, 2);
+            let mut shadow = ResidualCoder::new(3, 2);
+            let mut enc = RangeEncoder::new();
+            for (i, mb) in mbs.iter().enumerate() {
+                if let Some((res, intra)) = mb {
+                    writer.write(&mut enc, i % 3, i / 3, *intra, res);
+                    shadow.commit(i % 3, i / 3, *intra, res);
+                }
             }
-            for (i, b) in chroma.into_iter().enumerate() {
-                if empty_mask & (1 << (16 + i)) == 0 { res.chroma[i / 4][i % 4] = b; }
+            // Committing adapts exactly as writing does.
+            prop_assert_eq!(&writer.contexts, &shadow.contexts);
+            prop_assert_eq!(&writer.luma, &shadow.luma);
+            let bytes = enc.finish();
+            let mut reader = ResidualCoder::new(3, 2);
+            let mut dec = RangeDecoder::new(&bytes);
+            for (i, mb) in mbs.iter().enumerate() {
+                if let Some((res, intra)) = mb {
+                    prop_assert_eq!(&reader.read(&mut dec, i % 3, i / 3, *intra)?, res);
+                }
             }
-            let mut w = BitWriter::new();
-            res.write(&mut w);
-            let bits = w.len();
-            prop_assert_eq!(res.bit_len() as usize, bits);
-            let bytes = w.into_bytes();
-            let mut r = BitReader::new(&bytes);
-            prop_assert_eq!(MbResidual::read(&mut r), Ok(res));
-            prop_assert_eq!(r.position(), bits);
+            prop_assert!(dec.consumed_all());
         }
 
         #[test]
-        fn arbitrary_bits_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..64)) {
-            let _ = MbResidual::read(&mut BitReader::new(&bytes));
+        fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..64)) {
+            let mut coder = ResidualCoder::new(2, 2);
+            let mut dec = RangeDecoder::new(&bytes);
+            for i in 0..4 {
+                let _ = coder.read(&mut dec, i % 2, i / 2, i % 3 == 0);
+            }
         }
+    }
+
+    #[test]
+    fn priced_bits_track_written_bits() {
+        // Sparse small levels, as in real residuals, over a 6 x 4 frame.
+        let mut s = 12345u32;
+        let mut next = move || {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            s
+        };
+        let mut coder = ResidualCoder::new(6, 4);
+        let mut enc = RangeEncoder::new();
+        let mut priced = 0u64;
+        for i in 0..24 {
+            let mut res = MbResidual::default();
+            for b in res.luma.iter_mut().chain(res.chroma.iter_mut().flatten()) {
+                for (k, &z) in ZIGZAG.iter().enumerate() {
+                    if next() % (3 + 2 * k as u32) == 0 {
+                        b[z / 4][z % 4] = (next() % 5) as i32 - 2;
+                    }
+                }
+            }
+            priced += u64::from(coder.cost(i % 6, i / 6, false, &res));
+            coder.write(&mut enc, i % 6, i / 6, false, &res);
+        }
+        let written = enc.finish().len() as f64 * 8.0;
+        let priced = priced as f64 / 256.0;
+        assert!(
+            (priced / written - 1.0).abs() < 0.05,
+            "priced {priced}, written {written}"
+        );
     }
 }

@@ -7,10 +7,11 @@
 //! pictures are equal by construction.
 
 use crate::bits::{BitError, BitReader, BitWriter};
+use crate::entropy::{RangeDecoder, RangeEncoder};
 use crate::intra::IntraMode;
 use crate::mv::{predict_mv, Mv, MV_LIMIT};
 use crate::picture::{check_size, MAX_DIMENSION};
-use crate::residual::{MbResidual, ResidualError};
+use crate::residual::{MbResidual, ResidualCoder, ResidualError};
 use crate::transform::MAX_QP;
 use crate::warp::{MotionGrid, SPACINGS};
 
@@ -18,7 +19,7 @@ use crate::warp::{MotionGrid, SPACINGS};
 pub const MAGIC: [u8; 4] = *b"MOCO";
 
 /// The format version this code writes and reads.
-pub const VERSION: u8 = 1;
+pub const VERSION: u8 = 2;
 
 /// Bytes of the sequence header.
 pub const SEQUENCE_HEADER_LEN: usize = 23;
@@ -343,6 +344,8 @@ pub fn write_frame(seq: &SequenceHeader, frame: &FrameSyntax) -> (Vec<u8>, BitCo
     let h = &frame.header;
     assert!(h.qp <= MAX_QP);
     let mut w = BitWriter::new();
+    let mut enc = RangeEncoder::new();
+    let mut residual = ResidualCoder::new(cols, rows);
     let mut counts = BitCounts::default();
     let mut mark = 0usize;
     let mut charge = |w: &BitWriter, slot: &mut u64| {
@@ -432,15 +435,22 @@ pub fn write_frame(seq: &SequenceHeader, frame: &FrameSyntax) -> (Vec<u8>, BitCo
             }
         }
         vectors.push(mb_vector(&mb.kind, &vectors, mb_x, mb_y, cols));
-        mb.residual().write(&mut w);
-        charge(&w, &mut counts.residual);
+        let intra = matches!(mb.kind, MbKind::Intra { .. });
+        residual.write(&mut enc, mb_x, mb_y, intra, mb.residual());
     }
     if skip_run > 0 {
         w.put_ue(skip_run);
     }
     w.align();
     charge(&w, &mut counts.header);
-    let payload = w.into_bytes();
+    let modes = w.into_bytes();
+    let residual = enc.finish();
+    let mut payload = Vec::with_capacity(modes.len() + residual.len() + 5);
+    put_leb128(&mut payload, modes.len() as u64);
+    counts.header += 8 * payload.len() as u64;
+    payload.extend_from_slice(&modes);
+    payload.extend_from_slice(&residual);
+    counts.residual = 8 * residual.len() as u64;
     let mut out = Vec::with_capacity(payload.len() + 5);
     out.push(FRAME_START);
     out.extend_from_slice(&(payload.len() as u32).to_be_bytes());
@@ -494,17 +504,35 @@ impl From<BitError> for SyntaxError {
     }
 }
 
-impl From<ResidualError> for SyntaxError {
-    fn from(e: ResidualError) -> SyntaxError {
-        match e {
-            ResidualError::Bits(b) => b.into(),
-            ResidualError::Range { what, value, pos } => SyntaxError {
-                what: format!("{what} = {value} out of range"),
-                bit: pos,
-            },
+/// Writes `v` as LEB128: 7 bits a byte, least significant first, the top
+/// bit set on every byte but the last.
+fn put_leb128(out: &mut Vec<u8>, mut v: u64) {
+    while v >= 0x80 {
+        out.push((v & 0x7F) as u8 | 0x80);
+        v >>= 7;
+    }
+    out.push(v as u8);
+}
+
+/// Reads a LEB128 value of at most [`MAX_LEB128_BYTES`] bytes from the
+/// start of `bytes`: the value and its length in bytes.
+fn get_leb128(bytes: &[u8]) -> Result<(u64, usize), SyntaxError> {
+    let mut v = 0u64;
+    for (i, &b) in bytes.iter().take(MAX_LEB128_BYTES).enumerate() {
+        v |= u64::from(b & 0x7F) << (7 * i);
+        if b & 0x80 == 0 {
+            return Ok((v, i + 1));
         }
     }
+    Err(invalid(
+        format!("the modes partition's length is not a LEB128 value of at most {MAX_LEB128_BYTES} bytes"),
+        0,
+    ))
 }
+
+/// Longest LEB128 length field a reader accepts (35 bits, more than any
+/// frame can hold).
+const MAX_LEB128_BYTES: usize = 5;
 
 fn invalid(what: String, bit: usize) -> SyntaxError {
     SyntaxError { what, bit }
@@ -563,7 +591,30 @@ fn read_vector(r: &mut BitReader<'_>, predicted: Mv) -> Result<Mv, SyntaxError> 
 /// payload must be used, up to the zero bits that align its end.
 pub fn read_frame(seq: &SequenceHeader, payload: &[u8]) -> Result<FrameSyntax, SyntaxError> {
     let (cols, rows) = (seq.mb_cols(), seq.mb_rows());
-    let mut r = BitReader::new(payload);
+    let (modes_len, leb_len) = get_leb128(payload)?;
+    let modes_end = leb_len
+        .checked_add(usize::try_from(modes_len).unwrap_or(usize::MAX))
+        .filter(|&end| end <= payload.len())
+        .ok_or_else(|| {
+            invalid(
+                format!(
+                    "a modes partition of {modes_len} bytes in a payload of {}",
+                    payload.len()
+                ),
+                0,
+            )
+        })?;
+    let mut r = BitReader::new(&payload[..modes_end]);
+    r.get(8 * leb_len as u32)?;
+    let residual_bytes = &payload[modes_end..];
+    let mut dec = RangeDecoder::new(residual_bytes);
+    let mut residual = ResidualCoder::new(cols, rows);
+    let residual_error = |e: ResidualError| match e {
+        ResidualError::Range { what, value, pos } => invalid(
+            format!("{what} = {value} out of range"),
+            8 * (modes_end + pos.min(residual_bytes.len())),
+        ),
+    };
     let frame_type = if r.get(1)? == 1 {
         FrameType::Inter
     } else {
@@ -646,16 +697,28 @@ pub fn read_frame(seq: &SequenceHeader, payload: &[u8]) -> Result<FrameSyntax, S
             }
         };
         vectors.push(mb_vector(&kind, &vectors, mb_x, mb_y, cols));
-        let residual = MbResidual::read(&mut r)?;
-        mbs.push(CodedMb::new(kind, residual));
+        let intra = matches!(kind, MbKind::Intra { .. });
+        let levels = residual
+            .read(&mut dec, mb_x, mb_y, intra)
+            .map_err(residual_error)?;
+        mbs.push(CodedMb::new(kind, levels));
     }
     // What is left must be the zero bits aligning the end.
     let pos = r.position();
     let pad = r.remaining();
     if pad >= 8 || r.get(pad as u32)? != 0 {
         return Err(invalid(
-            format!("{} bytes after the last macroblock", pad / 8),
+            format!("{} bytes after the last macroblock's modes", pad / 8),
             pos,
+        ));
+    }
+    if !dec.consumed_all() {
+        return Err(invalid(
+            format!(
+                "the residual partition ({} bytes) does not end where its last macroblock does",
+                residual_bytes.len()
+            ),
+            8 * modes_end,
         ));
     }
     Ok(FrameSyntax { header, grid, mbs })

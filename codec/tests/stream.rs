@@ -394,8 +394,8 @@ fn malformed_streams_are_clear_errors() {
     b[0] = b'X';
     assert!(expect_err(&b).to_string().contains("not a mocomp stream"));
     let mut b = good.clone();
-    b[4] = 2;
-    assert!(expect_err(&b).to_string().contains("version 2 is not supported"));
+    b[4] = 3;
+    assert!(expect_err(&b).to_string().contains("version 3 is not supported"));
     let mut b = good.clone();
     b[5] = 0xFF; // width - 1 = 0xFF?? > 16383
     assert!(expect_err(&b).to_string().contains("width"));
@@ -472,16 +472,18 @@ fn invalid_frame_syntax_is_located() {
     assert!(e.to_string().contains("no frame before it"), "{e}");
     // Vertical intra on the top row: written by hand, since the writer
     // would not produce it. Payload: type 0, qp 20, tool 0; then per MB
-    // ue(luma) ue(chroma) ue(cbp): Vertical = ue(0) = 1.
+    // ue(luma) ue(chroma): Vertical = ue(0) = 1; the modes partition's
+    // length (one byte of LEB128) first, no residual partition.
     let mut w = mocomp_codec::bits::BitWriter::new();
     w.put(0, 1);
     w.put(20, 6);
     w.put(0, 2);
     w.put_ue(0); // luma Vertical: no row above
     w.put_ue(2);
-    w.put_ue(0);
     w.align();
-    let payload = w.into_bytes();
+    let modes = w.into_bytes();
+    let mut payload = vec![modes.len() as u8];
+    payload.extend_from_slice(&modes);
     let mut b = s.to_bytes();
     b.push(0xA5);
     b.extend_from_slice(&(payload.len() as u32).to_be_bytes());
@@ -493,7 +495,7 @@ fn invalid_frame_syntax_is_located() {
             &e,
             DecodeError::Syntax {
                 frame: 0,
-                byte: 29,
+                byte: 30,
                 bit: 1,
                 ..
             }
@@ -501,16 +503,33 @@ fn invalid_frame_syntax_is_located() {
         "{e:?}"
     );
     assert!(e.to_string().contains("Vertical needs neighbours"), "{e}");
-    // Junk after the last macroblock.
+    // Junk after the last macroblock: in the residual partition, and in
+    // the modes partition (its length one more, a byte inserted).
     let i = frame(i_header(20), vec![empty(intra_dc()), empty(intra_dc())]);
+    let with_frame = |fb: Vec<u8>| {
+        let mut fb = fb;
+        let len = (fb.len() - 5) as u32;
+        fb[1..5].copy_from_slice(&len.to_be_bytes());
+        let mut b = s.to_bytes();
+        b.extend(fb);
+        b.push(0x5A);
+        b
+    };
+    // (A few bytes could be read as more levels; a hundred cannot.)
     let (mut fb, _) = write_frame(&s, &i);
-    fb.push(0xFF);
-    let len = (fb.len() - 5) as u32;
-    fb[1..5].copy_from_slice(&len.to_be_bytes());
-    let mut b = s.to_bytes();
-    b.extend(fb);
-    b.push(0x5A);
-    assert!(expect_err(&b).to_string().contains("after the last macroblock"));
+    fb.extend_from_slice(&[0x6B; 100]);
+    let e = expect_err(&with_frame(fb));
+    assert!(
+        e.to_string()
+            .contains("does not end where its last macroblock does"),
+        "{e}"
+    );
+    let (mut fb, _) = write_frame(&s, &i);
+    let modes_len = usize::from(fb[5]);
+    fb[5] += 1;
+    fb.insert(6 + modes_len, 0xFF);
+    let e = expect_err(&with_frame(fb));
+    assert!(e.to_string().contains("after the last macroblock's modes"), "{e}");
 }
 
 /// xorshift64*: deterministic pseudo-random numbers for the mutation test.

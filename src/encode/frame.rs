@@ -6,7 +6,7 @@ use super::motion::FrameMotion;
 use crate::codec::bits::ue_len;
 use crate::codec::mv::Mv;
 use crate::codec::recon::{predict_inter, predict_intra, reconstruct_mb, InterContext, MbPrediction};
-use crate::codec::residual::MbResidual;
+use crate::codec::residual::{MbResidual, ResidualCoder};
 use crate::codec::syntax::{
     mb_vector, mv_prediction, CodedMb, FrameHeader, FrameSyntax, FrameType, MbKind, MotionTool,
     SequenceHeader,
@@ -16,9 +16,9 @@ use crate::codec::{Frame, PictureError};
 
 /// Header bits the mode decision charges: the skip run that a coded
 /// macroblock ends (about one bit) and its type.
-const SKIP_BITS: u32 = 1;
-const INTER_BITS: u32 = 2;
-const INTRA_BITS: u32 = 4;
+const SKIP_BITS: f64 = 1.0;
+const INTER_BITS: f64 = 2.0;
+const INTRA_BITS: f64 = 4.0;
 
 /// A coded frame before it is written.
 pub(crate) struct CodedFrame {
@@ -77,11 +77,13 @@ pub(crate) fn code_intra(
     let cols = seq.mb_cols();
     let mut mbs = Vec::with_capacity(cols * seq.mb_rows());
     let mut prediction_sse = 0;
+    let mut rates = ResidualCoder::new(cols, seq.mb_rows());
     for i in 0..cols * seq.mb_rows() {
         let (mb_x, mb_y) = (i % cols, i / cols);
         let s = MbSource::load(src, mb_x, mb_y);
         let (luma, chroma, pred, _) = coder.best_intra(&s, &recon, mb_x, mb_y);
-        let coded = coder.code(&s, &pred, true, &mut recon, mb_x, mb_y);
+        let coded = coder.code(&s, &pred, true, &rates, &mut recon, mb_x, mb_y);
+        rates.commit(mb_x, mb_y, true, &coded.residual);
         prediction_sse += visible_luma_sse(&s, &pred, mb_x, mb_y, seq);
         mbs.push(CodedMb::new(MbKind::Intra { luma, chroma }, coded.residual));
     }
@@ -139,6 +141,7 @@ pub(crate) fn code_inter(
     let mut mbs = Vec::with_capacity(n);
     let mut prediction_sse = 0;
     let mut kinds = [0; 3];
+    let mut rates = ResidualCoder::new(cols, seq.mb_rows());
     for i in 0..n {
         let (mb_x, mb_y) = (i % cols, i / cols);
         let s = MbSource::load(src, mb_x, mb_y);
@@ -161,9 +164,9 @@ pub(crate) fn code_inter(
             pred: skip_pred.clone(),
             residual: MbResidual::default(),
         };
-        // Every other choice spends at least its type and a coded block
-        // pattern: when skip costs no more, nothing can beat it.
-        let exhaustive = best.cost > coder.cost(0, INTER_BITS + 1);
+        // Every other choice spends at least its type: when skip costs no
+        // more, nothing can beat it.
+        let exhaustive = best.cost > coder.cost(0, INTER_BITS);
         let searched_mv = (uses_mvs && searched[i] != mvp).then_some(searched[i]);
         let mut inter_satd = u32::MAX;
         for mv in std::iter::once(mvp).chain(searched_mv).filter(|_| exhaustive) {
@@ -173,8 +176,9 @@ pub(crate) fn code_inter(
                 predict_inter(&ctx, mb_x, mb_y, mv)
             };
             inter_satd = inter_satd.min(luma_satd(&s, &pred));
-            let coded = coder.code(&s, &pred, false, &mut recon, mb_x, mb_y);
-            let bits = INTER_BITS + if uses_mvs { mvd_len(mv, mvp) } else { 0 } + coded.bits;
+            let coded = coder.code(&s, &pred, false, &rates, &mut recon, mb_x, mb_y);
+            let mvd_bits = if uses_mvs { mvd_len(mv, mvp) } else { 0 };
+            let bits = INTER_BITS + f64::from(mvd_bits) + coded.bits;
             let cost = coder.cost(coded.ssd, bits);
             if cost < best.cost {
                 best = Choice {
@@ -190,8 +194,9 @@ pub(crate) fn code_inter(
             // Intra is coded only when its prediction is not clearly worse
             // than inter's (as the H.264 reference encoder's fast modes).
             if intra_satd < inter_satd {
-                let coded = coder.code(&s, &pred, true, &mut recon, mb_x, mb_y);
-                let bits = INTRA_BITS + ue_len(luma as u32) + ue_len(chroma as u32) + coded.bits;
+                let coded = coder.code(&s, &pred, true, &rates, &mut recon, mb_x, mb_y);
+                let mode_bits = ue_len(luma as u32) + ue_len(chroma as u32);
+                let bits = INTRA_BITS + f64::from(mode_bits) + coded.bits;
                 let cost = coder.cost(coded.ssd, bits);
                 if cost < best.cost {
                     best = Choice {
@@ -204,6 +209,10 @@ pub(crate) fn code_inter(
             }
         }
         reconstruct_mb(&best.pred, &best.residual, coder.qp, &mut recon, mb_x, mb_y);
+        if best.kind != MbKind::Skip {
+            let intra = matches!(best.kind, MbKind::Intra { .. });
+            rates.commit(mb_x, mb_y, intra, &best.residual);
+        }
         prediction_sse += visible_luma_sse(&s, &best.pred, mb_x, mb_y, seq);
         let v = mb_vector(&best.kind, &decided, mb_x, mb_y, cols);
         decided.push(v);
@@ -246,6 +255,7 @@ fn recode(
     let cols = seq.mb_cols();
     let vectors = crate::codec::recon::frame_vectors(seq, &frame.syntax);
     let mut recon = Frame::new(seq.coded_width(), seq.coded_height())?;
+    let mut rates = ResidualCoder::new(cols, seq.mb_rows());
     frame.prediction_sse = 0;
     let ctx = InterContext {
         reference,
@@ -268,7 +278,8 @@ fn recode(
         if mb.kind == MbKind::Skip {
             reconstruct_mb(&pred, &MbResidual::default(), coder.qp, &mut recon, mb_x, mb_y);
         } else {
-            let coded = coder.code(&s, &pred, intra, &mut recon, mb_x, mb_y);
+            let coded = coder.code(&s, &pred, intra, &rates, &mut recon, mb_x, mb_y);
+            rates.commit(mb_x, mb_y, intra, &coded.residual);
             *mb = CodedMb::new(mb.kind, coded.residual);
         }
     }

@@ -1,12 +1,13 @@
 //! One macroblock: its residual (transform, quantisation, the small-block
-//! zeroing H.264's reference encoder does), its exact rate, and the
-//! rate-distortion cost J = SSD + lambda * bits of each way to code it.
+//! zeroing H.264's reference encoder does), its rate as the frame's
+//! residual coder prices it in its present state, and the rate-distortion
+//! cost J = SSD + lambda * bits of each way to code it.
 
 use crate::codec::bits::{se_len, ue_len};
 use crate::codec::intra::IntraMode;
 use crate::codec::mv::Mv;
 use crate::codec::recon::{chroma_qp, predict_intra, reconstruct_mb, MbPrediction};
-use crate::codec::residual::{block_len, MbResidual, ZIGZAG};
+use crate::codec::residual::{MbResidual, ResidualCoder, ZIGZAG};
 use crate::codec::syntax::{intra_mode_allowed, MB};
 use crate::codec::transform::{dequantize, forward_4x4, inverse_4x4, quantize, Block4};
 use crate::codec::Frame;
@@ -64,8 +65,9 @@ impl MbSource {
 #[derive(Debug, Clone)]
 pub(crate) struct Coded {
     pub residual: MbResidual,
-    /// Bits of the coded block pattern, flags and levels.
-    pub bits: u32,
+    /// Bits of the coded block pattern, flags and levels (the residual
+    /// coder's estimate).
+    pub bits: f64,
     /// Squared error of the reconstruction.
     pub ssd: u64,
 }
@@ -114,17 +116,32 @@ fn block_error(residual: &Block4, levels: &Block4, qp: u8) -> i64 {
     e
 }
 
+/// Where a block sits, for its rate: chroma or luma, intra or inter.
+#[derive(Debug, Clone, Copy)]
+struct BlockRate<'a> {
+    coder: &'a ResidualCoder,
+    chroma: bool,
+    intra: bool,
+}
+
+impl BlockRate<'_> {
+    /// Bits `levels` add over an empty block.
+    fn bits(&self, levels: &Block4) -> f64 {
+        f64::from(self.coder.block_cost(self.chroma, self.intra, levels)) / 256.0
+    }
+}
+
 /// Rate-distortion optimised quantisation, greedy: from the last level in
 /// scan order to the first, each level moves one step toward zero when
-/// that lowers squared error + lambda * bits (the exact bits of the
-/// block's run-level code; the error measured after the inverse transform,
-/// so the transform's unequal gains are accounted for).
-fn lower_levels(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64) {
+/// that lowers squared error + lambda * bits (the residual coder's price
+/// of the block; the error measured after the inverse transform, so the
+/// transform's unequal gains are accounted for).
+fn lower_levels(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rate: BlockRate<'_>) {
     if levels.iter().flatten().all(|&v| v == 0) {
         return;
     }
     let mut error = block_error(residual, levels, qp);
-    let mut bits = block_len(levels);
+    let mut bits = rate.bits(levels);
     for &k in ZIGZAG.iter().rev() {
         let (r, c) = (k / 4, k % 4);
         let v = levels[r][c];
@@ -134,17 +151,17 @@ fn lower_levels(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64) {
         let mut trial = *levels;
         trial[r][c] = v - v.signum();
         let e = block_error(residual, &trial, qp);
-        let b = block_len(&trial);
-        if (e - error) as f64 + lambda * (f64::from(b) - f64::from(bits)) < 0.0 {
+        let b = rate.bits(&trial);
+        if (e - error) as f64 + lambda * (b - bits) < 0.0 {
             *levels = trial;
             error = e;
             bits = b;
         }
     }
     // Last, the whole block against none of it.
-    if bits > 0 {
+    if bits > 0.0 {
         let zero = [[0; 4]; 4];
-        if (block_error(residual, &zero, qp) - error) as f64 <= lambda * f64::from(bits) {
+        if (block_error(residual, &zero, qp) - error) as f64 <= lambda * bits {
             *levels = zero;
         }
     }
@@ -161,19 +178,22 @@ impl MbCoder {
 
     /// Transforms and quantises `src - pred`, writes the reconstruction to
     /// macroblock (mb_x, mb_y) of `recon` (through the codec, as the
-    /// decoder will) and measures it.
+    /// decoder will) and measures it, the rate priced by `rates` (the
+    /// frame's residual coder as it stands before this macroblock).
+    #[allow(clippy::too_many_arguments)]
     pub fn code(
         &self,
         src: &MbSource,
         pred: &MbPrediction,
         intra: bool,
+        rates: &ResidualCoder,
         recon: &mut Frame,
         mb_x: usize,
         mb_y: usize,
     ) -> Coded {
         let rounding = if intra { ROUND_INTRA } else { ROUND_INTER };
         let mut residual = MbResidual::default();
-        let levels = |s: &[u8], p: &[u8], size: usize, bx: usize, by: usize, qp: u8| {
+        let levels = |s: &[u8], p: &[u8], size: usize, bx: usize, by: usize, qp: u8, chroma: bool| {
             let mut b = [[0i32; 4]; 4];
             for (r, row) in b.iter_mut().enumerate() {
                 let i = (by * 4 + r) * size + bx * 4;
@@ -184,12 +204,17 @@ impl MbCoder {
             let mut c = forward_4x4(&b);
             quantize(&mut c, qp, rounding);
             if self.rdoq {
-                lower_levels(&b, &mut c, qp, self.lambda);
+                let rate = BlockRate {
+                    coder: rates,
+                    chroma,
+                    intra,
+                };
+                lower_levels(&b, &mut c, qp, self.lambda, rate);
             }
             c
         };
         for (k, block) in residual.luma.iter_mut().enumerate() {
-            *block = levels(&src.luma, &pred.luma, MB, k % 4, k / 4, self.qp);
+            *block = levels(&src.luma, &pred.luma, MB, k % 4, k / 4, self.qp, false);
         }
         if !intra {
             // Lone small levels cost more bits than they save distortion:
@@ -214,7 +239,7 @@ impl MbCoder {
         let cqp = chroma_qp(self.qp);
         for p in 0..2 {
             for (k, block) in residual.chroma[p].iter_mut().enumerate() {
-                *block = levels(&src.chroma[p], &pred.chroma[p], 8, k % 2, k / 2, cqp);
+                *block = levels(&src.chroma[p], &pred.chroma[p], 8, k % 2, k / 2, cqp, true);
             }
             if !intra && residual.chroma[p].iter().map(coefficient_cost).sum::<u32>() < 4 {
                 residual.chroma[p] = [[[0; 4]; 4]; 4];
@@ -223,15 +248,15 @@ impl MbCoder {
         reconstruct_mb(pred, &residual, self.qp, recon, mb_x, mb_y);
         let ssd = src.ssd(&MbSource::load(recon, mb_x, mb_y).as_prediction());
         Coded {
-            bits: residual.bit_len(),
+            bits: f64::from(rates.cost(mb_x, mb_y, intra, &residual)) / 256.0,
             residual,
             ssd,
         }
     }
 
     /// J = SSD + lambda * bits.
-    pub fn cost(&self, ssd: u64, bits: u32) -> f64 {
-        ssd as f64 + self.lambda * f64::from(bits)
+    pub fn cost(&self, ssd: u64, bits: f64) -> f64 {
+        ssd as f64 + self.lambda * bits
     }
 
     /// The intra modes allowed at (mb_x, mb_y) with the smallest SATD
@@ -329,8 +354,14 @@ mod tests {
             let mut levels = forward_4x4(&residual);
             quantize(&mut levels, qp, ROUND_INTER);
             let before = levels;
-            lower_levels(&residual, &mut levels, qp, lambda);
-            let cost = |l: &Block4| block_error(&residual, l, qp) as f64 + lambda * f64::from(block_len(l));
+            let coder = ResidualCoder::new(1, 1);
+            let rate = BlockRate {
+                coder: &coder,
+                chroma: false,
+                intra: false,
+            };
+            lower_levels(&residual, &mut levels, qp, lambda, rate);
+            let cost = |l: &Block4| block_error(&residual, l, qp) as f64 + lambda * rate.bits(l);
             assert!(cost(&levels) <= cost(&before) + 1e-9);
             for (a, b) in levels.iter().flatten().zip(before.iter().flatten()) {
                 assert!(a.abs() <= b.abs() && a * b >= 0, "{a} from {b}");

@@ -1,5 +1,5 @@
 //! Adaptive binary arithmetic coding (normative): the range coder that
-//! carries the residual partition of a frame (FORMAT.md section 3.4).
+//! carries everything after a frame's header (FORMAT.md section 3.4).
 //!
 //! A binary range coder in the manner of LZMA's: a 32-bit range, 15-bit
 //! probabilities, byte-wise output with carry propagation. Each context is
@@ -300,6 +300,97 @@ impl Context {
 
 /// Cost in 1/256 bit of one bypass bin.
 pub const BYPASS_COST: u32 = 256;
+
+/// Where the syntax's bins go: written, only adapted, or only priced. The
+/// binarisations in `residual.rs` and `modes.rs` are written once over
+/// this, so the encoder's rate term and the adaptation follow the writer
+/// exactly. `ctx` indexes the coder's own context array.
+pub(crate) trait Bins {
+    fn bin(&mut self, ctx: usize, bit: bool);
+    fn bypass(&mut self, bit: bool);
+}
+
+/// Writes bins, adapting the contexts, and adds up their cost (1/256 bit)
+/// as it goes (for the per-category bit statistics).
+pub(crate) struct Writer<'a> {
+    pub enc: &'a mut RangeEncoder,
+    pub contexts: &'a mut [Context],
+    pub cost: u32,
+}
+
+impl Bins for Writer<'_> {
+    fn bin(&mut self, ctx: usize, bit: bool) {
+        let c = &mut self.contexts[ctx];
+        self.cost += c.cost(bit);
+        self.enc.encode(c, bit);
+    }
+    fn bypass(&mut self, bit: bool) {
+        self.cost += BYPASS_COST;
+        self.enc.encode_bypass(bit);
+    }
+}
+
+/// Adapts the contexts as writing would, writing nothing.
+pub(crate) struct Adapter<'a>(pub &'a mut [Context]);
+
+impl Bins for Adapter<'_> {
+    fn bin(&mut self, ctx: usize, bit: bool) {
+        self.0[ctx].update(bit);
+    }
+    fn bypass(&mut self, _: bool) {}
+}
+
+/// Prices bins in the contexts' present state (1/256 bit) without adapting
+/// them: exact for a context's first bin, an estimate for the next ones.
+pub(crate) struct Pricer<'a> {
+    pub contexts: &'a [Context],
+    pub cost: u32,
+}
+
+impl Bins for Pricer<'_> {
+    fn bin(&mut self, ctx: usize, bit: bool) {
+        self.cost += self.contexts[ctx].cost(bit);
+    }
+    fn bypass(&mut self, _: bool) {
+        self.cost += BYPASS_COST;
+    }
+}
+
+/// k-th order Exp-Golomb in bypass bins: ones while the value covers the
+/// next `2^k` (k growing by one each time), a zero, then the remainder in
+/// k bits, most significant first.
+pub(crate) fn put_exp_golomb<B: Bins>(b: &mut B, mut v: u32, mut k: u32) {
+    while v >= 1 << k {
+        b.bypass(true);
+        v -= 1 << k;
+        k += 1;
+    }
+    b.bypass(false);
+    while k > 0 {
+        k -= 1;
+        b.bypass((v >> k) & 1 != 0);
+    }
+}
+
+/// Reads [`put_exp_golomb`]'s code; `None` when the ones run past
+/// `max_ones` (or the value past `u32`).
+pub(crate) fn get_exp_golomb(dec: &mut RangeDecoder<'_>, mut k: u32, max_ones: u32) -> Option<u32> {
+    let mut v = 0u32;
+    let mut ones = 0;
+    while dec.decode_bypass() {
+        v = v.checked_add(1u32.checked_shl(k)?)?;
+        k += 1;
+        ones += 1;
+        if ones > max_ones || k > 31 {
+            return None;
+        }
+    }
+    let mut suffix = 0u32;
+    for _ in 0..k {
+        suffix = (suffix << 1) | u32::from(dec.decode_bypass());
+    }
+    v.checked_add(suffix)
+}
 
 #[cfg(test)]
 mod tests {

@@ -11,6 +11,7 @@ pub mod decoder;
 pub mod entropy;
 pub mod interp;
 pub mod intra;
+pub mod modes;
 pub mod mv;
 pub mod obmc;
 pub mod picture;

@@ -57,6 +57,13 @@ impl std::ops::Sub for Mv {
     }
 }
 
+impl Mv {
+    /// Component-wise sum, `None` on overflow (a decoder's guard).
+    pub fn checked_add(self, o: Mv) -> Option<Mv> {
+        Some(Mv::new(self.x.checked_add(o.x)?, self.y.checked_add(o.y)?))
+    }
+}
+
 impl std::ops::Add for Mv {
     type Output = Mv;
     fn add(self, o: Mv) -> Mv {

@@ -1,8 +1,8 @@
 //! Coding of quantised transform coefficients (normative syntax, FORMAT.md
-//! section 3.4).
+//! section 3.3).
 //!
 //! A macroblock's residual is 16 luma and 2 x 4 chroma 4x4 blocks of levels,
-//! coded in the frame's residual partition with the adaptive binary range
+//! coded in the frame's range-coded partition with the adaptive binary range
 //! coder of [`crate::entropy`], binarised as H.264's CABAC does:
 //!
 //! * the coded block pattern, one bin per luma 8x8 quadrant and one per
@@ -28,7 +28,9 @@
 //! ([`ResidualCoder::cost`]), so the encoder's rate term follows the coder
 //! exactly as it adapts.
 
-use crate::entropy::{Context, RangeDecoder, RangeEncoder, BYPASS_COST};
+use crate::entropy::{
+    get_exp_golomb, put_exp_golomb, Adapter, Bins, Context, Pricer, RangeDecoder, RangeEncoder, Writer,
+};
 use crate::transform::Block4;
 
 /// H.264's 4x4 frame zig-zag scan: `ZIGZAG[k]` is the raster index
@@ -50,13 +52,13 @@ const MAX_EG_PREFIX: u32 = 16;
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum ResidualError {
     /// A value outside its range.
-    #[error("{what} is {value}, out of range, at byte {pos} of the residual partition")]
+    #[error("{what} is {value}, out of range, at byte {pos} of the range-coded partition")]
     Range {
         /// The syntax element.
         what: &'static str,
         /// Its value.
         value: u64,
-        /// Byte of the residual partition being read.
+        /// Byte of the range-coded partition being read.
         pos: usize,
     },
 }
@@ -123,51 +125,6 @@ const CONTEXTS: usize = CBP + 2 * CBP_CONTEXTS;
 /// First context of a block class.
 fn class(chroma: bool, intra: bool) -> usize {
     (usize::from(chroma) * 2 + usize::from(intra)) * CLASS_CONTEXTS
-}
-
-/// Where bins go: written, only adapted, or only priced.
-trait Bins {
-    fn bin(&mut self, ctx: usize, bit: bool);
-    fn bypass(&mut self, bit: bool);
-}
-
-struct Writer<'a> {
-    enc: &'a mut RangeEncoder,
-    contexts: &'a mut [Context; CONTEXTS],
-}
-
-impl Bins for Writer<'_> {
-    fn bin(&mut self, ctx: usize, bit: bool) {
-        self.enc.encode(&mut self.contexts[ctx], bit);
-    }
-    fn bypass(&mut self, bit: bool) {
-        self.enc.encode_bypass(bit);
-    }
-}
-
-struct Adapter<'a>(&'a mut [Context; CONTEXTS]);
-
-impl Bins for Adapter<'_> {
-    fn bin(&mut self, ctx: usize, bit: bool) {
-        self.0[ctx].update(bit);
-    }
-    fn bypass(&mut self, _: bool) {}
-}
-
-/// Prices bins in the contexts' present state (1/256 bit), without
-/// adapting them: an estimate within a macroblock, exact at its first bin.
-struct Pricer<'a> {
-    contexts: &'a [Context; CONTEXTS],
-    cost: u32,
-}
-
-impl Bins for Pricer<'_> {
-    fn bin(&mut self, ctx: usize, bit: bool) {
-        self.cost += self.contexts[ctx].cost(bit);
-    }
-    fn bypass(&mut self, _: bool) {
-        self.cost += BYPASS_COST;
-    }
 }
 
 /// Coded flags of the 4x4 blocks across a macroblock's left and top edges
@@ -321,29 +278,13 @@ fn code_block<B: Bins>(b: &mut B, cls: usize, block: &Block4) {
             if m < UNARY_MAX {
                 b.bin(ctx, false);
             } else {
-                exp_golomb(b, m - UNARY_MAX);
+                put_exp_golomb(b, m - UNARY_MAX, 0);
             }
             gt1 += 1;
         } else {
             eq1 += 1;
         }
         b.bypass(v < 0);
-    }
-}
-
-/// Exp-Golomb (k = 0) in bypass bins: ones while the value covers the next
-/// power of two, a zero, then the remainder's bits, most significant first.
-fn exp_golomb<B: Bins>(b: &mut B, mut v: u32) {
-    let mut k = 0;
-    while v >= 1 << k {
-        b.bypass(true);
-        v -= 1 << k;
-        k += 1;
-    }
-    b.bypass(false);
-    while k > 0 {
-        k -= 1;
-        b.bypass((v >> k) & 1 != 0);
     }
 }
 
@@ -436,7 +377,7 @@ impl ResidualCoder {
     /// the macroblock. Not normative (the encoder's rate term).
     pub fn cost(&self, mb_x: usize, mb_y: usize, intra: bool, res: &MbResidual) -> u32 {
         let mut p = Pricer {
-            contexts: &self.contexts,
+            contexts: &self.contexts[..],
             cost: 0,
         };
         code_mb(&mut p, &self.edges(mb_x, mb_y), intra, res);
@@ -454,7 +395,7 @@ impl ResidualCoder {
         let cls = class(chroma, intra);
         let flag = &self.contexts[cls + CBF + 1];
         let mut p = Pricer {
-            contexts: &self.contexts,
+            contexts: &self.contexts[..],
             cost: flag.cost(true),
         };
         code_block(&mut p, cls, block);
@@ -465,15 +406,23 @@ impl ResidualCoder {
     /// [`ResidualCoder::write`] does, without writing.
     pub fn commit(&mut self, mb_x: usize, mb_y: usize, intra: bool, res: &MbResidual) {
         let e = self.edges(mb_x, mb_y);
-        code_mb(&mut Adapter(&mut self.contexts), &e, intra, res);
+        code_mb(&mut Adapter(&mut self.contexts[..]), &e, intra, res);
         self.record(mb_x, mb_y, res);
     }
 
     /// Writes macroblock (mb_x, mb_y)'s levels (`intra`: whether it is
-    /// intra-coded). Macroblocks without residual syntax (skipped) are not
+    /// intra-coded) and returns their cost in 1/256 bit as the bins were
+    /// coded. Macroblocks without residual syntax (skipped) are not
     /// written. Levels above [`MAX_LEVEL`] are an encoder bug: they would
     /// not decode.
-    pub fn write(&mut self, enc: &mut RangeEncoder, mb_x: usize, mb_y: usize, intra: bool, res: &MbResidual) {
+    pub fn write(
+        &mut self,
+        enc: &mut RangeEncoder,
+        mb_x: usize,
+        mb_y: usize,
+        intra: bool,
+        res: &MbResidual,
+    ) -> u32 {
         debug_assert!(res
             .luma
             .iter()
@@ -484,10 +433,13 @@ impl ResidualCoder {
         let e = self.edges(mb_x, mb_y);
         let mut w = Writer {
             enc,
-            contexts: &mut self.contexts,
+            contexts: &mut self.contexts[..],
+            cost: 0,
         };
         code_mb(&mut w, &e, intra, res);
+        let cost = w.cost;
         self.record(mb_x, mb_y, res);
+        cost
     }
 
     /// Reads what [`ResidualCoder::write`] writes.
@@ -599,7 +551,11 @@ fn read_block(
                 m += 1;
             }
             if m == UNARY_MAX {
-                m += read_exp_golomb(dec)?;
+                m += get_exp_golomb(dec, 0, MAX_EG_PREFIX).ok_or(ResidualError::Range {
+                    what: "Exp-Golomb prefix",
+                    value: u64::from(MAX_EG_PREFIX) + 1,
+                    pos: dec.position(),
+                })?;
             }
             a = 2 + m;
             if a > MAX_LEVEL {
@@ -622,27 +578,6 @@ fn read_block(
         block[idx / 4][idx % 4] = v;
     }
     Ok(block)
-}
-
-fn read_exp_golomb(dec: &mut RangeDecoder<'_>) -> Result<u32, ResidualError> {
-    let mut k = 0;
-    let mut v = 0u32;
-    while dec.decode_bypass() {
-        v += 1 << k;
-        k += 1;
-        if k > MAX_EG_PREFIX {
-            return Err(ResidualError::Range {
-                what: "Exp-Golomb prefix",
-                value: u64::from(k),
-                pos: dec.position(),
-            });
-        }
-    }
-    let mut suffix = 0;
-    for _ in 0..k {
-        suffix = (suffix << 1) | u32::from(dec.decode_bypass());
-    }
-    Ok(v + suffix)
 }
 
 #[cfg(test)]
@@ -674,7 +609,8 @@ mod tests {
         let mut contexts = Box::new([Context::new(); CONTEXTS]);
         let mut w = Writer {
             enc: &mut enc,
-            contexts: &mut contexts,
+            contexts: &mut contexts[..],
+            cost: 0,
         };
         code_mb(&mut w, &Edges::default(), false, res);
         enc.finish()
@@ -735,7 +671,7 @@ mod tests {
             .sum();
         let pattern = coder.cost(0, 0, false, &MbResidual::default());
         let mut p = Pricer {
-            contexts: &coder.contexts,
+            contexts: &coder.contexts[..],
             cost: 0,
         };
         code_block(&mut p, cls, &one.luma[5]);

@@ -9,6 +9,7 @@
 use crate::bits::{BitError, BitReader, BitWriter};
 use crate::entropy::{RangeDecoder, RangeEncoder};
 use crate::intra::IntraMode;
+use crate::modes::{MbMode, ModeCoder};
 use crate::mv::{predict_mv, Mv, MV_LIMIT};
 use crate::picture::{check_size, MAX_DIMENSION};
 use crate::residual::{MbResidual, ResidualCoder, ResidualError};
@@ -329,29 +330,44 @@ fn grid_prediction(grid: &MotionGrid, col: usize, row: usize) -> Mv {
     predict_in_grid(grid.cols(), col, row, |c, r| Some(grid.get(c, r)))
 }
 
-fn write_intra_modes(w: &mut BitWriter, luma: IntraMode, chroma: IntraMode) {
-    w.put_ue(luma as u32);
-    w.put_ue(chroma as u32);
+/// The mode layer's view of a macroblock: its vector as a difference from
+/// the prediction.
+fn mb_mode(kind: &MbKind, predicted: Mv, uses_mvs: bool) -> MbMode {
+    match *kind {
+        MbKind::Skip => MbMode::Skip,
+        MbKind::Inter { mv } => MbMode::Inter {
+            mvd: if uses_mvs { mv - predicted } else { Mv::ZERO },
+        },
+        MbKind::Intra { luma, chroma } => MbMode::Intra { luma, chroma },
+    }
+}
+
+/// Splits `total` bits over categories in proportion to their estimated
+/// costs, the remainder to the last, so they add up exactly.
+fn split_bits(total: u64, estimates: [u64; 3]) -> [u64; 3] {
+    let sum: u64 = estimates.iter().sum();
+    if sum == 0 {
+        return [total, 0, 0];
+    }
+    let a = (u128::from(total) * u128::from(estimates[0]) / u128::from(sum)) as u64;
+    let b = (u128::from(total) * u128::from(estimates[1]) / u128::from(sum)) as u64;
+    [a, b, total - a - b]
 }
 
 /// Writes a frame (start code, length, header, payload) after `seq`'s
 /// sequence header. Panics if the syntax does not fit the sequence
 /// (encoder bug): wrong macroblock count, a P frame tool in an I frame,
 /// vectors out of range.
+///
+/// The bit counts: the frame header and framing are exact; the range-coded
+/// partition's bits are split over header (flags, intra modes), motion
+/// and residual in proportion to the cost of their bins as coded.
 pub fn write_frame(seq: &SequenceHeader, frame: &FrameSyntax) -> (Vec<u8>, BitCounts) {
     let (cols, rows) = (seq.mb_cols(), seq.mb_rows());
     assert_eq!(frame.mbs.len(), cols * rows, "macroblock count");
     let h = &frame.header;
     assert!(h.qp <= MAX_QP);
     let mut w = BitWriter::new();
-    let mut enc = RangeEncoder::new();
-    let mut residual = ResidualCoder::new(cols, rows);
-    let mut counts = BitCounts::default();
-    let mut mark = 0usize;
-    let mut charge = |w: &BitWriter, slot: &mut u64| {
-        *slot += (w.len() - mark) as u64;
-        mark = w.len();
-    };
     w.put(u64::from(h.frame_type == FrameType::Inter), 1);
     w.put(u64::from(h.qp), 6);
     let tool_code = match h.tool {
@@ -369,7 +385,16 @@ pub fn write_frame(seq: &SequenceHeader, frame: &FrameSyntax) -> (Vec<u8>, BitCo
         assert!(code.is_some(), "grid spacing {spacing} is not 4, 8 or 16");
         w.put(code.unwrap_or_default() as u64, 2);
     }
-    charge(&w, &mut counts.header);
+    w.align();
+    assert!(
+        matches!(h.tool, MotionTool::Grid(_)) == frame.grid.is_some(),
+        "grid frames, and only they, carry a grid"
+    );
+    let mut enc = RangeEncoder::new();
+    let mut modes = ModeCoder::new(cols, rows);
+    let mut residual = ResidualCoder::new(cols, rows);
+    // Estimated costs (1/256 bit) of header, motion and residual bins.
+    let mut estimates = [0u64; 3];
     if let (MotionTool::Grid(spacing), Some(grid)) = (h.tool, &frame.grid) {
         assert_eq!(grid.spacing(), spacing, "grid spacing differs from the header's");
         for row in 0..grid.rows() {
@@ -377,85 +402,53 @@ pub fn write_frame(seq: &SequenceHeader, frame: &FrameSyntax) -> (Vec<u8>, BitCo
                 let mv = grid.get(col, row);
                 assert!(mv.in_range(), "grid vector {mv:?} out of range");
                 let d = mv - grid_prediction(grid, col, row);
-                w.put_se(d.x);
-                w.put_se(d.y);
+                estimates[1] += u64::from(modes.write_grid(&mut enc, grid.cols(), col, row, d));
             }
         }
-        charge(&w, &mut counts.motion);
     }
-    assert!(
-        matches!(h.tool, MotionTool::Grid(_)) == frame.grid.is_some(),
-        "grid frames, and only they, carry a grid"
-    );
+    let inter_frame = h.frame_type == FrameType::Inter;
     let uses_mvs = matches!(h.tool, MotionTool::Block | MotionTool::Obmc);
     let mut vectors: Vec<Option<Mv>> = Vec::with_capacity(cols * rows);
-    let mut skip_run = 0u32;
     for (i, mb) in frame.mbs.iter().enumerate() {
         let (mb_x, mb_y) = (i % cols, i / cols);
-        if h.frame_type == FrameType::Intra {
+        assert!(
+            inter_frame || matches!(mb.kind, MbKind::Intra { .. }),
+            "I frames hold only intra macroblocks"
+        );
+        if let MbKind::Inter { mv } = mb.kind {
             assert!(
-                matches!(mb.kind, MbKind::Intra { .. }),
-                "I frames hold only intra macroblocks"
+                uses_mvs || mv == Mv::ZERO,
+                "inter macroblocks of grid frames have no vector"
             );
-            if let MbKind::Intra { luma, chroma } = mb.kind {
-                write_intra_modes(&mut w, luma, chroma);
-            }
-            charge(&w, &mut counts.header);
-        } else {
-            if mb.kind == MbKind::Skip {
-                assert!(mb.residual.is_none(), "skipped macroblocks have no residual");
-                skip_run += 1;
-                vectors.push(mb_vector(&mb.kind, &vectors, mb_x, mb_y, cols));
-                continue;
-            }
-            w.put_ue(skip_run);
-            skip_run = 0;
-            match mb.kind {
-                MbKind::Inter { mv } => {
-                    w.put_ue(0);
-                    charge(&w, &mut counts.header);
-                    assert!(
-                        uses_mvs || mv == Mv::ZERO,
-                        "inter macroblocks of grid frames have no vector"
-                    );
-                    if uses_mvs {
-                        assert!(mv.in_range(), "vector {mv:?} out of range");
-                        let d = mv - mv_prediction(&vectors, mb_x, mb_y, cols);
-                        w.put_se(d.x);
-                        w.put_se(d.y);
-                        charge(&w, &mut counts.motion);
-                    }
-                }
-                MbKind::Intra { luma, chroma } => {
-                    w.put_ue(1);
-                    write_intra_modes(&mut w, luma, chroma);
-                    charge(&w, &mut counts.header);
-                }
-                MbKind::Skip => {} // handled above
-            }
+            assert!(mv.in_range(), "vector {mv:?} out of range");
         }
+        let predicted = mv_prediction(&vectors, mb_x, mb_y, cols);
+        let mode = mb_mode(&mb.kind, predicted, uses_mvs);
+        let (motion, rest) = modes.write(&mut enc, mb_x, mb_y, inter_frame, uses_mvs, &mode);
+        estimates[0] += u64::from(rest);
+        estimates[1] += u64::from(motion);
         vectors.push(mb_vector(&mb.kind, &vectors, mb_x, mb_y, cols));
+        if mb.kind == MbKind::Skip {
+            assert!(mb.residual.is_none(), "skipped macroblocks have no residual");
+            continue;
+        }
         let intra = matches!(mb.kind, MbKind::Intra { .. });
-        residual.write(&mut enc, mb_x, mb_y, intra, mb.residual());
+        estimates[2] += u64::from(residual.write(&mut enc, mb_x, mb_y, intra, mb.residual()));
     }
-    if skip_run > 0 {
-        w.put_ue(skip_run);
-    }
-    w.align();
-    charge(&w, &mut counts.header);
-    let modes = w.into_bytes();
-    let residual = enc.finish();
-    let mut payload = Vec::with_capacity(modes.len() + residual.len() + 5);
-    put_leb128(&mut payload, modes.len() as u64);
-    counts.header += 8 * payload.len() as u64;
-    payload.extend_from_slice(&modes);
-    payload.extend_from_slice(&residual);
-    counts.residual = 8 * residual.len() as u64;
-    let mut out = Vec::with_capacity(payload.len() + 5);
+    let header = w.into_bytes();
+    let coded = enc.finish();
+    let [hb, mb, rb] = split_bits(8 * coded.len() as u64, estimates);
+    let counts = BitCounts {
+        // Start code and length, the frame header, and the flags' share.
+        header: 40 + 8 * header.len() as u64 + hb,
+        motion: mb,
+        residual: rb,
+    };
+    let mut out = Vec::with_capacity(5 + header.len() + coded.len());
     out.push(FRAME_START);
-    out.extend_from_slice(&(payload.len() as u32).to_be_bytes());
-    out.extend_from_slice(&payload);
-    counts.header += 40;
+    out.extend_from_slice(&((header.len() + coded.len()) as u32).to_be_bytes());
+    out.extend_from_slice(&header);
+    out.extend_from_slice(&coded);
     (out, counts)
 }
 
@@ -504,36 +497,6 @@ impl From<BitError> for SyntaxError {
     }
 }
 
-/// Writes `v` as LEB128: 7 bits a byte, least significant first, the top
-/// bit set on every byte but the last.
-fn put_leb128(out: &mut Vec<u8>, mut v: u64) {
-    while v >= 0x80 {
-        out.push((v & 0x7F) as u8 | 0x80);
-        v >>= 7;
-    }
-    out.push(v as u8);
-}
-
-/// Reads a LEB128 value of at most [`MAX_LEB128_BYTES`] bytes from the
-/// start of `bytes`: the value and its length in bytes.
-fn get_leb128(bytes: &[u8]) -> Result<(u64, usize), SyntaxError> {
-    let mut v = 0u64;
-    for (i, &b) in bytes.iter().take(MAX_LEB128_BYTES).enumerate() {
-        v |= u64::from(b & 0x7F) << (7 * i);
-        if b & 0x80 == 0 {
-            return Ok((v, i + 1));
-        }
-    }
-    Err(invalid(
-        format!("the modes partition's length is not a LEB128 value of at most {MAX_LEB128_BYTES} bytes"),
-        0,
-    ))
-}
-
-/// Longest LEB128 length field a reader accepts (35 bits, more than any
-/// frame can hold).
-const MAX_LEB128_BYTES: usize = 5;
-
 fn invalid(what: String, bit: usize) -> SyntaxError {
     SyntaxError { what, bit }
 }
@@ -550,71 +513,25 @@ pub fn intra_mode_allowed(mode: IntraMode, mb_x: usize, mb_y: usize) -> bool {
     }
 }
 
-fn read_intra_modes(
-    r: &mut BitReader<'_>,
-    mb_x: usize,
-    mb_y: usize,
-) -> Result<(IntraMode, IntraMode), SyntaxError> {
-    let one = |r: &mut BitReader<'_>, what: &str| {
-        let pos = r.position();
-        let code = r.get_ue()?;
-        let mode =
-            IntraMode::from_code(code).ok_or_else(|| invalid(format!("{what} {code} is not a mode"), pos))?;
-        if !intra_mode_allowed(mode, mb_x, mb_y) {
-            return Err(invalid(
-                format!("{what} {mode:?} needs neighbours outside the picture"),
-                pos,
-            ));
-        }
-        Ok(mode)
-    };
-    Ok((one(r, "luma intra mode")?, one(r, "chroma intra mode")?))
-}
-
-fn read_vector(r: &mut BitReader<'_>, predicted: Mv) -> Result<Mv, SyntaxError> {
-    let pos = r.position();
-    let (dx, dy) = (r.get_se()?, r.get_se()?);
-    let mv = Mv::new(
-        predicted.x.checked_add(dx).unwrap_or(i32::MAX),
-        predicted.y.checked_add(dy).unwrap_or(i32::MAX),
-    );
-    if !mv.in_range() {
-        return Err(invalid(
+fn check_vector(mv: Option<Mv>, bit: usize) -> Result<Mv, SyntaxError> {
+    match mv {
+        Some(mv) if mv.in_range() => Ok(mv),
+        Some(mv) => Err(invalid(
             format!("vector ({}, {}) beyond +-{MV_LIMIT}", mv.x, mv.y),
-            pos,
-        ));
+            bit,
+        )),
+        None => Err(invalid(
+            "a vector difference beyond the syntax's range".into(),
+            bit,
+        )),
     }
-    Ok(mv)
 }
 
-/// Reads a frame's payload (the bytes after its length field). The whole
-/// payload must be used, up to the zero bits that align its end.
+/// Reads a frame's payload (the bytes after its length field): the frame
+/// header, then the range-coded partition, which must be used to its end.
 pub fn read_frame(seq: &SequenceHeader, payload: &[u8]) -> Result<FrameSyntax, SyntaxError> {
     let (cols, rows) = (seq.mb_cols(), seq.mb_rows());
-    let (modes_len, leb_len) = get_leb128(payload)?;
-    let modes_end = leb_len
-        .checked_add(usize::try_from(modes_len).unwrap_or(usize::MAX))
-        .filter(|&end| end <= payload.len())
-        .ok_or_else(|| {
-            invalid(
-                format!(
-                    "a modes partition of {modes_len} bytes in a payload of {}",
-                    payload.len()
-                ),
-                0,
-            )
-        })?;
-    let mut r = BitReader::new(&payload[..modes_end]);
-    r.get(8 * leb_len as u32)?;
-    let residual_bytes = &payload[modes_end..];
-    let mut dec = RangeDecoder::new(residual_bytes);
-    let mut residual = ResidualCoder::new(cols, rows);
-    let residual_error = |e: ResidualError| match e {
-        ResidualError::Range { what, value, pos } => invalid(
-            format!("{what} = {value} out of range"),
-            8 * (modes_end + pos.min(residual_bytes.len())),
-        ),
-    };
+    let mut r = BitReader::new(payload);
     let frame_type = if r.get(1)? == 1 {
         FrameType::Inter
     } else {
@@ -643,14 +560,28 @@ pub fn read_frame(seq: &SequenceHeader, payload: &[u8]) -> Result<FrameSyntax, S
     if frame_type == FrameType::Intra && tool != MotionTool::Block {
         return Err(invalid("an I frame with a motion tool".into(), pos));
     }
+    let pos = r.position();
+    let pad = (8 - pos % 8) % 8;
+    if r.get(pad as u32)? != 0 {
+        return Err(invalid("non-zero bits after the frame header".into(), pos));
+    }
+    let start = r.position() / 8;
+    let coded = &payload[start..];
+    let mut dec = RangeDecoder::new(coded);
+    // Errors in the partition are located at the byte being read.
+    let at = |dec: &RangeDecoder<'_>| 8 * (start + dec.position().min(coded.len()));
+    let mut modes = ModeCoder::new(cols, rows);
+    let mut residual = ResidualCoder::new(cols, rows);
     let header = FrameHeader { frame_type, qp, tool };
     let grid = match tool {
         MotionTool::Grid(spacing) => {
             let mut grid = MotionGrid::new(seq.coded_width(), seq.coded_height(), spacing)
-                .map_err(|e| invalid(e.to_string(), r.position()))?;
+                .map_err(|e| invalid(e.to_string(), 8 * start))?;
             for row in 0..grid.rows() {
                 for col in 0..grid.cols() {
-                    let mv = read_vector(&mut r, grid_prediction(&grid, col, row))?;
+                    let d = modes.read_grid(&mut dec, grid.cols(), col, row);
+                    let p = grid_prediction(&grid, col, row);
+                    let mv = check_vector(d.and_then(|d| p.checked_add(d)), at(&dec))?;
                     grid.set(col, row, mv);
                 }
             }
@@ -658,67 +589,63 @@ pub fn read_frame(seq: &SequenceHeader, payload: &[u8]) -> Result<FrameSyntax, S
         }
         _ => None,
     };
+    let inter_frame = frame_type == FrameType::Inter;
     let uses_mvs = matches!(tool, MotionTool::Block | MotionTool::Obmc);
     let total = cols * rows;
     let mut mbs = Vec::with_capacity(total);
     let mut vectors: Vec<Option<Mv>> = Vec::with_capacity(total);
-    while mbs.len() < total {
-        if frame_type == FrameType::Inter {
-            let pos = r.position();
-            let run = r.get_ue()? as usize;
-            if run > total - mbs.len() {
-                return Err(invalid(format!("skip run {run} past the last macroblock"), pos));
+    for i in 0..total {
+        let (mb_x, mb_y) = (i % cols, i / cols);
+        let mode = modes.read(&mut dec, mb_x, mb_y, inter_frame, uses_mvs);
+        let kind = match mode {
+            None => {
+                return Err(invalid(
+                    "a vector difference beyond the syntax's range".into(),
+                    at(&dec),
+                ))
             }
-            for _ in 0..run {
-                let (x, y) = (mbs.len() % cols, mbs.len() / cols);
-                vectors.push(mb_vector(&MbKind::Skip, &vectors, x, y, cols));
-                mbs.push(CodedMb::without_residual(MbKind::Skip));
+            Some(MbMode::Skip) => MbKind::Skip,
+            Some(MbMode::Inter { mvd }) => {
+                let predicted = mv_prediction(&vectors, mb_x, mb_y, cols);
+                let mv = if uses_mvs {
+                    check_vector(predicted.checked_add(mvd), at(&dec))?
+                } else {
+                    Mv::ZERO
+                };
+                MbKind::Inter { mv }
             }
-            if mbs.len() == total {
-                break;
-            }
-        }
-        let (mb_x, mb_y) = (mbs.len() % cols, mbs.len() / cols);
-        let kind = if frame_type == FrameType::Intra {
-            let (luma, chroma) = read_intra_modes(&mut r, mb_x, mb_y)?;
-            MbKind::Intra { luma, chroma }
-        } else {
-            let pos = r.position();
-            match r.get_ue()? {
-                0 if uses_mvs => MbKind::Inter {
-                    mv: read_vector(&mut r, mv_prediction(&vectors, mb_x, mb_y, cols))?,
-                },
-                0 => MbKind::Inter { mv: Mv::ZERO },
-                1 => {
-                    let (luma, chroma) = read_intra_modes(&mut r, mb_x, mb_y)?;
-                    MbKind::Intra { luma, chroma }
+            Some(MbMode::Intra { luma, chroma }) => {
+                for (what, mode) in [("luma intra mode", luma), ("chroma intra mode", chroma)] {
+                    if !intra_mode_allowed(mode, mb_x, mb_y) {
+                        return Err(invalid(
+                            format!("{what} {mode:?} needs neighbours outside the picture"),
+                            at(&dec),
+                        ));
+                    }
                 }
-                t => return Err(invalid(format!("macroblock type {t}"), pos)),
+                MbKind::Intra { luma, chroma }
             }
         };
         vectors.push(mb_vector(&kind, &vectors, mb_x, mb_y, cols));
+        if kind == MbKind::Skip {
+            mbs.push(CodedMb::without_residual(kind));
+            continue;
+        }
         let intra = matches!(kind, MbKind::Intra { .. });
-        let levels = residual
-            .read(&mut dec, mb_x, mb_y, intra)
-            .map_err(residual_error)?;
+        let levels = residual.read(&mut dec, mb_x, mb_y, intra).map_err(|e| match e {
+            ResidualError::Range { what, value, .. } => {
+                invalid(format!("{what} = {value} out of range"), at(&dec))
+            }
+        })?;
         mbs.push(CodedMb::new(kind, levels));
-    }
-    // What is left must be the zero bits aligning the end.
-    let pos = r.position();
-    let pad = r.remaining();
-    if pad >= 8 || r.get(pad as u32)? != 0 {
-        return Err(invalid(
-            format!("{} bytes after the last macroblock's modes", pad / 8),
-            pos,
-        ));
     }
     if !dec.consumed_all() {
         return Err(invalid(
             format!(
-                "the residual partition ({} bytes) does not end where its last macroblock does",
-                residual_bytes.len()
+                "the range-coded partition ({} bytes) does not end where its last macroblock does",
+                coded.len()
             ),
-            8 * modes_end,
+            8 * start,
         ));
     }
     Ok(FrameSyntax { header, grid, mbs })

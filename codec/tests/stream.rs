@@ -4,7 +4,9 @@
 //! panic, over more than 10,000 mutated, truncated and random streams.
 
 use mocomp_codec::decoder::{decode, DecodeError};
+use mocomp_codec::entropy::RangeEncoder;
 use mocomp_codec::intra::IntraMode;
+use mocomp_codec::modes::{MbMode, ModeCoder};
 use mocomp_codec::mv::Mv;
 use mocomp_codec::picture::{Frame, Plane};
 use mocomp_codec::recon::{crop, frame_vectors, predict_inter, predict_intra, reconstruct_mb, InterContext};
@@ -471,40 +473,35 @@ fn invalid_frame_syntax_is_located() {
     let e = expect_err(&stream(&p_first));
     assert!(e.to_string().contains("no frame before it"), "{e}");
     // Vertical intra on the top row: written by hand, since the writer
-    // would not produce it. Payload: type 0, qp 20, tool 0; then per MB
-    // ue(luma) ue(chroma): Vertical = ue(0) = 1; the modes partition's
-    // length (one byte of LEB128) first, no residual partition.
+    // would not produce it. Payload: type 0, qp 20, tool 0 and alignment
+    // (two bytes), then the range-coded modes of macroblock 0.
     let mut w = mocomp_codec::bits::BitWriter::new();
     w.put(0, 1);
     w.put(20, 6);
     w.put(0, 2);
-    w.put_ue(0); // luma Vertical: no row above
-    w.put_ue(2);
     w.align();
-    let modes = w.into_bytes();
-    let mut payload = vec![modes.len() as u8];
-    payload.extend_from_slice(&modes);
+    let mut payload = w.into_bytes();
+    let mut enc = RangeEncoder::new();
+    let vertical = MbMode::Intra {
+        luma: IntraMode::Vertical, // no row above
+        chroma: IntraMode::Dc,
+    };
+    ModeCoder::new(2, 1).write(&mut enc, 0, 0, false, true, &vertical);
+    payload.extend(enc.finish());
     let mut b = s.to_bytes();
     b.push(0xA5);
     b.extend_from_slice(&(payload.len() as u32).to_be_bytes());
     b.extend_from_slice(&payload);
     b.push(0x5A);
     let e = expect_err(&b);
+    // Located in the range-coded partition, which starts at byte 30.
     assert!(
-        matches!(
-            &e,
-            DecodeError::Syntax {
-                frame: 0,
-                byte: 30,
-                bit: 1,
-                ..
-            }
-        ),
+        matches!(&e, DecodeError::Syntax { frame: 0, byte, .. } if *byte >= 30),
         "{e:?}"
     );
     assert!(e.to_string().contains("Vertical needs neighbours"), "{e}");
-    // Junk after the last macroblock: in the residual partition, and in
-    // the modes partition (its length one more, a byte inserted).
+    // Junk after the last macroblock (a few bytes could be read as more
+    // levels; a hundred cannot), and non-zero bits aligning the header.
     let i = frame(i_header(20), vec![empty(intra_dc()), empty(intra_dc())]);
     let with_frame = |fb: Vec<u8>| {
         let mut fb = fb;
@@ -515,7 +512,6 @@ fn invalid_frame_syntax_is_located() {
         b.push(0x5A);
         b
     };
-    // (A few bytes could be read as more levels; a hundred cannot.)
     let (mut fb, _) = write_frame(&s, &i);
     fb.extend_from_slice(&[0x6B; 100]);
     let e = expect_err(&with_frame(fb));
@@ -525,11 +521,12 @@ fn invalid_frame_syntax_is_located() {
         "{e}"
     );
     let (mut fb, _) = write_frame(&s, &i);
-    let modes_len = usize::from(fb[5]);
-    fb[5] += 1;
-    fb.insert(6 + modes_len, 0xFF);
+    fb[6] |= 1; // the last of the seven alignment bits after 9 header bits
     let e = expect_err(&with_frame(fb));
-    assert!(e.to_string().contains("after the last macroblock's modes"), "{e}");
+    assert!(
+        e.to_string().contains("non-zero bits after the frame header"),
+        "{e}"
+    );
 }
 
 /// xorshift64*: deterministic pseudo-random numbers for the mutation test.

@@ -1,9 +1,9 @@
 //! One frame: rate-distortion mode decision over the macroblocks, in
 //! raster order, with reconstruction through the codec's functions.
 
-use super::macroblock::{mvd_len, MbCoder, MbSource};
+use super::macroblock::{MbCoder, MbSource};
 use super::motion::FrameMotion;
-use crate::codec::bits::ue_len;
+use crate::codec::modes::{MbMode, ModeCoder};
 use crate::codec::mv::Mv;
 use crate::codec::recon::{predict_inter, predict_intra, reconstruct_mb, InterContext, MbPrediction};
 use crate::codec::residual::{MbResidual, ResidualCoder};
@@ -13,12 +13,6 @@ use crate::codec::syntax::{
 };
 use crate::codec::warp::warp_frame;
 use crate::codec::{Frame, PictureError};
-
-/// Header bits the mode decision charges: the skip run that a coded
-/// macroblock ends (about one bit) and its type.
-const SKIP_BITS: f64 = 1.0;
-const INTER_BITS: f64 = 2.0;
-const INTRA_BITS: f64 = 4.0;
 
 /// A coded frame before it is written.
 pub(crate) struct CodedFrame {
@@ -142,6 +136,11 @@ pub(crate) fn code_inter(
     let mut prediction_sse = 0;
     let mut kinds = [0; 3];
     let mut rates = ResidualCoder::new(cols, seq.mb_rows());
+    let mut modes = ModeCoder::new(cols, seq.mb_rows());
+    // Bits of a mode as the frame's mode coder prices it now.
+    let mode_bits = |modes: &ModeCoder, mb_x, mb_y, mode: &MbMode| {
+        f64::from(modes.cost(mb_x, mb_y, true, uses_mvs, mode)) / 256.0
+    };
     for i in 0..n {
         let (mb_x, mb_y) = (i % cols, i / cols);
         let s = MbSource::load(src, mb_x, mb_y);
@@ -159,14 +158,15 @@ pub(crate) fn code_inter(
         };
         let skip_pred = predict_inter(&ctx, mb_x, mb_y, mvp);
         let mut best = Choice {
-            cost: coder.cost(s.ssd(&skip_pred), SKIP_BITS),
+            cost: coder.cost(s.ssd(&skip_pred), mode_bits(&modes, mb_x, mb_y, &MbMode::Skip)),
             kind: MbKind::Skip,
             pred: skip_pred.clone(),
             residual: MbResidual::default(),
         };
-        // Every other choice spends at least its type: when skip costs no
-        // more, nothing can beat it.
-        let exhaustive = best.cost > coder.cost(0, INTER_BITS);
+        // Every other choice spends at least the flag saying it is not
+        // skipped: when skip costs no more, nothing can beat it.
+        let not_skipped = f64::from(modes.not_skipped_cost(mb_x, mb_y)) / 256.0;
+        let exhaustive = best.cost > coder.cost(0, not_skipped);
         let searched_mv = (uses_mvs && searched[i] != mvp).then_some(searched[i]);
         let mut inter_satd = u32::MAX;
         for mv in std::iter::once(mvp).chain(searched_mv).filter(|_| exhaustive) {
@@ -177,8 +177,8 @@ pub(crate) fn code_inter(
             };
             inter_satd = inter_satd.min(luma_satd(&s, &pred));
             let coded = coder.code(&s, &pred, false, &rates, &mut recon, mb_x, mb_y);
-            let mvd_bits = if uses_mvs { mvd_len(mv, mvp) } else { 0 };
-            let bits = INTER_BITS + f64::from(mvd_bits) + coded.bits;
+            let mode = MbMode::Inter { mvd: mv - mvp };
+            let bits = mode_bits(&modes, mb_x, mb_y, &mode) + coded.bits;
             let cost = coder.cost(coded.ssd, bits);
             if cost < best.cost {
                 best = Choice {
@@ -195,8 +195,8 @@ pub(crate) fn code_inter(
             // than inter's (as the H.264 reference encoder's fast modes).
             if intra_satd < inter_satd {
                 let coded = coder.code(&s, &pred, true, &rates, &mut recon, mb_x, mb_y);
-                let mode_bits = ue_len(luma as u32) + ue_len(chroma as u32);
-                let bits = INTRA_BITS + f64::from(mode_bits) + coded.bits;
+                let mode = MbMode::Intra { luma, chroma };
+                let bits = mode_bits(&modes, mb_x, mb_y, &mode) + coded.bits;
                 let cost = coder.cost(coded.ssd, bits);
                 if cost < best.cost {
                     best = Choice {
@@ -209,6 +209,14 @@ pub(crate) fn code_inter(
             }
         }
         reconstruct_mb(&best.pred, &best.residual, coder.qp, &mut recon, mb_x, mb_y);
+        let mode = match best.kind {
+            MbKind::Skip => MbMode::Skip,
+            MbKind::Inter { mv } => MbMode::Inter {
+                mvd: if uses_mvs { mv - mvp } else { Mv::ZERO },
+            },
+            MbKind::Intra { luma, chroma } => MbMode::Intra { luma, chroma },
+        };
+        modes.commit(mb_x, mb_y, true, uses_mvs, &mode);
         if best.kind != MbKind::Skip {
             let intra = matches!(best.kind, MbKind::Intra { .. });
             rates.commit(mb_x, mb_y, intra, &best.residual);

@@ -1,0 +1,469 @@
+//! Coding of the macroblock layer (normative syntax, FORMAT.md section 3.2):
+//! skip and intra flags, vector differences, intra modes and grid vectors,
+//! in the frame's range-coded partition beside the residual.
+//!
+//! Binarised as H.264's CABAC does: the skip and intra flags in contexts
+//! counting the neighbours (left, above) that were skipped or intra; each
+//! vector-difference component as a zero flag in a context chosen by the
+//! neighbours' difference magnitudes, `|d| - 1` in unary (up to 8, contexts
+//! by bin) then third-order Exp-Golomb in bypass bins, and a bypass sign;
+//! intra modes as two bins each. [`ModeCoder`] holds the contexts and the
+//! neighbours' state; one binarisation writes, reads, adapts and prices.
+
+use crate::entropy::{
+    get_exp_golomb, put_exp_golomb, Adapter, Bins, Context, Pricer, RangeDecoder, RangeEncoder, Writer,
+};
+use crate::intra::IntraMode;
+use crate::mv::Mv;
+
+// Context layout.
+const SKIP: usize = 0; // 3: skipped neighbours
+const INTRA: usize = SKIP + 3; // 3: intra neighbours
+/// Per component: zero flag (3, by the neighbours' magnitudes), then the
+/// unary bins of |d| - 1 (4: bins 0, 1, 2, 3 and beyond).
+const VECTOR_CONTEXTS: usize = 7;
+const MVD: usize = INTRA + 3; // 2 components
+const GRID: usize = MVD + 2 * VECTOR_CONTEXTS; // 2 components
+const LUMA_MODE: usize = GRID + 2 * VECTOR_CONTEXTS; // 3
+const CHROMA_MODE: usize = LUMA_MODE + 3; // 3
+const CONTEXTS: usize = CHROMA_MODE + 3;
+
+/// Unary bins of |d| - 1 before the Exp-Golomb suffix.
+const UNARY_MAX: u32 = 8;
+/// Order of the suffix.
+const SUFFIX_ORDER: u32 = 3;
+/// Longest suffix prefix a reader accepts (values far past any vector).
+const MAX_SUFFIX_ONES: u32 = 24;
+
+/// How a macroblock is coded, as the mode layer codes it (the vector as
+/// its difference from the prediction).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MbMode {
+    /// Skipped (P frames).
+    Skip,
+    /// Inter with this vector difference (zero, and not coded, in grid
+    /// frames).
+    Inter {
+        /// Vector minus predicted vector, quarter-pel.
+        mvd: Mv,
+    },
+    /// Intra with these modes.
+    Intra {
+        /// Luma mode.
+        luma: IntraMode,
+        /// Chroma mode.
+        chroma: IntraMode,
+    },
+}
+
+/// What the neighbours of a macroblock say about it.
+#[derive(Debug, Clone, Copy, Default)]
+struct MbState {
+    skip: bool,
+    intra: bool,
+    /// |mvd| per component (0 unless inter).
+    mvd_abs: [u32; 2],
+}
+
+/// Context increment of a vector difference's zero flag from the sum of
+/// the neighbours' magnitudes of that component (H.264's thresholds).
+fn zero_ctx(sum: u32) -> usize {
+    match sum {
+        0..=2 => 0,
+        3..=32 => 1,
+        _ => 2,
+    }
+}
+
+fn code_component<B: Bins>(b: &mut B, base: usize, neighbours: u32, d: i32) {
+    b.bin(base + zero_ctx(neighbours), d != 0);
+    if d == 0 {
+        return;
+    }
+    let a = d.unsigned_abs() - 1;
+    for k in 0..a.min(UNARY_MAX) {
+        b.bin(base + 3 + (k as usize).min(3), true);
+    }
+    if a < UNARY_MAX {
+        b.bin(base + 3 + (a as usize).min(3), false);
+    } else {
+        put_exp_golomb(b, a - UNARY_MAX, SUFFIX_ORDER);
+    }
+    b.bypass(d < 0);
+}
+
+fn read_component(
+    dec: &mut RangeDecoder<'_>,
+    c: &mut [Context],
+    base: usize,
+    neighbours: u32,
+) -> Option<i32> {
+    if !dec.decode(&mut c[base + zero_ctx(neighbours)]) {
+        return Some(0);
+    }
+    let mut a = 0u32;
+    while a < UNARY_MAX && dec.decode(&mut c[base + 3 + (a as usize).min(3)]) {
+        a += 1;
+    }
+    if a == UNARY_MAX {
+        a = a.checked_add(get_exp_golomb(dec, SUFFIX_ORDER, MAX_SUFFIX_ONES)?)?;
+    }
+    let m = i32::try_from(a.checked_add(1)?).ok()?;
+    Some(if dec.decode_bypass() { -m } else { m })
+}
+
+fn code_intra_mode<B: Bins>(b: &mut B, base: usize, mode: IntraMode) {
+    let m = mode as usize;
+    b.bin(base, m >> 1 != 0);
+    b.bin(base + 1 + (m >> 1), m & 1 != 0);
+}
+
+fn read_intra_mode(dec: &mut RangeDecoder<'_>, c: &mut [Context], base: usize) -> IntraMode {
+    let hi = usize::from(dec.decode(&mut c[base]));
+    let lo = usize::from(dec.decode(&mut c[base + 1 + hi]));
+    match hi * 2 + lo {
+        0 => IntraMode::Vertical,
+        1 => IntraMode::Horizontal,
+        2 => IntraMode::Dc,
+        _ => IntraMode::Plane,
+    }
+}
+
+/// Neighbour state of macroblock (x, y): the left and above ones (default
+/// outside the picture).
+fn neighbours(states: &[MbState], cols: usize, x: usize, y: usize) -> [MbState; 2] {
+    let left = if x > 0 {
+        states[y * cols + x - 1]
+    } else {
+        MbState::default()
+    };
+    let above = if y > 0 {
+        states[(y - 1) * cols + x]
+    } else {
+        MbState::default()
+    };
+    [left, above]
+}
+
+fn code_mb<B: Bins>(b: &mut B, n: &[MbState; 2], inter_frame: bool, mode: &MbMode, uses_mvs: bool) {
+    if inter_frame {
+        let skipped = n.iter().filter(|s| s.skip).count();
+        b.bin(SKIP + skipped, *mode == MbMode::Skip);
+        if *mode == MbMode::Skip {
+            return;
+        }
+        let intra = n.iter().filter(|s| s.intra).count();
+        b.bin(INTRA + intra, matches!(mode, MbMode::Intra { .. }));
+    }
+    match *mode {
+        MbMode::Skip => {}
+        MbMode::Inter { mvd } => {
+            if uses_mvs {
+                for (c, d) in [mvd.x, mvd.y].into_iter().enumerate() {
+                    let sum = n[0].mvd_abs[c] + n[1].mvd_abs[c];
+                    code_component(b, MVD + c * VECTOR_CONTEXTS, sum, d);
+                }
+            }
+        }
+        MbMode::Intra { luma, chroma } => {
+            code_intra_mode(b, LUMA_MODE, luma);
+            code_intra_mode(b, CHROMA_MODE, chroma);
+        }
+    }
+}
+
+fn state_of(mode: &MbMode) -> MbState {
+    match *mode {
+        MbMode::Skip => MbState {
+            skip: true,
+            ..MbState::default()
+        },
+        MbMode::Inter { mvd } => MbState {
+            mvd_abs: [mvd.x.unsigned_abs(), mvd.y.unsigned_abs()],
+            ..MbState::default()
+        },
+        MbMode::Intra { .. } => MbState {
+            intra: true,
+            ..MbState::default()
+        },
+    }
+}
+
+/// The mode coder of one frame: contexts, and the state of the macroblocks
+/// (and grid nodes) coded so far.
+///
+/// ```
+/// use mocomp_codec::entropy::{RangeDecoder, RangeEncoder};
+/// use mocomp_codec::intra::IntraMode;
+/// use mocomp_codec::modes::{MbMode, ModeCoder};
+/// use mocomp_codec::mv::Mv;
+/// let modes = [
+///     MbMode::Skip,
+///     MbMode::Inter { mvd: Mv::new(-5, 130) },
+///     MbMode::Intra { luma: IntraMode::Dc, chroma: IntraMode::Horizontal },
+/// ];
+/// let mut coder = ModeCoder::new(3, 1);
+/// let mut enc = RangeEncoder::new();
+/// for (x, m) in modes.iter().enumerate() {
+///     coder.write(&mut enc, x, 0, true, true, m);
+/// }
+/// let bytes = enc.finish();
+/// let mut coder = ModeCoder::new(3, 1);
+/// let mut dec = RangeDecoder::new(&bytes);
+/// for (x, m) in modes.iter().enumerate() {
+///     assert_eq!(coder.read(&mut dec, x, 0, true, true), Some(*m));
+/// }
+/// ```
+#[derive(Debug, Clone)]
+pub struct ModeCoder {
+    contexts: [Context; CONTEXTS],
+    mb_cols: usize,
+    states: Vec<MbState>,
+    /// |difference| per component of the grid nodes coded so far.
+    grid: Vec<[u32; 2]>,
+}
+
+impl ModeCoder {
+    /// A coder at the start of a frame of `mb_cols x mb_rows` macroblocks.
+    pub fn new(mb_cols: usize, mb_rows: usize) -> ModeCoder {
+        ModeCoder {
+            contexts: [Context::new(); CONTEXTS],
+            mb_cols,
+            states: vec![MbState::default(); mb_cols * mb_rows],
+            grid: Vec::new(),
+        }
+    }
+
+    fn neighbours(&self, mb_x: usize, mb_y: usize) -> [MbState; 2] {
+        neighbours(&self.states, self.mb_cols, mb_x, mb_y)
+    }
+
+    /// The rate estimate, in 1/256 bit, of coding macroblock (mb_x, mb_y)
+    /// as `mode` now (`inter_frame`: a P frame; `uses_mvs`: its vectors are
+    /// coded, not a grid's). Not normative.
+    pub fn cost(&self, mb_x: usize, mb_y: usize, inter_frame: bool, uses_mvs: bool, mode: &MbMode) -> u32 {
+        let mut p = Pricer {
+            contexts: &self.contexts[..],
+            cost: 0,
+        };
+        code_mb(&mut p, &self.neighbours(mb_x, mb_y), inter_frame, mode, uses_mvs);
+        p.cost
+    }
+
+    /// The rate estimate, in 1/256 bit, of the flag saying macroblock
+    /// (mb_x, mb_y) of a P frame is not skipped: what every choice but skip
+    /// spends at least. Not normative.
+    pub fn not_skipped_cost(&self, mb_x: usize, mb_y: usize) -> u32 {
+        let skipped = self.neighbours(mb_x, mb_y).iter().filter(|s| s.skip).count();
+        self.contexts[SKIP + skipped].cost(false)
+    }
+
+    /// Adapts and records as [`ModeCoder::write`] does, without writing.
+    pub fn commit(&mut self, mb_x: usize, mb_y: usize, inter_frame: bool, uses_mvs: bool, mode: &MbMode) {
+        let n = self.neighbours(mb_x, mb_y);
+        code_mb(
+            &mut Adapter(&mut self.contexts[..]),
+            &n,
+            inter_frame,
+            mode,
+            uses_mvs,
+        );
+        self.states[mb_y * self.mb_cols + mb_x] = state_of(mode);
+    }
+
+    /// Writes macroblock (mb_x, mb_y)'s mode; returns the cost, in 1/256
+    /// bit, of the bins as coded: `(vector difference, the rest)`.
+    pub fn write(
+        &mut self,
+        enc: &mut RangeEncoder,
+        mb_x: usize,
+        mb_y: usize,
+        inter_frame: bool,
+        uses_mvs: bool,
+        mode: &MbMode,
+    ) -> (u32, u32) {
+        let n = self.neighbours(mb_x, mb_y);
+        // The flags and modes first, priced apart from the vector.
+        let mut w = Writer {
+            enc,
+            contexts: &mut self.contexts[..],
+            cost: 0,
+        };
+        let flags_only = match mode {
+            MbMode::Inter { .. } => MbMode::Inter { mvd: Mv::ZERO },
+            m => *m,
+        };
+        code_mb(&mut w, &n, inter_frame, &flags_only, false);
+        let rest = w.cost;
+        w.cost = 0;
+        if let (MbMode::Inter { mvd }, true) = (mode, uses_mvs) {
+            for (c, d) in [mvd.x, mvd.y].into_iter().enumerate() {
+                let sum = n[0].mvd_abs[c] + n[1].mvd_abs[c];
+                code_component(&mut w, MVD + c * VECTOR_CONTEXTS, sum, d);
+            }
+        }
+        let motion = w.cost;
+        self.states[mb_y * self.mb_cols + mb_x] = state_of(mode);
+        (motion, rest)
+    }
+
+    /// Reads what [`ModeCoder::write`] writes; `None` for a vector
+    /// difference beyond what the syntax can carry.
+    pub fn read(
+        &mut self,
+        dec: &mut RangeDecoder<'_>,
+        mb_x: usize,
+        mb_y: usize,
+        inter_frame: bool,
+        uses_mvs: bool,
+    ) -> Option<MbMode> {
+        let n = self.neighbours(mb_x, mb_y);
+        let c = &mut self.contexts;
+        let mut intra = !inter_frame;
+        if inter_frame {
+            let skipped = n.iter().filter(|s| s.skip).count();
+            if dec.decode(&mut c[SKIP + skipped]) {
+                self.states[mb_y * self.mb_cols + mb_x] = state_of(&MbMode::Skip);
+                return Some(MbMode::Skip);
+            }
+            intra = dec.decode(&mut c[INTRA + n.iter().filter(|s| s.intra).count()]);
+        }
+        let mode = if intra {
+            let luma = read_intra_mode(dec, c, LUMA_MODE);
+            let chroma = read_intra_mode(dec, c, CHROMA_MODE);
+            MbMode::Intra { luma, chroma }
+        } else {
+            let mut mvd = Mv::ZERO;
+            if uses_mvs {
+                mvd.x = read_component(dec, c, MVD, n[0].mvd_abs[0] + n[1].mvd_abs[0])?;
+                mvd.y = read_component(dec, c, MVD + VECTOR_CONTEXTS, n[0].mvd_abs[1] + n[1].mvd_abs[1])?;
+            }
+            MbMode::Inter { mvd }
+        };
+        self.states[mb_y * self.mb_cols + mb_x] = state_of(&mode);
+        Some(mode)
+    }
+
+    /// Writes the difference of grid node (col, row) of a grid `cols`
+    /// wide (nodes in raster order); returns its cost in 1/256 bit.
+    pub fn write_grid(&mut self, enc: &mut RangeEncoder, cols: usize, col: usize, row: usize, d: Mv) -> u32 {
+        let sums = self.grid_sums(cols, col, row);
+        let mut w = Writer {
+            enc,
+            contexts: &mut self.contexts[..],
+            cost: 0,
+        };
+        code_component(&mut w, GRID, sums[0], d.x);
+        code_component(&mut w, GRID + VECTOR_CONTEXTS, sums[1], d.y);
+        self.grid.push([d.x.unsigned_abs(), d.y.unsigned_abs()]);
+        w.cost
+    }
+
+    /// Reads what [`ModeCoder::write_grid`] writes.
+    pub fn read_grid(
+        &mut self,
+        dec: &mut RangeDecoder<'_>,
+        cols: usize,
+        col: usize,
+        row: usize,
+    ) -> Option<Mv> {
+        let sums = self.grid_sums(cols, col, row);
+        let x = read_component(dec, &mut self.contexts, GRID, sums[0])?;
+        let y = read_component(dec, &mut self.contexts, GRID + VECTOR_CONTEXTS, sums[1])?;
+        self.grid.push([x.unsigned_abs(), y.unsigned_abs()]);
+        Some(Mv::new(x, y))
+    }
+
+    /// Per component, the magnitudes of the left and above nodes' differences.
+    fn grid_sums(&self, cols: usize, col: usize, row: usize) -> [u32; 2] {
+        debug_assert_eq!(self.grid.len(), row * cols + col, "grid nodes in raster order");
+        let mut s = [0u32; 2];
+        let i = row * cols + col;
+        for (ok, j) in [(col > 0, i.wrapping_sub(1)), (row > 0, i.wrapping_sub(cols))] {
+            if let Some(d) = self.grid.get(j).filter(|_| ok) {
+                s[0] = s[0].saturating_add(d[0]);
+                s[1] = s[1].saturating_add(d[1]);
+            }
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn mode_strategy() -> impl Strategy<Value = MbMode> {
+        prop_oneof![
+            Just(MbMode::Skip),
+            (-40_000i32..=40_000, -300i32..=300).prop_map(|(x, y)| MbMode::Inter { mvd: Mv::new(x, y) }),
+            (0u32..4, 0u32..4).prop_map(|(l, c)| MbMode::Intra {
+                luma: IntraMode::from_code(l).unwrap_or(IntraMode::Dc),
+                chroma: IntraMode::from_code(c).unwrap_or(IntraMode::Dc),
+            }),
+        ]
+    }
+
+    proptest! {
+        #[test]
+        fn modes_and_grids_round_trip(
+            modes in proptest::collection::vec(mode_strategy(), 12),
+            grid in proptest::collection::vec((-70_000i32..=70_000, -5i32..=5), 6),
+            inter_frame in any::<bool>(),
+        ) {
+            // 4 x 3 macroblocks; a 3 x 2 grid first. I frames hold intra only.
+            let modes: Vec<MbMode> = modes
+                .into_iter()
+                .map(|m| if inter_frame { m } else { MbMode::Intra { luma: IntraMode::Dc, chroma: IntraMode::Plane } })
+                .collect();
+            let mut w = ModeCoder::new(4, 3);
+            let mut shadow = ModeCoder::new(4, 3);
+            let mut enc = RangeEncoder::new();
+            for (i, &(x, y)) in grid.iter().enumerate() {
+                w.write_grid(&mut enc, 3, i % 3, i / 3, Mv::new(x, y));
+            }
+            for (i, m) in modes.iter().enumerate() {
+                w.write(&mut enc, i % 4, i / 4, inter_frame, true, m);
+                shadow.commit(i % 4, i / 4, inter_frame, true, m);
+            }
+            let bytes = enc.finish();
+            let mut r = ModeCoder::new(4, 3);
+            let mut dec = RangeDecoder::new(&bytes);
+            for (i, &(x, y)) in grid.iter().enumerate() {
+                prop_assert_eq!(r.read_grid(&mut dec, 3, i % 3, i / 3), Some(Mv::new(x, y)));
+            }
+            for (i, m) in modes.iter().enumerate() {
+                prop_assert_eq!(r.read(&mut dec, i % 4, i / 4, inter_frame, true), Some(*m));
+            }
+            prop_assert!(dec.consumed_all());
+            // Committing adapts the macroblock contexts as writing does.
+            prop_assert_eq!(&shadow.contexts[..GRID], &w.contexts[..GRID]);
+            prop_assert_eq!(&shadow.contexts[LUMA_MODE..], &w.contexts[LUMA_MODE..]);
+        }
+
+        #[test]
+        fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..32)) {
+            let mut r = ModeCoder::new(3, 3);
+            let mut dec = RangeDecoder::new(&bytes);
+            for i in 0..4 {
+                let _ = r.read_grid(&mut dec, 2, i % 2, i / 2);
+            }
+            for i in 0..9 {
+                let _ = r.read(&mut dec, i % 3, i / 3, i % 2 == 0, true);
+            }
+        }
+    }
+
+    #[test]
+    fn a_run_of_skips_gets_cheap() {
+        let mut c = ModeCoder::new(40, 1);
+        let first = c.cost(0, 0, true, true, &MbMode::Skip);
+        for x in 0..39 {
+            c.commit(x, 0, true, true, &MbMode::Skip);
+        }
+        let later = c.cost(39, 0, true, true, &MbMode::Skip);
+        assert_eq!(first, 256);
+        assert!(later < 64, "{later}"); // under a quarter of a bit
+    }
+}

@@ -5,7 +5,8 @@
 use mocomp::codec::decoder;
 use mocomp::codec::mv::Mv;
 use mocomp::codec::syntax::{
-    read_frame, FrameSyntax, FrameType, MbKind, SequenceHeader, FRAME_START, SEQUENCE_HEADER_LEN,
+    read_frame, EntropyState, FrameSyntax, FrameType, MbKind, SequenceHeader, FRAME_START,
+    SEQUENCE_HEADER_LEN,
 };
 use mocomp::codec::Frame;
 use mocomp::encode::{Encoder, EncoderConfig, FrameStats, Predictor};
@@ -117,9 +118,10 @@ fn decoder_output_equals_the_encoder_reconstruction_for_every_predictor() {
 fn frames_of(seq: &SequenceHeader, stream: &[u8]) -> Vec<FrameSyntax> {
     let mut at = SEQUENCE_HEADER_LEN;
     let mut out = Vec::new();
+    let mut state = EntropyState::new();
     while stream[at] == FRAME_START {
         let len = u32::from_be_bytes(stream[at + 1..at + 5].try_into().unwrap()) as usize;
-        out.push(read_frame(seq, &stream[at + 5..at + 5 + len]).unwrap());
+        out.push(read_frame(seq, &stream[at + 5..at + 5 + len], &mut state).unwrap());
         at += 5 + len;
     }
     out

@@ -15,8 +15,8 @@ use std::io::{self, Read};
 use crate::picture::{Frame, PictureError};
 use crate::recon::{crop, reconstruct_frame};
 use crate::syntax::{
-    read_frame, FrameSyntax, FrameType, HeaderError, SequenceHeader, FRAME_START, SEQUENCE_HEADER_LEN,
-    STREAM_END,
+    read_frame, EntropyState, FrameSyntax, FrameType, HeaderError, SequenceHeader, FRAME_START,
+    SEQUENCE_HEADER_LEN, STREAM_END,
 };
 
 /// What can be wrong with a stream.
@@ -92,6 +92,8 @@ pub struct Decoder<R: Read> {
     reader: R,
     seq: SequenceHeader,
     reference: Option<Frame>,
+    /// Contexts carried from frame to frame.
+    entropy: EntropyState,
     frames: usize,
     offset: u64,
     finished: bool,
@@ -120,6 +122,7 @@ impl<R: Read> Decoder<R> {
             reader,
             seq,
             reference: None,
+            entropy: EntropyState::new(),
             frames: 0,
             offset: SEQUENCE_HEADER_LEN as u64,
             finished: false,
@@ -204,7 +207,7 @@ impl<R: Read> Decoder<R> {
                 byte: self.offset,
             });
         }
-        let syntax = read_frame(&self.seq, &payload).map_err(|e| DecodeError::Syntax {
+        let syntax = read_frame(&self.seq, &payload, &mut self.entropy).map_err(|e| DecodeError::Syntax {
             frame: self.frames,
             byte: payload_start + (e.bit / 8) as u64,
             bit: (e.bit % 8) as u8,

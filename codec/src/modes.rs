@@ -234,6 +234,17 @@ impl ModeCoder {
         }
     }
 
+    /// A coder for the next frame that starts from the contexts this one
+    /// has reached (P frames carry them over, FORMAT.md section 3.4).
+    pub fn next_frame(&self) -> ModeCoder {
+        ModeCoder {
+            contexts: self.contexts,
+            mb_cols: self.mb_cols,
+            states: vec![MbState::default(); self.states.len()],
+            grid: Vec::new(),
+        }
+    }
+
     fn neighbours(&self, mb_x: usize, mb_y: usize) -> [MbState; 2] {
         neighbours(&self.states, self.mb_cols, mb_x, mb_y)
     }

@@ -333,6 +333,14 @@ impl ResidualCoder {
         }
     }
 
+    /// A coder for the next frame that starts from the contexts this one
+    /// has reached (P frames carry them over, FORMAT.md section 3.4).
+    pub fn next_frame(&self) -> ResidualCoder {
+        let mut next = ResidualCoder::new(self.mb_cols, self.mb_rows);
+        next.contexts.clone_from(&self.contexts);
+        next
+    }
+
     fn edges(&self, mb_x: usize, mb_y: usize) -> Edges {
         debug_assert!(mb_x < self.mb_cols && mb_y < self.mb_rows);
         let mut e = Edges::default();

@@ -342,6 +342,33 @@ fn mb_mode(kind: &MbKind, predicted: Mv, uses_mvs: bool) -> MbMode {
     }
 }
 
+/// What a stream's entropy coding carries from one frame to the next: P
+/// frames start from the contexts the previous frame ended with, I frames
+/// from the initial ones (FORMAT.md section 3.4). A writer and a reader
+/// each keep one, fed every frame in order.
+#[derive(Debug, Clone, Default)]
+pub struct EntropyState {
+    last: Option<(ModeCoder, ResidualCoder)>,
+}
+
+impl EntropyState {
+    /// The state at the start of a stream.
+    pub fn new() -> EntropyState {
+        EntropyState::default()
+    }
+
+    /// The coders a frame of `frame_type` starts with.
+    pub fn coders(&self, seq: &SequenceHeader, frame_type: FrameType) -> (ModeCoder, ResidualCoder) {
+        match (&self.last, frame_type) {
+            (Some((modes, residual)), FrameType::Inter) => (modes.next_frame(), residual.next_frame()),
+            _ => (
+                ModeCoder::new(seq.mb_cols(), seq.mb_rows()),
+                ResidualCoder::new(seq.mb_cols(), seq.mb_rows()),
+            ),
+        }
+    }
+}
+
 /// Splits `total` bits over categories in proportion to their estimated
 /// costs, the remainder to the last, so they add up exactly.
 fn split_bits(total: u64, estimates: [u64; 3]) -> [u64; 3] {
@@ -362,7 +389,12 @@ fn split_bits(total: u64, estimates: [u64; 3]) -> [u64; 3] {
 /// The bit counts: the frame header and framing are exact; the range-coded
 /// partition's bits are split over header (flags, intra modes), motion
 /// and residual in proportion to the cost of their bins as coded.
-pub fn write_frame(seq: &SequenceHeader, frame: &FrameSyntax) -> (Vec<u8>, BitCounts) {
+/// `state` is the stream's entropy state, updated for the next frame.
+pub fn write_frame(
+    seq: &SequenceHeader,
+    frame: &FrameSyntax,
+    state: &mut EntropyState,
+) -> (Vec<u8>, BitCounts) {
     let (cols, rows) = (seq.mb_cols(), seq.mb_rows());
     assert_eq!(frame.mbs.len(), cols * rows, "macroblock count");
     let h = &frame.header;
@@ -391,8 +423,7 @@ pub fn write_frame(seq: &SequenceHeader, frame: &FrameSyntax) -> (Vec<u8>, BitCo
         "grid frames, and only they, carry a grid"
     );
     let mut enc = RangeEncoder::new();
-    let mut modes = ModeCoder::new(cols, rows);
-    let mut residual = ResidualCoder::new(cols, rows);
+    let (mut modes, mut residual) = state.coders(seq, h.frame_type);
     // Estimated costs (1/256 bit) of header, motion and residual bins.
     let mut estimates = [0u64; 3];
     if let (MotionTool::Grid(spacing), Some(grid)) = (h.tool, &frame.grid) {
@@ -435,6 +466,7 @@ pub fn write_frame(seq: &SequenceHeader, frame: &FrameSyntax) -> (Vec<u8>, BitCo
         let intra = matches!(mb.kind, MbKind::Intra { .. });
         estimates[2] += u64::from(residual.write(&mut enc, mb_x, mb_y, intra, mb.residual()));
     }
+    state.last = Some((modes, residual));
     let header = w.into_bytes();
     let coded = enc.finish();
     let [hb, mb, rb] = split_bits(8 * coded.len() as u64, estimates);
@@ -457,12 +489,13 @@ pub fn write_frame(seq: &SequenceHeader, frame: &FrameSyntax) -> (Vec<u8>, BitCo
 /// sequence header and end marker count as header bits).
 pub fn write_stream(seq: &SequenceHeader, frames: &[FrameSyntax]) -> (Vec<u8>, BitCounts) {
     let mut out = seq.to_bytes();
+    let mut state = EntropyState::new();
     let mut total = BitCounts {
         header: 8 * (SEQUENCE_HEADER_LEN as u64 + 1),
         ..BitCounts::default()
     };
     for f in frames {
-        let (bytes, counts) = write_frame(seq, f);
+        let (bytes, counts) = write_frame(seq, f, &mut state);
         out.extend_from_slice(&bytes);
         total.header += counts.header;
         total.motion += counts.motion;
@@ -529,7 +562,12 @@ fn check_vector(mv: Option<Mv>, bit: usize) -> Result<Mv, SyntaxError> {
 
 /// Reads a frame's payload (the bytes after its length field): the frame
 /// header, then the range-coded partition, which must be used to its end.
-pub fn read_frame(seq: &SequenceHeader, payload: &[u8]) -> Result<FrameSyntax, SyntaxError> {
+/// `state` is the stream's entropy state, updated when the frame is valid.
+pub fn read_frame(
+    seq: &SequenceHeader,
+    payload: &[u8],
+    state: &mut EntropyState,
+) -> Result<FrameSyntax, SyntaxError> {
     let (cols, rows) = (seq.mb_cols(), seq.mb_rows());
     let mut r = BitReader::new(payload);
     let frame_type = if r.get(1)? == 1 {
@@ -570,8 +608,7 @@ pub fn read_frame(seq: &SequenceHeader, payload: &[u8]) -> Result<FrameSyntax, S
     let mut dec = RangeDecoder::new(coded);
     // Errors in the partition are located at the byte being read.
     let at = |dec: &RangeDecoder<'_>| 8 * (start + dec.position().min(coded.len()));
-    let mut modes = ModeCoder::new(cols, rows);
-    let mut residual = ResidualCoder::new(cols, rows);
+    let (mut modes, mut residual) = state.coders(seq, frame_type);
     let header = FrameHeader { frame_type, qp, tool };
     let grid = match tool {
         MotionTool::Grid(spacing) => {
@@ -648,5 +685,6 @@ pub fn read_frame(seq: &SequenceHeader, payload: &[u8]) -> Result<FrameSyntax, S
             8 * start,
         ));
     }
+    state.last = Some((modes, residual));
     Ok(FrameSyntax { header, grid, mbs })
 }

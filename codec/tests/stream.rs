@@ -12,8 +12,8 @@ use mocomp_codec::picture::{Frame, Plane};
 use mocomp_codec::recon::{crop, frame_vectors, predict_inter, predict_intra, reconstruct_mb, InterContext};
 use mocomp_codec::residual::MbResidual;
 use mocomp_codec::syntax::{
-    read_frame, write_frame, write_stream, CodedMb, FrameHeader, FrameSyntax, FrameType, MbKind, MotionTool,
-    SequenceHeader,
+    read_frame, write_frame, write_stream, CodedMb, EntropyState, FrameHeader, FrameSyntax, FrameType,
+    MbKind, MotionTool, SequenceHeader,
 };
 use mocomp_codec::transform::{forward_4x4, quantize};
 use mocomp_codec::warp::{warp_frame, MotionGrid};
@@ -369,11 +369,24 @@ fn syntax_round_trips() {
         let s = SequenceHeader::parse(&bytes).unwrap();
         let mut at = 23;
         let mut frames = 0;
+        let (mut read_state, mut write_state) = (EntropyState::new(), EntropyState::new());
         while bytes[at] == 0xA5 {
             let len = u32::from_be_bytes(bytes[at + 1..at + 5].try_into().unwrap()) as usize;
             let original = &bytes[at..at + 5 + len];
-            let syntax = read_frame(&s, &original[5..]).unwrap();
-            assert_eq!(write_frame(&s, &syntax).0, original, "frame {frames}");
+            let fresh = read_frame(&s, &original[5..], &mut EntropyState::new());
+            let syntax = read_frame(&s, &original[5..], &mut read_state).unwrap();
+            // P frames start from the contexts the previous frame left:
+            // read from the initial ones, they say something else.
+            if syntax.header.frame_type == FrameType::Inter {
+                assert_ne!(fresh.ok(), Some(syntax.clone()), "frame {frames}");
+            } else {
+                assert_eq!(fresh.ok(), Some(syntax.clone()), "frame {frames}");
+            }
+            assert_eq!(
+                write_frame(&s, &syntax, &mut write_state).0,
+                original,
+                "frame {frames}"
+            );
             at += 5 + len;
             frames += 1;
         }
@@ -461,7 +474,7 @@ fn invalid_frame_syntax_is_located() {
     };
     let stream = |f: &FrameSyntax| {
         let mut b = s.to_bytes();
-        b.extend(write_frame(&s, f).0);
+        b.extend(write_frame(&s, f, &mut EntropyState::new()).0);
         b.push(0x5A);
         b
     };
@@ -512,7 +525,7 @@ fn invalid_frame_syntax_is_located() {
         b.push(0x5A);
         b
     };
-    let (mut fb, _) = write_frame(&s, &i);
+    let (mut fb, _) = write_frame(&s, &i, &mut EntropyState::new());
     fb.extend_from_slice(&[0x6B; 100]);
     let e = expect_err(&with_frame(fb));
     assert!(
@@ -520,7 +533,7 @@ fn invalid_frame_syntax_is_located() {
             .contains("does not end where its last macroblock does"),
         "{e}"
     );
-    let (mut fb, _) = write_frame(&s, &i);
+    let (mut fb, _) = write_frame(&s, &i, &mut EntropyState::new());
     fb[6] |= 1; // the last of the seven alignment bits after 9 header bits
     let e = expect_err(&with_frame(fb));
     assert!(

@@ -66,12 +66,12 @@ pub(crate) fn code_intra(
     seq: &SequenceHeader,
     coder: &MbCoder,
     src: &Frame,
+    mut rates: ResidualCoder,
     mut recon: Frame,
 ) -> Result<CodedFrame, PictureError> {
     let cols = seq.mb_cols();
     let mut mbs = Vec::with_capacity(cols * seq.mb_rows());
     let mut prediction_sse = 0;
-    let mut rates = ResidualCoder::new(cols, seq.mb_rows());
     for i in 0..cols * seq.mb_rows() {
         let (mb_x, mb_y) = (i % cols, i / cols);
         let s = MbSource::load(src, mb_x, mb_y);
@@ -108,6 +108,7 @@ struct Choice {
 
 /// A P frame predicted from `reference` with `motion` and `tool`,
 /// reconstructed into `recon` (coded size, contents all overwritten).
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn code_inter(
     seq: &SequenceHeader,
     coder: &MbCoder,
@@ -115,6 +116,7 @@ pub(crate) fn code_inter(
     reference: &Frame,
     motion: FrameMotion,
     tool: MotionTool,
+    coders: (ModeCoder, ResidualCoder),
     mut recon: Frame,
 ) -> Result<CodedFrame, PictureError> {
     let (cols, n) = (seq.mb_cols(), seq.mb_cols() * seq.mb_rows());
@@ -135,8 +137,9 @@ pub(crate) fn code_inter(
     let mut mbs = Vec::with_capacity(n);
     let mut prediction_sse = 0;
     let mut kinds = [0; 3];
-    let mut rates = ResidualCoder::new(cols, seq.mb_rows());
-    let mut modes = ModeCoder::new(cols, seq.mb_rows());
+    let (mut modes, mut rates) = coders;
+    // OBMC's second pass prices residuals from the frame's start again.
+    let rates_at_start = (tool == MotionTool::Obmc).then(|| rates.clone());
     // Bits of a mode as the frame's mode coder prices it now.
     let mode_bits = |modes: &ModeCoder, mb_x, mb_y, mode: &MbMode| {
         f64::from(modes.cost(mb_x, mb_y, true, uses_mvs, mode)) / 256.0
@@ -245,7 +248,9 @@ pub(crate) fn code_inter(
     if tool == MotionTool::Obmc {
         // Decisions saw neighbours' searched vectors; code the residuals
         // again against the final prediction, which uses the decided ones.
-        recode(seq, coder, src, reference, &mut frame)?;
+        if let Some(rates) = rates_at_start {
+            recode(seq, coder, src, reference, rates, &mut frame)?;
+        }
     }
     frame.recon.extend_borders();
     Ok(frame)
@@ -258,12 +263,12 @@ fn recode(
     coder: &MbCoder,
     src: &Frame,
     reference: &Frame,
+    mut rates: ResidualCoder,
     frame: &mut CodedFrame,
 ) -> Result<(), PictureError> {
     let cols = seq.mb_cols();
     let vectors = crate::codec::recon::frame_vectors(seq, &frame.syntax);
     let mut recon = Frame::new(seq.coded_width(), seq.coded_height())?;
-    let mut rates = ResidualCoder::new(cols, seq.mb_rows());
     frame.prediction_sse = 0;
     let ctx = InterContext {
         reference,

@@ -39,7 +39,7 @@ pub use config::{BlockSearch, EncoderConfig, FlowMethod, Predictor, DEFAULT_GRID
 pub use stats::{FrameStats, Summary, SummaryBuilder};
 
 use crate::codec::recon::crop;
-use crate::codec::syntax::{write_frame, FrameType, MotionTool, SequenceHeader, STREAM_END};
+use crate::codec::syntax::{write_frame, EntropyState, FrameType, MotionTool, SequenceHeader, STREAM_END};
 use crate::codec::{Frame, PictureError};
 use crate::io::y4m::{Y4mError, Y4mReader};
 use crate::metrics::{frame_psnr, psnr_from_mse, ssim};
@@ -100,6 +100,8 @@ pub struct Encoder {
     /// previous ones): fresh ones cost page faults every frame.
     spare_recon: Option<Frame>,
     spare_source: Option<Frame>,
+    /// Contexts carried from frame to frame, as the decoder carries them.
+    entropy: EntropyState,
     index: usize,
 }
 
@@ -136,6 +138,7 @@ impl Encoder {
             prev_source: None,
             spare_recon: None,
             spare_source: None,
+            entropy: EntropyState::new(),
             index: 0,
         })
     }
@@ -185,11 +188,24 @@ impl Encoder {
                     Predictor::Dense { grid, .. } => MotionTool::Grid(grid),
                     _ => MotionTool::Block,
                 };
-                frame::code_inter(&self.seq, &self.coder, &src, reference, motion, tool, recon)?
+                let coders = self.entropy.coders(&self.seq, FrameType::Inter);
+                frame::code_inter(
+                    &self.seq,
+                    &self.coder,
+                    &src,
+                    reference,
+                    motion,
+                    tool,
+                    coders,
+                    recon,
+                )?
             }
-            _ => frame::code_intra(&self.seq, &self.coder, &src, recon)?,
+            _ => {
+                let (_, rates) = self.entropy.coders(&self.seq, FrameType::Intra);
+                frame::code_intra(&self.seq, &self.coder, &src, rates, recon)?
+            }
         };
-        let (bytes, bits) = write_frame(&self.seq, &coded.syntax);
+        let (bytes, bits) = write_frame(&self.seq, &coded.syntax, &mut self.entropy);
         let recon = crop(&coded.recon, self.seq.width, self.seq.height)?;
         let psnr = frame_psnr(source, &recon);
         let stats = FrameStats {

@@ -4,7 +4,7 @@
 # The encoder beside ffmpeg's MPEG-4 Part 2 and x264 on the shared test
 # sequences, in one run on one machine: the peers' RD points
 # (../shared/peers/rd_ffmpeg.sh: IPPP, one thread), ours for every predictor
-# at QP 22/27/32/37, then BD-rate tables against block:esa, mpeg4 and
+# and the default (block:epzs) at QP 22/27/32/37, then BD-rate tables against block:esa, mpeg4 and
 # x264_simple (luma PSNR, mean of frames, as the peer script), and the
 # encode time of the default setting, whole process, one thread, beside
 # x264_simple's.
@@ -19,10 +19,12 @@ SEQS=${SEQS:-"pan_cif cup_vga_30 tree_qvga"}
 for s in $SEQS; do
   IN="$SHARED/data/$s.y4m"
   bash "$SHARED/peers/rd_ffmpeg.sh" "$IN" "$OUT/peers_$s.csv" > /dev/null
-  "$M" rd "$IN" -o "$OUT/ours_$s.csv" --plot "$OUT/ours_$s.svg" --quiet > "$OUT/table_$s.md"
+  PREDICTORS="zero block:esa block:tss flow-block:lk flow-block:hs dense-lk dense-hs obmc block:epzs"
+  "$M" rd "$IN" --predictors "$(echo $PREDICTORS | tr ' ' ,)" -o "$OUT/ours_$s.csv" \
+    --plot "$OUT/ours_$s.svg" --quiet > "$OUT/table_$s.md"
   for anchor in mpeg4 x264_simple; do
     echo "## $s against $anchor" >> "$OUT/table_$s.md"
-    for p in zero block:esa block:tss flow-block:lk flow-block:hs dense-lk dense-hs obmc; do
+    for p in $PREDICTORS; do
       printf '%s ' "$p" >> "$OUT/table_$s.md"
       "$M" bdrate "$OUT/peers_$s.csv:$anchor" "$OUT/ours_$s.csv:$p" --json >> "$OUT/table_$s.md"
     done

@@ -168,17 +168,6 @@ impl RangeEncoder {
         self.normalise();
     }
 
-    /// Bytes written so far (the final size is this plus at most 4 after
-    /// [`RangeEncoder::finish`]).
-    pub fn len(&self) -> usize {
-        self.out.len()
-    }
-
-    /// Whether nothing has been written yet.
-    pub fn is_empty(&self) -> bool {
-        self.out.is_empty()
-    }
-
     /// Flushes the state and returns the bytes, without trailing zeros.
     pub fn finish(mut self) -> Vec<u8> {
         for _ in 0..5 {

@@ -145,7 +145,8 @@ fn neighbours(states: &[MbState], cols: usize, x: usize, y: usize) -> [MbState; 
     [left, above]
 }
 
-fn code_mb<B: Bins>(b: &mut B, n: &[MbState; 2], inter_frame: bool, mode: &MbMode, uses_mvs: bool) {
+/// Everything of a macroblock's mode but its vector difference.
+fn code_flags<B: Bins>(b: &mut B, n: &[MbState; 2], inter_frame: bool, mode: &MbMode) {
     if inter_frame {
         let skipped = n.iter().filter(|s| s.skip).count();
         b.bin(SKIP + skipped, *mode == MbMode::Skip);
@@ -155,21 +156,26 @@ fn code_mb<B: Bins>(b: &mut B, n: &[MbState; 2], inter_frame: bool, mode: &MbMod
         let intra = n.iter().filter(|s| s.intra).count();
         b.bin(INTRA + intra, matches!(mode, MbMode::Intra { .. }));
     }
-    match *mode {
-        MbMode::Skip => {}
-        MbMode::Inter { mvd } => {
-            if uses_mvs {
-                for (c, d) in [mvd.x, mvd.y].into_iter().enumerate() {
-                    let sum = n[0].mvd_abs[c] + n[1].mvd_abs[c];
-                    code_component(b, MVD + c * VECTOR_CONTEXTS, sum, d);
-                }
-            }
-        }
-        MbMode::Intra { luma, chroma } => {
-            code_intra_mode(b, LUMA_MODE, luma);
-            code_intra_mode(b, CHROMA_MODE, chroma);
+    if let MbMode::Intra { luma, chroma } = *mode {
+        code_intra_mode(b, LUMA_MODE, luma);
+        code_intra_mode(b, CHROMA_MODE, chroma);
+    }
+}
+
+/// The vector difference of an inter macroblock (none for the others, or
+/// when the frame codes no vectors).
+fn code_mvd<B: Bins>(b: &mut B, n: &[MbState; 2], mode: &MbMode, uses_mvs: bool) {
+    if let (MbMode::Inter { mvd }, true) = (mode, uses_mvs) {
+        for (c, d) in [mvd.x, mvd.y].into_iter().enumerate() {
+            let sum = n[0].mvd_abs[c] + n[1].mvd_abs[c];
+            code_component(b, MVD + c * VECTOR_CONTEXTS, sum, d);
         }
     }
+}
+
+fn code_mb<B: Bins>(b: &mut B, n: &[MbState; 2], inter_frame: bool, mode: &MbMode, uses_mvs: bool) {
+    code_flags(b, n, inter_frame, mode);
+    code_mvd(b, n, mode, uses_mvs);
 }
 
 fn state_of(mode: &MbMode) -> MbState {
@@ -300,19 +306,10 @@ impl ModeCoder {
             contexts: &mut self.contexts[..],
             cost: 0,
         };
-        let flags_only = match mode {
-            MbMode::Inter { .. } => MbMode::Inter { mvd: Mv::ZERO },
-            m => *m,
-        };
-        code_mb(&mut w, &n, inter_frame, &flags_only, false);
+        code_flags(&mut w, &n, inter_frame, mode);
         let rest = w.cost;
         w.cost = 0;
-        if let (MbMode::Inter { mvd }, true) = (mode, uses_mvs) {
-            for (c, d) in [mvd.x, mvd.y].into_iter().enumerate() {
-                let sum = n[0].mvd_abs[c] + n[1].mvd_abs[c];
-                code_component(&mut w, MVD + c * VECTOR_CONTEXTS, sum, d);
-            }
-        }
+        code_mvd(&mut w, &n, mode, uses_mvs);
         let motion = w.cost;
         self.states[mb_y * self.mb_cols + mb_x] = state_of(mode);
         (motion, rest)

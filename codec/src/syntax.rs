@@ -331,8 +331,8 @@ fn grid_prediction(grid: &MotionGrid, col: usize, row: usize) -> Mv {
 }
 
 /// The mode layer's view of a macroblock: its vector as a difference from
-/// the prediction.
-fn mb_mode(kind: &MbKind, predicted: Mv, uses_mvs: bool) -> MbMode {
+/// the prediction (zero when the frame codes no vectors).
+pub fn mb_mode(kind: &MbKind, predicted: Mv, uses_mvs: bool) -> MbMode {
     match *kind {
         MbKind::Skip => MbMode::Skip,
         MbKind::Inter { mv } => MbMode::Inter {

@@ -8,7 +8,7 @@ use crate::codec::mv::Mv;
 use crate::codec::recon::{predict_inter, predict_intra, reconstruct_mb, InterContext, MbPrediction};
 use crate::codec::residual::{MbResidual, ResidualCoder};
 use crate::codec::syntax::{
-    mb_vector, mv_prediction, CodedMb, FrameHeader, FrameSyntax, FrameType, MbKind, MotionTool,
+    mb_mode, mb_vector, mv_prediction, CodedMb, FrameHeader, FrameSyntax, FrameType, MbKind, MotionTool,
     SequenceHeader,
 };
 use crate::codec::warp::warp_frame;
@@ -212,14 +212,7 @@ pub(crate) fn code_inter(
             }
         }
         reconstruct_mb(&best.pred, &best.residual, coder.qp, &mut recon, mb_x, mb_y);
-        let mode = match best.kind {
-            MbKind::Skip => MbMode::Skip,
-            MbKind::Inter { mv } => MbMode::Inter {
-                mvd: if uses_mvs { mv - mvp } else { Mv::ZERO },
-            },
-            MbKind::Intra { luma, chroma } => MbMode::Intra { luma, chroma },
-        };
-        modes.commit(mb_x, mb_y, true, uses_mvs, &mode);
+        modes.commit(mb_x, mb_y, true, uses_mvs, &mb_mode(&best.kind, mvp, uses_mvs));
         if best.kind != MbKind::Skip {
             let intra = matches!(best.kind, MbKind::Intra { .. });
             rates.commit(mb_x, mb_y, intra, &best.residual);

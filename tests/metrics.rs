@@ -1,5 +1,5 @@
 //! Metrics against hand computation and against independent implementations
-//! (ffmpeg's psnr filter, scikit-image's SSIM) on a real pair.
+//! (ffmpeg's psnr and ssim filters, scikit-image's SSIM) on a real pair.
 //! The reference figures come from `samples/reference/make_tree_reference.sh`.
 
 use std::path::Path;
@@ -8,7 +8,7 @@ use mocomp::codec::{Frame, Plane};
 use mocomp::flow::Flow;
 use mocomp::io::y4m::Y4mReader;
 use mocomp::metrics::{
-    flow_errors, frame_psnr, psnr, sse, ssim, FrameQuality, QualityAccumulator, PSNR_CAP_DB,
+    flow_errors, frame_psnr, psnr, sse, ssim, ssim_8x8, FrameQuality, QualityAccumulator, PSNR_CAP_DB,
 };
 use ndarray::Array2;
 
@@ -107,6 +107,30 @@ fn ssim_matches_scikit_image_on_a_real_pair() {
     for ((fa, fb), w) in a.iter().zip(&b).zip(want) {
         let (ours, theirs) = (ssim(fa.y(), fb.y()), w.as_f64().unwrap());
         assert!((ours - theirs).abs() < 1e-9, "{ours} vs scikit-image {theirs}");
+    }
+}
+
+#[test]
+fn ssim_8x8_matches_ffmpeg_on_a_real_pair_and_on_it_darkened() {
+    // ffmpeg prints six decimals; it sums windows in single precision.
+    let r = reference();
+    let (a, b) = real_pair();
+    let dark = |f: &Frame| Plane::from_fn(f.width(), f.height(), |x, y| f.y().get(x, y) / 32).unwrap();
+    for (key, darken) in [
+        ("ffmpeg_ssim_y_per_frame", false),
+        ("ffmpeg_ssim_y_dark_per_frame", true),
+    ] {
+        let want = r[key].as_array().unwrap();
+        assert_eq!(want.len(), a.len());
+        for ((fa, fb), w) in a.iter().zip(&b).zip(want) {
+            let ours = if darken {
+                ssim_8x8(&dark(fa), &dark(fb))
+            } else {
+                ssim_8x8(fa.y(), fb.y())
+            };
+            let theirs = w.as_f64().unwrap();
+            assert!((ours - theirs).abs() < 2e-6, "{key}: {ours} vs ffmpeg {theirs}");
+        }
     }
 }
 

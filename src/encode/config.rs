@@ -229,7 +229,8 @@ pub struct EncoderConfig {
     /// Rate-distortion optimised quantisation: each level moves toward
     /// zero when that lowers SSD + lambda * bits.
     pub rdoq: bool,
-    /// Measure SSIM of every frame (the rest of the statistics are cheap).
+    /// Measure SSIM of every frame (x264's 8x8 windows: about 1 % of the
+    /// encoding time).
     pub ssim: bool,
 }
 

@@ -42,7 +42,7 @@ use crate::codec::recon::crop;
 use crate::codec::syntax::{write_frame, EntropyState, FrameType, MotionTool, SequenceHeader, STREAM_END};
 use crate::codec::{Frame, PictureError};
 use crate::io::y4m::{Y4mError, Y4mReader};
-use crate::metrics::{frame_psnr, psnr_from_mse, ssim};
+use crate::metrics::{frame_psnr, psnr_from_mse, ssim_8x8};
 use macroblock::MbCoder;
 use motion::MotionAnalyser;
 
@@ -223,7 +223,7 @@ impl Encoder {
             psnr_u: psnr.u,
             psnr_v: psnr.v,
             ssim: if self.config.ssim {
-                ssim(source.y(), recon.y())
+                ssim_8x8(source.y(), recon.y())
             } else {
                 f64::NAN
             },

@@ -23,7 +23,8 @@ pub struct FrameStats {
     pub psnr_u: f64,
     /// Cr PSNR, dB.
     pub psnr_v: f64,
-    /// Luma SSIM (NaN when not measured).
+    /// Luma SSIM as x264 and ffmpeg's `ssim` filter compute it
+    /// ([`ssim_8x8`](crate::metrics::ssim_8x8)); NaN when not measured.
     pub ssim: f64,
     /// Luma PSNR of the prediction before the residual, dB.
     pub prediction_psnr_y: f64,
@@ -84,7 +85,8 @@ pub struct Summary {
     pub psnr_u: f64,
     /// Mean Cr PSNR, dB.
     pub psnr_v: f64,
-    /// Mean luma SSIM (NaN when not measured).
+    /// Mean over frames of luma SSIM as x264 and ffmpeg compute it (NaN
+    /// when not measured).
     pub ssim: f64,
     /// Header bits (the sequence header and end marker included).
     pub bits_header: u64,

@@ -4,10 +4,12 @@
 mod flow_error;
 mod psnr;
 mod ssim;
+mod ssim_8x8;
 
 pub use flow_error::{flow_errors, FlowErrors};
 pub use psnr::{frame_psnr, mse, psnr, psnr_from_mse, sse, FramePsnr, PSNR_CAP_DB};
 pub use ssim::ssim;
+pub use ssim_8x8::ssim_8x8;
 
 use serde::Serialize;
 

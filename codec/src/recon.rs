@@ -72,26 +72,39 @@ pub fn predict_intra(
     chroma: intra::IntraMode,
 ) -> MbPrediction {
     let mut pred = MbPrediction::default();
-    let one = |plane: &Plane, size: usize, mode, out: &mut [u8]| {
-        let (x0, y0) = (mb_x * size, mb_y * size);
-        let top = (mb_y > 0).then(|| &plane.row(y0 - 1)[x0..x0 + size]);
-        let mut column = [0u8; MB];
-        for (r, v) in column[..size].iter_mut().enumerate() {
-            *v = plane.at(x0 as isize - 1, (y0 + r) as isize);
-        }
-        let left = (mb_x > 0).then_some(&column[..size]);
-        let top_left = (mb_x > 0 && mb_y > 0).then(|| plane.get(x0 - 1, y0 - 1));
-        let n = Neighbours { top, left, top_left };
-        let done = intra::predict(mode, size, &n, out, size);
-        assert!(
-            done.is_ok(),
-            "intra mode {mode:?} not allowed at macroblock ({mb_x}, {mb_y})"
-        );
-    };
-    one(recon.y(), MB, luma, &mut pred.luma);
-    one(recon.u(), MB / 2, chroma, &mut pred.chroma[0]);
-    one(recon.v(), MB / 2, chroma, &mut pred.chroma[1]);
+    predict_intra_plane(recon, 0, mb_x, mb_y, luma, &mut pred.luma);
+    predict_intra_plane(recon, 1, mb_x, mb_y, chroma, &mut pred.chroma[0]);
+    predict_intra_plane(recon, 2, mb_x, mb_y, chroma, &mut pred.chroma[1]);
     pred
+}
+
+/// One plane of [`predict_intra`] (0 luma, 16x16; 1 and 2 chroma, 8x8),
+/// into `out` (row stride the block's side): what an encoder comparing
+/// modes plane by plane needs.
+pub fn predict_intra_plane(
+    recon: &Frame,
+    plane: usize,
+    mb_x: usize,
+    mb_y: usize,
+    mode: intra::IntraMode,
+    out: &mut [u8],
+) {
+    let size = if plane == 0 { MB } else { MB / 2 };
+    let plane = recon.plane(plane);
+    let (x0, y0) = (mb_x * size, mb_y * size);
+    let top = (mb_y > 0).then(|| &plane.row(y0 - 1)[x0..x0 + size]);
+    let mut column = [0u8; MB];
+    for (r, v) in column[..size].iter_mut().enumerate() {
+        *v = plane.at(x0 as isize - 1, (y0 + r) as isize);
+    }
+    let left = (mb_x > 0).then_some(&column[..size]);
+    let top_left = (mb_x > 0 && mb_y > 0).then(|| plane.get(x0 - 1, y0 - 1));
+    let n = Neighbours { top, left, top_left };
+    let done = intra::predict(mode, size, &n, out, size);
+    assert!(
+        done.is_ok(),
+        "intra mode {mode:?} not allowed at macroblock ({mb_x}, {mb_y})"
+    );
 }
 
 /// Inter prediction of macroblock (mb_x, mb_y) with vector `mv` (ignored in
@@ -161,29 +174,68 @@ pub fn predict_inter(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mv: Mv) -
 }
 
 /// Adds one 4x4 block of levels, dequantised at `qp`, to the prediction
-/// and writes the clipped result.
-fn add_block(
-    pred: &[u8],
-    pred_stride: usize,
-    levels: &Block4,
-    qp: u8,
-    out: &mut [u8],
-    out_stride: usize,
-    at: (usize, usize),
-) {
+/// (a `stride`-wide block) at (bx, by) and writes the clipped result to the
+/// same place of `out`.
+fn add_block(pred: &[u8], levels: &Block4, qp: u8, out: &mut [u8], stride: usize, at: (usize, usize)) {
     let (bx, by) = at;
-    let zero = levels.iter().all(|r| r.iter().all(|&v| v == 0));
-    let residual = if zero {
-        [[0; 4]; 4]
-    } else {
-        let mut c = *levels;
-        dequantize(&mut c, qp);
-        inverse_4x4(&c)
-    };
-    for r in 0..4 {
-        for c in 0..4 {
-            let p = i32::from(pred[(by + r) * pred_stride + bx + c]);
-            out[(by + r) * out_stride + bx + c] = (p + residual[r][c]).clamp(0, 255) as u8;
+    let rows = (0..4).map(|r| (by + r) * stride + bx);
+    if levels.iter().all(|r| r.iter().all(|&v| v == 0)) {
+        for i in rows {
+            out[i..i + 4].copy_from_slice(&pred[i..i + 4]);
+        }
+        return;
+    }
+    let mut c = *levels;
+    dequantize(&mut c, qp);
+    let residual = inverse_4x4(&c);
+    for (i, res) in rows.zip(&residual) {
+        for ((o, &p), &d) in out[i..i + 4].iter_mut().zip(&pred[i..i + 4]).zip(res) {
+            *o = (i32::from(p) + d).clamp(0, 255) as u8;
+        }
+    }
+}
+
+/// The samples macroblock coding gives: `pred` plus `residual` dequantised
+/// at `qp` (chroma at [`chroma_qp`]), in a macroblock-shaped block.
+pub fn reconstruct_samples(pred: &MbPrediction, residual: &MbResidual, qp: u8) -> MbPrediction {
+    let mut out = MbPrediction::default();
+    for (i, levels) in residual.luma.iter().enumerate() {
+        add_block(
+            &pred.luma,
+            levels,
+            qp,
+            &mut out.luma,
+            MB,
+            ((i % 4) * 4, (i / 4) * 4),
+        );
+    }
+    let cqp = chroma_qp(qp);
+    for p in 0..2 {
+        for (i, levels) in residual.chroma[p].iter().enumerate() {
+            add_block(
+                &pred.chroma[p],
+                levels,
+                cqp,
+                &mut out.chroma[p],
+                8,
+                ((i % 2) * 4, (i / 2) * 4),
+            );
+        }
+    }
+    out
+}
+
+/// Writes macroblock-shaped `samples` to macroblock (mb_x, mb_y) of `recon`.
+/// Borders are not extended.
+pub fn write_mb(samples: &MbPrediction, recon: &mut Frame, mb_x: usize, mb_y: usize) {
+    let (x0, y0) = (mb_x * MB, mb_y * MB);
+    for (r, row) in samples.luma.chunks_exact(MB).enumerate() {
+        recon.plane_mut(0).row_mut(y0 + r)[x0..x0 + MB].copy_from_slice(row);
+    }
+    let (cx, cy) = (x0 / 2, y0 / 2);
+    for p in 0..2 {
+        for (r, row) in samples.chroma[p].chunks_exact(8).enumerate() {
+            recon.plane_mut(p + 1).row_mut(cy + r)[cx..cx + 8].copy_from_slice(row);
         }
     }
 }
@@ -198,41 +250,7 @@ pub fn reconstruct_mb(
     mb_x: usize,
     mb_y: usize,
 ) {
-    let mut luma = [0u8; 256];
-    for (i, levels) in residual.luma.iter().enumerate() {
-        add_block(
-            &pred.luma,
-            MB,
-            levels,
-            qp,
-            &mut luma,
-            MB,
-            ((i % 4) * 4, (i / 4) * 4),
-        );
-    }
-    let (x0, y0) = (mb_x * MB, mb_y * MB);
-    for r in 0..MB {
-        recon.plane_mut(0).row_mut(y0 + r)[x0..x0 + MB].copy_from_slice(&luma[r * MB..(r + 1) * MB]);
-    }
-    let cqp = chroma_qp(qp);
-    for p in 0..2 {
-        let mut chroma = [0u8; 64];
-        for (i, levels) in residual.chroma[p].iter().enumerate() {
-            add_block(
-                &pred.chroma[p],
-                8,
-                levels,
-                cqp,
-                &mut chroma,
-                8,
-                ((i % 2) * 4, (i / 2) * 4),
-            );
-        }
-        let (cx, cy) = (x0 / 2, y0 / 2);
-        for r in 0..8 {
-            recon.plane_mut(p + 1).row_mut(cy + r)[cx..cx + 8].copy_from_slice(&chroma[r * 8..(r + 1) * 8]);
-        }
-    }
+    write_mb(&reconstruct_samples(pred, residual, qp), recon, mb_x, mb_y);
 }
 
 /// The vectors of every macroblock of a frame (`None` for intra).

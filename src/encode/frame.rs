@@ -5,7 +5,7 @@ use super::macroblock::{MbCoder, MbSource};
 use super::motion::FrameMotion;
 use crate::codec::modes::{MbMode, ModeCoder};
 use crate::codec::mv::Mv;
-use crate::codec::recon::{predict_inter, predict_intra, reconstruct_mb, InterContext, MbPrediction};
+use crate::codec::recon::{predict_inter, predict_intra, write_mb, InterContext, MbPrediction};
 use crate::codec::residual::{MbResidual, ResidualCoder};
 use crate::codec::syntax::{
     mb_mode, mb_vector, mv_prediction, CodedMb, FrameHeader, FrameSyntax, FrameType, MbKind, MotionTool,
@@ -76,7 +76,8 @@ pub(crate) fn code_intra(
         let (mb_x, mb_y) = (i % cols, i / cols);
         let s = MbSource::load(src, mb_x, mb_y);
         let (luma, chroma, pred, _) = coder.best_intra(&s, &recon, mb_x, mb_y);
-        let coded = coder.code(&s, &pred, true, &rates, &mut recon, mb_x, mb_y);
+        let coded = coder.code(&s, &pred, true, &rates, mb_x, mb_y);
+        write_mb(&coded.samples, &mut recon, mb_x, mb_y);
         rates.commit(mb_x, mb_y, true, &coded.residual);
         prediction_sse += visible_luma_sse(&s, &pred, mb_x, mb_y, seq);
         mbs.push(CodedMb::new(MbKind::Intra { luma, chroma }, coded.residual));
@@ -104,6 +105,8 @@ struct Choice {
     kind: MbKind,
     pred: MbPrediction,
     residual: MbResidual,
+    /// The reconstruction it gives.
+    samples: MbPrediction,
 }
 
 /// A P frame predicted from `reference` with `motion` and `tool`,
@@ -165,6 +168,7 @@ pub(crate) fn code_inter(
             kind: MbKind::Skip,
             pred: skip_pred.clone(),
             residual: MbResidual::default(),
+            samples: skip_pred.clone(),
         };
         // Every other choice spends at least the flag saying it is not
         // skipped: when skip costs no more, nothing can beat it.
@@ -179,7 +183,7 @@ pub(crate) fn code_inter(
                 predict_inter(&ctx, mb_x, mb_y, mv)
             };
             inter_satd = inter_satd.min(luma_satd(&s, &pred));
-            let coded = coder.code(&s, &pred, false, &rates, &mut recon, mb_x, mb_y);
+            let coded = coder.code(&s, &pred, false, &rates, mb_x, mb_y);
             let mode = MbMode::Inter { mvd: mv - mvp };
             let bits = mode_bits(&modes, mb_x, mb_y, &mode) + coded.bits;
             let cost = coder.cost(coded.ssd, bits);
@@ -189,6 +193,7 @@ pub(crate) fn code_inter(
                     kind: MbKind::Inter { mv },
                     pred,
                     residual: coded.residual,
+                    samples: coded.samples,
                 };
             }
         }
@@ -197,7 +202,7 @@ pub(crate) fn code_inter(
             // Intra is coded only when its prediction is not clearly worse
             // than inter's (as the H.264 reference encoder's fast modes).
             if intra_satd < inter_satd {
-                let coded = coder.code(&s, &pred, true, &rates, &mut recon, mb_x, mb_y);
+                let coded = coder.code(&s, &pred, true, &rates, mb_x, mb_y);
                 let mode = MbMode::Intra { luma, chroma };
                 let bits = mode_bits(&modes, mb_x, mb_y, &mode) + coded.bits;
                 let cost = coder.cost(coded.ssd, bits);
@@ -207,11 +212,12 @@ pub(crate) fn code_inter(
                         kind: MbKind::Intra { luma, chroma },
                         pred,
                         residual: coded.residual,
+                        samples: coded.samples,
                     };
                 }
             }
         }
-        reconstruct_mb(&best.pred, &best.residual, coder.qp, &mut recon, mb_x, mb_y);
+        write_mb(&best.samples, &mut recon, mb_x, mb_y);
         modes.commit(mb_x, mb_y, true, uses_mvs, &mb_mode(&best.kind, mvp, uses_mvs));
         if best.kind != MbKind::Skip {
             let intra = matches!(best.kind, MbKind::Intra { .. });
@@ -282,9 +288,10 @@ fn recode(
         };
         frame.prediction_sse += visible_luma_sse(&s, &pred, mb_x, mb_y, seq);
         if mb.kind == MbKind::Skip {
-            reconstruct_mb(&pred, &MbResidual::default(), coder.qp, &mut recon, mb_x, mb_y);
+            write_mb(&pred, &mut recon, mb_x, mb_y);
         } else {
-            let coded = coder.code(&s, &pred, intra, &rates, &mut recon, mb_x, mb_y);
+            let coded = coder.code(&s, &pred, intra, &rates, mb_x, mb_y);
+            write_mb(&coded.samples, &mut recon, mb_x, mb_y);
             rates.commit(mb_x, mb_y, intra, &coded.residual);
             *mb = CodedMb::new(mb.kind, coded.residual);
         }

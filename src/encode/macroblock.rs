@@ -6,7 +6,7 @@
 use crate::codec::bits::{se_len, ue_len};
 use crate::codec::intra::IntraMode;
 use crate::codec::mv::Mv;
-use crate::codec::recon::{chroma_qp, predict_intra, reconstruct_mb, MbPrediction};
+use crate::codec::recon::{chroma_qp, predict_intra_plane, reconstruct_samples, MbPrediction};
 use crate::codec::residual::{MbResidual, ResidualCoder, ZIGZAG};
 use crate::codec::syntax::{intra_mode_allowed, MB};
 use crate::codec::transform::{dequantize, forward_4x4, inverse_4x4, quantize, Block4};
@@ -70,6 +70,8 @@ pub(crate) struct Coded {
     pub bits: f64,
     /// Squared error of the reconstruction.
     pub ssd: u64,
+    /// The reconstructed macroblock.
+    pub samples: MbPrediction,
 }
 
 /// The per-frame constants of macroblock coding.
@@ -176,18 +178,16 @@ impl MbCoder {
         }
     }
 
-    /// Transforms and quantises `src - pred`, writes the reconstruction to
-    /// macroblock (mb_x, mb_y) of `recon` (through the codec, as the
-    /// decoder will) and measures it, the rate priced by `rates` (the
-    /// frame's residual coder as it stands before this macroblock).
-    #[allow(clippy::too_many_arguments)]
+    /// Transforms and quantises `src - pred`, reconstructs the macroblock
+    /// (through the codec, as the decoder will) and measures it, the rate
+    /// priced by `rates` (the frame's residual coder as it stands before
+    /// macroblock (mb_x, mb_y)).
     pub fn code(
         &self,
         src: &MbSource,
         pred: &MbPrediction,
         intra: bool,
         rates: &ResidualCoder,
-        recon: &mut Frame,
         mb_x: usize,
         mb_y: usize,
     ) -> Coded {
@@ -245,12 +245,12 @@ impl MbCoder {
                 residual.chroma[p] = [[[0; 4]; 4]; 4];
             }
         }
-        reconstruct_mb(pred, &residual, self.qp, recon, mb_x, mb_y);
-        let ssd = src.ssd(&MbSource::load(recon, mb_x, mb_y).as_prediction());
+        let samples = reconstruct_samples(pred, &residual, self.qp);
         Coded {
             bits: f64::from(rates.cost(mb_x, mb_y, intra, &residual)) / 256.0,
+            ssd: src.ssd(&samples),
             residual,
-            ssd,
+            samples,
         }
     }
 
@@ -275,47 +275,35 @@ impl MbCoder {
                 .into_iter()
                 .filter(move |&m| intra_mode_allowed(m, mb_x, mb_y))
         };
-        let mut best = (
-            f64::INFINITY,
-            IntraMode::Dc,
-            IntraMode::Dc,
-            MbPrediction::default(),
-        );
-        // Luma and chroma modes are independent: choose luma with DC chroma,
-        // then chroma with the chosen luma.
+        // Luma and chroma modes are independent: each plane's mode is
+        // chosen on its own.
+        let mut pred = MbPrediction::default();
+        let mut trial = [0u8; 256];
+        let (mut luma, mut best_cost, mut satd) = (IntraMode::Dc, f64::INFINITY, 0);
         for m in allowed() {
-            let p = predict_intra(recon, mb_x, mb_y, m, IntraMode::Dc);
-            let c = f64::from(Metric::Satd.cost(&src.luma, MB, &p.luma, MB, MB, MB))
-                + sad_lambda * f64::from(ue_len(m as u32));
-            if c < best.0 {
-                best = (c, m, IntraMode::Dc, p);
+            predict_intra_plane(recon, 0, mb_x, mb_y, m, &mut trial);
+            let d = Metric::Satd.cost(&src.luma, MB, &trial, MB, MB, MB);
+            let c = f64::from(d) + sad_lambda * f64::from(ue_len(m as u32));
+            if c < best_cost {
+                (luma, best_cost, satd) = (m, c, d);
+                pred.luma = trial;
             }
         }
-        let luma = best.1;
-        let satd = Metric::Satd.cost(&src.luma, MB, &best.3.luma, MB, MB, MB);
+        let mut chroma = IntraMode::Dc;
         let mut best_c = f64::INFINITY;
+        let mut trial = [[0u8; 64]; 2];
         for m in allowed() {
-            let p = predict_intra(recon, mb_x, mb_y, luma, m);
-            let c = (0..2)
-                .map(|k| f64::from(Metric::Sad.cost(&src.chroma[k], 8, &p.chroma[k], 8, 8, 8)))
-                .sum::<f64>()
-                + sad_lambda * f64::from(ue_len(m as u32));
+            let mut c = sad_lambda * f64::from(ue_len(m as u32));
+            for (k, t) in trial.iter_mut().enumerate() {
+                predict_intra_plane(recon, k + 1, mb_x, mb_y, m, t);
+                c += f64::from(Metric::Sad.cost(&src.chroma[k], 8, t, 8, 8, 8));
+            }
             if c < best_c {
-                best_c = c;
-                best.2 = m;
-                best.3 = p;
+                (chroma, best_c) = (m, c);
+                pred.chroma = trial;
             }
         }
-        (best.1, best.2, best.3, satd)
-    }
-}
-
-impl MbSource {
-    fn as_prediction(&self) -> MbPrediction {
-        MbPrediction {
-            luma: self.luma,
-            chroma: self.chroma,
-        }
+        (luma, chroma, pred, satd)
     }
 }
 

@@ -10,7 +10,6 @@
 
 use std::cell::RefCell;
 
-use crate::codec::interp::predict_luma;
 use crate::codec::Plane;
 
 thread_local! {
@@ -31,8 +30,8 @@ fn take_plane(w: usize, h: usize, pad: usize) -> Option<Plane> {
     reused.or_else(|| Plane::with_padding(w, h, pad).ok())
 }
 
-/// Tile side used to fill the planes.
-const TILE: usize = 16;
+/// How far beyond a sample the 8-tap filter reads (3 before, 4 after).
+const FILTER_REACH: usize = 4;
 
 /// The reference's half-pel phases over the picture and a margin around it.
 pub(crate) struct HalfPel {
@@ -45,39 +44,19 @@ pub(crate) struct HalfPel {
 }
 
 impl HalfPel {
-    /// The half-pel planes of `reference`, filled `margin` pixels (a
-    /// multiple of 16) beyond each edge; `margin + 16` must not exceed the
-    /// reference's border.
+    /// The half-pel planes of `reference`, filled `margin` pixels beyond
+    /// each edge; `margin + 4` must not exceed the reference's border.
     pub fn new(reference: &Plane, margin: usize) -> Option<HalfPel> {
         let (w, h, pad) = (reference.width(), reference.height(), reference.pad());
-        if margin + TILE > pad {
+        if margin + FILTER_REACH > pad {
             return None;
         }
         let mut planes = Vec::with_capacity(3);
         for _ in 0..3 {
             planes.push(take_plane(w, h, pad)?);
         }
+        fill_planes(reference, margin, &mut planes);
         let m = margin as isize;
-        let mut tile = [0u8; TILE * TILE];
-        for (p, (mvx, mvy)) in [(2, 0), (0, 2), (2, 2)].into_iter().enumerate() {
-            let plane = &mut planes[p];
-            let stride = plane.stride();
-            let mut y = -m;
-            while y < h as isize + m {
-                let mut x = -m;
-                while x < w as isize + m {
-                    predict_luma(reference, x, y, mvx, mvy, TILE, TILE, &mut tile, TILE);
-                    let at = plane.index(x, y);
-                    let data = plane.data_mut();
-                    for r in 0..TILE {
-                        data[at + r * stride..at + r * stride + TILE]
-                            .copy_from_slice(&tile[r * TILE..(r + 1) * TILE]);
-                    }
-                    x += TILE as isize;
-                }
-                y += TILE as isize;
-            }
-        }
         Some(HalfPel { planes, margin: m })
     }
 
@@ -143,6 +122,80 @@ impl HalfPel {
     }
 }
 
+/// The half-pel filter (the codec's 8-tap filter at phase 1/2).
+const HALF: [i16; 8] = [-1, 4, -11, 40, 40, -11, 4, -1];
+
+/// Writes the three half-pel phases of `reference` over the picture and
+/// `margin` pixels around it, row by row (the codec's arithmetic: the
+/// diagonal phase filters the unrounded horizontal pass vertically).
+fn fill_planes(reference: &Plane, margin: usize, planes: &mut [Plane]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2; the function is the safe code below
+            // compiled with AVX2 (integer arithmetic: the same samples).
+            unsafe { fill_planes_avx2(reference, margin, planes) };
+            return;
+        }
+    }
+    fill_planes_body(reference, margin, planes);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn fill_planes_avx2(reference: &Plane, margin: usize, planes: &mut [Plane]) {
+    fill_planes_body(reference, margin, planes);
+}
+
+#[inline(always)]
+fn fill_planes_body(reference: &Plane, margin: usize, planes: &mut [Plane]) {
+    let (w, h, m) = (reference.width(), reference.height(), margin as isize);
+    let span = w + 2 * margin;
+    let clip = |v: i32| v.clamp(0, 255) as u8;
+    // Unrounded horizontal pass (within i16: -6120..=22440) of the rows
+    // the vertical filters read: -m - 3 .. h + m + 4.
+    let rows = h + 2 * margin + 7;
+    let mut hpass = vec![0i16; rows * span];
+    for (r, out) in hpass.chunks_exact_mut(span).enumerate() {
+        let src = &reference.data()[reference.index(-m - 3, r as isize - m - 3)..];
+        for (k, &t) in HALF.iter().enumerate() {
+            for (o, &v) in out.iter_mut().zip(&src[k..k + span]) {
+                *o += t * i16::from(v);
+            }
+        }
+    }
+    let hrow = |y: usize| &hpass[y * span..(y + 1) * span];
+    let mut acc16 = vec![0i16; span];
+    let mut acc32 = vec![0i32; span];
+    for y in 0..h + 2 * margin {
+        let at = planes[0].index(-m, y as isize - m);
+        for (o, &v) in planes[0].data_mut()[at..at + span].iter_mut().zip(hrow(y + 3)) {
+            *o = clip((i32::from(v) + 32) >> 6);
+        }
+        acc16.fill(0);
+        for (k, &t) in HALF.iter().enumerate() {
+            let at = reference.index(-m, y as isize - m - 3 + k as isize);
+            for (a, &v) in acc16.iter_mut().zip(&reference.data()[at..at + span]) {
+                *a += t * i16::from(v);
+            }
+        }
+        let at = planes[1].index(-m, y as isize - m);
+        for (o, &v) in planes[1].data_mut()[at..at + span].iter_mut().zip(&acc16) {
+            *o = clip((i32::from(v) + 32) >> 6);
+        }
+        acc32.fill(0);
+        for (k, &t) in HALF.iter().enumerate() {
+            for (a, &v) in acc32.iter_mut().zip(hrow(y + k)) {
+                *a += i32::from(t) * i32::from(v);
+            }
+        }
+        let at = planes[2].index(-m, y as isize - m);
+        for (o, &v) in planes[2].data_mut()[at..at + span].iter_mut().zip(&acc32) {
+            *o = clip(((v >> 6) + 32) >> 6);
+        }
+    }
+}
+
 impl Drop for HalfPel {
     fn drop(&mut self) {
         SPARE.with(|s| {
@@ -158,6 +211,7 @@ impl Drop for HalfPel {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::codec::interp::predict_luma;
 
     fn textured(w: usize, h: usize) -> Plane {
         Plane::from_fn(w, h, |x, y| {
@@ -188,6 +242,20 @@ mod tests {
                 }
             }
         }
+        // Every sample of the three planes, on a picture of odd size.
+        let r = textured(37, 21);
+        let hp = HalfPel::new(&r, 16).unwrap();
+        let mut one = [0u8; 1];
+        for (p, (mvx, mvy)) in [(2, 0), (0, 2), (2, 2)].into_iter().enumerate() {
+            for y in -16..21 + 16 {
+                for x in -16..37 + 16 {
+                    predict_luma(&r, x, y, mvx, mvy, 1, 1, &mut one, 1);
+                    assert_eq!(hp.planes[p].at(x, y), one[0], "phase {p} at ({x}, {y})");
+                }
+            }
+        }
+        let r = textured(64, 48);
+        let hp = HalfPel::new(&r, 32).unwrap();
         // Beyond the margin: refused, so that the caller uses the codec.
         assert!(!hp.predict(&r, 0, 0, -4 * 40, 0, 16, &mut a));
     }

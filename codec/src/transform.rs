@@ -132,6 +132,12 @@ pub fn dequantize(coeffs: &mut Block4, qp: u8) {
 /// `(x + 32) >> 6`. Inputs within 16 bits keep every intermediate within
 /// 20 bits.
 pub fn inverse_4x4(d: &Block4) -> Block4 {
+    inverse_4x4_unrounded(d).map(|row| row.map(|v| (v + 32) >> 6))
+}
+
+/// [`inverse_4x4`] before its final rounding: what an encoder weighing
+/// changes of single coefficients can update in place.
+pub fn inverse_4x4_unrounded(d: &Block4) -> Block4 {
     let mut tmp = [[0i32; 4]; 4];
     for (i, row) in d.iter().enumerate() {
         let (e, f) = (row[0] + row[2], row[0] - row[2]);
@@ -142,10 +148,10 @@ pub fn inverse_4x4(d: &Block4) -> Block4 {
     for j in 0..4 {
         let (e, f) = (tmp[0][j] + tmp[2][j], tmp[0][j] - tmp[2][j]);
         let (g, h) = ((tmp[1][j] >> 1) - tmp[3][j], tmp[1][j] + (tmp[3][j] >> 1));
-        out[0][j] = (e + h + 32) >> 6;
-        out[1][j] = (f + g + 32) >> 6;
-        out[2][j] = (f - g + 32) >> 6;
-        out[3][j] = (e - h + 32) >> 6;
+        out[0][j] = e + h;
+        out[1][j] = f + g;
+        out[2][j] = f - g;
+        out[3][j] = e - h;
     }
     out
 }

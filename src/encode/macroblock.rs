@@ -9,7 +9,9 @@ use crate::codec::mv::Mv;
 use crate::codec::recon::{chroma_qp, predict_intra_plane, reconstruct_samples, MbPrediction};
 use crate::codec::residual::{MbResidual, ResidualCoder, ZIGZAG};
 use crate::codec::syntax::{intra_mode_allowed, MB};
-use crate::codec::transform::{dequantize, forward_4x4, inverse_4x4, quantize, Block4};
+use crate::codec::transform::{
+    dequantize, forward_4x4, inverse_4x4, inverse_4x4_unrounded, quantize, Block4,
+};
 use crate::codec::Frame;
 use crate::me::Metric;
 
@@ -133,16 +135,40 @@ impl BlockRate<'_> {
     }
 }
 
+/// The inverse transform's basis doubled: row `k` is twice the weight of
+/// coefficient `k` on each of the four samples in one butterfly pass.
+const INVERSE_BASIS_X2: [[i32; 4]; 4] = [[2, 2, 2, 2], [2, 1, -1, -2], [2, -2, -2, 2], [1, -2, 2, -1]];
+
+/// Squared error between a residual and the reconstruction whose inverse
+/// transform before the final rounding is `unrounded`.
+fn rounded_error(residual: &Block4, unrounded: &Block4) -> i64 {
+    let mut e = 0i64;
+    for (a, u) in residual.iter().flatten().zip(unrounded.iter().flatten()) {
+        let x = i64::from(a - ((u + 32) >> 6));
+        e += x * x;
+    }
+    e
+}
+
 /// Rate-distortion optimised quantisation, greedy: from the last level in
 /// scan order to the first, each level moves one step toward zero when
 /// that lowers squared error + lambda * bits (the residual coder's price
 /// of the block; the error measured after the inverse transform, so the
 /// transform's unequal gains are accounted for).
+///
+/// The error of a step is exact and cheap: when the dequantised
+/// coefficient changes by a multiple of 4 (every step from QP 12 up), the
+/// butterflies' halvings stay exact, so the inverse transform before its
+/// final rounding moves by `d/4` times the coefficient's (doubled) basis
+/// block. Other steps go through the whole inverse transform.
 fn lower_levels(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rate: BlockRate<'_>) {
     if levels.iter().flatten().all(|&v| v == 0) {
         return;
     }
-    let mut error = block_error(residual, levels, qp);
+    let mut coeffs = *levels;
+    dequantize(&mut coeffs, qp);
+    let mut unrounded = inverse_4x4_unrounded(&coeffs);
+    let mut error = rounded_error(residual, &unrounded);
     let mut bits = rate.bits(levels);
     for &k in ZIGZAG.iter().rev() {
         let (r, c) = (k / 4, k % 4);
@@ -152,10 +178,33 @@ fn lower_levels(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rat
         }
         let mut trial = *levels;
         trial[r][c] = v - v.signum();
-        let e = block_error(residual, &trial, qp);
+        let mut one = [[0; 4]; 4];
+        one[r][c] = trial[r][c];
+        dequantize(&mut one, qp);
+        let delta = one[r][c] - coeffs[r][c];
+        let moved = if delta % 4 == 0 {
+            let mut u = unrounded;
+            for (rr, row) in u.iter_mut().enumerate() {
+                for (cc, x) in row.iter_mut().enumerate() {
+                    *x += delta / 4 * INVERSE_BASIS_X2[r][rr] * INVERSE_BASIS_X2[c][cc];
+                }
+            }
+            u
+        } else {
+            let mut d = coeffs;
+            d[r][c] = one[r][c];
+            inverse_4x4_unrounded(&d)
+        };
+        let e = rounded_error(residual, &moved);
+        // Fewer bits than none cannot pay for more error than this.
+        if (e - error) as f64 >= lambda * bits {
+            continue;
+        }
         let b = rate.bits(&trial);
         if (e - error) as f64 + lambda * (b - bits) < 0.0 {
             *levels = trial;
+            coeffs[r][c] = one[r][c];
+            unrounded = moved;
             error = e;
             bits = b;
         }

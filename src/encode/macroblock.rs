@@ -167,6 +167,12 @@ fn lower_levels(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rat
     }
     let mut coeffs = *levels;
     dequantize(&mut coeffs, qp);
+    // One level's dequantised value, as `dequantize` computes it.
+    let mut step = [[1; 4]; 4];
+    dequantize(&mut step, qp);
+    let dequantized = |level: i32, r: usize, c: usize| {
+        (i64::from(level) * i64::from(step[r][c])).clamp(-32768, 32767) as i32
+    };
     let mut unrounded = inverse_4x4_unrounded(&coeffs);
     let mut error = rounded_error(residual, &unrounded);
     let mut bits = rate.bits(levels);
@@ -178,10 +184,8 @@ fn lower_levels(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rat
         }
         let mut trial = *levels;
         trial[r][c] = v - v.signum();
-        let mut one = [[0; 4]; 4];
-        one[r][c] = trial[r][c];
-        dequantize(&mut one, qp);
-        let delta = one[r][c] - coeffs[r][c];
+        let coeff = dequantized(trial[r][c], r, c);
+        let delta = coeff - coeffs[r][c];
         let moved = if delta % 4 == 0 {
             let mut u = unrounded;
             for (rr, row) in u.iter_mut().enumerate() {
@@ -192,7 +196,7 @@ fn lower_levels(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rat
             u
         } else {
             let mut d = coeffs;
-            d[r][c] = one[r][c];
+            d[r][c] = coeff;
             inverse_4x4_unrounded(&d)
         };
         let e = rounded_error(residual, &moved);
@@ -203,7 +207,7 @@ fn lower_levels(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rat
         let b = rate.bits(&trial);
         if (e - error) as f64 + lambda * (b - bits) < 0.0 {
             *levels = trial;
-            coeffs[r][c] = one[r][c];
+            coeffs[r][c] = coeff;
             unrounded = moved;
             error = e;
             bits = b;

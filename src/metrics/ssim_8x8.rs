@@ -35,24 +35,42 @@ fn window_ssim(n: f64, s: [f64; 4]) -> f64 {
     ((2.0 * ma * mb + C1) * (2.0 * covar + C2)) / ((ma * ma + mb * mb + C1) * (vars + C2))
 }
 
+/// Per-column sums of a row of blocks, one array per statistic (so that
+/// the column loop vectorises).
+#[derive(Default)]
+struct ColumnSums {
+    s: [Vec<u32>; 4],
+}
+
 /// The 4x4 block sums of one row of blocks (rows y0 .. y0 + 4), into `out`
-/// (one entry per whole block); `cols` holds per-column sums.
-fn block_row_sums(a: &Plane, b: &Plane, y0: usize, cols: &mut [[u32; 4]], out: &mut [BlockSums]) {
+/// (one entry per whole block).
+fn block_row_sums(a: &Plane, b: &Plane, y0: usize, cols: &mut ColumnSums, out: &mut [BlockSums]) {
     let w = out.len() * 4;
-    cols[..w].fill([0; 4]);
+    let [s1, s2, ss, s12] = &mut cols.s;
+    for v in [&mut *s1, &mut *s2, &mut *ss, &mut *s12] {
+        v.clear();
+        v.resize(w, 0);
+    }
     for r in y0..y0 + 4 {
         let (ra, rb) = (&a.row(r)[..w], &b.row(r)[..w]);
-        for ((c, &p), &q) in cols.iter_mut().zip(ra).zip(rb) {
+        for (((((c1, c2), css), c12), &p), &q) in s1
+            .iter_mut()
+            .zip(s2.iter_mut())
+            .zip(ss.iter_mut())
+            .zip(s12.iter_mut())
+            .zip(ra)
+            .zip(rb)
+        {
             let (p, q) = (u32::from(p), u32::from(q));
-            c[0] += p;
-            c[1] += q;
-            c[2] += p * p + q * q;
-            c[3] += p * q;
+            *c1 += p;
+            *c2 += q;
+            *css += p * p + q * q;
+            *c12 += p * q;
         }
     }
-    for (o, c) in out.iter_mut().zip(cols.chunks_exact(4)) {
-        for k in 0..4 {
-            o[k] = c[0][k] + c[1][k] + c[2][k] + c[3][k];
+    for (x, o) in out.iter_mut().enumerate() {
+        for (k, v) in cols.s.iter().enumerate() {
+            o[k] = v[4 * x..4 * x + 4].iter().sum();
         }
     }
 }
@@ -78,7 +96,7 @@ pub fn ssim_8x8(a: &Plane, b: &Plane) -> f64 {
     if w4 < 2 || h4 < 2 {
         return whole_picture(a, b);
     }
-    let mut cols = vec![[0u32; 4]; w4 * 4];
+    let mut cols = ColumnSums::default();
     let mut above = vec![[0u32; 4]; w4];
     let mut below = vec![[0u32; 4]; w4];
     block_row_sums(a, b, 0, &mut cols, &mut above);

@@ -116,16 +116,22 @@ pub fn quantize(coeffs: &mut Block4, qp: u8, rounding: f64) {
 /// result clamped to -32768..=32767. `qp` must be at most [`MAX_QP`]
 /// (the bitstream reader checks it).
 pub fn dequantize(coeffs: &mut Block4, qp: u8) {
-    debug_assert!(qp <= MAX_QP);
-    let v = &DEQUANT[(qp % 6) as usize];
-    let shift = u32::from(qp / 6);
     for (r, row) in coeffs.iter_mut().enumerate() {
         for (c, w) in row.iter_mut().enumerate() {
-            // i64: a level is at most 2^31 in magnitude, so this cannot overflow.
-            let value = (i64::from(*w) * i64::from(v[class(r, c)])) << shift;
-            *w = value.clamp(-32768, 32767) as i32;
+            *w = dequantize_level(*w, qp, r, c);
         }
     }
+}
+
+/// [`dequantize`] of the one level at row `r`, column `c`: what an encoder
+/// trying single levels needs.
+#[inline]
+pub fn dequantize_level(level: i32, qp: u8, r: usize, c: usize) -> i32 {
+    debug_assert!(qp <= MAX_QP);
+    let v = DEQUANT[(qp % 6) as usize][class(r, c)];
+    // i64: a level is at most 2^31 in magnitude, so this cannot overflow.
+    let value = (i64::from(level) * i64::from(v)) << (qp / 6);
+    value.clamp(-32768, 32767) as i32
 }
 
 /// Normative inverse transform (H.264 8.5.12.2), with the final rounding

@@ -10,7 +10,7 @@ use crate::codec::recon::{chroma_qp, predict_intra_plane, reconstruct_samples, M
 use crate::codec::residual::{MbResidual, ResidualCoder, ZIGZAG};
 use crate::codec::syntax::{intra_mode_allowed, MB};
 use crate::codec::transform::{
-    dequantize, forward_4x4, inverse_4x4, inverse_4x4_unrounded, quantize, Block4,
+    dequantize, dequantize_level, forward_4x4, inverse_4x4, inverse_4x4_unrounded, quantize, Block4,
 };
 use crate::codec::Frame;
 use crate::me::Metric;
@@ -167,12 +167,6 @@ fn lower_levels(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rat
     }
     let mut coeffs = *levels;
     dequantize(&mut coeffs, qp);
-    // One level's dequantised value, as `dequantize` computes it.
-    let mut step = [[1; 4]; 4];
-    dequantize(&mut step, qp);
-    let dequantized = |level: i32, r: usize, c: usize| {
-        (i64::from(level) * i64::from(step[r][c])).clamp(-32768, 32767) as i32
-    };
     let mut unrounded = inverse_4x4_unrounded(&coeffs);
     let mut error = rounded_error(residual, &unrounded);
     let mut bits = rate.bits(levels);
@@ -184,7 +178,7 @@ fn lower_levels(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rat
         }
         let mut trial = *levels;
         trial[r][c] = v - v.signum();
-        let coeff = dequantized(trial[r][c], r, c);
+        let coeff = dequantize_level(trial[r][c], qp, r, c);
         let delta = coeff - coeffs[r][c];
         let moved = if delta % 4 == 0 {
             let mut u = unrounded;

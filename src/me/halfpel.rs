@@ -16,6 +16,8 @@ thread_local! {
     /// Planes of earlier references, reused: a search per frame would
     /// otherwise fault in three fresh planes every time.
     static SPARE: RefCell<Vec<Plane>> = const { RefCell::new(Vec::new()) };
+    /// The horizontal pass the planes are filled from, reused likewise.
+    static HPASS: RefCell<Vec<i16>> = const { RefCell::new(Vec::new()) };
 }
 
 /// A plane of this size and border from the spares, or a new one.
@@ -155,7 +157,9 @@ fn fill_planes_body(reference: &Plane, margin: usize, planes: &mut [Plane]) {
     // Unrounded horizontal pass (within i16: -6120..=22440) of the rows
     // the vertical filters read: -m - 3 .. h + m + 4.
     let rows = h + 2 * margin + 7;
-    let mut hpass = vec![0i16; rows * span];
+    let mut hpass = HPASS.with(|b| std::mem::take(&mut *b.borrow_mut()));
+    hpass.clear();
+    hpass.resize(rows * span, 0);
     for (r, out) in hpass.chunks_exact_mut(span).enumerate() {
         let src = &reference.data()[reference.index(-m - 3, r as isize - m - 3)..];
         for (k, &t) in HALF.iter().enumerate() {
@@ -194,6 +198,7 @@ fn fill_planes_body(reference: &Plane, margin: usize, planes: &mut [Plane]) {
             *o = clip(((v >> 6) + 32) >> 6);
         }
     }
+    HPASS.with(|b| *b.borrow_mut() = hpass);
 }
 
 impl Drop for HalfPel {

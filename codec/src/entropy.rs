@@ -265,25 +265,40 @@ impl<'a> RangeDecoder<'a> {
 /// Cost in 1/256 bit of coding a bin whose probability is `p` (in units of
 /// 2^-15): the encoder's rate estimate. Not normative.
 pub fn cost(p: u32) -> u32 {
+    cost_table()[cost_index(p)]
+}
+
+/// The entry of [`cost_table`] for probability `p`.
+#[inline]
+fn cost_index(p: u32) -> usize {
+    (p >> (PROB_BITS - COST_ENTRIES_LOG2)) as usize
+}
+
+/// [`cost`] tabulated, for pricers that look it up per bin.
+fn cost_table() -> &'static [u32; COST_ENTRIES] {
     COST.get_or_init(|| {
-        (0..COST_ENTRIES)
-            .map(|i| {
-                let p = (i as f64 + 0.5) / COST_ENTRIES as f64;
-                (-p.log2() * 256.0).round() as u32
-            })
-            .collect()
-    })[(p >> (PROB_BITS - COST_ENTRIES_LOG2)) as usize]
+        std::array::from_fn(|i| {
+            let p = (i as f64 + 0.5) / COST_ENTRIES as f64;
+            (-p.log2() * 256.0).round() as u32
+        })
+    })
 }
 
 const COST_ENTRIES_LOG2: u32 = 10;
 const COST_ENTRIES: usize = 1 << COST_ENTRIES_LOG2;
-static COST: std::sync::OnceLock<Vec<u32>> = std::sync::OnceLock::new();
+static COST: std::sync::OnceLock<[u32; COST_ENTRIES]> = std::sync::OnceLock::new();
 
 impl Context {
     /// Cost in 1/256 bit of coding `bit` in this context's present state.
     pub fn cost(&self, bit: bool) -> u32 {
+        self.cost_in(cost_table(), bit)
+    }
+
+    /// [`Context::cost`] from the table, looked up once by the caller.
+    #[inline]
+    fn cost_in(&self, table: &[u32; COST_ENTRIES], bit: bool) -> u32 {
         let p = u32::from(self.p0);
-        cost(if bit { PROB_ONE - p } else { p })
+        table[cost_index(if bit { PROB_ONE - p } else { p })]
     }
 }
 
@@ -332,13 +347,26 @@ impl Bins for Adapter<'_> {
 /// Prices bins in the contexts' present state (1/256 bit) without adapting
 /// them: exact for a context's first bin, an estimate for the next ones.
 pub(crate) struct Pricer<'a> {
-    pub contexts: &'a [Context],
+    contexts: &'a [Context],
+    table: &'static [u32; COST_ENTRIES],
     pub cost: u32,
 }
 
+impl<'a> Pricer<'a> {
+    /// A pricer over `contexts`, starting from `cost`.
+    pub fn new(contexts: &'a [Context], cost: u32) -> Pricer<'a> {
+        Pricer {
+            contexts,
+            table: cost_table(),
+            cost,
+        }
+    }
+}
+
 impl Bins for Pricer<'_> {
+    #[inline]
     fn bin(&mut self, ctx: usize, bit: bool) {
-        self.cost += self.contexts[ctx].cost(bit);
+        self.cost += self.contexts[ctx].cost_in(self.table, bit);
     }
     fn bypass(&mut self, _: bool) {
         self.cost += BYPASS_COST;

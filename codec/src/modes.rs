@@ -259,10 +259,7 @@ impl ModeCoder {
     /// as `mode` now (`inter_frame`: a P frame; `uses_mvs`: its vectors are
     /// coded, not a grid's). Not normative.
     pub fn cost(&self, mb_x: usize, mb_y: usize, inter_frame: bool, uses_mvs: bool, mode: &MbMode) -> u32 {
-        let mut p = Pricer {
-            contexts: &self.contexts[..],
-            cost: 0,
-        };
+        let mut p = Pricer::new(&self.contexts[..], 0);
         code_mb(&mut p, &self.neighbours(mb_x, mb_y), inter_frame, mode, uses_mvs);
         p.cost
     }

@@ -179,7 +179,7 @@ pub fn predict_inter(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mv: Mv) -
 fn add_block(pred: &[u8], levels: &Block4, qp: u8, out: &mut [u8], stride: usize, at: (usize, usize)) {
     let (bx, by) = at;
     let rows = (0..4).map(|r| (by + r) * stride + bx);
-    if levels.iter().all(|r| r.iter().all(|&v| v == 0)) {
+    if levels.as_flattened().iter().all(|&v| v == 0) {
         for i in rows {
             out[i..i + 4].copy_from_slice(&pred[i..i + 4]);
         }

@@ -74,7 +74,7 @@ pub struct MbResidual {
 }
 
 fn is_zero(b: &Block4) -> bool {
-    b.iter().all(|r| r.iter().all(|&v| v == 0))
+    b.as_flattened().iter().all(|&v| v == 0)
 }
 
 /// Luma 4x4 block indices of 8x8 quadrant `q`.
@@ -253,7 +253,8 @@ fn code_mb<B: Bins>(b: &mut B, e: &Edges, intra: bool, res: &MbResidual) {
 
 /// One block with at least one non-zero level.
 fn code_block<B: Bins>(b: &mut B, cls: usize, block: &Block4) {
-    let scan = ZIGZAG.map(|i| block[i / 4][i % 4]);
+    let flat = block.as_flattened();
+    let scan: [i32; 16] = std::array::from_fn(|k| flat[ZIGZAG[k]]);
     let last = scan.iter().rposition(|&v| v != 0).unwrap_or(0);
     for (i, &v) in scan.iter().enumerate().take(15) {
         b.bin(cls + SIG + i, v != 0);
@@ -384,10 +385,7 @@ impl ResidualCoder {
     /// (mb_x, mb_y) now: the contexts' present state, not adapted within
     /// the macroblock. Not normative (the encoder's rate term).
     pub fn cost(&self, mb_x: usize, mb_y: usize, intra: bool, res: &MbResidual) -> u32 {
-        let mut p = Pricer {
-            contexts: &self.contexts[..],
-            cost: 0,
-        };
+        let mut p = Pricer::new(&self.contexts[..], 0);
         code_mb(&mut p, &self.edges(mb_x, mb_y), intra, res);
         p.cost
     }
@@ -402,10 +400,7 @@ impl ResidualCoder {
         }
         let cls = class(chroma, intra);
         let flag = &self.contexts[cls + CBF + 1];
-        let mut p = Pricer {
-            contexts: &self.contexts[..],
-            cost: flag.cost(true),
-        };
+        let mut p = Pricer::new(&self.contexts[..], flag.cost(true));
         code_block(&mut p, cls, block);
         p.cost.saturating_sub(flag.cost(false))
     }
@@ -678,10 +673,7 @@ mod tests {
             })
             .sum();
         let pattern = coder.cost(0, 0, false, &MbResidual::default());
-        let mut p = Pricer {
-            contexts: &coder.contexts[..],
-            cost: 0,
-        };
+        let mut p = Pricer::new(&coder.contexts[..], 0);
         code_block(&mut p, cls, &one.luma[5]);
         // The pattern's first bin differs (quadrant 0 coded): price it apart.
         let base = cbp_base(false);

@@ -89,12 +89,17 @@ pub(crate) struct MbCoder {
 /// H.264 reference-encoder cost of a 4x4 block's levels for the zeroing
 /// decision: a level above 1 makes it worth keeping; a lone ±1 costs by
 /// how few zeros precede it.
+#[inline(always)]
 fn coefficient_cost(b: &Block4) -> u32 {
     const COST: [u32; 16] = [3, 2, 2, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0];
+    let flat = b.as_flattened();
+    if flat.iter().all(|&v| v == 0) {
+        return 0;
+    }
     let mut cost = 0;
     let mut run = 0;
     for &k in &ZIGZAG {
-        let v = b[k / 4][k % 4];
+        let v = flat[k];
         if v == 0 {
             run += 1;
         } else if v.abs() > 1 {
@@ -108,12 +113,13 @@ fn coefficient_cost(b: &Block4) -> u32 {
 }
 
 /// Squared error between a residual and what `levels` reconstruct to.
+#[inline(always)]
 fn block_error(residual: &Block4, levels: &Block4, qp: u8) -> i64 {
     let mut d = *levels;
     dequantize(&mut d, qp);
     let r = inverse_4x4(&d);
     let mut e = 0i64;
-    for (a, b) in residual.iter().flatten().zip(r.iter().flatten()) {
+    for (a, b) in residual.as_flattened().iter().zip(r.as_flattened()) {
         let x = i64::from(a - b);
         e += x * x;
     }
@@ -141,9 +147,10 @@ const INVERSE_BASIS_X2: [[i32; 4]; 4] = [[2, 2, 2, 2], [2, 1, -1, -2], [2, -2, -
 
 /// Squared error between a residual and the reconstruction whose inverse
 /// transform before the final rounding is `unrounded`.
+#[inline(always)]
 fn rounded_error(residual: &Block4, unrounded: &Block4) -> i64 {
     let mut e = 0i64;
-    for (a, u) in residual.iter().flatten().zip(unrounded.iter().flatten()) {
+    for (a, u) in residual.as_flattened().iter().zip(unrounded.as_flattened()) {
         let x = i64::from(a - ((u + 32) >> 6));
         e += x * x;
     }
@@ -161,8 +168,9 @@ fn rounded_error(residual: &Block4, unrounded: &Block4) -> i64 {
 /// butterflies' halvings stay exact, so the inverse transform before its
 /// final rounding moves by `d/4` times the coefficient's (doubled) basis
 /// block. Other steps go through the whole inverse transform.
+#[inline(always)]
 fn lower_levels(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rate: BlockRate<'_>) {
-    if levels.iter().flatten().all(|&v| v == 0) {
+    if levels.as_flattened().iter().all(|&v| v == 0) {
         return;
     }
     let mut coeffs = *levels;
@@ -238,30 +246,82 @@ impl MbCoder {
         mb_x: usize,
         mb_y: usize,
     ) -> Coded {
-        let rounding = if intra { ROUND_INTRA } else { ROUND_INTER };
+        #[cfg(target_arch = "x86_64")]
+        {
+            // std caches the answer after the first call.
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU has AVX2; the function is the safe code
+                // below compiled with AVX2 (integer arithmetic and the same
+                // floating-point operations: the same result).
+                return unsafe { self.code_avx2(src, pred, intra, rates, mb_x, mb_y) };
+            }
+        }
+        self.code_body(src, pred, intra, rates, mb_x, mb_y)
+    }
+
+    /// [`MbCoder::code`] compiled for AVX2: the baseline x86-64 build has
+    /// no 32-bit vector multiply, so the quantiser and RDOQ's error updates
+    /// would run a coefficient at a time.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn code_avx2(
+        &self,
+        src: &MbSource,
+        pred: &MbPrediction,
+        intra: bool,
+        rates: &ResidualCoder,
+        mb_x: usize,
+        mb_y: usize,
+    ) -> Coded {
+        self.code_body(src, pred, intra, rates, mb_x, mb_y)
+    }
+
+    /// The levels of one 4x4 block of `s - p` (`size` samples a row, block
+    /// column `bx`, row `by`).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn block_levels(
+        &self,
+        s: &[u8],
+        p: &[u8],
+        size: usize,
+        (bx, by): (usize, usize),
+        qp: u8,
+        rate: BlockRate<'_>,
+    ) -> Block4 {
+        let mut b = [[0i32; 4]; 4];
+        for (r, row) in b.iter_mut().enumerate() {
+            let i = (by * 4 + r) * size + bx * 4;
+            for (c, v) in row.iter_mut().enumerate() {
+                *v = i32::from(s[i + c]) - i32::from(p[i + c]);
+            }
+        }
+        let mut c = forward_4x4(&b);
+        quantize(&mut c, qp, if rate.intra { ROUND_INTRA } else { ROUND_INTER });
+        if self.rdoq {
+            lower_levels(&b, &mut c, qp, self.lambda, rate);
+        }
+        c
+    }
+
+    #[inline(always)]
+    fn code_body(
+        &self,
+        src: &MbSource,
+        pred: &MbPrediction,
+        intra: bool,
+        rates: &ResidualCoder,
+        mb_x: usize,
+        mb_y: usize,
+    ) -> Coded {
         let mut residual = MbResidual::default();
-        let levels = |s: &[u8], p: &[u8], size: usize, bx: usize, by: usize, qp: u8, chroma: bool| {
-            let mut b = [[0i32; 4]; 4];
-            for (r, row) in b.iter_mut().enumerate() {
-                let i = (by * 4 + r) * size + bx * 4;
-                for (c, v) in row.iter_mut().enumerate() {
-                    *v = i32::from(s[i + c]) - i32::from(p[i + c]);
-                }
-            }
-            let mut c = forward_4x4(&b);
-            quantize(&mut c, qp, rounding);
-            if self.rdoq {
-                let rate = BlockRate {
-                    coder: rates,
-                    chroma,
-                    intra,
-                };
-                lower_levels(&b, &mut c, qp, self.lambda, rate);
-            }
-            c
+        let rate = |chroma| BlockRate {
+            coder: rates,
+            chroma,
+            intra,
         };
         for (k, block) in residual.luma.iter_mut().enumerate() {
-            *block = levels(&src.luma, &pred.luma, MB, k % 4, k / 4, self.qp, false);
+            *block = self.block_levels(&src.luma, &pred.luma, MB, (k % 4, k / 4), self.qp, rate(false));
         }
         if !intra {
             // Lone small levels cost more bits than they save distortion:
@@ -286,7 +346,14 @@ impl MbCoder {
         let cqp = chroma_qp(self.qp);
         for p in 0..2 {
             for (k, block) in residual.chroma[p].iter_mut().enumerate() {
-                *block = levels(&src.chroma[p], &pred.chroma[p], 8, k % 2, k / 2, cqp, true);
+                *block = self.block_levels(
+                    &src.chroma[p],
+                    &pred.chroma[p],
+                    8,
+                    (k % 2, k / 2),
+                    cqp,
+                    rate(true),
+                );
             }
             if !intra && residual.chroma[p].iter().map(coefficient_cost).sum::<u32>() < 4 {
                 residual.chroma[p] = [[[0; 4]; 4]; 4];
@@ -373,6 +440,45 @@ mod tests {
         assert_eq!(coefficient_cost(&b), 3);
         b[1][1] = 2;
         assert_eq!(coefficient_cost(&b), 999);
+    }
+
+    #[test]
+    fn the_dispatched_coding_equals_its_baseline_twin() {
+        let mut seed = 99u32;
+        let mut next = |spread: u32| {
+            seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
+            ((seed >> 16) % spread) as u8
+        };
+        let mut rates = ResidualCoder::new(2, 2);
+        for case in 0..60 {
+            let (qp, intra) = ([4, 18, 28, 40, 51][case % 5], case % 2 == 0);
+            let coder = MbCoder::new(qp, 1.0, case % 3 != 0);
+            let mut src = MbSource {
+                luma: [0; 256],
+                chroma: [[0; 64]; 2],
+            };
+            let mut pred = MbPrediction::default();
+            // Residuals from small noise to full-range differences.
+            let spread = [4, 32, 256][case % 3];
+            for (s, p) in src.luma.iter_mut().zip(pred.luma.iter_mut()) {
+                (*s, *p) = (next(256), next(spread));
+            }
+            for (s, p) in src
+                .chroma
+                .iter_mut()
+                .flatten()
+                .zip(pred.chroma.iter_mut().flatten())
+            {
+                (*s, *p) = (next(256), next(spread));
+            }
+            let a = coder.code(&src, &pred, intra, &rates, case % 2, 1);
+            let b = coder.code_body(&src, &pred, intra, &rates, case % 2, 1);
+            assert_eq!(a.residual, b.residual, "case {case}");
+            assert_eq!((a.bits, a.ssd), (b.bits, b.ssd), "case {case}");
+            assert_eq!(a.samples, b.samples, "case {case}");
+            // Later cases price with adapted contexts.
+            rates.commit(case % 2, 0, intra, &a.residual);
+        }
     }
 
     #[test]

@@ -66,9 +66,9 @@ impl HalfPel {
     /// (mvx, mvy), into `out`; `false` (nothing written) when it reaches
     /// beyond the filled margin.
     #[allow(clippy::too_many_arguments)]
-    pub fn predict(
-        &self,
-        reference: &Plane,
+    pub fn predict<'a>(
+        &'a self,
+        reference: &'a Plane,
         x: isize,
         y: isize,
         mvx: i32,
@@ -89,7 +89,7 @@ impl HalfPel {
         let (fx, fy) = (mvx & 3, mvy & 3);
         // A point of the half-pel grid, in quarter-pels from (bx, by):
         // its plane and integer offset.
-        let point = |px: i32, py: i32| -> (&Plane, isize, isize) {
+        let point = |px: i32, py: i32| -> (&'a Plane, isize, isize) {
             let plane = match (px & 3, py & 3) {
                 (0, 0) => reference,
                 (2, 0) => &self.planes[0],
@@ -98,22 +98,24 @@ impl HalfPel {
             };
             (plane, bx + (px >> 2) as isize, by + (py >> 2) as isize)
         };
-        let copy = |(p, px, py): (&Plane, isize, isize), out: &mut [u8]| {
-            for r in 0..b {
-                let row = &p.data()[p.index(px, py + r as isize)..];
-                out[r * b..(r + 1) * b].copy_from_slice(&row[..b]);
+        // Row slices of exactly `b` samples, so the loops vectorise (the
+        // average is one pavgb per 16 samples).
+        let rows = |(p, px, py): (&'a Plane, isize, isize)| {
+            let (data, stride) = (&p.data()[p.index(px, py)..], p.stride());
+            (0..b).map(move |r| &data[r * stride..r * stride + b])
+        };
+        let copy = |from, out: &mut [u8]| {
+            for (o, a) in out.chunks_exact_mut(b).zip(rows(from)) {
+                o.copy_from_slice(a);
             }
         };
-        let average =
-            |(p, px, py): (&Plane, isize, isize), (q, qx, qy): (&Plane, isize, isize), out: &mut [u8]| {
-                for r in 0..b {
-                    let a = &p.data()[p.index(px, py + r as isize)..];
-                    let c = &q.data()[q.index(qx, qy + r as isize)..];
-                    for (o, (&u, &v)) in out[r * b..(r + 1) * b].iter_mut().zip(a.iter().zip(c)) {
-                        *o = ((u16::from(u) + u16::from(v) + 1) >> 1) as u8;
-                    }
+        let average = |from, to, out: &mut [u8]| {
+            for ((o, a), c) in out.chunks_exact_mut(b).zip(rows(from)).zip(rows(to)) {
+                for ((o, &u), &v) in o.iter_mut().zip(a).zip(c) {
+                    *o = ((u16::from(u) + u16::from(v) + 1) >> 1) as u8;
                 }
-            };
+            }
+        };
         match (fx & 1, fy & 1) {
             (0, 0) => copy(point(fx, fy), out),
             (1, 0) => average(point(fx - 1, fy), point(fx + 1, fy), out),

@@ -141,10 +141,17 @@ pub fn predict(
             let (b, c) = ((scale * gh + 32) >> 6, (scale * gv + 32) >> 6);
             let a = 16 * (l(size as isize - 1) + t(size as isize - 1));
             let centre = half as i32 - 1;
+            // a + b (x - centre) + c (y - centre) + 16, built from a row
+            // start and b x by additions (the same values; no per-sample
+            // multiply, so the loop vectorises).
+            let mut bx = [0i32; 16];
+            for (x, v) in bx.iter_mut().enumerate() {
+                *v = b * x as i32;
+            }
             for (y, r) in rows.enumerate() {
-                for (x, o) in r[..size].iter_mut().enumerate() {
-                    let v = (a + b * (x as i32 - centre) + c * (y as i32 - centre) + 16) >> 5;
-                    *o = v.clamp(0, 255) as u8;
+                let start = a - b * centre + c * (y as i32 - centre) + 16;
+                for (o, &step) in r[..size].iter_mut().zip(&bx) {
+                    *o = ((start + step) >> 5).clamp(0, 255) as u8;
                 }
             }
         }

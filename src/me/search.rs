@@ -42,7 +42,8 @@ struct Walk<'s, 'p> {
     s: &'s BlockSearch<'p>,
     range: i32,
     side: usize,
-    seen: Vec<bool>,
+    /// One bit per window position.
+    seen: Vec<u64>,
     best: Candidate,
 }
 
@@ -54,7 +55,7 @@ impl<'s, 'p> Walk<'s, 'p> {
             s,
             range,
             side,
-            seen: vec![false; side * side],
+            seen: vec![0; (side * side).div_ceil(64)],
             best: Candidate {
                 cost: u64::MAX,
                 mv: Mv::ZERO,
@@ -70,9 +71,11 @@ impl<'s, 'p> Walk<'s, 'p> {
             return false;
         }
         let i = (dy + self.range) as usize * self.side + (dx + self.range) as usize;
-        if std::mem::replace(&mut self.seen[i], true) {
+        let (word, bit) = (i / 64, 1u64 << (i % 64));
+        if self.seen[word] & bit != 0 {
             return false;
         }
+        self.seen[word] |= bit;
         let c = Candidate {
             cost: self.s.full_pel_cost(dx, dy),
             mv: Mv::full_pel(dx, dy),
@@ -207,13 +210,15 @@ pub(crate) fn refine(s: &BlockSearch<'_>, mut best: Candidate) -> Candidate {
         Subpel::Half => &[2],
         Subpel::Quarter => &[2, 1],
     };
-    let mut scratch = vec![0u8; s.cfg.block * s.cfg.block];
+    // On the stack: blocks are at most 32 x 32 (checked with the config).
+    let mut scratch = [0u8; 32 * 32];
+    let scratch = &mut scratch[..s.cfg.block * s.cfg.block];
     for &step in steps {
         let centre = best.mv;
         for (ox, oy) in SQUARE {
             let mv = Mv::new(centre.x + ox * step, centre.y + oy * step);
             let c = Candidate {
-                cost: s.sub_pel_cost(mv, &mut scratch),
+                cost: s.sub_pel_cost(mv, scratch),
                 mv,
             };
             if c.beats(&best) {

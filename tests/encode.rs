@@ -9,7 +9,7 @@ use mocomp::codec::syntax::{
     SEQUENCE_HEADER_LEN,
 };
 use mocomp::codec::Frame;
-use mocomp::encode::{Encoder, EncoderConfig, FrameStats, Predictor};
+use mocomp::encode::{Encoder, EncoderConfig, FrameStats, ModeDecision, Predictor};
 use mocomp::synth::{Motion, SceneSpec, Shape, Synth};
 
 /// A scene with a moving camera and an object moving against it.
@@ -81,11 +81,17 @@ fn all_predictors() -> Vec<Predictor> {
 fn decoder_output_equals_the_encoder_reconstruction_for_every_predictor() {
     // Odd sizes (partial macroblocks, odd chroma), a low, middle and high
     // QP, and GOP settings with I frames in the middle.
+    // Both mode decisions, alternating, so that each predictor meets each.
     let cases = [(48, 32, 4, 0), (37, 23, 30, 2), (67, 41, 47, 3)];
-    for (w, h, qp, gop) in cases {
+    for (c, (w, h, qp, gop)) in cases.into_iter().enumerate() {
         let frames = scene(w, h, 5, 1.75, -0.5);
-        for p in all_predictors() {
-            let config = EncoderConfig::new().qp(qp).gop(gop).predictor(p);
+        for (k, p) in all_predictors().into_iter().enumerate() {
+            let decision = [ModeDecision::Fast, ModeDecision::Full][(c + k) % 2];
+            let config = EncoderConfig::new()
+                .qp(qp)
+                .gop(gop)
+                .predictor(p)
+                .decision(decision);
             let (stream, recon, stats) = encode(&frames, config);
             let (seq, decoded) = decoder::decode(&stream).unwrap();
             assert_eq!((seq.width, seq.height), (w, h));

@@ -79,8 +79,7 @@ pub fn predict_intra(
 }
 
 /// One plane of [`predict_intra`] (0 luma, 16x16; 1 and 2 chroma, 8x8),
-/// into `out` (row stride the block's side): what an encoder comparing
-/// modes plane by plane needs.
+/// into `out` (row stride the block's side).
 pub fn predict_intra_plane(
     recon: &Frame,
     plane: usize,
@@ -89,22 +88,78 @@ pub fn predict_intra_plane(
     mode: intra::IntraMode,
     out: &mut [u8],
 ) {
-    let size = if plane == 0 { MB } else { MB / 2 };
-    let plane = recon.plane(plane);
-    let (x0, y0) = (mb_x * size, mb_y * size);
-    let top = (mb_y > 0).then(|| &plane.row(y0 - 1)[x0..x0 + size]);
-    let mut column = [0u8; MB];
-    for (r, v) in column[..size].iter_mut().enumerate() {
-        *v = plane.at(x0 as isize - 1, (y0 + r) as isize);
+    IntraEdges::of(recon, plane, mb_x, mb_y).predict(mode, out);
+}
+
+/// The reconstructed samples one plane of a macroblock is intra-predicted
+/// from, gathered once: what an encoder trying every mode needs.
+///
+/// ```
+/// use mocomp_codec::intra::IntraMode;
+/// use mocomp_codec::recon::{predict_intra_plane, IntraEdges};
+/// use mocomp_codec::Frame;
+/// let recon = Frame::filled(32, 32, 90, 128, 128).unwrap();
+/// let edges = IntraEdges::of(&recon, 0, 1, 1);
+/// let (mut a, mut b) = ([0u8; 256], [0u8; 256]);
+/// edges.predict(IntraMode::Plane, &mut a);
+/// predict_intra_plane(&recon, 0, 1, 1, IntraMode::Plane, &mut b);
+/// assert_eq!(a, b);
+/// ```
+#[derive(Debug, Clone)]
+pub struct IntraEdges {
+    size: usize,
+    top: Option<[u8; MB]>,
+    left: Option<[u8; MB]>,
+    top_left: Option<u8>,
+    at: (usize, usize),
+}
+
+impl IntraEdges {
+    /// The edges of plane `plane` (0 luma, 1 and 2 chroma) of macroblock
+    /// (mb_x, mb_y) in the reconstruction so far.
+    pub fn of(recon: &Frame, plane: usize, mb_x: usize, mb_y: usize) -> IntraEdges {
+        let size = if plane == 0 { MB } else { MB / 2 };
+        let plane = recon.plane(plane);
+        let (x0, y0) = (mb_x * size, mb_y * size);
+        let top = (mb_y > 0).then(|| {
+            let mut t = [0u8; MB];
+            t[..size].copy_from_slice(&plane.row(y0 - 1)[x0..x0 + size]);
+            t
+        });
+        let left = (mb_x > 0).then(|| {
+            let mut l = [0u8; MB];
+            for (r, v) in l[..size].iter_mut().enumerate() {
+                *v = plane.get(x0 - 1, y0 + r);
+            }
+            l
+        });
+        let top_left = (mb_x > 0 && mb_y > 0).then(|| plane.get(x0 - 1, y0 - 1));
+        IntraEdges {
+            size,
+            top,
+            left,
+            top_left,
+            at: (mb_x, mb_y),
+        }
     }
-    let left = (mb_x > 0).then_some(&column[..size]);
-    let top_left = (mb_x > 0 && mb_y > 0).then(|| plane.get(x0 - 1, y0 - 1));
-    let n = Neighbours { top, left, top_left };
-    let done = intra::predict(mode, size, &n, out, size);
-    assert!(
-        done.is_ok(),
-        "intra mode {mode:?} not allowed at macroblock ({mb_x}, {mb_y})"
-    );
+
+    /// The prediction in `mode` into `out` (row stride the block's side).
+    /// The mode must be allowed here
+    /// ([`crate::syntax::intra_mode_allowed`]); panics otherwise.
+    pub fn predict(&self, mode: intra::IntraMode, out: &mut [u8]) {
+        let size = self.size;
+        let n = Neighbours {
+            top: self.top.as_ref().map(|t| &t[..size]),
+            left: self.left.as_ref().map(|l| &l[..size]),
+            top_left: self.top_left,
+        };
+        let done = intra::predict(mode, size, &n, out, size);
+        assert!(
+            done.is_ok(),
+            "intra mode {mode:?} not allowed at macroblock {:?}",
+            self.at
+        );
+    }
 }
 
 /// Inter prediction of macroblock (mb_x, mb_y) with vector `mv` (ignored in

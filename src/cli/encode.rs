@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::encode::{encode_y4m, EncoderConfig, FlowMethod, FrameStats, Predictor, Summary};
+use crate::encode::{encode_y4m, EncoderConfig, FlowMethod, FrameStats, ModeDecision, Predictor, Summary};
 use crate::io::y4m::{Y4mReader, Y4mWriter};
 use crate::io::OutputFile;
 use crate::me::{Method, Subpel};
@@ -58,6 +58,10 @@ pub struct Args {
     /// No rate-distortion optimised quantisation.
     #[arg(long)]
     pub no_rdoq: bool,
+    /// Inter mode decision: fast (the vector with the lower SATD is the
+    /// one coded) or full (both coded and compared by SSD + lambda * bits).
+    #[arg(long, default_value = "fast")]
+    pub decision: ModeDecision,
     /// Also write the reconstruction (what the decoder outputs) as Y4M.
     #[arg(long, value_name = "REC.y4m")]
     pub recon: Option<PathBuf>,
@@ -118,7 +122,8 @@ pub fn config(args: &Args) -> Result<EncoderConfig> {
         .gop(args.gop)
         .predictor(predictor)
         .lambda_scale(args.lambda_scale)
-        .rdoq(!args.no_rdoq);
+        .rdoq(!args.no_rdoq)
+        .decision(args.decision);
     config.check().map_err(anyhow::Error::msg)?;
     Ok(config)
 }

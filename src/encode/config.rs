@@ -205,6 +205,41 @@ impl FromStr for Predictor {
     }
 }
 
+/// How a P macroblock's inter vectors are decided between.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum ModeDecision {
+    /// The predicted vector and the searched one (when they differ) are
+    /// each coded, residual and RDOQ included, and compared by
+    /// J = SSD + lambda * bits.
+    Full,
+    /// Only the one with the lower SATD + sqrt(lambda) * vector bits is
+    /// coded (x264's decision below `--subme 6`): one residual coding per
+    /// macroblock instead of up to two.
+    #[default]
+    Fast,
+}
+
+impl ModeDecision {
+    /// `full` or `fast`.
+    pub fn name(self) -> &'static str {
+        match self {
+            ModeDecision::Full => "full",
+            ModeDecision::Fast => "fast",
+        }
+    }
+}
+
+impl FromStr for ModeDecision {
+    type Err = String;
+    fn from_str(s: &str) -> Result<ModeDecision, String> {
+        match s {
+            "full" => Ok(ModeDecision::Full),
+            "fast" => Ok(ModeDecision::Fast),
+            _ => Err(format!("unknown mode decision '{s}' (full or fast)")),
+        }
+    }
+}
+
 /// Everything the encoder is told, built in the builder style:
 ///
 /// ```
@@ -229,6 +264,8 @@ pub struct EncoderConfig {
     /// Rate-distortion optimised quantisation: each level moves toward
     /// zero when that lowers SSD + lambda * bits.
     pub rdoq: bool,
+    /// How inter vectors are decided between.
+    pub decision: ModeDecision,
     /// Measure SSIM of every frame (x264's 8x8 windows: about 1 % of the
     /// encoding time).
     pub ssim: bool,
@@ -242,6 +279,7 @@ impl Default for EncoderConfig {
             predictor: Predictor::default(),
             lambda_scale: 1.4,
             rdoq: true,
+            decision: ModeDecision::default(),
             ssim: true,
         }
     }
@@ -249,7 +287,7 @@ impl Default for EncoderConfig {
 
 impl EncoderConfig {
     /// QP 28, one I frame, `block` with EPZS, range 16, quarter-pel,
-    /// RDOQ, lambda scale 1.4.
+    /// RDOQ, lambda scale 1.4, fast mode decision.
     pub fn new() -> EncoderConfig {
         EncoderConfig::default()
     }
@@ -281,6 +319,12 @@ impl EncoderConfig {
     /// Turns rate-distortion optimised quantisation on or off.
     pub fn rdoq(mut self, on: bool) -> EncoderConfig {
         self.rdoq = on;
+        self
+    }
+
+    /// Sets how inter vectors are decided between.
+    pub fn decision(mut self, decision: ModeDecision) -> EncoderConfig {
+        self.decision = decision;
         self
     }
 

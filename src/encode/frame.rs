@@ -1,7 +1,8 @@
 //! One frame: rate-distortion mode decision over the macroblocks, in
 //! raster order, with reconstruction through the codec's functions.
 
-use super::macroblock::{MbCoder, MbSource};
+use super::config::ModeDecision;
+use super::macroblock::{mvd_len, MbCoder, MbSource};
 use super::motion::FrameMotion;
 use crate::codec::modes::{MbMode, ModeCoder};
 use crate::codec::mv::Mv;
@@ -119,6 +120,7 @@ pub(crate) fn code_inter(
     reference: &Frame,
     motion: FrameMotion,
     tool: MotionTool,
+    decision: ModeDecision,
     coders: (ModeCoder, ResidualCoder),
     mut recon: Frame,
 ) -> Result<CodedFrame, PictureError> {
@@ -175,14 +177,29 @@ pub(crate) fn code_inter(
         let not_skipped = f64::from(modes.not_skipped_cost(mb_x, mb_y)) / 256.0;
         let exhaustive = best.cost > coder.cost(0, not_skipped);
         let searched_mv = (uses_mvs && searched[i] != mvp).then_some(searched[i]);
-        let mut inter_satd = u32::MAX;
+        let mut candidates = Vec::with_capacity(2);
         for mv in std::iter::once(mvp).chain(searched_mv).filter(|_| exhaustive) {
             let pred = if mv == mvp {
                 skip_pred.clone()
             } else {
                 predict_inter(&ctx, mb_x, mb_y, mv)
             };
-            inter_satd = inter_satd.min(luma_satd(&s, &pred));
+            let satd = luma_satd(&s, &pred);
+            candidates.push((mv, pred, satd));
+        }
+        let inter_satd = candidates.iter().map(|c| c.2).min().unwrap_or(u32::MAX);
+        if decision == ModeDecision::Fast && candidates.len() == 2 {
+            // The lower SATD + sqrt(lambda) * vector bits is coded alone.
+            let sad_lambda = coder.lambda.sqrt();
+            let estimate = |(mv, _, satd): &(Mv, MbPrediction, u32)| {
+                f64::from(*satd) + sad_lambda * f64::from(mvd_len(*mv, mvp))
+            };
+            if estimate(&candidates[1]) < estimate(&candidates[0]) {
+                candidates.swap(0, 1);
+            }
+            candidates.truncate(1);
+        }
+        for (mv, pred, _) in candidates {
             let coded = coder.code(&s, &pred, false, &rates, mb_x, mb_y);
             let mode = MbMode::Inter { mvd: mv - mvp };
             let bits = mode_bits(&modes, mb_x, mb_y, &mode) + coded.bits;

@@ -6,7 +6,7 @@
 use crate::codec::bits::{se_len, ue_len};
 use crate::codec::intra::IntraMode;
 use crate::codec::mv::Mv;
-use crate::codec::recon::{chroma_qp, predict_intra_plane, reconstruct_samples, MbPrediction};
+use crate::codec::recon::{chroma_qp, reconstruct_samples, IntraEdges, MbPrediction};
 use crate::codec::residual::{MbResidual, ResidualCoder, ZIGZAG};
 use crate::codec::syntax::{intra_mode_allowed, MB};
 use crate::codec::transform::{
@@ -394,8 +394,9 @@ impl MbCoder {
         let mut pred = MbPrediction::default();
         let mut trial = [0u8; 256];
         let (mut luma, mut best_cost, mut satd) = (IntraMode::Dc, f64::INFINITY, 0);
+        let edges = IntraEdges::of(recon, 0, mb_x, mb_y);
         for m in allowed() {
-            predict_intra_plane(recon, 0, mb_x, mb_y, m, &mut trial);
+            edges.predict(m, &mut trial);
             let d = Metric::Satd.cost(&src.luma, MB, &trial, MB, MB, MB);
             let c = f64::from(d) + sad_lambda * f64::from(ue_len(m as u32));
             if c < best_cost {
@@ -406,10 +407,11 @@ impl MbCoder {
         let mut chroma = IntraMode::Dc;
         let mut best_c = f64::INFINITY;
         let mut trial = [[0u8; 64]; 2];
+        let edges = [1, 2].map(|p| IntraEdges::of(recon, p, mb_x, mb_y));
         for m in allowed() {
             let mut c = sad_lambda * f64::from(ue_len(m as u32));
             for (k, t) in trial.iter_mut().enumerate() {
-                predict_intra_plane(recon, k + 1, mb_x, mb_y, m, t);
+                edges[k].predict(m, t);
                 c += f64::from(Metric::Sad.cost(&src.chroma[k], 8, t, 8, 8, 8));
             }
             if c < best_c {

@@ -35,7 +35,9 @@ mod stats;
 use std::io::{Read, Write};
 use std::time::Instant;
 
-pub use config::{BlockSearch, EncoderConfig, FlowMethod, Predictor, DEFAULT_GRID, DEFAULT_REFINE};
+pub use config::{
+    BlockSearch, EncoderConfig, FlowMethod, ModeDecision, Predictor, DEFAULT_GRID, DEFAULT_REFINE,
+};
 pub use stats::{FrameStats, Summary, SummaryBuilder};
 
 use crate::codec::recon::crop;
@@ -196,6 +198,7 @@ impl Encoder {
                     reference,
                     motion,
                     tool,
+                    self.config.decision,
                     coders,
                     recon,
                 )?

@@ -98,31 +98,75 @@ impl HalfPel {
             };
             (plane, bx + (px >> 2) as isize, by + (py >> 2) as isize)
         };
-        // Row slices of exactly `b` samples, so the loops vectorise (the
-        // average is one pavgb per 16 samples).
-        let rows = |(p, px, py): (&'a Plane, isize, isize)| {
-            let (data, stride) = (&p.data()[p.index(px, py)..], p.stride());
-            (0..b).map(move |r| &data[r * stride..r * stride + b])
-        };
-        let copy = |from, out: &mut [u8]| {
-            for (o, a) in out.chunks_exact_mut(b).zip(rows(from)) {
-                o.copy_from_slice(a);
-            }
-        };
-        let average = |from, to, out: &mut [u8]| {
-            for ((o, a), c) in out.chunks_exact_mut(b).zip(rows(from)).zip(rows(to)) {
-                for ((o, &u), &v) in o.iter_mut().zip(a).zip(c) {
-                    *o = ((u16::from(u) + u16::from(v) + 1) >> 1) as u8;
+        let rows = |(p, px, py): (&'a Plane, isize, isize)| (&p.data()[p.index(px, py)..], p.stride());
+        let copy = |(a, sa): (&[u8], usize), out: &mut [u8]| match b {
+            16 => copy_rows::<16>(a, sa, out),
+            8 => copy_rows::<8>(a, sa, out),
+            _ => {
+                for (r, o) in out.chunks_exact_mut(b).enumerate() {
+                    o.copy_from_slice(&a[r * sa..r * sa + b]);
                 }
             }
         };
+        let average = |from, to, out: &mut [u8]| match b {
+            // Sizes known to the compiler: one pavgb per 16 samples.
+            16 => average_rows::<16>(rows(from), rows(to), out),
+            8 => average_rows::<8>(rows(from), rows(to), out),
+            _ => average_rows_n(b, rows(from), rows(to), out),
+        };
         match (fx & 1, fy & 1) {
-            (0, 0) => copy(point(fx, fy), out),
+            (0, 0) => copy(rows(point(fx, fy)), out),
             (1, 0) => average(point(fx - 1, fy), point(fx + 1, fy), out),
             (0, 1) => average(point(fx, fy - 1), point(fx, fy + 1), out),
             _ => average(point(2, 4 * (fy / 2)), point(4 * (fx / 2), 2), out),
         }
         true
+    }
+}
+
+/// `out` (rows of `N`) = the rounded average of `N x N` blocks `a` and
+/// `c` (each a slice from its first sample and a stride).
+#[inline(always)]
+fn average_rows<const N: usize>((a, sa): (&[u8], usize), (c, sc): (&[u8], usize), out: &mut [u8]) {
+    for (r, o) in out.chunks_exact_mut(N).take(N).enumerate() {
+        let (Ok(x), Ok(y), Ok(o)) = (
+            <&[u8; N]>::try_from(&a[r * sa..r * sa + N]),
+            <&[u8; N]>::try_from(&c[r * sc..r * sc + N]),
+            <&mut [u8; N]>::try_from(o),
+        ) else {
+            unreachable!("slices of N")
+        };
+        for i in 0..N {
+            o[i] = ((u16::from(x[i]) + u16::from(y[i]) + 1) >> 1) as u8;
+        }
+    }
+}
+
+/// `out` (rows of `N`) = the `N x N` block `a` (stride `sa`): fixed-size
+/// moves, not a `memcpy` call a row.
+#[inline(always)]
+fn copy_rows<const N: usize>(a: &[u8], sa: usize, out: &mut [u8]) {
+    for (r, o) in out.chunks_exact_mut(N).take(N).enumerate() {
+        let (Ok(x), Ok(o)) = (
+            <&[u8; N]>::try_from(&a[r * sa..r * sa + N]),
+            <&mut [u8; N]>::try_from(o),
+        ) else {
+            unreachable!("slices of N")
+        };
+        *o = *x;
+    }
+}
+
+/// [`average_rows`] for any block size.
+fn average_rows_n(n: usize, (a, sa): (&[u8], usize), (c, sc): (&[u8], usize), out: &mut [u8]) {
+    for (r, o) in out.chunks_exact_mut(n).take(n).enumerate() {
+        for ((o, &u), &v) in o
+            .iter_mut()
+            .zip(&a[r * sa..r * sa + n])
+            .zip(&c[r * sc..r * sc + n])
+        {
+            *o = ((u16::from(u) + u16::from(v) + 1) >> 1) as u8;
+        }
     }
 }
 

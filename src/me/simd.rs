@@ -108,24 +108,55 @@ mod x86 {
         if w % 16 != 0 || h % 4 != 0 {
             return satd_sse2(a, sa, b, sb, w, h);
         }
-        let mut sum = 0u32;
-        for ty in (0..h).step_by(4) {
-            for tx in (0..w).step_by(16) {
-                // SAFETY: AVX2 was detected before this set was chosen; the
-                // 16x4 region lies inside the checked block.
-                sum += unsafe {
-                    hadamard_abs_16x4_avx2(a.as_ptr().add(ty * sa + tx), sa, b.as_ptr().add(ty * sb + tx), sb)
-                };
+        let mut acc = [0u32; 8];
+        // SAFETY (both calls): AVX2 was detected before this set was
+        // chosen; every 16x4 region lies inside the checked block.
+        if w == 16 && h == 16 {
+            // The macroblock: its four strips in one call, one reduction.
+            unsafe { hadamard_abs_16x16_avx2(a.as_ptr(), sa, b.as_ptr(), sb, &mut acc) };
+        } else {
+            for ty in (0..h).step_by(4) {
+                for tx in (0..w).step_by(16) {
+                    unsafe {
+                        hadamard_abs_16x4_avx2(
+                            a.as_ptr().add(ty * sa + tx),
+                            sa,
+                            b.as_ptr().add(ty * sb + tx),
+                            sb,
+                            &mut acc,
+                        )
+                    };
+                }
             }
         }
-        sum.div_ceil(2)
+        acc.iter().sum::<u32>().div_ceil(2)
+    }
+
+    /// [`hadamard_abs_16x4_avx2`] over the four strips of a 16x16 block.
+    #[target_feature(enable = "avx2")]
+    unsafe fn hadamard_abs_16x16_avx2(a: *const u8, sa: usize, b: *const u8, sb: usize, acc: &mut [u32; 8]) {
+        let mut v = _mm256_setzero_si256();
+        for ty in (0..16).step_by(4) {
+            v = _mm256_add_epi32(v, hadamard_abs_16x4_lanes(a.add(ty * sa), sa, b.add(ty * sb), sb));
+        }
+        _mm256_storeu_si256(acc.as_mut_ptr() as *mut __m256i, v);
+    }
+
+    /// Adds the 16x4 region's absolute Hadamard coefficients to `acc`
+    /// (eight partial sums).
+    #[target_feature(enable = "avx2")]
+    unsafe fn hadamard_abs_16x4_avx2(a: *const u8, sa: usize, b: *const u8, sb: usize, acc: &mut [u32; 8]) {
+        let prior = _mm256_loadu_si256(acc.as_ptr() as *const __m256i);
+        let v = _mm256_add_epi32(prior, hadamard_abs_16x4_lanes(a, sa, b, sb));
+        _mm256_storeu_si256(acc.as_mut_ptr() as *mut __m256i, v);
     }
 
     /// The 8x4 SSE2 computation on both 128-bit lanes at once: columns 0-7
     /// of the region in the low lane, 8-15 in the high one (AVX2 unpacks
     /// work within lanes).
+    #[inline]
     #[target_feature(enable = "avx2")]
-    unsafe fn hadamard_abs_16x4_avx2(a: *const u8, sa: usize, b: *const u8, sb: usize) -> u32 {
+    unsafe fn hadamard_abs_16x4_lanes(a: *const u8, sa: usize, b: *const u8, sb: usize) -> __m256i {
         let row = |r: usize| {
             let x = _mm256_cvtepu8_epi16(_mm_loadu_si128(a.add(r * sa) as *const __m128i));
             let y = _mm256_cvtepu8_epi16(_mm_loadu_si128(b.add(r * sb) as *const __m128i));
@@ -153,10 +184,7 @@ mod x86 {
                 acc = _mm256_add_epi32(acc, _mm256_madd_epi16(_mm256_abs_epi16(v), _mm256_set1_epi16(1)));
             }
         }
-        let s = _mm_add_epi32(_mm256_castsi256_si128(acc), _mm256_extracti128_si256(acc, 1));
-        let s = _mm_add_epi32(s, _mm_shuffle_epi32(s, 0b01_00_11_10));
-        let s = _mm_add_epi32(s, _mm_shuffle_epi32(s, 0b10_11_00_01));
-        _mm_cvtsi128_si32(s) as u32
+        acc
     }
 
     fn satd_sse2(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {

@@ -97,15 +97,34 @@ pub fn predict(
     if !mode.is_available(n) {
         return Err(IntraError::Unavailable(mode));
     }
-    let rows = out.chunks_mut(stride).take(size);
+    // Sizes the compiler knows: rows filled and copied by fixed-size
+    // moves, not a memset or memcpy call a row.
+    if size == 16 {
+        predict_sized::<16>(mode, n, out, stride);
+    } else {
+        predict_sized::<8>(mode, n, out, stride);
+    }
+    Ok(())
+}
+
+/// [`predict`] of an available mode at size `N`.
+fn predict_sized<const N: usize>(mode: IntraMode, n: &Neighbours<'_>, out: &mut [u8], stride: usize) {
+    let size = N;
+    let rows = out.chunks_mut(stride).take(size).map(|r| {
+        let Ok(r) = <&mut [u8; N]>::try_from(&mut r[..N]) else {
+            unreachable!("rows of N")
+        };
+        r
+    });
     match mode {
         IntraMode::Vertical => {
-            let top = &n.top.unwrap_or_default()[..size];
-            rows.for_each(|r| r[..size].copy_from_slice(top));
+            let mut top = [0u8; N];
+            top.copy_from_slice(&n.top.unwrap_or_default()[..size]);
+            rows.for_each(|r| *r = top);
         }
         IntraMode::Horizontal => {
             let left = n.left.unwrap_or_default();
-            rows.enumerate().for_each(|(y, r)| r[..size].fill(left[y]));
+            rows.enumerate().for_each(|(y, r)| *r = [left[y]; N]);
         }
         IntraMode::Dc => {
             let sum = |s: &[u8]| s[..size].iter().map(|&v| u32::from(v)).sum::<u32>();
@@ -116,7 +135,7 @@ pub fn predict(
                 (None, Some(l)) => (sum(l) + size as u32 / 2) >> n_bits,
                 (None, None) => 128,
             } as u8;
-            rows.for_each(|r| r[..size].fill(dc));
+            rows.for_each(|r| *r = [dc; N]);
         }
         IntraMode::Plane => {
             let (top, left) = (n.top.unwrap_or_default(), n.left.unwrap_or_default());
@@ -144,19 +163,18 @@ pub fn predict(
             // a + b (x - centre) + c (y - centre) + 16, built from a row
             // start and b x by additions (the same values; no per-sample
             // multiply, so the loop vectorises).
-            let mut bx = [0i32; 16];
+            let mut bx = [0i32; N];
             for (x, v) in bx.iter_mut().enumerate() {
                 *v = b * x as i32;
             }
             for (y, r) in rows.enumerate() {
                 let start = a - b * centre + c * (y as i32 - centre) + 16;
-                for (o, &step) in r[..size].iter_mut().zip(&bx) {
+                for (o, &step) in r.iter_mut().zip(&bx) {
                     *o = ((start + step) >> 5).clamp(0, 255) as u8;
                 }
             }
         }
     }
-    Ok(())
 }
 
 #[cfg(test)]

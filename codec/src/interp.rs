@@ -107,7 +107,7 @@ pub fn predict_luma(
             return;
         }
     }
-    predict_luma_body(reference, x, y, mvx, mvy, w, h, out, out_stride);
+    predict_luma_body::<false>(reference, x, y, mvx, mvy, w, h, out, out_stride);
 }
 
 /// [`predict_luma_body`] compiled for AVX2.
@@ -125,13 +125,14 @@ unsafe fn predict_luma_avx2(
     out: &mut [u8],
     out_stride: usize,
 ) {
-    predict_luma_body(reference, x, y, mvx, mvy, w, h, out, out_stride);
+    predict_luma_body::<true>(reference, x, y, mvx, mvy, w, h, out, out_stride);
 }
 
-/// The luma predictor, for any instruction set.
+/// The luma predictor, for any instruction set; `AVX2` (only where the
+/// CPU has it) takes the 16x16 vertical pass to AVX2 intrinsics.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn predict_luma_body(
+pub(crate) fn predict_luma_body<const AVX2: bool>(
     reference: &Plane,
     x: isize,
     y: isize,
@@ -166,7 +167,7 @@ pub(crate) fn predict_luma_body(
         // The macroblock case, with sizes the compiler knows.
         let src = at(px - TAPS_BEFORE, py - TAPS_BEFORE);
         let mut block = [0u8; 256];
-        luma_16x16(&data[src..], stride, fx, fy, &mut block);
+        luma_16x16::<AVX2>(&data[src..], stride, fx, fy, &mut block);
         for (r, row) in block.chunks_exact(16).enumerate() {
             out[r * out_stride..r * out_stride + 16].copy_from_slice(row);
         }
@@ -280,7 +281,7 @@ fn round16<T: Copy + Into<i32>>(acc: &[T; N16], o: &mut [u8]) {
 /// starting 3 rows above and 3 columns left of the block. (Functions, not
 /// closures: closures do not inherit the caller's target features.)
 #[inline(always)]
-fn luma_16x16(data: &[u8], stride: usize, fx: usize, fy: usize, out: &mut [u8; 256]) {
+fn luma_16x16<const AVX2: bool>(data: &[u8], stride: usize, fx: usize, fy: usize, out: &mut [u8; 256]) {
     const N: usize = N16;
     const B: usize = TAPS_BEFORE as usize;
     if fy == 0 {
@@ -290,32 +291,78 @@ fn luma_16x16(data: &[u8], stride: usize, fx: usize, fy: usize, out: &mut [u8; 2
         }
         return;
     }
-    let mut tmp = [[0i32; N]; N + 7];
+    let mut tmp = [[0i16; N]; N + 7];
     for (r, t) in tmp.iter_mut().enumerate() {
         let src = row23(data, stride, r);
         if fx == 0 {
-            // Scaled by 64 so that one vertical pass serves both cases; its
-            // >> 6 below is then exact, as the direct vertical filter's
-            // single rounding needs.
+            // Scaled by 64 (at most 16320: still 16 bits) so that one
+            // vertical pass serves both cases; its >> 6 below is then
+            // exact, as the direct vertical filter's single rounding needs.
             for (t, &v) in t.iter_mut().zip(&src[B..B + N]) {
-                *t = i32::from(v) << 6;
+                *t = i16::from(v) << 6;
             }
         } else {
-            *t = hpass16(src, &LUMA_TAPS[fx]).map(i32::from);
+            *t = hpass16(src, &LUMA_TAPS[fx]);
         }
     }
     let tv = &LUMA_TAPS[fy];
+    #[cfg(target_arch = "x86_64")]
+    if AVX2 {
+        // SAFETY: AVX2 is true only in predict_luma_avx2, which runs only
+        // where the CPU has AVX2.
+        unsafe { x86::vpass16_avx2(&tmp, tv, out) };
+        return;
+    }
     for (r, window) in tmp.windows(8).enumerate() {
         let mut acc = [0i32; N];
         for (&t, row) in tv.iter().zip(window) {
             for (a, &v) in acc.iter_mut().zip(row) {
-                *a += t * v;
+                *a += t * i32::from(v);
             }
         }
         for a in acc.iter_mut() {
             *a >>= 6;
         }
         round16(&acc, &mut out[r * N..(r + 1) * N]);
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod x86 {
+    use std::arch::x86_64::*;
+
+    use super::N16;
+
+    /// The vertical 8-tap pass of a 16x16 prediction from its 23 rows of
+    /// 16-bit first-pass values: taps in pairs, each pair one `pmaddwd` of
+    /// two interleaved rows (exact 32-bit sums, as the scalar pass), then
+    /// `>> 6`, `(v + 32) >> 6` and saturation to 8 bits.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn vpass16_avx2(tmp: &[[i16; N16]; N16 + 7], taps: &[i32; 8], out: &mut [u8; 256]) {
+        let pair = |k: usize| _mm256_set1_epi32((taps[k + 1] << 16) | (taps[k] & 0xffff));
+        let coef = [pair(0), pair(2), pair(4), pair(6)];
+        let rows: [__m256i; N16 + 7] = std::array::from_fn(|r| {
+            // SAFETY: a row is 16 i16 = 32 bytes; unaligned load.
+            unsafe { _mm256_loadu_si256(tmp[r].as_ptr() as *const __m256i) }
+        });
+        let round = _mm256_set1_epi32(32);
+        for (r, o) in out.chunks_exact_mut(N16).enumerate() {
+            let (mut lo, mut hi) = (_mm256_setzero_si256(), _mm256_setzero_si256());
+            for (p, c) in coef.iter().enumerate() {
+                let (a, b) = (rows[r + 2 * p], rows[r + 2 * p + 1]);
+                lo = _mm256_add_epi32(lo, _mm256_madd_epi16(_mm256_unpacklo_epi16(a, b), *c));
+                hi = _mm256_add_epi32(hi, _mm256_madd_epi16(_mm256_unpackhi_epi16(a, b), *c));
+            }
+            let finish =
+                |v: __m256i| _mm256_srai_epi32::<6>(_mm256_add_epi32(_mm256_srai_epi32::<6>(v), round));
+            // Within each 128-bit lane: lo holds columns 0-3 (8-11), hi 4-7
+            // (12-15), so the packs restore column order per lane.
+            let words = _mm256_packs_epi32(finish(lo), finish(hi));
+            let bytes = _mm256_packus_epi16(words, words);
+            let row = _mm256_permute4x64_epi64::<0b00_00_10_00>(bytes);
+            // SAFETY: `o` is 16 bytes.
+            unsafe { _mm_storeu_si128(o.as_mut_ptr() as *mut __m128i, _mm256_castsi256_si128(row)) };
+        }
     }
 }
 
@@ -560,7 +607,7 @@ mod tests {
             for mvx in -9..=9 {
                 for (x, y, w, h) in [(3, 5, 16, 16), (40, 20, 16, 16), (1, 2, 12, 3), (0, 0, 64, 40)] {
                     predict_luma(&p, x, y, mvx, mvy, w, h, &mut a, w);
-                    predict_luma_body(&p, x, y, mvx, mvy, w, h, &mut b, w);
+                    predict_luma_body::<false>(&p, x, y, mvx, mvy, w, h, &mut b, w);
                     assert_eq!(a[..w * h], b[..w * h], "mv ({mvx},{mvy}) {w}x{h}");
                     predict_chroma(&p, x, y, mvx, mvy, w, h, &mut a, w);
                     predict_chroma_body(&p, x, y, mvx, mvy, w, h, &mut b, w);

@@ -203,7 +203,11 @@ pub(crate) fn full_pel(s: &BlockSearch<'_>, neighbours: &Neighbours) -> Candidat
 }
 
 /// Half-pel, then quarter-pel refinement around the full-pel best, on the
-/// codec's interpolation.
+/// codec's interpolation: at each step the four neighbours across, then the
+/// one diagonal between the better horizontal and the better vertical of
+/// them (five candidates instead of the square's eight; on the encoder's
+/// three test sequences the square bought 0.2 % in BD-rate at most, for
+/// 60 % more sub-pel work).
 pub(crate) fn refine(s: &BlockSearch<'_>, mut best: Candidate) -> Candidate {
     let steps: &[i32] = match s.cfg.subpel {
         Subpel::None => return best,
@@ -215,16 +219,21 @@ pub(crate) fn refine(s: &BlockSearch<'_>, mut best: Candidate) -> Candidate {
     let scratch = &mut scratch[..s.cfg.block * s.cfg.block];
     for &step in steps {
         let centre = best.mv;
-        for (ox, oy) in SQUARE {
+        let mut try_offset = |(ox, oy): (i32, i32), best: &mut Candidate| -> u64 {
             let mv = Mv::new(centre.x + ox * step, centre.y + oy * step);
             let c = Candidate {
                 cost: s.sub_pel_cost(mv, scratch),
                 mv,
             };
-            if c.beats(&best) {
-                best = c;
+            if c.beats(best) {
+                *best = c;
             }
-        }
+            c.cost
+        };
+        let [up, left, right, down] = CROSS.map(|o| try_offset(o, &mut best));
+        let dx = if left <= right { -1 } else { 1 };
+        let dy = if up <= down { -1 } else { 1 };
+        try_offset((dx, dy), &mut best);
     }
     best
 }

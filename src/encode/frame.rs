@@ -14,6 +14,7 @@ use crate::codec::syntax::{
 };
 use crate::codec::warp::warp_frame;
 use crate::codec::{Frame, PictureError};
+use crate::metrics::squared_difference_sum;
 
 /// A coded frame before it is written.
 pub(crate) struct CodedFrame {
@@ -38,14 +39,9 @@ fn visible_luma_sse(
 ) -> u64 {
     let w = (seq.width - mb_x * 16).min(16);
     let h = (seq.height - mb_y * 16).min(16);
-    let mut sse = 0u64;
-    for r in 0..h {
-        for c in 0..w {
-            let e = i32::from(src.luma[r * 16 + c]) - i32::from(pred.luma[r * 16 + c]);
-            sse += (e * e) as u64;
-        }
-    }
-    sse
+    (0..h)
+        .map(|r| squared_difference_sum(&src.luma[r * 16..r * 16 + w], &pred.luma[r * 16..r * 16 + w]))
+        .sum()
 }
 
 /// Luma SATD of a prediction.

@@ -14,6 +14,7 @@ use crate::codec::transform::{
 };
 use crate::codec::Frame;
 use crate::me::Metric;
+use crate::metrics::squared_difference_sum;
 
 /// Quantiser rounding offsets (fractions of a step), as in the H.264
 /// reference encoder: a wider dead zone for inter residuals, which are
@@ -50,18 +51,7 @@ impl MbSource {
 
     /// Squared error of a prediction (or reconstruction), luma and chroma.
     pub fn ssd(&self, p: &MbPrediction) -> u64 {
-        // 16-bit differences, a 32-bit sum (256 squares fit): pmaddwd.
-        let d = |a: &[u8], b: &[u8]| -> u64 {
-            let s: i32 = a
-                .iter()
-                .zip(b)
-                .map(|(&x, &y)| {
-                    let e = i16::from(x) - i16::from(y);
-                    i32::from(e) * i32::from(e)
-                })
-                .sum();
-            u64::from(s as u32)
-        };
+        let d = squared_difference_sum;
         d(&self.luma, &p.luma) + d(&self.chroma[0], &p.chroma[0]) + d(&self.chroma[1], &p.chroma[1])
     }
 }

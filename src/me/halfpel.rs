@@ -204,11 +204,15 @@ fn fill_planes_body(reference: &Plane, margin: usize, planes: &mut [Plane]) {
     // the vertical filters read: -m - 3 .. h + m + 4.
     let rows = h + 2 * margin + 7;
     let mut hpass = HPASS.with(|b| std::mem::take(&mut *b.borrow_mut()));
-    hpass.clear();
+    // Every entry is assigned by the first tap below: no need to clear
+    // what a previous picture left.
     hpass.resize(rows * span, 0);
-    for (r, out) in hpass.chunks_exact_mut(span).enumerate() {
+    for (r, out) in hpass[..rows * span].chunks_exact_mut(span).enumerate() {
         let src = &reference.data()[reference.index(-m - 3, r as isize - m - 3)..];
-        for (k, &t) in HALF.iter().enumerate() {
+        for (o, &v) in out.iter_mut().zip(&src[..span]) {
+            *o = HALF[0] * i16::from(v);
+        }
+        for (k, &t) in HALF.iter().enumerate().skip(1) {
             for (o, &v) in out.iter_mut().zip(&src[k..k + span]) {
                 *o += t * i16::from(v);
             }

@@ -36,14 +36,38 @@ impl Neighbours {
     }
 }
 
+/// One bit per position of the search window: on the stack up to range 19
+/// (a search per block would otherwise allocate and free every time).
+enum Seen {
+    Stack([u64; 24]),
+    Heap(Vec<u64>),
+}
+
+impl Seen {
+    fn new(bits: usize) -> Seen {
+        let words = bits.div_ceil(64);
+        if words <= 24 {
+            Seen::Stack([0; 24])
+        } else {
+            Seen::Heap(vec![0; words])
+        }
+    }
+
+    fn words(&mut self) -> &mut [u64] {
+        match self {
+            Seen::Stack(w) => w,
+            Seen::Heap(w) => w,
+        }
+    }
+}
+
 /// A walk over full-pel positions of the window, remembering the best and
 /// which positions were already evaluated.
 struct Walk<'s, 'p> {
     s: &'s BlockSearch<'p>,
     range: i32,
     side: usize,
-    /// One bit per window position.
-    seen: Vec<u64>,
+    seen: Seen,
     best: Candidate,
 }
 
@@ -55,7 +79,7 @@ impl<'s, 'p> Walk<'s, 'p> {
             s,
             range,
             side,
-            seen: vec![0; (side * side).div_ceil(64)],
+            seen: Seen::new(side * side),
             best: Candidate {
                 cost: u64::MAX,
                 mv: Mv::ZERO,
@@ -71,11 +95,11 @@ impl<'s, 'p> Walk<'s, 'p> {
             return false;
         }
         let i = (dy + self.range) as usize * self.side + (dx + self.range) as usize;
-        let (word, bit) = (i / 64, 1u64 << (i % 64));
-        if self.seen[word] & bit != 0 {
+        let (word, bit) = (&mut self.seen.words()[i / 64], 1u64 << (i % 64));
+        if *word & bit != 0 {
             return false;
         }
-        self.seen[word] |= bit;
+        *word |= bit;
         let c = Candidate {
             cost: self.s.full_pel_cost(dx, dy),
             mv: Mv::full_pel(dx, dy),

@@ -7,7 +7,7 @@ mod ssim;
 mod ssim_8x8;
 
 pub use flow_error::{flow_errors, FlowErrors};
-pub use psnr::{frame_psnr, mse, psnr, psnr_from_mse, sse, FramePsnr, PSNR_CAP_DB};
+pub use psnr::{frame_psnr, mse, psnr, psnr_from_mse, squared_difference_sum, sse, FramePsnr, PSNR_CAP_DB};
 pub use ssim::ssim;
 pub use ssim_8x8::ssim_8x8;
 

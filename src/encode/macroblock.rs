@@ -105,6 +105,28 @@ fn coefficient_cost(b: &Block4) -> u32 {
     cost
 }
 
+/// Lone small levels cost more bits than they save distortion: drops an
+/// 8x8 quadrant of inter luma whose levels cost < 4, and all of it when
+/// the macroblock's total is < 6 (JM's thresholds).
+#[inline(always)]
+fn drop_costly_small_luma(luma: &mut [Block4; 16]) {
+    let mut total = 0;
+    for q in 0..4 {
+        let blocks = [0, 1, 4, 5].map(|o| (q % 2) * 2 + (q / 2) * 8 + o);
+        let cost: u32 = blocks.iter().map(|&k| coefficient_cost(&luma[k])).sum();
+        if cost < 4 {
+            for k in blocks {
+                luma[k] = [[0; 4]; 4];
+            }
+        } else {
+            total += cost;
+        }
+    }
+    if total < 6 {
+        *luma = [[[0; 4]; 4]; 16];
+    }
+}
+
 /// Squared error between a residual and what `levels` reconstruct to.
 #[inline(always)]
 fn block_error(residual: &Block4, levels: &Block4, qp: u8) -> i64 {
@@ -269,19 +291,17 @@ impl MbCoder {
         self.code_body(src, pred, intra, rates, mb_x, mb_y)
     }
 
-    /// The levels of one 4x4 block of `s - p` (`size` samples a row, block
-    /// column `bx`, row `by`).
+    /// One 4x4 block of `s - p` (`size` samples a row, block column `bx`,
+    /// row `by`) and its levels, quantised without RDOQ.
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
     fn block_levels(
-        &self,
         s: &[u8],
         p: &[u8],
         size: usize,
         (bx, by): (usize, usize),
         qp: u8,
-        rate: BlockRate<'_>,
-    ) -> Block4 {
+        intra: bool,
+    ) -> (Block4, Block4) {
         let mut b = [[0i32; 4]; 4];
         for (r, row) in b.iter_mut().enumerate() {
             let i = (by * 4 + r) * size + bx * 4;
@@ -290,11 +310,8 @@ impl MbCoder {
             }
         }
         let mut c = forward_4x4(&b);
-        quantize(&mut c, qp, if rate.intra { ROUND_INTRA } else { ROUND_INTER });
-        if self.rdoq {
-            lower_levels(&b, &mut c, qp, self.lambda, rate);
-        }
-        c
+        quantize(&mut c, qp, if intra { ROUND_INTRA } else { ROUND_INTER });
+        (b, c)
     }
 
     #[inline(always)]
@@ -313,43 +330,44 @@ impl MbCoder {
             chroma,
             intra,
         };
-        for (k, block) in residual.luma.iter_mut().enumerate() {
-            *block = self.block_levels(&src.luma, &pred.luma, MB, (k % 4, k / 4), self.qp, rate(false));
+        let mut luma_residual = [[[0i32; 4]; 4]; 16];
+        for (k, (block, diff)) in residual.luma.iter_mut().zip(&mut luma_residual).enumerate() {
+            (*diff, *block) = Self::block_levels(&src.luma, &pred.luma, MB, (k % 4, k / 4), self.qp, intra);
         }
+        // Inter blocks are zeroed below where their levels cost little.
+        // RDOQ only lowers levels, and lowering never raises that cost, so
+        // what the rule zeroes before RDOQ it zeroes after it too: it is
+        // applied first, and RDOQ spends no work on those blocks.
         if !intra {
-            // Lone small levels cost more bits than they save distortion:
-            // drop an 8x8 quadrant whose levels cost < 4, and all luma when
-            // the macroblock's total is < 6 (JM's thresholds).
-            let mut total = 0;
-            for q in 0..4 {
-                let blocks = [0, 1, 4, 5].map(|o| (q % 2) * 2 + (q / 2) * 8 + o);
-                let cost: u32 = blocks.iter().map(|&k| coefficient_cost(&residual.luma[k])).sum();
-                if cost < 4 {
-                    for k in blocks {
-                        residual.luma[k] = [[0; 4]; 4];
-                    }
-                } else {
-                    total += cost;
-                }
+            drop_costly_small_luma(&mut residual.luma);
+        }
+        if self.rdoq {
+            for (block, diff) in residual.luma.iter_mut().zip(&luma_residual) {
+                lower_levels(diff, block, self.qp, self.lambda, rate(false));
             }
-            if total < 6 {
-                residual.luma = [[[0; 4]; 4]; 16];
+            if !intra {
+                drop_costly_small_luma(&mut residual.luma);
             }
         }
         let cqp = chroma_qp(self.qp);
         for p in 0..2 {
-            for (k, block) in residual.chroma[p].iter_mut().enumerate() {
-                *block = self.block_levels(
-                    &src.chroma[p],
-                    &pred.chroma[p],
-                    8,
-                    (k % 2, k / 2),
-                    cqp,
-                    rate(true),
-                );
+            let mut diffs = [[[0i32; 4]; 4]; 4];
+            for (k, (block, diff)) in residual.chroma[p].iter_mut().zip(&mut diffs).enumerate() {
+                (*diff, *block) =
+                    Self::block_levels(&src.chroma[p], &pred.chroma[p], 8, (k % 2, k / 2), cqp, intra);
             }
-            if !intra && residual.chroma[p].iter().map(coefficient_cost).sum::<u32>() < 4 {
+            let cheap = |blocks: &[Block4; 4]| blocks.iter().map(coefficient_cost).sum::<u32>() < 4;
+            if !intra && cheap(&residual.chroma[p]) {
                 residual.chroma[p] = [[[0; 4]; 4]; 4];
+                continue;
+            }
+            if self.rdoq {
+                for (block, diff) in residual.chroma[p].iter_mut().zip(&diffs) {
+                    lower_levels(diff, block, cqp, self.lambda, rate(true));
+                }
+                if !intra && cheap(&residual.chroma[p]) {
+                    residual.chroma[p] = [[[0; 4]; 4]; 4];
+                }
             }
         }
         let samples = reconstruct_samples(pred, &residual, self.qp);

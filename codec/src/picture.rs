@@ -343,6 +343,49 @@ impl Plane {
         }
     }
 
+    /// The top-left `width x height` of this plane as a new plane with a
+    /// `pad`-pixel border, extended (as [`Plane::extend_border`] would):
+    /// built row by row, never zero-filled first, since every byte is
+    /// written once. Panics if the size exceeds this plane's.
+    pub fn cropped(&self, width: usize, height: usize, pad: usize) -> Result<Plane, PictureError> {
+        assert!(
+            width <= self.width && height <= self.height,
+            "crop {width}x{height} of a {}x{} plane",
+            self.width,
+            self.height
+        );
+        check_size(width, height)?;
+        if pad > MAX_PAD {
+            return Err(PictureError::PadTooLarge { pad, max: MAX_PAD });
+        }
+        let stride = (width + 2 * pad).div_ceil(STRIDE_ALIGN) * STRIDE_ALIGN;
+        let mut data = Vec::with_capacity(stride * (height + 2 * pad));
+        let mut push = |row: &[u8]| {
+            let filled = data.len();
+            data.resize(filled + pad, row[0]);
+            data.extend_from_slice(row);
+            data.resize(filled + 2 * pad + width, row[width - 1]);
+            data.resize(filled + stride, 0);
+        };
+        let row = |y: usize| &self.row(y)[..width];
+        for _ in 0..pad {
+            push(row(0));
+        }
+        for y in 0..height {
+            push(row(y));
+        }
+        for _ in 0..pad {
+            push(row(height - 1));
+        }
+        Ok(Plane {
+            width,
+            height,
+            pad,
+            stride,
+            data,
+        })
+    }
+
     /// Sets every pixel, border included.
     pub fn fill(&mut self, value: u8) {
         self.data.fill(value);
@@ -629,6 +672,22 @@ mod tests {
         assert!(Frame::from_planes(y.clone(), good.clone(), good.clone()).is_ok());
         let err = Frame::from_planes(y, Plane::new(2, 3)?, good).unwrap_err();
         assert!(err.to_string().contains("needs 3x3 chroma planes"), "{err}");
+        Ok(())
+    }
+
+    #[test]
+    fn cropped_equals_copy_then_extend_byte_for_byte() -> Result {
+        let src = Plane::from_fn(37, 21, |x, y| (x * 7 + y * 13) as u8)?;
+        for (w, h, pad) in [(37, 21, 96), (20, 9, 48), (1, 1, 0), (16, 16, 5)] {
+            let mut want = Plane::with_padding(w, h, pad)?;
+            for y in 0..h {
+                want.row_mut(y).copy_from_slice(&src.row(y)[..w]);
+            }
+            want.extend_border();
+            let got = src.cropped(w, h, pad)?;
+            assert_eq!((got.stride, got.pad), (want.stride, want.pad));
+            assert_eq!(got.data, want.data, "{w}x{h} pad {pad}");
+        }
         Ok(())
     }
 

@@ -367,15 +367,12 @@ pub fn reconstruct_frame(
 
 /// A coded-size frame's visible `width x height` part.
 pub fn crop(frame: &Frame, width: usize, height: usize) -> Result<Frame, PictureError> {
-    let mut out = Frame::new(width, height)?;
-    for p in 0..3 {
-        let (pw, ph) = (out.plane(p).width(), out.plane(p).height());
-        for r in 0..ph {
-            out.plane_mut(p)
-                .row_mut(r)
-                .copy_from_slice(&frame.plane(p).row(r)[..pw]);
-        }
-    }
-    out.extend_borders();
-    Ok(out)
+    // The borders of Frame::new: the default for luma, half for chroma.
+    let (cw, ch) = Frame::chroma_size(width, height);
+    let pad = Plane::DEFAULT_PAD;
+    Frame::from_planes(
+        frame.y().cropped(width, height, pad)?,
+        frame.plane(1).cropped(cw, ch, pad.div_ceil(2))?,
+        frame.plane(2).cropped(cw, ch, pad.div_ceil(2))?,
+    )
 }

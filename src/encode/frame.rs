@@ -72,7 +72,9 @@ pub(crate) fn code_intra(
     for i in 0..cols * seq.mb_rows() {
         let (mb_x, mb_y) = (i % cols, i / cols);
         let s = MbSource::load(src, mb_x, mb_y);
-        let (luma, chroma, pred, _) = coder.best_intra(&s, &recon, mb_x, mb_y);
+        let Some((luma, chroma, pred)) = coder.best_intra(&s, &recon, (mb_x, mb_y), u32::MAX) else {
+            unreachable!("no SATD reaches u32::MAX")
+        };
         let coded = coder.code(&s, &pred, true, &rates, mb_x, mb_y);
         write_mb(&coded.samples, &mut recon, mb_x, mb_y);
         rates.commit(mb_x, mb_y, true, &coded.residual);
@@ -210,24 +212,24 @@ pub(crate) fn code_inter(
                 };
             }
         }
-        if exhaustive {
-            let (luma, chroma, pred, intra_satd) = coder.best_intra(&s, &recon, mb_x, mb_y);
-            // Intra is coded only when its prediction is not clearly worse
-            // than inter's (as the H.264 reference encoder's fast modes).
-            if intra_satd < inter_satd {
-                let coded = coder.code(&s, &pred, true, &rates, mb_x, mb_y);
-                let mode = MbMode::Intra { luma, chroma };
-                let bits = mode_bits(&modes, mb_x, mb_y, &mode) + coded.bits;
-                let cost = coder.cost(coded.ssd, bits);
-                if cost < best.cost {
-                    best = Choice {
-                        cost,
-                        kind: MbKind::Intra { luma, chroma },
-                        pred,
-                        residual: coded.residual,
-                        samples: coded.samples,
-                    };
-                }
+        // Intra is coded only when its luma SATD is below inter's (as the
+        // H.264 reference encoder's fast modes).
+        let intra = exhaustive
+            .then(|| coder.best_intra(&s, &recon, (mb_x, mb_y), inter_satd))
+            .flatten();
+        if let Some((luma, chroma, pred)) = intra {
+            let coded = coder.code(&s, &pred, true, &rates, mb_x, mb_y);
+            let mode = MbMode::Intra { luma, chroma };
+            let bits = mode_bits(&modes, mb_x, mb_y, &mode) + coded.bits;
+            let cost = coder.cost(coded.ssd, bits);
+            if cost < best.cost {
+                best = Choice {
+                    cost,
+                    kind: MbKind::Intra { luma, chroma },
+                    pred,
+                    residual: coded.residual,
+                    samples: coded.samples,
+                };
             }
         }
         write_mb(&best.samples, &mut recon, mb_x, mb_y);

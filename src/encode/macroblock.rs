@@ -385,15 +385,16 @@ impl MbCoder {
     }
 
     /// The intra modes allowed at (mb_x, mb_y) with the smallest SATD
-    /// (luma) and SAD (chroma) plus the modes' bits, their prediction, and
-    /// the luma SATD.
+    /// (luma) and SAD (chroma) plus the modes' bits, and their prediction;
+    /// `None` when the best luma SATD is not below `luma_satd_limit` (the
+    /// chroma modes are then not searched).
     pub fn best_intra(
         &self,
         src: &MbSource,
         recon: &Frame,
-        mb_x: usize,
-        mb_y: usize,
-    ) -> (IntraMode, IntraMode, MbPrediction, u32) {
+        (mb_x, mb_y): (usize, usize),
+        luma_satd_limit: u32,
+    ) -> Option<(IntraMode, IntraMode, MbPrediction)> {
         let sad_lambda = self.lambda.sqrt();
         let allowed = || {
             IntraMode::ALL
@@ -415,6 +416,9 @@ impl MbCoder {
                 pred.luma = trial;
             }
         }
+        if satd >= luma_satd_limit {
+            return None;
+        }
         let mut chroma = IntraMode::Dc;
         let mut best_c = f64::INFINITY;
         let mut trial = [[0u8; 64]; 2];
@@ -430,7 +434,7 @@ impl MbCoder {
                 pred.chroma = trial;
             }
         }
-        (luma, chroma, pred, satd)
+        Some((luma, chroma, pred))
     }
 }
 

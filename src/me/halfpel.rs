@@ -100,6 +100,9 @@ impl HalfPel {
         };
         let rows = |(p, px, py): (&'a Plane, isize, isize)| (&p.data()[p.index(px, py)..], p.stride());
         let copy = |(a, sa): (&[u8], usize), out: &mut [u8]| match b {
+            #[cfg(target_arch = "x86_64")]
+            16 => x86::copy_16x16(a, sa, out),
+            #[cfg(not(target_arch = "x86_64"))]
             16 => copy_rows::<16>(a, sa, out),
             8 => copy_rows::<8>(a, sa, out),
             _ => {
@@ -110,6 +113,9 @@ impl HalfPel {
         };
         let average = |from, to, out: &mut [u8]| match b {
             // Sizes known to the compiler: one pavgb per 16 samples.
+            #[cfg(target_arch = "x86_64")]
+            16 => x86::average_16x16(rows(from), rows(to), out),
+            #[cfg(not(target_arch = "x86_64"))]
             16 => average_rows::<16>(rows(from), rows(to), out),
             8 => average_rows::<8>(rows(from), rows(to), out),
             _ => average_rows_n(b, rows(from), rows(to), out),
@@ -268,6 +274,44 @@ mod x86 {
 
     use super::HALF;
 
+    /// Panics unless a `16 x 16` block at stride `stride` fits in `len`.
+    fn check_16x16(len: usize, stride: usize) {
+        assert!(
+            stride >= 16 && len >= 15 * stride + 16,
+            "16x16 block past its slice"
+        );
+    }
+
+    /// [`super::copy_rows`] at N = 16 in SSE2 moves (bounds checked once).
+    pub(super) fn copy_16x16(a: &[u8], sa: usize, out: &mut [u8]) {
+        check_16x16(a.len(), sa);
+        check_16x16(out.len(), 16);
+        for r in 0..16 {
+            // SAFETY: rows 0..16 of both blocks lie inside their slices
+            // (checked above); SSE2 is part of x86-64.
+            unsafe {
+                let v = _mm_loadu_si128(a.as_ptr().add(r * sa) as *const __m128i);
+                _mm_storeu_si128(out.as_mut_ptr().add(r * 16) as *mut __m128i, v);
+            }
+        }
+    }
+
+    /// [`super::average_rows`] at N = 16: `pavgb` is exactly
+    /// `(u + v + 1) >> 1` (bounds checked once).
+    pub(super) fn average_16x16((a, sa): (&[u8], usize), (c, sc): (&[u8], usize), out: &mut [u8]) {
+        check_16x16(a.len(), sa);
+        check_16x16(c.len(), sc);
+        check_16x16(out.len(), 16);
+        for r in 0..16 {
+            // SAFETY: as in copy_16x16.
+            unsafe {
+                let x = _mm_loadu_si128(a.as_ptr().add(r * sa) as *const __m128i);
+                let y = _mm_loadu_si128(c.as_ptr().add(r * sc) as *const __m128i);
+                _mm_storeu_si128(out.as_mut_ptr().add(r * 16) as *mut __m128i, _mm_avg_epu8(x, y));
+            }
+        }
+    }
+
     /// One row of the diagonal phase: the half-pel filter down the eight
     /// rows of the unrounded horizontal pass, taps in pairs, each pair one
     /// `pmaddwd` of two interleaved rows (exact 32-bit sums, as the scalar
@@ -378,6 +422,25 @@ mod tests {
         let hp = HalfPel::new(&r, 32).unwrap();
         // Beyond the margin: refused, so that the caller uses the codec.
         assert!(!hp.predict(&r, 0, 0, -4 * 40, 0, 16, &mut a));
+    }
+
+    #[test]
+    fn the_sse2_copy_and_average_equal_their_scalar_twins() {
+        let a: Vec<u8> = (0..40 * 20).map(|i| ((i * 37) % 256) as u8).collect();
+        let c: Vec<u8> = (0..33 * 17).map(|i| ((i * 91 + 7) % 256) as u8).collect();
+        let (mut x, mut y) = ([0u8; 256], [0u8; 256]);
+        #[cfg(target_arch = "x86_64")]
+        {
+            x86::copy_16x16(&a[3..], 40, &mut x);
+            copy_rows::<16>(&a[3..], 40, &mut y);
+            assert_eq!(x, y);
+            x86::average_16x16((&a[5..], 40), (&c, 33), &mut x);
+            average_rows::<16>((&a[5..], 40), (&c, 33), &mut y);
+            assert_eq!(x, y);
+        }
+        // The scalar rounding itself: (u + v + 1) >> 1.
+        average_rows::<16>((&[255u8; 256], 16), (&[0u8; 256], 16), &mut y);
+        assert!(y.iter().all(|&v| v == 128));
     }
 
     #[test]

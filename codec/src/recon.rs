@@ -229,23 +229,20 @@ pub fn predict_inter(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mv: Mv) -
 }
 
 /// Adds one 4x4 block of levels, dequantised at `qp`, to the prediction
-/// (a `stride`-wide block) at (bx, by) and writes the clipped result to the
-/// same place of `out`.
-fn add_block(pred: &[u8], levels: &Block4, qp: u8, out: &mut [u8], stride: usize, at: (usize, usize)) {
-    let (bx, by) = at;
-    let rows = (0..4).map(|r| (by + r) * stride + bx);
+/// held in `out` (a `stride`-wide block) at (bx, by), clipping; a block
+/// without levels leaves it as it is.
+#[inline]
+fn add_block(levels: &Block4, qp: u8, out: &mut [u8], stride: usize, (bx, by): (usize, usize)) {
     if levels.as_flattened().iter().all(|&v| v == 0) {
-        for i in rows {
-            out[i..i + 4].copy_from_slice(&pred[i..i + 4]);
-        }
         return;
     }
     let mut c = *levels;
     dequantize(&mut c, qp);
     let residual = inverse_4x4(&c);
-    for (i, res) in rows.zip(&residual) {
-        for ((o, &p), &d) in out[i..i + 4].iter_mut().zip(&pred[i..i + 4]).zip(res) {
-            *o = (i32::from(p) + d).clamp(0, 255) as u8;
+    for (r, res) in residual.iter().enumerate() {
+        let i = (by + r) * stride + bx;
+        for (o, &d) in out[i..i + 4].iter_mut().zip(res) {
+            *o = (i32::from(*o) + d).clamp(0, 255) as u8;
         }
     }
 }
@@ -253,28 +250,14 @@ fn add_block(pred: &[u8], levels: &Block4, qp: u8, out: &mut [u8], stride: usize
 /// The samples macroblock coding gives: `pred` plus `residual` dequantised
 /// at `qp` (chroma at [`chroma_qp`]), in a macroblock-shaped block.
 pub fn reconstruct_samples(pred: &MbPrediction, residual: &MbResidual, qp: u8) -> MbPrediction {
-    let mut out = MbPrediction::default();
+    let mut out = pred.clone();
     for (i, levels) in residual.luma.iter().enumerate() {
-        add_block(
-            &pred.luma,
-            levels,
-            qp,
-            &mut out.luma,
-            MB,
-            ((i % 4) * 4, (i / 4) * 4),
-        );
+        add_block(levels, qp, &mut out.luma, MB, ((i % 4) * 4, (i / 4) * 4));
     }
     let cqp = chroma_qp(qp);
-    for p in 0..2 {
+    for (p, plane) in out.chroma.iter_mut().enumerate() {
         for (i, levels) in residual.chroma[p].iter().enumerate() {
-            add_block(
-                &pred.chroma[p],
-                levels,
-                cqp,
-                &mut out.chroma[p],
-                8,
-                ((i % 2) * 4, (i / 2) * 4),
-            );
+            add_block(levels, cqp, plane, 8, ((i % 2) * 4, (i / 2) * 4));
         }
     }
     out

@@ -86,23 +86,35 @@ pub(crate) struct MbCoder {
 fn coefficient_cost(b: &Block4) -> u32 {
     const COST: [u32; 16] = [3, 2, 2, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0];
     let flat = b.as_flattened();
-    if flat.iter().all(|&v| v == 0) {
-        return 0;
+    // Which scan positions hold a level, and whether any exceeds 1.
+    let (mut mask, mut big) = (0u32, false);
+    for (k, &z) in ZIGZAG.iter().enumerate() {
+        let v = flat[z];
+        mask |= u32::from(v != 0) << k;
+        big |= v.unsigned_abs() > 1;
     }
-    let mut cost = 0;
-    let mut run = 0;
-    for &k in &ZIGZAG {
-        let v = flat[k];
-        if v == 0 {
-            run += 1;
-        } else if v.abs() > 1 {
-            return 999;
-        } else {
-            cost += COST[run];
-            run = 0;
-        }
+    if big {
+        return 999;
+    }
+    // Each level costs by the run of zeros since the previous one.
+    let (mut cost, mut next) = (0, 0);
+    while mask != 0 {
+        let k = mask.trailing_zeros();
+        cost += COST[(k - next) as usize];
+        next = k + 1;
+        mask &= mask - 1;
     }
     cost
+}
+
+/// [`coefficient_cost`] summed over blocks.
+#[inline(always)]
+fn blocks_cost<'a>(blocks: impl IntoIterator<Item = &'a Block4>) -> u32 {
+    let mut total = 0;
+    for b in blocks {
+        total += coefficient_cost(b);
+    }
+    total
 }
 
 /// Lone small levels cost more bits than they save distortion: drops an
@@ -113,7 +125,7 @@ fn drop_costly_small_luma(luma: &mut [Block4; 16]) {
     let mut total = 0;
     for q in 0..4 {
         let blocks = [0, 1, 4, 5].map(|o| (q % 2) * 2 + (q / 2) * 8 + o);
-        let cost: u32 = blocks.iter().map(|&k| coefficient_cost(&luma[k])).sum();
+        let cost = blocks_cost(blocks.iter().map(|&k| &luma[k]));
         if cost < 4 {
             for k in blocks {
                 luma[k] = [[0; 4]; 4];
@@ -356,7 +368,7 @@ impl MbCoder {
                 (*diff, *block) =
                     Self::block_levels(&src.chroma[p], &pred.chroma[p], 8, (k % 2, k / 2), cqp, intra);
             }
-            let cheap = |blocks: &[Block4; 4]| blocks.iter().map(coefficient_cost).sum::<u32>() < 4;
+            let cheap = |blocks: &[Block4; 4]| blocks_cost(blocks) < 4;
             if !intra && cheap(&residual.chroma[p]) {
                 residual.chroma[p] = [[[0; 4]; 4]; 4];
                 continue;

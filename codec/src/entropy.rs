@@ -275,7 +275,7 @@ fn cost_index(p: u32) -> usize {
 }
 
 /// [`cost`] tabulated, for pricers that look it up per bin.
-fn cost_table() -> &'static [u32; COST_ENTRIES] {
+pub(crate) fn cost_table() -> &'static [u32; COST_ENTRIES] {
     COST.get_or_init(|| {
         std::array::from_fn(|i| {
             let p = (i as f64 + 0.5) / COST_ENTRIES as f64;
@@ -285,13 +285,20 @@ fn cost_table() -> &'static [u32; COST_ENTRIES] {
 }
 
 const COST_ENTRIES_LOG2: u32 = 10;
-const COST_ENTRIES: usize = 1 << COST_ENTRIES_LOG2;
+pub(crate) const COST_ENTRIES: usize = 1 << COST_ENTRIES_LOG2;
 static COST: std::sync::OnceLock<[u32; COST_ENTRIES]> = std::sync::OnceLock::new();
 
 impl Context {
     /// Cost in 1/256 bit of coding `bit` in this context's present state.
     pub fn cost(&self, bit: bool) -> u32 {
         self.cost_in(cost_table(), bit)
+    }
+
+    /// The costs of a 0 and of a 1 in this context's present state, for
+    /// every context of a class at once (`table` from [`cost_table`]).
+    #[inline]
+    pub(crate) fn costs_in(&self, table: &[u32; COST_ENTRIES]) -> [u32; 2] {
+        [self.cost_in(table, false), self.cost_in(table, true)]
     }
 
     /// [`Context::cost`] from the table, looked up once by the caller.

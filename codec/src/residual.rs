@@ -29,7 +29,8 @@
 //! exactly as it adapts.
 
 use crate::entropy::{
-    get_exp_golomb, put_exp_golomb, Adapter, Bins, Context, Pricer, RangeDecoder, RangeEncoder, Writer,
+    cost_table, get_exp_golomb, put_exp_golomb, Adapter, Bins, Context, Pricer, RangeDecoder, RangeEncoder,
+    Writer,
 };
 use crate::transform::Block4;
 
@@ -289,6 +290,49 @@ fn code_block<B: Bins>(b: &mut B, cls: usize, block: &Block4) {
     }
 }
 
+/// The bin costs of one block class in a [`ResidualCoder`]'s state, for
+/// pricing blocks ([`ResidualCoder::block_pricer`]).
+#[derive(Debug, Clone)]
+pub struct BlockPricer {
+    /// Cost (1/256 bit) of a 0 and of a 1 in each of the class's contexts.
+    costs: [[u32; 2]; CLASS_CONTEXTS],
+    cls: usize,
+    /// The coded flag's costs (0, 1) with one coded neighbour.
+    flag: (u32, u32),
+}
+
+impl BlockPricer {
+    /// What [`ResidualCoder::block_cost`] returns for `block` in the state
+    /// the pricer was made from.
+    pub fn block_cost(&self, block: &Block4) -> u32 {
+        if is_zero(block) {
+            return 0;
+        }
+        let mut p = TablePricer {
+            pricer: self,
+            cost: self.flag.1,
+        };
+        code_block(&mut p, self.cls, block);
+        p.cost.saturating_sub(self.flag.0)
+    }
+}
+
+/// Prices bins from a [`BlockPricer`]'s table.
+struct TablePricer<'a> {
+    pricer: &'a BlockPricer,
+    cost: u32,
+}
+
+impl Bins for TablePricer<'_> {
+    #[inline]
+    fn bin(&mut self, ctx: usize, bit: bool) {
+        self.cost += self.pricer.costs[ctx - self.pricer.cls][usize::from(bit)];
+    }
+    fn bypass(&mut self, _: bool) {
+        self.cost += crate::entropy::BYPASS_COST;
+    }
+}
+
 /// The residual coder of one frame: the contexts and the coded flags of
 /// the macroblocks coded so far (which choose the contexts of the next).
 ///
@@ -403,6 +447,22 @@ impl ResidualCoder {
         let mut p = Pricer::new(&self.contexts[..], flag.cost(true));
         code_block(&mut p, cls, block);
         p.cost.saturating_sub(flag.cost(false))
+    }
+
+    /// [`ResidualCoder::block_cost`] for one block class with the costs of
+    /// its contexts' bins looked up once: what an encoder pricing many
+    /// trial blocks against the same state needs.
+    pub fn block_pricer(&self, chroma: bool, intra: bool) -> BlockPricer {
+        let cls = class(chroma, intra);
+        let table = cost_table();
+        let costs: [[u32; 2]; CLASS_CONTEXTS] =
+            std::array::from_fn(|k| self.contexts[cls + k].costs_in(table));
+        let [flag0, flag1] = costs[CBF + 1];
+        BlockPricer {
+            costs,
+            cls,
+            flag: (flag0, flag1),
+        }
     }
 
     /// Adapts the contexts and records the coded flags as
@@ -587,6 +647,44 @@ fn read_block(
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn the_block_pricer_prices_as_block_cost() {
+        let mut seed = 5u32;
+        let mut next = |n: u32| {
+            seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
+            ((seed >> 16) % n) as i32
+        };
+        let mut coder = ResidualCoder::new(4, 4);
+        for round in 0..200 {
+            // Sparse blocks with small levels, some large ones past the
+            // unary part.
+            let mut res = MbResidual::default();
+            for b in res.luma.iter_mut().chain(res.chroma.iter_mut().flatten()) {
+                for v in b.as_flattened_mut() {
+                    *v = match next(10) {
+                        0 => next(5) - 2,
+                        1 => next(61) - 30,
+                        _ => 0,
+                    };
+                }
+            }
+            let intra = round % 3 == 0;
+            for chroma in [false, true] {
+                let pricer = coder.block_pricer(chroma, intra);
+                let blocks: Vec<&Block4> = if chroma {
+                    res.chroma.iter().flatten().collect()
+                } else {
+                    res.luma.iter().collect()
+                };
+                for b in blocks {
+                    assert_eq!(pricer.block_cost(b), coder.block_cost(chroma, intra, b));
+                }
+            }
+            // Adapt, so that later rounds price other states.
+            coder.commit((round % 4) as usize, (round / 4 % 4) as usize, intra, &res);
+        }
+    }
 
     #[test]
     fn zigzag_is_a_permutation_walking_the_diagonals() {

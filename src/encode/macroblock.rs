@@ -7,7 +7,7 @@ use crate::codec::bits::{se_len, ue_len};
 use crate::codec::intra::IntraMode;
 use crate::codec::mv::Mv;
 use crate::codec::recon::{chroma_qp, reconstruct_samples, IntraEdges, MbPrediction};
-use crate::codec::residual::{MbResidual, ResidualCoder, ZIGZAG};
+use crate::codec::residual::{BlockPricer, MbResidual, ResidualCoder, ZIGZAG};
 use crate::codec::syntax::{intra_mode_allowed, MB};
 use crate::codec::transform::{
     dequantize, dequantize_level, forward_4x4, inverse_4x4, inverse_4x4_unrounded, quantize, Block4,
@@ -153,19 +153,11 @@ fn block_error(residual: &Block4, levels: &Block4, qp: u8) -> i64 {
     e
 }
 
-/// Where a block sits, for its rate: chroma or luma, intra or inter.
-#[derive(Debug, Clone, Copy)]
-struct BlockRate<'a> {
-    coder: &'a ResidualCoder,
-    chroma: bool,
-    intra: bool,
-}
-
-impl BlockRate<'_> {
-    /// Bits `levels` add over an empty block.
-    fn bits(&self, levels: &Block4) -> f64 {
-        f64::from(self.coder.block_cost(self.chroma, self.intra, levels)) / 256.0
-    }
+/// Bits `levels` add over an empty block, priced for its class (chroma or
+/// luma, intra or inter) in the frame's residual coder as it stands.
+#[inline(always)]
+fn block_bits(rate: &BlockPricer, levels: &Block4) -> f64 {
+    f64::from(rate.block_cost(levels)) / 256.0
 }
 
 /// The inverse transform's basis doubled: row `k` is twice the weight of
@@ -196,7 +188,7 @@ fn rounded_error(residual: &Block4, unrounded: &Block4) -> i64 {
 /// final rounding moves by `d/4` times the coefficient's (doubled) basis
 /// block. Other steps go through the whole inverse transform.
 #[inline(always)]
-fn lower_levels(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rate: BlockRate<'_>) {
+fn lower_levels(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rate: &BlockPricer) {
     if levels.as_flattened().iter().all(|&v| v == 0) {
         return;
     }
@@ -204,7 +196,7 @@ fn lower_levels(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rat
     dequantize(&mut coeffs, qp);
     let mut unrounded = inverse_4x4_unrounded(&coeffs);
     let mut error = rounded_error(residual, &unrounded);
-    let mut bits = rate.bits(levels);
+    let mut bits = block_bits(rate, levels);
     for &k in ZIGZAG.iter().rev() {
         let (r, c) = (k / 4, k % 4);
         let v = levels[r][c];
@@ -233,7 +225,7 @@ fn lower_levels(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rat
         if (e - error) as f64 >= lambda * bits {
             continue;
         }
-        let b = rate.bits(&trial);
+        let b = block_bits(rate, &trial);
         if (e - error) as f64 + lambda * (b - bits) < 0.0 {
             *levels = trial;
             coeffs[r][c] = coeff;
@@ -337,11 +329,6 @@ impl MbCoder {
         mb_y: usize,
     ) -> Coded {
         let mut residual = MbResidual::default();
-        let rate = |chroma| BlockRate {
-            coder: rates,
-            chroma,
-            intra,
-        };
         let mut luma_residual = [[[0i32; 4]; 4]; 16];
         for (k, (block, diff)) in residual.luma.iter_mut().zip(&mut luma_residual).enumerate() {
             (*diff, *block) = Self::block_levels(&src.luma, &pred.luma, MB, (k % 4, k / 4), self.qp, intra);
@@ -353,15 +340,19 @@ impl MbCoder {
         if !intra {
             drop_costly_small_luma(&mut residual.luma);
         }
-        if self.rdoq {
+        // (Pricers are made only for levels left to lower.)
+        let coded = |blocks: &[Block4]| blocks.iter().any(|b| b.as_flattened().iter().any(|&v| v != 0));
+        if self.rdoq && coded(&residual.luma) {
+            let rate = rates.block_pricer(false, intra);
             for (block, diff) in residual.luma.iter_mut().zip(&luma_residual) {
-                lower_levels(diff, block, self.qp, self.lambda, rate(false));
+                lower_levels(diff, block, self.qp, self.lambda, &rate);
             }
             if !intra {
                 drop_costly_small_luma(&mut residual.luma);
             }
         }
         let cqp = chroma_qp(self.qp);
+        let mut chroma_rate = None;
         for p in 0..2 {
             let mut diffs = [[[0i32; 4]; 4]; 4];
             for (k, (block, diff)) in residual.chroma[p].iter_mut().zip(&mut diffs).enumerate() {
@@ -373,9 +364,10 @@ impl MbCoder {
                 residual.chroma[p] = [[[0; 4]; 4]; 4];
                 continue;
             }
-            if self.rdoq {
+            if self.rdoq && coded(&residual.chroma[p]) {
+                let rate = chroma_rate.get_or_insert_with(|| rates.block_pricer(true, intra));
                 for (block, diff) in residual.chroma[p].iter_mut().zip(&diffs) {
-                    lower_levels(diff, block, cqp, self.lambda, rate(true));
+                    lower_levels(diff, block, cqp, self.lambda, rate);
                 }
                 if !intra && cheap(&residual.chroma[p]) {
                     residual.chroma[p] = [[[0; 4]; 4]; 4];
@@ -524,14 +516,9 @@ mod tests {
             let mut levels = forward_4x4(&residual);
             quantize(&mut levels, qp, ROUND_INTER);
             let before = levels;
-            let coder = ResidualCoder::new(1, 1);
-            let rate = BlockRate {
-                coder: &coder,
-                chroma: false,
-                intra: false,
-            };
-            lower_levels(&residual, &mut levels, qp, lambda, rate);
-            let cost = |l: &Block4| block_error(&residual, l, qp) as f64 + lambda * rate.bits(l);
+            let rate = ResidualCoder::new(1, 1).block_pricer(false, false);
+            lower_levels(&residual, &mut levels, qp, lambda, &rate);
+            let cost = |l: &Block4| block_error(&residual, l, qp) as f64 + lambda * block_bits(&rate, l);
             assert!(cost(&levels) <= cost(&before) + 1e-9);
             for (a, b) in levels.iter().flatten().zip(before.iter().flatten()) {
                 assert!(a.abs() <= b.abs() && a * b >= 0, "{a} from {b}");

@@ -395,93 +395,185 @@ pub fn write_frame(
     frame: &FrameSyntax,
     state: &mut EntropyState,
 ) -> (Vec<u8>, BitCounts) {
-    let (cols, rows) = (seq.mb_cols(), seq.mb_rows());
-    assert_eq!(frame.mbs.len(), cols * rows, "macroblock count");
-    let h = &frame.header;
-    assert!(h.qp <= MAX_QP);
-    let mut w = BitWriter::new();
-    w.put(u64::from(h.frame_type == FrameType::Inter), 1);
-    w.put(u64::from(h.qp), 6);
-    let tool_code = match h.tool {
-        MotionTool::Block => 0,
-        MotionTool::Obmc => 1,
-        MotionTool::Grid(_) => 2,
-    };
-    assert!(
-        h.frame_type == FrameType::Inter || tool_code == 0,
-        "I frames use the block tool"
-    );
-    w.put(tool_code, 2);
-    if let MotionTool::Grid(spacing) = h.tool {
-        let code = SPACINGS.iter().position(|&s| s == spacing);
-        assert!(code.is_some(), "grid spacing {spacing} is not 4, 8 or 16");
-        w.put(code.unwrap_or_default() as u64, 2);
+    assert_eq!(frame.mbs.len(), seq.mb_cols() * seq.mb_rows(), "macroblock count");
+    let mut w = FrameWriter::new(seq, &frame.header, frame.grid.as_ref(), state);
+    for mb in &frame.mbs {
+        w.push(mb);
     }
-    w.align();
-    assert!(
-        matches!(h.tool, MotionTool::Grid(_)) == frame.grid.is_some(),
-        "grid frames, and only they, carry a grid"
-    );
-    let mut enc = RangeEncoder::new();
-    let (mut modes, mut residual) = state.coders(seq, h.frame_type);
-    // Estimated costs (1/256 bit) of header, motion and residual bins.
-    let mut estimates = [0u64; 3];
-    if let (MotionTool::Grid(spacing), Some(grid)) = (h.tool, &frame.grid) {
-        assert_eq!(grid.spacing(), spacing, "grid spacing differs from the header's");
-        for row in 0..grid.rows() {
-            for col in 0..grid.cols() {
-                let mv = grid.get(col, row);
-                assert!(mv.in_range(), "grid vector {mv:?} out of range");
-                let d = mv - grid_prediction(grid, col, row);
-                estimates[1] += u64::from(modes.write_grid(&mut enc, grid.cols(), col, row, d));
+    w.finish(state)
+}
+
+/// [`write_frame`] a macroblock at a time, so that an encoder can write
+/// each macroblock as it decides it, pricing the next ones from the same
+/// coders ([`FrameWriter::modes`], [`FrameWriter::residual`]) that writing
+/// adapts, instead of adapting a copy and writing the frame again later.
+///
+/// ```
+/// use mocomp_codec::intra::IntraMode;
+/// use mocomp_codec::syntax::*;
+/// let seq = SequenceHeader { width: 32, height: 16, fps_num: 25, fps_den: 1, frame_count: 1 };
+/// let header = FrameHeader { frame_type: FrameType::Intra, qp: 30, tool: MotionTool::Block };
+/// let kind = MbKind::Intra { luma: IntraMode::Dc, chroma: IntraMode::Dc };
+/// let frame = FrameSyntax { header, grid: None, mbs: vec![CodedMb::without_residual(kind); 2] };
+/// let mut state = EntropyState::new();
+/// let mut w = FrameWriter::new(&seq, &frame.header, None, &state);
+/// for mb in &frame.mbs {
+///     w.push(mb);
+/// }
+/// let (bytes, _) = w.finish(&mut state);
+/// assert_eq!(bytes, write_frame(&seq, &frame, &mut EntropyState::new()).0);
+/// ```
+pub struct FrameWriter {
+    cols: usize,
+    count: usize,
+    header: Vec<u8>,
+    enc: RangeEncoder,
+    modes: ModeCoder,
+    residual: ResidualCoder,
+    /// Estimated costs (1/256 bit) of header, motion and residual bins.
+    estimates: [u64; 3],
+    vectors: Vec<Option<Mv>>,
+    inter_frame: bool,
+    uses_mvs: bool,
+}
+
+impl FrameWriter {
+    /// Starts frame `header` (with its motion `grid` in grid frames) of a
+    /// stream whose entropy state is `state`: the frame header and the
+    /// grid are written.
+    pub fn new(
+        seq: &SequenceHeader,
+        h: &FrameHeader,
+        grid: Option<&MotionGrid>,
+        state: &EntropyState,
+    ) -> FrameWriter {
+        let (cols, rows) = (seq.mb_cols(), seq.mb_rows());
+        assert!(h.qp <= MAX_QP);
+        let mut w = BitWriter::new();
+        w.put(u64::from(h.frame_type == FrameType::Inter), 1);
+        w.put(u64::from(h.qp), 6);
+        let tool_code = match h.tool {
+            MotionTool::Block => 0,
+            MotionTool::Obmc => 1,
+            MotionTool::Grid(_) => 2,
+        };
+        assert!(
+            h.frame_type == FrameType::Inter || tool_code == 0,
+            "I frames use the block tool"
+        );
+        w.put(tool_code, 2);
+        if let MotionTool::Grid(spacing) = h.tool {
+            let code = SPACINGS.iter().position(|&s| s == spacing);
+            assert!(code.is_some(), "grid spacing {spacing} is not 4, 8 or 16");
+            w.put(code.unwrap_or_default() as u64, 2);
+        }
+        w.align();
+        assert!(
+            matches!(h.tool, MotionTool::Grid(_)) == grid.is_some(),
+            "grid frames, and only they, carry a grid"
+        );
+        let mut enc = RangeEncoder::new();
+        let (mut modes, residual) = state.coders(seq, h.frame_type);
+        let mut estimates = [0u64; 3];
+        if let (MotionTool::Grid(spacing), Some(grid)) = (h.tool, grid) {
+            assert_eq!(grid.spacing(), spacing, "grid spacing differs from the header's");
+            for row in 0..grid.rows() {
+                for col in 0..grid.cols() {
+                    let mv = grid.get(col, row);
+                    assert!(mv.in_range(), "grid vector {mv:?} out of range");
+                    let d = mv - grid_prediction(grid, col, row);
+                    estimates[1] += u64::from(modes.write_grid(&mut enc, grid.cols(), col, row, d));
+                }
             }
         }
+        FrameWriter {
+            cols,
+            count: cols * rows,
+            header: w.into_bytes(),
+            enc,
+            modes,
+            residual,
+            estimates,
+            vectors: Vec::with_capacity(cols * rows),
+            inter_frame: h.frame_type == FrameType::Inter,
+            uses_mvs: matches!(h.tool, MotionTool::Block | MotionTool::Obmc),
+        }
     }
-    let inter_frame = h.frame_type == FrameType::Inter;
-    let uses_mvs = matches!(h.tool, MotionTool::Block | MotionTool::Obmc);
-    let mut vectors: Vec<Option<Mv>> = Vec::with_capacity(cols * rows);
-    for (i, mb) in frame.mbs.iter().enumerate() {
-        let (mb_x, mb_y) = (i % cols, i / cols);
+
+    /// The mode coder as the macroblocks written so far left it.
+    pub fn modes(&self) -> &ModeCoder {
+        &self.modes
+    }
+
+    /// The residual coder as the macroblocks written so far left it.
+    pub fn residual(&self) -> &ResidualCoder {
+        &self.residual
+    }
+
+    /// The vectors of the macroblocks written so far (raster order; `None`
+    /// for intra), as vector prediction reads them.
+    pub fn vectors(&self) -> &[Option<Mv>] {
+        &self.vectors
+    }
+
+    /// Writes the next macroblock (raster order).
+    pub fn push(&mut self, mb: &CodedMb) {
+        let i = self.vectors.len();
+        assert!(i < self.count, "more macroblocks than the frame holds");
+        let (mb_x, mb_y) = (i % self.cols, i / self.cols);
         assert!(
-            inter_frame || matches!(mb.kind, MbKind::Intra { .. }),
+            self.inter_frame || matches!(mb.kind, MbKind::Intra { .. }),
             "I frames hold only intra macroblocks"
         );
         if let MbKind::Inter { mv } = mb.kind {
             assert!(
-                uses_mvs || mv == Mv::ZERO,
+                self.uses_mvs || mv == Mv::ZERO,
                 "inter macroblocks of grid frames have no vector"
             );
             assert!(mv.in_range(), "vector {mv:?} out of range");
         }
-        let predicted = mv_prediction(&vectors, mb_x, mb_y, cols);
-        let mode = mb_mode(&mb.kind, predicted, uses_mvs);
-        let (motion, rest) = modes.write(&mut enc, mb_x, mb_y, inter_frame, uses_mvs, &mode);
-        estimates[0] += u64::from(rest);
-        estimates[1] += u64::from(motion);
-        vectors.push(mb_vector(&mb.kind, &vectors, mb_x, mb_y, cols));
+        let predicted = mv_prediction(&self.vectors, mb_x, mb_y, self.cols);
+        let mode = mb_mode(&mb.kind, predicted, self.uses_mvs);
+        let (motion, rest) =
+            self.modes
+                .write(&mut self.enc, mb_x, mb_y, self.inter_frame, self.uses_mvs, &mode);
+        self.estimates[0] += u64::from(rest);
+        self.estimates[1] += u64::from(motion);
+        self.vectors
+            .push(mb_vector(&mb.kind, &self.vectors, mb_x, mb_y, self.cols));
         if mb.kind == MbKind::Skip {
             assert!(mb.residual.is_none(), "skipped macroblocks have no residual");
-            continue;
+            return;
         }
         let intra = matches!(mb.kind, MbKind::Intra { .. });
-        estimates[2] += u64::from(residual.write(&mut enc, mb_x, mb_y, intra, mb.residual()));
+        self.estimates[2] += u64::from(
+            self.residual
+                .write(&mut self.enc, mb_x, mb_y, intra, mb.residual()),
+        );
     }
-    state.last = Some((modes, residual));
-    let header = w.into_bytes();
-    let coded = enc.finish();
-    let [hb, mb, rb] = split_bits(8 * coded.len() as u64, estimates);
-    let counts = BitCounts {
-        // Start code and length, the frame header, and the flags' share.
-        header: 40 + 8 * header.len() as u64 + hb,
-        motion: mb,
-        residual: rb,
-    };
-    let mut out = Vec::with_capacity(5 + header.len() + coded.len());
-    out.push(FRAME_START);
-    out.extend_from_slice(&((header.len() + coded.len()) as u32).to_be_bytes());
-    out.extend_from_slice(&header);
-    out.extend_from_slice(&coded);
-    (out, counts)
+
+    /// The frame's bytes (start code to end) and bits per category, every
+    /// macroblock having been pushed; `state` (the one the writer was made
+    /// from) is updated for the next frame.
+    pub fn finish(self, state: &mut EntropyState) -> (Vec<u8>, BitCounts) {
+        assert_eq!(self.vectors.len(), self.count, "macroblock count");
+        state.last = Some((self.modes, self.residual));
+        let header = self.header;
+        let coded = self.enc.finish();
+        let [hb, mb, rb] = split_bits(8 * coded.len() as u64, self.estimates);
+        let counts = BitCounts {
+            // Start code and length, the frame header, and the flags' share.
+            header: 40 + 8 * header.len() as u64 + hb,
+            motion: mb,
+            residual: rb,
+        };
+        let mut out = Vec::with_capacity(5 + header.len() + coded.len());
+        out.push(FRAME_START);
+        out.extend_from_slice(&((header.len() + coded.len()) as u32).to_be_bytes());
+        out.extend_from_slice(&header);
+        out.extend_from_slice(&coded);
+        (out, counts)
+    }
 }
 
 /// A whole stream: the sequence header, every frame, the end marker.

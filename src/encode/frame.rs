@@ -9,16 +9,19 @@ use crate::codec::mv::Mv;
 use crate::codec::recon::{predict_inter, predict_intra, write_mb, InterContext, MbPrediction};
 use crate::codec::residual::{MbResidual, ResidualCoder};
 use crate::codec::syntax::{
-    mb_mode, mb_vector, mv_prediction, CodedMb, FrameHeader, FrameSyntax, FrameType, MbKind, MotionTool,
-    SequenceHeader,
+    mb_mode, mb_vector, mv_prediction, write_frame, BitCounts, CodedMb, EntropyState, FrameHeader,
+    FrameSyntax, FrameType, FrameWriter, MbKind, MotionTool, SequenceHeader,
 };
 use crate::codec::warp::warp_frame;
 use crate::codec::{Frame, PictureError};
 use crate::metrics::squared_difference_sum;
 
-/// A coded frame before it is written.
+/// A coded frame.
 pub(crate) struct CodedFrame {
     pub syntax: FrameSyntax,
+    /// Its bytes in the stream and their bits per category.
+    pub bytes: Vec<u8>,
+    pub bits: BitCounts,
     /// The reconstruction at the coded size, borders extended.
     pub recon: Frame,
     /// Squared error of the prediction (before the residual) over the
@@ -57,16 +60,63 @@ fn kind_index(kind: &MbKind) -> usize {
     }
 }
 
+/// Where decided macroblocks go: written at once, the coders they are
+/// priced with being the writer's (the writing adapts them), or only
+/// adapted (OBMC, whose residuals are coded again once every vector is
+/// decided, and written after that).
+enum MbSink {
+    Write(Box<FrameWriter>),
+    Adapt(Box<(ModeCoder, ResidualCoder)>),
+}
+
+impl MbSink {
+    fn modes(&self) -> &ModeCoder {
+        match self {
+            MbSink::Write(w) => w.modes(),
+            MbSink::Adapt(c) => &c.0,
+        }
+    }
+
+    fn residual(&self) -> &ResidualCoder {
+        match self {
+            MbSink::Write(w) => w.residual(),
+            MbSink::Adapt(c) => &c.1,
+        }
+    }
+
+    /// Macroblock (mb_x, mb_y), decided (`mvp`: its predicted vector).
+    fn push(&mut self, mb: &CodedMb, (mb_x, mb_y): (usize, usize), mvp: Mv, uses_mvs: bool) {
+        match self {
+            MbSink::Write(w) => w.push(mb),
+            MbSink::Adapt(c) => {
+                let (modes, rates) = &mut **c;
+                modes.commit(mb_x, mb_y, true, uses_mvs, &mb_mode(&mb.kind, mvp, uses_mvs));
+                if mb.kind != MbKind::Skip {
+                    let intra = matches!(mb.kind, MbKind::Intra { .. });
+                    rates.commit(mb_x, mb_y, intra, mb.residual());
+                }
+            }
+        }
+    }
+}
+
 /// An I frame: every macroblock intra, modes by SATD; reconstructed into
-/// `recon` (coded size, contents all overwritten).
+/// `recon` (coded size, contents all overwritten) and written, `state`
+/// updated.
 pub(crate) fn code_intra(
     seq: &SequenceHeader,
     coder: &MbCoder,
     src: &Frame,
-    mut rates: ResidualCoder,
+    state: &mut EntropyState,
     mut recon: Frame,
 ) -> Result<CodedFrame, PictureError> {
     let cols = seq.mb_cols();
+    let header = FrameHeader {
+        frame_type: FrameType::Intra,
+        qp: coder.qp,
+        tool: MotionTool::Block,
+    };
+    let mut writer = FrameWriter::new(seq, &header, None, state);
     let mut mbs = Vec::with_capacity(cols * seq.mb_rows());
     let mut prediction_sse = 0;
     for i in 0..cols * seq.mb_rows() {
@@ -75,23 +125,23 @@ pub(crate) fn code_intra(
         let Some((luma, chroma, pred)) = coder.best_intra(&s, &recon, (mb_x, mb_y), u32::MAX) else {
             unreachable!("no SATD reaches u32::MAX")
         };
-        let coded = coder.code(&s, &pred, true, &rates, mb_x, mb_y);
+        let coded = coder.code(&s, &pred, true, writer.residual(), mb_x, mb_y);
         write_mb(&coded.samples, &mut recon, mb_x, mb_y);
-        rates.commit(mb_x, mb_y, true, &coded.residual);
         prediction_sse += visible_luma_sse(&s, &pred, mb_x, mb_y, seq);
-        mbs.push(CodedMb::new(MbKind::Intra { luma, chroma }, coded.residual));
+        let mb = CodedMb::new(MbKind::Intra { luma, chroma }, coded.residual);
+        writer.push(&mb);
+        mbs.push(mb);
     }
     recon.extend_borders();
+    let (bytes, bits) = writer.finish(state);
     Ok(CodedFrame {
         syntax: FrameSyntax {
-            header: FrameHeader {
-                frame_type: FrameType::Intra,
-                qp: coder.qp,
-                tool: MotionTool::Block,
-            },
+            header,
             grid: None,
             mbs,
         },
+        bytes,
+        bits,
         recon,
         prediction_sse,
         kinds: [0, 0, cols * seq.mb_rows()],
@@ -119,7 +169,7 @@ pub(crate) fn code_inter(
     motion: FrameMotion,
     tool: MotionTool,
     decision: ModeDecision,
-    coders: (ModeCoder, ResidualCoder),
+    state: &mut EntropyState,
     mut recon: Frame,
 ) -> Result<CodedFrame, PictureError> {
     let (cols, n) = (seq.mb_cols(), seq.mb_cols() * seq.mb_rows());
@@ -140,9 +190,18 @@ pub(crate) fn code_inter(
     let mut mbs = Vec::with_capacity(n);
     let mut prediction_sse = 0;
     let mut kinds = [0; 3];
-    let (mut modes, mut rates) = coders;
+    let header = FrameHeader {
+        frame_type: FrameType::Inter,
+        qp: coder.qp,
+        tool,
+    };
+    let mut sink = if tool == MotionTool::Obmc {
+        MbSink::Adapt(Box::new(state.coders(seq, FrameType::Inter)))
+    } else {
+        MbSink::Write(Box::new(FrameWriter::new(seq, &header, grid.as_ref(), state)))
+    };
     // OBMC's second pass prices residuals from the frame's start again.
-    let rates_at_start = (tool == MotionTool::Obmc).then(|| rates.clone());
+    let rates_at_start = (tool == MotionTool::Obmc).then(|| sink.residual().clone());
     // Bits of a mode as the frame's mode coder prices it now.
     let mode_bits = |modes: &ModeCoder, mb_x, mb_y, mode: &MbMode| {
         f64::from(modes.cost(mb_x, mb_y, true, uses_mvs, mode)) / 256.0
@@ -164,7 +223,10 @@ pub(crate) fn code_inter(
         };
         let skip_pred = predict_inter(&ctx, mb_x, mb_y, mvp);
         let mut best = Choice {
-            cost: coder.cost(s.ssd(&skip_pred), mode_bits(&modes, mb_x, mb_y, &MbMode::Skip)),
+            cost: coder.cost(
+                s.ssd(&skip_pred),
+                mode_bits(sink.modes(), mb_x, mb_y, &MbMode::Skip),
+            ),
             kind: MbKind::Skip,
             pred: skip_pred.clone(),
             residual: MbResidual::default(),
@@ -172,7 +234,7 @@ pub(crate) fn code_inter(
         };
         // Every other choice spends at least the flag saying it is not
         // skipped: when skip costs no more, nothing can beat it.
-        let not_skipped = f64::from(modes.not_skipped_cost(mb_x, mb_y)) / 256.0;
+        let not_skipped = f64::from(sink.modes().not_skipped_cost(mb_x, mb_y)) / 256.0;
         let exhaustive = best.cost > coder.cost(0, not_skipped);
         let searched_mv = (uses_mvs && searched[i] != mvp).then_some(searched[i]);
         let mut candidates = Vec::with_capacity(2);
@@ -198,9 +260,9 @@ pub(crate) fn code_inter(
             candidates.truncate(1);
         }
         for (mv, pred, _) in candidates {
-            let coded = coder.code(&s, &pred, false, &rates, mb_x, mb_y);
+            let coded = coder.code(&s, &pred, false, sink.residual(), mb_x, mb_y);
             let mode = MbMode::Inter { mvd: mv - mvp };
-            let bits = mode_bits(&modes, mb_x, mb_y, &mode) + coded.bits;
+            let bits = mode_bits(sink.modes(), mb_x, mb_y, &mode) + coded.bits;
             let cost = coder.cost(coded.ssd, bits);
             if cost < best.cost {
                 best = Choice {
@@ -218,9 +280,9 @@ pub(crate) fn code_inter(
             .then(|| coder.best_intra(&s, &recon, (mb_x, mb_y), inter_satd))
             .flatten();
         if let Some((luma, chroma, pred)) = intra {
-            let coded = coder.code(&s, &pred, true, &rates, mb_x, mb_y);
+            let coded = coder.code(&s, &pred, true, sink.residual(), mb_x, mb_y);
             let mode = MbMode::Intra { luma, chroma };
-            let bits = mode_bits(&modes, mb_x, mb_y, &mode) + coded.bits;
+            let bits = mode_bits(sink.modes(), mb_x, mb_y, &mode) + coded.bits;
             let cost = coder.cost(coded.ssd, bits);
             if cost < best.cost {
                 best = Choice {
@@ -233,37 +295,33 @@ pub(crate) fn code_inter(
             }
         }
         write_mb(&best.samples, &mut recon, mb_x, mb_y);
-        modes.commit(mb_x, mb_y, true, uses_mvs, &mb_mode(&best.kind, mvp, uses_mvs));
-        if best.kind != MbKind::Skip {
-            let intra = matches!(best.kind, MbKind::Intra { .. });
-            rates.commit(mb_x, mb_y, intra, &best.residual);
-        }
         prediction_sse += visible_luma_sse(&s, &best.pred, mb_x, mb_y, seq);
         let v = mb_vector(&best.kind, &decided, mb_x, mb_y, cols);
         decided.push(v);
         context[i] = v;
         kinds[kind_index(&best.kind)] += 1;
-        mbs.push(CodedMb::new(best.kind, best.residual));
+        let mb = CodedMb::new(best.kind, best.residual);
+        sink.push(&mb, (mb_x, mb_y), mvp, uses_mvs);
+        mbs.push(mb);
     }
     let mut frame = CodedFrame {
-        syntax: FrameSyntax {
-            header: FrameHeader {
-                frame_type: FrameType::Inter,
-                qp: coder.qp,
-                tool,
-            },
-            grid,
-            mbs,
-        },
+        syntax: FrameSyntax { header, grid, mbs },
+        bytes: Vec::new(),
+        bits: BitCounts::default(),
         recon,
         prediction_sse,
         kinds,
     };
-    if tool == MotionTool::Obmc {
-        // Decisions saw neighbours' searched vectors; code the residuals
-        // again against the final prediction, which uses the decided ones.
-        if let Some(rates) = rates_at_start {
-            recode(seq, coder, src, reference, rates, &mut frame)?;
+    match sink {
+        MbSink::Write(writer) => (frame.bytes, frame.bits) = writer.finish(state),
+        MbSink::Adapt(_) => {
+            // Decisions saw neighbours' searched vectors; code the residuals
+            // again against the final prediction, which uses the decided
+            // ones, then write the frame.
+            if let Some(rates) = rates_at_start {
+                recode(seq, coder, src, reference, rates, &mut frame)?;
+            }
+            (frame.bytes, frame.bits) = write_frame(seq, &frame.syntax, state);
         }
     }
     frame.recon.extend_borders();

@@ -41,7 +41,7 @@ pub use config::{
 pub use stats::{FrameStats, Summary, SummaryBuilder};
 
 use crate::codec::recon::crop;
-use crate::codec::syntax::{write_frame, EntropyState, FrameType, MotionTool, SequenceHeader, STREAM_END};
+use crate::codec::syntax::{EntropyState, FrameType, MotionTool, SequenceHeader, STREAM_END};
 use crate::codec::{Frame, PictureError};
 use crate::io::y4m::{Y4mError, Y4mReader};
 use crate::metrics::{frame_psnr, psnr_from_mse, ssim_8x8};
@@ -190,7 +190,6 @@ impl Encoder {
                     Predictor::Dense { grid, .. } => MotionTool::Grid(grid),
                     _ => MotionTool::Block,
                 };
-                let coders = self.entropy.coders(&self.seq, FrameType::Inter);
                 frame::code_inter(
                     &self.seq,
                     &self.coder,
@@ -199,16 +198,13 @@ impl Encoder {
                     motion,
                     tool,
                     self.config.decision,
-                    coders,
+                    &mut self.entropy,
                     recon,
                 )?
             }
-            _ => {
-                let (_, rates) = self.entropy.coders(&self.seq, FrameType::Intra);
-                frame::code_intra(&self.seq, &self.coder, &src, rates, recon)?
-            }
+            _ => frame::code_intra(&self.seq, &self.coder, &src, &mut self.entropy, recon)?,
         };
-        let (bytes, bits) = write_frame(&self.seq, &coded.syntax, &mut self.entropy);
+        let (bytes, bits) = (coded.bytes, coded.bits);
         let recon = crop(&coded.recon, self.seq.width, self.seq.height)?;
         let psnr = frame_psnr(source, &recon);
         let stats = FrameStats {

@@ -324,15 +324,29 @@ pub(crate) trait Bins {
 /// Writes bins, adapting the contexts, and adds up their cost (1/256 bit)
 /// as it goes (for the per-category bit statistics).
 pub(crate) struct Writer<'a> {
-    pub enc: &'a mut RangeEncoder,
-    pub contexts: &'a mut [Context],
+    enc: &'a mut RangeEncoder,
+    contexts: &'a mut [Context],
+    table: &'static [u32; COST_ENTRIES],
     pub cost: u32,
 }
 
+impl<'a> Writer<'a> {
+    /// A writer into `enc` with `contexts`, its cost count at 0.
+    pub fn new(enc: &'a mut RangeEncoder, contexts: &'a mut [Context]) -> Writer<'a> {
+        Writer {
+            enc,
+            contexts,
+            table: cost_table(),
+            cost: 0,
+        }
+    }
+}
+
 impl Bins for Writer<'_> {
+    #[inline]
     fn bin(&mut self, ctx: usize, bit: bool) {
         let c = &mut self.contexts[ctx];
-        self.cost += c.cost(bit);
+        self.cost += c.cost_in(self.table, bit);
         self.enc.encode(c, bit);
     }
     fn bypass(&mut self, bit: bool) {

@@ -298,11 +298,7 @@ impl ModeCoder {
     ) -> (u32, u32) {
         let n = self.neighbours(mb_x, mb_y);
         // The flags and modes first, priced apart from the vector.
-        let mut w = Writer {
-            enc,
-            contexts: &mut self.contexts[..],
-            cost: 0,
-        };
+        let mut w = Writer::new(enc, &mut self.contexts[..]);
         code_flags(&mut w, &n, inter_frame, mode);
         let rest = w.cost;
         w.cost = 0;
@@ -353,11 +349,7 @@ impl ModeCoder {
     /// wide (nodes in raster order); returns its cost in 1/256 bit.
     pub fn write_grid(&mut self, enc: &mut RangeEncoder, cols: usize, col: usize, row: usize, d: Mv) -> u32 {
         let sums = self.grid_sums(cols, col, row);
-        let mut w = Writer {
-            enc,
-            contexts: &mut self.contexts[..],
-            cost: 0,
-        };
+        let mut w = Writer::new(enc, &mut self.contexts[..]);
         code_component(&mut w, GRID, sums[0], d.x);
         code_component(&mut w, GRID + VECTOR_CONTEXTS, sums[1], d.y);
         self.grid.push([d.x.unsigned_abs(), d.y.unsigned_abs()]);

@@ -494,11 +494,7 @@ impl ResidualCoder {
             .flatten()
             .all(|v| v.unsigned_abs() <= MAX_LEVEL));
         let e = self.edges(mb_x, mb_y);
-        let mut w = Writer {
-            enc,
-            contexts: &mut self.contexts[..],
-            cost: 0,
-        };
+        let mut w = Writer::new(enc, &mut self.contexts[..]);
         code_mb(&mut w, &e, intra, res);
         let cost = w.cost;
         self.record(mb_x, mb_y, res);
@@ -708,11 +704,7 @@ mod tests {
     fn write_unchecked(res: &MbResidual) -> Vec<u8> {
         let mut enc = RangeEncoder::new();
         let mut contexts = Box::new([Context::new(); CONTEXTS]);
-        let mut w = Writer {
-            enc: &mut enc,
-            contexts: &mut contexts[..],
-            cost: 0,
-        };
+        let mut w = Writer::new(&mut enc, &mut contexts[..]);
         code_mb(&mut w, &Edges::default(), false, res);
         enc.finish()
     }

@@ -243,6 +243,15 @@ impl CodedMb {
         }
     }
 
+    /// [`CodedMb::new`] with levels already on the heap (kept there, not
+    /// copied).
+    pub fn with_levels(kind: MbKind, residual: Box<MbResidual>) -> CodedMb {
+        CodedMb {
+            kind,
+            residual: (!residual.is_empty()).then_some(residual),
+        }
+    }
+
     /// A macroblock of `kind` without residual.
     pub fn without_residual(kind: MbKind) -> CodedMb {
         CodedMb { kind, residual: None }

@@ -128,7 +128,7 @@ pub(crate) fn code_intra(
         let coded = coder.code(&s, &pred, true, writer.residual(), mb_x, mb_y);
         write_mb(&coded.samples, &mut recon, mb_x, mb_y);
         prediction_sse += visible_luma_sse(&s, &pred, mb_x, mb_y, seq);
-        let mb = CodedMb::new(MbKind::Intra { luma, chroma }, coded.residual);
+        let mb = CodedMb::with_levels(MbKind::Intra { luma, chroma }, coded.residual);
         writer.push(&mb);
         mbs.push(mb);
     }
@@ -153,7 +153,7 @@ struct Choice {
     cost: f64,
     kind: MbKind,
     pred: MbPrediction,
-    residual: MbResidual,
+    residual: Option<Box<MbResidual>>,
     /// The reconstruction it gives.
     samples: MbPrediction,
 }
@@ -229,7 +229,7 @@ pub(crate) fn code_inter(
             ),
             kind: MbKind::Skip,
             pred: skip_pred.clone(),
-            residual: MbResidual::default(),
+            residual: None,
             samples: skip_pred.clone(),
         };
         // Every other choice spends at least the flag saying it is not
@@ -269,7 +269,7 @@ pub(crate) fn code_inter(
                     cost,
                     kind: MbKind::Inter { mv },
                     pred,
-                    residual: coded.residual,
+                    residual: Some(coded.residual),
                     samples: coded.samples,
                 };
             }
@@ -289,7 +289,7 @@ pub(crate) fn code_inter(
                     cost,
                     kind: MbKind::Intra { luma, chroma },
                     pred,
-                    residual: coded.residual,
+                    residual: Some(coded.residual),
                     samples: coded.samples,
                 };
             }
@@ -300,7 +300,10 @@ pub(crate) fn code_inter(
         decided.push(v);
         context[i] = v;
         kinds[kind_index(&best.kind)] += 1;
-        let mb = CodedMb::new(best.kind, best.residual);
+        let mb = match best.residual {
+            Some(levels) => CodedMb::with_levels(best.kind, levels),
+            None => CodedMb::without_residual(best.kind),
+        };
         sink.push(&mb, (mb_x, mb_y), mvp, uses_mvs);
         mbs.push(mb);
     }
@@ -366,7 +369,7 @@ fn recode(
             let coded = coder.code(&s, &pred, intra, &rates, mb_x, mb_y);
             write_mb(&coded.samples, &mut recon, mb_x, mb_y);
             rates.commit(mb_x, mb_y, intra, &coded.residual);
-            *mb = CodedMb::new(mb.kind, coded.residual);
+            *mb = CodedMb::with_levels(mb.kind, coded.residual);
         }
     }
     frame.recon = recon;

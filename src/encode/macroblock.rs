@@ -59,7 +59,8 @@ impl MbSource {
 /// A residual with its rate and the reconstruction it gives.
 #[derive(Debug, Clone)]
 pub(crate) struct Coded {
-    pub residual: MbResidual,
+    /// On the heap: candidates move it around until one is written.
+    pub residual: Box<MbResidual>,
     /// Bits of the coded block pattern, flags and levels (the residual
     /// coder's estimate).
     pub bits: f64,
@@ -328,7 +329,7 @@ impl MbCoder {
         mb_x: usize,
         mb_y: usize,
     ) -> Coded {
-        let mut residual = MbResidual::default();
+        let mut residual = Box::<MbResidual>::default();
         let mut luma_residual = [[[0i32; 4]; 4]; 16];
         for (k, (block, diff)) in residual.luma.iter_mut().zip(&mut luma_residual).enumerate() {
             (*diff, *block) = Self::block_levels(&src.luma, &pred.luma, MB, (k % 4, k / 4), self.qp, intra);

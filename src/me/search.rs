@@ -5,7 +5,9 @@ use crate::codec::mv::Mv;
 
 /// Candidate vectors from neighbouring blocks, for predictive methods.
 pub(crate) struct Neighbours {
-    candidates: Vec<Mv>,
+    /// At most the predictor, three neighbours and three prior vectors.
+    candidates: [Mv; 7],
+    len: usize,
 }
 
 impl Neighbours {
@@ -13,26 +15,39 @@ impl Neighbours {
     /// the wavefront in `estimate_with_prior`), the median predictor, and the
     /// co-located, right and lower blocks of the previous field.
     pub(crate) fn of(field: &MotionField, prior: Option<&MotionField>, col: usize, row: usize) -> Neighbours {
-        let mut candidates = vec![field.predictor(col, row)];
+        let mut n = Neighbours {
+            candidates: [Mv::ZERO; 7],
+            len: 0,
+        };
+        n.push(field.predictor(col, row));
         if col > 0 {
-            candidates.push(field.vector(col - 1, row));
+            n.push(field.vector(col - 1, row));
         }
         if row > 0 {
-            candidates.push(field.vector(col, row - 1));
+            n.push(field.vector(col, row - 1));
             if col + 1 < field.cols() {
-                candidates.push(field.vector(col + 1, row - 1));
+                n.push(field.vector(col + 1, row - 1));
             }
         }
         if let Some(p) = prior {
-            candidates.push(p.vector(col, row));
+            n.push(p.vector(col, row));
             if col + 1 < p.cols() {
-                candidates.push(p.vector(col + 1, row));
+                n.push(p.vector(col + 1, row));
             }
             if row + 1 < p.rows() {
-                candidates.push(p.vector(col, row + 1));
+                n.push(p.vector(col, row + 1));
             }
         }
-        Neighbours { candidates }
+        n
+    }
+
+    fn push(&mut self, mv: Mv) {
+        self.candidates[self.len] = mv;
+        self.len += 1;
+    }
+
+    fn candidates(&self) -> &[Mv] {
+        &self.candidates[..self.len]
     }
 }
 
@@ -216,7 +231,7 @@ pub(crate) fn full_pel(s: &BlockSearch<'_>, neighbours: &Neighbours) -> Candidat
             w.pattern(&CROSS, 1);
         }
         Method::Epzs => {
-            for mv in &neighbours.candidates {
+            for mv in neighbours.candidates() {
                 // Quarter-pel candidates, rounded to the nearest full pel.
                 w.try_at((mv.x + 2) >> 2, (mv.y + 2) >> 2);
             }

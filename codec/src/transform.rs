@@ -165,8 +165,13 @@ pub fn dequantize_level(level: i32, qp: u8, r: usize, c: usize) -> i32 {
 /// Normative inverse transform (H.264 8.5.12.2), with the final rounding
 /// `(x + 32) >> 6`. Inputs within 16 bits keep every intermediate within
 /// 20 bits.
+#[inline]
 pub fn inverse_4x4(d: &Block4) -> Block4 {
-    inverse_4x4_unrounded(d).map(|row| row.map(|v| (v + 32) >> 6))
+    let mut out = inverse_4x4_unrounded(d);
+    for v in out.as_flattened_mut() {
+        *v = (*v + 32) >> 6;
+    }
+    out
 }
 
 /// [`inverse_4x4`] before its final rounding: what an encoder weighing

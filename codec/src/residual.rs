@@ -94,18 +94,10 @@ impl MbResidual {
     /// The coded block pattern of these levels: bit q for luma quadrant q,
     /// bit 4 for Cb, bit 5 for Cr.
     pub fn cbp(&self) -> u32 {
-        let mut cbp = 0;
-        for q in 0..4 {
-            if quadrant_blocks(q).iter().any(|&b| !is_zero(&self.luma[b])) {
-                cbp |= 1 << q;
-            }
-        }
-        for p in 0..2 {
-            if self.chroma[p].iter().any(|b| !is_zero(b)) {
-                cbp |= 1 << (4 + p);
-            }
-        }
-        cbp
+        cbp_of(
+            &coded_flags(&self.luma),
+            &[coded_flags(&self.chroma[0]), coded_flags(&self.chroma[1])],
+        )
     }
 }
 
@@ -141,17 +133,41 @@ struct Edges {
 }
 
 /// Context increment of a block's coded flag: coded blocks left and above,
-/// inside the macroblock from `blocks` (raster, `width` blocks a row),
-/// across its edges from `left` / `above`.
-fn cbf_ctx(blocks: &[Block4], width: usize, k: usize, left: &[bool], above: &[bool]) -> usize {
+/// inside the macroblock from `coded` (the blocks' coded flags, raster,
+/// `width` blocks a row), across its edges from `left` / `above`.
+#[inline]
+fn cbf_ctx(coded: &[bool], width: usize, k: usize, left: &[bool], above: &[bool]) -> usize {
     let (x, y) = (k % width, k / width);
-    let l = if x > 0 { !is_zero(&blocks[k - 1]) } else { left[y] };
-    let a = if y > 0 {
-        !is_zero(&blocks[k - width])
-    } else {
-        above[x]
-    };
+    let l = if x > 0 { coded[k - 1] } else { left[y] };
+    let a = if y > 0 { coded[k - width] } else { above[x] };
     usize::from(l) + usize::from(a)
+}
+
+/// The coded flags of `blocks` (whether each has a level).
+#[inline]
+fn coded_flags<const N: usize>(blocks: &[Block4; N]) -> [bool; N] {
+    let mut flags = [false; N];
+    for (f, b) in flags.iter_mut().zip(blocks) {
+        *f = !is_zero(b);
+    }
+    flags
+}
+
+/// The coded block pattern from the blocks' coded flags.
+#[inline]
+fn cbp_of(luma: &[bool; 16], chroma: &[[bool; 4]; 2]) -> u32 {
+    let mut cbp = 0;
+    for q in 0..4 {
+        if quadrant_blocks(q).iter().any(|&b| luma[b]) {
+            cbp |= 1 << q;
+        }
+    }
+    for (p, c) in chroma.iter().enumerate() {
+        if c.iter().any(|&f| f) {
+            cbp |= 1 << (4 + p);
+        }
+    }
+    cbp
 }
 
 /// Context increment of luma quadrant `q`'s pattern bin: the quadrant left
@@ -191,10 +207,12 @@ fn cbp_base(intra: bool) -> usize {
 
 /// A group of four blocks (quadrant or chroma plane) whose pattern bit is
 /// set: flags (the last implied when the others are 0) and blocks.
+#[allow(clippy::too_many_arguments)]
 fn code_group<B: Bins>(
     b: &mut B,
     cls: usize,
     blocks: &[Block4],
+    flags: &[bool],
     width: usize,
     group: [usize; 4],
     left: &[bool],
@@ -202,9 +220,9 @@ fn code_group<B: Bins>(
 ) {
     let mut any = false;
     for (i, &k) in group.iter().enumerate() {
-        let coded = !is_zero(&blocks[k]);
+        let coded = flags[k];
         if i < 3 || any {
-            b.bin(cls + CBF + cbf_ctx(blocks, width, k, left, above), coded);
+            b.bin(cls + CBF + cbf_ctx(flags, width, k, left, above), coded);
         }
         any |= coded;
         if coded {
@@ -214,7 +232,9 @@ fn code_group<B: Bins>(
 }
 
 fn code_mb<B: Bins>(b: &mut B, e: &Edges, intra: bool, res: &MbResidual) {
-    let cbp = res.cbp();
+    let luma_flags = coded_flags(&res.luma);
+    let chroma_flags = [coded_flags(&res.chroma[0]), coded_flags(&res.chroma[1])];
+    let cbp = cbp_of(&luma_flags, &chroma_flags);
     let base = cbp_base(intra);
     for q in 0..4 {
         b.bin(base + luma_cbp_ctx(e, cbp, q), cbp & (1 << q) != 0);
@@ -229,6 +249,7 @@ fn code_mb<B: Bins>(b: &mut B, e: &Edges, intra: bool, res: &MbResidual) {
                 b,
                 cls,
                 &res.luma,
+                &luma_flags,
                 4,
                 quadrant_blocks(q),
                 &e.luma_left,
@@ -237,12 +258,13 @@ fn code_mb<B: Bins>(b: &mut B, e: &Edges, intra: bool, res: &MbResidual) {
         }
     }
     let cls = class(true, intra);
-    for p in 0..2 {
+    for (p, flags) in chroma_flags.iter().enumerate() {
         if cbp & (16 << p) != 0 {
             code_group(
                 b,
                 cls,
                 &res.chroma[p],
+                flags,
                 2,
                 [0, 1, 2, 3],
                 &e.chroma_left[p],
@@ -568,16 +590,22 @@ fn read_group(
     left: &[bool],
     above: &[bool],
 ) -> Result<(), ResidualError> {
+    // The coded flags so far (blocks not read yet have no levels).
+    let mut flags = [false; 16];
+    for (f, b) in flags.iter_mut().zip(blocks.iter()) {
+        *f = !is_zero(b);
+    }
     let mut any = false;
     for (i, &k) in group.iter().enumerate() {
         let coded = if i < 3 || any {
-            dec.decode(&mut c[cls + CBF + cbf_ctx(blocks, width, k, left, above)])
+            dec.decode(&mut c[cls + CBF + cbf_ctx(&flags, width, k, left, above)])
         } else {
             true
         };
         any |= coded;
         if coded {
             blocks[k] = read_block(dec, c, cls)?;
+            flags[k] = true;
         }
     }
     Ok(())
@@ -759,7 +787,8 @@ mod tests {
         let flags: u32 = [0usize, 1, 4]
             .iter()
             .map(|&k| {
-                coder.contexts[cls + CBF + cbf_ctx(&one.luma, 4, k, &[false; 4], &[false; 4])].cost(false)
+                coder.contexts[cls + CBF + cbf_ctx(&coded_flags(&one.luma), 4, k, &[false; 4], &[false; 4])]
+                    .cost(false)
             })
             .sum();
         let pattern = coder.cost(0, 0, false, &MbResidual::default());

@@ -422,10 +422,11 @@ pub fn estimate_with_prior(
     let lambda_q8 = (cfg.lambda * 256.0).round() as u64;
     let (cols, rows) = (field.cols, field.rows);
     // Half-pel planes over the window's reach (range, plus one for the
-    // sub-pel steps), when the border holds them.
+    // sub-pel steps and one for the quarter-pel average's neighbour),
+    // rounded up to 8, when the border holds them.
     let halfpel = match cfg.subpel {
         Subpel::None => None,
-        _ => halfpel::HalfPel::new(reference, (cfg.range as usize + 2).div_ceil(16) * 16),
+        _ => halfpel::HalfPel::new(reference, (cfg.range as usize + 2).div_ceil(8) * 8),
     };
     let search_one = |field: &MotionField, col: usize, row: usize| -> Candidate {
         let s = BlockSearch {

@@ -231,7 +231,7 @@ pub fn predict_inter(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mv: Mv) -
 /// Adds one 4x4 block of levels, dequantised at `qp`, to the prediction
 /// held in `out` (a `stride`-wide block) at (bx, by), clipping; a block
 /// without levels leaves it as it is.
-#[inline]
+#[inline(always)]
 fn add_block(levels: &Block4, qp: u8, out: &mut [u8], stride: usize, (bx, by): (usize, usize)) {
     if levels.as_flattened().iter().all(|&v| v == 0) {
         return;
@@ -249,6 +249,7 @@ fn add_block(levels: &Block4, qp: u8, out: &mut [u8], stride: usize, (bx, by): (
 
 /// The samples macroblock coding gives: `pred` plus `residual` dequantised
 /// at `qp` (chroma at [`chroma_qp`]), in a macroblock-shaped block.
+#[inline]
 pub fn reconstruct_samples(pred: &MbPrediction, residual: &MbResidual, qp: u8) -> MbPrediction {
     let mut out = pred.clone();
     for (i, levels) in residual.luma.iter().enumerate() {

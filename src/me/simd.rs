@@ -108,13 +108,14 @@ mod x86 {
         if w % 16 != 0 || h % 4 != 0 {
             return satd_sse2(a, sa, b, sb, w, h);
         }
-        let mut acc = [0u32; 8];
         // SAFETY (both calls): AVX2 was detected before this set was
         // chosen; every 16x4 region lies inside the checked block.
         if w == 16 && h == 16 {
             // The macroblock: its four strips in one call, one reduction.
-            unsafe { hadamard_abs_16x16_avx2(a.as_ptr(), sa, b.as_ptr(), sb, &mut acc) };
-        } else {
+            return unsafe { satd_16x16_avx2(a.as_ptr(), sa, b.as_ptr(), sb) };
+        }
+        let mut acc = [0u32; 8];
+        {
             for ty in (0..h).step_by(4) {
                 for tx in (0..w).step_by(16) {
                     unsafe {
@@ -132,14 +133,59 @@ mod x86 {
         acc.iter().sum::<u32>().div_ceil(2)
     }
 
-    /// [`hadamard_abs_16x4_avx2`] over the four strips of a 16x16 block.
+    /// The SATD of a 16x16 block: [`hadamard_abs_16x4_avx2`] over its four
+    /// strips with x264's shortcut for the last butterfly, |p + q| +
+    /// |p - q| = 2 max(|p|, |q|), so that the halved sum is the sum of the
+    /// maxima (at most 8 * 255 each, eight a lane: they add up in 16 bits).
     #[target_feature(enable = "avx2")]
-    unsafe fn hadamard_abs_16x16_avx2(a: *const u8, sa: usize, b: *const u8, sb: usize, acc: &mut [u32; 8]) {
-        let mut v = _mm256_setzero_si256();
+    unsafe fn satd_16x16_avx2(a: *const u8, sa: usize, b: *const u8, sb: usize) -> u32 {
+        let mut sum16 = _mm256_setzero_si256();
         for ty in (0..16).step_by(4) {
-            v = _mm256_add_epi32(v, hadamard_abs_16x4_lanes(a.add(ty * sa), sa, b.add(ty * sb), sb));
+            let (pq0, pq1) = hadamard_16x4_last_pairs(a.add(ty * sa), sa, b.add(ty * sb), sb);
+            for (p, q) in [pq0, pq1] {
+                sum16 = _mm256_add_epi16(sum16, _mm256_max_epi16(_mm256_abs_epi16(p), _mm256_abs_epi16(q)));
+            }
         }
-        _mm256_storeu_si256(acc.as_mut_ptr() as *mut __m256i, v);
+        let v = _mm256_madd_epi16(sum16, _mm256_set1_epi16(1));
+        let s = _mm_add_epi32(_mm256_castsi256_si128(v), _mm256_extracti128_si256::<1>(v));
+        let s = _mm_add_epi32(s, _mm_shuffle_epi32::<0b01_00_11_10>(s));
+        let s = _mm_add_epi32(s, _mm_shuffle_epi32::<0b10_11_00_01>(s));
+        _mm_cvtsi128_si32(s) as u32
+    }
+
+    /// The 16x4 region's transform up to its last butterfly: the two
+    /// (p, q) pairs whose sums and differences are the coefficients.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn hadamard_16x4_last_pairs(
+        a: *const u8,
+        sa: usize,
+        b: *const u8,
+        sb: usize,
+    ) -> ((__m256i, __m256i), (__m256i, __m256i)) {
+        let row = |r: usize| {
+            let x = _mm256_cvtepu8_epi16(_mm_loadu_si128(a.add(r * sa) as *const __m128i));
+            let y = _mm256_cvtepu8_epi16(_mm_loadu_si128(b.add(r * sb) as *const __m128i));
+            _mm256_sub_epi16(x, y)
+        };
+        let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
+        let (s01, d01) = (_mm256_add_epi16(r0, r1), _mm256_sub_epi16(r0, r1));
+        let (s23, d23) = (_mm256_add_epi16(r2, r3), _mm256_sub_epi16(r2, r3));
+        let v0 = _mm256_add_epi16(s01, s23);
+        let v1 = _mm256_sub_epi16(s01, s23);
+        let v2 = _mm256_sub_epi16(d01, d23);
+        let v3 = _mm256_add_epi16(d01, d23);
+        let (t0, t1) = (_mm256_unpacklo_epi16(v0, v1), _mm256_unpacklo_epi16(v2, v3));
+        let (t2, t3) = (_mm256_unpackhi_epi16(v0, v1), _mm256_unpackhi_epi16(v2, v3));
+        let pair = |lo: __m256i, hi: __m256i| {
+            let c01 = _mm256_unpacklo_epi32(lo, hi);
+            let c23 = _mm256_unpackhi_epi32(lo, hi);
+            let x = _mm256_unpacklo_epi64(c01, c23);
+            let y = _mm256_unpackhi_epi64(c01, c23);
+            let (s, d) = (_mm256_add_epi16(x, y), _mm256_sub_epi16(x, y));
+            (_mm256_unpacklo_epi64(s, d), _mm256_unpackhi_epi64(s, d))
+        };
+        (pair(t0, t1), pair(t2, t3))
     }
 
     /// Adds the 16x4 region's absolute Hadamard coefficients to `acc`

@@ -351,6 +351,34 @@ pub fn reconstruct_frame(
 
 /// A coded-size frame's visible `width x height` part.
 pub fn crop(frame: &Frame, width: usize, height: usize) -> Result<Frame, PictureError> {
+    crop_reusing(frame, width, height, None)
+}
+
+/// [`crop`] written into `reuse` when it is a frame of `width x height`
+/// with the borders [`crop`] gives (a frame [`crop`] returned earlier):
+/// no allocation, and none of the page faults a fresh one costs.
+pub fn crop_reusing(
+    frame: &Frame,
+    width: usize,
+    height: usize,
+    reuse: Option<Frame>,
+) -> Result<Frame, PictureError> {
+    let fits = |f: &Frame| {
+        (f.width(), f.height()) == (width, height)
+            && f.y().pad() == Plane::DEFAULT_PAD
+            && f.plane(1).pad() == Plane::DEFAULT_PAD.div_ceil(2)
+    };
+    if let Some(mut out) = reuse.filter(fits) {
+        for p in 0..3 {
+            let (src, dst) = (frame.plane(p), out.plane_mut(p));
+            let w = dst.width();
+            for r in 0..dst.height() {
+                dst.row_mut(r).copy_from_slice(&src.row(r)[..w]);
+            }
+        }
+        out.extend_borders();
+        return Ok(out);
+    }
     // The borders of Frame::new: the default for luma, half for chroma.
     let (cw, ch) = Frame::chroma_size(width, height);
     let pad = Plane::DEFAULT_PAD;
@@ -359,4 +387,48 @@ pub fn crop(frame: &Frame, width: usize, height: usize) -> Result<Frame, Picture
         frame.plane(1).cropped(cw, ch, pad.div_ceil(2))?,
         frame.plane(2).cropped(cw, ch, pad.div_ceil(2))?,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn crop_into_a_reused_frame_equals_a_fresh_crop() -> Result<(), PictureError> {
+        let coded = |seed: usize| -> Result<Frame, PictureError> {
+            let mut f = Frame::new(48, 32)?;
+            for p in 0..3 {
+                let plane = f.plane_mut(p);
+                for y in 0..plane.height() {
+                    for (x, v) in plane.row_mut(y).iter_mut().enumerate() {
+                        *v = ((x * 7 + y * 13 + seed * 29 + p * 5) % 256) as u8;
+                    }
+                }
+            }
+            f.extend_borders();
+            Ok(f)
+        };
+        let (a, b) = (coded(1)?, coded(2)?);
+        let fresh = crop(&b, 37, 23)?;
+        let reused = crop_reusing(&b, 37, 23, Some(crop(&a, 37, 23)?))?;
+        assert_eq!(reused, fresh);
+        // Borders too, where the reuse could leave the old picture's.
+        for p in 0..3 {
+            let pad = fresh.plane(p).pad() as isize;
+            for (x, y) in [(-pad, -pad), (-1, 3), (40, 30), (36 + pad, 22 + pad)] {
+                let (x, y) = (
+                    x.min(fresh.plane(p).width() as isize + pad - 1),
+                    y.min(fresh.plane(p).height() as isize + pad - 1),
+                );
+                assert_eq!(
+                    reused.plane(p).at(x, y),
+                    fresh.plane(p).at(x, y),
+                    "plane {p} ({x}, {y})"
+                );
+            }
+        }
+        // A frame of another size is not reused, and the result is right.
+        assert_eq!(crop_reusing(&b, 37, 23, Some(crop(&a, 30, 20)?))?, fresh);
+        Ok(())
+    }
 }

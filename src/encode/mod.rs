@@ -40,7 +40,7 @@ pub use config::{
 };
 pub use stats::{FrameStats, Summary, SummaryBuilder};
 
-use crate::codec::recon::crop;
+use crate::codec::recon::crop_reusing;
 use crate::codec::syntax::{EntropyState, FrameType, MotionTool, SequenceHeader, STREAM_END};
 use crate::codec::{Frame, PictureError};
 use crate::io::y4m::{Y4mError, Y4mReader};
@@ -101,6 +101,8 @@ pub struct Encoder {
     /// Coded-size frames to reuse (the reference and source before the
     /// previous ones): fresh ones cost page faults every frame.
     spare_recon: Option<Frame>,
+    /// A returned reconstruction given back ([`Encoder::recycle`]).
+    spare_output: Option<Frame>,
     spare_source: Option<Frame>,
     /// Contexts carried from frame to frame, as the decoder carries them.
     entropy: EntropyState,
@@ -139,6 +141,7 @@ impl Encoder {
             reference: None,
             prev_source: None,
             spare_recon: None,
+            spare_output: None,
             spare_source: None,
             entropy: EntropyState::new(),
             index: 0,
@@ -159,6 +162,13 @@ impl Encoder {
     /// The sequence header.
     pub fn sequence(&self) -> &SequenceHeader {
         &self.seq
+    }
+
+    /// Gives back a reconstruction [`Encoder::encode`] returned, once the
+    /// caller is done with it: the next one is written into it instead of
+    /// a fresh frame (optional; it saves an allocation a frame).
+    pub fn recycle(&mut self, recon: Frame) {
+        self.spare_output = Some(recon);
     }
 
     /// Codes the next frame.
@@ -205,7 +215,12 @@ impl Encoder {
             _ => frame::code_intra(&self.seq, &self.coder, &src, &mut self.entropy, recon)?,
         };
         let (bytes, bits) = (coded.bytes, coded.bits);
-        let recon = crop(&coded.recon, self.seq.width, self.seq.height)?;
+        let recon = crop_reusing(
+            &coded.recon,
+            self.seq.width,
+            self.seq.height,
+            self.spare_output.take(),
+        )?;
         let psnr = frame_psnr(source, &recon);
         let stats = FrameStats {
             index: self.index,
@@ -298,6 +313,7 @@ pub fn encode_y4m<R: Read, W: Write>(
         out.write_all(&coded.bytes)?;
         summary.push(&coded.stats);
         on_frame(&coded)?;
+        encoder.recycle(coded.recon);
     }
     out.write_all(&Encoder::trailer())?;
     out.flush()?;
@@ -320,7 +336,9 @@ pub fn encode_frames(
     let mut encoder = Encoder::new(first.width(), first.height(), fps, config)?;
     let mut summary = SummaryBuilder::new(f64::from(fps.0) / f64::from(fps.1), encoder.header().len() + 1);
     for f in frames {
-        summary.push(&encoder.encode(f)?.stats);
+        let coded = encoder.encode(f)?;
+        summary.push(&coded.stats);
+        encoder.recycle(coded.recon);
     }
     Ok(summary.finish())
 }

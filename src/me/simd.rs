@@ -197,38 +197,18 @@ mod x86 {
         _mm256_storeu_si256(acc.as_mut_ptr() as *mut __m256i, v);
     }
 
-    /// The 8x4 SSE2 computation on both 128-bit lanes at once: columns 0-7
-    /// of the region in the low lane, 8-15 in the high one (AVX2 unpacks
-    /// work within lanes).
+    /// The 16x4 region's absolute Hadamard coefficients in eight partial
+    /// sums (columns 0-7 of the region in the low 128-bit lane, 8-15 in
+    /// the high one: AVX2 unpacks work within lanes), by the last
+    /// butterfly's shortcut |p + q| + |p - q| = 2 max(|p|, |q|).
     #[inline]
     #[target_feature(enable = "avx2")]
     unsafe fn hadamard_abs_16x4_lanes(a: *const u8, sa: usize, b: *const u8, sb: usize) -> __m256i {
-        let row = |r: usize| {
-            let x = _mm256_cvtepu8_epi16(_mm_loadu_si128(a.add(r * sa) as *const __m128i));
-            let y = _mm256_cvtepu8_epi16(_mm_loadu_si128(b.add(r * sb) as *const __m128i));
-            _mm256_sub_epi16(x, y)
-        };
-        let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
-        let (s01, d01) = (_mm256_add_epi16(r0, r1), _mm256_sub_epi16(r0, r1));
-        let (s23, d23) = (_mm256_add_epi16(r2, r3), _mm256_sub_epi16(r2, r3));
-        let v0 = _mm256_add_epi16(s01, s23);
-        let v1 = _mm256_sub_epi16(s01, s23);
-        let v2 = _mm256_sub_epi16(d01, d23);
-        let v3 = _mm256_add_epi16(d01, d23);
-        let (t0, t1) = (_mm256_unpacklo_epi16(v0, v1), _mm256_unpacklo_epi16(v2, v3));
-        let (t2, t3) = (_mm256_unpackhi_epi16(v0, v1), _mm256_unpackhi_epi16(v2, v3));
+        let (pq0, pq1) = hadamard_16x4_last_pairs(a, sa, b, sb);
         let mut acc = _mm256_setzero_si256();
-        for (lo, hi) in [(t0, t1), (t2, t3)] {
-            let c01 = _mm256_unpacklo_epi32(lo, hi);
-            let c23 = _mm256_unpackhi_epi32(lo, hi);
-            let x = _mm256_unpacklo_epi64(c01, c23);
-            let y = _mm256_unpackhi_epi64(c01, c23);
-            let (s, d) = (_mm256_add_epi16(x, y), _mm256_sub_epi16(x, y));
-            let p = _mm256_unpacklo_epi64(s, d);
-            let q = _mm256_unpackhi_epi64(s, d);
-            for v in [_mm256_add_epi16(p, q), _mm256_sub_epi16(p, q)] {
-                acc = _mm256_add_epi32(acc, _mm256_madd_epi16(_mm256_abs_epi16(v), _mm256_set1_epi16(1)));
-            }
+        for (p, q) in [pq0, pq1] {
+            let m = _mm256_max_epi16(_mm256_abs_epi16(p), _mm256_abs_epi16(q));
+            acc = _mm256_add_epi32(acc, _mm256_madd_epi16(m, _mm256_set1_epi16(2)));
         }
         acc
     }

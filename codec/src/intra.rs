@@ -110,21 +110,17 @@ pub fn predict(
 /// [`predict`] of an available mode at size `N`.
 fn predict_sized<const N: usize>(mode: IntraMode, n: &Neighbours<'_>, out: &mut [u8], stride: usize) {
     let size = N;
-    let rows = out.chunks_mut(stride).take(size).map(|r| {
-        let Ok(r) = <&mut [u8; N]>::try_from(&mut r[..N]) else {
-            unreachable!("rows of N")
-        };
-        r
-    });
+    // Rows of a length the compiler knows: fills and copies become a few
+    // moves instead of a library call a row.
+    let rows = out.chunks_mut(stride).take(size).map(|r| &mut r[..N]);
     match mode {
         IntraMode::Vertical => {
-            let mut top = [0u8; N];
-            top.copy_from_slice(&n.top.unwrap_or_default()[..size]);
-            rows.for_each(|r| *r = top);
+            let top = &n.top.unwrap_or_default()[..N];
+            rows.for_each(|r| r.copy_from_slice(top));
         }
         IntraMode::Horizontal => {
             let left = n.left.unwrap_or_default();
-            rows.enumerate().for_each(|(y, r)| *r = [left[y]; N]);
+            rows.enumerate().for_each(|(y, r)| r.fill(left[y]));
         }
         IntraMode::Dc => {
             let sum = |s: &[u8]| s[..size].iter().map(|&v| u32::from(v)).sum::<u32>();
@@ -135,7 +131,7 @@ fn predict_sized<const N: usize>(mode: IntraMode, n: &Neighbours<'_>, out: &mut 
                 (None, Some(l)) => (sum(l) + size as u32 / 2) >> n_bits,
                 (None, None) => 128,
             } as u8;
-            rows.for_each(|r| *r = [dc; N]);
+            rows.for_each(|r| r.fill(dc));
         }
         IntraMode::Plane => {
             let (top, left) = (n.top.unwrap_or_default(), n.left.unwrap_or_default());

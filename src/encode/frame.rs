@@ -122,9 +122,9 @@ pub(crate) fn code_intra(
     for i in 0..cols * seq.mb_rows() {
         let (mb_x, mb_y) = (i % cols, i / cols);
         let s = MbSource::load(src, mb_x, mb_y);
-        let Some((luma, chroma, pred)) = coder.best_intra(&s, &recon, (mb_x, mb_y), u32::MAX) else {
-            unreachable!("no SATD reaches u32::MAX")
-        };
+        let mut pred = MbPrediction::default();
+        let (luma, _) = coder.best_intra_luma(&s, &recon, (mb_x, mb_y), &mut pred);
+        let chroma = coder.best_intra_chroma(&s, &recon, (mb_x, mb_y), &mut pred);
         let coded = coder.code(&s, &pred, true, writer.residual(), mb_x, mb_y);
         write_mb(&coded.samples, &mut recon, mb_x, mb_y);
         prediction_sse += visible_luma_sse(&s, &pred, mb_x, mb_y, seq);
@@ -275,11 +275,14 @@ pub(crate) fn code_inter(
             }
         }
         // Intra is coded only when its luma SATD is below inter's (as the
-        // H.264 reference encoder's fast modes).
-        let intra = exhaustive
-            .then(|| coder.best_intra(&s, &recon, (mb_x, mb_y), inter_satd))
-            .flatten();
-        if let Some((luma, chroma, pred)) = intra {
+        // H.264 reference encoder's fast modes); its chroma mode is looked
+        // for only then.
+        let mut pred = MbPrediction::default();
+        let luma = exhaustive
+            .then(|| coder.best_intra_luma(&s, &recon, (mb_x, mb_y), &mut pred))
+            .filter(|&(_, satd)| satd < inter_satd);
+        if let Some((luma, _)) = luma {
+            let chroma = coder.best_intra_chroma(&s, &recon, (mb_x, mb_y), &mut pred);
             let coded = coder.code(&s, &pred, true, sink.residual(), mb_x, mb_y);
             let mode = MbMode::Intra { luma, chroma };
             let bits = mode_bits(sink.modes(), mb_x, mb_y, &mode) + coded.bits;

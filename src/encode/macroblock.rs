@@ -414,30 +414,22 @@ impl MbCoder {
         ssd as f64 + self.lambda * bits
     }
 
-    /// The intra modes allowed at (mb_x, mb_y) with the smallest SATD
-    /// (luma) and SAD (chroma) plus the modes' bits, and their prediction;
-    /// `None` when the best luma SATD is not below `luma_satd_limit` (the
-    /// chroma modes are then not searched).
-    pub fn best_intra(
+    /// The luma intra mode allowed at (mb_x, mb_y) with the smallest SATD
+    /// plus the mode's bits, its prediction (into `pred.luma`) and SATD.
+    /// (Luma and chroma modes are independent: each plane's is chosen on
+    /// its own.)
+    pub fn best_intra_luma(
         &self,
         src: &MbSource,
         recon: &Frame,
         (mb_x, mb_y): (usize, usize),
-        luma_satd_limit: u32,
-    ) -> Option<(IntraMode, IntraMode, MbPrediction)> {
+        pred: &mut MbPrediction,
+    ) -> (IntraMode, u32) {
         let sad_lambda = self.lambda.sqrt();
-        let allowed = || {
-            IntraMode::ALL
-                .into_iter()
-                .filter(move |&m| intra_mode_allowed(m, mb_x, mb_y))
-        };
-        // Luma and chroma modes are independent: each plane's mode is
-        // chosen on its own.
-        let mut pred = MbPrediction::default();
         let mut trial = [0u8; 256];
         let (mut luma, mut best_cost, mut satd) = (IntraMode::Dc, f64::INFINITY, 0);
         let edges = IntraEdges::of(recon, 0, mb_x, mb_y);
-        for m in allowed() {
+        for m in allowed_intra_modes(mb_x, mb_y) {
             edges.predict(m, &mut trial);
             let d = Metric::Satd.cost(&src.luma, MB, &trial, MB, MB, MB);
             let c = f64::from(d) + sad_lambda * f64::from(ue_len(m as u32));
@@ -446,14 +438,25 @@ impl MbCoder {
                 pred.luma = trial;
             }
         }
-        if satd >= luma_satd_limit {
-            return None;
-        }
+        (luma, satd)
+    }
+
+    /// The chroma intra mode allowed at (mb_x, mb_y) with the smallest SAD
+    /// (both planes) plus the mode's bits, and its prediction (into
+    /// `pred.chroma`).
+    pub fn best_intra_chroma(
+        &self,
+        src: &MbSource,
+        recon: &Frame,
+        (mb_x, mb_y): (usize, usize),
+        pred: &mut MbPrediction,
+    ) -> IntraMode {
+        let sad_lambda = self.lambda.sqrt();
         let mut chroma = IntraMode::Dc;
         let mut best_c = f64::INFINITY;
         let mut trial = [[0u8; 64]; 2];
         let edges = [1, 2].map(|p| IntraEdges::of(recon, p, mb_x, mb_y));
-        for m in allowed() {
+        for m in allowed_intra_modes(mb_x, mb_y) {
             let mut c = sad_lambda * f64::from(ue_len(m as u32));
             for (k, t) in trial.iter_mut().enumerate() {
                 edges[k].predict(m, t);
@@ -464,8 +467,15 @@ impl MbCoder {
                 pred.chroma = trial;
             }
         }
-        Some((luma, chroma, pred))
+        chroma
     }
+}
+
+/// The intra modes macroblock (mb_x, mb_y) has the neighbours for.
+fn allowed_intra_modes(mb_x: usize, mb_y: usize) -> impl Iterator<Item = IntraMode> {
+    IntraMode::ALL
+        .into_iter()
+        .filter(move |&m| intra_mode_allowed(m, mb_x, mb_y))
 }
 
 /// Bits of a vector difference.

@@ -99,26 +99,23 @@ impl HalfPel {
             (plane, bx + (px >> 2) as isize, by + (py >> 2) as isize)
         };
         let rows = |(p, px, py): (&'a Plane, isize, isize)| (&p.data()[p.index(px, py)..], p.stride());
+        // 16 and 8 passed as constants, so that the rows have lengths the
+        // compiler knows (on x86-64 the 16-wide case is SSE2 outright).
         let copy = |(a, sa): (&[u8], usize), out: &mut [u8]| match b {
             #[cfg(target_arch = "x86_64")]
             16 => x86::copy_16x16(a, sa, out),
             #[cfg(not(target_arch = "x86_64"))]
-            16 => copy_rows::<16>(a, sa, out),
-            8 => copy_rows::<8>(a, sa, out),
-            _ => {
-                for (r, o) in out.chunks_exact_mut(b).enumerate() {
-                    o.copy_from_slice(&a[r * sa..r * sa + b]);
-                }
-            }
+            16 => copy_rows(16, a, sa, out),
+            8 => copy_rows(8, a, sa, out),
+            _ => copy_rows(b, a, sa, out),
         };
         let average = |from, to, out: &mut [u8]| match b {
-            // Sizes known to the compiler: one pavgb per 16 samples.
             #[cfg(target_arch = "x86_64")]
             16 => x86::average_16x16(rows(from), rows(to), out),
             #[cfg(not(target_arch = "x86_64"))]
-            16 => average_rows::<16>(rows(from), rows(to), out),
-            8 => average_rows::<8>(rows(from), rows(to), out),
-            _ => average_rows_n(b, rows(from), rows(to), out),
+            16 => average_rows(16, rows(from), rows(to), out),
+            8 => average_rows(8, rows(from), rows(to), out),
+            _ => average_rows(b, rows(from), rows(to), out),
         };
         match (fx & 1, fy & 1) {
             (0, 0) => copy(rows(point(fx, fy)), out),
@@ -130,41 +127,10 @@ impl HalfPel {
     }
 }
 
-/// `out` (rows of `N`) = the rounded average of `N x N` blocks `a` and
-/// `c` (each a slice from its first sample and a stride).
+/// `out` (rows of `n`) = the rounded average of `n x n` blocks `a` and `c`
+/// (each a slice from its first sample and a stride).
 #[inline(always)]
-fn average_rows<const N: usize>((a, sa): (&[u8], usize), (c, sc): (&[u8], usize), out: &mut [u8]) {
-    for (r, o) in out.chunks_exact_mut(N).take(N).enumerate() {
-        let (Ok(x), Ok(y), Ok(o)) = (
-            <&[u8; N]>::try_from(&a[r * sa..r * sa + N]),
-            <&[u8; N]>::try_from(&c[r * sc..r * sc + N]),
-            <&mut [u8; N]>::try_from(o),
-        ) else {
-            unreachable!("slices of N")
-        };
-        for i in 0..N {
-            o[i] = ((u16::from(x[i]) + u16::from(y[i]) + 1) >> 1) as u8;
-        }
-    }
-}
-
-/// `out` (rows of `N`) = the `N x N` block `a` (stride `sa`): fixed-size
-/// moves, not a `memcpy` call a row.
-#[inline(always)]
-fn copy_rows<const N: usize>(a: &[u8], sa: usize, out: &mut [u8]) {
-    for (r, o) in out.chunks_exact_mut(N).take(N).enumerate() {
-        let (Ok(x), Ok(o)) = (
-            <&[u8; N]>::try_from(&a[r * sa..r * sa + N]),
-            <&mut [u8; N]>::try_from(o),
-        ) else {
-            unreachable!("slices of N")
-        };
-        *o = *x;
-    }
-}
-
-/// [`average_rows`] for any block size.
-fn average_rows_n(n: usize, (a, sa): (&[u8], usize), (c, sc): (&[u8], usize), out: &mut [u8]) {
+fn average_rows(n: usize, (a, sa): (&[u8], usize), (c, sc): (&[u8], usize), out: &mut [u8]) {
     for (r, o) in out.chunks_exact_mut(n).take(n).enumerate() {
         for ((o, &u), &v) in o
             .iter_mut()
@@ -173,6 +139,14 @@ fn average_rows_n(n: usize, (a, sa): (&[u8], usize), (c, sc): (&[u8], usize), ou
         {
             *o = ((u16::from(u) + u16::from(v) + 1) >> 1) as u8;
         }
+    }
+}
+
+/// `out` (rows of `n`) = the `n x n` block `a` (stride `sa`).
+#[inline(always)]
+fn copy_rows(n: usize, a: &[u8], sa: usize, out: &mut [u8]) {
+    for (r, o) in out.chunks_exact_mut(n).take(n).enumerate() {
+        o.copy_from_slice(&a[r * sa..r * sa + n]);
     }
 }
 
@@ -282,7 +256,7 @@ mod x86 {
         );
     }
 
-    /// [`super::copy_rows`] at N = 16 in SSE2 moves (bounds checked once).
+    /// [`super::copy_rows`] at 16 in SSE2 moves (bounds checked once).
     pub(super) fn copy_16x16(a: &[u8], sa: usize, out: &mut [u8]) {
         check_16x16(a.len(), sa);
         check_16x16(out.len(), 16);
@@ -296,7 +270,7 @@ mod x86 {
         }
     }
 
-    /// [`super::average_rows`] at N = 16: `pavgb` is exactly
+    /// [`super::average_rows`] at 16: `pavgb` is exactly
     /// `(u + v + 1) >> 1` (bounds checked once).
     pub(super) fn average_16x16((a, sa): (&[u8], usize), (c, sc): (&[u8], usize), out: &mut [u8]) {
         check_16x16(a.len(), sa);
@@ -432,14 +406,14 @@ mod tests {
         #[cfg(target_arch = "x86_64")]
         {
             x86::copy_16x16(&a[3..], 40, &mut x);
-            copy_rows::<16>(&a[3..], 40, &mut y);
+            copy_rows(16, &a[3..], 40, &mut y);
             assert_eq!(x, y);
             x86::average_16x16((&a[5..], 40), (&c, 33), &mut x);
-            average_rows::<16>((&a[5..], 40), (&c, 33), &mut y);
+            average_rows(16, (&a[5..], 40), (&c, 33), &mut y);
             assert_eq!(x, y);
         }
         // The scalar rounding itself: (u + v + 1) >> 1.
-        average_rows::<16>((&[255u8; 256], 16), (&[0u8; 256], 16), &mut y);
+        average_rows(16, (&[255u8; 256], 16), (&[0u8; 256], 16), &mut y);
         assert!(y.iter().all(|&v| v == 128));
     }
 

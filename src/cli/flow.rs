@@ -8,6 +8,7 @@ use anyhow::{bail, Context, Result};
 use ndarray::Array2;
 use serde_json::json;
 
+use crate::flow::dis::{Dis, DisParams, DisPreset};
 use crate::flow::hs::{horn_schunck, HsParams};
 use crate::flow::lk::{Lk, LkParams};
 use crate::flow::warp::warp_bilinear;
@@ -20,6 +21,9 @@ use crate::viz::{draw_flow_arrows, flow_to_rgb};
 /// Speed / accuracy trade-offs, as x264 and DIS have them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Preset {
+    /// The fastest (DIS: quarter-size flow without refinement; the others
+    /// as fast).
+    Ultrafast,
     /// Fewer iterations and a smaller window.
     Fast,
     /// The default balance.
@@ -35,6 +39,20 @@ pub enum FlowMethod {
     Lk,
     /// Horn-Schunck, coarse to fine with warping.
     Hs,
+    /// Dense inverse search (patch search, densification, variational
+    /// refinement), as OpenCV's DIS.
+    Dis,
+}
+
+impl FlowMethod {
+    /// The name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            FlowMethod::Lk => "lk",
+            FlowMethod::Hs => "hs",
+            FlowMethod::Dis => "dis",
+        }
+    }
 }
 
 #[derive(Debug, clap::Args)]
@@ -106,7 +124,7 @@ pub struct Args {
 /// motion; they blur motion boundaries, so medium stays at sigma 4.
 pub fn lk_preset(preset: Preset) -> LkParams {
     match preset {
-        Preset::Fast => LkParams {
+        Preset::Ultrafast | Preset::Fast => LkParams {
             levels: 4,
             sigma: 2.5,
             iterations: 1,
@@ -129,7 +147,7 @@ pub fn lk_preset(preset: Preset) -> LkParams {
 /// sweeps) 0.065 px in 225 ms; accurate adds warps for larger motion.
 pub fn hs_preset(preset: Preset) -> HsParams {
     match preset {
-        Preset::Fast => HsParams {
+        Preset::Ultrafast | Preset::Fast => HsParams {
             iterations: 30,
             ..HsParams::default()
         },
@@ -141,6 +159,15 @@ pub fn hs_preset(preset: Preset) -> HsParams {
             ..HsParams::default()
         },
     }
+}
+
+/// The DIS settings of each preset (accurate = medium for now).
+pub fn dis_preset(preset: Preset) -> DisParams {
+    DisParams::preset(match preset {
+        Preset::Ultrafast => DisPreset::Ultrafast,
+        Preset::Fast => DisPreset::Fast,
+        Preset::Medium | Preset::Accurate => DisPreset::Medium,
+    })
 }
 
 fn read_pair(args: &Args) -> Result<(Array2<f32>, Array2<f32>)> {
@@ -232,11 +259,13 @@ pub fn run(args: &Args) -> Result<()> {
     // The estimator is made once, outside the timing, as the OpenCV peer
     // script makes its objects; repeated runs then reuse its buffers.
     let mut lk = Lk::new(params);
+    let mut dis = Dis::new(dis_preset(args.preset));
     for _ in 0..args.runs {
         let start = Instant::now();
         flow = pool.install(|| match method {
             FlowMethod::Lk => lk.compute(&i1, &i2).flow,
             FlowMethod::Hs => horn_schunck(&i1, &i2, &hs).0,
+            FlowMethod::Dis => dis.compute(&i1, &i2),
         });
         times.push(start.elapsed().as_secs_f64() * 1000.0);
     }
@@ -284,7 +313,7 @@ pub fn run(args: &Args) -> Result<()> {
     }
     if args.json {
         let mut obj = json!({
-            "method": match method { FlowMethod::Lk => "lk", FlowMethod::Hs => "hs" },
+            "method": method.name(),
             "preset": format!("{:?}", args.preset).to_lowercase(),
             "width": flow.width(),
             "height": flow.height(),
@@ -300,9 +329,10 @@ pub fn run(args: &Args) -> Result<()> {
         println!("{obj}");
     } else {
         println!(
-            "flow ({}x{}, lk, {:?}): {ms:.2} ms",
+            "flow ({}x{}, {}, {:?}): {ms:.2} ms",
             flow.width(),
             flow.height(),
+            method.name(),
             args.preset
         );
         println!("motion-compensated PSNR  {mc_psnr:.2} dB");

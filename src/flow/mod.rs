@@ -5,10 +5,12 @@
 //! frame 1 to frame 2 means `frame1(p) ~ frame2(p + w(p))`.
 
 pub mod consistency;
+pub mod dis;
 mod field;
 pub mod hs;
 pub mod lk;
 pub mod pyramid;
+pub mod refine;
 pub mod track;
 pub mod warp;
 

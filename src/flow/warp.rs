@@ -19,6 +19,19 @@ pub fn sample_bilinear(img: &Array2<f32>, x: f32, y: f32) -> f32 {
     top + fy * (bottom - top)
 }
 
+/// Bilinear sample of the row-major `w x h` picture at (x, y), clamped.
+#[inline]
+pub(crate) fn bilinear_clamped(img: &[f32], w: usize, h: usize, x: f32, y: f32) -> f32 {
+    let x = x.clamp(0.0, (w - 1) as f32);
+    let y = y.clamp(0.0, (h - 1) as f32);
+    let (x0, y0) = (x as usize, y as usize);
+    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+    let (ax, ay) = (x - x0 as f32, y - y0 as f32);
+    let top = img[y0 * w + x0] + ax * (img[y0 * w + x1] - img[y0 * w + x0]);
+    let bot = img[y1 * w + x0] + ax * (img[y1 * w + x1] - img[y1 * w + x0]);
+    top + ay * (bot - top)
+}
+
 /// Keys' cubic convolution weights (a = -0.5, Catmull-Rom) for the four
 /// samples around a point at fraction `t` in [0, 1).
 #[inline]

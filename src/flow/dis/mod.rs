@@ -1,0 +1,279 @@
+//! Dense inverse search (Kroeger, Timofte, Dai and Van Gool, "Fast optical
+//! flow using dense inverse search", ECCV 2016): the method behind OpenCV's
+//! `DISOpticalFlow`.
+//!
+//! Coarse to fine over a Gaussian pyramid, each level:
+//! 1. **Patch search** ([`search`]): square patches of the first picture on
+//!    a regular grid; each finds its displacement in the second picture by
+//!    inverse-compositional Lucas-Kanade (the patch's gradients and Hessian
+//!    computed once, the second picture sampled bilinearly at each step),
+//!    optionally on mean-normalised intensities (robust to a brightness
+//!    change), starting from the best of the coarser level's flow and the
+//!    already-searched neighbours' vectors (spatial propagation).
+//! 2. **Densification** ([`densify`]): each pixel's flow is the average of
+//!    the vectors of the patches that overlap it, weighted by how well each
+//!    vector predicts the pixel.
+//! 3. **Variational refinement** ([`super::refine`]): a few fixed-point
+//!    iterations of a robust energy with brightness and gradient constancy
+//!    and smoothness, which sharpens the blocky field and fixes small errors.
+//!
+//! The coarsest level is chosen so that it is a few patches across (motion
+//! of a quarter of the picture stays within reach); the finest level
+//! computed can stop above full size (`finest`), the flow then being
+//! upsampled, as OpenCV's presets do.
+
+mod densify;
+mod search;
+
+use ndarray::Array2;
+
+use super::pyramid::{upsample2, Pyramid};
+use super::refine::{refine, RefineParams};
+use super::Flow;
+
+/// Settings of dense inverse search.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DisParams {
+    /// Finest pyramid level computed (0 = full size); its flow is upsampled.
+    pub finest: usize,
+    /// Coarsest level; `None` chooses it from the picture size (the level
+    /// at which the picture is about four patches across).
+    pub coarsest: Option<usize>,
+    /// Patch side, pixels: 4, 8, 12 or 16.
+    pub patch: usize,
+    /// Distance between neighbouring patches, pixels (1..=patch).
+    pub stride: usize,
+    /// Gauss-Newton steps per patch and level (split over the two
+    /// propagation passes).
+    pub iterations: usize,
+    /// Compare patches after subtracting their means (robust to brightness
+    /// changes between the pictures).
+    pub mean_normalize: bool,
+    /// Try the neighbouring patches' vectors before each search.
+    pub propagate: bool,
+    /// Variational refinement after each level (`iterations: 0` turns it off).
+    pub refine: RefineParams,
+}
+
+/// Speed / accuracy points, in the spirit of OpenCV's DIS presets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DisPreset {
+    /// Quarter-size flow, no refinement.
+    Ultrafast,
+    /// Quarter-size flow with refinement.
+    Fast,
+    /// Half-size flow, denser patches, more steps.
+    Medium,
+}
+
+impl DisParams {
+    /// The settings of a preset.
+    pub fn preset(preset: DisPreset) -> DisParams {
+        let base = DisParams {
+            finest: 2,
+            coarsest: None,
+            patch: 8,
+            stride: 4,
+            iterations: 16,
+            mean_normalize: true,
+            propagate: true,
+            refine: RefineParams::default(),
+        };
+        match preset {
+            DisPreset::Ultrafast => DisParams {
+                iterations: 12,
+                refine: RefineParams {
+                    iterations: 0,
+                    ..RefineParams::default()
+                },
+                ..base
+            },
+            DisPreset::Fast => base,
+            DisPreset::Medium => DisParams {
+                finest: 1,
+                stride: 3,
+                iterations: 25,
+                ..base
+            },
+        }
+    }
+
+    /// Checks the settings, saying which is out of range.
+    pub fn validate(&self) -> Result<(), String> {
+        if ![4, 8, 12, 16].contains(&self.patch) {
+            return Err(format!("patch size {} is not 4, 8, 12 or 16", self.patch));
+        }
+        if self.stride == 0 || self.stride > self.patch {
+            return Err(format!(
+                "patch stride {} is not in 1..={}",
+                self.stride, self.patch
+            ));
+        }
+        if self.iterations == 0 {
+            return Err("at least one Gauss-Newton step per patch is needed".into());
+        }
+        self.refine.validate()
+    }
+}
+
+impl Default for DisParams {
+    fn default() -> DisParams {
+        DisParams::preset(DisPreset::Medium)
+    }
+}
+
+/// The coarsest level to start from: about four patches across the longer
+/// side (so a quarter of the picture is within a patch's reach there), and
+/// no level smaller than a patch.
+fn coarsest_level(w: usize, h: usize, patch: usize) -> usize {
+    let long = w.max(h) as f64 / (4.0 * patch as f64);
+    let by_motion = if long > 1.0 {
+        long.log2().round() as usize
+    } else {
+        0
+    };
+    let short = w.min(h) as f64 / patch as f64;
+    let by_size = if short > 1.0 {
+        short.log2().floor() as usize
+    } else {
+        0
+    };
+    by_motion.min(by_size)
+}
+
+/// Dense flow from `i1` to `i2` (same size, grey levels 0..255).
+///
+/// ```
+/// use mocomp::flow::dis::{dis_flow, DisParams, DisPreset};
+/// use ndarray::Array2;
+/// let f = |x: f32, y: f32| 128.0 + 60.0 * (x / 5.0).sin() * (y / 7.0).cos();
+/// let i1 = Array2::from_shape_fn((96, 128), |(y, x)| f(x as f32, y as f32));
+/// let i2 = Array2::from_shape_fn((96, 128), |(y, x)| f(x as f32 - 6.5, y as f32 + 2.0));
+/// let flow = dis_flow(&i1, &i2, &DisParams::preset(DisPreset::Medium));
+/// let (u, v) = flow.get(64, 48);
+/// assert!((u - 6.5).abs() < 0.1 && (v + 2.0).abs() < 0.1);
+/// ```
+pub fn dis_flow(i1: &Array2<f32>, i2: &Array2<f32>, p: &DisParams) -> Flow {
+    Dis::new(*p).compute(i1, i2)
+}
+
+/// Dense inverse search keeping its pyramids from one call to the next.
+#[derive(Debug)]
+pub struct Dis {
+    params: DisParams,
+    p1: Pyramid,
+    p2: Pyramid,
+}
+
+impl Dis {
+    /// An estimator with these settings. Panics on settings that
+    /// [`DisParams::validate`] refuses.
+    pub fn new(params: DisParams) -> Dis {
+        if let Err(e) = params.validate() {
+            panic!("dis: {e}");
+        }
+        Dis {
+            params,
+            p1: Pyramid::default(),
+            p2: Pyramid::default(),
+        }
+    }
+
+    /// The settings.
+    pub fn params(&self) -> &DisParams {
+        &self.params
+    }
+
+    /// Dense flow from `i1` to `i2` (same size, grey levels 0..255).
+    pub fn compute(&mut self, i1: &Array2<f32>, i2: &Array2<f32>) -> Flow {
+        self.compute_from(i1, i2, None)
+    }
+
+    /// As [`Dis::compute`], with an initial flow at full size whose vectors
+    /// each patch also tries (as OpenCV's DIS does with a given flow): for
+    /// sequences, or a flow interpolated from sparse matches.
+    pub fn compute_from(&mut self, i1: &Array2<f32>, i2: &Array2<f32>, initial: Option<&Flow>) -> Flow {
+        assert_eq!(i1.dim(), i2.dim(), "dis: pictures of different sizes");
+        let p = self.params;
+        let (h0, w0) = i1.dim();
+        let coarsest = p.coarsest.unwrap_or_else(|| coarsest_level(w0, h0, p.patch));
+        let finest = p.finest.min(coarsest);
+        self.p1.build(i1, coarsest + 1, 1);
+        self.p2.build(i2, coarsest + 1, 1);
+        let top = self.p1.levels.len() - 1;
+        let (mut u, mut v) = (
+            Array2::zeros(self.p1.levels[top].dim()),
+            Array2::zeros(self.p1.levels[top].dim()),
+        );
+        let hints = initial.map(|f| hint_pyramid(f, &self.p1.levels, finest));
+        for level in (finest..=top).rev() {
+            let (a1, a2) = (&self.p1.levels[level], &self.p2.levels[level]);
+            let (h, w) = a1.dim();
+            if u.dim() != (h, w) {
+                u = upsample2(&u, h, w, 2.0);
+                v = upsample2(&v, h, w, 2.0);
+            }
+            let hint = hints.as_ref().map(|hs| &hs[level - finest]);
+            let patch = p.patch.min(w).min(h);
+            let sparse = search::search_level(a1, a2, &u, &v, hint, &p, patch);
+            densify::densify(a1, a2, &sparse, &mut u, &mut v);
+            if p.refine.iterations > 0 {
+                refine(a1, a2, &mut u, &mut v, &p.refine);
+            }
+        }
+        for level in (0..finest).rev() {
+            let (h, w) = self.p1.levels[level].dim();
+            u = upsample2(&u, h, w, 2.0);
+            v = upsample2(&v, h, w, 2.0);
+        }
+        Flow::from_uv(u, v)
+    }
+}
+
+/// The initial flow at every level from `finest` up, scaled to each level.
+fn hint_pyramid(flow: &Flow, levels: &[Array2<f32>], finest: usize) -> Vec<(Array2<f32>, Array2<f32>)> {
+    let mut out = Vec::new();
+    let (mut u, mut v) = (flow.u().clone(), flow.v().clone());
+    for (level, img) in levels.iter().enumerate() {
+        if level > 0 {
+            u = super::pyramid::downsample(&u) * 0.5;
+            v = super::pyramid::downsample(&v) * 0.5;
+            debug_assert_eq!(u.dim(), img.dim());
+        }
+        if level >= finest {
+            out.push((u.clone(), v.clone()));
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_coarsest_level_leaves_a_few_patches() {
+        assert_eq!(coarsest_level(640, 480, 8), 4);
+        assert_eq!(coarsest_level(352, 288, 8), 3);
+        assert_eq!(coarsest_level(1282, 1110, 8), 5);
+        assert_eq!(coarsest_level(20, 12, 8), 0);
+        assert_eq!(coarsest_level(3, 2, 8), 0);
+    }
+
+    #[test]
+    fn presets_are_valid_and_odd_settings_are_refused() {
+        for p in [DisPreset::Ultrafast, DisPreset::Fast, DisPreset::Medium] {
+            DisParams::preset(p).validate().unwrap();
+        }
+        let bad = DisParams {
+            patch: 7,
+            ..DisParams::default()
+        };
+        assert!(bad.validate().unwrap_err().contains("patch size"));
+        let bad = DisParams {
+            stride: 9,
+            ..DisParams::default()
+        };
+        assert!(bad.validate().is_err());
+    }
+}

@@ -1,0 +1,428 @@
+//! The patch search of DIS: inverse-compositional Lucas-Kanade per patch,
+//! with spatial propagation between neighbouring patches.
+//!
+//! Each patch's Hessian comes from the first picture's gradients alone
+//! (inverse composition), so one Gauss-Newton step costs one bilinear
+//! sampling of the second picture over the patch and four sums. The grid
+//! is searched in fixed horizontal stripes, each twice (forward in raster
+//! order, then backward), every patch first trying the vectors of the
+//! neighbours already searched in that pass: vectors found in textured
+//! places spread to weak patches. The stripes are the same whatever the
+//! number of threads, so the result does not depend on it.
+
+use ndarray::Array2;
+use rayon::prelude::*;
+
+use super::DisParams;
+use crate::flow::pyramid::parallel_worth;
+
+/// Stripes of patch rows searched independently (fixed: the result must
+/// not depend on the number of threads).
+const STRIPES: usize = 8;
+
+/// Vectors on the patch grid of one level.
+#[derive(Debug, Clone)]
+pub(super) struct SparseFlow {
+    /// Patch side at this level.
+    pub patch: usize,
+    /// Left edges of the patch columns.
+    pub xs: Vec<usize>,
+    /// Top edges of the patch rows.
+    pub ys: Vec<usize>,
+    /// Vectors, `[row * xs.len() + col]`.
+    pub u: Vec<f32>,
+    pub v: Vec<f32>,
+}
+
+/// Patch origins along a side of `n` pixels: every `stride` pixels, and a
+/// last one flush with the far edge so that every pixel is covered.
+pub(super) fn patch_origins(n: usize, patch: usize, stride: usize) -> Vec<usize> {
+    let mut out: Vec<usize> = (0..)
+        .map(|k| k * stride)
+        .take_while(|&p| p + patch <= n)
+        .collect();
+    if out.last().is_none_or(|&p| p + patch < n) {
+        out.push(n.saturating_sub(patch));
+    }
+    out
+}
+
+/// Sobel gradients divided by 8 (true derivatives of a smoothed picture),
+/// edges repeated.
+fn sobel(img: &[f32], w: usize, h: usize) -> (Vec<f32>, Vec<f32>) {
+    let mut gx = vec![0f32; w * h];
+    let mut gy = vec![0f32; w * h];
+    let at = |x: isize, y: isize| {
+        img[y.clamp(0, h as isize - 1) as usize * w + x.clamp(0, w as isize - 1) as usize]
+    };
+    for y in 0..h as isize {
+        for x in 0..w as isize {
+            let i = y as usize * w + x as usize;
+            let (l, r) = (
+                at(x - 1, y - 1) + 2.0 * at(x - 1, y) + at(x - 1, y + 1),
+                at(x + 1, y - 1) + 2.0 * at(x + 1, y) + at(x + 1, y + 1),
+            );
+            let (t, b) = (
+                at(x - 1, y - 1) + 2.0 * at(x, y - 1) + at(x + 1, y - 1),
+                at(x - 1, y + 1) + 2.0 * at(x, y + 1) + at(x + 1, y + 1),
+            );
+            gx[i] = (r - l) * 0.125;
+            gy[i] = (b - t) * 0.125;
+        }
+    }
+    (gx, gy)
+}
+
+/// A picture with a replicated border of `pad` pixels on every side, so
+/// that a patch displaced up to `pad` pixels out of the picture is read
+/// without bounds checks.
+struct Padded {
+    data: Vec<f32>,
+    stride: usize,
+    pad: usize,
+    w: usize,
+    h: usize,
+}
+
+impl Padded {
+    fn new(img: &[f32], w: usize, h: usize, pad: usize) -> Padded {
+        let stride = w + 2 * pad;
+        let mut data = vec![0f32; stride * (h + 2 * pad)];
+        for (py, row) in data.chunks_exact_mut(stride).enumerate() {
+            let src = &img[(py as isize - pad as isize).clamp(0, h as isize - 1) as usize * w..][..w];
+            row[..pad].fill(src[0]);
+            row[pad..pad + w].copy_from_slice(src);
+            row[pad + w..].fill(src[w - 1]);
+        }
+        Padded {
+            data,
+            stride,
+            pad,
+            w,
+            h,
+        }
+    }
+}
+
+/// What one patch of the first picture needs for its search: its samples
+/// and gradients, and the inverse of its (mean-normalised) Hessian.
+struct Template<const P: usize> {
+    i0: [[f32; P]; P],
+    gx: [[f32; P]; P],
+    gy: [[f32; P]; P],
+    /// Means of the gradients (for mean normalisation), else zero.
+    mean_gx: f32,
+    mean_gy: f32,
+    inv: [f32; 3],
+}
+
+impl<const P: usize> Template<P> {
+    fn new(lv: &Level, x0: usize, y0: usize, mean_normalize: bool) -> Template<P> {
+        let mut t = Template {
+            i0: [[0.0; P]; P],
+            gx: [[0.0; P]; P],
+            gy: [[0.0; P]; P],
+            mean_gx: 0.0,
+            mean_gy: 0.0,
+            inv: [0.0; 3],
+        };
+        let (mut sxx, mut sxy, mut syy, mut sx, mut sy) = (0f32, 0f32, 0f32, 0f32, 0f32);
+        for r in 0..P {
+            let o = (y0 + r) * lv.w + x0;
+            t.i0[r].copy_from_slice(&lv.i0[o..o + P]);
+            t.gx[r].copy_from_slice(&lv.gx[o..o + P]);
+            t.gy[r].copy_from_slice(&lv.gy[o..o + P]);
+            for c in 0..P {
+                let (a, b) = (t.gx[r][c], t.gy[r][c]);
+                sxx += a * a;
+                sxy += a * b;
+                syy += b * b;
+                sx += a;
+                sy += b;
+            }
+        }
+        let n = (P * P) as f32;
+        if mean_normalize {
+            t.mean_gx = sx / n;
+            t.mean_gy = sy / n;
+            sxx -= sx * sx / n;
+            sxy -= sx * sy / n;
+            syy -= sy * sy / n;
+        }
+        // A small floor on the diagonal keeps flat patches' steps finite;
+        // such steps are then refused by the distance check.
+        let floor = 0.01 * n;
+        let (a, b, c) = (sxx + floor, sxy, syy + floor);
+        let det = a * c - b * b;
+        t.inv = [c / det, -b / det, a / det];
+        t
+    }
+
+    /// The second picture sampled bilinearly over the patch displaced to
+    /// (x, y) (clamped into the padded picture), minus the template:
+    /// returns (sum d, sum d^2, sum d gx, sum d gy).
+    #[inline(always)]
+    fn residual(&self, i1: &Padded, x: f32, y: f32) -> [f32; 4] {
+        let lim = |p: f32, n: usize| p.clamp(-(i1.pad as f32) + 1.0, (n + i1.pad - P - 2) as f32);
+        let (x, y) = (lim(x, i1.w), lim(y, i1.h));
+        let (fx, fy) = (x.floor(), y.floor());
+        let (ax, ay) = (x - fx, y - fy);
+        let (w00, w01, w10, w11) = ((1.0 - ax) * (1.0 - ay), ax * (1.0 - ay), (1.0 - ax) * ay, ax * ay);
+        let base =
+            (fy as isize + i1.pad as isize) as usize * i1.stride + (fx as isize + i1.pad as isize) as usize;
+        let (mut sd, mut sd2, mut sdx, mut sdy) = ([0f32; P], [0f32; P], [0f32; P], [0f32; P]);
+        for r in 0..P {
+            let top = &i1.data[base + r * i1.stride..][..P + 1];
+            let bot = &i1.data[base + (r + 1) * i1.stride..][..P + 1];
+            for c in 0..P {
+                let d = w00 * top[c] + w01 * top[c + 1] + w10 * bot[c] + w11 * bot[c + 1] - self.i0[r][c];
+                sd[c] += d;
+                sd2[c] += d * d;
+                sdx[c] += d * self.gx[r][c];
+                sdy[c] += d * self.gy[r][c];
+            }
+        }
+        [sd, sd2, sdx, sdy].map(|a| a.iter().sum())
+    }
+
+    /// The patch distance at displacement (u, v) from (x0, y0): SSD, or the
+    /// SSD of the mean-removed difference.
+    #[inline(always)]
+    fn cost(&self, i1: &Padded, x0: usize, y0: usize, u: f32, v: f32, mean_normalize: bool) -> f32 {
+        let [sd, sd2, _, _] = self.residual(i1, x0 as f32 + u, y0 as f32 + v);
+        if mean_normalize {
+            sd2 - sd * sd / (P * P) as f32
+        } else {
+            sd2
+        }
+    }
+
+    /// Gauss-Newton from (u, v): steps until the distance stops falling or
+    /// `steps` are done; returns the best vector found and its distance.
+    fn descend(
+        &self,
+        i1: &Padded,
+        x0: usize,
+        y0: usize,
+        (u, v): (f32, f32),
+        steps: usize,
+        mn: bool,
+    ) -> (f32, f32) {
+        let n = (P * P) as f32;
+        let (mut u, mut v) = (u, v);
+        let mut best = f32::INFINITY;
+        let mut last = (u, v);
+        for _ in 0..steps {
+            let [sd, sd2, sdx, sdy] = self.residual(i1, x0 as f32 + u, y0 as f32 + v);
+            let (cost, bx, by) = if mn {
+                (
+                    sd2 - sd * sd / n,
+                    sdx - sd * self.mean_gx,
+                    sdy - sd * self.mean_gy,
+                )
+            } else {
+                (sd2, sdx, sdy)
+            };
+            if cost >= best {
+                return last;
+            }
+            best = cost;
+            last = (u, v);
+            u -= self.inv[0] * bx + self.inv[1] * by;
+            v -= self.inv[1] * bx + self.inv[2] * by;
+        }
+        // The last step's result was not evaluated: keep it (each step so
+        // far lowered the distance).
+        (u, v)
+    }
+}
+
+/// The first picture of a level, its gradients, and the second picture
+/// padded.
+struct Level<'a> {
+    i0: &'a [f32],
+    gx: Vec<f32>,
+    gy: Vec<f32>,
+    i1: Padded,
+    w: usize,
+}
+
+/// Searches every patch of the level; `u`, `v` are the dense flow from the
+/// coarser level (at this level's size), `hint` an optional extra
+/// candidate field.
+pub(super) fn search_level(
+    a1: &Array2<f32>,
+    a2: &Array2<f32>,
+    u: &Array2<f32>,
+    v: &Array2<f32>,
+    hint: Option<&(Array2<f32>, Array2<f32>)>,
+    p: &DisParams,
+    patch: usize,
+) -> SparseFlow {
+    match patch {
+        16 => search_sized::<16>(a1, a2, u, v, hint, p),
+        12 => search_sized::<12>(a1, a2, u, v, hint, p),
+        8 => search_sized::<8>(a1, a2, u, v, hint, p),
+        4..=7 => search_sized::<4>(a1, a2, u, v, hint, p),
+        2..=3 => search_sized::<2>(a1, a2, u, v, hint, p),
+        _ => search_sized::<1>(a1, a2, u, v, hint, p),
+    }
+}
+
+fn search_sized<const P: usize>(
+    a1: &Array2<f32>,
+    a2: &Array2<f32>,
+    u: &Array2<f32>,
+    v: &Array2<f32>,
+    hint: Option<&(Array2<f32>, Array2<f32>)>,
+    p: &DisParams,
+) -> SparseFlow {
+    let (h, w) = a1.dim();
+    let i0 = a1.as_slice().expect("standard");
+    let (gx, gy) = sobel(i0, w, h);
+    let lv = Level {
+        i0,
+        gx,
+        gy,
+        i1: Padded::new(a2.as_slice().expect("standard"), w, h, P + 2),
+        w,
+    };
+    let stride = p.stride.min(P);
+    let (xs, ys) = (patch_origins(w, P, stride), patch_origins(h, P, stride));
+    let mut sparse = SparseFlow {
+        patch: P,
+        u: vec![0.0; xs.len() * ys.len()],
+        v: vec![0.0; xs.len() * ys.len()],
+        xs,
+        ys,
+    };
+    let ws = sparse.xs.len();
+    let rows_per = sparse.ys.len().div_ceil(STRIPES).max(1);
+    let ctx = StripeContext {
+        lv: &lv,
+        xs: &sparse.xs,
+        ys: &sparse.ys,
+        u: u.as_slice().expect("standard"),
+        v: v.as_slice().expect("standard"),
+        hint: hint.map(|(a, b)| (a.as_slice().expect("standard"), b.as_slice().expect("standard"))),
+        p,
+    };
+    let chunk = rows_per * ws;
+    if parallel_worth(w * h) {
+        sparse
+            .u
+            .par_chunks_mut(chunk)
+            .zip(sparse.v.par_chunks_mut(chunk))
+            .enumerate()
+            .for_each(|(k, (su, sv))| ctx.search_stripe::<P>(k * rows_per, su, sv));
+    } else {
+        for (k, (su, sv)) in sparse
+            .u
+            .chunks_mut(chunk)
+            .zip(sparse.v.chunks_mut(chunk))
+            .enumerate()
+        {
+            ctx.search_stripe::<P>(k * rows_per, su, sv);
+        }
+    }
+    sparse
+}
+
+struct StripeContext<'a> {
+    lv: &'a Level<'a>,
+    xs: &'a [usize],
+    ys: &'a [usize],
+    u: &'a [f32],
+    v: &'a [f32],
+    hint: Option<(&'a [f32], &'a [f32])>,
+    p: &'a DisParams,
+}
+
+impl StripeContext<'_> {
+    /// Searches the patch rows `row0..` held by `su`/`sv`: a forward pass
+    /// then a backward pass, each patch starting from the best of its own
+    /// vector and its searched neighbours'.
+    fn search_stripe<const P: usize>(&self, row0: usize, su: &mut [f32], sv: &mut [f32]) {
+        let ws = self.xs.len();
+        let rows = su.len() / ws;
+        let (w, mn) = (self.lv.w, self.p.mean_normalize);
+        let centre = |r: usize, c: usize| (self.ys[row0 + r] + P / 2) * w + self.xs[c] + P / 2;
+        for k in 0..rows * ws {
+            let i = centre(k / ws, k % ws);
+            (su[k], sv[k]) = (self.u[i], self.v[i]);
+        }
+        let steps_per_pass = (self.p.iterations / 2).max(1);
+        for pass in 0..2 {
+            let forward = pass == 0;
+            for step in 0..rows * ws {
+                let k = if forward { step } else { rows * ws - 1 - step };
+                let (r, c) = (k / ws, k % ws);
+                let (x0, y0) = (self.xs[c], self.ys[row0 + r]);
+                // Rebuilt at each visit: cheaper than keeping every
+                // patch's copy between the passes.
+                let t = &Template::<P>::new(self.lv, x0, y0, mn);
+                let mut start = (su[k], sv[k]);
+                let mut candidates = [None; 3];
+                if self.p.propagate {
+                    let (has_left, has_up) = if forward {
+                        (c > 0, r > 0)
+                    } else {
+                        (c + 1 < ws, r + 1 < rows)
+                    };
+                    let (dc, dr) = if forward {
+                        (k - 1, k.wrapping_sub(ws))
+                    } else {
+                        (k + 1, k + ws)
+                    };
+                    candidates[0] = has_left.then(|| (su[dc], sv[dc]));
+                    candidates[1] = has_up.then(|| (su[dr], sv[dr]));
+                }
+                if let Some((hu, hv)) = self.hint {
+                    let i = centre(r, c);
+                    candidates[2] = Some((hu[i], hv[i]));
+                }
+                if candidates.iter().any(Option::is_some) {
+                    let mut best = t.cost(&self.lv.i1, x0, y0, start.0, start.1, mn);
+                    for cand in candidates.into_iter().flatten() {
+                        let cost = t.cost(&self.lv.i1, x0, y0, cand.0, cand.1, mn);
+                        if cost < best {
+                            best = cost;
+                            start = cand;
+                        }
+                    }
+                }
+                let end = t.descend(&self.lv.i1, x0, y0, start, steps_per_pass, mn);
+                // A step that runs further than a patch from its start has
+                // most likely left the basin of the right match: keep the start.
+                (su[k], sv[k]) = if (end.0 - start.0).hypot(end.1 - start.1) <= P as f32 {
+                    end
+                } else {
+                    start
+                };
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn patch_origins_cover_every_pixel() {
+        assert_eq!(patch_origins(20, 8, 4), vec![0, 4, 8, 12]);
+        assert_eq!(patch_origins(21, 8, 4), vec![0, 4, 8, 12, 13]);
+        assert_eq!(patch_origins(8, 8, 3), vec![0]);
+        assert_eq!(patch_origins(5, 8, 3), vec![0]);
+    }
+
+    #[test]
+    fn sobel_of_a_ramp_is_its_slope() {
+        let (w, h) = (9, 7);
+        let img: Vec<f32> = (0..w * h)
+            .map(|i| 3.0 * (i % w) as f32 - 2.0 * (i / w) as f32)
+            .collect();
+        let (gx, gy) = sobel(&img, w, h);
+        assert_eq!((gx[3 * w + 4], gy[3 * w + 4]), (3.0, -2.0));
+    }
+}

@@ -1,0 +1,330 @@
+//! Variational refinement of a dense flow: a few fixed-point iterations of
+//! the energy of Brox et al. (2004) with Zimmer et al.'s (2011) constraint
+//! normalisation, as DIS uses it after each level.
+//!
+//! Around the current flow `w`, with the second picture warped back by it,
+//! the increment `dw` minimises
+//!
+//! `sum  delta Psi(|I_z + grad I . dw|^2 / N) + gamma Psi(|grad I_z + H(I) dw|^2 / N_g)
+//!      + alpha Psi(|grad (w + dw)|^2)`
+//!
+//! with `Psi(s^2) = sqrt(s^2 + eps^2)` (robust: outliers, occlusions and
+//! motion boundaries are not squared away), `N`, `N_g` the squared
+//! gradient norms plus `zeta^2` (so the data terms measure misfit in
+//! pixels, whatever the contrast), the brightness term `delta` and the
+//! gradient-constancy term `gamma` (which holds under additive brightness
+//! changes). Each fixed-point iteration freezes the robust weights and
+//! solves the linear system with a few red-black SOR sweeps.
+//!
+//! Pixels whose warped position leaves the picture get no data term: the
+//! smoothness term fills them from their neighbours.
+
+use ndarray::Array2;
+
+/// Settings of the variational refinement.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RefineParams {
+    /// Fixed-point iterations (robust weights recomputed); 0 = off.
+    pub iterations: usize,
+    /// SOR sweeps per fixed-point iteration.
+    pub sor_iterations: usize,
+    /// Smoothness weight.
+    pub alpha: f32,
+    /// Brightness-constancy weight.
+    pub delta: f32,
+    /// Gradient-constancy weight.
+    pub gamma: f32,
+    /// Over-relaxation factor, in (0, 2).
+    pub omega: f32,
+}
+
+impl Default for RefineParams {
+    fn default() -> RefineParams {
+        RefineParams {
+            iterations: 5,
+            sor_iterations: 5,
+            alpha: 20.0,
+            delta: 5.0,
+            gamma: 10.0,
+            omega: 1.6,
+        }
+    }
+}
+
+impl RefineParams {
+    /// Checks the settings, saying which is out of range.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.omega > 0.0 && self.omega < 2.0) {
+            return Err(format!("SOR factor {} is not in (0, 2)", self.omega));
+        }
+        for (name, x) in [
+            ("alpha", self.alpha),
+            ("delta", self.delta),
+            ("gamma", self.gamma),
+        ] {
+            if !(x >= 0.0 && x.is_finite()) {
+                return Err(format!(
+                    "refinement weight {name} = {x} is not a finite non-negative number"
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Squared regularisers of the normalisation and of the robust function
+/// (gradients in grey levels per pixel, misfits in pixels).
+const ZETA2: f32 = 0.01;
+const EPS2: f32 = 1e-6;
+
+/// A field stored with a one-sample border, `(h + 2) x (w + 2)`, so that
+/// the stencils need no edge cases.
+struct Padded {
+    w: usize,
+    h: usize,
+}
+
+impl Padded {
+    fn stride(&self) -> usize {
+        self.w + 2
+    }
+    fn len(&self) -> usize {
+        (self.w + 2) * (self.h + 2)
+    }
+    fn at(&self, x: usize, y: usize) -> usize {
+        (y + 1) * (self.w + 2) + x + 1
+    }
+}
+
+/// The image derivatives the energy is linearised with, on the padded grid.
+struct Linearised {
+    ix: Vec<f32>,
+    iy: Vec<f32>,
+    iz: Vec<f32>,
+    ixx: Vec<f32>,
+    ixy: Vec<f32>,
+    iyy: Vec<f32>,
+    ixz: Vec<f32>,
+    iyz: Vec<f32>,
+    /// 1 where the warped position is inside the second picture, else 0.
+    inside: Vec<f32>,
+}
+
+/// Central differences of the row-major `w x h` field `f`, edges repeated,
+/// written into the padded grid.
+fn derivatives(f: &[f32], g: &Padded) -> (Vec<f32>, Vec<f32>) {
+    let (w, h) = (g.w, g.h);
+    let (mut dx, mut dy) = (vec![0f32; g.len()], vec![0f32; g.len()]);
+    for y in 0..h {
+        let (up, down) = (y.saturating_sub(1), (y + 1).min(h - 1));
+        for x in 0..w {
+            let (l, r) = (x.saturating_sub(1), (x + 1).min(w - 1));
+            let i = g.at(x, y);
+            dx[i] = 0.5 * (f[y * w + r] - f[y * w + l]);
+            dy[i] = 0.5 * (f[down * w + x] - f[up * w + x]);
+        }
+    }
+    (dx, dy)
+}
+
+fn unpad(p: &[f32], g: &Padded) -> Vec<f32> {
+    let mut out = Vec::with_capacity(g.w * g.h);
+    for y in 0..g.h {
+        out.extend_from_slice(&p[g.at(0, y)..g.at(0, y) + g.w]);
+    }
+    out
+}
+
+fn linearise(i1: &[f32], i2: &[f32], u: &[f32], v: &[f32], g: &Padded) -> Linearised {
+    let (w, h) = (g.w, g.h);
+    let mut avg = vec![0f32; w * h];
+    let mut iz = vec![0f32; w * h];
+    let mut inside = vec![0f32; g.len()];
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            let (px, py) = (x as f32 + u[i], y as f32 + v[i]);
+            let ok = px >= 0.0 && py >= 0.0 && px <= (w - 1) as f32 && py <= (h - 1) as f32;
+            let warped = super::warp::bilinear_clamped(i2, w, h, px, py);
+            avg[i] = 0.5 * (warped + i1[i]);
+            iz[i] = warped - i1[i];
+            inside[g.at(x, y)] = if ok { 1.0 } else { 0.0 };
+        }
+    }
+    let (ix, iy) = derivatives(&avg, g);
+    let (ixz, iyz) = derivatives(&iz, g);
+    let (ixx, ixy) = derivatives(&unpad(&ix, g), g);
+    let (_, iyy) = derivatives(&unpad(&iy, g), g);
+    let mut izp = vec![0f32; g.len()];
+    for y in 0..h {
+        izp[g.at(0, y)..g.at(0, y) + w].copy_from_slice(&iz[y * w..(y + 1) * w]);
+    }
+    Linearised {
+        ix,
+        iy,
+        iz: izp,
+        ixx,
+        ixy,
+        iyy,
+        ixz,
+        iyz,
+        inside,
+    }
+}
+
+/// The linear system of one fixed-point iteration, per pixel:
+/// `[a11 a12; a12 a22] dw + smoothness = [b1; b2]`.
+struct System {
+    a11: Vec<f32>,
+    a12: Vec<f32>,
+    a22: Vec<f32>,
+    b1: Vec<f32>,
+    b2: Vec<f32>,
+    /// Smoothness weights of the edge to the right and the edge below
+    /// (zero on the border, so border pixels have fewer neighbours).
+    right: Vec<f32>,
+    down: Vec<f32>,
+}
+
+impl System {
+    fn new(n: usize) -> System {
+        let z = || vec![0f32; n];
+        System {
+            a11: z(),
+            a12: z(),
+            a22: z(),
+            b1: z(),
+            b2: z(),
+            right: z(),
+            down: z(),
+        }
+    }
+
+    /// Data terms with the robust weights at the current increment.
+    fn data(&mut self, l: &Linearised, du: &[f32], dv: &[f32], p: &RefineParams, g: &Padded) {
+        for y in 0..g.h {
+            for i in g.at(0, y)..g.at(0, y) + g.w {
+                let (ix, iy) = (l.ix[i], l.iy[i]);
+                let n1 = ix * ix + iy * iy + ZETA2;
+                let r = l.iz[i] + ix * du[i] + iy * dv[i];
+                let wd = l.inside[i] * p.delta / (r * r / n1 + EPS2).sqrt() / n1;
+                let (ixx, ixy, iyy) = (l.ixx[i], l.ixy[i], l.iyy[i]);
+                let (n2, n3) = (ixx * ixx + ixy * ixy + ZETA2, ixy * ixy + iyy * iyy + ZETA2);
+                let rx = l.ixz[i] + ixx * du[i] + ixy * dv[i];
+                let ry = l.iyz[i] + ixy * du[i] + iyy * dv[i];
+                let wg = l.inside[i] * p.gamma / (rx * rx / n2 + ry * ry / n3 + EPS2).sqrt();
+                let (g2, g3) = (wg / n2, wg / n3);
+                self.a11[i] = wd * ix * ix + g2 * ixx * ixx + g3 * ixy * ixy + ZETA2;
+                self.a12[i] = wd * ix * iy + g2 * ixx * ixy + g3 * ixy * iyy;
+                self.a22[i] = wd * iy * iy + g2 * ixy * ixy + g3 * iyy * iyy + ZETA2;
+                self.b1[i] = -(wd * l.iz[i] * ix + g2 * ixx * l.ixz[i] + g3 * ixy * l.iyz[i]);
+                self.b2[i] = -(wd * l.iz[i] * iy + g2 * ixy * l.ixz[i] + g3 * iyy * l.iyz[i]);
+            }
+        }
+    }
+
+    /// Robust smoothness weights of the flow `w + dw` (forward differences).
+    fn smoothness(&mut self, u: &[f32], v: &[f32], du: &[f32], dv: &[f32], p: &RefineParams, g: &Padded) {
+        let s = g.stride();
+        for y in 0..g.h {
+            for x in 0..g.w {
+                let i = g.at(x, y);
+                let (has_r, has_d) = (x + 1 < g.w, y + 1 < g.h);
+                let (ur, vr) = if has_r {
+                    (u[i + 1] + du[i + 1], v[i + 1] + dv[i + 1])
+                } else {
+                    (u[i] + du[i], v[i] + dv[i])
+                };
+                let (ud, vd) = if has_d {
+                    (u[i + s] + du[i + s], v[i + s] + dv[i + s])
+                } else {
+                    (u[i] + du[i], v[i] + dv[i])
+                };
+                let (uc, vc) = (u[i] + du[i], v[i] + dv[i]);
+                let grad2 = (ur - uc).powi(2) + (ud - uc).powi(2) + (vr - vc).powi(2) + (vd - vc).powi(2);
+                let weight = p.alpha / (grad2 + EPS2).sqrt();
+                self.right[i] = if has_r { weight } else { 0.0 };
+                self.down[i] = if has_d { weight } else { 0.0 };
+            }
+        }
+    }
+
+    /// One red-black SOR sweep on the increment.
+    fn sor(&self, u: &[f32], v: &[f32], du: &mut [f32], dv: &mut [f32], omega: f32, g: &Padded) {
+        let s = g.stride();
+        for colour in 0..2 {
+            for y in 0..g.h {
+                let first = (y + colour) % 2;
+                for x in (first..g.w).step_by(2) {
+                    let i = g.at(x, y);
+                    let (el, er, eu, ed) = (self.right[i - 1], self.right[i], self.down[i - s], self.down[i]);
+                    let sum = el + er + eu + ed;
+                    let (uc, vc) = (u[i], v[i]);
+                    let nu = el * (u[i - 1] + du[i - 1] - uc)
+                        + er * (u[i + 1] + du[i + 1] - uc)
+                        + eu * (u[i - s] + du[i - s] - uc)
+                        + ed * (u[i + s] + du[i + s] - uc);
+                    let nv = el * (v[i - 1] + dv[i - 1] - vc)
+                        + er * (v[i + 1] + dv[i + 1] - vc)
+                        + eu * (v[i - s] + dv[i - s] - vc)
+                        + ed * (v[i + s] + dv[i + s] - vc);
+                    let new_u = (self.b1[i] + nu - self.a12[i] * dv[i]) / (self.a11[i] + sum);
+                    du[i] += omega * (new_u - du[i]);
+                    let new_v = (self.b2[i] + nv - self.a12[i] * du[i]) / (self.a22[i] + sum);
+                    dv[i] += omega * (new_v - dv[i]);
+                }
+            }
+        }
+    }
+}
+
+/// Refines the flow `(u, v)` from `i1` to `i2` in place.
+pub fn refine(
+    i1: &Array2<f32>,
+    i2: &Array2<f32>,
+    u: &mut Array2<f32>,
+    v: &mut Array2<f32>,
+    p: &RefineParams,
+) {
+    assert!(
+        i1.dim() == i2.dim() && u.dim() == i1.dim() && v.dim() == i1.dim(),
+        "refine: sizes differ"
+    );
+    if p.iterations == 0 {
+        return;
+    }
+    let (h, w) = i1.dim();
+    let g = Padded { w, h };
+    let (us, vs) = (
+        u.as_slice_mut().expect("standard"),
+        v.as_slice_mut().expect("standard"),
+    );
+    let lin = linearise(
+        i1.as_slice().expect("standard"),
+        i2.as_slice().expect("standard"),
+        us,
+        vs,
+        &g,
+    );
+    let (mut up, mut vp) = (vec![0f32; g.len()], vec![0f32; g.len()]);
+    for y in 0..h {
+        up[g.at(0, y)..g.at(0, y) + w].copy_from_slice(&us[y * w..(y + 1) * w]);
+        vp[g.at(0, y)..g.at(0, y) + w].copy_from_slice(&vs[y * w..(y + 1) * w]);
+    }
+    let (mut du, mut dv) = (vec![0f32; g.len()], vec![0f32; g.len()]);
+    let mut sys = System::new(g.len());
+    for _ in 0..p.iterations {
+        sys.data(&lin, &du, &dv, p, &g);
+        sys.smoothness(&up, &vp, &du, &dv, p, &g);
+        for _ in 0..p.sor_iterations {
+            sys.sor(&up, &vp, &mut du, &mut dv, p.omega, &g);
+        }
+    }
+    for y in 0..h {
+        for x in 0..w {
+            let i = g.at(x, y);
+            us[y * w + x] += du[i];
+            vs[y * w + x] += dv[i];
+        }
+    }
+}

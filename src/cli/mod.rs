@@ -5,6 +5,7 @@ mod compare;
 mod decode;
 mod encode;
 mod flow;
+mod flowbench;
 mod info;
 mod me;
 mod psnr;
@@ -36,6 +37,8 @@ enum Command {
     Encode(encode::Args),
     /// Dense optical flow between two pictures.
     Flow(flow::Args),
+    /// Write the flow benchmark: photographs under exactly known motion.
+    Flowbench(flowbench::Args),
     /// Say what a Y4M, .flo or image file holds.
     Info(info::Args),
     /// Block motion estimation of each frame against the previous one.
@@ -64,6 +67,7 @@ pub fn main() -> ExitCode {
         Some(Command::Decode(a)) => decode::run(&a),
         Some(Command::Encode(a)) => encode::run(&a),
         Some(Command::Flow(a)) => flow::run(&a),
+        Some(Command::Flowbench(a)) => flowbench::run(&a),
         Some(Command::Info(a)) => info::run(&a),
         Some(Command::Me(a)) => me::run(&a),
         Some(Command::Rd(a)) => rd::run(&a),

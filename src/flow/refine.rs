@@ -248,31 +248,161 @@ impl System {
             }
         }
     }
+}
 
-    /// One red-black SOR sweep on the increment.
-    fn sor(&self, u: &[f32], v: &[f32], du: &mut [f32], dv: &mut [f32], omega: f32, g: &Padded) {
+/// The coefficients of a sweep and the increment, red and black pixels
+/// (`(x + y)` even and odd) in separate arrays, so that updating one
+/// colour along a row is a contiguous loop over the other colour's
+/// samples. Each colour row holds `ceil(w / 2)` samples plus one of
+/// padding on each side; one padding row above and below (all zero, and
+/// the weights towards them are zero).
+struct Sweeps {
+    wc: usize,
+    w: usize,
+    h: usize,
+    /// Per colour: weights to the left, right, upper and lower neighbour;
+    /// the folded right-hand sides; the reciprocal diagonals; the coupling.
+    el: [Vec<f32>; 2],
+    er: [Vec<f32>; 2],
+    eu: [Vec<f32>; 2],
+    ed: [Vec<f32>; 2],
+    cu: [Vec<f32>; 2],
+    cv: [Vec<f32>; 2],
+    iu: [Vec<f32>; 2],
+    iv: [Vec<f32>; 2],
+    a12: [Vec<f32>; 2],
+    du: [Vec<f32>; 2],
+    dv: [Vec<f32>; 2],
+}
+
+impl Sweeps {
+    fn new(w: usize, h: usize) -> Sweeps {
+        let wc = w.div_ceil(2) + 2;
+        let z = || [vec![0f32; wc * (h + 2)], vec![0f32; wc * (h + 2)]];
+        Sweeps {
+            wc,
+            w,
+            h,
+            el: z(),
+            er: z(),
+            eu: z(),
+            ed: z(),
+            cu: z(),
+            cv: z(),
+            iu: z(),
+            iv: z(),
+            a12: z(),
+            du: z(),
+            dv: z(),
+        }
+    }
+
+    /// Colour and index of pixel (x, y).
+    fn at(&self, x: usize, y: usize) -> (usize, usize) {
+        ((x + y) % 2, (y + 1) * self.wc + x / 2 + 1)
+    }
+
+    /// Folds what the sweeps do not change into per-pixel constants: with
+    /// `c = b + sum_n e_n (w_n - w)` (the neighbours' current flow) and the
+    /// reciprocal of `a + sum_n e_n`, a sweep's update is
+    /// `du = (c_u + sum_n e_n du_n - a12 dv) / (a11 + sum_n e_n)`.
+    fn fold(&mut self, sys: &System, u: &[f32], v: &[f32], du: &[f32], dv: &[f32], g: &Padded) {
         let s = g.stride();
-        for colour in 0..2 {
-            for y in 0..g.h {
-                let first = (y + colour) % 2;
-                for x in (first..g.w).step_by(2) {
-                    let i = g.at(x, y);
-                    let (el, er, eu, ed) = (self.right[i - 1], self.right[i], self.down[i - s], self.down[i]);
-                    let sum = el + er + eu + ed;
-                    let (uc, vc) = (u[i], v[i]);
-                    let nu = el * (u[i - 1] + du[i - 1] - uc)
-                        + er * (u[i + 1] + du[i + 1] - uc)
-                        + eu * (u[i - s] + du[i - s] - uc)
-                        + ed * (u[i + s] + du[i + s] - uc);
-                    let nv = el * (v[i - 1] + dv[i - 1] - vc)
-                        + er * (v[i + 1] + dv[i + 1] - vc)
-                        + eu * (v[i - s] + dv[i - s] - vc)
-                        + ed * (v[i + s] + dv[i + s] - vc);
-                    let new_u = (self.b1[i] + nu - self.a12[i] * dv[i]) / (self.a11[i] + sum);
-                    du[i] += omega * (new_u - du[i]);
-                    let new_v = (self.b2[i] + nv - self.a12[i] * du[i]) / (self.a22[i] + sum);
-                    dv[i] += omega * (new_v - dv[i]);
+        for y in 0..g.h {
+            for x in 0..g.w {
+                let i = g.at(x, y);
+                let (c, k) = self.at(x, y);
+                let (el, er, eu, ed) = (sys.right[i - 1], sys.right[i], sys.down[i - s], sys.down[i]);
+                let sum = el + er + eu + ed;
+                let (uc, vc) = (u[i], v[i]);
+                self.el[c][k] = el;
+                self.er[c][k] = er;
+                self.eu[c][k] = eu;
+                self.ed[c][k] = ed;
+                self.cu[c][k] = sys.b1[i]
+                    + el * (u[i - 1] - uc)
+                    + er * (u[i + 1] - uc)
+                    + eu * (u[i - s] - uc)
+                    + ed * (u[i + s] - uc);
+                self.cv[c][k] = sys.b2[i]
+                    + el * (v[i - 1] - vc)
+                    + er * (v[i + 1] - vc)
+                    + eu * (v[i - s] - vc)
+                    + ed * (v[i + s] - vc);
+                self.iu[c][k] = 1.0 / (sys.a11[i] + sum);
+                self.iv[c][k] = 1.0 / (sys.a22[i] + sum);
+                self.a12[c][k] = sys.a12[i];
+                self.du[c][k] = du[i];
+                self.dv[c][k] = dv[i];
+            }
+        }
+    }
+
+    /// One red-black SOR sweep.
+    fn sweep(&mut self, omega: f32) {
+        let wc = self.wc;
+        for c in 0..2 {
+            let (mine, other) = if c == 0 { (0, 1) } else { (1, 0) };
+            let [du0, du1] = &mut self.du;
+            let [dv0, dv1] = &mut self.dv;
+            let (du_m, du_o) = if mine == 0 { (du0, &*du1) } else { (du1, &*du0) };
+            let (dv_m, dv_o) = if mine == 0 { (dv0, &*dv1) } else { (dv1, &*dv0) };
+            let _ = other;
+            for y in 0..self.h {
+                // Pixels of this colour in row y start at x = (y + c) % 2;
+                // their left neighbour is at k - 1 of the other colour when
+                // they start at 0, at k when they start at 1.
+                let first = (y + c) % 2;
+                let n = (self.w - first).div_ceil(2);
+                let row = (y + 1) * wc + 1;
+                let left = if first == 0 { row - 1 } else { row };
+                let (up, down) = (row - wc, row + wc);
+                let r = row..row + n;
+                let (el, er, eu, ed) = (
+                    &self.el[c][r.clone()],
+                    &self.er[c][r.clone()],
+                    &self.eu[c][r.clone()],
+                    &self.ed[c][r.clone()],
+                );
+                let (cu, cv, iu, iv, a12) = (
+                    &self.cu[c][r.clone()],
+                    &self.cv[c][r.clone()],
+                    &self.iu[c][r.clone()],
+                    &self.iv[c][r.clone()],
+                    &self.a12[c][r.clone()],
+                );
+                let (ul, ur, uu, ud) = (
+                    &du_o[left..left + n],
+                    &du_o[left + 1..left + 1 + n],
+                    &du_o[up..up + n],
+                    &du_o[down..down + n],
+                );
+                let (vl, vr, vu, vd) = (
+                    &dv_o[left..left + n],
+                    &dv_o[left + 1..left + 1 + n],
+                    &dv_o[up..up + n],
+                    &dv_o[down..down + n],
+                );
+                let (du, dv) = (&mut du_m[r.clone()], &mut dv_m[r]);
+                for k in 0..n {
+                    let nu = el[k] * ul[k] + er[k] * ur[k] + eu[k] * uu[k] + ed[k] * ud[k];
+                    let nv = el[k] * vl[k] + er[k] * vr[k] + eu[k] * vu[k] + ed[k] * vd[k];
+                    let new_u = (cu[k] + nu - a12[k] * dv[k]) * iu[k];
+                    du[k] += omega * (new_u - du[k]);
+                    let new_v = (cv[k] + nv - a12[k] * du[k]) * iv[k];
+                    dv[k] += omega * (new_v - dv[k]);
                 }
+            }
+        }
+    }
+
+    /// Copies the increment back to the padded full grid.
+    fn unfold(&self, du: &mut [f32], dv: &mut [f32], g: &Padded) {
+        for y in 0..g.h {
+            for x in 0..g.w {
+                let (c, k) = self.at(x, y);
+                du[g.at(x, y)] = self.du[c][k];
+                dv[g.at(x, y)] = self.dv[c][k];
             }
         }
     }
@@ -313,12 +443,15 @@ pub fn refine(
     }
     let (mut du, mut dv) = (vec![0f32; g.len()], vec![0f32; g.len()]);
     let mut sys = System::new(g.len());
+    let mut sweeps = Sweeps::new(w, h);
     for _ in 0..p.iterations {
         sys.data(&lin, &du, &dv, p, &g);
         sys.smoothness(&up, &vp, &du, &dv, p, &g);
+        sweeps.fold(&sys, &up, &vp, &du, &dv, &g);
         for _ in 0..p.sor_iterations {
-            sys.sor(&up, &vp, &mut du, &mut dv, p.omega, &g);
+            sweeps.sweep(p.omega);
         }
+        sweeps.unfold(&mut du, &mut dv, &g);
     }
     for y in 0..h {
         for x in 0..w {

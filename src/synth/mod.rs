@@ -22,6 +22,7 @@
 //! assert_eq!(synth.backward_flow(1).get(10, 10), (-2.0, 1.0));
 //! ```
 
+pub mod photo;
 mod texture;
 
 use std::path::{Path, PathBuf};

@@ -27,7 +27,7 @@ mod search;
 
 use ndarray::Array2;
 
-use super::pyramid::{upsample2, Pyramid};
+use super::pyramid::{upsample2, upsample_levels, Pyramid};
 use super::refine::{refine, RefineParams};
 use super::Flow;
 
@@ -198,8 +198,8 @@ impl Dis {
         let (h0, w0) = i1.dim();
         let coarsest = p.coarsest.unwrap_or_else(|| coarsest_level(w0, h0, p.patch));
         let finest = p.finest.min(coarsest);
-        self.p1.build(i1, coarsest + 1, 1);
-        self.p2.build(i2, coarsest + 1, 1);
+        self.p1.build_binomial(i1, coarsest + 1, 1);
+        self.p2.build_binomial(i2, coarsest + 1, 1);
         let top = self.p1.levels.len() - 1;
         let (mut u, mut v) = (
             Array2::zeros(self.p1.levels[top].dim()),
@@ -221,10 +221,10 @@ impl Dis {
                 refine(a1, a2, &mut u, &mut v, &p.refine);
             }
         }
-        for level in (0..finest).rev() {
-            let (h, w) = self.p1.levels[level].dim();
-            u = upsample2(&u, h, w, 2.0);
-            v = upsample2(&v, h, w, 2.0);
+        if finest > 0 {
+            let f = (1usize << finest) as f32;
+            u = upsample_levels(&u, h0, w0, finest, f);
+            v = upsample_levels(&v, h0, w0, finest, f);
         }
         Flow::from_uv(u, v)
     }

@@ -2,8 +2,10 @@
 //! and the sparse tracker.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use mocomp::flow::dis::{Dis, DisParams, DisPreset};
 use mocomp::flow::hs::{horn_schunck, HsParams};
 use mocomp::flow::lk::{dense_lk, LkParams};
+use mocomp::flow::refine::{refine, RefineParams};
 use mocomp::flow::track::{good_features, track, TrackParams};
 use mocomp::raster::plane_to_array;
 use mocomp::synth::{Motion, SceneSpec, Synth};
@@ -45,6 +47,29 @@ fn flow(c: &mut Criterion) {
                 bench.iter(|| pool.install(|| dense_lk(&a, &b, &p)))
             });
         }
+        for (label, preset) in [
+            ("dis_ultrafast", DisPreset::Ultrafast),
+            ("dis_fast", DisPreset::Fast),
+            ("dis_medium", DisPreset::Medium),
+        ] {
+            let mut dis = Dis::new(DisParams::preset(preset));
+            g.bench_function(BenchmarkId::new(label, name), |bench| {
+                bench.iter(|| pool.install(|| dis.compute(&a, &b)))
+            });
+        }
+        // One variational refinement (5 x 5 SOR) at half size, as DIS medium
+        // runs it at its finest level.
+        let (ha, hb) = (
+            mocomp::flow::pyramid::downsample(&a),
+            mocomp::flow::pyramid::downsample(&b),
+        );
+        g.bench_function(BenchmarkId::new("refine_half", name), |bench| {
+            bench.iter(|| {
+                let (mut u, mut v) = (Array2::zeros(ha.dim()), Array2::zeros(ha.dim()));
+                pool.install(|| refine(&ha, &hb, &mut u, &mut v, &RefineParams::default()));
+                u
+            })
+        });
         g.bench_function(BenchmarkId::new("hs_medium", name), |bench| {
             bench.iter(|| pool.install(|| horn_schunck(&a, &b, &HsParams::default())))
         });

@@ -470,6 +470,71 @@ fn me_writes_vectors_and_overlays() {
 }
 
 #[test]
+fn flow_by_dense_inverse_search_and_the_benchmark_generator() {
+    // Three small "photographs" (rendered texture), the benchmark's pairs
+    // from them, and DIS on one of them against its exact ground truth.
+    let dir = tempfile::tempdir().unwrap();
+    let mut photos = Vec::new();
+    for k in 0..3u64 {
+        let s = mocomp::synth::Synth::new(mocomp::synth::SceneSpec::new("src", 200, 150, 1).seed(30 + k))
+            .unwrap();
+        let path = dir.path().join(format!("photo{k}.png"));
+        mocomp::io::image::write_plane(&path, s.frame(0).y()).unwrap();
+        photos.push(path);
+    }
+    let pairs = dir.path().join("pairs");
+    mocomp()
+        .args([
+            "flowbench",
+            "--out",
+            pairs.to_str().unwrap(),
+            "--width",
+            "96",
+            "--height",
+            "64",
+        ])
+        .args(photos.iter().map(|p| p.to_str().unwrap()))
+        .assert()
+        .success();
+    let csv = std::fs::read_to_string(pairs.join("cases.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 3 * 7, "{csv}");
+    let case = pairs.join("p0_small");
+    for f in ["frame1.png", "frame2.png", "gt.flo", "occ.png"] {
+        assert!(case.join(f).exists(), "{f}");
+    }
+    let out = mocomp()
+        .args([
+            "flow",
+            case.join("frame1.png").to_str().unwrap(),
+            case.join("frame2.png").to_str().unwrap(),
+        ])
+        .args([
+            "--method",
+            "dis",
+            "--preset",
+            "medium",
+            "--json",
+            "--gt",
+            case.join("gt.flo").to_str().unwrap(),
+        ])
+        .assert()
+        .success()
+        .get_output()
+        .stdout
+        .clone();
+    let v: serde_json::Value = serde_json::from_slice(&out).unwrap();
+    assert_eq!(v["method"], "dis");
+    // A pan of (2.3, -1.4) px with zoom and rotation: measured EPE 0.13 px.
+    assert!(v["epe"].as_f64().unwrap() < 0.3, "{v}");
+    mocomp()
+        .args(["flowbench", "--out", pairs.to_str().unwrap(), "--width", "8"])
+        .args(photos.iter().map(|p| p.to_str().unwrap()))
+        .assert()
+        .failure()
+        .stderr(predicates::str::contains("outside 16..=4096"));
+}
+
+#[test]
 fn flow_reports_errors_against_ground_truth_and_writes_its_pictures() {
     let dir = tempfile::tempdir().unwrap();
     let (flo, viz, warp) = (

@@ -57,8 +57,10 @@ fn all_predictors() -> Vec<Predictor> {
         "block:epzs",
         "flow-block:lk",
         "flow-block:hs",
+        "flow-block:dis",
         "dense-lk",
         "dense-hs",
+        "dense-dis",
         "obmc",
     ]
     .iter()

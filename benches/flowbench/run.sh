@@ -6,16 +6,18 @@
 #   4. evaluate.py: EPE / AE / R1 / R3, on visible and occluded pixels,
 #   per case kind, and motion-compensated PSNR on the real Middlebury
 #   pairs of ../shared/data/pairs (no ground truth).
-# Env: PEERS (default ../shared/peers), METHODS (mocomp method:preset list),
+# Env: PEERS (default ../shared/peers), METHODS (mocomp method:preset[:flag]
+# list; a flag is passed as --flag),
 # CV_FAST / CV_SLOW (OpenCV method lists), REPEATS (timing runs, default 3),
 # ONLY (a regex of pair names).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 work=${1:-/tmp/mocomp-flowbench}
 peers=${PEERS:-../shared/peers}
-methods=${METHODS:-"dis:ultrafast dis:fast dis:medium lk:fast lk:medium lk:accurate hs:medium"}
+methods=${METHODS:-"dis:ultrafast dis:fast dis:medium dis:fast:global-search dis:medium:global-search lk:fast lk:medium lk:accurate hs:medium"}
 cv_fast=${CV_FAST:-dis_ultrafast,dis_fast,dis_medium,farneback}
-cv_slow=${CV_SLOW:-dualtvl1,deepflow}
+# DualTVL1 takes about 30 s a 640x480 pair here: CV_SLOW=dualtvl1,deepflow adds it.
+cv_slow=${CV_SLOW:-deepflow}
 repeats=${REPEATS:-3}
 benches/flowbench/photos.sh "$work/photos"
 cargo build --release --quiet
@@ -31,8 +33,10 @@ for c in $cases; do
   if [ -f "$c/frame1.png" ]; then f1=$c/frame1.png; f2=$c/frame2.png; else f1=$c/frame10.png; f2=$c/frame11.png; fi
   : > "$out/mocomp.jsonl"
   for m in $methods; do
-    $bin flow "$f1" "$f2" --method "${m%%:*}" --preset "${m##*:}" --threads 1 --runs "$repeats" --json \
-      -o "$out/mocomp_${m%%:*}_${m##*:}.flo" | sed "s/^{/{\"name\":\"mocomp_${m%%:*}_${m##*:}\",/" >> "$out/mocomp.jsonl"
+    IFS=: read -r method preset flag <<< "$m"
+    label=mocomp_${method}_${preset}${flag:+_$flag}
+    $bin flow "$f1" "$f2" --method "$method" --preset "$preset" ${flag:+--$flag} --threads 1 --runs "$repeats" \
+      --json -o "$out/$label.flo" | sed "s/^{/{\"name\":\"$label\",/" >> "$out/mocomp.jsonl"
   done
   python3 "$peers/flow_opencv.py" --img1 "$f1" --img2 "$f2" --threads 1 --repeats "$repeats" \
     --methods "$cv_fast" --save-flo "$out" --csv "$out/opencv_fast.csv" >/dev/null

@@ -23,7 +23,7 @@ pub struct Args {
     #[arg(long, default_value_t = 28)]
     pub qp: u8,
     /// P-frame predictor: zero, block, flow-block, dense-lk, dense-hs,
-    /// obmc (a `:METHOD` or `:lk|hs` suffix also works).
+    /// dense-dis, obmc (a `:METHOD` or `:lk|hs|dis` suffix also works).
     #[arg(long, default_value = "block")]
     pub predictor: String,
     /// Block search of `block` and `obmc`: esa, tss, ntss, tdls, fss, ds,
@@ -36,7 +36,7 @@ pub struct Args {
     /// Sub-pel refinement of `block` and `obmc`: none, half, quarter.
     #[arg(long)]
     pub subpel: Option<Subpel>,
-    /// Flow of `flow-block`: lk or hs.
+    /// Flow of `flow-block` and `dense-*`: lk, hs or dis.
     #[arg(long)]
     pub flow: Option<FlowMethod>,
     /// `flow-block`: full-pel search radius around the flow's vector (0 =
@@ -108,9 +108,10 @@ pub fn config(args: &Args) -> Result<EncoderConfig> {
             *refine = args.refine.unwrap_or(*refine);
             only("--grid", args.grid.is_none())?;
         }
-        Predictor::Dense { grid, .. } => {
+        Predictor::Dense { flow, grid } => {
+            *flow = args.flow.unwrap_or(*flow);
             *grid = args.grid.unwrap_or(*grid);
-            only("--flow/--refine", args.flow.is_none() && args.refine.is_none())?;
+            only("--refine", args.refine.is_none())?;
         }
         _ => only(
             "--flow/--refine/--grid",

@@ -89,6 +89,10 @@ pub struct Args {
     /// Finest pyramid level computed, 0 = full size (overrides the preset).
     #[arg(long)]
     pub finest: Option<usize>,
+    /// DIS: also try each patch's exhaustive match at the coarsest level
+    /// (reaches motions of a quarter of the picture; see the README).
+    #[arg(long)]
+    pub global_search: bool,
     /// With a Y4M: the pair A:B of frame indices (from 0).
     #[arg(long, value_name = "A:B", default_value = "0:1")]
     pub frames: String,
@@ -259,7 +263,10 @@ pub fn run(args: &Args) -> Result<()> {
     // The estimator is made once, outside the timing, as the OpenCV peer
     // script makes its objects; repeated runs then reuse its buffers.
     let mut lk = Lk::new(params);
-    let mut dis = Dis::new(dis_preset(args.preset));
+    let mut dis = Dis::new(DisParams {
+        global_search: args.global_search,
+        ..dis_preset(args.preset)
+    });
     for _ in 0..args.runs {
         let start = Instant::now();
         flow = pool.install(|| match method {

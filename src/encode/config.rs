@@ -13,14 +13,17 @@ pub enum FlowMethod {
     Lk,
     /// Horn-Schunck (`crate::flow::hs`, default settings).
     Hs,
+    /// Dense inverse search (`crate::flow::dis`, medium preset).
+    Dis,
 }
 
 impl FlowMethod {
-    /// `lk` or `hs`.
+    /// `lk`, `hs` or `dis`.
     pub fn name(self) -> &'static str {
         match self {
             FlowMethod::Lk => "lk",
             FlowMethod::Hs => "hs",
+            FlowMethod::Dis => "dis",
         }
     }
 }
@@ -31,7 +34,8 @@ impl FromStr for FlowMethod {
         match s {
             "lk" => Ok(FlowMethod::Lk),
             "hs" => Ok(FlowMethod::Hs),
-            _ => Err(format!("unknown flow method '{s}' (lk or hs)")),
+            "dis" => Ok(FlowMethod::Dis),
+            _ => Err(format!("unknown flow method '{s}' (lk, hs or dis)")),
         }
     }
 }
@@ -163,8 +167,8 @@ pub const DEFAULT_GRID: usize = 16;
 
 impl FromStr for Predictor {
     type Err = String;
-    /// `zero`, `block`, `block:METHOD`, `flow-block`, `flow-block:lk|hs`,
-    /// `dense-lk`, `dense-hs`, `obmc`, `obmc:METHOD`; other options keep
+    /// `zero`, `block`, `block:METHOD`, `flow-block`, `flow-block:lk|hs|dis`,
+    /// `dense-lk`, `dense-hs`, `dense-dis`, `obmc`, `obmc:METHOD`; other options keep
     /// their defaults.
     fn from_str(s: &str) -> Result<Predictor, String> {
         let (name, option) = match s.split_once(':') {
@@ -198,8 +202,12 @@ impl FromStr for Predictor {
                 flow: FlowMethod::Hs,
                 grid: DEFAULT_GRID,
             }),
+            "dense-dis" => no_option(Predictor::Dense {
+                flow: FlowMethod::Dis,
+                grid: DEFAULT_GRID,
+            }),
             _ => Err(format!(
-                "unknown predictor '{s}' (zero, block[:METHOD], flow-block[:lk|hs], dense-lk, dense-hs, obmc[:METHOD])"
+                "unknown predictor '{s}' (zero, block[:METHOD], flow-block[:lk|hs|dis], dense-lk, dense-hs, dense-dis, obmc[:METHOD])"
             )),
         }
     }
@@ -357,7 +365,9 @@ mod tests {
             "block:tss",
             "flow-block:lk",
             "flow-block:hs",
+            "flow-block:dis",
             "dense-lk",
+            "dense-dis",
             "dense-hs",
             "obmc",
         ] {

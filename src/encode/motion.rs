@@ -9,6 +9,7 @@ use crate::codec::mv::Mv;
 use crate::codec::syntax::{mv_prediction, MB};
 use crate::codec::warp::MotionGrid;
 use crate::codec::{Frame, Plane};
+use crate::flow::dis::{Dis, DisParams, DisPreset};
 use crate::flow::hs::{horn_schunck, HsParams};
 use crate::flow::lk::{Lk, LkParams};
 use crate::flow::Flow;
@@ -31,6 +32,7 @@ pub(crate) struct MotionAnalyser {
     /// The previous frame's field, for EPZS's co-located candidates.
     prior: Option<MotionField>,
     lk: Option<Lk>,
+    dis: Option<Dis>,
 }
 
 impl MotionAnalyser {
@@ -40,6 +42,7 @@ impl MotionAnalyser {
             qp,
             prior: None,
             lk: None,
+            dis: None,
         }
     }
 
@@ -116,6 +119,10 @@ impl MotionAnalyser {
                     .flow
             }
             FlowMethod::Hs => horn_schunck(&a, &b, &HsParams::default()).0,
+            FlowMethod::Dis => self
+                .dis
+                .get_or_insert_with(|| Dis::new(DisParams::preset(DisPreset::Medium)))
+                .compute(&a, &b),
         }
     }
 }

@@ -89,8 +89,9 @@ pub struct LayerSpec {
 pub struct PairSpec {
     /// Name (a folder name).
     pub name: String,
-    /// Picture size.
+    /// Picture width.
     pub width: usize,
+    /// Picture height.
     pub height: usize,
     /// Index of the background picture.
     pub background: usize,
@@ -98,9 +99,12 @@ pub struct PairSpec {
     pub camera: [Pose; 2],
     /// Layers, back to front.
     pub layers: Vec<LayerSpec>,
-    /// Frame 2's photometric change: `gain * v + bias + ramp * (x / w - 0.5)`.
+    /// Frame 2's photometric change, `gain * v + bias + ramp * (x / w - 0.5)`:
+    /// the contrast factor.
     pub gain: f64,
+    /// The brightness offset, levels.
     pub bias: f64,
+    /// The change from the left edge to the right, levels.
     pub ramp: f64,
     /// Standard deviation of the Gaussian noise of both frames, levels.
     pub noise: f64,
@@ -133,7 +137,9 @@ impl PairSpec {
 /// A rendered pair and its ground truth.
 #[derive(Debug, Clone)]
 pub struct RenderedPair {
+    /// The first picture, grey levels rounded to whole numbers.
     pub frame1: Array2<f32>,
+    /// The second picture.
     pub frame2: Array2<f32>,
     /// Forward flow of frame 1; invalid where a pixel mixes layers.
     pub flow: Flow,

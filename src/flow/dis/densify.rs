@@ -94,8 +94,8 @@ mod tests {
         assert_eq!(c[20], (4, 5));
         for (x, &(lo, hi)) in c.iter().enumerate() {
             assert!(lo < hi);
-            for k in lo..hi {
-                assert!(origins[k] <= x && x < origins[k] + 8);
+            for &o in &origins[lo..hi] {
+                assert!(o <= x && x < o + 8);
             }
         }
     }

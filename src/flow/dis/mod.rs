@@ -51,8 +51,19 @@ pub struct DisParams {
     pub mean_normalize: bool,
     /// Try the neighbouring patches' vectors before each search.
     pub propagate: bool,
+    /// At the coarsest level, also try each patch's exhaustive whole-pixel
+    /// match over the whole picture (median of its neighbours'), taken
+    /// where it fits four times better than the local search's result.
+    /// Reaches motions of a quarter of the picture and more; off in the
+    /// presets because it can lock low-texture regions under rotation
+    /// onto wrong matches (see the README's flow benchmark).
+    pub global_search: bool,
     /// Variational refinement after each level (`iterations: 0` turns it off).
     pub refine: RefineParams,
+    /// A last variational refinement at full size, when `finest` is above
+    /// it: the sub-pixel accuracy of a full-size flow for a fraction of
+    /// its cost (the patch search stays at `finest`).
+    pub refine_full: Option<RefineParams>,
 }
 
 /// Speed / accuracy points, in the spirit of OpenCV's DIS presets.
@@ -77,7 +88,9 @@ impl DisParams {
             iterations: 16,
             mean_normalize: true,
             propagate: true,
+            global_search: false,
             refine: RefineParams::default(),
+            refine_full: None,
         };
         match preset {
             DisPreset::Ultrafast => DisParams {
@@ -215,7 +228,17 @@ impl Dis {
             }
             let hint = hints.as_ref().map(|hs| &hs[level - finest]);
             let patch = p.patch.min(w).min(h);
-            let sparse = search::search_level(a1, a2, &u, &v, hint, &p, patch);
+            let exhaustive = p.global_search && level == top;
+            let input = search::LevelSearch {
+                a1,
+                a2,
+                u: &u,
+                v: &v,
+                hint,
+                params: &p,
+                exhaustive,
+            };
+            let sparse = search::search_level(&input, patch);
             densify::densify(a1, a2, &sparse, &mut u, &mut v);
             if p.refine.iterations > 0 {
                 refine(a1, a2, &mut u, &mut v, &p.refine);
@@ -225,6 +248,9 @@ impl Dis {
             let f = (1usize << finest) as f32;
             u = upsample_levels(&u, h0, w0, finest, f);
             v = upsample_levels(&v, h0, w0, finest, f);
+            if let Some(rp) = p.refine_full {
+                refine(i1, i2, &mut u, &mut v, &rp);
+            }
         }
         Flow::from_uv(u, v)
     }

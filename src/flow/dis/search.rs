@@ -29,8 +29,9 @@ pub(super) struct SparseFlow {
     pub xs: Vec<usize>,
     /// Top edges of the patch rows.
     pub ys: Vec<usize>,
-    /// Vectors, `[row * xs.len() + col]`.
+    /// Horizontal components, `[row * xs.len() + col]`.
     pub u: Vec<f32>,
+    /// Vertical components.
     pub v: Vec<f32>,
 }
 
@@ -197,6 +198,35 @@ impl<const P: usize> Template<P> {
         }
     }
 
+    /// The whole-pixel displacement with the least patch distance among
+    /// all that keep the patch inside the picture: the start of the
+    /// coarsest level, where the picture is a few patches across and
+    /// this costs little, so that no motion is out of reach.
+    fn exhaustive(&self, i1: &Padded, x0: usize, y0: usize, mn: bool) -> (f32, f32) {
+        let n = (P * P) as f32;
+        let (mut best, mut at) = (f32::INFINITY, (0.0, 0.0));
+        for y in 0..=i1.h - P {
+            for x in 0..=i1.w - P {
+                let (mut sd, mut sd2) = ([0f32; P], [0f32; P]);
+                for r in 0..P {
+                    let row = &i1.data[(y + r + i1.pad) * i1.stride + x + i1.pad..][..P];
+                    for c in 0..P {
+                        let d = row[c] - self.i0[r][c];
+                        sd[c] += d;
+                        sd2[c] += d * d;
+                    }
+                }
+                let (sd, sd2): (f32, f32) = (sd.iter().sum(), sd2.iter().sum());
+                let cost = if mn { sd2 - sd * sd / n } else { sd2 };
+                if cost < best {
+                    best = cost;
+                    at = (x as f32 - x0 as f32, y as f32 - y0 as f32);
+                }
+            }
+        }
+        at
+    }
+
     /// Gauss-Newton from (u, v): steps until the distance stops falling or
     /// `steps` are done; returns the best vector found and its distance.
     fn descend(
@@ -247,36 +277,42 @@ struct Level<'a> {
     w: usize,
 }
 
-/// Searches every patch of the level; `u`, `v` are the dense flow from the
-/// coarser level (at this level's size), `hint` an optional extra
-/// candidate field.
-pub(super) fn search_level(
-    a1: &Array2<f32>,
-    a2: &Array2<f32>,
-    u: &Array2<f32>,
-    v: &Array2<f32>,
-    hint: Option<&(Array2<f32>, Array2<f32>)>,
-    p: &DisParams,
-    patch: usize,
-) -> SparseFlow {
+/// What a level's search works on: the two pictures of the level, the
+/// dense flow from the coarser level (at this level's size), an optional
+/// extra candidate field, the settings, and whether this is the coarsest
+/// level's global search.
+pub(super) struct LevelSearch<'a> {
+    pub a1: &'a Array2<f32>,
+    pub a2: &'a Array2<f32>,
+    pub u: &'a Array2<f32>,
+    pub v: &'a Array2<f32>,
+    pub hint: Option<&'a (Array2<f32>, Array2<f32>)>,
+    pub params: &'a DisParams,
+    pub exhaustive: bool,
+}
+
+/// Searches every patch of the level with patches of side `patch`.
+pub(super) fn search_level(input: &LevelSearch, patch: usize) -> SparseFlow {
     match patch {
-        16 => search_sized::<16>(a1, a2, u, v, hint, p),
-        12 => search_sized::<12>(a1, a2, u, v, hint, p),
-        8 => search_sized::<8>(a1, a2, u, v, hint, p),
-        4..=7 => search_sized::<4>(a1, a2, u, v, hint, p),
-        2..=3 => search_sized::<2>(a1, a2, u, v, hint, p),
-        _ => search_sized::<1>(a1, a2, u, v, hint, p),
+        16 => search_sized::<16>(input),
+        12 => search_sized::<12>(input),
+        8 => search_sized::<8>(input),
+        4..=7 => search_sized::<4>(input),
+        2..=3 => search_sized::<2>(input),
+        _ => search_sized::<1>(input),
     }
 }
 
-fn search_sized<const P: usize>(
-    a1: &Array2<f32>,
-    a2: &Array2<f32>,
-    u: &Array2<f32>,
-    v: &Array2<f32>,
-    hint: Option<&(Array2<f32>, Array2<f32>)>,
-    p: &DisParams,
-) -> SparseFlow {
+fn search_sized<const P: usize>(input: &LevelSearch) -> SparseFlow {
+    let &LevelSearch {
+        a1,
+        a2,
+        u,
+        v,
+        hint,
+        params: p,
+        exhaustive,
+    } = input;
     let (h, w) = a1.dim();
     let i0 = a1.as_slice().expect("standard");
     let (gx, gy) = sobel(i0, w, h);
@@ -298,6 +334,7 @@ fn search_sized<const P: usize>(
     };
     let ws = sparse.xs.len();
     let rows_per = sparse.ys.len().div_ceil(STRIPES).max(1);
+    let global = exhaustive.then(|| global_matches::<P>(&lv, &sparse.xs, &sparse.ys, p.mean_normalize));
     let ctx = StripeContext {
         lv: &lv,
         xs: &sparse.xs,
@@ -306,6 +343,7 @@ fn search_sized<const P: usize>(
         v: v.as_slice().expect("standard"),
         hint: hint.map(|(a, b)| (a.as_slice().expect("standard"), b.as_slice().expect("standard"))),
         p,
+        global: global.as_ref().map(|(a, b)| (a.as_slice(), b.as_slice())),
     };
     let chunk = rows_per * ws;
     if parallel_worth(w * h) {
@@ -328,6 +366,35 @@ fn search_sized<const P: usize>(
     sparse
 }
 
+/// Every patch's exhaustive match, then the median of each component over
+/// the patch's 3x3 neighbourhood of patches: an isolated wrong match (a
+/// flat or repetitive patch that fits many places) gives way to its
+/// neighbours' agreement.
+fn global_matches<const P: usize>(lv: &Level, xs: &[usize], ys: &[usize], mn: bool) -> (Vec<f32>, Vec<f32>) {
+    let (ws, hs) = (xs.len(), ys.len());
+    let raw: Vec<(f32, f32)> = (0..ws * hs)
+        .map(|k| {
+            let (x0, y0) = (xs[k % ws], ys[k / ws]);
+            Template::<P>::new(lv, x0, y0, mn).exhaustive(&lv.i1, x0, y0, mn)
+        })
+        .collect();
+    let median = |pick: fn(&(f32, f32)) -> f32| -> Vec<f32> {
+        (0..ws * hs)
+            .map(|k| {
+                let (c, r) = ((k % ws) as isize, (k / ws) as isize);
+                let mut vals: Vec<f32> = (-1..=1)
+                    .flat_map(|dr| (-1..=1).map(move |dc| (r + dr, c + dc)))
+                    .filter(|&(rr, cc)| rr >= 0 && cc >= 0 && rr < hs as isize && cc < ws as isize)
+                    .map(|(rr, cc)| pick(&raw[rr as usize * ws + cc as usize]))
+                    .collect();
+                vals.sort_by(f32::total_cmp);
+                vals[vals.len() / 2]
+            })
+            .collect()
+    };
+    (median(|m| m.0), median(|m| m.1))
+}
+
 struct StripeContext<'a> {
     lv: &'a Level<'a>,
     xs: &'a [usize],
@@ -336,9 +403,44 @@ struct StripeContext<'a> {
     v: &'a [f32],
     hint: Option<(&'a [f32], &'a [f32])>,
     p: &'a DisParams,
+    /// The exhaustive search's matches on the whole grid (median-filtered),
+    /// at the coarsest level.
+    global: Option<(&'a [f32], &'a [f32])>,
 }
 
 impl StripeContext<'_> {
+    /// The start of patch `k` at the coarsest level: the exhaustive
+    /// search's match, where after descent it fits the patch at least
+    /// twice as well as the local start does; else the local start.
+    /// Flat and repetitive patches, which match well in many places, keep
+    /// their local start, so only motion out of the local search's reach
+    /// is taken from the exhaustive search.
+    fn global_start<const P: usize>(
+        &self,
+        row0: usize,
+        k: usize,
+        local: (f32, f32),
+        far: (f32, f32),
+        steps: usize,
+    ) -> (f32, f32) {
+        let ws = self.xs.len();
+        let (x0, y0) = (self.xs[k % ws], self.ys[row0 + k / ws]);
+        let mn = self.p.mean_normalize;
+        let t = Template::<P>::new(self.lv, x0, y0, mn);
+        let i1 = &self.lv.i1;
+        let near = t.descend(i1, x0, y0, local, steps, mn);
+        let far = t.descend(i1, x0, y0, far, steps, mn);
+        let (near_cost, far_cost) = (
+            t.cost(i1, x0, y0, near.0, near.1, mn),
+            t.cost(i1, x0, y0, far.0, far.1, mn),
+        );
+        if far_cost < 0.25 * near_cost {
+            far
+        } else {
+            local
+        }
+    }
+
     /// Searches the patch rows `row0..` held by `su`/`sv`: a forward pass
     /// then a backward pass, each patch starting from the best of its own
     /// vector and its searched neighbours'.
@@ -347,11 +449,15 @@ impl StripeContext<'_> {
         let rows = su.len() / ws;
         let (w, mn) = (self.lv.w, self.p.mean_normalize);
         let centre = |r: usize, c: usize| (self.ys[row0 + r] + P / 2) * w + self.xs[c] + P / 2;
+        let steps_per_pass = (self.p.iterations / 2).max(1);
         for k in 0..rows * ws {
             let i = centre(k / ws, k % ws);
             (su[k], sv[k]) = (self.u[i], self.v[i]);
+            if let Some((gu, gv)) = self.global {
+                let far = (gu[row0 * ws + k], gv[row0 * ws + k]);
+                (su[k], sv[k]) = self.global_start::<P>(row0, k, (su[k], sv[k]), far, steps_per_pass);
+            }
         }
-        let steps_per_pass = (self.p.iterations / 2).max(1);
         for pass in 0..2 {
             let forward = pass == 0;
             for step in 0..rows * ws {

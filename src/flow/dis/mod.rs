@@ -53,7 +53,8 @@ pub struct DisParams {
     pub propagate: bool,
     /// At the coarsest level, also try each patch's exhaustive whole-pixel
     /// match over the whole picture (median of its neighbours'), taken
-    /// where it fits four times better than the local search's result.
+    /// where the patch is textured and the match fits four times better
+    /// than the local search's result.
     /// Reaches motions of a quarter of the picture and more; off in the
     /// presets because it can lock low-texture regions under rotation
     /// onto wrong matches (see the README's flow benchmark).

@@ -115,6 +115,9 @@ struct Template<const P: usize> {
     mean_gx: f32,
     mean_gy: f32,
     inv: [f32; 3],
+    /// The smaller eigenvalue of the (mean-normalised) Hessian per pixel:
+    /// how well the patch pins down motion in every direction.
+    texture: f32,
 }
 
 impl<const P: usize> Template<P> {
@@ -126,6 +129,7 @@ impl<const P: usize> Template<P> {
             mean_gx: 0.0,
             mean_gy: 0.0,
             inv: [0.0; 3],
+            texture: 0.0,
         };
         let (mut sxx, mut sxy, mut syy, mut sx, mut sy) = (0f32, 0f32, 0f32, 0f32, 0f32);
         for r in 0..P {
@@ -152,6 +156,8 @@ impl<const P: usize> Template<P> {
         }
         // A small floor on the diagonal keeps flat patches' steps finite;
         // such steps are then refused by the distance check.
+        let half_trace = 0.5 * (sxx + syy);
+        t.texture = (half_trace - ((0.5 * (sxx - syy)).powi(2) + sxy * sxy).sqrt()) / n;
         let floor = 0.01 * n;
         let (a, b, c) = (sxx + floor, sxy, syy + floor);
         let det = a * c - b * b;
@@ -410,8 +416,9 @@ struct StripeContext<'a> {
 
 impl StripeContext<'_> {
     /// The start of patch `k` at the coarsest level: the exhaustive
-    /// search's match, where after descent it fits the patch at least
-    /// twice as well as the local start does; else the local start.
+    /// search's match, where the patch is textured and after descent the
+    /// match fits it at least four times better than the local start
+    /// does; else the local start.
     /// Flat and repetitive patches, which match well in many places, keep
     /// their local start, so only motion out of the local search's reach
     /// is taken from the exhaustive search.
@@ -427,6 +434,12 @@ impl StripeContext<'_> {
         let (x0, y0) = (self.xs[k % ws], self.ys[row0 + k / ws]);
         let mn = self.p.mean_normalize;
         let t = Template::<P>::new(self.lv, x0, y0, mn);
+        // Patches without texture in every direction (mean squared
+        // gradient along the weaker direction under 4 levels^2/px^2) fit
+        // many places: their exhaustive match says nothing.
+        if t.texture < 4.0 {
+            return local;
+        }
         let i1 = &self.lv.i1;
         let near = t.descend(i1, x0, y0, local, steps, mn);
         let far = t.descend(i1, x0, y0, far, steps, mn);

@@ -227,24 +227,24 @@ impl System {
     fn smoothness(&mut self, u: &[f32], v: &[f32], du: &[f32], dv: &[f32], p: &RefineParams, g: &Padded) {
         let s = g.stride();
         for y in 0..g.h {
-            for x in 0..g.w {
-                let i = g.at(x, y);
-                let (has_r, has_d) = (x + 1 < g.w, y + 1 < g.h);
-                let (ur, vr) = if has_r {
-                    (u[i + 1] + du[i + 1], v[i + 1] + dv[i + 1])
-                } else {
-                    (u[i] + du[i], v[i] + dv[i])
-                };
-                let (ud, vd) = if has_d {
-                    (u[i + s] + du[i + s], v[i + s] + dv[i + s])
-                } else {
-                    (u[i] + du[i], v[i] + dv[i])
-                };
+            // The last row and column have no edge below / to the right:
+            // their differences there are zero and their weights too.
+            let below = if y + 1 < g.h { s } else { 0 };
+            let start = g.at(0, y);
+            for i in start..start + g.w {
+                let right = if i + 1 < start + g.w { 1 } else { 0 };
                 let (uc, vc) = (u[i] + du[i], v[i] + dv[i]);
-                let grad2 = (ur - uc).powi(2) + (ud - uc).powi(2) + (vr - vc).powi(2) + (vd - vc).powi(2);
-                let weight = p.alpha / (grad2 + EPS2).sqrt();
-                self.right[i] = if has_r { weight } else { 0.0 };
-                self.down[i] = if has_d { weight } else { 0.0 };
+                let (ux, vx) = (
+                    u[i + right] + du[i + right] - uc,
+                    v[i + right] + dv[i + right] - vc,
+                );
+                let (uy, vy) = (
+                    u[i + below] + du[i + below] - uc,
+                    v[i + below] + dv[i + below] - vc,
+                );
+                let weight = p.alpha / (ux * ux + uy * uy + vx * vx + vy * vy + EPS2).sqrt();
+                self.right[i] = if right == 1 { weight } else { 0.0 };
+                self.down[i] = if below != 0 { weight } else { 0.0 };
             }
         }
     }
@@ -302,38 +302,48 @@ impl Sweeps {
         ((x + y) % 2, (y + 1) * self.wc + x / 2 + 1)
     }
 
-    /// Folds what the sweeps do not change into per-pixel constants: with
+    /// Folds what the sweeps do not change into per-pixel constants (the
+    /// increment itself stays in the split layout between iterations): with
     /// `c = b + sum_n e_n (w_n - w)` (the neighbours' current flow) and the
     /// reciprocal of `a + sum_n e_n`, a sweep's update is
     /// `du = (c_u + sum_n e_n du_n - a12 dv) / (a11 + sum_n e_n)`.
-    fn fold(&mut self, sys: &System, u: &[f32], v: &[f32], du: &[f32], dv: &[f32], g: &Padded) {
+    fn fold(&mut self, sys: &System, u: &[f32], v: &[f32], g: &Padded) {
         let s = g.stride();
         for y in 0..g.h {
-            for x in 0..g.w {
-                let i = g.at(x, y);
-                let (c, k) = self.at(x, y);
-                let (el, er, eu, ed) = (sys.right[i - 1], sys.right[i], sys.down[i - s], sys.down[i]);
-                let sum = el + er + eu + ed;
-                let (uc, vc) = (u[i], v[i]);
-                self.el[c][k] = el;
-                self.er[c][k] = er;
-                self.eu[c][k] = eu;
-                self.ed[c][k] = ed;
-                self.cu[c][k] = sys.b1[i]
-                    + el * (u[i - 1] - uc)
-                    + er * (u[i + 1] - uc)
-                    + eu * (u[i - s] - uc)
-                    + ed * (u[i + s] - uc);
-                self.cv[c][k] = sys.b2[i]
-                    + el * (v[i - 1] - vc)
-                    + er * (v[i + 1] - vc)
-                    + eu * (v[i - s] - vc)
-                    + ed * (v[i + s] - vc);
-                self.iu[c][k] = 1.0 / (sys.a11[i] + sum);
-                self.iv[c][k] = 1.0 / (sys.a22[i] + sum);
-                self.a12[c][k] = sys.a12[i];
-                self.du[c][k] = du[i];
-                self.dv[c][k] = dv[i];
+            for c in 0..2 {
+                // This colour's pixels of row y, x = first + 2k, are
+                // samples k of its colour row.
+                let first = (y + c) % 2;
+                let n = (g.w - first).div_ceil(2);
+                let o = (y + 1) * self.wc + 1..(y + 1) * self.wc + 1 + n;
+                let (el_out, er_out) = (&mut self.el[c][o.clone()], &mut self.er[c][o.clone()]);
+                let (eu_out, ed_out) = (&mut self.eu[c][o.clone()], &mut self.ed[c][o.clone()]);
+                let (cu_out, cv_out) = (&mut self.cu[c][o.clone()], &mut self.cv[c][o.clone()]);
+                let (iu_out, iv_out) = (&mut self.iu[c][o.clone()], &mut self.iv[c][o.clone()]);
+                let a12_out = &mut self.a12[c][o];
+                for k in 0..n {
+                    let i = g.at(first + 2 * k, y);
+                    let (el, er, eu, ed) = (sys.right[i - 1], sys.right[i], sys.down[i - s], sys.down[i]);
+                    let (uc, vc) = (u[i], v[i]);
+                    el_out[k] = el;
+                    er_out[k] = er;
+                    eu_out[k] = eu;
+                    ed_out[k] = ed;
+                    cu_out[k] = sys.b1[i]
+                        + el * (u[i - 1] - uc)
+                        + er * (u[i + 1] - uc)
+                        + eu * (u[i - s] - uc)
+                        + ed * (u[i + s] - uc);
+                    cv_out[k] = sys.b2[i]
+                        + el * (v[i - 1] - vc)
+                        + er * (v[i + 1] - vc)
+                        + eu * (v[i - s] - vc)
+                        + ed * (v[i + s] - vc);
+                    let sum = el + er + eu + ed;
+                    iu_out[k] = 1.0 / (sys.a11[i] + sum);
+                    iv_out[k] = 1.0 / (sys.a22[i] + sum);
+                    a12_out[k] = sys.a12[i];
+                }
             }
         }
     }
@@ -447,7 +457,7 @@ pub fn refine(
     for _ in 0..p.iterations {
         sys.data(&lin, &du, &dv, p, &g);
         sys.smoothness(&up, &vp, &du, &dv, p, &g);
-        sweeps.fold(&sys, &up, &vp, &du, &dv, &g);
+        sweeps.fold(&sys, &up, &vp, &g);
         for _ in 0..p.sor_iterations {
             sweeps.sweep(p.omega);
         }

@@ -112,6 +112,7 @@ struct Linearised {
 
 /// Central differences of the row-major `w x h` field `f`, edges repeated,
 /// written into the padded grid.
+#[inline(always)]
 fn derivatives(f: &[f32], g: &Padded) -> (Vec<f32>, Vec<f32>) {
     let (w, h) = (g.w, g.h);
     let (mut dx, mut dy) = (vec![0f32; g.len()], vec![0f32; g.len()]);
@@ -135,6 +136,7 @@ fn unpad(p: &[f32], g: &Padded) -> Vec<f32> {
     out
 }
 
+#[inline(always)]
 fn linearise(i1: &[f32], i2: &[f32], u: &[f32], v: &[f32], g: &Padded) -> Linearised {
     let (w, h) = (g.w, g.h);
     let mut avg = vec![0f32; w * h];
@@ -201,6 +203,7 @@ impl System {
     }
 
     /// Data terms with the robust weights at the current increment.
+    #[inline(always)]
     fn data(&mut self, l: &Linearised, du: &[f32], dv: &[f32], p: &RefineParams, g: &Padded) {
         for y in 0..g.h {
             for i in g.at(0, y)..g.at(0, y) + g.w {
@@ -224,6 +227,7 @@ impl System {
     }
 
     /// Robust smoothness weights of the flow `w + dw` (forward differences).
+    #[inline(always)]
     fn smoothness(&mut self, u: &[f32], v: &[f32], du: &[f32], dv: &[f32], p: &RefineParams, g: &Padded) {
         let s = g.stride();
         for y in 0..g.h {
@@ -307,6 +311,7 @@ impl Sweeps {
     /// `c = b + sum_n e_n (w_n - w)` (the neighbours' current flow) and the
     /// reciprocal of `a + sum_n e_n`, a sweep's update is
     /// `du = (c_u + sum_n e_n du_n - a12 dv) / (a11 + sum_n e_n)`.
+    #[inline(always)]
     fn fold(&mut self, sys: &System, u: &[f32], v: &[f32], g: &Padded) {
         let s = g.stride();
         for y in 0..g.h {
@@ -349,6 +354,7 @@ impl Sweeps {
     }
 
     /// One red-black SOR sweep.
+    #[inline(always)]
     fn sweep(&mut self, omega: f32) {
         let wc = self.wc;
         for c in 0..2 {
@@ -407,6 +413,7 @@ impl Sweeps {
     }
 
     /// Copies the increment back to the padded full grid.
+    #[inline(always)]
     fn unfold(&self, du: &mut [f32], dv: &mut [f32], g: &Padded) {
         for y in 0..g.h {
             for x in 0..g.w {
@@ -420,6 +427,36 @@ impl Sweeps {
 
 /// Refines the flow `(u, v)` from `i1` to `i2` in place.
 pub fn refine(
+    i1: &Array2<f32>,
+    i2: &Array2<f32>,
+    u: &mut Array2<f32>,
+    v: &mut Array2<f32>,
+    p: &RefineParams,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if super::pyramid::has_avx2() {
+        // SAFETY: AVX2 is present, checked above.
+        return unsafe { refine_avx2(i1, i2, u, v, p) };
+    }
+    refine_body(i1, i2, u, v, p)
+}
+
+/// [`refine`] compiled for AVX2 (no FMA: the same bits as the baseline
+/// build, which a test holds).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn refine_avx2(
+    i1: &Array2<f32>,
+    i2: &Array2<f32>,
+    u: &mut Array2<f32>,
+    v: &mut Array2<f32>,
+    p: &RefineParams,
+) {
+    refine_body(i1, i2, u, v, p)
+}
+
+#[inline(always)]
+fn refine_body(
     i1: &Array2<f32>,
     i2: &Array2<f32>,
     u: &mut Array2<f32>,
@@ -468,6 +505,70 @@ pub fn refine(
             let i = g.at(x, y);
             us[y * w + x] += du[i];
             vs[y * w + x] += dv[i];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_avx2_build_gives_the_same_bits() {
+        #[cfg(target_arch = "x86_64")]
+        if crate::flow::pyramid::has_avx2() {
+            let f = |x: f32, y: f32| {
+                128.0 + 60.0 * (x / 5.0).sin() * (y / 7.0).cos() + 20.0 * ((x + y) / 3.0).cos()
+            };
+            let i1 = Array2::from_shape_fn((37, 53), |(y, x)| f(x as f32, y as f32));
+            let i2 = Array2::from_shape_fn((37, 53), |(y, x)| 0.9 * f(x as f32 - 1.3, y as f32 + 0.6) + 7.0);
+            let start = Array2::from_shape_fn((37, 53), |(y, x)| 0.02 * (x as f32 - y as f32));
+            let run = |avx2: bool| {
+                let (mut u, mut v) = (start.clone(), start.mapv(|x| -0.5 * x));
+                if avx2 {
+                    // SAFETY: AVX2 is present, checked above.
+                    unsafe { refine_avx2(&i1, &i2, &mut u, &mut v, &RefineParams::default()) }
+                } else {
+                    refine_body(&i1, &i2, &mut u, &mut v, &RefineParams::default())
+                }
+                (u, v)
+            };
+            let (a, b) = (run(false), run(true));
+            assert!(a.0 == b.0 && a.1 == b.1, "AVX2 and baseline refinements differ");
+            assert!(
+                a.0.iter().any(|&x| x > 0.5),
+                "the refinement should move the flow"
+            );
+        }
+    }
+
+    #[test]
+    fn a_known_shift_is_approached() {
+        let f = |x: f32, y: f32| {
+            128.0 + 50.0 * (x / 6.0).sin() * (y / 9.0).cos() + 30.0 * ((x - 2.0 * y) / 11.0).cos()
+        };
+        let i1 = Array2::from_shape_fn((48, 64), |(y, x)| f(x as f32, y as f32));
+        let i2 = Array2::from_shape_fn((48, 64), |(y, x)| f(x as f32 - 1.2, y as f32 + 0.7));
+        let (mut u, mut v) = (
+            Array2::from_elem((48, 64), 1.0f32),
+            Array2::from_elem((48, 64), -0.5f32),
+        );
+        let p = RefineParams {
+            iterations: 10,
+            ..RefineParams::default()
+        };
+        refine(&i1, &i2, &mut u, &mut v, &p);
+        // One linearisation: the error of the start, 0.28 px, shrinks by
+        // at least 40 % everywhere (measured 0.14 px left at the centre;
+        // the stiff smoothness term carries a global offset slowly).
+        for (y, x) in [(24, 32), (5, 5), (40, 60)] {
+            let err = (u[[y, x]] - 1.2).hypot(v[[y, x]] + 0.7);
+            assert!(
+                err < 0.6 * 0.2f32.hypot(0.2),
+                "({x},{y}): ({}, {})",
+                u[[y, x]],
+                v[[y, x]]
+            );
         }
     }
 }

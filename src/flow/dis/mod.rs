@@ -230,9 +230,10 @@ impl Dis {
             let hint = hints.as_ref().map(|hs| &hs[level - finest]);
             let patch = p.patch.min(w).min(h);
             let exhaustive = p.global_search && level == top;
+            let padded = search::Padded::new(a2.as_slice().expect("standard"), w, h, patch + 2);
             let input = search::LevelSearch {
                 a1,
-                a2,
+                a2: &padded,
                 u: &u,
                 v: &v,
                 hint,
@@ -240,7 +241,7 @@ impl Dis {
                 exhaustive,
             };
             let sparse = search::search_level(&input, patch);
-            densify::densify(a1, a2, &sparse, &mut u, &mut v);
+            densify::densify(a1, &padded, &sparse, &mut u, &mut v);
             if p.refine.iterations > 0 {
                 refine(a1, a2, &mut u, &mut v, &p.refine);
             }

@@ -77,7 +77,7 @@ fn sobel(img: &[f32], w: usize, h: usize) -> (Vec<f32>, Vec<f32>) {
 /// A picture with a replicated border of `pad` pixels on every side, so
 /// that a patch displaced up to `pad` pixels out of the picture is read
 /// without bounds checks.
-struct Padded {
+pub(super) struct Padded {
     data: Vec<f32>,
     stride: usize,
     pad: usize,
@@ -85,8 +85,48 @@ struct Padded {
     h: usize,
 }
 
+/// `x.floor()` for |x| < 2^31, without the library call that baseline
+/// x86-64 makes for it.
+#[inline(always)]
+fn floor(x: f32) -> f32 {
+    let t = x as i32 as f32;
+    if t > x {
+        t - 1.0
+    } else {
+        t
+    }
+}
+
 impl Padded {
-    fn new(img: &[f32], w: usize, h: usize, pad: usize) -> Padded {
+    /// Where a `P x P` patch displaced to top-left (x, y) is read: the
+    /// index of its top-left sample and the bilinear weights of the
+    /// samples (0,0), (1,0), (0,1), (1,1) around each of its pixels. The
+    /// position is clamped so the patch stays inside the padding.
+    #[inline(always)]
+    pub(super) fn patch_at<const P: usize>(&self, x: f32, y: f32) -> (usize, [f32; 4]) {
+        let lim = |p: f32, n: usize| p.clamp(-(self.pad as f32) + 1.0, (n + self.pad - P - 2) as f32);
+        let (x, y) = (lim(x, self.w), lim(y, self.h));
+        let (fx, fy) = (floor(x), floor(y));
+        let (ax, ay) = (x - fx, y - fy);
+        let base = (fy as isize + self.pad as isize) as usize * self.stride
+            + (fx as isize + self.pad as isize) as usize;
+        (
+            base,
+            [(1.0 - ax) * (1.0 - ay), ax * (1.0 - ay), (1.0 - ax) * ay, ax * ay],
+        )
+    }
+
+    /// Row `r` of the patch at `base` and the row below, each `P + 1` long.
+    #[inline(always)]
+    pub(super) fn rows<const P: usize>(&self, base: usize, r: usize) -> (&[f32], &[f32]) {
+        (
+            &self.data[base + r * self.stride..][..P + 1],
+            &self.data[base + (r + 1) * self.stride..][..P + 1],
+        )
+    }
+
+    /// The picture `img` (`w x h`, row-major) with a border of `pad`.
+    pub(super) fn new(img: &[f32], w: usize, h: usize, pad: usize) -> Padded {
         let stride = w + 2 * pad;
         let mut data = vec![0f32; stride * (h + 2 * pad)];
         for (py, row) in data.chunks_exact_mut(stride).enumerate() {
@@ -170,17 +210,10 @@ impl<const P: usize> Template<P> {
     /// returns (sum d, sum d^2, sum d gx, sum d gy).
     #[inline(always)]
     fn residual(&self, i1: &Padded, x: f32, y: f32) -> [f32; 4] {
-        let lim = |p: f32, n: usize| p.clamp(-(i1.pad as f32) + 1.0, (n + i1.pad - P - 2) as f32);
-        let (x, y) = (lim(x, i1.w), lim(y, i1.h));
-        let (fx, fy) = (x.floor(), y.floor());
-        let (ax, ay) = (x - fx, y - fy);
-        let (w00, w01, w10, w11) = ((1.0 - ax) * (1.0 - ay), ax * (1.0 - ay), (1.0 - ax) * ay, ax * ay);
-        let base =
-            (fy as isize + i1.pad as isize) as usize * i1.stride + (fx as isize + i1.pad as isize) as usize;
+        let (base, [w00, w01, w10, w11]) = i1.patch_at::<P>(x, y);
         let (mut sd, mut sd2, mut sdx, mut sdy) = ([0f32; P], [0f32; P], [0f32; P], [0f32; P]);
         for r in 0..P {
-            let top = &i1.data[base + r * i1.stride..][..P + 1];
-            let bot = &i1.data[base + (r + 1) * i1.stride..][..P + 1];
+            let (top, bot) = i1.rows::<P>(base, r);
             for c in 0..P {
                 let d = w00 * top[c] + w01 * top[c + 1] + w10 * bot[c] + w11 * bot[c + 1] - self.i0[r][c];
                 sd[c] += d;
@@ -279,7 +312,7 @@ struct Level<'a> {
     i0: &'a [f32],
     gx: Vec<f32>,
     gy: Vec<f32>,
-    i1: Padded,
+    i1: &'a Padded,
     w: usize,
 }
 
@@ -289,7 +322,8 @@ struct Level<'a> {
 /// level's global search.
 pub(super) struct LevelSearch<'a> {
     pub a1: &'a Array2<f32>,
-    pub a2: &'a Array2<f32>,
+    /// The second picture, padded by at least the patch size + 2.
+    pub a2: &'a Padded,
     pub u: &'a Array2<f32>,
     pub v: &'a Array2<f32>,
     pub hint: Option<&'a (Array2<f32>, Array2<f32>)>,
@@ -326,7 +360,7 @@ fn search_sized<const P: usize>(input: &LevelSearch) -> SparseFlow {
         i0,
         gx,
         gy,
-        i1: Padded::new(a2.as_slice().expect("standard"), w, h, P + 2),
+        i1: a2,
         w,
     };
     let stride = p.stride.min(P);
@@ -381,7 +415,7 @@ fn global_matches<const P: usize>(lv: &Level, xs: &[usize], ys: &[usize], mn: bo
     let raw: Vec<(f32, f32)> = (0..ws * hs)
         .map(|k| {
             let (x0, y0) = (xs[k % ws], ys[k / ws]);
-            Template::<P>::new(lv, x0, y0, mn).exhaustive(&lv.i1, x0, y0, mn)
+            Template::<P>::new(lv, x0, y0, mn).exhaustive(lv.i1, x0, y0, mn)
         })
         .collect();
     let median = |pick: fn(&(f32, f32)) -> f32| -> Vec<f32> {
@@ -440,7 +474,7 @@ impl StripeContext<'_> {
         if t.texture < 4.0 {
             return local;
         }
-        let i1 = &self.lv.i1;
+        let i1 = self.lv.i1;
         let near = t.descend(i1, x0, y0, local, steps, mn);
         let far = t.descend(i1, x0, y0, far, steps, mn);
         let (near_cost, far_cost) = (
@@ -501,16 +535,16 @@ impl StripeContext<'_> {
                     candidates[2] = Some((hu[i], hv[i]));
                 }
                 if candidates.iter().any(Option::is_some) {
-                    let mut best = t.cost(&self.lv.i1, x0, y0, start.0, start.1, mn);
+                    let mut best = t.cost(self.lv.i1, x0, y0, start.0, start.1, mn);
                     for cand in candidates.into_iter().flatten() {
-                        let cost = t.cost(&self.lv.i1, x0, y0, cand.0, cand.1, mn);
+                        let cost = t.cost(self.lv.i1, x0, y0, cand.0, cand.1, mn);
                         if cost < best {
                             best = cost;
                             start = cand;
                         }
                     }
                 }
-                let end = t.descend(&self.lv.i1, x0, y0, start, steps_per_pass, mn);
+                let end = t.descend(self.lv.i1, x0, y0, start, steps_per_pass, mn);
                 // A step that runs further than a patch from its start has
                 // most likely left the basin of the right match: keep the start.
                 (su[k], sv[k]) = if (end.0 - start.0).hypot(end.1 - start.1) <= P as f32 {

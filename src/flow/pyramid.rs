@@ -349,16 +349,27 @@ pub fn downsample_binomial_into(src: &Array2<f32>, tmp: &mut Vec<f32>, out: &mut
     let s = src.as_slice().expect("standard");
     let at = |i: isize, n: usize| i.clamp(0, n as isize - 1) as usize;
     tmp.resize(h * nw, 0.0);
+    let tap = |row: &[f32], x: usize| {
+        let c = 2 * x as isize;
+        let (a, b, cc, e) = (
+            row[at(c - 1, w)],
+            row[at(c, w)],
+            row[at(c + 1, w)],
+            row[at(c + 2, w)],
+        );
+        0.125 * (a + e) + 0.375 * (b + cc)
+    };
+    // Outputs 1 .. inner read inputs 2x - 1 ..= 2x + 2 inside the row: no
+    // clamping there.
+    let inner = if w >= 4 { (w - 3) / 2 + 1 } else { 1 }.min(nw);
     for (row, dst) in s.chunks_exact(w).zip(tmp.chunks_exact_mut(nw)) {
-        for (x, d) in dst.iter_mut().enumerate() {
-            let c = 2 * x as isize;
-            let (a, b, cc, e) = (
-                row[at(c - 1, w)],
-                row[at(c, w)],
-                row[at(c + 1, w)],
-                row[at(c + 2, w)],
-            );
-            *d = 0.125 * (a + e) + 0.375 * (b + cc);
+        dst[0] = tap(row, 0);
+        for (x, d) in dst.iter_mut().enumerate().take(inner).skip(1) {
+            let q = &row[2 * x - 1..2 * x + 3];
+            *d = 0.125 * (q[0] + q[3]) + 0.375 * (q[1] + q[2]);
+        }
+        for (x, d) in dst.iter_mut().enumerate().skip(inner.max(1)) {
+            *d = tap(row, x);
         }
     }
     let o = out.as_slice_mut().expect("standard");
@@ -515,6 +526,35 @@ mod tests {
                     "({x},{y}): {} vs {want}",
                     big[[y, x]]
                 );
+            }
+        }
+    }
+
+    #[test]
+    fn the_binomial_halving_matches_its_definition() {
+        for (h, w) in [(1, 1), (3, 2), (7, 9), (10, 12), (5, 4)] {
+            let img = Array2::from_shape_fn((h, w), |(y, x)| ((x * 37 + y * 11) % 23) as f32);
+            let mut out = Array2::zeros((h.div_ceil(2), w.div_ceil(2)));
+            downsample_binomial_into(&img, &mut Vec::new(), &mut out);
+            let at = |y: isize, x: isize| {
+                img[[
+                    y.clamp(0, h as isize - 1) as usize,
+                    x.clamp(0, w as isize - 1) as usize,
+                ]]
+            };
+            let k = [0.125f32, 0.375, 0.375, 0.125];
+            for ((y, x), &got) in out.indexed_iter() {
+                let mut want = 0.0;
+                for (j, kj) in k.iter().enumerate() {
+                    let (yy, xx) = (2 * y as isize - 1 + j as isize, 2 * x as isize - 1);
+                    let row: f32 = k
+                        .iter()
+                        .enumerate()
+                        .map(|(i, ki)| ki * at(yy, xx + i as isize))
+                        .sum();
+                    want += kj * row;
+                }
+                assert!((got - want).abs() < 1e-4, "{h}x{w} ({x},{y}): {got} vs {want}");
             }
         }
     }

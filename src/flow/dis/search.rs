@@ -522,8 +522,9 @@ impl StripeContext<'_> {
                     } else {
                         (c + 1 < ws, r + 1 < rows)
                     };
+                    // Only read where the neighbour exists (above).
                     let (dc, dr) = if forward {
-                        (k - 1, k.wrapping_sub(ws))
+                        (k.wrapping_sub(1), k.wrapping_sub(ws))
                     } else {
                         (k + 1, k + ws)
                     };

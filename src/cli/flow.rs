@@ -8,6 +8,7 @@ use anyhow::{bail, Context, Result};
 use ndarray::Array2;
 use serde_json::json;
 
+use crate::encode::FlowMethod;
 use crate::flow::dis::{Dis, DisParams, DisPreset};
 use crate::flow::hs::{horn_schunck, HsParams};
 use crate::flow::lk::{Lk, LkParams};
@@ -32,29 +33,6 @@ pub enum Preset {
     Accurate,
 }
 
-/// Flow methods the command offers.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum FlowMethod {
-    /// Dense pyramidal Lucas-Kanade.
-    Lk,
-    /// Horn-Schunck, coarse to fine with warping.
-    Hs,
-    /// Dense inverse search (patch search, densification, variational
-    /// refinement), as OpenCV's DIS.
-    Dis,
-}
-
-impl FlowMethod {
-    /// The name on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            FlowMethod::Lk => "lk",
-            FlowMethod::Hs => "hs",
-            FlowMethod::Dis => "dis",
-        }
-    }
-}
-
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// First picture (an image), or a Y4M with --frames.
@@ -64,8 +42,9 @@ pub struct Args {
     /// Write the flow as Middlebury .flo.
     #[arg(short, long, value_name = "FILE")]
     pub output: Option<PathBuf>,
-    /// Method (default: the best for the preset).
-    #[arg(long, value_enum)]
+    /// Method: lk (dense pyramidal Lucas-Kanade, the default), hs
+    /// (Horn-Schunck) or dis (dense inverse search).
+    #[arg(long)]
     pub method: Option<FlowMethod>,
     /// Settings preset.
     #[arg(long, value_enum, default_value = "medium")]

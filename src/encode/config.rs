@@ -6,14 +6,17 @@ use std::str::FromStr;
 use crate::codec::transform::MAX_QP;
 use crate::me::{Method, Subpel, MAX_RANGE};
 
-/// Which dense flow guides a flow-based predictor.
+/// A dense flow method: what `mocomp flow --method` computes and what
+/// guides a flow-based predictor.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum FlowMethod {
-    /// Pyramidal Lucas-Kanade (`crate::flow::lk`, medium preset).
+    /// Pyramidal Lucas-Kanade (`crate::flow::lk`; the encoder uses the
+    /// medium preset).
     Lk,
-    /// Horn-Schunck (`crate::flow::hs`, default settings).
+    /// Horn-Schunck (`crate::flow::hs`; the encoder uses the default settings).
     Hs,
-    /// Dense inverse search (`crate::flow::dis`, medium preset).
+    /// Dense inverse search (`crate::flow::dis`; the encoder uses the
+    /// medium preset).
     Dis,
 }
 

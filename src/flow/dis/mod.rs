@@ -61,10 +61,6 @@ pub struct DisParams {
     pub global_search: bool,
     /// Variational refinement after each level (`iterations: 0` turns it off).
     pub refine: RefineParams,
-    /// A last variational refinement at full size, when `finest` is above
-    /// it: the sub-pixel accuracy of a full-size flow for a fraction of
-    /// its cost (the patch search stays at `finest`).
-    pub refine_full: Option<RefineParams>,
 }
 
 /// Speed / accuracy points, in the spirit of OpenCV's DIS presets.
@@ -91,7 +87,6 @@ impl DisParams {
             propagate: true,
             global_search: false,
             refine: RefineParams::default(),
-            refine_full: None,
         };
         match preset {
             DisPreset::Ultrafast => DisParams {
@@ -250,9 +245,6 @@ impl Dis {
             let f = (1usize << finest) as f32;
             u = upsample_levels(&u, h0, w0, finest, f);
             v = upsample_levels(&v, h0, w0, finest, f);
-            if let Some(rp) = p.refine_full {
-                refine(i1, i2, &mut u, &mut v, &rp);
-            }
         }
         Flow::from_uv(u, v)
     }

@@ -10,6 +10,13 @@ fn mocomp() -> Command {
     Command::new(assert_cmd::cargo::cargo_bin!("mocomp"))
 }
 
+/// Runs the command, which must succeed, and parses its standard output
+/// as one JSON value.
+fn json_stdout(cmd: &mut Command) -> serde_json::Value {
+    let out = cmd.assert().success().get_output().stdout.clone();
+    serde_json::from_slice(&out).expect("standard output is one JSON value")
+}
+
 fn sample(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("samples").join(name)
 }
@@ -79,19 +86,12 @@ fn info_reads_standard_input() {
 
 #[test]
 fn psnr_json_has_the_documented_keys_and_ffmpeg_figures() {
-    let out = mocomp()
-        .args([
-            "psnr",
-            sample("tree_qcif.y4m").to_str().unwrap(),
-            sample("tree_qcif_mpeg4.y4m").to_str().unwrap(),
-            "--json",
-        ])
-        .assert()
-        .success()
-        .get_output()
-        .stdout
-        .clone();
-    let v: serde_json::Value = serde_json::from_slice(&out).unwrap();
+    let v = json_stdout(mocomp().args([
+        "psnr",
+        sample("tree_qcif.y4m").to_str().unwrap(),
+        sample("tree_qcif_mpeg4.y4m").to_str().unwrap(),
+        "--json",
+    ]));
     for key in [
         "frames",
         "psnr_y",
@@ -400,23 +400,19 @@ fn usage_errors_exit_with_two() {
 
 #[test]
 fn me_reports_speed_cost_and_error_against_ground_truth() {
-    let out = mocomp()
-        .args([
-            "me",
-            sample("synth_qcif.y4m").to_str().unwrap(),
-            "--method",
-            "esa",
-            "--range",
-            "8",
-            "--json",
-        ])
-        .args(["--gt", sample("synth_qcif").to_str().unwrap(), "--threads", "2"])
-        .assert()
-        .success()
-        .get_output()
-        .stdout
-        .clone();
-    let v: serde_json::Value = serde_json::from_slice(&out).unwrap();
+    let v = json_stdout(
+        mocomp()
+            .args([
+                "me",
+                sample("synth_qcif.y4m").to_str().unwrap(),
+                "--method",
+                "esa",
+                "--range",
+                "8",
+                "--json",
+            ])
+            .args(["--gt", sample("synth_qcif").to_str().unwrap(), "--threads", "2"]),
+    );
     assert_eq!(v["frames"], 9);
     assert!(v["ms_per_frame"].as_f64().unwrap() > 0.0);
     let (cost, epe) = (v["mean_cost"].as_f64().unwrap(), v["epe"].as_f64().unwrap());
@@ -502,27 +498,23 @@ fn flow_by_dense_inverse_search_and_the_benchmark_generator() {
     for f in ["frame1.png", "frame2.png", "gt.flo", "occ.png"] {
         assert!(case.join(f).exists(), "{f}");
     }
-    let out = mocomp()
-        .args([
-            "flow",
-            case.join("frame1.png").to_str().unwrap(),
-            case.join("frame2.png").to_str().unwrap(),
-        ])
-        .args([
-            "--method",
-            "dis",
-            "--preset",
-            "medium",
-            "--json",
-            "--gt",
-            case.join("gt.flo").to_str().unwrap(),
-        ])
-        .assert()
-        .success()
-        .get_output()
-        .stdout
-        .clone();
-    let v: serde_json::Value = serde_json::from_slice(&out).unwrap();
+    let v = json_stdout(
+        mocomp()
+            .args([
+                "flow",
+                case.join("frame1.png").to_str().unwrap(),
+                case.join("frame2.png").to_str().unwrap(),
+            ])
+            .args([
+                "--method",
+                "dis",
+                "--preset",
+                "medium",
+                "--json",
+                "--gt",
+                case.join("gt.flo").to_str().unwrap(),
+            ]),
+    );
     assert_eq!(v["method"], "dis");
     // A pan of (2.3, -1.4) px with zoom and rotation: measured EPE 0.13 px.
     assert!(v["epe"].as_f64().unwrap() < 0.3, "{v}");
@@ -542,30 +534,26 @@ fn flow_reports_errors_against_ground_truth_and_writes_its_pictures() {
         dir.path().join("viz.png"),
         dir.path().join("warp.png"),
     );
-    let out = mocomp()
-        .args([
-            "flow",
-            sample("synth_qcif.y4m").to_str().unwrap(),
-            "--frames",
-            "0:1",
-            "--json",
-        ])
-        .args(["--gt", sample("synth_qcif/forward_0000.flo").to_str().unwrap()])
-        .args([
-            "-o",
-            flo.to_str().unwrap(),
-            "--viz",
-            viz.to_str().unwrap(),
-            "--warp",
-            warp.to_str().unwrap(),
-        ])
-        .args(["--arrows", dir.path().join("arrows.png").to_str().unwrap()])
-        .assert()
-        .success()
-        .get_output()
-        .stdout
-        .clone();
-    let v: serde_json::Value = serde_json::from_slice(&out).unwrap();
+    let v = json_stdout(
+        mocomp()
+            .args([
+                "flow",
+                sample("synth_qcif.y4m").to_str().unwrap(),
+                "--frames",
+                "0:1",
+                "--json",
+            ])
+            .args(["--gt", sample("synth_qcif/forward_0000.flo").to_str().unwrap()])
+            .args([
+                "-o",
+                flo.to_str().unwrap(),
+                "--viz",
+                viz.to_str().unwrap(),
+                "--warp",
+                warp.to_str().unwrap(),
+            ])
+            .args(["--arrows", dir.path().join("arrows.png").to_str().unwrap()]),
+    );
     for key in ["ms", "mc_psnr", "epe", "ae", "r1", "r3"] {
         assert!(v[key].is_number(), "{key} missing: {v}");
     }
@@ -614,20 +602,16 @@ fn flow_reports_errors_against_ground_truth_and_writes_its_pictures() {
 fn track_follows_corners_through_a_sequence() {
     let dir = tempfile::tempdir().unwrap();
     let (csv, overlay) = (dir.path().join("tracks.csv"), dir.path().join("ov"));
-    let out = mocomp()
-        .args(["track", sample("synth_qcif.y4m").to_str().unwrap(), "--json"])
-        .args([
-            "--out",
-            csv.to_str().unwrap(),
-            "--overlay",
-            overlay.to_str().unwrap(),
-        ])
-        .assert()
-        .success()
-        .get_output()
-        .stdout
-        .clone();
-    let v: serde_json::Value = serde_json::from_slice(&out).unwrap();
+    let v = json_stdout(
+        mocomp()
+            .args(["track", sample("synth_qcif.y4m").to_str().unwrap(), "--json"])
+            .args([
+                "--out",
+                csv.to_str().unwrap(),
+                "--overlay",
+                overlay.to_str().unwrap(),
+            ]),
+    );
     assert_eq!(v["frames"], 10);
     // Measured: about 157 of up to 300 points followed per frame, tracks of 5.6 frames.
     assert!(v["followed_per_frame"].as_f64().unwrap() > 80.0, "{v}");
@@ -654,35 +638,31 @@ fn encode_then_decode_gives_the_reconstruction_and_the_documented_summary() {
     let dir = tempfile::tempdir().unwrap();
     let p = |n: &str| dir.path().join(n).to_str().unwrap().to_owned();
     let input = sample("tree_qcif.y4m");
-    let out = mocomp()
-        .args(["encode", input.to_str().unwrap(), "-o", &p("a.mcv"), "--qp", "30"])
-        .args([
-            "--predictor",
-            "block",
-            "--me",
-            "tss",
-            "--range",
-            "8",
-            "--subpel",
-            "half",
-            "--gop",
-            "4",
-        ])
-        .args([
-            "--frames",
-            "6",
-            "--recon",
-            &p("rec.y4m"),
-            "--stats",
-            &p("s.csv"),
-            "--json",
-        ])
-        .assert()
-        .success()
-        .get_output()
-        .stdout
-        .clone();
-    let v: serde_json::Value = serde_json::from_slice(&out).unwrap();
+    let v = json_stdout(
+        mocomp()
+            .args(["encode", input.to_str().unwrap(), "-o", &p("a.mcv"), "--qp", "30"])
+            .args([
+                "--predictor",
+                "block",
+                "--me",
+                "tss",
+                "--range",
+                "8",
+                "--subpel",
+                "half",
+                "--gop",
+                "4",
+            ])
+            .args([
+                "--frames",
+                "6",
+                "--recon",
+                &p("rec.y4m"),
+                "--stats",
+                &p("s.csv"),
+                "--json",
+            ]),
+    );
     for key in [
         "frames",
         "bytes",

@@ -3,29 +3,16 @@
 //! (camera motion, occluding layers, a lighting change) run on procedural
 //! texture, whose ground truth is computed in closed form.
 
+mod common;
+
+use common::translated;
 use mocomp::flow::dis::{dis_flow, Dis, DisParams, DisPreset};
 use mocomp::flow::Flow;
 use mocomp::metrics::flow_errors;
 use mocomp::raster::plane_to_array;
 use mocomp::synth::photo::{benchmark_pairs, PairSpec};
-use mocomp::synth::{Motion, SceneSpec, Synth};
+use mocomp::synth::{SceneSpec, Synth};
 use ndarray::Array2;
-
-/// Frames 0 and 1 of a noise-free scene translated by (dx, dy), and the
-/// exact flow.
-fn translated(w: usize, h: usize, dx: f64, dy: f64) -> (Array2<f32>, Array2<f32>, Flow) {
-    let s = Synth::new(
-        SceneSpec::new("t", w, h, 2)
-            .seed(6)
-            .camera(Motion::translation(dx, dy)),
-    )
-    .unwrap();
-    (
-        plane_to_array(s.frame(0).y()),
-        plane_to_array(s.frame(1).y()),
-        s.forward_flow(0),
-    )
-}
 
 fn preset(p: DisPreset) -> DisParams {
     DisParams::preset(p)

@@ -1,6 +1,9 @@
 //! Dense flow against motion known independently: translations rendered
 //! analytically, and the synthetic sample's exact flow.
 
+mod common;
+
+use common::translated;
 use mocomp::flow::hs::{horn_schunck, HsParams};
 use mocomp::flow::lk::{dense_lk, LkParams};
 use mocomp::flow::Flow;
@@ -37,26 +40,10 @@ fn interior_epe(flow: &Flow, (u, v): (f32, f32), margin: usize) -> f64 {
     sum / n as f64
 }
 
-/// Frames 0 and 1 of a noise-free synthetic scene (texture at every scale)
-/// translated by (dx, dy), and the exact flow.
-fn translated(dx: f64, dy: f64) -> (Array2<f32>, Array2<f32>, Flow) {
-    let s = Synth::new(
-        SceneSpec::new("t", 128, 96, 2)
-            .seed(6)
-            .camera(Motion::translation(dx, dy)),
-    )
-    .unwrap();
-    (
-        plane_to_array(s.frame(0).y()),
-        plane_to_array(s.frame(1).y()),
-        s.forward_flow(0),
-    )
-}
-
 #[test]
 fn integer_and_sub_pixel_translations() {
     for (dx, dy) in [(2.0, -1.0), (0.25, 0.5), (-1.75, 0.0), (3.5, 2.25)] {
-        let (i1, i2, gt) = translated(dx, dy);
+        let (i1, i2, gt) = translated(128, 96, dx, dy);
         let r = dense_lk(&i1, &i2, &LkParams::default());
         let e = flow_errors(&r.flow, &gt).unwrap();
         // Measured EPE 0.017-0.054 px over the valid pixels; no outliers.
@@ -67,7 +54,7 @@ fn integer_and_sub_pixel_translations() {
 
 #[test]
 fn several_pixel_motion_needs_the_pyramid() {
-    let (i1, i2, gt) = translated(7.0, -5.0);
+    let (i1, i2, gt) = translated(128, 96, 7.0, -5.0);
     let with = flow_errors(&dense_lk(&i1, &i2, &LkParams::default()).flow, &gt).unwrap();
     let without = flow_errors(
         &dense_lk(
@@ -161,7 +148,7 @@ fn a_translated_synthetic_scene_at_quarter_size() {
 fn horn_schunck_follows_translations_of_several_pixels() {
     // Measured EPE 0.028 px (sub-pixel shift) and 0.073 px (6.9 px shift).
     for (dx, dy) in [(1.25, -0.5), (6.0, 3.5)] {
-        let (i1, i2, gt) = translated(dx, dy);
+        let (i1, i2, gt) = translated(128, 96, dx, dy);
         let (flow, stats) = horn_schunck(&i1, &i2, &HsParams::default());
         let e = flow_errors(&flow, &gt).unwrap();
         assert!(e.epe < 0.12 && e.r1 < 1.0, "hs ({dx},{dy}): {e:?}");
@@ -221,7 +208,7 @@ fn horn_schunck_fills_textureless_regions_from_their_surroundings() {
     // is no data, so HS takes the motion of its surroundings, where LK's
     // window sees nothing and falls back.
     let (dx, dy) = (2usize, 1usize);
-    let (t1, t2, _) = translated(dx as f64, dy as f64);
+    let (t1, t2, _) = translated(128, 96, dx as f64, dy as f64);
     let square = |img: &Array2<f32>, ox: usize, oy: usize| {
         Array2::from_shape_fn(img.dim(), |(y, x)| {
             if (28 + oy..68 + oy).contains(&y) && (44 + ox..84 + ox).contains(&x) {
@@ -284,7 +271,7 @@ fn the_forward_backward_check_catches_occlusions() {
 fn tracked_points_follow_a_known_motion() {
     use mocomp::flow::track::{good_features, track, TrackParams};
     for (dx, dy) in [(2.5f64, -1.25f64), (6.0, 4.0)] {
-        let (i1, i2, _) = translated(dx, dy);
+        let (i1, i2, _) = translated(128, 96, dx, dy);
         let points = good_features(&i1, 200, 0.05, 6.0);
         assert!(points.len() > 50, "{} corners", points.len());
         let tracks = track(&i1, &i2, &points, &TrackParams::default());

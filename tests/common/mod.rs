@@ -1,0 +1,22 @@
+//! Helpers shared by the integration tests.
+
+use mocomp::flow::Flow;
+use mocomp::raster::plane_to_array;
+use mocomp::synth::{Motion, SceneSpec, Synth};
+use ndarray::Array2;
+
+/// Frames 0 and 1 of a `w x h` noise-free synthetic scene (texture at
+/// every scale) translated by (dx, dy), and the exact flow.
+pub fn translated(w: usize, h: usize, dx: f64, dy: f64) -> (Array2<f32>, Array2<f32>, Flow) {
+    let s = Synth::new(
+        SceneSpec::new("t", w, h, 2)
+            .seed(6)
+            .camera(Motion::translation(dx, dy)),
+    )
+    .unwrap();
+    (
+        plane_to_array(s.frame(0).y()),
+        plane_to_array(s.frame(1).y()),
+        s.forward_flow(0),
+    )
+}

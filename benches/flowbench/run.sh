@@ -9,7 +9,8 @@
 # Env: PEERS (default ../shared/peers), METHODS (mocomp method:preset[:flag]
 # list; a flag is passed as --flag),
 # CV_FAST / CV_SLOW (OpenCV method lists), REPEATS (timing runs, default 3),
-# ONLY (a regex of pair names).
+# ONLY (a regex of pair names). Pairs already in WORKDIR/pairs are reused:
+# delete that folder after changing the generator or the photographs.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 work=${1:-/tmp/mocomp-flowbench}

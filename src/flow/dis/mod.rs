@@ -200,9 +200,17 @@ impl Dis {
 
     /// As [`Dis::compute`], with an initial flow at full size whose vectors
     /// each patch also tries (as OpenCV's DIS does with a given flow): for
-    /// sequences, or a flow interpolated from sparse matches.
+    /// sequences, or a flow interpolated from sparse matches. Panics if the
+    /// pictures or the initial flow differ in size.
     pub fn compute_from(&mut self, i1: &Array2<f32>, i2: &Array2<f32>, initial: Option<&Flow>) -> Flow {
         assert_eq!(i1.dim(), i2.dim(), "dis: pictures of different sizes");
+        if let Some(f) = initial {
+            assert_eq!(
+                (f.height(), f.width()),
+                i1.dim(),
+                "dis: initial flow and pictures differ in size"
+            );
+        }
         let p = self.params;
         let (h0, w0) = i1.dim();
         let coarsest = p.coarsest.unwrap_or_else(|| coarsest_level(w0, h0, p.patch));

@@ -466,6 +466,30 @@ fn me_writes_vectors_and_overlays() {
 }
 
 #[test]
+fn flow_output_into_a_closed_pipe_is_not_a_crash() {
+    // As `mocomp flow ... | head -0`: the reader is gone before the flow
+    // is written (the flow takes milliseconds; the pipe closes at once).
+    let mut child = std::process::Command::new(assert_cmd::cargo::cargo_bin!("mocomp"))
+        .args([
+            "flow",
+            sample("synth_qcif.y4m").to_str().unwrap(),
+            "--method",
+            "dis",
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success() && !stderr.contains("internal error"),
+        "{stderr}"
+    );
+}
+
+#[test]
 fn flow_by_dense_inverse_search_and_the_benchmark_generator() {
     // Three small "photographs" (rendered texture), the benchmark's pairs
     // from them, and DIS on one of them against its exact ground truth.

@@ -1,6 +1,7 @@
 //! `mocomp flow A.png B.png` (or `mocomp flow IN.y4m --frames 10:11`):
 //! dense optical flow, its time, and its errors against ground truth.
 
+use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -297,6 +298,7 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(path) = &args.warp {
         image::write_plane(path, &array_to_plane(&warped)?).with_context(|| path.display().to_string())?;
     }
+    let mut stdout = std::io::stdout().lock();
     if args.json {
         let mut obj = json!({
             "method": method.name(),
@@ -312,21 +314,23 @@ pub fn run(args: &Args) -> Result<()> {
             obj["r1"] = json!(e.r1);
             obj["r3"] = json!(e.r3);
         }
-        println!("{obj}");
+        writeln!(stdout, "{obj}")?;
     } else {
-        println!(
+        writeln!(
+            stdout,
             "flow ({}x{}, {}, {:?}): {ms:.2} ms",
             flow.width(),
             flow.height(),
             method.name(),
             args.preset
-        );
-        println!("motion-compensated PSNR  {mc_psnr:.2} dB");
+        )?;
+        writeln!(stdout, "motion-compensated PSNR  {mc_psnr:.2} dB")?;
         if let Some(e) = errors {
-            println!(
+            writeln!(
+                stdout,
                 "EPE {:.4} px  AE {:.3} deg  R1 {:.2} %  R3 {:.2} %",
                 e.epe, e.ae, e.r1, e.r3
-            );
+            )?;
         }
     }
     Ok(())

@@ -55,6 +55,7 @@ pub fn run(args: &Args) -> Result<()> {
     }
     std::fs::create_dir_all(&args.out).with_context(|| args.out.display().to_string())?;
     let mut csv = String::from("name,photo,width,height,mean_motion,max_motion,occluded_pct,valid_pct\n");
+    let mut stdout = std::io::stdout().lock();
     for spec in benchmark_pairs(sources.len(), args.width, args.height) {
         let pair = spec.render(&sources);
         let dir = args.out.join(&spec.name);
@@ -77,13 +78,14 @@ pub fn run(args: &Args) -> Result<()> {
             100.0 * occluded / n,
             100.0 * pair.flow.valid_count() as f64 / n
         );
-        println!(
+        writeln!(
+            stdout,
             "{}: mean motion {:.1} px, max {:.1} px, {:.1} % occluded",
             spec.name,
             pair.flow.mean_magnitude(),
             pair.flow.max_magnitude(),
             100.0 * occluded / n
-        );
+        )?;
     }
     let path = args.out.join("cases.csv");
     let mut file = OutputFile::create(&path).with_context(|| path.display().to_string())?;

@@ -319,22 +319,21 @@ pub fn upsample_levels(src: &Array2<f32>, h: usize, w: usize, levels: usize, sca
     let s = src.as_standard_layout();
     let s = s.as_slice().expect("standard");
     let (cols, rows) = (linear_taps(w, sw, levels), linear_taps(h, sh, levels));
-    // Rows first: (sh, w).
-    let mut tmp = vec![0f32; sh * w];
-    for (src_row, dst) in s.chunks_exact(sw).zip(tmp.chunks_exact_mut(w)) {
-        for (d, &(a, b, t)) in dst.iter_mut().zip(&cols) {
-            *d = src_row[a] + t * (src_row[b] - src_row[a]);
-        }
+    // Rows first: (sh, w). Both buffers are filled by extension, not
+    // zeroed first: at full size the zeroing would cost a pass of its own.
+    let mut tmp = Vec::with_capacity(sh * w);
+    for src_row in s.chunks_exact(sw) {
+        tmp.extend(
+            cols.iter()
+                .map(|&(a, b, t)| src_row[a] + t * (src_row[b] - src_row[a])),
+        );
     }
-    let mut out = Array2::zeros((h, w));
-    let o = out.as_slice_mut().expect("standard");
-    for (dst, &(a, b, t)) in o.chunks_exact_mut(w).zip(&rows) {
+    let mut out = Vec::with_capacity(h * w);
+    for &(a, b, t) in &rows {
         let (ra, rb) = (&tmp[a * w..][..w], &tmp[b * w..][..w]);
-        for ((d, &p), &q) in dst.iter_mut().zip(ra).zip(rb) {
-            *d = scale * (p + t * (q - p));
-        }
+        out.extend(ra.iter().zip(rb).map(|(&p, &q)| scale * (p + t * (q - p))));
     }
-    out
+    Array2::from_shape_vec((h, w), out).expect("h x w samples")
 }
 
 /// Half-size picture (sizes rounded up) through the binomial filter
@@ -348,7 +347,17 @@ pub fn downsample_binomial_into(src: &Array2<f32>, tmp: &mut Vec<f32>, out: &mut
     assert_eq!(out.dim(), (nh, nw), "downsample_binomial_into: output size");
     let s = src.as_slice().expect("standard");
     let at = |i: isize, n: usize| i.clamp(0, n as isize - 1) as usize;
-    tmp.resize(h * nw, 0.0);
+    // Columns first, on whole rows (contiguous, vectorised), then rows on
+    // the half-height result: the strided pass sees half the rows.
+    tmp.resize(nh * w, 0.0);
+    for (y, dst) in tmp.chunks_exact_mut(w).enumerate() {
+        let c = 2 * y as isize;
+        let r = |k: isize| &s[at(c + k, h) * w..][..w];
+        let (ra, rb, rc, re) = (r(-1), r(0), r(1), r(2));
+        for x in 0..w {
+            dst[x] = 0.125 * (ra[x] + re[x]) + 0.375 * (rb[x] + rc[x]);
+        }
+    }
     let tap = |row: &[f32], x: usize| {
         let c = 2 * x as isize;
         let (a, b, cc, e) = (
@@ -362,7 +371,8 @@ pub fn downsample_binomial_into(src: &Array2<f32>, tmp: &mut Vec<f32>, out: &mut
     // Outputs 1 .. inner read inputs 2x - 1 ..= 2x + 2 inside the row: no
     // clamping there.
     let inner = if w >= 4 { (w - 3) / 2 + 1 } else { 1 }.min(nw);
-    for (row, dst) in s.chunks_exact(w).zip(tmp.chunks_exact_mut(nw)) {
+    let o = out.as_slice_mut().expect("standard");
+    for (row, dst) in tmp.chunks_exact(w).zip(o.chunks_exact_mut(nw)) {
         dst[0] = tap(row, 0);
         for (x, d) in dst.iter_mut().enumerate().take(inner).skip(1) {
             let q = &row[2 * x - 1..2 * x + 3];
@@ -370,15 +380,6 @@ pub fn downsample_binomial_into(src: &Array2<f32>, tmp: &mut Vec<f32>, out: &mut
         }
         for (x, d) in dst.iter_mut().enumerate().skip(inner.max(1)) {
             *d = tap(row, x);
-        }
-    }
-    let o = out.as_slice_mut().expect("standard");
-    for (y, dst) in o.chunks_exact_mut(nw).enumerate() {
-        let c = 2 * y as isize;
-        let r = |k: isize| &tmp[at(c + k, h) * nw..][..nw];
-        let (ra, rb, rc, re) = (r(-1), r(0), r(1), r(2));
-        for x in 0..nw {
-            dst[x] = 0.125 * (ra[x] + re[x]) + 0.375 * (rb[x] + rc[x]);
         }
     }
 }
@@ -430,7 +431,10 @@ impl Pyramid {
                 self.levels[i] = Array2::zeros(d);
             }
         }
-        self.levels[0].assign(src);
+        match (self.levels[0].as_slice_mut(), src.as_slice()) {
+            (Some(dst), Some(s)) => dst.copy_from_slice(s),
+            _ => self.levels[0].assign(src),
+        }
         for i in 1..dims.len() {
             let (lower, upper) = self.levels.split_at_mut(i);
             if binomial {

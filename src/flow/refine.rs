@@ -110,67 +110,59 @@ struct Linearised {
     inside: Vec<f32>,
 }
 
-/// Central differences of the row-major `w x h` field `f`, edges repeated,
-/// written into the padded grid.
+impl Linearised {
+    fn new(n: usize) -> Linearised {
+        let z = || vec![0f32; n];
+        Linearised {
+            ix: z(),
+            iy: z(),
+            iz: z(),
+            ixx: z(),
+            ixy: z(),
+            iyy: z(),
+            ixz: z(),
+            iyz: z(),
+            inside: z(),
+        }
+    }
+
+    /// The derivatives around the flow `(u, v)` (padded), with `avg` as
+    /// scratch: the second picture warped back, its difference to the
+    /// first, and the derivatives of their average and of the difference.
+    #[inline(always)]
+    fn compute(&mut self, i1: &[f32], i2: &[f32], u: &[f32], v: &[f32], avg: &mut [f32], g: &Padded) {
+        let (w, h) = (g.w, g.h);
+        for y in 0..h {
+            for x in 0..w {
+                let (i, j) = (y * w + x, g.at(x, y));
+                let (px, py) = (x as f32 + u[j], y as f32 + v[j]);
+                let ok = px >= 0.0 && py >= 0.0 && px <= (w - 1) as f32 && py <= (h - 1) as f32;
+                let warped = super::warp::bilinear_clamped(i2, w, h, px, py);
+                avg[j] = 0.5 * (warped + i1[i]);
+                self.iz[j] = warped - i1[i];
+                self.inside[j] = if ok { 1.0 } else { 0.0 };
+            }
+        }
+        derivatives(avg, g, &mut self.ix, &mut self.iy);
+        derivatives(&self.iz, g, &mut self.ixz, &mut self.iyz);
+        derivatives(&self.ix, g, &mut self.ixx, &mut self.ixy);
+        derivatives(&self.iy, g, avg, &mut self.iyy);
+    }
+}
+
+/// Central differences of the padded field `f`, edges repeated, written
+/// into the padded `dx`, `dy` (their borders untouched).
 #[inline(always)]
-fn derivatives(f: &[f32], g: &Padded) -> (Vec<f32>, Vec<f32>) {
+fn derivatives(f: &[f32], g: &Padded, dx: &mut [f32], dy: &mut [f32]) {
     let (w, h) = (g.w, g.h);
-    let (mut dx, mut dy) = (vec![0f32; g.len()], vec![0f32; g.len()]);
     for y in 0..h {
-        let (up, down) = (y.saturating_sub(1), (y + 1).min(h - 1));
+        let (up, down) = (g.at(0, y.saturating_sub(1)), g.at(0, (y + 1).min(h - 1)));
+        let row = g.at(0, y);
         for x in 0..w {
             let (l, r) = (x.saturating_sub(1), (x + 1).min(w - 1));
-            let i = g.at(x, y);
-            dx[i] = 0.5 * (f[y * w + r] - f[y * w + l]);
-            dy[i] = 0.5 * (f[down * w + x] - f[up * w + x]);
+            dx[row + x] = 0.5 * (f[row + r] - f[row + l]);
+            dy[row + x] = 0.5 * (f[down + x] - f[up + x]);
         }
-    }
-    (dx, dy)
-}
-
-fn unpad(p: &[f32], g: &Padded) -> Vec<f32> {
-    let mut out = Vec::with_capacity(g.w * g.h);
-    for y in 0..g.h {
-        out.extend_from_slice(&p[g.at(0, y)..g.at(0, y) + g.w]);
-    }
-    out
-}
-
-#[inline(always)]
-fn linearise(i1: &[f32], i2: &[f32], u: &[f32], v: &[f32], g: &Padded) -> Linearised {
-    let (w, h) = (g.w, g.h);
-    let mut avg = vec![0f32; w * h];
-    let mut iz = vec![0f32; w * h];
-    let mut inside = vec![0f32; g.len()];
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            let (px, py) = (x as f32 + u[i], y as f32 + v[i]);
-            let ok = px >= 0.0 && py >= 0.0 && px <= (w - 1) as f32 && py <= (h - 1) as f32;
-            let warped = super::warp::bilinear_clamped(i2, w, h, px, py);
-            avg[i] = 0.5 * (warped + i1[i]);
-            iz[i] = warped - i1[i];
-            inside[g.at(x, y)] = if ok { 1.0 } else { 0.0 };
-        }
-    }
-    let (ix, iy) = derivatives(&avg, g);
-    let (ixz, iyz) = derivatives(&iz, g);
-    let (ixx, ixy) = derivatives(&unpad(&ix, g), g);
-    let (_, iyy) = derivatives(&unpad(&iy, g), g);
-    let mut izp = vec![0f32; g.len()];
-    for y in 0..h {
-        izp[g.at(0, y)..g.at(0, y) + w].copy_from_slice(&iz[y * w..(y + 1) * w]);
-    }
-    Linearised {
-        ix,
-        iy,
-        iz: izp,
-        ixx,
-        ixy,
-        iyy,
-        ixz,
-        iyz,
-        inside,
     }
 }
 
@@ -205,23 +197,37 @@ impl System {
     /// Data terms with the robust weights at the current increment.
     #[inline(always)]
     fn data(&mut self, l: &Linearised, du: &[f32], dv: &[f32], p: &RefineParams, g: &Padded) {
+        let n = g.w;
         for y in 0..g.h {
-            for i in g.at(0, y)..g.at(0, y) + g.w {
-                let (ix, iy) = (l.ix[i], l.iy[i]);
+            // Every slice cut to the row's length, so that the loop runs
+            // without bounds checks and vectorises.
+            let r = g.at(0, y)..g.at(0, y) + n;
+            let (ix, iy, iz) = (&l.ix[r.clone()], &l.iy[r.clone()], &l.iz[r.clone()]);
+            let (ixx, ixy, iyy) = (&l.ixx[r.clone()], &l.ixy[r.clone()], &l.iyy[r.clone()]);
+            let (ixz, iyz, inside) = (&l.ixz[r.clone()], &l.iyz[r.clone()], &l.inside[r.clone()]);
+            let (du, dv) = (&du[r.clone()], &dv[r.clone()]);
+            let (a11, a12, a22) = (
+                &mut self.a11[r.clone()],
+                &mut self.a12[r.clone()],
+                &mut self.a22[r.clone()],
+            );
+            let (b1, b2) = (&mut self.b1[r.clone()], &mut self.b2[r]);
+            for k in 0..n {
+                let (ix, iy) = (ix[k], iy[k]);
                 let n1 = ix * ix + iy * iy + ZETA2;
-                let r = l.iz[i] + ix * du[i] + iy * dv[i];
-                let wd = l.inside[i] * p.delta / (r * r / n1 + EPS2).sqrt() / n1;
-                let (ixx, ixy, iyy) = (l.ixx[i], l.ixy[i], l.iyy[i]);
+                let r = iz[k] + ix * du[k] + iy * dv[k];
+                let wd = inside[k] * p.delta / (r * r / n1 + EPS2).sqrt() / n1;
+                let (ixx, ixy, iyy) = (ixx[k], ixy[k], iyy[k]);
                 let (n2, n3) = (ixx * ixx + ixy * ixy + ZETA2, ixy * ixy + iyy * iyy + ZETA2);
-                let rx = l.ixz[i] + ixx * du[i] + ixy * dv[i];
-                let ry = l.iyz[i] + ixy * du[i] + iyy * dv[i];
-                let wg = l.inside[i] * p.gamma / (rx * rx / n2 + ry * ry / n3 + EPS2).sqrt();
+                let rx = ixz[k] + ixx * du[k] + ixy * dv[k];
+                let ry = iyz[k] + ixy * du[k] + iyy * dv[k];
+                let wg = inside[k] * p.gamma / (rx * rx / n2 + ry * ry / n3 + EPS2).sqrt();
                 let (g2, g3) = (wg / n2, wg / n3);
-                self.a11[i] = wd * ix * ix + g2 * ixx * ixx + g3 * ixy * ixy + ZETA2;
-                self.a12[i] = wd * ix * iy + g2 * ixx * ixy + g3 * ixy * iyy;
-                self.a22[i] = wd * iy * iy + g2 * ixy * ixy + g3 * iyy * iyy + ZETA2;
-                self.b1[i] = -(wd * l.iz[i] * ix + g2 * ixx * l.ixz[i] + g3 * ixy * l.iyz[i]);
-                self.b2[i] = -(wd * l.iz[i] * iy + g2 * ixy * l.ixz[i] + g3 * iyy * l.iyz[i]);
+                a11[k] = wd * ix * ix + g2 * ixx * ixx + g3 * ixy * ixy + ZETA2;
+                a12[k] = wd * ix * iy + g2 * ixx * ixy + g3 * ixy * iyy;
+                a22[k] = wd * iy * iy + g2 * ixy * ixy + g3 * iyy * iyy + ZETA2;
+                b1[k] = -(wd * iz[k] * ix + g2 * ixx * ixz[k] + g3 * ixy * iyz[k]);
+                b2[k] = -(wd * iz[k] * iy + g2 * ixy * ixz[k] + g3 * iyy * iyz[k]);
             }
         }
     }
@@ -229,28 +235,91 @@ impl System {
     /// Robust smoothness weights of the flow `w + dw` (forward differences).
     #[inline(always)]
     fn smoothness(&mut self, u: &[f32], v: &[f32], du: &[f32], dv: &[f32], p: &RefineParams, g: &Padded) {
-        let s = g.stride();
+        let (s, n) = (g.stride(), g.w);
         for y in 0..g.h {
             // The last row and column have no edge below / to the right:
             // their differences there are zero and their weights too.
             let below = if y + 1 < g.h { s } else { 0 };
             let start = g.at(0, y);
-            for i in start..start + g.w {
-                let right = if i + 1 < start + g.w { 1 } else { 0 };
-                let (uc, vc) = (u[i] + du[i], v[i] + dv[i]);
-                let (ux, vx) = (
-                    u[i + right] + du[i + right] - uc,
-                    v[i + right] + dv[i + right] - vc,
-                );
-                let (uy, vy) = (
-                    u[i + below] + du[i + below] - uc,
-                    v[i + below] + dv[i + below] - vc,
-                );
+            // The row and its neighbours to the right and below, each
+            // `n - 1` long (the last pixel is done after the loop).
+            let m = n - 1;
+            let (uc, dc) = (&u[start..start + m], &du[start..start + m]);
+            let (vc, ec) = (&v[start..start + m], &dv[start..start + m]);
+            let (ur, dur) = (&u[start + 1..start + 1 + m], &du[start + 1..start + 1 + m]);
+            let (vr, dvr) = (&v[start + 1..start + 1 + m], &dv[start + 1..start + 1 + m]);
+            let (ub, dub) = (
+                &u[start + below..start + below + m],
+                &du[start + below..start + below + m],
+            );
+            let (vb, dvb) = (
+                &v[start + below..start + below + m],
+                &dv[start + below..start + below + m],
+            );
+            let (right, down) = (
+                &mut self.right[start..start + m],
+                &mut self.down[start..start + m],
+            );
+            let keep_down = if below != 0 { 1.0 } else { 0.0 };
+            for k in 0..m {
+                let (uk, vk) = (uc[k] + dc[k], vc[k] + ec[k]);
+                let (ux, vx) = (ur[k] + dur[k] - uk, vr[k] + dvr[k] - vk);
+                let (uy, vy) = (ub[k] + dub[k] - uk, vb[k] + dvb[k] - vk);
                 let weight = p.alpha / (ux * ux + uy * uy + vx * vx + vy * vy + EPS2).sqrt();
-                self.right[i] = if right == 1 { weight } else { 0.0 };
-                self.down[i] = if below != 0 { weight } else { 0.0 };
+                right[k] = weight;
+                down[k] = weight * keep_down;
+            }
+            let i = start + m;
+            let (uy, vy) = (
+                u[i + below] + du[i + below] - u[i] - du[i],
+                v[i + below] + dv[i + below] - v[i] - dv[i],
+            );
+            self.right[i] = 0.0;
+            self.down[i] = keep_down * p.alpha / (uy * uy + vy * vy + EPS2).sqrt();
+        }
+    }
+
+    /// Folds what the sweeps do not change into per-pixel constants, in
+    /// place: `b` becomes `c = b + sum_n e_n (w_n - w)` (the neighbours'
+    /// current flow) and `a11`, `a22` the reciprocals of `a + sum_n e_n`,
+    /// so that a sweep's update is
+    /// `du = (c_u + sum_n e_n du_n - a12 dv) / (a11 + sum_n e_n)`.
+    #[inline(always)]
+    fn fold_in_place(&mut self, u: &[f32], v: &[f32], g: &Padded) {
+        let (s, n) = (g.stride(), g.w);
+        for y in 0..g.h {
+            let i = g.at(0, y);
+            let (el, er) = (&self.right[i - 1..i - 1 + n], &self.right[i..i + n]);
+            let (eu, ed) = (&self.down[i - s..i - s + n], &self.down[i..i + n]);
+            let (uc, ul, ur) = (&u[i..i + n], &u[i - 1..i - 1 + n], &u[i + 1..i + 1 + n]);
+            let (uu, ud) = (&u[i - s..i - s + n], &u[i + s..i + s + n]);
+            let (vc, vl, vr) = (&v[i..i + n], &v[i - 1..i - 1 + n], &v[i + 1..i + 1 + n]);
+            let (vu, vd) = (&v[i - s..i - s + n], &v[i + s..i + s + n]);
+            let (b1, b2) = (&mut self.b1[i..i + n], &mut self.b2[i..i + n]);
+            let (a11, a22) = (&mut self.a11[i..i + n], &mut self.a22[i..i + n]);
+            for k in 0..n {
+                let (l, r, up, d) = (el[k], er[k], eu[k], ed[k]);
+                b1[k] +=
+                    l * (ul[k] - uc[k]) + r * (ur[k] - uc[k]) + up * (uu[k] - uc[k]) + d * (ud[k] - uc[k]);
+                b2[k] +=
+                    l * (vl[k] - vc[k]) + r * (vr[k] - vc[k]) + up * (vu[k] - vc[k]) + d * (vd[k] - vc[k]);
+                let sum = l + r + up + d;
+                a11[k] = 1.0 / (a11[k] + sum);
+                a22[k] = 1.0 / (a22[k] + sum);
             }
         }
+    }
+}
+
+/// `dst[k] = src[2 k]` for every `k` of `dst`.
+#[inline(always)]
+fn every_other(dst: &mut [f32], src: &[f32]) {
+    let pairs = dst.len().min(src.len() / 2);
+    for (d, s) in dst.iter_mut().zip(src[..2 * pairs].chunks_exact(2)) {
+        *d = s[0];
+    }
+    if pairs < dst.len() {
+        dst[pairs] = src[2 * pairs];
     }
 }
 
@@ -312,7 +381,8 @@ impl Sweeps {
     /// reciprocal of `a + sum_n e_n`, a sweep's update is
     /// `du = (c_u + sum_n e_n du_n - a12 dv) / (a11 + sum_n e_n)`.
     #[inline(always)]
-    fn fold(&mut self, sys: &System, u: &[f32], v: &[f32], g: &Padded) {
+    fn fold(&mut self, sys: &mut System, u: &[f32], v: &[f32], g: &Padded) {
+        sys.fold_in_place(u, v, g);
         let s = g.stride();
         for y in 0..g.h {
             for c in 0..2 {
@@ -320,35 +390,17 @@ impl Sweeps {
                 // samples k of its colour row.
                 let first = (y + c) % 2;
                 let n = (g.w - first).div_ceil(2);
+                let i = g.at(first, y);
                 let o = (y + 1) * self.wc + 1..(y + 1) * self.wc + 1 + n;
-                let (el_out, er_out) = (&mut self.el[c][o.clone()], &mut self.er[c][o.clone()]);
-                let (eu_out, ed_out) = (&mut self.eu[c][o.clone()], &mut self.ed[c][o.clone()]);
-                let (cu_out, cv_out) = (&mut self.cu[c][o.clone()], &mut self.cv[c][o.clone()]);
-                let (iu_out, iv_out) = (&mut self.iu[c][o.clone()], &mut self.iv[c][o.clone()]);
-                let a12_out = &mut self.a12[c][o];
-                for k in 0..n {
-                    let i = g.at(first + 2 * k, y);
-                    let (el, er, eu, ed) = (sys.right[i - 1], sys.right[i], sys.down[i - s], sys.down[i]);
-                    let (uc, vc) = (u[i], v[i]);
-                    el_out[k] = el;
-                    er_out[k] = er;
-                    eu_out[k] = eu;
-                    ed_out[k] = ed;
-                    cu_out[k] = sys.b1[i]
-                        + el * (u[i - 1] - uc)
-                        + er * (u[i + 1] - uc)
-                        + eu * (u[i - s] - uc)
-                        + ed * (u[i + s] - uc);
-                    cv_out[k] = sys.b2[i]
-                        + el * (v[i - 1] - vc)
-                        + er * (v[i + 1] - vc)
-                        + eu * (v[i - s] - vc)
-                        + ed * (v[i + s] - vc);
-                    let sum = el + er + eu + ed;
-                    iu_out[k] = 1.0 / (sys.a11[i] + sum);
-                    iv_out[k] = 1.0 / (sys.a22[i] + sum);
-                    a12_out[k] = sys.a12[i];
-                }
+                every_other(&mut self.el[c][o.clone()], &sys.right[i - 1..]);
+                every_other(&mut self.er[c][o.clone()], &sys.right[i..]);
+                every_other(&mut self.eu[c][o.clone()], &sys.down[i - s..]);
+                every_other(&mut self.ed[c][o.clone()], &sys.down[i..]);
+                every_other(&mut self.cu[c][o.clone()], &sys.b1[i..]);
+                every_other(&mut self.cv[c][o.clone()], &sys.b2[i..]);
+                every_other(&mut self.iu[c][o.clone()], &sys.a11[i..]);
+                every_other(&mut self.iv[c][o.clone()], &sys.a22[i..]);
+                every_other(&mut self.a12[c][o], &sys.a12[i..]);
             }
         }
     }
@@ -425,7 +477,8 @@ impl Sweeps {
     }
 }
 
-/// Refines the flow `(u, v)` from `i1` to `i2` in place.
+/// Refines the flow `(u, v)` from `i1` to `i2` in place (a one-off
+/// [`Refiner`]; keep one to refine pictures of the same size again).
 pub fn refine(
     i1: &Array2<f32>,
     i2: &Array2<f32>,
@@ -433,78 +486,150 @@ pub fn refine(
     v: &mut Array2<f32>,
     p: &RefineParams,
 ) {
-    #[cfg(target_arch = "x86_64")]
-    if super::pyramid::has_avx2() {
-        // SAFETY: AVX2 is present, checked above.
-        return unsafe { refine_avx2(i1, i2, u, v, p) };
-    }
-    refine_body(i1, i2, u, v, p)
+    Refiner::default().refine(i1, i2, u, v, p)
 }
 
-/// [`refine`] compiled for AVX2 (no FMA: the same bits as the baseline
-/// build, which a test holds).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn refine_avx2(
-    i1: &Array2<f32>,
-    i2: &Array2<f32>,
-    u: &mut Array2<f32>,
-    v: &mut Array2<f32>,
-    p: &RefineParams,
-) {
-    refine_body(i1, i2, u, v, p)
+/// The variational refinement with its buffers, kept from one call to the
+/// next for pictures of the same size (a per-level refiner in a pyramid
+/// does not allocate after the first pair).
+#[derive(Default)]
+pub struct Refiner {
+    g: Option<Padded>,
+    lin: Option<Linearised>,
+    scratch: Vec<f32>,
+    u: Vec<f32>,
+    v: Vec<f32>,
+    du: Vec<f32>,
+    dv: Vec<f32>,
+    sys: Option<System>,
+    sweeps: Option<Sweeps>,
 }
 
-#[inline(always)]
-fn refine_body(
-    i1: &Array2<f32>,
-    i2: &Array2<f32>,
-    u: &mut Array2<f32>,
-    v: &mut Array2<f32>,
-    p: &RefineParams,
-) {
-    assert!(
-        i1.dim() == i2.dim() && u.dim() == i1.dim() && v.dim() == i1.dim(),
-        "refine: sizes differ"
-    );
-    if p.iterations == 0 {
-        return;
+impl std::fmt::Debug for Refiner {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let size = self.g.as_ref().map(|g| (g.w, g.h));
+        f.debug_struct("Refiner").field("size", &size).finish()
     }
-    let (h, w) = i1.dim();
-    let g = Padded { w, h };
-    let (us, vs) = (
-        u.as_slice_mut().expect("standard"),
-        v.as_slice_mut().expect("standard"),
-    );
-    let lin = linearise(
-        i1.as_slice().expect("standard"),
-        i2.as_slice().expect("standard"),
-        us,
-        vs,
-        &g,
-    );
-    let (mut up, mut vp) = (vec![0f32; g.len()], vec![0f32; g.len()]);
-    for y in 0..h {
-        up[g.at(0, y)..g.at(0, y) + w].copy_from_slice(&us[y * w..(y + 1) * w]);
-        vp[g.at(0, y)..g.at(0, y) + w].copy_from_slice(&vs[y * w..(y + 1) * w]);
-    }
-    let (mut du, mut dv) = (vec![0f32; g.len()], vec![0f32; g.len()]);
-    let mut sys = System::new(g.len());
-    let mut sweeps = Sweeps::new(w, h);
-    for _ in 0..p.iterations {
-        sys.data(&lin, &du, &dv, p, &g);
-        sys.smoothness(&up, &vp, &du, &dv, p, &g);
-        sweeps.fold(&sys, &up, &vp, &g);
-        for _ in 0..p.sor_iterations {
-            sweeps.sweep(p.omega);
+}
+
+impl Refiner {
+    /// Refines the flow `(u, v)` from `i1` to `i2` in place. Panics if the
+    /// sizes differ.
+    pub fn refine(
+        &mut self,
+        i1: &Array2<f32>,
+        i2: &Array2<f32>,
+        u: &mut Array2<f32>,
+        v: &mut Array2<f32>,
+        p: &RefineParams,
+    ) {
+        assert!(
+            i1.dim() == i2.dim() && u.dim() == i1.dim() && v.dim() == i1.dim(),
+            "refine: sizes differ"
+        );
+        if p.iterations == 0 {
+            return;
         }
-        sweeps.unfold(&mut du, &mut dv, &g);
+        #[cfg(target_arch = "x86_64")]
+        if super::pyramid::has_avx2() {
+            // SAFETY: AVX2 is present, checked above.
+            return unsafe { self.refine_avx2(i1, i2, u, v, p) };
+        }
+        self.refine_body(i1, i2, u, v, p)
     }
-    for y in 0..h {
-        for x in 0..w {
-            let i = g.at(x, y);
-            us[y * w + x] += du[i];
-            vs[y * w + x] += dv[i];
+
+    /// [`Refiner::refine`] compiled for AVX2 (no FMA: the same bits as the
+    /// baseline build, which a test holds).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn refine_avx2(
+        &mut self,
+        i1: &Array2<f32>,
+        i2: &Array2<f32>,
+        u: &mut Array2<f32>,
+        v: &mut Array2<f32>,
+        p: &RefineParams,
+    ) {
+        self.refine_body(i1, i2, u, v, p)
+    }
+
+    /// Sizes the buffers for a `w x h` picture; the increments start at 0.
+    fn prepare(&mut self, w: usize, h: usize) {
+        if self.g.as_ref().map(|g| (g.w, g.h)) != Some((w, h)) {
+            let g = Padded { w, h };
+            let n = g.len();
+            self.lin = Some(Linearised::new(n));
+            self.sys = Some(System::new(n));
+            self.sweeps = Some(Sweeps::new(w, h));
+            for b in [
+                &mut self.scratch,
+                &mut self.u,
+                &mut self.v,
+                &mut self.du,
+                &mut self.dv,
+            ] {
+                *b = vec![0f32; n];
+            }
+            self.g = Some(g);
+        } else {
+            self.du.fill(0.0);
+            self.dv.fill(0.0);
+            let sw = self.sweeps.as_mut().expect("sized with g");
+            for c in 0..2 {
+                sw.du[c].fill(0.0);
+                sw.dv[c].fill(0.0);
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn refine_body(
+        &mut self,
+        i1: &Array2<f32>,
+        i2: &Array2<f32>,
+        u: &mut Array2<f32>,
+        v: &mut Array2<f32>,
+        p: &RefineParams,
+    ) {
+        let (h, w) = i1.dim();
+        self.prepare(w, h);
+        let Refiner {
+            g: Some(g),
+            lin: Some(lin),
+            sys: Some(sys),
+            sweeps: Some(sweeps),
+            ..
+        } = self
+        else {
+            unreachable!("prepare sizes every buffer")
+        };
+        let (us, vs) = (
+            u.as_slice_mut().expect("standard"),
+            v.as_slice_mut().expect("standard"),
+        );
+        let (up, vp) = (&mut self.u, &mut self.v);
+        for y in 0..h {
+            up[g.at(0, y)..g.at(0, y) + w].copy_from_slice(&us[y * w..(y + 1) * w]);
+            vp[g.at(0, y)..g.at(0, y) + w].copy_from_slice(&vs[y * w..(y + 1) * w]);
+        }
+        let (a1, a2) = (i1.as_slice().expect("standard"), i2.as_slice().expect("standard"));
+        lin.compute(a1, a2, up, vp, &mut self.scratch, g);
+        let (du, dv) = (&mut self.du, &mut self.dv);
+        for _ in 0..p.iterations {
+            sys.data(lin, du, dv, p, g);
+            sys.smoothness(up, vp, du, dv, p, g);
+            sweeps.fold(sys, up, vp, g);
+            for _ in 0..p.sor_iterations {
+                sweeps.sweep(p.omega);
+            }
+            sweeps.unfold(du, dv, g);
+        }
+        for y in 0..h {
+            for x in 0..w {
+                let i = g.at(x, y);
+                us[y * w + x] += du[i];
+                vs[y * w + x] += dv[i];
+            }
         }
     }
 }
@@ -525,11 +650,12 @@ mod tests {
             let start = Array2::from_shape_fn((37, 53), |(y, x)| 0.02 * (x as f32 - y as f32));
             let run = |avx2: bool| {
                 let (mut u, mut v) = (start.clone(), start.mapv(|x| -0.5 * x));
+                let mut r = Refiner::default();
                 if avx2 {
                     // SAFETY: AVX2 is present, checked above.
-                    unsafe { refine_avx2(&i1, &i2, &mut u, &mut v, &RefineParams::default()) }
+                    unsafe { r.refine_avx2(&i1, &i2, &mut u, &mut v, &RefineParams::default()) }
                 } else {
-                    refine_body(&i1, &i2, &mut u, &mut v, &RefineParams::default())
+                    r.refine_body(&i1, &i2, &mut u, &mut v, &RefineParams::default())
                 }
                 (u, v)
             };

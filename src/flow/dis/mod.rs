@@ -28,7 +28,7 @@ mod search;
 use ndarray::Array2;
 
 use super::pyramid::{upsample2, upsample_levels, Pyramid};
-use super::refine::{refine, RefineParams};
+use super::refine::{RefineParams, Refiner};
 use super::Flow;
 
 /// Settings of dense inverse search.
@@ -172,6 +172,9 @@ pub struct Dis {
     params: DisParams,
     p1: Pyramid,
     p2: Pyramid,
+    /// One per level, so that a second pair of the same size allocates
+    /// nothing in the refinement.
+    refiners: Vec<Refiner>,
 }
 
 impl Dis {
@@ -185,6 +188,7 @@ impl Dis {
             params,
             p1: Pyramid::default(),
             p2: Pyramid::default(),
+            refiners: Vec::new(),
         }
     }
 
@@ -218,6 +222,7 @@ impl Dis {
         self.p1.build_binomial(i1, coarsest + 1, 1);
         self.p2.build_binomial(i2, coarsest + 1, 1);
         let top = self.p1.levels.len() - 1;
+        self.refiners.resize_with(top + 1, Refiner::default);
         let (mut u, mut v) = (
             Array2::zeros(self.p1.levels[top].dim()),
             Array2::zeros(self.p1.levels[top].dim()),
@@ -246,7 +251,7 @@ impl Dis {
             let sparse = search::search_level(&input, patch);
             densify::densify(a1, &padded, &sparse, &mut u, &mut v);
             if p.refine.iterations > 0 {
-                refine(a1, a2, &mut u, &mut v, &p.refine);
+                self.refiners[level].refine(a1, a2, &mut u, &mut v, &p.refine);
             }
         }
         if finest > 0 {

@@ -161,6 +161,7 @@ struct Template<const P: usize> {
 }
 
 impl<const P: usize> Template<P> {
+    #[inline(always)]
     fn new(lv: &Level, x0: usize, y0: usize, mean_normalize: bool) -> Template<P> {
         let mut t = Template {
             i0: [[0.0; P]; P],
@@ -268,6 +269,7 @@ impl<const P: usize> Template<P> {
 
     /// Gauss-Newton from (u, v): steps until the distance stops falling or
     /// `steps` are done; returns the best vector found and its distance.
+    #[inline(always)]
     fn descend(
         &self,
         i1: &Padded,
@@ -333,6 +335,25 @@ pub(super) struct LevelSearch<'a> {
 
 /// Searches every patch of the level with patches of side `patch`.
 pub(super) fn search_level(input: &LevelSearch, patch: usize) -> SparseFlow {
+    #[cfg(target_arch = "x86_64")]
+    if crate::flow::pyramid::has_avx2() {
+        // SAFETY: AVX2 is present, checked above.
+        return unsafe { search_level_avx2(input, patch) };
+    }
+    search_level_body(input, patch)
+}
+
+/// [`search_level`] compiled for AVX2 (no FMA: the same bits as the
+/// baseline build, which a test holds): a row of an 8-pixel patch is one
+/// register.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn search_level_avx2(input: &LevelSearch, patch: usize) -> SparseFlow {
+    search_level_body(input, patch)
+}
+
+#[inline(always)]
+fn search_level_body(input: &LevelSearch, patch: usize) -> SparseFlow {
     match patch {
         16 => search_sized::<16>(input),
         12 => search_sized::<12>(input),
@@ -343,6 +364,7 @@ pub(super) fn search_level(input: &LevelSearch, patch: usize) -> SparseFlow {
     }
 }
 
+#[inline(always)]
 fn search_sized<const P: usize>(input: &LevelSearch) -> SparseFlow {
     let &LevelSearch {
         a1,
@@ -491,6 +513,7 @@ impl StripeContext<'_> {
     /// Searches the patch rows `row0..` held by `su`/`sv`: a forward pass
     /// then a backward pass, each patch starting from the best of its own
     /// vector and its searched neighbours'.
+    #[inline(always)]
     fn search_stripe<const P: usize>(&self, row0: usize, su: &mut [f32], sv: &mut [f32]) {
         let ws = self.xs.len();
         let rows = su.len() / ws;
@@ -578,5 +601,51 @@ mod tests {
             .collect();
         let (gx, gy) = sobel(&img, w, h);
         assert_eq!((gx[3 * w + 4], gy[3 * w + 4]), (3.0, -2.0));
+    }
+
+    #[test]
+    fn the_avx2_build_gives_the_same_bits() {
+        #[cfg(target_arch = "x86_64")]
+        if crate::flow::pyramid::has_avx2() {
+            let f = |x: f32, y: f32| {
+                128.0 + 60.0 * (x / 5.0).sin() * (y / 7.0).cos() + 25.0 * ((x - y) / 3.0).cos()
+            };
+            let (w, h) = (61, 45);
+            let a1 = Array2::from_shape_fn((h, w), |(y, x)| f(x as f32, y as f32));
+            let a2 = Array2::from_shape_fn((h, w), |(y, x)| f(x as f32 - 2.3, y as f32 + 1.4));
+            let padded = Padded::new(a2.as_slice().unwrap(), w, h, 10);
+            let (u, v) = (Array2::from_elem((h, w), 1.5f32), Array2::zeros((h, w)));
+            for (patch, global) in [(8, false), (12, true), (4, false)] {
+                let params = DisParams {
+                    patch,
+                    stride: 3,
+                    global_search: global,
+                    ..DisParams::default()
+                };
+                let input = LevelSearch {
+                    a1: &a1,
+                    a2: &padded,
+                    u: &u,
+                    v: &v,
+                    hint: None,
+                    params: &params,
+                    exhaustive: global,
+                };
+                let plain = search_level_body(&input, patch);
+                // SAFETY: AVX2 is present, checked above.
+                let wide = unsafe { search_level_avx2(&input, patch) };
+                assert!(
+                    plain.u == wide.u && plain.v == wide.v,
+                    "patch {patch}: builds differ"
+                );
+                // The start is 0.8 px off; the search takes a third of that at most.
+                let centre = plain.u.len() / 2;
+                assert!(
+                    (plain.u[centre] - 2.3).abs() < 0.27,
+                    "patch {patch}: {}",
+                    plain.u[centre]
+                );
+            }
+        }
     }
 }

@@ -19,6 +19,7 @@ pub use mocomp_codec as codec;
 
 pub mod cli;
 pub mod encode;
+pub mod features;
 pub mod flow;
 pub mod io;
 pub mod me;

@@ -809,3 +809,109 @@ fn encode_and_decode_errors_are_one_line_and_leave_no_output() {
     ])
     .contains("does not apply"));
 }
+
+#[test]
+fn match_writes_csv_overlay_and_accuracy() {
+    use mocomp::synth::{Motion, SceneSpec, Synth};
+    let dir = tempfile::tempdir().unwrap();
+    let s = Synth::new(
+        SceneSpec::new("m", 240, 180, 2)
+            .seed(11)
+            .camera(Motion::translation(41.0, -17.0)),
+    )
+    .unwrap();
+    let path = |n: &str| dir.path().join(n);
+    mocomp::io::image::write_plane(&path("a.png"), s.frame(0).y()).unwrap();
+    mocomp::io::image::write_plane(&path("b.png"), s.frame(1).y()).unwrap();
+    mocomp::io::flo::write_flo(&path("gt.flo"), &s.forward_flow(0)).unwrap();
+    let p = |n: &str| path(n).to_str().unwrap().to_owned();
+    let v = json_stdout(mocomp().args([
+        "match",
+        &p("a.png"),
+        &p("b.png"),
+        "--out",
+        &p("m.csv"),
+        "--overlay",
+        &p("o.png"),
+        "--gt",
+        &p("gt.flo"),
+        "--json",
+    ]));
+    let n = v["matches"].as_u64().unwrap() as usize;
+    assert!(n >= 20, "{v}");
+    assert!(v["within_3px"].as_f64().unwrap() >= 90.0, "{v}");
+    let csv = std::fs::read_to_string(path("m.csv")).unwrap();
+    assert_eq!(csv.lines().next(), Some("x1,y1,x2,y2,distance"));
+    assert_eq!(csv.lines().count(), n + 1);
+    // Each row moves by about the translation.
+    let row: Vec<f32> = csv
+        .lines()
+        .nth(1)
+        .unwrap()
+        .split(',')
+        .map(|x| x.parse().unwrap())
+        .collect();
+    assert!(
+        (row[2] - row[0] - 41.0).abs() < 3.0 && (row[3] - row[1] + 17.0).abs() < 3.0,
+        "{row:?}"
+    );
+    let overlay = mocomp::io::image::read_luma(&path("o.png")).unwrap();
+    assert_eq!((overlay.width(), overlay.height()), (480, 180));
+    let err = fails_cleanly(&["match", &p("a.png"), &p("gt.flo")]);
+    assert!(err.contains("not a picture"), "{err}");
+}
+
+#[test]
+fn flow_writes_the_occlusion_mask_of_the_forward_backward_check() {
+    use mocomp::synth::{Motion, SceneSpec, Synth};
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (200usize, 150usize);
+    // Each method with a pan it follows (LK's pyramid is shallower).
+    for (method, dx) in [("dis", 24usize), ("tvl1", 24), ("lk", 8), ("hs", 8)] {
+        let s = Synth::new(
+            SceneSpec::new("o", w, h, 2)
+                .seed(12)
+                .camera(Motion::translation(dx as f64, 0.0)),
+        )
+        .unwrap();
+        let path = |n: &str| dir.path().join(n);
+        mocomp::io::image::write_plane(&path("a.png"), s.frame(0).y()).unwrap();
+        mocomp::io::image::write_plane(&path("b.png"), s.frame(1).y()).unwrap();
+        let p = |n: &str| path(n).to_str().unwrap().to_owned();
+        let v = json_stdout(mocomp().args([
+            "flow",
+            &p("a.png"),
+            &p("b.png"),
+            "--method",
+            method,
+            "--occlusion",
+            &p("mask.png"),
+            "--json",
+        ]));
+        let mask = mocomp::io::image::read_luma(&path("mask.png")).unwrap();
+        assert_eq!((mask.width(), mask.height()), (w, h));
+        // The pixels that leave the picture (the last dx columns) are
+        // flagged; the rest, which both frames see, is not.
+        let share = |xs: std::ops::Range<usize>| {
+            let n = xs.len() * h;
+            let flagged: usize = mask
+                .rows()
+                .map(|r| r[xs.clone()].iter().filter(|&&m| m == 255).count())
+                .sum();
+            flagged as f64 / n as f64
+        };
+        assert!(
+            share(w - dx + 2..w) > 0.9,
+            "{method}: leaving {}",
+            share(w - dx + 2..w)
+        );
+        assert!(
+            share(4..w - dx - 4) < 0.05,
+            "{method}: inside {}",
+            share(4..w - dx - 4)
+        );
+        let reported = v["inconsistent_percent"].as_f64().unwrap();
+        let expected = 100.0 * dx as f64 / w as f64;
+        assert!((reported - expected).abs() < 5.0, "{method}: {v}");
+    }
+}

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::translated;
+use common::{translated, visible_epe};
 use mocomp::flow::dis::{dis_flow, Dis, DisParams, DisPreset};
 use mocomp::flow::Flow;
 use mocomp::metrics::flow_errors;
@@ -66,14 +66,6 @@ fn generated(name: &str) -> (Array2<f32>, Array2<f32>, Flow, Array2<bool>) {
         .unwrap();
     let pair = spec.render(&sources);
     (pair.frame1, pair.frame2, pair.flow, pair.occluded)
-}
-
-/// EPE over the valid pixels that are visible in frame 2.
-fn visible_epe(est: &Flow, gt: &Flow, occluded: &Array2<bool>) -> f64 {
-    let mut visible = gt.clone();
-    let (_, _, valid) = visible.parts_mut();
-    valid.zip_mut_with(occluded, |v, &o| *v = *v && !o);
-    flow_errors(est, &visible).unwrap().epe
 }
 
 #[test]

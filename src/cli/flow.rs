@@ -10,9 +10,11 @@ use ndarray::Array2;
 use serde_json::json;
 
 use crate::encode::FlowMethod;
+use crate::flow::consistency::inconsistent;
 use crate::flow::dis::{Dis, DisParams, DisPreset};
 use crate::flow::hs::{horn_schunck, HsParams};
 use crate::flow::lk::{Lk, LkParams};
+use crate::flow::tvl1::{tvl1, Tvl1Params};
 use crate::flow::warp::warp_bilinear;
 use crate::flow::Flow;
 use crate::io::{flo, image, y4m::Y4mReader};
@@ -44,7 +46,7 @@ pub struct Args {
     #[arg(short, long, value_name = "FILE")]
     pub output: Option<PathBuf>,
     /// Method: lk (dense pyramidal Lucas-Kanade, the default), hs
-    /// (Horn-Schunck) or dis (dense inverse search).
+    /// (Horn-Schunck), dis (dense inverse search) or tvl1 (TV-L1).
     #[arg(long)]
     pub method: Option<FlowMethod>,
     /// Settings preset.
@@ -88,6 +90,11 @@ pub struct Args {
     /// Write the first picture with flow arrows (one per 16x16 cell) as PNG.
     #[arg(long, value_name = "FILE")]
     pub arrows: Option<PathBuf>,
+    /// Also compute the backward flow with the same method and write the
+    /// pixels that fail the forward-backward check (occluded in the second
+    /// picture, leaving it, or unreliable) as a PNG mask: 255 there, else 0.
+    #[arg(long, value_name = "FILE")]
+    pub occlusion: Option<PathBuf>,
     /// Worker threads (default: all cores; 1 for the one-thread comparison).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -146,11 +153,37 @@ pub fn hs_preset(preset: Preset) -> HsParams {
 }
 
 /// The DIS settings of each preset (accurate = medium for now).
+/// The TV-L1 settings of each preset: fewer warps and iterations for
+/// speed, more for accuracy (`--levels`, `--warps`, `--iterations`
+/// override them).
+pub fn tvl1_preset(preset: Preset) -> Tvl1Params {
+    let base = Tvl1Params::default();
+    match preset {
+        Preset::Ultrafast => Tvl1Params {
+            warps: 2,
+            iterations: 15,
+            ..base
+        },
+        Preset::Fast => Tvl1Params {
+            warps: 3,
+            iterations: 30,
+            ..base
+        },
+        Preset::Medium => base,
+        Preset::Accurate => Tvl1Params {
+            warps: 8,
+            iterations: 100,
+            ..base
+        },
+    }
+}
+
 pub fn dis_preset(preset: Preset) -> DisParams {
     DisParams::preset(match preset {
         Preset::Ultrafast => DisPreset::Ultrafast,
         Preset::Fast => DisPreset::Fast,
-        Preset::Medium | Preset::Accurate => DisPreset::Medium,
+        Preset::Medium => DisPreset::Medium,
+        Preset::Accurate => DisPreset::Accurate,
     })
 }
 
@@ -233,6 +266,16 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(wp) = args.warps {
         hs.warps = wp.max(1);
     }
+    let mut tv = tvl1_preset(args.preset);
+    if let Some(l) = args.levels {
+        tv.levels = l.max(1);
+    }
+    if let Some(i) = args.iterations {
+        tv.iterations = i.max(1);
+    }
+    if let Some(wp) = args.warps {
+        tv.warps = wp.max(1);
+    }
     let method = args.method.unwrap_or(FlowMethod::Lk);
     if args.runs == 0 {
         bail!("--runs must be at least 1");
@@ -247,17 +290,25 @@ pub fn run(args: &Args) -> Result<()> {
         global_search: args.global_search,
         ..dis_preset(args.preset)
     });
+    let mut estimate = |a: &Array2<f32>, b: &Array2<f32>| {
+        pool.install(|| match method {
+            FlowMethod::Lk => lk.compute(a, b).flow,
+            FlowMethod::Hs => horn_schunck(a, b, &hs).0,
+            FlowMethod::Dis => dis.compute(a, b),
+            FlowMethod::Tvl1 => tvl1(a, b, &tv),
+        })
+    };
     for _ in 0..args.runs {
         let start = Instant::now();
-        flow = pool.install(|| match method {
-            FlowMethod::Lk => lk.compute(&i1, &i2).flow,
-            FlowMethod::Hs => horn_schunck(&i1, &i2, &hs).0,
-            FlowMethod::Dis => dis.compute(&i1, &i2),
-        });
+        flow = estimate(&i1, &i2);
         times.push(start.elapsed().as_secs_f64() * 1000.0);
     }
     times.sort_by(f64::total_cmp);
     let ms = times[times.len() / 2];
+    let occluded = args
+        .occlusion
+        .as_ref()
+        .map(|_| inconsistent(&flow, &estimate(&i2, &i1)));
     let warped = warp_bilinear(&i2, &flow);
     let mse = i1
         .iter()
@@ -295,6 +346,10 @@ pub fn run(args: &Args) -> Result<()> {
         image::write_rgb(path, img.width, img.height, &img.data)
             .with_context(|| path.display().to_string())?;
     }
+    if let (Some(path), Some(mask)) = (&args.occlusion, &occluded) {
+        let plane = array_to_plane(&mask.mapv(|m| if m { 255.0 } else { 0.0 }))?;
+        image::write_plane(path, &plane).with_context(|| path.display().to_string())?;
+    }
     if let Some(path) = &args.warp {
         image::write_plane(path, &array_to_plane(&warped)?).with_context(|| path.display().to_string())?;
     }
@@ -308,6 +363,10 @@ pub fn run(args: &Args) -> Result<()> {
             "ms": ms,
             "mc_psnr": mc_psnr,
         });
+        if let Some(mask) = &occluded {
+            let share = mask.iter().filter(|&&m| m).count() as f64 / mask.len() as f64;
+            obj["inconsistent_percent"] = json!(100.0 * share);
+        }
         if let Some(e) = errors {
             obj["epe"] = json!(e.epe);
             obj["ae"] = json!(e.ae);
@@ -325,6 +384,10 @@ pub fn run(args: &Args) -> Result<()> {
             args.preset
         )?;
         writeln!(stdout, "motion-compensated PSNR  {mc_psnr:.2} dB")?;
+        if let Some(mask) = &occluded {
+            let share = mask.iter().filter(|&&m| m).count() as f64 / mask.len() as f64;
+            writeln!(stdout, "forward-backward inconsistent  {:.2} %", 100.0 * share)?;
+        }
         if let Some(e) = errors {
             writeln!(
                 stdout,

@@ -7,6 +7,7 @@ mod encode;
 mod flow;
 mod flowbench;
 mod info;
+mod matches;
 mod me;
 mod psnr;
 mod rd;
@@ -41,6 +42,8 @@ enum Command {
     Flowbench(flowbench::Args),
     /// Say what a Y4M, .flo or image file holds.
     Info(info::Args),
+    /// Sparse feature matches between two pictures (large displacements).
+    Match(matches::Args),
     /// Block motion estimation of each frame against the previous one.
     Me(me::Args),
     /// Rate-distortion sweep: sequences x QPs x predictors, BD tables, plots.
@@ -69,6 +72,7 @@ pub fn main() -> ExitCode {
         Some(Command::Flow(a)) => flow::run(&a),
         Some(Command::Flowbench(a)) => flowbench::run(&a),
         Some(Command::Info(a)) => info::run(&a),
+        Some(Command::Match(a)) => matches::run(&a),
         Some(Command::Me(a)) => me::run(&a),
         Some(Command::Rd(a)) => rd::run(&a),
         Some(Command::Samples(a)) => samples::run(&a),

@@ -18,15 +18,18 @@ pub enum FlowMethod {
     /// Dense inverse search (`crate::flow::dis`; the encoder uses the
     /// medium preset).
     Dis,
+    /// TV-L1 (`crate::flow::tvl1`; the encoder uses the default settings).
+    Tvl1,
 }
 
 impl FlowMethod {
-    /// `lk`, `hs` or `dis`.
+    /// `lk`, `hs`, `dis` or `tvl1`.
     pub fn name(self) -> &'static str {
         match self {
             FlowMethod::Lk => "lk",
             FlowMethod::Hs => "hs",
             FlowMethod::Dis => "dis",
+            FlowMethod::Tvl1 => "tvl1",
         }
     }
 }
@@ -38,7 +41,8 @@ impl FromStr for FlowMethod {
             "lk" => Ok(FlowMethod::Lk),
             "hs" => Ok(FlowMethod::Hs),
             "dis" => Ok(FlowMethod::Dis),
-            _ => Err(format!("unknown flow method '{s}' (lk, hs or dis)")),
+            "tvl1" => Ok(FlowMethod::Tvl1),
+            _ => Err(format!("unknown flow method '{s}' (lk, hs, dis or tvl1)")),
         }
     }
 }
@@ -171,7 +175,7 @@ pub const DEFAULT_GRID: usize = 16;
 impl FromStr for Predictor {
     type Err = String;
     /// `zero`, `block`, `block:METHOD`, `flow-block`, `flow-block:lk|hs|dis`,
-    /// `dense-lk`, `dense-hs`, `dense-dis`, `obmc`, `obmc:METHOD`; other options keep
+    /// `dense-lk`, `dense-hs`, `dense-dis`, `dense-tvl1`, `obmc`, `obmc:METHOD`; other options keep
     /// their defaults.
     fn from_str(s: &str) -> Result<Predictor, String> {
         let (name, option) = match s.split_once(':') {
@@ -209,8 +213,12 @@ impl FromStr for Predictor {
                 flow: FlowMethod::Dis,
                 grid: DEFAULT_GRID,
             }),
+            "dense-tvl1" => no_option(Predictor::Dense {
+                flow: FlowMethod::Tvl1,
+                grid: DEFAULT_GRID,
+            }),
             _ => Err(format!(
-                "unknown predictor '{s}' (zero, block[:METHOD], flow-block[:lk|hs|dis], dense-lk, dense-hs, dense-dis, obmc[:METHOD])"
+                "unknown predictor '{s}' (zero, block[:METHOD], flow-block[:lk|hs|dis|tvl1], dense-lk, dense-hs, dense-dis, dense-tvl1, obmc[:METHOD])"
             )),
         }
     }
@@ -369,6 +377,8 @@ mod tests {
             "flow-block:lk",
             "flow-block:hs",
             "flow-block:dis",
+            "flow-block:tvl1",
+            "dense-tvl1",
             "dense-lk",
             "dense-dis",
             "dense-hs",

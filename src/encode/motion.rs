@@ -12,6 +12,7 @@ use crate::codec::{Frame, Plane};
 use crate::flow::dis::{Dis, DisParams, DisPreset};
 use crate::flow::hs::{horn_schunck, HsParams};
 use crate::flow::lk::{Lk, LkParams};
+use crate::flow::tvl1::{tvl1, Tvl1Params};
 use crate::flow::Flow;
 use crate::me::{self, lambda_for_qp, MeConfig, Metric, MotionField};
 use crate::raster::plane_to_array;
@@ -123,6 +124,7 @@ impl MotionAnalyser {
                 .dis
                 .get_or_insert_with(|| Dis::new(DisParams::preset(DisPreset::Medium)))
                 .compute(&a, &b),
+            FlowMethod::Tvl1 => tvl1(&a, &b, &Tvl1Params::default()),
         }
     }
 }

@@ -12,6 +12,7 @@ pub mod lk;
 pub mod pyramid;
 pub mod refine;
 pub mod track;
+pub mod tvl1;
 pub mod warp;
 
 pub use field::Flow;

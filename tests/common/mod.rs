@@ -1,6 +1,7 @@
 //! Helpers shared by the integration tests.
 
 use mocomp::flow::Flow;
+use mocomp::metrics::flow_errors;
 use mocomp::raster::plane_to_array;
 use mocomp::synth::{Motion, SceneSpec, Synth};
 use ndarray::Array2;
@@ -19,4 +20,13 @@ pub fn translated(w: usize, h: usize, dx: f64, dy: f64) -> (Array2<f32>, Array2<
         plane_to_array(s.frame(1).y()),
         s.forward_flow(0),
     )
+}
+
+/// EPE over the valid pixels that are visible in frame 2.
+#[allow(dead_code)] // not every test file uses it
+pub fn visible_epe(est: &Flow, gt: &Flow, occluded: &Array2<bool>) -> f64 {
+    let mut visible = gt.clone();
+    let (_, _, valid) = visible.parts_mut();
+    valid.zip_mut_with(occluded, |v, &o| *v = *v && !o);
+    flow_errors(est, &visible).unwrap().epe
 }

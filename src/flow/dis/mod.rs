@@ -59,6 +59,11 @@ pub struct DisParams {
     /// presets because it can lock low-texture regions under rotation
     /// onto wrong matches (see the README's flow benchmark).
     pub global_search: bool,
+    /// Also start from sparse feature matches ([`crate::features`]) spread
+    /// into a dense field, which each patch tries as a candidate: motion
+    /// beyond the pyramid's reach, where the pictures have corners to
+    /// match. Used when no initial flow is given.
+    pub seed_matches: bool,
     /// Variational refinement after each level (`iterations: 0` turns it off).
     pub refine: RefineParams,
 }
@@ -72,6 +77,9 @@ pub enum DisPreset {
     Fast,
     /// Half-size flow, denser patches, more steps.
     Medium,
+    /// Full-size flow, started from feature matches as well (motion
+    /// beyond the pyramid's reach); several times slower than `Medium`.
+    Accurate,
 }
 
 impl DisParams {
@@ -86,6 +94,7 @@ impl DisParams {
             mean_normalize: true,
             propagate: true,
             global_search: false,
+            seed_matches: false,
             refine: RefineParams::default(),
         };
         match preset {
@@ -102,6 +111,13 @@ impl DisParams {
                 finest: 1,
                 stride: 3,
                 iterations: 25,
+                ..base
+            },
+            DisPreset::Accurate => DisParams {
+                finest: 0,
+                stride: 3,
+                iterations: 25,
+                seed_matches: true,
                 ..base
             },
         }
@@ -227,7 +243,17 @@ impl Dis {
             Array2::zeros(self.p1.levels[top].dim()),
             Array2::zeros(self.p1.levels[top].dim()),
         );
-        let hints = initial.map(|f| hint_pyramid(f, &self.p1.levels, finest));
+        let seed = match initial {
+            None if p.seed_matches => {
+                let matches =
+                    crate::features::match_pictures(i1, i2, &crate::features::MatchParams::default());
+                crate::features::matches_to_flow(&matches, w0, h0)
+            }
+            _ => None,
+        };
+        let hints = initial
+            .or(seed.as_ref())
+            .map(|f| hint_pyramid(f, &self.p1.levels, finest));
         for level in (finest..=top).rev() {
             let (a1, a2) = (&self.p1.levels[level], &self.p2.levels[level]);
             let (h, w) = a1.dim();
@@ -295,7 +321,12 @@ mod tests {
 
     #[test]
     fn presets_are_valid_and_odd_settings_are_refused() {
-        for p in [DisPreset::Ultrafast, DisPreset::Fast, DisPreset::Medium] {
+        for p in [
+            DisPreset::Ultrafast,
+            DisPreset::Fast,
+            DisPreset::Medium,
+            DisPreset::Accurate,
+        ] {
             DisParams::preset(p).validate().unwrap();
         }
         let bad = DisParams {

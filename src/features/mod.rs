@@ -1,0 +1,162 @@
+//! Sparse feature matching for large displacements: keypoints at several
+//! scales, binary descriptors, mutual nearest-neighbour matching with a
+//! ratio test and a neighbourhood-consensus filter, and the matches spread
+//! into a dense initial flow that dense inverse search starts from (as
+//! LDOF, DeepFlow and EpicFlow start their dense methods from matches).
+//!
+//! ```
+//! use mocomp::features::{match_pictures, MatchParams};
+//! use ndarray::Array2;
+//! let f = |x: f32, y: f32| 128.0 + 50.0 * (x / 4.0).sin() * (y / 6.0).cos() + 40.0 * ((x * y) / 300.0).sin();
+//! let i1 = Array2::from_shape_fn((160, 200), |(y, x)| f(x as f32, y as f32));
+//! let i2 = Array2::from_shape_fn((160, 200), |(y, x)| f(x as f32 - 30.0, y as f32 - 12.0));
+//! let matches = match_pictures(&i1, &i2, &MatchParams::default());
+//! assert!(matches.len() > 10);
+//! let right = matches.iter().filter(|m| (m.x2 - m.x1 - 30.0).abs() < 1.5 && (m.y2 - m.y1 - 12.0).abs() < 1.5);
+//! assert!(right.count() * 10 >= matches.len() * 9);
+//! ```
+
+mod describe;
+mod detect;
+mod matching;
+
+use ndarray::Array2;
+use rayon::prelude::*;
+
+pub use describe::{hamming, Descriptor};
+pub use detect::Keypoint;
+
+use crate::flow::pyramid::{blur, pyramid};
+use crate::flow::Flow;
+
+/// Settings of detection and matching.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MatchParams {
+    /// Keypoints per picture, at most (shared over the levels by area).
+    pub max_features: usize,
+    /// Pyramid levels searched for keypoints (scale factor 2 each).
+    pub levels: usize,
+    /// At most one keypoint per `cell x cell` square of each level.
+    pub cell: usize,
+    /// Lowe's ratio: the nearest descriptor must be closer than this times
+    /// the second nearest.
+    pub ratio: f32,
+    /// Hamming distance above which no match is taken (of 256 bits).
+    pub max_distance: u32,
+    /// Matches consulted around each match by the consensus filter.
+    pub neighbours: usize,
+    /// How many of them must move alike for the match to be kept.
+    pub min_support: usize,
+}
+
+impl Default for MatchParams {
+    fn default() -> MatchParams {
+        MatchParams {
+            max_features: 2000,
+            levels: 3,
+            cell: 12,
+            ratio: 0.85,
+            max_distance: 80,
+            neighbours: 8,
+            min_support: 3,
+        }
+    }
+}
+
+/// A match: a point of the first picture and where it is in the second
+/// (full-size pixels), with the descriptors' Hamming distance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Match {
+    /// Column in the first picture.
+    pub x1: f32,
+    /// Row in the first picture.
+    pub y1: f32,
+    /// Column in the second picture.
+    pub x2: f32,
+    /// Row in the second picture.
+    pub y2: f32,
+    /// Hamming distance of the descriptors (0..=256).
+    pub distance: u32,
+}
+
+/// Keypoints of a picture (grey levels 0..255) and their descriptors.
+pub fn detect_and_describe(img: &Array2<f32>, p: &MatchParams) -> (Vec<Keypoint>, Vec<Descriptor>) {
+    let levels = pyramid(img, p.levels.max(1), 2 * detect::BORDER + 2);
+    let per_level: Vec<(Vec<Keypoint>, Vec<Descriptor>)> = levels
+        .par_iter()
+        .enumerate()
+        .map(|(level, lv)| {
+            // Each level gets a share of the budget by area (3/4, 3/16, ...).
+            let share = (3 * p.max_features).div_ceil(4 << (2 * level)).max(16);
+            let kps = detect::detect_level(lv, level, share, p.cell.max(2));
+            // BRIEF compares single pixels: smooth first (ORB's sigma 2).
+            let smoothed = blur(lv, 2.0);
+            let descs = kps.iter().map(|k| describe::describe(&smoothed, k)).collect();
+            (kps, descs)
+        })
+        .collect();
+    let (mut kps, mut descs) = (Vec::new(), Vec::new());
+    for (k, d) in per_level {
+        kps.extend(k);
+        descs.extend(d);
+    }
+    (kps, descs)
+}
+
+/// Matches from `i1` to `i2` (same size or not, grey levels 0..255).
+pub fn match_pictures(i1: &Array2<f32>, i2: &Array2<f32>, p: &MatchParams) -> Vec<Match> {
+    let ((k1, d1), (k2, d2)) = rayon::join(|| detect_and_describe(i1, p), || detect_and_describe(i2, p));
+    matching::consensus(matching::mutual_matches(&k1, &d1, &k2, &d2, p), p)
+}
+
+/// A dense `width x height` flow from matches: each pixel takes the
+/// displacement of the nearest match (computed per 4x4 block). A start for
+/// a dense method, which tries each vector and keeps what fits; `None`
+/// without matches.
+pub fn matches_to_flow(matches: &[Match], width: usize, height: usize) -> Option<Flow> {
+    if matches.is_empty() || width == 0 || height == 0 {
+        return None;
+    }
+    const BLOCK: usize = 4;
+    let (bw, bh) = (width.div_ceil(BLOCK), height.div_ceil(BLOCK));
+    let nearest: Vec<(f32, f32)> = (0..bw * bh)
+        .into_par_iter()
+        .map(|b| {
+            let cx = ((b % bw) * BLOCK) as f32 + 0.5 * (BLOCK - 1) as f32;
+            let cy = ((b / bw) * BLOCK) as f32 + 0.5 * (BLOCK - 1) as f32;
+            let m = matches
+                .iter()
+                .min_by(|a, b| {
+                    let da = (a.x1 - cx).powi(2) + (a.y1 - cy).powi(2);
+                    let db = (b.x1 - cx).powi(2) + (b.y1 - cy).powi(2);
+                    da.total_cmp(&db)
+                })
+                .expect("not empty");
+            (m.x2 - m.x1, m.y2 - m.y1)
+        })
+        .collect();
+    let at = |y: usize, x: usize| nearest[(y / BLOCK) * bw + x / BLOCK];
+    let u = Array2::from_shape_fn((height, width), |(y, x)| at(y, x).0);
+    let v = Array2::from_shape_fn((height, width), |(y, x)| at(y, x).1);
+    Some(Flow::from_uv(u, v))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_nearest_match_fills_each_block() {
+        let m = |x1: f32, y1: f32, du: f32| Match {
+            x1,
+            y1,
+            x2: x1 + du,
+            y2: y1,
+            distance: 0,
+        };
+        let f = matches_to_flow(&[m(2.0, 2.0, 5.0), m(30.0, 2.0, -3.0)], 32, 8).unwrap();
+        assert_eq!(f.get(0, 0), (5.0, 0.0));
+        assert_eq!(f.get(31, 7), (-3.0, 0.0));
+        assert!(matches_to_flow(&[], 8, 8).is_none());
+    }
+}

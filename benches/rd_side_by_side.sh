@@ -19,7 +19,7 @@ SEQS=${SEQS:-"pan_cif cup_vga_30 tree_qvga"}
 for s in $SEQS; do
   IN="$SHARED/data/$s.y4m"
   bash "$SHARED/peers/rd_ffmpeg.sh" "$IN" "$OUT/peers_$s.csv" > /dev/null
-  PREDICTORS="zero block:esa block:tss flow-block:lk flow-block:hs dense-lk dense-hs obmc block:epzs"
+  PREDICTORS="zero block:esa block:tss flow-block:lk flow-block:hs flow-block:dis flow-block:tvl1 dense-lk dense-hs dense-dis dense-tvl1 obmc block:epzs"
   "$M" rd "$IN" --predictors "$(echo $PREDICTORS | tr ' ' ,)" -o "$OUT/ours_$s.csv" \
     --plot "$OUT/ours_$s.svg" --quiet > "$OUT/table_$s.md"
   for anchor in mpeg4 x264_simple; do

@@ -2,7 +2,7 @@
 """Evaluates every flow of a flow-benchmark run (run.sh) with one code:
 
   WORK/pairs/<case>/{frame1.png, frame2.png, gt.flo, occ.png}   (ground truth)
-  WORK/est/<case>/<method>.flo, mocomp.jsonl, opencv_*.csv       (estimates, times)
+  WORK/est/<case>/<method>.flo, mocomp_*.json, opencv_*.csv       (estimates, times)
 
 Errors over the pixels valid in the ground truth (EPE px, Middlebury AE deg,
 R1/R3 = % of pixels with EPE over 1/3 px), split into visible and occluded
@@ -56,8 +56,7 @@ def mc_psnr(f1, f2, flow):
 
 def times(est_dir):
     t = {}
-    p = os.path.join(est_dir, "mocomp.jsonl")
-    if os.path.exists(p):
+    for p in glob.glob(os.path.join(est_dir, "mocomp_*.json")):
         for line in open(p):
             r = json.loads(line)
             t[r["name"]] = r["ms"]

@@ -11,14 +11,17 @@
 # CV_FAST / CV_SLOW (OpenCV method lists), REPEATS (timing runs, median taken, default 10: steady state, as a library caller on a sequence sees it),
 # ONLY (a regex of pair names). Pairs already in WORKDIR/pairs are reused:
 # delete that folder after changing the generator or the photographs.
+# Results of methods not run this time stay in WORKDIR/est (so one method
+# can be rerun alone: METHODS=tvl1:medium CV_FAST= CV_SLOW=); delete that
+# folder to start over.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 work=${1:-/tmp/mocomp-flowbench}
 peers=${PEERS:-../shared/peers}
-methods=${METHODS:-"dis:ultrafast dis:fast dis:medium dis:accurate dis:medium:global-search lk:fast lk:medium lk:accurate hs:medium"}
-cv_fast=${CV_FAST:-dis_ultrafast,dis_fast,dis_medium,farneback}
+methods=${METHODS:-"dis:ultrafast dis:fast dis:medium dis:accurate dis:medium:global-search lk:fast lk:medium lk:accurate hs:medium tvl1:medium"}
+cv_fast=${CV_FAST-dis_ultrafast,dis_fast,dis_medium,farneback}
 # DualTVL1 takes about 30 s a 640x480 pair here: CV_SLOW=dualtvl1,deepflow adds it.
-cv_slow=${CV_SLOW:-deepflow}
+cv_slow=${CV_SLOW-deepflow}
 repeats=${REPEATS:-10}
 benches/flowbench/photos.sh "$work/photos"
 cargo build --release --quiet
@@ -32,16 +35,15 @@ for c in $cases; do
   out="$work/est/$name"
   mkdir -p "$out"
   if [ -f "$c/frame1.png" ]; then f1=$c/frame1.png; f2=$c/frame2.png; else f1=$c/frame10.png; f2=$c/frame11.png; fi
-  : > "$out/mocomp.jsonl"
   for m in $methods; do
     IFS=: read -r method preset flag <<< "$m"
     label=mocomp_${method}_${preset}${flag:+_$flag}
-    # Horn-Schunck takes about a second a pair: timed once.
-    runs=$repeats; [ "$method" = hs ] && runs=1
+    # Horn-Schunck and TV-L1 take a second or more a pair: timed once.
+    runs=$repeats; [[ "$method" = hs || "$method" = tvl1 ]] && runs=1
     $bin flow "$f1" "$f2" --method "$method" --preset "$preset" ${flag:+--$flag} --threads 1 --runs "$runs" \
-      --json -o "$out/$label.flo" | sed "s/^{/{\"name\":\"$label\",/" >> "$out/mocomp.jsonl"
+      --json -o "$out/$label.flo" | sed "s/^{/{\"name\":\"$label\",/" > "$out/$label.json"
   done
-  python3 "$peers/flow_opencv.py" --img1 "$f1" --img2 "$f2" --threads 1 --repeats "$repeats" \
+  [ -n "$cv_fast" ] && python3 "$peers/flow_opencv.py" --img1 "$f1" --img2 "$f2" --threads 1 --repeats "$repeats" \
     --methods "$cv_fast" --save-flo "$out" --csv "$out/opencv_fast.csv" >/dev/null
   [ -n "$cv_slow" ] && python3 "$peers/flow_opencv.py" --img1 "$f1" --img2 "$f2" --threads 1 --repeats 1 \
     --methods "$cv_slow" --save-flo "$out" --csv "$out/opencv_slow.csv" >/dev/null

@@ -50,53 +50,22 @@ fn pattern() -> &'static [[f32; 4]; 256] {
     })
 }
 
-/// Orientation bins of the precomputed turned patterns (ORB uses 30).
-const ANGLE_BINS: usize = 32;
-
-/// The pattern turned to each orientation bin, rounded to whole pixels:
-/// per bin, 256 pairs of (dx, dy) offsets.
-fn turned_patterns() -> &'static [[[i32; 4]; 256]] {
-    static TURNED: OnceLock<Vec<[[i32; 4]; 256]>> = OnceLock::new();
-    TURNED.get_or_init(|| {
-        (0..ANGLE_BINS)
-            .map(|bin| {
-                let angle = bin as f32 * std::f32::consts::TAU / ANGLE_BINS as f32;
-                let (s, c) = angle.sin_cos();
-                let turn =
-                    |dx: f32, dy: f32| ((c * dx - s * dy).round() as i32, (s * dx + c * dy).round() as i32);
-                let mut out = [[0i32; 4]; 256];
-                for (o, &[ax, ay, bx, by]) in out.iter_mut().zip(pattern().iter()) {
-                    let ((ax, ay), (bx, by)) = (turn(ax, ay), turn(bx, by));
-                    *o = [ax, ay, bx, by];
-                }
-                out
-            })
-            .collect()
-    })
-}
-
 /// The descriptor of a keypoint found on `smoothed` (its pyramid level,
-/// blurred): the pattern of the nearest orientation bin.
+/// blurred), at level position (x, y).
 pub(super) fn describe(smoothed: &Array2<f32>, kp: &Keypoint) -> Descriptor {
     let scale = (1usize << kp.level) as f32;
-    let (x, y) = (
-        ((kp.x + 0.5) / scale - 0.5).round() as i64,
-        ((kp.y + 0.5) / scale - 0.5).round() as i64,
-    );
+    let (x, y) = ((kp.x + 0.5) / scale - 0.5, (kp.y + 0.5) / scale - 0.5);
+    let (s, c) = kp.angle.sin_cos();
     let (h, w) = smoothed.dim();
-    let img = smoothed.as_slice().expect("standard");
-    let turns = kp.angle.rem_euclid(std::f32::consts::TAU) / std::f32::consts::TAU * ANGLE_BINS as f32;
-    let bin = (turns.round() as usize) % ANGLE_BINS;
-    // The turned pattern reaches PATCH_RADIUS * sqrt(2) < BORDER; the clamp
-    // only guards keypoints placed by hand.
-    let at = |dx: i32, dy: i32| {
-        let px = (x + dx as i64).clamp(0, w as i64 - 1) as usize;
-        let py = (y + dy as i64).clamp(0, h as i64 - 1) as usize;
-        img[py * w + px]
+    // The rotated pattern reaches PATCH_RADIUS * sqrt(2) < BORDER.
+    debug_assert!(x >= BORDER as f32 - 1.0 && y >= BORDER as f32 - 1.0);
+    let at = |dx: f32, dy: f32| {
+        let px = (x + c * dx - s * dy).round().clamp(0.0, (w - 1) as f32) as usize;
+        let py = (y + s * dx + c * dy).round().clamp(0.0, (h - 1) as f32) as usize;
+        smoothed[[py, px]]
     };
-    debug_assert!(x >= BORDER as i64 - 1 && y >= BORDER as i64 - 1);
     let mut d = [0u64; 4];
-    for (i, &[ax, ay, bx, by]) in turned_patterns()[bin].iter().enumerate() {
+    for (i, &[ax, ay, bx, by]) in pattern().iter().enumerate() {
         if at(ax, ay) < at(bx, by) {
             d[i / 64] |= 1 << (i % 64);
         }

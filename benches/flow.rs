@@ -1,12 +1,14 @@
 //! Dense flow per method and preset on a CIF and a 720p pair (one thread),
-//! and the sparse tracker.
+//! the refinement, feature matching, and the sparse tracker.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use mocomp::features::{match_pictures, MatchParams};
 use mocomp::flow::dis::{Dis, DisParams, DisPreset};
 use mocomp::flow::hs::{horn_schunck, HsParams};
 use mocomp::flow::lk::{dense_lk, LkParams};
-use mocomp::flow::refine::{refine, RefineParams};
+use mocomp::flow::refine::{refine, RefineParams, Refiner};
 use mocomp::flow::track::{good_features, track, TrackParams};
+use mocomp::flow::tvl1::{tvl1, Tvl1Params};
 use mocomp::raster::plane_to_array;
 use mocomp::synth::{Motion, SceneSpec, Synth};
 use ndarray::Array2;
@@ -51,6 +53,7 @@ fn flow(c: &mut Criterion) {
             ("dis_ultrafast", DisPreset::Ultrafast),
             ("dis_fast", DisPreset::Fast),
             ("dis_medium", DisPreset::Medium),
+            ("dis_accurate", DisPreset::Accurate),
         ] {
             let mut dis = Dis::new(DisParams::preset(preset));
             g.bench_function(BenchmarkId::new(label, name), |bench| {
@@ -69,6 +72,21 @@ fn flow(c: &mut Criterion) {
                 pool.install(|| refine(&ha, &hb, &mut u, &mut v, &RefineParams::default()));
                 u
             })
+        });
+        // The refinement with its buffers kept (as DIS runs it per level).
+        let mut refiner = Refiner::default();
+        g.bench_function(BenchmarkId::new("refine_half_kept", name), |bench| {
+            bench.iter(|| {
+                let (mut u, mut v) = (Array2::zeros(ha.dim()), Array2::zeros(ha.dim()));
+                pool.install(|| refiner.refine(&ha, &hb, &mut u, &mut v, &RefineParams::default()));
+                u
+            })
+        });
+        g.bench_function(BenchmarkId::new("match", name), |bench| {
+            bench.iter(|| pool.install(|| match_pictures(&a, &b, &MatchParams::default())))
+        });
+        g.bench_function(BenchmarkId::new("tvl1_medium", name), |bench| {
+            bench.iter(|| pool.install(|| tvl1(&a, &b, &Tvl1Params::default())))
         });
         g.bench_function(BenchmarkId::new("hs_medium", name), |bench| {
             bench.iter(|| pool.install(|| horn_schunck(&a, &b, &HsParams::default())))

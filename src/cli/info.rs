@@ -47,16 +47,16 @@ pub fn run(args: &Args) -> Result<()> {
         Kind::Image => image_info(args).with_context(|| name.clone())?,
     };
     if args.json {
-        println!("{}", serde_json::to_string(&report)?);
+        outln!("{}", serde_json::to_string(&report)?)?;
     } else {
-        println!("{name}");
+        outln!("{name}")?;
         if let Some(map) = report.as_object() {
             for (k, v) in map {
                 let text = match v {
                     serde_json::Value::String(s) => s.clone(),
                     other => other.to_string(),
                 };
-                println!("  {k:<12} {text}");
+                outln!("  {k:<12} {text}")?;
             }
         }
     }

@@ -237,26 +237,26 @@ pub fn run(args: &Args) -> Result<()> {
             obj["epe"] = json!(e);
             obj["epe_from_forward_flow"] = json!(approximate_gt);
         }
-        println!("{obj}");
+        outln!("{obj}")?;
     } else {
-        println!(
+        outln!(
             "{name}: {} {}x{} blocks, range {}, {} threads",
             args.method,
             args.block,
             args.block,
             args.range,
             pool.current_num_threads()
-        );
-        println!("frames searched      {frames}");
-        println!("ME time per frame    {ms_per_frame:.3} ms");
-        println!("mean cost per pixel  {mean_cost:.4} ({})", args.metric);
+        )?;
+        outln!("frames searched      {frames}")?;
+        outln!("ME time per frame    {ms_per_frame:.3} ms")?;
+        outln!("mean cost per pixel  {mean_cost:.4} ({})", args.metric)?;
         if let Some(e) = epe {
             let note = if approximate_gt {
                 " (against minus the forward flow: approximate)"
             } else {
                 ""
             };
-            println!("block EPE            {e:.4} px{note}");
+            outln!("block EPE            {e:.4} px{note}")?;
         }
     }
     Ok(())

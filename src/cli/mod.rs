@@ -1,6 +1,15 @@
 //! The `mocomp` command line. Each subcommand is a file here; `main.rs` only
 //! calls [`main`].
 
+/// `println!` that returns the write's error instead of panicking, so that
+/// output into a closed pipe ends the command quietly (see [`main`]).
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        writeln!(std::io::stdout().lock(), $($arg)*)
+    }};
+}
+
 mod compare;
 mod decode;
 mod encode;

@@ -45,10 +45,15 @@ pub fn run(args: &Args) -> Result<()> {
     let mut acc = QualityAccumulator::default();
     let mut rows = Vec::new();
     if !args.json {
-        println!(
+        outln!(
             "{:>6} {:>8} {:>8} {:>8} {:>8} {:>8}",
-            "frame", "psnr_y", "psnr_u", "psnr_v", "psnr_yuv", "ssim"
-        );
+            "frame",
+            "psnr_y",
+            "psnr_u",
+            "psnr_v",
+            "psnr_yuv",
+            "ssim"
+        )?;
     }
     loop {
         let more_a = reference
@@ -75,7 +80,7 @@ pub fn run(args: &Args) -> Result<()> {
         }
         let q = FrameQuality::measure(&a, &b);
         if !args.json {
-            println!(
+            outln!(
                 "{:>6} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8.6}",
                 acc.frames(),
                 q.psnr.y,
@@ -83,7 +88,7 @@ pub fn run(args: &Args) -> Result<()> {
                 q.psnr.v,
                 q.psnr.yuv(),
                 q.ssim
-            );
+            )?;
         }
         rows.push(q);
         acc.push(&q);
@@ -117,16 +122,24 @@ pub fn run(args: &Args) -> Result<()> {
             .collect();
         let mut obj = serde_json::to_value(s)?;
         obj["per_frame"] = serde_json::Value::Array(per_frame);
-        println!("{obj}");
+        outln!("{obj}")?;
     } else {
-        println!(
+        outln!(
             "{:>6} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8.6}",
-            "mean", s.psnr_y, s.psnr_u, s.psnr_v, s.psnr_yuv, s.ssim
-        );
-        println!(
+            "mean",
+            s.psnr_y,
+            s.psnr_u,
+            s.psnr_v,
+            s.psnr_yuv,
+            s.ssim
+        )?;
+        outln!(
             "{} frames; PSNR of the mean MSE: y {:.4}  u {:.4}  v {:.4} dB",
-            s.frames, s.psnr_y_mse, s.psnr_u_mse, s.psnr_v_mse
-        );
+            s.frames,
+            s.psnr_y_mse,
+            s.psnr_u_mse,
+            s.psnr_v_mse
+        )?;
     }
     Ok(())
 }

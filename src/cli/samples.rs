@@ -32,7 +32,7 @@ pub fn run(args: &Args) -> Result<()> {
         .filter(|s| args.only.is_empty() || args.only.contains(&s.name))
     {
         let written = write_sample(spec, &args.out, args.backward)?;
-        println!(
+        outln!(
             "{}: {}x{}, {} frames; {} .flo files in {}",
             written.y4m.display(),
             spec.width,
@@ -40,7 +40,7 @@ pub fn run(args: &Args) -> Result<()> {
             spec.frames,
             written.flow_files,
             written.flow_dir.display()
-        );
+        )?;
     }
     Ok(())
 }

@@ -146,7 +146,7 @@ pub fn run(args: &Args) -> Result<()> {
     let pairs = frames.saturating_sub(1).max(1) as f64;
     let mean_length = finished_ages.iter().sum::<usize>() as f64 / finished_ages.len().max(1) as f64;
     if args.json {
-        println!(
+        outln!(
             "{}",
             json!({
                 "frames": frames,
@@ -156,13 +156,13 @@ pub fn run(args: &Args) -> Result<()> {
                 "mean_track_length": mean_length,
                 "ms_per_frame": track_ms / pairs,
             })
-        );
+        )?;
     } else {
-        println!("{name}: {frames} frames, {next_id} points detected");
-        println!("points followed per frame  {:.1}", followed as f64 / pairs);
-        println!("points lost                {lost}");
-        println!("mean track length          {mean_length:.2} frames");
-        println!("tracking time per frame    {:.3} ms", track_ms / pairs);
+        outln!("{name}: {frames} frames, {next_id} points detected")?;
+        outln!("points followed per frame  {:.1}", followed as f64 / pairs)?;
+        outln!("points lost                {lost}")?;
+        outln!("mean track length          {mean_length:.2} frames")?;
+        outln!("tracking time per frame    {:.3} ms", track_ms / pairs)?;
     }
     Ok(())
 }

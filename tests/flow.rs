@@ -392,3 +392,23 @@ fn results_do_not_depend_on_the_number_of_threads() {
     assert_eq!(one.2, four.2, "tracks differ");
     assert!(one.3 == four.3, "HS differs");
 }
+
+#[test]
+fn gradient_constancy_holds_horn_schunck_through_a_lighting_change() {
+    // Frame 2 = 0.8 x frame 2 + 20 + a 30-level ramp across: brightness
+    // constancy is broken everywhere, the gradients change only by the gain.
+    let (i1, i2, gt) = translated(192, 144, 3.5, -2.0);
+    let lit = Array2::from_shape_fn(i2.dim(), |(y, x)| {
+        0.8 * i2[[y, x]] + 20.0 + 30.0 * x as f32 / 192.0
+    });
+    let run = |gamma: f32| {
+        let p = HsParams {
+            gamma,
+            ..HsParams::default()
+        };
+        flow_errors(&horn_schunck(&i1, &lit, &p).0, &gt).unwrap().epe
+    };
+    // Measured EPE 3.23 px without the gradient term, 0.46 with it.
+    let (plain, with) = (run(0.0), run(20.0));
+    assert!(with < 0.3 * plain && with < 0.7, "plain {plain}, gamma 20 {with}");
+}

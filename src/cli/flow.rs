@@ -66,6 +66,10 @@ pub struct Args {
     /// HS: smoothness weight alpha (overrides the preset).
     #[arg(long)]
     pub alpha: Option<f32>,
+    /// Horn-Schunck's gradient-constancy weight (0 = off, the default):
+    /// holds where the lighting changes between the pictures.
+    #[arg(long)]
+    pub gamma: Option<f32>,
     /// HS: warps per level (overrides the preset).
     #[arg(long)]
     pub warps: Option<usize>,
@@ -153,7 +157,6 @@ pub fn hs_preset(preset: Preset) -> HsParams {
     }
 }
 
-/// The DIS settings of each preset (accurate = medium for now).
 /// The TV-L1 settings of each preset: fewer warps and iterations for
 /// speed, more for accuracy (`--levels`, `--warps`, `--iterations`
 /// override them).
@@ -179,6 +182,7 @@ pub fn tvl1_preset(preset: Preset) -> Tvl1Params {
     }
 }
 
+/// The DIS settings of each preset (`DisPreset` of the same name).
 pub fn dis_preset(preset: Preset) -> DisParams {
     DisParams::preset(match preset {
         Preset::Ultrafast => DisPreset::Ultrafast,
@@ -266,6 +270,12 @@ pub fn run(args: &Args) -> Result<()> {
     }
     if let Some(wp) = args.warps {
         hs.warps = wp.max(1);
+    }
+    if let Some(g) = args.gamma {
+        if !(0.0..1e4).contains(&g) {
+            bail!("--gamma {g} must be in [0, 10000)");
+        }
+        hs.gamma = g;
     }
     let mut tv = tvl1_preset(args.preset);
     if let Some(l) = args.levels {

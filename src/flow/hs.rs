@@ -40,6 +40,11 @@ pub struct HsParams {
     pub tolerance: f32,
     /// Over-relaxation factor, in (0, 2).
     pub omega: f32,
+    /// Weight of the gradient-constancy term (Brox et al. 2004):
+    /// `gamma ((Ixx du + Ixy dv + Ixt)^2 + (Ixy du + Iyy dv + Iyt)^2)` beside
+    /// the brightness term, which holds where the lighting adds an offset
+    /// or a ramp. 0 = off (the classical method).
+    pub gamma: f32,
 }
 
 impl Default for HsParams {
@@ -51,6 +56,7 @@ impl Default for HsParams {
             iterations: 60,
             tolerance: 0.002,
             omega: 1.8,
+            gamma: 0.0,
         }
     }
 }
@@ -60,6 +66,50 @@ impl Default for HsParams {
 pub struct HsStats {
     /// SOR sweeps run in all, over every level and warp.
     pub sweeps: usize,
+}
+
+/// The data terms' normal equations per pixel, `A dw = -b` with `A` from
+/// the brightness term (and the gradient term when `gamma > 0`).
+struct Normal {
+    a11: Vec<f32>,
+    a12: Vec<f32>,
+    a22: Vec<f32>,
+    b1: Vec<f32>,
+    b2: Vec<f32>,
+}
+
+impl Normal {
+    fn new(
+        ix: &Array2<f32>,
+        iy: &Array2<f32>,
+        it: &Array2<f32>,
+        (ixt, iyt): (Array2<f32>, Array2<f32>),
+        gamma: f32,
+    ) -> Normal {
+        let n = ix.len();
+        let mut out = Normal {
+            a11: ix.iter().map(|g| g * g).collect(),
+            a12: ix.iter().zip(iy).map(|(a, b)| a * b).collect(),
+            a22: iy.iter().map(|g| g * g).collect(),
+            b1: ix.iter().zip(it).map(|(a, t)| a * t).collect(),
+            b2: iy.iter().zip(it).map(|(a, t)| a * t).collect(),
+        };
+        if gamma > 0.0 {
+            let ((ixx, ixy), (_, iyy)) = (gradients(ix), gradients(iy));
+            let s = |a: &Array2<f32>| a.as_slice().expect("standard").to_vec();
+            let (ixx, ixy, iyy, ixt, iyt) = (s(&ixx), s(&ixy), s(&iyy), s(&ixt), s(&iyt));
+            for i in 0..n {
+                let (xx, xy, yy) = (ixx[i], ixy[i], iyy[i]);
+                let (xt, yt) = (ixt[i], iyt[i]);
+                out.a11[i] += gamma * (xx * xx + xy * xy);
+                out.a12[i] += gamma * (xx * xy + xy * yy);
+                out.a22[i] += gamma * (xy * xy + yy * yy);
+                out.b1[i] += gamma * (xx * xt + xy * yt);
+                out.b2[i] += gamma * (xy * xt + yy * yt);
+            }
+        }
+        out
+    }
 }
 
 /// Dense flow from `i1` to `i2` (same size, grey levels).
@@ -101,11 +151,7 @@ pub fn horn_schunck(i1: &Array2<f32>, i2: &Array2<f32>, p: &HsParams) -> (Flow, 
             let ix = (&g1x + &g2x) * 0.5;
             let iy = (&g1y + &g2y) * 0.5;
             let it = &warped - a1;
-            let (ix, iy, it) = (
-                ix.as_slice().expect("standard"),
-                iy.as_slice().expect("standard"),
-                it.as_slice().expect("standard"),
-            );
+            let normal = Normal::new(&ix, &iy, &it, (&g2x - &g1x, &g2y - &g1y), p.gamma);
             let (su0, sv0) = (u0.as_slice().expect("standard"), v0.as_slice().expect("standard"));
             let us = u.as_slice_mut().expect("standard");
             let vs = v.as_slice_mut().expect("standard");
@@ -128,12 +174,12 @@ pub fn horn_schunck(i1: &Array2<f32>, i2: &Array2<f32>, p: &HsParams) -> (Flow, 
                                 n += 1.0;
                             }
                         }
-                        let (gx, gy, gt) = (ix[i], iy[i], it[i]);
-                        let gu = (alpha2 * su + gx * gx * su0[i] - gx * gy * (vs[i] - sv0[i]) - gx * gt)
-                            / (gx * gx + alpha2 * n);
+                        let (a11, a12, a22) = (normal.a11[i], normal.a12[i], normal.a22[i]);
+                        let (b1, b2) = (normal.b1[i], normal.b2[i]);
+                        let gu =
+                            (alpha2 * su + a11 * su0[i] - a12 * (vs[i] - sv0[i]) - b1) / (a11 + alpha2 * n);
                         let nu = us[i] + p.omega * (gu - us[i]);
-                        let gv = (alpha2 * sv + gy * gy * sv0[i] - gx * gy * (nu - su0[i]) - gy * gt)
-                            / (gy * gy + alpha2 * n);
+                        let gv = (alpha2 * sv + a22 * sv0[i] - a12 * (nu - su0[i]) - b2) / (a22 + alpha2 * n);
                         let nv = vs[i] + p.omega * (gv - vs[i]);
                         largest = largest.max((nu - us[i]).abs()).max((nv - vs[i]).abs());
                         us[i] = nu;

@@ -922,3 +922,41 @@ fn flow_writes_the_occlusion_mask_of_the_forward_backward_check() {
         assert!((reported - expected).abs() < 5.0, "{method}: {v}");
     }
 }
+
+#[test]
+fn flow_with_matches_reaches_a_pan_beyond_the_pyramid() {
+    use mocomp::synth::{Motion, SceneSpec, Synth};
+    let dir = tempfile::tempdir().unwrap();
+    let s = Synth::new(
+        SceneSpec::new("m", 384, 288, 2)
+            .seed(6)
+            .camera(Motion::translation(120.0, -9.5)),
+    )
+    .unwrap();
+    let path = |n: &str| dir.path().join(n).to_str().unwrap().to_owned();
+    mocomp::io::image::write_plane(std::path::Path::new(&path("a.png")), s.frame(0).y()).unwrap();
+    mocomp::io::image::write_plane(std::path::Path::new(&path("b.png")), s.frame(1).y()).unwrap();
+    mocomp::io::flo::write_flo(std::path::Path::new(&path("gt.flo")), &s.forward_flow(0)).unwrap();
+    let run = |extra: &[&str]| {
+        let v = json_stdout(
+            mocomp()
+                .args([
+                    "flow",
+                    &path("a.png"),
+                    &path("b.png"),
+                    "--method",
+                    "dis",
+                    "--preset",
+                    "fast",
+                ])
+                .args(["--gt", &path("gt.flo"), "--json"])
+                .args(extra),
+        );
+        v["epe"].as_f64().unwrap()
+    };
+    let (plain, seeded) = (run(&[]), run(&["--matches"]));
+    assert!(
+        plain > 10.0 && seeded < 0.5,
+        "plain {plain}, with matches {seeded}"
+    );
+}

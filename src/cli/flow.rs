@@ -73,13 +73,19 @@ pub struct Args {
     /// HS: warps per level (overrides the preset).
     #[arg(long)]
     pub warps: Option<usize>,
-    /// Finest pyramid level computed, 0 = full size (overrides the preset).
+    /// Finest pyramid level computed, 0 = full size (LK and DIS; overrides
+    /// the preset).
     #[arg(long)]
     pub finest: Option<usize>,
     /// DIS: also try each patch's exhaustive match at the coarsest level
     /// (reaches motions of a quarter of the picture; see the README).
     #[arg(long)]
     pub global_search: bool,
+    /// DIS: also start each patch from the nearest feature match (as the
+    /// accurate preset does): motions beyond the pyramid's reach, for the
+    /// matching's time (`mocomp match` shows the matches).
+    #[arg(long)]
+    pub matches: bool,
     /// With a Y4M: the pair A:B of frame indices (from 0).
     #[arg(long, value_name = "A:B", default_value = "0:1")]
     pub frames: String,
@@ -297,9 +303,12 @@ pub fn run(args: &Args) -> Result<()> {
     // The estimator is made once, outside the timing, as the OpenCV peer
     // script makes its objects; repeated runs then reuse its buffers.
     let mut lk = Lk::new(params);
+    let dis_base = dis_preset(args.preset);
     let mut dis = Dis::new(DisParams {
         global_search: args.global_search,
-        ..dis_preset(args.preset)
+        seed_matches: dis_base.seed_matches || args.matches,
+        finest: args.finest.unwrap_or(dis_base.finest),
+        ..dis_base
     });
     let mut estimate = |a: &Array2<f32>, b: &Array2<f32>| {
         pool.install(|| match method {

@@ -9,9 +9,6 @@ use common::{translated, visible_epe};
 use mocomp::flow::dis::{dis_flow, Dis, DisParams, DisPreset};
 use mocomp::flow::Flow;
 use mocomp::metrics::flow_errors;
-use mocomp::raster::plane_to_array;
-use mocomp::synth::photo::{benchmark_pairs, PairSpec};
-use mocomp::synth::{SceneSpec, Synth};
 use ndarray::Array2;
 
 fn preset(p: DisPreset) -> DisParams {
@@ -47,24 +44,9 @@ fn translations_of_tens_of_pixels() {
     }
 }
 
-/// The benchmark generator's pairs on procedural texture (three sources
-/// rendered by the scene generator, larger than the pairs).
+/// The benchmark generator's pair on procedural texture, 320x240.
 fn generated(name: &str) -> (Array2<f32>, Array2<f32>, Flow, Array2<bool>) {
-    let sources: Vec<Array2<f32>> = (0..3)
-        .map(|k| {
-            plane_to_array(
-                Synth::new(SceneSpec::new("src", 640, 440, 1).seed(20 + k))
-                    .unwrap()
-                    .frame(0)
-                    .y(),
-            )
-        })
-        .collect();
-    let spec: PairSpec = benchmark_pairs(3, 320, 240)
-        .into_iter()
-        .find(|s| s.name == name)
-        .unwrap();
-    let pair = spec.render(&sources);
+    let pair = common::generated(name, 320, 240, 20);
     (pair.frame1, pair.frame2, pair.flow, pair.occluded)
 }
 

@@ -8,28 +8,11 @@ use common::{translated, visible_epe};
 use mocomp::flow::tvl1::{tvl1, Tvl1Params};
 use mocomp::flow::Flow;
 use mocomp::metrics::flow_errors;
-use mocomp::raster::plane_to_array;
-use mocomp::synth::photo::{benchmark_pairs, PairSpec};
-use mocomp::synth::{SceneSpec, Synth};
 use ndarray::Array2;
 
-/// The benchmark generator's pair `name` on procedural texture.
+/// The benchmark generator's pair on procedural texture, 320x240.
 fn generated(name: &str) -> (Array2<f32>, Array2<f32>, Flow, Array2<bool>) {
-    let sources: Vec<Array2<f32>> = (0..3)
-        .map(|k| {
-            plane_to_array(
-                Synth::new(SceneSpec::new("src", 640, 440, 1).seed(20 + k))
-                    .unwrap()
-                    .frame(0)
-                    .y(),
-            )
-        })
-        .collect();
-    let spec: PairSpec = benchmark_pairs(3, 320, 240)
-        .into_iter()
-        .find(|s| s.name == name)
-        .unwrap();
-    let pair = spec.render(&sources);
+    let pair = common::generated(name, 320, 240, 20);
     (pair.frame1, pair.frame2, pair.flow, pair.occluded)
 }
 

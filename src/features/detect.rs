@@ -32,7 +32,7 @@ const ORIENTATION_RADIUS: isize = 12;
 
 /// The smaller eigenvalue of the structure tensor, smoothed over a
 /// Gaussian window of sigma 1.5.
-fn min_eigen(img: &Array2<f32>) -> Array2<f32> {
+pub(crate) fn min_eigen(img: &Array2<f32>) -> Array2<f32> {
     let (gx, gy) = gradients(img);
     let k = gaussian_kernel(1.5);
     let (a, b, c) = (

@@ -24,6 +24,7 @@ use ndarray::Array2;
 use rayon::prelude::*;
 
 pub use describe::{hamming, Descriptor};
+pub(crate) use detect::min_eigen;
 pub use detect::Keypoint;
 
 use crate::flow::pyramid::{blur, pyramid};

@@ -16,7 +16,7 @@
 use ndarray::Array2;
 use rayon::prelude::*;
 
-use super::pyramid::{gaussian_kernel, gradients, pyramid, separable};
+use super::pyramid::{gradients, pyramid};
 use super::warp::sample_bilinear;
 
 /// A tracked point.
@@ -76,17 +76,7 @@ impl Default for TrackParams {
 /// ```
 pub fn good_features(img: &Array2<f32>, max: usize, quality: f32, min_distance: f32) -> Vec<(f32, f32)> {
     let (h, w) = img.dim();
-    let (gx, gy) = gradients(img);
-    let k = gaussian_kernel(1.5);
-    let (a, b, c) = (
-        separable(&(&gx * &gx), &k),
-        separable(&(&gx * &gy), &k),
-        separable(&(&gy * &gy), &k),
-    );
-    let lambda = Array2::from_shape_fn((h, w), |(y, x)| {
-        let (a, b, c) = (a[[y, x]], b[[y, x]], c[[y, x]]);
-        0.5 * (a + c) - (0.25 * (a - c) * (a - c) + b * b).sqrt()
-    });
+    let lambda = crate::features::min_eigen(img);
     let best = lambda.iter().copied().fold(0f32, f32::max);
     if best <= 0.0 {
         return Vec::new();

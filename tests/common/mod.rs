@@ -3,6 +3,7 @@
 use mocomp::flow::Flow;
 use mocomp::metrics::flow_errors;
 use mocomp::raster::plane_to_array;
+use mocomp::synth::photo::{benchmark_pairs, RenderedPair};
 use mocomp::synth::{Motion, SceneSpec, Synth};
 use ndarray::Array2;
 
@@ -29,4 +30,27 @@ pub fn visible_epe(est: &Flow, gt: &Flow, occluded: &Array2<bool>) -> f64 {
     let (_, _, valid) = visible.parts_mut();
     valid.zip_mut_with(occluded, |v, &o| *v = *v && !o);
     flow_errors(est, &visible).unwrap().epe
+}
+
+/// The benchmark generator's pair `name` (`benchmark_pairs(3, w, h)`) on
+/// procedural texture: three sources rendered by the scene generator with
+/// seeds `seed..seed + 3`, 320 x 200 px larger than the pairs as the
+/// generator needs.
+#[allow(dead_code)] // not every test file uses it
+pub fn generated(name: &str, w: usize, h: usize, seed: u64) -> RenderedPair {
+    let sources: Vec<Array2<f32>> = (0..3)
+        .map(|k| {
+            plane_to_array(
+                Synth::new(SceneSpec::new("src", w + 320, h + 200, 1).seed(seed + k))
+                    .unwrap()
+                    .frame(0)
+                    .y(),
+            )
+        })
+        .collect();
+    let spec = benchmark_pairs(3, w, h)
+        .into_iter()
+        .find(|s| s.name == name)
+        .unwrap();
+    spec.render(&sources)
 }

@@ -70,6 +70,10 @@ pub struct Args {
     /// holds where the lighting changes between the pictures.
     #[arg(long)]
     pub gamma: Option<f32>,
+    /// TV-L1's structure-texture split: each level minus its smoothed self,
+    /// times this gain (0 = off, the default; 3 where the lighting changes).
+    #[arg(long)]
+    pub texture: Option<f32>,
     /// HS: warps per level (overrides the preset).
     #[arg(long)]
     pub warps: Option<usize>,
@@ -292,6 +296,10 @@ pub fn run(args: &Args) -> Result<()> {
     }
     if let Some(wp) = args.warps {
         tv.warps = wp.max(1);
+    }
+    if let Some(t) = args.texture {
+        tv.texture = t;
+        tv.validate().map_err(anyhow::Error::msg)?;
     }
     let method = args.method.unwrap_or(FlowMethod::Lk);
     if args.runs == 0 {

@@ -817,31 +817,39 @@ fn encode_and_decode_errors_are_one_line_and_leave_no_output() {
     .contains("does not apply"));
 }
 
-#[test]
-fn match_writes_csv_overlay_and_accuracy() {
+/// Frames 0 and 1 of a synthetic scene panned by (dx, dy), and its exact
+/// flow, written into `dir` as a.png, b.png and gt.flo; returns their paths.
+fn panned_pair(dir: &Path, (w, h): (usize, usize), seed: u64, (dx, dy): (f64, f64)) -> [String; 3] {
     use mocomp::synth::{Motion, SceneSpec, Synth};
-    let dir = tempfile::tempdir().unwrap();
     let s = Synth::new(
-        SceneSpec::new("m", 240, 180, 2)
-            .seed(11)
-            .camera(Motion::translation(41.0, -17.0)),
+        SceneSpec::new("pan", w, h, 2)
+            .seed(seed)
+            .camera(Motion::translation(dx, dy)),
     )
     .unwrap();
-    let path = |n: &str| dir.path().join(n);
+    let path = |n: &str| dir.join(n);
     mocomp::io::image::write_plane(&path("a.png"), s.frame(0).y()).unwrap();
     mocomp::io::image::write_plane(&path("b.png"), s.frame(1).y()).unwrap();
     mocomp::io::flo::write_flo(&path("gt.flo"), &s.forward_flow(0)).unwrap();
+    ["a.png", "b.png", "gt.flo"].map(|n| path(n).to_str().unwrap().to_owned())
+}
+
+#[test]
+fn match_writes_csv_overlay_and_accuracy() {
+    let dir = tempfile::tempdir().unwrap();
+    let [a, b, gt] = panned_pair(dir.path(), (240, 180), 11, (41.0, -17.0));
+    let path = |n: &str| dir.path().join(n);
     let p = |n: &str| path(n).to_str().unwrap().to_owned();
     let v = json_stdout(mocomp().args([
         "match",
-        &p("a.png"),
-        &p("b.png"),
+        &a,
+        &b,
         "--out",
         &p("m.csv"),
         "--overlay",
         &p("o.png"),
         "--gt",
-        &p("gt.flo"),
+        &gt,
         "--json",
     ]));
     let n = v["matches"].as_u64().unwrap() as usize;
@@ -864,31 +872,23 @@ fn match_writes_csv_overlay_and_accuracy() {
     );
     let overlay = mocomp::io::image::read_luma(&path("o.png")).unwrap();
     assert_eq!((overlay.width(), overlay.height()), (480, 180));
-    let err = fails_cleanly(&["match", &p("a.png"), &p("gt.flo")]);
+    let err = fails_cleanly(&["match", &a, &gt]);
     assert!(err.contains("not a picture"), "{err}");
 }
 
 #[test]
 fn flow_writes_the_occlusion_mask_of_the_forward_backward_check() {
-    use mocomp::synth::{Motion, SceneSpec, Synth};
     let dir = tempfile::tempdir().unwrap();
     let (w, h) = (200usize, 150usize);
     // Each method with a pan it follows (LK's pyramid is shallower).
     for (method, dx) in [("dis", 24usize), ("tvl1", 24), ("lk", 8), ("hs", 8)] {
-        let s = Synth::new(
-            SceneSpec::new("o", w, h, 2)
-                .seed(12)
-                .camera(Motion::translation(dx as f64, 0.0)),
-        )
-        .unwrap();
+        let [a, b, _] = panned_pair(dir.path(), (w, h), 12, (dx as f64, 0.0));
         let path = |n: &str| dir.path().join(n);
-        mocomp::io::image::write_plane(&path("a.png"), s.frame(0).y()).unwrap();
-        mocomp::io::image::write_plane(&path("b.png"), s.frame(1).y()).unwrap();
         let p = |n: &str| path(n).to_str().unwrap().to_owned();
         let v = json_stdout(mocomp().args([
             "flow",
-            &p("a.png"),
-            &p("b.png"),
+            &a,
+            &b,
             "--method",
             method,
             "--occlusion",
@@ -925,31 +925,13 @@ fn flow_writes_the_occlusion_mask_of_the_forward_backward_check() {
 
 #[test]
 fn flow_with_matches_reaches_a_pan_beyond_the_pyramid() {
-    use mocomp::synth::{Motion, SceneSpec, Synth};
     let dir = tempfile::tempdir().unwrap();
-    let s = Synth::new(
-        SceneSpec::new("m", 384, 288, 2)
-            .seed(6)
-            .camera(Motion::translation(120.0, -9.5)),
-    )
-    .unwrap();
-    let path = |n: &str| dir.path().join(n).to_str().unwrap().to_owned();
-    mocomp::io::image::write_plane(std::path::Path::new(&path("a.png")), s.frame(0).y()).unwrap();
-    mocomp::io::image::write_plane(std::path::Path::new(&path("b.png")), s.frame(1).y()).unwrap();
-    mocomp::io::flo::write_flo(std::path::Path::new(&path("gt.flo")), &s.forward_flow(0)).unwrap();
+    let [a, b, gt] = panned_pair(dir.path(), (384, 288), 6, (120.0, -9.5));
     let run = |extra: &[&str]| {
         let v = json_stdout(
             mocomp()
-                .args([
-                    "flow",
-                    &path("a.png"),
-                    &path("b.png"),
-                    "--method",
-                    "dis",
-                    "--preset",
-                    "fast",
-                ])
-                .args(["--gt", &path("gt.flo"), "--json"])
+                .args(["flow", &a, &b, "--method", "dis", "--preset", "fast"])
+                .args(["--gt", &gt, "--json"])
                 .args(extra),
         );
         v["epe"].as_f64().unwrap()

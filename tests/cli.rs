@@ -537,8 +537,6 @@ fn flow_by_dense_inverse_search_and_the_benchmark_generator() {
                 case.join("frame2.png").to_str().unwrap(),
             ])
             .args([
-                "--method",
-                "dis",
                 "--preset",
                 "medium",
                 "--json",
@@ -546,6 +544,7 @@ fn flow_by_dense_inverse_search_and_the_benchmark_generator() {
                 case.join("gt.flo").to_str().unwrap(),
             ]),
     );
+    // Dense inverse search is the default method.
     assert_eq!(v["method"], "dis");
     // A pan of (2.3, -1.4) px with zoom and rotation: measured EPE 0.13 px.
     assert!(v["epe"].as_f64().unwrap() < 0.3, "{v}");

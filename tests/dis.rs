@@ -19,7 +19,9 @@ fn preset(p: DisPreset) -> DisParams {
 fn small_and_sub_pixel_translations() {
     for (dx, dy) in [(2.0, -1.0), (0.25, 0.5), (-1.75, 0.0), (3.5, 2.25)] {
         let (i1, i2, gt) = translated(160, 120, dx, dy);
-        // Measured EPE: ultrafast 0.05-0.13 px, fast 0.03-0.08, medium 0.01-0.03.
+        // At this size fast and medium work at full size, where the scene's
+        // flat areas and lone edges let undamped patches slide (R1 up to
+        // 2.1 % without DisParams::damping).
         for (p, bound) in [
             (DisPreset::Ultrafast, 0.25),
             (DisPreset::Fast, 0.15),

@@ -25,12 +25,14 @@ use crate::viz::{draw_flow_arrows, flow_to_rgb};
 /// Speed / accuracy trade-offs, as x264 and DIS have them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Preset {
-    /// The fastest (DIS: quarter-size flow without refinement; LK and HS
-    /// as fast; TV-L1: 2 warps of 15 iterations).
+    /// The fastest (DIS: quarter-size flow without refinement, half-size
+    /// for pictures under ~450 px, full size under ~230 px; LK and HS as
+    /// fast; TV-L1: 2 warps of 15 iterations).
     Ultrafast,
-    /// Fewer iterations and a smaller window (DIS: quarter-size flow).
+    /// Fewer iterations and a smaller window (DIS: quarter-size flow,
+    /// finer for small pictures as ultrafast).
     Fast,
-    /// The default balance (DIS: half-size flow).
+    /// The default balance (DIS: half-size flow, full size below ~450 px).
     Medium,
     /// More iterations and levels (DIS: full-size flow, started from
     /// feature matches as well, for the largest motions).
@@ -46,8 +48,8 @@ pub struct Args {
     /// Write the flow as Middlebury .flo.
     #[arg(short, long, value_name = "FILE")]
     pub output: Option<PathBuf>,
-    /// Method: lk (dense pyramidal Lucas-Kanade, the default), hs
-    /// (Horn-Schunck), dis (dense inverse search) or tvl1 (TV-L1).
+    /// Method: dis (dense inverse search, the default), lk (dense
+    /// pyramidal Lucas-Kanade), hs (Horn-Schunck) or tvl1 (TV-L1).
     #[arg(long)]
     pub method: Option<FlowMethod>,
     /// Settings preset.
@@ -301,7 +303,7 @@ pub fn run(args: &Args) -> Result<()> {
         tv.texture = t;
         tv.validate().map_err(anyhow::Error::msg)?;
     }
-    let method = args.method.unwrap_or(FlowMethod::Lk);
+    let method = args.method.unwrap_or(FlowMethod::Dis);
     if args.runs == 0 {
         bail!("--runs must be at least 1");
     }
@@ -316,6 +318,11 @@ pub fn run(args: &Args) -> Result<()> {
         global_search: args.global_search,
         seed_matches: dis_base.seed_matches || args.matches,
         finest: args.finest.unwrap_or(dis_base.finest),
+        min_side: if args.finest.is_some() {
+            0
+        } else {
+            dis_base.min_side
+        },
         ..dis_base
     });
     let mut estimate = |a: &Array2<f32>, b: &Array2<f32>| {

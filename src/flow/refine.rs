@@ -28,7 +28,9 @@ pub struct RefineParams {
     pub iterations: usize,
     /// SOR sweeps per fixed-point iteration.
     pub sor_iterations: usize,
-    /// Smoothness weight.
+    /// Smoothness weight (30: OpenCV's DIS uses 20, which on the flow
+    /// benchmark left every kind of pair a little less accurate with the
+    /// medium and accurate presets).
     pub alpha: f32,
     /// Brightness-constancy weight.
     pub delta: f32,
@@ -43,7 +45,7 @@ impl Default for RefineParams {
         RefineParams {
             iterations: 5,
             sor_iterations: 5,
-            alpha: 20.0,
+            alpha: 30.0,
             delta: 5.0,
             gamma: 10.0,
             omega: 1.6,
@@ -679,8 +681,11 @@ mod tests {
             Array2::from_elem((48, 64), 1.0f32),
             Array2::from_elem((48, 64), -0.5f32),
         );
+        // The smoothness weight pinned (the default's is tuned on the flow
+        // benchmark; a stiffer one carries a global offset more slowly).
         let p = RefineParams {
             iterations: 10,
+            alpha: 20.0,
             ..RefineParams::default()
         };
         refine(&i1, &i2, &mut u, &mut v, &p);

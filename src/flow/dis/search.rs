@@ -195,11 +195,11 @@ impl<const P: usize> Template<P> {
             sxy -= sx * sy / n;
             syy -= sy * sy / n;
         }
-        // A small floor on the diagonal keeps flat patches' steps finite;
-        // such steps are then refused by the distance check.
+        // The damping on the diagonal keeps flat patches' steps finite
+        // and short (DisParams::damping).
         let half_trace = 0.5 * (sxx + syy);
         t.texture = (half_trace - ((0.5 * (sxx - syy)).powi(2) + sxy * sxy).sqrt()) / n;
-        let floor = 0.01 * n;
+        let floor = lv.damping * n;
         let (a, b, c) = (sxx + floor, sxy, syy + floor);
         let det = a * c - b * b;
         t.inv = [c / det, -b / det, a / det];
@@ -316,6 +316,7 @@ struct Level<'a> {
     gy: Vec<f32>,
     i1: &'a Padded,
     w: usize,
+    damping: f32,
 }
 
 /// What a level's search works on: the two pictures of the level, the
@@ -331,6 +332,8 @@ pub(super) struct LevelSearch<'a> {
     pub hint: Option<&'a (Array2<f32>, Array2<f32>)>,
     pub params: &'a DisParams,
     pub exhaustive: bool,
+    /// Added to the Hessian's diagonal per pixel of the patch.
+    pub damping: f32,
 }
 
 /// Searches every patch of the level with patches of side `patch`.
@@ -374,6 +377,7 @@ fn search_sized<const P: usize>(input: &LevelSearch) -> SparseFlow {
         hint,
         params: p,
         exhaustive,
+        damping,
     } = input;
     let (h, w) = a1.dim();
     let i0 = a1.as_slice().expect("standard");
@@ -384,6 +388,7 @@ fn search_sized<const P: usize>(input: &LevelSearch) -> SparseFlow {
         gy,
         i1: a2,
         w,
+        damping,
     };
     let stride = p.stride.min(P);
     let (xs, ys) = (patch_origins(w, P, stride), patch_origins(h, P, stride));
@@ -630,6 +635,7 @@ mod tests {
                     hint: None,
                     params: &params,
                     exhaustive: global,
+                    damping: params.damping,
                 };
                 let plain = search_level_body(&input, patch);
                 // SAFETY: AVX2 is present, checked above.

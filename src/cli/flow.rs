@@ -124,29 +124,26 @@ pub struct Args {
     pub json: bool,
 }
 
-/// The LK settings of each preset. Measured on `../shared/data/flowpair`
-/// (`mocomp flow frame1.png frame2.png --gt gt.flo --preset P --runs 5`):
-/// fast (window sigma 2.5, stops at a quarter of the size) EPE 0.172 px in
-/// 2.6 ms; medium (sigma 4, full size) 0.054 px in 11.9 ms; accurate
-/// (sigma 5, five levels) 0.049 px in 13.1 ms. Larger windows suit smooth
-/// motion; they blur motion boundaries, so medium stays at sigma 4.
+/// The LK settings of each preset: every one with as many levels as the
+/// picture allows and contrast-normalised pictures (what large motion and
+/// lighting changes need: see the README's flow benchmark). Fast: window
+/// sigma 2.5, stops at half size; medium: sigma 4, full size; accurate:
+/// sigma 6. Larger windows suit smooth motion; they blur motion
+/// boundaries, so medium stays at sigma 4.
 pub fn lk_preset(preset: Preset) -> LkParams {
+    let base = LkParams {
+        levels: 0,
+        normalize: true,
+        ..LkParams::default()
+    };
     match preset {
         Preset::Ultrafast | Preset::Fast => LkParams {
-            levels: 4,
             sigma: 2.5,
-            iterations: 1,
-            min_eigen: 1.0,
-            finest: 2,
+            finest: 1,
+            ..base
         },
-        Preset::Medium => LkParams::default(),
-        Preset::Accurate => LkParams {
-            levels: 5,
-            sigma: 5.0,
-            iterations: 1,
-            min_eigen: 1.0,
-            finest: 0,
-        },
+        Preset::Medium => base,
+        Preset::Accurate => LkParams { sigma: 6.0, ..base },
     }
 }
 

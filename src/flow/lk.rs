@@ -24,8 +24,8 @@ use ndarray::Array2;
 use rayon::prelude::*;
 
 use super::pyramid::{
-    filter_cols_slice, filter_rows_slice, gaussian_kernel, parallel_worth, rows_per_task, separable_slice,
-    upsample2, Pyramid, DERIVATIVE,
+    filter_cols_slice, filter_rows_slice, gaussian_kernel, normalize_contrast, parallel_worth, rows_per_task,
+    separable_slice, upsample2, Pyramid, DERIVATIVE,
 };
 use super::warp::{cubic_weights, sample_bicubic};
 use super::Flow;
@@ -33,7 +33,10 @@ use super::Flow;
 /// Settings of dense Lucas-Kanade.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LkParams {
-    /// Pyramid levels (1 = the full-size pictures only).
+    /// Pyramid levels (1 = the full-size pictures only; 0 = as many as the
+    /// picture allows, down to a coarsest level 16-31 pixels on its longer
+    /// side: LK's update reaches a pixel or two per level, so motion of
+    /// tens of pixels needs the deep pyramid).
     pub levels: usize,
     /// Standard deviation of the Gaussian window, pixels.
     pub sigma: f32,
@@ -46,6 +49,30 @@ pub struct LkParams {
     /// Finest pyramid level computed (0 = full size); the flow of that
     /// level is upsampled to full size. 1 costs a quarter of the work.
     pub finest: usize,
+    /// Match locally contrast-normalised pictures
+    /// ([`normalize_contrast`]) instead of grey levels: robust to gain,
+    /// offset and ramps of the lighting, which coarse levels otherwise
+    /// mistake for motion. Off by default (the encoder's flow and the
+    /// small-motion tests were measured without it; on a small noise-free
+    /// scene with flat areas it costs accuracy); the CLI's presets use it.
+    pub normalize: bool,
+}
+
+/// The window of [`LkParams::normalize`]'s normalisation (pixels of each
+/// level) and the noise level it does not amplify (grey levels).
+const NORMALIZE_SIGMA: f32 = 3.0;
+const NORMALIZE_NOISE: f32 = 5.0;
+
+/// The number of levels [`LkParams::levels`] = 0 stands for: halvings
+/// until the longer side is under 32 pixels.
+pub fn levels_for(w: usize, h: usize) -> usize {
+    let mut levels = 1;
+    let mut long = w.max(h);
+    while long >= 32 {
+        long = long.div_ceil(2);
+        levels += 1;
+    }
+    levels
 }
 
 impl Default for LkParams {
@@ -56,6 +83,7 @@ impl Default for LkParams {
             iterations: 1,
             min_eigen: 1.0,
             finest: 0,
+            normalize: false,
         }
     }
 }
@@ -240,8 +268,17 @@ impl Lk {
         // Coarse levels may be smaller than the window (borders repeat): what
         // matters is that the coarsest level sees the motion as under a pixel.
         let min_size = 8;
-        self.p1.build(i1, p.levels, min_size);
-        self.p2.build(i2, p.levels, min_size);
+        let levels = match p.levels {
+            0 => levels_for(i1.ncols(), i1.nrows()),
+            n => n,
+        };
+        self.p1.build(i1, levels, min_size);
+        self.p2.build(i2, levels, min_size);
+        if p.normalize {
+            for level in self.p1.levels.iter_mut().chain(self.p2.levels.iter_mut()) {
+                *level = normalize_contrast(level, NORMALIZE_SIGMA, NORMALIZE_NOISE);
+            }
+        }
         let (p1, p2) = (&self.p1.levels, &self.p2.levels);
         let coarsest = p1.len() - 1;
         let finest = p.finest.min(coarsest);

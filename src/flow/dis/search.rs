@@ -299,14 +299,26 @@ impl<const P: usize> Template<P> {
             }
             best = cost;
             last = (u, v);
-            u -= self.inv[0] * bx + self.inv[1] * by;
-            v -= self.inv[1] * bx + self.inv[2] * by;
+            let (du, dv) = (
+                self.inv[0] * bx + self.inv[1] * by,
+                self.inv[1] * bx + self.inv[2] * by,
+            );
+            u -= du;
+            v -= dv;
+            if du * du + dv * dv < STEP_EPS2 {
+                return (u, v);
+            }
         }
         // The last step's result was not evaluated: keep it (each step so
         // far lowered the distance).
         (u, v)
     }
 }
+
+/// Squared length of a Gauss-Newton step (pixels of the level) after
+/// which the descent stops: the rest would move the patch by less.
+const STEP_EPS2: f32 = STEP_EPS * STEP_EPS;
+const STEP_EPS: f32 = 0.005;
 
 /// The first picture of a level, its gradients, and the second picture
 /// padded.

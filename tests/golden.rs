@@ -1,0 +1,67 @@
+//! Golden streams: the bytes of a few encodings of the bundled samples,
+//! pinned by hash, so that "the same streams" after a refactor or a new
+//! SIMD kernel is a test rather than a note in a commit. A change of the
+//! format or of an encoder decision changes a hash on purpose: then the
+//! new hashes are taken (run with `MOCOMP_GOLDEN=print`) and the commit
+//! says why.
+
+use mocomp::encode::{Encoder, EncoderConfig, ModeDecision};
+use mocomp::io::y4m::Y4mReader;
+
+/// 64-bit FNV-1a: enough to tell streams apart, no dependency.
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}
+
+/// The stream of the first `frames` frames of `sample` with `config`.
+fn stream(sample: &str, frames: usize, config: EncoderConfig) -> Vec<u8> {
+    let path = format!("{}/samples/{sample}", env!("CARGO_MANIFEST_DIR"));
+    let all = Y4mReader::open(path.as_ref()).unwrap().read_all().unwrap();
+    let first = &all[0];
+    let mut encoder = Encoder::new(first.width(), first.height(), (25, 1), config).unwrap();
+    let mut out = encoder.header();
+    for f in all.iter().take(frames) {
+        out.extend_from_slice(&encoder.encode(f).unwrap().bytes);
+    }
+    out.extend_from_slice(&Encoder::trailer());
+    out
+}
+
+#[test]
+fn streams_are_the_pinned_ones() {
+    let cases: [(&str, &str, u8, &str, u64); 8] = [
+        ("synth_qcif.y4m", "zero", 30, "fast", 0x23d84ee6ad0e85a8),
+        ("synth_qcif.y4m", "block", 27, "fast", 0x4d8baf247e0214ea),
+        ("synth_qcif.y4m", "block:esa", 22, "full", 0x74e8f111a284da15),
+        ("synth_qcif.y4m", "flow-block:lk", 32, "fast", 0x8ddbac7ffc53f264),
+        ("synth_qcif.y4m", "dense-lk", 32, "fast", 0x8f33e187bb751819),
+        ("tree_qcif.y4m", "obmc", 27, "fast", 0x9b12f9c3c746d407),
+        ("tree_qcif.y4m", "block:hexbs", 37, "fast", 0x89d1be88ebb4984e),
+        ("tree_qcif.y4m", "flow-block:dis", 30, "fast", 0x7b74af248886126f),
+    ];
+    let print = std::env::var("MOCOMP_GOLDEN").is_ok_and(|v| v == "print");
+    let mut wrong = Vec::new();
+    for (sample, predictor, qp, decision, pinned) in cases {
+        let decision = match decision {
+            "full" => ModeDecision::Full,
+            _ => ModeDecision::Fast,
+        };
+        let config = EncoderConfig::new()
+            .qp(qp)
+            .gop(4)
+            .decision(decision)
+            .predictor(predictor.parse().unwrap());
+        let hash = fnv1a(&stream(sample, 6, config));
+        if print {
+            println!("(\"{sample}\", \"{predictor}\", {qp}, ..., {hash:#018x}),");
+        }
+        if hash != pinned {
+            wrong.push(format!(
+                "{sample} {predictor} QP {qp}: {hash:#018x}, pinned {pinned:#018x}"
+            ));
+        }
+    }
+    assert!(wrong.is_empty(), "streams changed:\n{}", wrong.join("\n"));
+}

@@ -5,6 +5,11 @@
 //! the `mocomp-codec` crate, re-exported as [`codec`]; everything an encoder
 //! or analyst chooses lives here. See `ARCHITECTURE.md`.
 //!
+//! Features: `cli` (default) builds the `mocomp` command line and what only
+//! it needs (clap, indicatif, the plots); `plot` alone adds the RD plots
+//! ([`rd::plot`]). With `default-features = false` the library depends on
+//! none of them.
+//!
 //! ```
 //! use mocomp::codec::Frame;
 //! use mocomp::metrics::FrameQuality;
@@ -17,6 +22,7 @@
 
 pub use mocomp_codec as codec;
 
+#[cfg(feature = "cli")]
 pub mod cli;
 pub mod encode;
 pub mod features;

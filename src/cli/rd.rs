@@ -71,9 +71,7 @@ pub fn load_curve(spec: &str) -> Result<(Vec<RdPoint>, String)> {
             .map_or((spec, None), |(p, l)| (p, Some(l.to_string())))
     };
     let file = std::fs::File::open(path).with_context(|| path.to_string())?;
-    let points = read_csv(std::io::BufReader::new(file))
-        .map_err(anyhow::Error::msg)
-        .with_context(|| path.to_string())?;
+    let points = read_csv(std::io::BufReader::new(file)).with_context(|| path.to_string())?;
     let mut codecs: Vec<&str> = points.iter().map(|p| p.codec.as_str()).collect();
     codecs.sort_unstable();
     codecs.dedup();
@@ -204,11 +202,7 @@ pub fn run_sweep(
         Some(path) => {
             let names: Vec<&str> = sequences.iter().map(|s| s.name.as_str()).collect();
             let title = format!("{}: PSNR-Y vs rate", names.join(", "));
-            Some(
-                plot(&points, path, &title)
-                    .map_err(anyhow::Error::msg)
-                    .context("plotting")?,
-            )
+            Some(plot(&points, path, &title).context("plotting")?)
         }
         None => None,
     };

@@ -29,10 +29,23 @@ fn register_fonts() {
     });
 }
 
-type PlotResult<T> = Result<T, String>;
+/// Why a plot could not be drawn.
+#[derive(Debug, thiserror::Error)]
+pub enum PlotError {
+    /// No points were given.
+    #[error("nothing to plot")]
+    Empty,
+    /// The drawing backend failed (most often: the file could not be
+    /// written); its message.
+    #[error("{0}")]
+    Draw(String),
+}
 
-fn err<E: std::fmt::Display>(e: E) -> String {
-    e.to_string()
+type PlotResult<T> = Result<T, PlotError>;
+
+/// The backends' errors are generic over the backend: keep their message.
+fn err<E: std::fmt::Display>(e: E) -> PlotError {
+    PlotError::Draw(e.to_string())
 }
 
 /// Series label: the codec, prefixed by the sequence when there are several.
@@ -217,7 +230,7 @@ fn draw_bits<DB: DrawingBackend>(
 /// `<stem>_bits.svg` / `.png` with the bit split. `title` heads both.
 pub fn plot(points: &[RdPoint], path: &Path, title: &str) -> PlotResult<PlotFiles> {
     if points.is_empty() {
-        return Err("nothing to plot".into());
+        return Err(PlotError::Empty);
     }
     register_fonts();
     let stem = path.with_extension("");

@@ -147,23 +147,40 @@ pub fn write_csv(points: &[RdPoint], out: impl Write) -> csv::Result<()> {
     Ok(())
 }
 
+/// Why an RD CSV could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum CsvError {
+    /// Not readable as CSV (or not readable at all).
+    #[error(transparent)]
+    Csv(#[from] csv::Error),
+    /// One of the six leading columns of the peer format is missing.
+    #[error("no '{0}' column (the peer format starts codec,q,bytes,frames,kbps,psnr_y)")]
+    MissingColumn(&'static str),
+    /// A value that should be a number is not.
+    #[error("row {row}: '{column}' is '{text}', not a number")]
+    NotANumber {
+        /// The row, counting the header as row 1.
+        row: usize,
+        /// The column's name.
+        column: &'static str,
+        /// What the cell holds.
+        text: String,
+    },
+}
+
 /// Reads a CSV in the peer format (`codec,q,bytes,frames,kbps,psnr_y`,
 /// more columns optional, in any order). Missing optional values are 0 or
 /// empty.
-pub fn read_csv(input: impl Read) -> Result<Vec<RdPoint>, String> {
+pub fn read_csv(input: impl Read) -> Result<Vec<RdPoint>, CsvError> {
     let mut r = csv::Reader::from_reader(input);
-    let headers = r.headers().map_err(|e| e.to_string())?.clone();
+    let headers = r.headers()?.clone();
     let col = |name: &str| headers.iter().position(|h| h.trim() == name);
-    for required in &CSV_COLUMNS[..6] {
-        if col(required).is_none() {
-            return Err(format!(
-                "no '{required}' column (the peer format starts codec,q,bytes,frames,kbps,psnr_y)"
-            ));
-        }
+    if let Some(missing) = CSV_COLUMNS[..6].iter().find(|c| col(c).is_none()) {
+        return Err(CsvError::MissingColumn(missing));
     }
     let mut out = Vec::new();
     for (line, record) in r.records().enumerate() {
-        let record = record.map_err(|e| e.to_string())?;
+        let record = record?;
         let text = |name: &str| {
             col(name)
                 .and_then(|i| record.get(i))
@@ -171,13 +188,16 @@ pub fn read_csv(input: impl Read) -> Result<Vec<RdPoint>, String> {
                 .trim()
                 .to_string()
         };
-        let num = |name: &str| -> Result<f64, String> {
+        let num = |name: &'static str| -> Result<f64, CsvError> {
             let t = text(name);
             if t.is_empty() && !CSV_COLUMNS[..6].contains(&name) {
                 return Ok(0.0);
             }
-            t.parse::<f64>()
-                .map_err(|_| format!("row {}: '{name}' is '{t}', not a number", line + 2))
+            t.parse::<f64>().map_err(|_| CsvError::NotANumber {
+                row: line + 2,
+                column: name,
+                text: t,
+            })
         };
         out.push(RdPoint {
             codec: text("codec"),

@@ -369,6 +369,13 @@ fn results_do_not_depend_on_the_number_of_threads() {
             .unwrap();
         pool.install(|| {
             let lk = dense_lk(&a, &b, &LkParams::default());
+            // The CLI presets' LK: all levels, contrast-normalised.
+            let deep = LkParams {
+                levels: 0,
+                normalize: true,
+                ..LkParams::default()
+            };
+            let lk_deep = dense_lk(&a, &b, &deep).flow;
             let points = good_features(&a, 100, 0.01, 5.0);
             let tracks = track(&a, &b, &points, &TrackParams::default());
             let hs = horn_schunck(
@@ -380,7 +387,7 @@ fn results_do_not_depend_on_the_number_of_threads() {
                 },
             )
             .0;
-            (lk.flow, lk.confidence, tracks, hs)
+            (lk.flow, lk.confidence, lk_deep, tracks, hs)
         })
     };
     let one = run(1);
@@ -389,8 +396,9 @@ fn results_do_not_depend_on_the_number_of_threads() {
         one.0 == four.0 && one.1 == four.1,
         "LK differs between 1 and 4 threads"
     );
-    assert_eq!(one.2, four.2, "tracks differ");
-    assert!(one.3 == four.3, "HS differs");
+    assert!(one.2 == four.2, "contrast-normalised LK differs");
+    assert_eq!(one.3, four.3, "tracks differ");
+    assert!(one.4 == four.4, "HS differs");
 }
 
 #[test]

@@ -24,8 +24,8 @@ use ndarray::Array2;
 use rayon::prelude::*;
 
 use super::pyramid::{
-    filter_cols_slice, filter_rows_slice, gaussian_kernel, normalize_contrast, parallel_worth, rows_per_task,
-    separable_slice, upsample2, Pyramid, DERIVATIVE,
+    filter_cols_slice, filter_rows_slice, full_depth, gaussian_kernel, normalize_levels, parallel_worth,
+    rows_per_task, separable_slice, upsample2, Pyramid, DERIVATIVE,
 };
 use super::warp::{cubic_weights, sample_bicubic};
 use super::Flow;
@@ -50,29 +50,12 @@ pub struct LkParams {
     /// level is upsampled to full size. 1 costs a quarter of the work.
     pub finest: usize,
     /// Match locally contrast-normalised pictures
-    /// ([`normalize_contrast`]) instead of grey levels: robust to gain,
+    /// ([`super::pyramid::normalize_contrast`]) instead of grey levels: robust to gain,
     /// offset and ramps of the lighting, which coarse levels otherwise
     /// mistake for motion. Off by default (the encoder's flow and the
     /// small-motion tests were measured without it; on a small noise-free
     /// scene with flat areas it costs accuracy); the CLI's presets use it.
     pub normalize: bool,
-}
-
-/// The window of [`LkParams::normalize`]'s normalisation (pixels of each
-/// level) and the noise level it does not amplify (grey levels).
-const NORMALIZE_SIGMA: f32 = 3.0;
-const NORMALIZE_NOISE: f32 = 5.0;
-
-/// The number of levels [`LkParams::levels`] = 0 stands for: halvings
-/// until the longer side is under 32 pixels.
-pub fn levels_for(w: usize, h: usize) -> usize {
-    let mut levels = 1;
-    let mut long = w.max(h);
-    while long >= 32 {
-        long = long.div_ceil(2);
-        levels += 1;
-    }
-    levels
 }
 
 impl Default for LkParams {
@@ -269,15 +252,14 @@ impl Lk {
         // matters is that the coarsest level sees the motion as under a pixel.
         let min_size = 8;
         let levels = match p.levels {
-            0 => levels_for(i1.ncols(), i1.nrows()),
+            0 => full_depth(i1.ncols(), i1.nrows()),
             n => n,
         };
         self.p1.build(i1, levels, min_size);
         self.p2.build(i2, levels, min_size);
         if p.normalize {
-            for level in self.p1.levels.iter_mut().chain(self.p2.levels.iter_mut()) {
-                *level = normalize_contrast(level, NORMALIZE_SIGMA, NORMALIZE_NOISE);
-            }
+            normalize_levels(&mut self.p1.levels);
+            normalize_levels(&mut self.p2.levels);
         }
         let (p1, p2) = (&self.p1.levels, &self.p2.levels);
         let coarsest = p1.len() - 1;

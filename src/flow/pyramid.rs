@@ -239,6 +239,28 @@ pub fn normalize_contrast(img: &Array2<f32>, sigma: f32, noise: f32) -> Array2<f
 /// The standard deviation [`normalize_contrast`] gives a textured area.
 const NORMALIZED_CONTRAST: f32 = 40.0;
 
+/// Every level of a pyramid contrast-normalised in place, as the flow
+/// methods that match normalised pictures use it: a window of 3 pixels of
+/// each level, noise of 5 grey levels not amplified.
+pub fn normalize_levels(levels: &mut [Array2<f32>]) {
+    for level in levels {
+        *level = normalize_contrast(level, 3.0, 5.0);
+    }
+}
+
+/// The number of pyramid levels that halves a `w x h` picture until its
+/// longer side is under 32 pixels: the depth a coarse-to-fine method with
+/// a reach of a pixel or two per level needs for motion of tens of pixels.
+pub fn full_depth(w: usize, h: usize) -> usize {
+    let mut levels = 1;
+    let mut long = w.max(h);
+    while long >= 32 {
+        long = long.div_ceil(2);
+        levels += 1;
+    }
+    levels
+}
+
 /// Half-size picture: blurred (sigma 1, which removes what 2x decimation
 /// would alias) and averaged over each 2x2 pair of samples (pixel centres
 /// of the small picture at 2x + 0.5 of the large one). The blur and the
@@ -483,6 +505,14 @@ pub fn gradients(src: &Array2<f32>) -> (Array2<f32>, Array2<f32>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn full_depth_stops_under_32_pixels() {
+        assert_eq!(full_depth(640, 480), 6);
+        assert_eq!(full_depth(352, 288), 5);
+        assert_eq!(full_depth(31, 20), 1);
+        assert_eq!(full_depth(32, 1), 2);
+    }
 
     #[test]
     fn contrast_normalisation_drops_gain_offset_and_ramp() {

@@ -1,9 +1,11 @@
 //! `mocomp-codec`: the normative half of mocomp.
 //!
 //! Everything a decoder must do bit-exactly lives here, and nothing about how
-//! an encoder searches: picture types now; the bitstream, transforms, motion
-//! compensation and the decoder as they land. It depends on no other crate of
-//! the workspace. See `ARCHITECTURE.md` at the repository root.
+//! an encoder searches: picture types, the bitstream syntax and its range
+//! coder, transforms and dequantisation, intra prediction, motion
+//! compensation (block, OBMC, the dense grid warp) and the decoder;
+//! `FORMAT.md` beside this crate specifies the stream. It depends on no other
+//! crate of the workspace. See `ARCHITECTURE.md` at the repository root.
 #![warn(missing_docs)]
 
 pub mod bits;

@@ -1,8 +1,9 @@
 //! Motion vectors, their prediction from neighbours, and their code length.
 //!
 //! A vector is in quarter-pel luma units (eighth-pel chroma). It is coded as
-//! the difference from a predicted vector, each component as `se(v)`. The
-//! predictor follows H.264 8.4.1.3 for a single reference: with A the left,
+//! the difference from a predicted vector, range-coded by [`crate::modes`];
+//! [`mvd_bits`], the Exp-Golomb length of that difference, is the rate
+//! estimate a motion search weighs. The predictor follows H.264 8.4.1.3 for a single reference: with A the left,
 //! B the upper and C the upper-right neighbour (the upper-left one, D, when
 //! C is outside the picture or not yet decoded), a neighbour being
 //! "unavailable" when outside the picture or intra-coded,
@@ -99,8 +100,10 @@ pub fn predict_mv(left: Option<Mv>, top: Option<Mv>, top_right: Option<Mv>, top_
     Mv::new(median3(a.x, b.x, c.x), median3(a.y, b.y, c.y))
 }
 
-/// Bits the vector `mv` costs when predicted by `mvp`: `se(dx) + se(dy)`.
-/// This is the `R(mv - mvp)` of rate-constrained motion search.
+/// The rate estimate of the vector `mv` predicted by `mvp`: `se(dx) +
+/// se(dy)`, the Exp-Golomb length of the difference (the stream
+/// range-codes it, [`crate::modes`]). This is the `R(mv - mvp)` of
+/// rate-constrained motion search.
 #[inline]
 pub fn mvd_bits(mv: Mv, mvp: Mv) -> u32 {
     let d = mv - mvp;

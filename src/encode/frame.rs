@@ -2,9 +2,10 @@
 //! raster order, with reconstruction through the codec's functions.
 
 use super::config::ModeDecision;
-use super::macroblock::{mvd_len, MbCoder, MbSource};
+use super::macroblock::{MbCoder, MbSource};
 use super::motion::FrameMotion;
 use crate::codec::modes::{MbMode, ModeCoder};
+use crate::codec::mv::mvd_bits;
 use crate::codec::mv::Mv;
 use crate::codec::recon::{predict_inter, predict_intra, write_mb, InterContext, MbPrediction};
 use crate::codec::residual::{MbResidual, ResidualCoder};
@@ -252,7 +253,7 @@ pub(crate) fn code_inter(
             // The lower SATD + sqrt(lambda) * vector bits is coded alone.
             let sad_lambda = coder.lambda.sqrt();
             let estimate = |(mv, _, satd): &(Mv, MbPrediction, u32)| {
-                f64::from(*satd) + sad_lambda * f64::from(mvd_len(*mv, mvp))
+                f64::from(*satd) + sad_lambda * f64::from(mvd_bits(*mv, mvp))
             };
             if estimate(&candidates[1]) < estimate(&candidates[0]) {
                 candidates.swap(0, 1);

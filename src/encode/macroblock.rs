@@ -3,9 +3,8 @@
 //! residual coder prices it in its present state, and the rate-distortion
 //! cost J = SSD + lambda * bits of each way to code it.
 
-use crate::codec::bits::{se_len, ue_len};
+use crate::codec::bits::ue_len;
 use crate::codec::intra::IntraMode;
-use crate::codec::mv::Mv;
 use crate::codec::recon::{chroma_qp, reconstruct_samples, IntraEdges, MbPrediction};
 use crate::codec::residual::{BlockPricer, MbResidual, ResidualCoder, ZIGZAG};
 use crate::codec::syntax::{intra_mode_allowed, MB};
@@ -273,7 +272,7 @@ impl MbCoder {
     pub fn new(qp: u8, lambda_scale: f64, rdoq: bool) -> MbCoder {
         MbCoder {
             qp,
-            lambda: lambda_scale * 0.85 * 2f64.powf((f64::from(qp) - 12.0) / 3.0),
+            lambda: lambda_scale * crate::me::lambda_for_qp(Metric::Ssd, qp),
             rdoq,
         }
     }
@@ -476,11 +475,6 @@ fn allowed_intra_modes(mb_x: usize, mb_y: usize) -> impl Iterator<Item = IntraMo
     IntraMode::ALL
         .into_iter()
         .filter(move |&m| intra_mode_allowed(m, mb_x, mb_y))
-}
-
-/// Bits of a vector difference.
-pub(crate) fn mvd_len(mv: Mv, mvp: Mv) -> u32 {
-    se_len(mv.x - mvp.x) + se_len(mv.y - mvp.y)
 }
 
 #[cfg(test)]

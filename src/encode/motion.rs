@@ -178,7 +178,7 @@ pub(crate) fn refine_around(
             reference, x as isize, y as isize, mv.x, mv.y, MB, MB, &mut pred, MB,
         );
         f64::from(Metric::Satd.cost(src, cur.stride(), &pred, MB, MB, MB))
-            + lambda * f64::from(super::macroblock::mvd_len(mv, mvp))
+            + lambda * f64::from(crate::codec::mv::mvd_bits(mv, mvp))
     };
     let mut best = (cost(seed), seed);
     let centre = Mv::new((seed.x + 2) & !3, (seed.y + 2) & !3);

@@ -10,7 +10,7 @@
 //! in the window, only with its radius. The tensor (left side) comes from
 //! the first picture's gradients and is filtered once per level; each
 //! Gauss-Newton iteration warps the second picture by the current flow
-//! (bilinear), filters the two right-hand sides, and adds the solution.
+//! (bicubic), filters the two right-hand sides, and adds the solution.
 //! Levels run coarse to fine, each starting from the coarser level's flow,
 //! so motions of many pixels are found.
 //!

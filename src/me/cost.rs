@@ -66,28 +66,25 @@ impl FromStr for Metric {
     }
 }
 
-/// Sum over the block of `f(|a - b|)`.
-#[inline]
-fn sum_of(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize, f: impl Fn(u32) -> u32) -> u32 {
+/// Sum of absolute differences.
+pub fn sad(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
     (0..h)
         .map(|r| {
             let (ra, rb) = (&a[r * sa..r * sa + w], &b[r * sb..r * sb + w]);
             ra.iter()
                 .zip(rb)
-                .map(|(&x, &y)| f(u32::from(x.abs_diff(y))))
+                .map(|(&x, &y)| u32::from(x.abs_diff(y)))
                 .sum::<u32>()
         })
         .sum()
 }
 
-/// Sum of absolute differences.
-pub fn sad(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
-    sum_of(a, sa, b, sb, w, h, |d| d)
-}
-
-/// Sum of squared differences.
+/// Sum of squared differences (row by row with the metrics' kernel).
 pub fn ssd(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
-    sum_of(a, sa, b, sb, w, h, |d| d * d)
+    let rows = (0..h)
+        .map(|r| crate::metrics::squared_difference_sum(&a[r * sa..r * sa + w], &b[r * sb..r * sb + w]));
+    // A block of at most 64x64 samples: under 2^28.
+    rows.sum::<u64>() as u32
 }
 
 /// `sum |H D H^T|` of one 4x4 tile, with H the 4x4 Hadamard matrix (not

@@ -150,8 +150,18 @@ fn copy_rows(n: usize, a: &[u8], sa: usize, out: &mut [u8]) {
     }
 }
 
-/// The half-pel filter (the codec's 8-tap filter at phase 1/2).
-const HALF: [i16; 8] = [-1, 4, -11, 40, 40, -11, 4, -1];
+/// The half-pel filter: the codec's 8-tap luma filter at phase 1/2, in
+/// 16 bits for the kernels.
+const HALF: [i16; 8] = {
+    let taps = crate::codec::interp::LUMA_TAPS[2];
+    let mut half = [0i16; 8];
+    let mut k = 0;
+    while k < 8 {
+        half[k] = taps[k] as i16;
+        k += 1;
+    }
+    half
+};
 
 /// Writes the three half-pel phases of `reference` over the picture and
 /// `margin` pixels around it, row by row (the codec's arithmetic: the

@@ -143,9 +143,11 @@ pub enum Subpel {
     /// Full-pel vectors only.
     #[default]
     None,
-    /// Half-pel: the 8 half-pel neighbours of the best full-pel vector.
+    /// Half-pel: around the best full-pel vector, the four half-pel
+    /// neighbours across, then the diagonal between the better two.
     Half,
-    /// Half-pel, then the 8 quarter-pel neighbours of the best half-pel one.
+    /// Half-pel, then the same five quarter-pel steps around the best
+    /// half-pel vector.
     Quarter,
 }
 

@@ -28,18 +28,19 @@ pub fn chroma_qp(qp: u8) -> u8 {
     }
 }
 
-/// The prediction of one macroblock: 16x16 luma, two 8x8 chroma blocks.
+/// The samples of one macroblock, a prediction or a reconstruction: 16x16
+/// luma, two 8x8 chroma blocks.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct MbPrediction {
+pub struct MbSamples {
     /// Luma, row-major.
     pub luma: [u8; 256],
     /// Cb and Cr, row-major.
     pub chroma: [[u8; 64]; 2],
 }
 
-impl Default for MbPrediction {
-    fn default() -> MbPrediction {
-        MbPrediction {
+impl Default for MbSamples {
+    fn default() -> MbSamples {
+        MbSamples {
             luma: [0; 256],
             chroma: [[0; 64]; 2],
         }
@@ -70,8 +71,8 @@ pub fn predict_intra(
     mb_y: usize,
     luma: intra::IntraMode,
     chroma: intra::IntraMode,
-) -> MbPrediction {
-    let mut pred = MbPrediction::default();
+) -> MbSamples {
+    let mut pred = MbSamples::default();
     predict_intra_plane(recon, 0, mb_x, mb_y, luma, &mut pred.luma);
     predict_intra_plane(recon, 1, mb_x, mb_y, chroma, &mut pred.chroma[0]);
     predict_intra_plane(recon, 2, mb_x, mb_y, chroma, &mut pred.chroma[1]);
@@ -164,8 +165,8 @@ impl IntraEdges {
 
 /// Inter prediction of macroblock (mb_x, mb_y) with vector `mv` (ignored in
 /// grid frames).
-pub fn predict_inter(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mv: Mv) -> MbPrediction {
-    let mut pred = MbPrediction::default();
+pub fn predict_inter(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mv: Mv) -> MbSamples {
+    let mut pred = MbSamples::default();
     let (x, y) = ((mb_x * MB) as isize, (mb_y * MB) as isize);
     let (cx, cy) = (x / 2, y / 2);
     let r = ctx.reference;
@@ -250,7 +251,7 @@ fn add_block(levels: &Block4, qp: u8, out: &mut [u8], stride: usize, (bx, by): (
 /// The samples macroblock coding gives: `pred` plus `residual` dequantised
 /// at `qp` (chroma at [`chroma_qp`]), in a macroblock-shaped block.
 #[inline]
-pub fn reconstruct_samples(pred: &MbPrediction, residual: &MbResidual, qp: u8) -> MbPrediction {
+pub fn reconstruct_samples(pred: &MbSamples, residual: &MbResidual, qp: u8) -> MbSamples {
     let mut out = pred.clone();
     for (i, levels) in residual.luma.iter().enumerate() {
         add_block(levels, qp, &mut out.luma, MB, ((i % 4) * 4, (i / 4) * 4));
@@ -266,7 +267,7 @@ pub fn reconstruct_samples(pred: &MbPrediction, residual: &MbResidual, qp: u8) -
 
 /// Writes macroblock-shaped `samples` to macroblock (mb_x, mb_y) of `recon`.
 /// Borders are not extended.
-pub fn write_mb(samples: &MbPrediction, recon: &mut Frame, mb_x: usize, mb_y: usize) {
+pub fn write_mb(samples: &MbSamples, recon: &mut Frame, mb_x: usize, mb_y: usize) {
     let (x0, y0) = (mb_x * MB, mb_y * MB);
     for (r, row) in samples.luma.chunks_exact(MB).enumerate() {
         recon.plane_mut(0).row_mut(y0 + r)[x0..x0 + MB].copy_from_slice(row);
@@ -282,7 +283,7 @@ pub fn write_mb(samples: &MbPrediction, recon: &mut Frame, mb_x: usize, mb_y: us
 /// Writes macroblock (mb_x, mb_y) of `recon`: `pred` plus `residual`
 /// dequantised at `qp` (chroma at [`chroma_qp`]). Borders are not extended.
 pub fn reconstruct_mb(
-    pred: &MbPrediction,
+    pred: &MbSamples,
     residual: &MbResidual,
     qp: u8,
     recon: &mut Frame,
@@ -341,7 +342,7 @@ pub fn reconstruct_frame(
                 };
                 predict_inter(&ctx, mb_x, mb_y, vectors[i].unwrap_or_default())
             }
-            (_, None) => MbPrediction::default(),
+            (_, None) => MbSamples::default(),
         };
         reconstruct_mb(&pred, mb.residual(), header.qp, &mut recon, mb_x, mb_y);
     }

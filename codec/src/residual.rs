@@ -115,9 +115,29 @@ const CBP: usize = 4 * CLASS_CONTEXTS;
 const CBP_CONTEXTS: usize = 13;
 const CONTEXTS: usize = CBP + 2 * CBP_CONTEXTS;
 
-/// First context of a block class.
-fn class(chroma: bool, intra: bool) -> usize {
-    (usize::from(chroma) * 2 + usize::from(intra)) * CLASS_CONTEXTS
+/// One of the four block classes whose contexts are kept apart: luma or
+/// chroma blocks, of intra or inter macroblocks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BlockClass {
+    chroma: bool,
+    intra: bool,
+}
+
+impl BlockClass {
+    /// Luma blocks of an intra (`true`) or inter macroblock.
+    pub fn luma(intra: bool) -> BlockClass {
+        BlockClass { chroma: false, intra }
+    }
+
+    /// Chroma blocks of an intra (`true`) or inter macroblock.
+    pub fn chroma(intra: bool) -> BlockClass {
+        BlockClass { chroma: true, intra }
+    }
+
+    /// The class's first context.
+    fn first_context(self) -> usize {
+        (usize::from(self.chroma) * 2 + usize::from(self.intra)) * CLASS_CONTEXTS
+    }
 }
 
 /// Coded flags of the 4x4 blocks across a macroblock's left and top edges
@@ -242,7 +262,7 @@ fn code_mb<B: Bins>(b: &mut B, e: &Edges, intra: bool, res: &MbResidual) {
     let cb = cbp & 16 != 0;
     b.bin(base + 4 + chroma_cbp_ctx(e, 0, false), cb);
     b.bin(base + 4 + chroma_cbp_ctx(e, 1, cb), cbp & 32 != 0);
-    let cls = class(false, intra);
+    let cls = BlockClass::luma(intra).first_context();
     for q in 0..4 {
         if cbp & (1 << q) != 0 {
             code_group(
@@ -257,7 +277,7 @@ fn code_mb<B: Bins>(b: &mut B, e: &Edges, intra: bool, res: &MbResidual) {
             );
         }
     }
-    let cls = class(true, intra);
+    let cls = BlockClass::chroma(intra).first_context();
     for (p, flags) in chroma_flags.iter().enumerate() {
         if cbp & (16 << p) != 0 {
             code_group(
@@ -460,11 +480,11 @@ impl ResidualCoder {
     /// its place (0 for an all-zero block): its levels and the change of
     /// its coded flag, priced with one coded neighbour. Not normative (for
     /// per-block rate-distortion decisions).
-    pub fn block_cost(&self, chroma: bool, intra: bool, block: &Block4) -> u32 {
+    pub fn block_cost(&self, class: BlockClass, block: &Block4) -> u32 {
         if is_zero(block) {
             return 0;
         }
-        let cls = class(chroma, intra);
+        let cls = class.first_context();
         let flag = &self.contexts[cls + CBF + 1];
         let mut p = Pricer::new(&self.contexts[..], flag.cost(true));
         code_block(&mut p, cls, block);
@@ -474,8 +494,8 @@ impl ResidualCoder {
     /// [`ResidualCoder::block_cost`] for one block class with the costs of
     /// its contexts' bins looked up once: what an encoder pricing many
     /// trial blocks against the same state needs.
-    pub fn block_pricer(&self, chroma: bool, intra: bool) -> BlockPricer {
-        let cls = class(chroma, intra);
+    pub fn block_pricer(&self, class: BlockClass) -> BlockPricer {
+        let cls = class.first_context();
         let table = cost_table();
         let costs: [[u32; 2]; CLASS_CONTEXTS] =
             std::array::from_fn(|k| self.contexts[cls + k].costs_in(table));
@@ -544,7 +564,7 @@ impl ResidualCoder {
         let cr = dec.decode(&mut c[base + 4 + chroma_cbp_ctx(&e, 1, cb)]);
         cbp |= u32::from(cb) << 4 | u32::from(cr) << 5;
         let mut out = MbResidual::default();
-        let cls = class(false, intra);
+        let cls = BlockClass::luma(intra).first_context();
         for q in 0..4 {
             if cbp & (1 << q) != 0 {
                 read_group(
@@ -559,7 +579,7 @@ impl ResidualCoder {
                 )?;
             }
         }
-        let cls = class(true, intra);
+        let cls = BlockClass::chroma(intra).first_context();
         for p in 0..2 {
             if cbp & (16 << p) != 0 {
                 read_group(
@@ -695,14 +715,15 @@ mod tests {
             }
             let intra = round % 3 == 0;
             for chroma in [false, true] {
-                let pricer = coder.block_pricer(chroma, intra);
+                let class = BlockClass { chroma, intra };
+                let pricer = coder.block_pricer(class);
                 let blocks: Vec<&Block4> = if chroma {
                     res.chroma.iter().flatten().collect()
                 } else {
                     res.luma.iter().collect()
                 };
                 for b in blocks {
-                    assert_eq!(pricer.block_cost(b), coder.block_cost(chroma, intra, b));
+                    assert_eq!(pricer.block_cost(b), coder.block_cost(class, b));
                 }
             }
             // Adapt, so that later rounds price other states.
@@ -779,8 +800,8 @@ mod tests {
         let mut two = one.clone();
         two.luma[4][0][0] = 1;
         let coder = ResidualCoder::new(1, 1);
-        let cls = class(false, false);
-        let block_bits = coder.block_cost(false, false, &one.luma[5]);
+        let cls = BlockClass::luma(false).first_context();
+        let block_bits = coder.block_cost(BlockClass::luma(false), &one.luma[5]);
         assert!(block_bits > 0);
         // Pricing follows the coder: with the flag implied, coding block 5
         // costs the flags of 0, 1, 4 (all 0) and no flag of its own.

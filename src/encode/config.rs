@@ -47,9 +47,10 @@ impl FromStr for FlowMethod {
     }
 }
 
-/// How block vectors are searched (the `block` and `obmc` predictors).
+/// The settings of the block search of the `block` and `obmc` predictors
+/// (the search itself is [`crate::me`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct BlockSearch {
+pub struct SearchSettings {
     /// Search pattern.
     pub method: Method,
     /// Full-pel range, 1..=64.
@@ -58,9 +59,9 @@ pub struct BlockSearch {
     pub subpel: Subpel,
 }
 
-impl Default for BlockSearch {
-    fn default() -> BlockSearch {
-        BlockSearch {
+impl Default for SearchSettings {
+    fn default() -> SearchSettings {
+        SearchSettings {
             method: Method::Epzs,
             range: 16,
             subpel: Subpel::Quarter,
@@ -74,7 +75,7 @@ pub enum Predictor {
     /// The previous reconstruction with vector 0 (frame difference).
     Zero,
     /// One searched vector per macroblock, rate-constrained.
-    Block(BlockSearch),
+    Block(SearchSettings),
     /// One vector per macroblock from a dense flow of the source frames
     /// (the component-wise median over the block), then a search of
     /// `refine` full pixels around it and sub-pel refinement (`refine` 0:
@@ -93,12 +94,12 @@ pub enum Predictor {
         grid: usize,
     },
     /// Block vectors, predicted with overlapped block motion compensation.
-    Obmc(BlockSearch),
+    Obmc(SearchSettings),
 }
 
 impl Default for Predictor {
     fn default() -> Predictor {
-        Predictor::Block(BlockSearch::default())
+        Predictor::Block(SearchSettings::default())
     }
 }
 
@@ -112,14 +113,14 @@ impl Predictor {
             Predictor::Block(s) => format!("block:{}", s.method),
             Predictor::FlowBlock { flow, .. } => format!("flow-block:{}", flow.name()),
             Predictor::Dense { flow, .. } => format!("dense-{}", flow.name()),
-            Predictor::Obmc(s) if s.method == BlockSearch::default().method => "obmc".into(),
+            Predictor::Obmc(s) if s.method == SearchSettings::default().method => "obmc".into(),
             Predictor::Obmc(s) => format!("obmc:{}", s.method),
         }
     }
 
     /// Every setting, for reports.
     pub fn describe(&self) -> String {
-        let search = |s: &BlockSearch| {
+        let search = |s: &SearchSettings| {
             let subpel = match s.subpel {
                 Subpel::None => "full-pel",
                 Subpel::Half => "half-pel",
@@ -137,7 +138,7 @@ impl Predictor {
     }
 
     /// The block search, for predictors that have one.
-    pub fn search_mut(&mut self) -> Option<&mut BlockSearch> {
+    pub fn search_mut(&mut self) -> Option<&mut SearchSettings> {
         match self {
             Predictor::Block(s) | Predictor::Obmc(s) => Some(s),
             _ => None,
@@ -182,8 +183,8 @@ impl FromStr for Predictor {
             Some((n, o)) => (n, Some(o)),
             None => (s, None),
         };
-        let search = |option: Option<&str>| -> Result<BlockSearch, String> {
-            let mut b = BlockSearch::default();
+        let search = |option: Option<&str>| -> Result<SearchSettings, String> {
+            let mut b = SearchSettings::default();
             if let Some(m) = option {
                 b.method = m.parse()?;
             }

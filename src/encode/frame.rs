@@ -7,7 +7,7 @@ use super::motion::FrameMotion;
 use crate::codec::modes::{MbMode, ModeCoder};
 use crate::codec::mv::mvd_bits;
 use crate::codec::mv::Mv;
-use crate::codec::recon::{predict_inter, predict_intra, write_mb, InterContext, MbPrediction};
+use crate::codec::recon::{predict_inter, predict_intra, write_mb, InterContext, MbSamples};
 use crate::codec::residual::{MbResidual, ResidualCoder};
 use crate::codec::syntax::{
     mb_mode, mb_vector, mv_prediction, write_frame, BitCounts, CodedMb, EntropyState, FrameHeader,
@@ -34,13 +34,7 @@ pub(crate) struct CodedFrame {
 
 /// The squared luma error of `pred` against `src` over the visible part of
 /// macroblock (mb_x, mb_y).
-fn visible_luma_sse(
-    src: &MbSource,
-    pred: &MbPrediction,
-    mb_x: usize,
-    mb_y: usize,
-    seq: &SequenceHeader,
-) -> u64 {
+fn visible_luma_sse(src: &MbSource, pred: &MbSamples, mb_x: usize, mb_y: usize, seq: &SequenceHeader) -> u64 {
     let w = (seq.width - mb_x * 16).min(16);
     let h = (seq.height - mb_y * 16).min(16);
     (0..h)
@@ -49,7 +43,7 @@ fn visible_luma_sse(
 }
 
 /// Luma SATD of a prediction.
-fn luma_satd(src: &MbSource, pred: &MbPrediction) -> u32 {
+fn luma_satd(src: &MbSource, pred: &MbSamples) -> u32 {
     crate::me::Metric::Satd.cost(&src.luma, 16, &pred.luma, 16, 16, 16)
 }
 
@@ -90,11 +84,11 @@ impl MbSink {
         match self {
             MbSink::Write(w) => w.push(mb),
             MbSink::Adapt(c) => {
-                let (modes, rates) = &mut **c;
+                let (modes, residual_coder) = &mut **c;
                 modes.commit(mb_x, mb_y, true, uses_mvs, &mb_mode(&mb.kind, mvp, uses_mvs));
                 if mb.kind != MbKind::Skip {
                     let intra = matches!(mb.kind, MbKind::Intra { .. });
-                    rates.commit(mb_x, mb_y, intra, mb.residual());
+                    residual_coder.commit(mb_x, mb_y, intra, mb.residual());
                 }
             }
         }
@@ -123,7 +117,7 @@ pub(crate) fn code_intra(
     for i in 0..cols * seq.mb_rows() {
         let (mb_x, mb_y) = (i % cols, i / cols);
         let s = MbSource::load(src, mb_x, mb_y);
-        let mut pred = MbPrediction::default();
+        let mut pred = MbSamples::default();
         let (luma, _) = coder.best_intra_luma(&s, &recon, (mb_x, mb_y), &mut pred);
         let chroma = coder.best_intra_chroma(&s, &recon, (mb_x, mb_y), &mut pred);
         let coded = coder.code(&s, &pred, true, writer.residual(), mb_x, mb_y);
@@ -153,10 +147,10 @@ pub(crate) fn code_intra(
 struct Choice {
     cost: f64,
     kind: MbKind,
-    pred: MbPrediction,
+    pred: MbSamples,
     residual: Option<Box<MbResidual>>,
     /// The reconstruction it gives.
-    samples: MbPrediction,
+    samples: MbSamples,
 }
 
 /// A P frame predicted from `reference` with `motion` and `tool`,
@@ -202,7 +196,7 @@ pub(crate) fn code_inter(
         MbSink::Write(Box::new(FrameWriter::new(seq, &header, grid.as_ref(), state)))
     };
     // OBMC's second pass prices residuals from the frame's start again.
-    let rates_at_start = (tool == MotionTool::Obmc).then(|| sink.residual().clone());
+    let residual_coder_at_start = (tool == MotionTool::Obmc).then(|| sink.residual().clone());
     // Bits of a mode as the frame's mode coder prices it now.
     let mode_bits = |modes: &ModeCoder, mb_x, mb_y, mode: &MbMode| {
         f64::from(modes.cost(mb_x, mb_y, true, uses_mvs, mode)) / 256.0
@@ -252,7 +246,7 @@ pub(crate) fn code_inter(
         if decision == ModeDecision::Fast && candidates.len() == 2 {
             // The lower SATD + sqrt(lambda) * vector bits is coded alone.
             let sad_lambda = coder.lambda.sqrt();
-            let estimate = |(mv, _, satd): &(Mv, MbPrediction, u32)| {
+            let estimate = |(mv, _, satd): &(Mv, MbSamples, u32)| {
                 f64::from(*satd) + sad_lambda * f64::from(mvd_bits(*mv, mvp))
             };
             if estimate(&candidates[1]) < estimate(&candidates[0]) {
@@ -278,7 +272,7 @@ pub(crate) fn code_inter(
         // Intra is coded only when its luma SATD is below inter's (as the
         // H.264 reference encoder's fast modes); its chroma mode is looked
         // for only then.
-        let mut pred = MbPrediction::default();
+        let mut pred = MbSamples::default();
         let luma = exhaustive
             .then(|| coder.best_intra_luma(&s, &recon, (mb_x, mb_y), &mut pred))
             .filter(|&(_, satd)| satd < inter_satd);
@@ -325,8 +319,8 @@ pub(crate) fn code_inter(
             // Decisions saw neighbours' searched vectors; code the residuals
             // again against the final prediction, which uses the decided
             // ones, then write the frame.
-            if let Some(rates) = rates_at_start {
-                recode(seq, coder, src, reference, rates, &mut frame)?;
+            if let Some(residual_coder) = residual_coder_at_start {
+                recode(seq, coder, src, reference, residual_coder, &mut frame)?;
             }
             (frame.bytes, frame.bits) = write_frame(seq, &frame.syntax, state);
         }
@@ -342,7 +336,7 @@ fn recode(
     coder: &MbCoder,
     src: &Frame,
     reference: &Frame,
-    mut rates: ResidualCoder,
+    mut residual_coder: ResidualCoder,
     frame: &mut CodedFrame,
 ) -> Result<(), PictureError> {
     let cols = seq.mb_cols();
@@ -370,9 +364,9 @@ fn recode(
         if mb.kind == MbKind::Skip {
             write_mb(&pred, &mut recon, mb_x, mb_y);
         } else {
-            let coded = coder.code(&s, &pred, intra, &rates, mb_x, mb_y);
+            let coded = coder.code(&s, &pred, intra, &residual_coder, mb_x, mb_y);
             write_mb(&coded.samples, &mut recon, mb_x, mb_y);
-            rates.commit(mb_x, mb_y, intra, &coded.residual);
+            residual_coder.commit(mb_x, mb_y, intra, &coded.residual);
             *mb = CodedMb::with_levels(mb.kind, coded.residual);
         }
     }

@@ -5,8 +5,8 @@
 
 use crate::codec::bits::ue_len;
 use crate::codec::intra::IntraMode;
-use crate::codec::recon::{chroma_qp, reconstruct_samples, IntraEdges, MbPrediction};
-use crate::codec::residual::{BlockPricer, MbResidual, ResidualCoder, ZIGZAG};
+use crate::codec::recon::{chroma_qp, reconstruct_samples, IntraEdges, MbSamples};
+use crate::codec::residual::{BlockClass, BlockPricer, MbResidual, ResidualCoder, ZIGZAG};
 use crate::codec::syntax::{intra_mode_allowed, MB};
 use crate::codec::transform::{
     dequantize, dequantize_level, forward_4x4, inverse_4x4, inverse_4x4_unrounded, quantize, Block4,
@@ -49,7 +49,7 @@ impl MbSource {
     }
 
     /// Squared error of a prediction (or reconstruction), luma and chroma.
-    pub fn ssd(&self, p: &MbPrediction) -> u64 {
+    pub fn ssd(&self, p: &MbSamples) -> u64 {
         let d = squared_difference_sum;
         d(&self.luma, &p.luma) + d(&self.chroma[0], &p.chroma[0]) + d(&self.chroma[1], &p.chroma[1])
     }
@@ -66,7 +66,7 @@ pub(crate) struct Coded {
     /// Squared error of the reconstruction.
     pub ssd: u64,
     /// The reconstructed macroblock.
-    pub samples: MbPrediction,
+    pub samples: MbSamples,
 }
 
 /// The per-frame constants of macroblock coding.
@@ -279,14 +279,14 @@ impl MbCoder {
 
     /// Transforms and quantises `src - pred`, reconstructs the macroblock
     /// (through the codec, as the decoder will) and measures it, the rate
-    /// priced by `rates` (the frame's residual coder as it stands before
+    /// priced by `residual_coder` (the frame's, as it stands before
     /// macroblock (mb_x, mb_y)).
     pub fn code(
         &self,
         src: &MbSource,
-        pred: &MbPrediction,
+        pred: &MbSamples,
         intra: bool,
-        rates: &ResidualCoder,
+        residual_coder: &ResidualCoder,
         mb_x: usize,
         mb_y: usize,
     ) -> Coded {
@@ -297,10 +297,10 @@ impl MbCoder {
                 // SAFETY: the CPU has AVX2; the function is the safe code
                 // below compiled with AVX2 (integer arithmetic and the same
                 // floating-point operations: the same result).
-                return unsafe { self.code_avx2(src, pred, intra, rates, mb_x, mb_y) };
+                return unsafe { self.code_avx2(src, pred, intra, residual_coder, mb_x, mb_y) };
             }
         }
-        self.code_body(src, pred, intra, rates, mb_x, mb_y)
+        self.code_body(src, pred, intra, residual_coder, mb_x, mb_y)
     }
 
     /// [`MbCoder::code`] compiled for AVX2: the baseline x86-64 build has
@@ -311,13 +311,13 @@ impl MbCoder {
     unsafe fn code_avx2(
         &self,
         src: &MbSource,
-        pred: &MbPrediction,
+        pred: &MbSamples,
         intra: bool,
-        rates: &ResidualCoder,
+        residual_coder: &ResidualCoder,
         mb_x: usize,
         mb_y: usize,
     ) -> Coded {
-        self.code_body(src, pred, intra, rates, mb_x, mb_y)
+        self.code_body(src, pred, intra, residual_coder, mb_x, mb_y)
     }
 
     /// One 4x4 block of `s - p` (`size` samples a row, block column `bx`,
@@ -347,9 +347,9 @@ impl MbCoder {
     fn code_body(
         &self,
         src: &MbSource,
-        pred: &MbPrediction,
+        pred: &MbSamples,
         intra: bool,
-        rates: &ResidualCoder,
+        residual_coder: &ResidualCoder,
         mb_x: usize,
         mb_y: usize,
     ) -> Coded {
@@ -368,7 +368,7 @@ impl MbCoder {
         // (Pricers are made only for levels left to lower.)
         let coded = |blocks: &[Block4]| blocks.iter().any(|b| b.as_flattened().iter().any(|&v| v != 0));
         if self.rdoq && coded(&residual.luma) {
-            let rate = rates.block_pricer(false, intra);
+            let rate = residual_coder.block_pricer(BlockClass::luma(intra));
             for (block, diff) in residual.luma.iter_mut().zip(&luma_residual) {
                 lower_levels(diff, block, self.qp, self.lambda, &rate);
             }
@@ -390,7 +390,8 @@ impl MbCoder {
                 continue;
             }
             if self.rdoq && coded(&residual.chroma[p]) {
-                let rate = chroma_rate.get_or_insert_with(|| rates.block_pricer(true, intra));
+                let rate =
+                    chroma_rate.get_or_insert_with(|| residual_coder.block_pricer(BlockClass::chroma(intra)));
                 for (block, diff) in residual.chroma[p].iter_mut().zip(&diffs) {
                     lower_levels(diff, block, cqp, self.lambda, rate);
                 }
@@ -401,7 +402,7 @@ impl MbCoder {
         }
         let samples = reconstruct_samples(pred, &residual, self.qp);
         Coded {
-            bits: f64::from(rates.cost(mb_x, mb_y, intra, &residual)) / 256.0,
+            bits: f64::from(residual_coder.cost(mb_x, mb_y, intra, &residual)) / 256.0,
             ssd: src.ssd(&samples),
             residual,
             samples,
@@ -422,7 +423,7 @@ impl MbCoder {
         src: &MbSource,
         recon: &Frame,
         (mb_x, mb_y): (usize, usize),
-        pred: &mut MbPrediction,
+        pred: &mut MbSamples,
     ) -> (IntraMode, u32) {
         let sad_lambda = self.lambda.sqrt();
         let mut trial = [0u8; 256];
@@ -448,7 +449,7 @@ impl MbCoder {
         src: &MbSource,
         recon: &Frame,
         (mb_x, mb_y): (usize, usize),
-        pred: &mut MbPrediction,
+        pred: &mut MbSamples,
     ) -> IntraMode {
         let sad_lambda = self.lambda.sqrt();
         let mut chroma = IntraMode::Dc;
@@ -535,7 +536,7 @@ mod tests {
             seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
             ((seed >> 16) % spread) as u8
         };
-        let mut rates = ResidualCoder::new(2, 2);
+        let mut residual_coder = ResidualCoder::new(2, 2);
         for case in 0..60 {
             let (qp, intra) = ([4, 18, 28, 40, 51][case % 5], case % 2 == 0);
             let coder = MbCoder::new(qp, 1.0, case % 3 != 0);
@@ -543,7 +544,7 @@ mod tests {
                 luma: [0; 256],
                 chroma: [[0; 64]; 2],
             };
-            let mut pred = MbPrediction::default();
+            let mut pred = MbSamples::default();
             // Residuals from small noise to full-range differences.
             let spread = [4, 32, 256][case % 3];
             for (s, p) in src.luma.iter_mut().zip(pred.luma.iter_mut()) {
@@ -557,13 +558,13 @@ mod tests {
             {
                 (*s, *p) = (next(256), next(spread));
             }
-            let a = coder.code(&src, &pred, intra, &rates, case % 2, 1);
-            let b = coder.code_body(&src, &pred, intra, &rates, case % 2, 1);
+            let a = coder.code(&src, &pred, intra, &residual_coder, case % 2, 1);
+            let b = coder.code_body(&src, &pred, intra, &residual_coder, case % 2, 1);
             assert_eq!(a.residual, b.residual, "case {case}");
             assert_eq!((a.bits, a.ssd), (b.bits, b.ssd), "case {case}");
             assert_eq!(a.samples, b.samples, "case {case}");
             // Later cases price with adapted contexts.
-            rates.commit(case % 2, 0, intra, &a.residual);
+            residual_coder.commit(case % 2, 0, intra, &a.residual);
         }
     }
 
@@ -581,7 +582,7 @@ mod tests {
             let mut levels = forward_4x4(&residual);
             quantize(&mut levels, qp, ROUND_INTER);
             let before = levels;
-            let rate = ResidualCoder::new(1, 1).block_pricer(false, false);
+            let rate = ResidualCoder::new(1, 1).block_pricer(BlockClass::luma(false));
             lower_levels(&residual, &mut levels, qp, lambda, &rate);
             let cost = |l: &Block4| block_error(&residual, l, qp) as f64 + lambda * block_bits(&rate, l);
             assert!(cost(&levels) <= cost(&before) + 1e-9);

@@ -36,7 +36,7 @@ use std::io::{Read, Write};
 use std::time::Instant;
 
 pub use config::{
-    BlockSearch, EncoderConfig, FlowMethod, ModeDecision, Predictor, DEFAULT_GRID, DEFAULT_REFINE,
+    EncoderConfig, FlowMethod, ModeDecision, Predictor, SearchSettings, DEFAULT_GRID, DEFAULT_REFINE,
 };
 pub use stats::{FrameStats, Summary, SummaryBuilder};
 

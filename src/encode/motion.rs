@@ -3,7 +3,7 @@
 
 use ndarray::Array2;
 
-use super::config::{BlockSearch, FlowMethod, Predictor};
+use super::config::{FlowMethod, Predictor, SearchSettings};
 use crate::codec::interp::predict_luma;
 use crate::codec::mv::Mv;
 use crate::codec::syntax::{mv_prediction, MB};
@@ -91,7 +91,7 @@ impl MotionAnalyser {
         }
     }
 
-    fn search(&mut self, cur: &Plane, reference: &Plane, s: BlockSearch) -> Vec<Mv> {
+    fn search(&mut self, cur: &Plane, reference: &Plane, s: SearchSettings) -> Vec<Mv> {
         let mut cfg = MeConfig::new(s.method, MB, s.range);
         cfg.subpel = s.subpel;
         cfg.metric = Metric::Satd;

@@ -309,7 +309,7 @@ impl MotionField {
 }
 
 /// Everything one block's search reads.
-pub(crate) struct BlockSearch<'a> {
+pub(crate) struct SearchContext<'a> {
     cur: &'a Plane,
     reference: &'a Plane,
     x: isize,
@@ -320,7 +320,7 @@ pub(crate) struct BlockSearch<'a> {
     halfpel: Option<&'a halfpel::HalfPel>,
 }
 
-impl BlockSearch<'_> {
+impl SearchContext<'_> {
     /// Distortion of the block against the reference at full-pel offset (dx, dy).
     fn distortion(&self, dx: i32, dy: i32) -> u32 {
         let b = self.cfg.block;
@@ -431,7 +431,7 @@ pub fn estimate_with_prior(
         _ => halfpel::HalfPel::new(reference, (cfg.range as usize + 2).div_ceil(8) * 8),
     };
     let search_one = |field: &MotionField, col: usize, row: usize| -> Candidate {
-        let s = BlockSearch {
+        let s = SearchContext {
             cur,
             reference,
             x: (col * cfg.block) as isize,

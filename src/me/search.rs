@@ -1,6 +1,6 @@
 //! The search patterns: full-pel search per method, then sub-pel refinement.
 
-use super::{BlockSearch, Candidate, Method, MotionField, Subpel};
+use super::{Candidate, Method, MotionField, SearchContext, Subpel};
 use crate::codec::mv::Mv;
 
 /// Candidate vectors from neighbouring blocks, for predictive methods.
@@ -79,7 +79,7 @@ impl Seen {
 /// A walk over full-pel positions of the window, remembering the best and
 /// which positions were already evaluated.
 struct Walk<'s, 'p> {
-    s: &'s BlockSearch<'p>,
+    s: &'s SearchContext<'p>,
     range: i32,
     side: usize,
     seen: Seen,
@@ -87,7 +87,7 @@ struct Walk<'s, 'p> {
 }
 
 impl<'s, 'p> Walk<'s, 'p> {
-    fn new(s: &'s BlockSearch<'p>) -> Walk<'s, 'p> {
+    fn new(s: &'s SearchContext<'p>) -> Walk<'s, 'p> {
         let range = s.cfg.range;
         let side = (2 * range + 1) as usize;
         let mut walk = Walk {
@@ -166,7 +166,7 @@ const LARGE_DIAMOND: [(i32, i32); 8] = [
 const HEXAGON: [(i32, i32); 6] = [(-1, -2), (1, -2), (-2, 0), (2, 0), (-1, 2), (1, 2)];
 
 /// The full-pel search of one block.
-pub(crate) fn full_pel(s: &BlockSearch<'_>, neighbours: &Neighbours) -> Candidate {
+pub(crate) fn full_pel(s: &SearchContext<'_>, neighbours: &Neighbours) -> Candidate {
     let mut w = Walk::new(s);
     let r = s.cfg.range;
     // Half the range, rounded (ffmpeg's ROUNDED_DIV(range, 2)): the first step
@@ -247,7 +247,7 @@ pub(crate) fn full_pel(s: &BlockSearch<'_>, neighbours: &Neighbours) -> Candidat
 /// them (five candidates instead of the square's eight; on the encoder's
 /// three test sequences the square bought 0.2 % in BD-rate at most, for
 /// 60 % more sub-pel work).
-pub(crate) fn refine(s: &BlockSearch<'_>, mut best: Candidate) -> Candidate {
+pub(crate) fn refine(s: &SearchContext<'_>, mut best: Candidate) -> Candidate {
     let steps: &[i32] = match s.cfg.subpel {
         Subpel::None => return best,
         Subpel::Half => &[2],

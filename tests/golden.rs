@@ -1,10 +1,15 @@
 //! Golden streams: the bytes of a few encodings of the bundled samples,
-//! pinned by hash, so that "the same streams" after a refactor or a new
-//! SIMD kernel is a test rather than a note in a commit. A change of the
+//! pinned by hash, at every CPU level this machine runs
+//! (`mocomp::codec::cpu`), so that "the same streams" after a refactor or
+//! a new SIMD kernel is a test rather than a note in a commit. The
+//! encodings take in every kernel family: block costs, interpolation,
+//! half-pel planes, the macroblock coder, SSIM, and the flow kernels of
+//! the flow predictors. A change of the
 //! format or of an encoder decision changes a hash on purpose: then the
 //! new hashes are taken (run with `MOCOMP_GOLDEN=print`) and the commit
 //! says why.
 
+use mocomp::codec::cpu;
 use mocomp::encode::{Encoder, EncoderConfig, ModeDecision};
 use mocomp::io::y4m::Y4mReader;
 
@@ -43,24 +48,30 @@ fn streams_are_the_pinned_ones() {
     ];
     let print = std::env::var("MOCOMP_GOLDEN").is_ok_and(|v| v == "print");
     let mut wrong = Vec::new();
-    for (sample, predictor, qp, decision, pinned) in cases {
-        let decision = match decision {
-            "full" => ModeDecision::Full,
-            _ => ModeDecision::Fast,
-        };
-        let config = EncoderConfig::new()
-            .qp(qp)
-            .gop(4)
-            .decision(decision)
-            .predictor(predictor.parse().unwrap());
-        let hash = fnv1a(&stream(sample, 6, config));
-        if print {
-            println!("(\"{sample}\", \"{predictor}\", {qp}, ..., {hash:#018x}),");
-        }
-        if hash != pinned {
-            wrong.push(format!(
-                "{sample} {predictor} QP {qp}: {hash:#018x}, pinned {pinned:#018x}"
-            ));
+    // The only test in this file (so in this process): setting the level
+    // races with nothing.
+    for level in cpu::available() {
+        assert_eq!(cpu::set_level(level), level);
+        for &(sample, predictor, qp, decision, pinned) in &cases {
+            let decision = match decision {
+                "full" => ModeDecision::Full,
+                _ => ModeDecision::Fast,
+            };
+            let config = EncoderConfig::new()
+                .qp(qp)
+                .gop(4)
+                .decision(decision)
+                .predictor(predictor.parse().unwrap());
+            let hash = fnv1a(&stream(sample, 6, config));
+            let name = level.name();
+            if print {
+                println!("{name}: (\"{sample}\", \"{predictor}\", {qp}, ..., {hash:#018x}),");
+            }
+            if hash != pinned {
+                wrong.push(format!(
+                    "{name} {sample} {predictor} QP {qp}: {hash:#018x}, pinned {pinned:#018x}"
+                ));
+            }
         }
     }
     assert!(wrong.is_empty(), "streams changed:\n{}", wrong.join("\n"));

@@ -99,8 +99,7 @@ pub fn predict_luma(
     check_block(reference, w, h, out, out_stride);
     #[cfg(target_arch = "x86_64")]
     {
-        // std caches the answer after the first call.
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if crate::cpu::at_least(crate::cpu::CpuLevel::Avx2) {
             // SAFETY: the CPU has AVX2 (checked above); the function is
             // the safe scalar code compiled with AVX2 enabled.
             unsafe { predict_luma_avx2(reference, x, y, mvx, mvy, w, h, out, out_stride) };
@@ -407,7 +406,7 @@ pub fn predict_chroma(
     check_block(reference, w, h, out, out_stride);
     #[cfg(target_arch = "x86_64")]
     {
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if crate::cpu::at_least(crate::cpu::CpuLevel::Avx2) {
             // SAFETY: the CPU has AVX2; the function is the safe code below
             // compiled with AVX2 (integer arithmetic: the same samples).
             unsafe { predict_chroma_avx2(reference, x, y, mvx, mvy, w, h, out, out_stride) };

@@ -9,6 +9,7 @@
 #![warn(missing_docs)]
 
 pub mod bits;
+pub mod cpu;
 pub mod decoder;
 pub mod entropy;
 pub mod interp;

@@ -293,7 +293,7 @@ impl MbCoder {
         #[cfg(target_arch = "x86_64")]
         {
             // std caches the answer after the first call.
-            if std::arch::is_x86_feature_detected!("avx2") {
+            if crate::codec::cpu::at_least(crate::codec::cpu::CpuLevel::Avx2) {
                 // SAFETY: the CPU has AVX2; the function is the safe code
                 // below compiled with AVX2 (integer arithmetic and the same
                 // floating-point operations: the same result).

@@ -18,8 +18,11 @@ fn nearest(a: &[Descriptor], b: &[Descriptor]) -> Vec<(usize, u32, u32)> {
 
 fn nearest_one(da: &Descriptor, b: &[Descriptor]) -> (usize, u32, u32) {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("popcnt") {
-        // SAFETY: the popcnt instruction is present, checked above.
+    if crate::codec::cpu::at_least(crate::codec::cpu::CpuLevel::Sse2)
+        && std::arch::is_x86_feature_detected!("popcnt")
+    {
+        // SAFETY: the popcnt instruction is present, checked above (and
+        // not used at the scalar level).
         return unsafe { nearest_popcnt(da, b) };
     }
     nearest_body(da, b)

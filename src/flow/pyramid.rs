@@ -106,11 +106,11 @@ mod wide {
     }
 }
 
-/// Whether the CPU has AVX2 (detected once).
+/// Whether the AVX2 builds of the flow kernels may run
+/// ([`crate::codec::cpu`]).
 #[cfg(target_arch = "x86_64")]
 pub(crate) fn has_avx2() -> bool {
-    static AVX2: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *AVX2.get_or_init(|| std::arch::is_x86_feature_detected!("avx2"))
+    crate::codec::cpu::at_least(crate::codec::cpu::CpuLevel::Avx2)
 }
 
 fn rows_band_dispatch(src: &[f32], w: usize, kernel: &[f32], out: &mut [f32]) {

@@ -169,7 +169,7 @@ const HALF: [i16; 8] = {
 fn fill_planes(reference: &Plane, margin: usize, planes: &mut [Plane]) {
     #[cfg(target_arch = "x86_64")]
     {
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if crate::codec::cpu::at_least(crate::codec::cpu::CpuLevel::Avx2) {
             // SAFETY: the CPU has AVX2; the function is the safe code below
             // compiled with AVX2 (integer arithmetic: the same samples).
             unsafe { fill_planes_avx2(reference, margin, planes) };

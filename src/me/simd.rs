@@ -13,7 +13,7 @@
 //! 8.2-9.3 ms per pass, 5 runs each, alternated), so AVX2 keeps it. For
 //! 32x32 AVX2 is 1.8 times SSE2 in both.
 
-use std::sync::OnceLock;
+use crate::codec::cpu::{self, CpuLevel};
 
 use super::cost;
 
@@ -44,36 +44,27 @@ pub const SCALAR: Kernels = Kernels {
     isa: "scalar",
 };
 
-/// The best kernels this CPU runs, chosen on first use.
-pub fn kernels() -> &'static Kernels {
-    static CHOICE: OnceLock<Kernels> = OnceLock::new();
-    CHOICE.get_or_init(|| {
+/// The kernel set of a CPU level.
+pub fn kernels_for(level: CpuLevel) -> &'static Kernels {
+    match level {
+        CpuLevel::Scalar => &SCALAR,
         #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx2") {
-                return x86::AVX2;
-            }
-            x86::SSE2
-        }
+        CpuLevel::Sse2 => &x86::SSE2,
+        #[cfg(target_arch = "x86_64")]
+        CpuLevel::Avx2 => &x86::AVX2,
         #[cfg(not(target_arch = "x86_64"))]
-        {
-            SCALAR
-        }
-    })
+        _ => &SCALAR,
+    }
+}
+
+/// The kernels of the CPU level in force ([`crate::codec::cpu`]).
+pub fn kernels() -> &'static Kernels {
+    kernels_for(cpu::level())
 }
 
 /// Every kernel set this CPU can run, scalar first (for tests and benches).
 pub fn available() -> Vec<Kernels> {
-    #[allow(unused_mut)]
-    let mut out = vec![SCALAR];
-    #[cfg(target_arch = "x86_64")]
-    {
-        out.push(x86::SSE2);
-        if std::arch::is_x86_feature_detected!("avx2") {
-            out.push(x86::AVX2);
-        }
-    }
-    out
+    cpu::available().into_iter().map(|l| *kernels_for(l)).collect()
 }
 
 /// Panics unless both blocks lie inside their slices: the SIMD kernels read

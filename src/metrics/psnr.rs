@@ -42,12 +42,11 @@ pub fn sse(a: &Plane, b: &Plane) -> u64 {
 pub fn squared_difference_sum(a: &[u8], b: &[u8]) -> u64 {
     let n = a.len().min(b.len());
     #[cfg(target_arch = "x86_64")]
-    {
+    if crate::codec::cpu::at_least(crate::codec::cpu::CpuLevel::Sse2) {
         // SAFETY: SSE2 is part of x86-64; the kernel reads n bytes of each.
         let (head, done) = unsafe { x86::ssd_sse2(&a[..n], &b[..n]) };
-        head + squared_difference_sum_scalar(&a[done..n], &b[done..n])
+        return head + squared_difference_sum_scalar(&a[done..n], &b[done..n]);
     }
-    #[cfg(not(target_arch = "x86_64"))]
     squared_difference_sum_scalar(&a[..n], &b[..n])
 }
 

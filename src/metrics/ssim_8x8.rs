@@ -48,7 +48,7 @@ fn block_row_sums(a: &Plane, b: &Plane, y0: usize, cols: &mut ColumnSums, out: &
     #[cfg(target_arch = "x86_64")]
     {
         // std caches the answer after the first call.
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if crate::codec::cpu::at_least(crate::codec::cpu::CpuLevel::Avx2) {
             // SAFETY: the CPU has AVX2; the function is the safe code below
             // compiled with AVX2 (integer arithmetic: the same sums).
             unsafe { block_row_sums_avx2(a, b, y0, cols, out) };

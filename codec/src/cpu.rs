@@ -1,0 +1,123 @@
+//! The one CPU level that chooses every SIMD kernel of the workspace (as
+//! dav1d's and rav1e's CPU flags do): detected once, lowered by the
+//! environment variable `MOCOMP_CPU` (`scalar`, `sse2`, `avx2`) or by
+//! [`set_level`], never raised above what the CPU runs. Every kernel with
+//! a SIMD build asks [`at_least`] and otherwise runs its scalar twin, and
+//! the twins give the same results, so the level changes speed, never
+//! output (the golden-stream test runs at every level).
+
+use std::sync::atomic::{AtomicU8, Ordering};
+
+/// Instruction-set levels, each including the ones below it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[repr(u8)]
+pub enum CpuLevel {
+    /// Portable Rust only.
+    Scalar = 0,
+    /// x86-64's baseline SIMD.
+    Sse2 = 1,
+    /// x86-64 with AVX2.
+    Avx2 = 2,
+}
+
+impl CpuLevel {
+    /// Every level, lowest first.
+    pub const ALL: [CpuLevel; 3] = [CpuLevel::Scalar, CpuLevel::Sse2, CpuLevel::Avx2];
+
+    /// The name `MOCOMP_CPU` takes.
+    pub fn name(self) -> &'static str {
+        match self {
+            CpuLevel::Scalar => "scalar",
+            CpuLevel::Sse2 => "sse2",
+            CpuLevel::Avx2 => "avx2",
+        }
+    }
+
+    /// The level of a name, if it is one.
+    pub fn from_name(name: &str) -> Option<CpuLevel> {
+        CpuLevel::ALL
+            .into_iter()
+            .find(|l| l.name().eq_ignore_ascii_case(name.trim()))
+    }
+
+    /// The highest level this CPU runs.
+    pub fn detected() -> CpuLevel {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                return CpuLevel::Avx2;
+            }
+            CpuLevel::Sse2
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            CpuLevel::Scalar
+        }
+    }
+
+    fn from_u8(v: u8) -> CpuLevel {
+        CpuLevel::ALL[usize::from(v).min(2)]
+    }
+}
+
+/// No level chosen yet.
+const UNSET: u8 = u8::MAX;
+
+static LEVEL: AtomicU8 = AtomicU8::new(UNSET);
+
+/// The level in force: the detected one, lowered by `MOCOMP_CPU` (an
+/// unknown name there is ignored) or by [`set_level`].
+#[inline]
+pub fn level() -> CpuLevel {
+    match LEVEL.load(Ordering::Relaxed) {
+        UNSET => {
+            let from_env = std::env::var("MOCOMP_CPU")
+                .ok()
+                .and_then(|v| CpuLevel::from_name(&v));
+            let level = from_env.map_or(CpuLevel::detected(), |l| l.min(CpuLevel::detected()));
+            LEVEL.store(level as u8, Ordering::Relaxed);
+            level
+        }
+        v => CpuLevel::from_u8(v),
+    }
+}
+
+/// Whether kernels of `wanted` may run.
+#[inline]
+pub fn at_least(wanted: CpuLevel) -> bool {
+    level() >= wanted
+}
+
+/// Sets the level for the whole process, at most the detected one;
+/// returns the level now in force. Meant for tests and benchmarks: kernels
+/// already running finish at the level they started with.
+pub fn set_level(wanted: CpuLevel) -> CpuLevel {
+    let level = wanted.min(CpuLevel::detected());
+    LEVEL.store(level as u8, Ordering::Relaxed);
+    level
+}
+
+/// The levels this CPU runs, lowest first.
+pub fn available() -> Vec<CpuLevel> {
+    CpuLevel::ALL
+        .into_iter()
+        .filter(|&l| l <= CpuLevel::detected())
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip_and_levels_are_ordered() {
+        for l in CpuLevel::ALL {
+            assert_eq!(CpuLevel::from_name(l.name()), Some(l));
+        }
+        assert_eq!(CpuLevel::from_name(" AVX2 "), Some(CpuLevel::Avx2));
+        assert_eq!(CpuLevel::from_name("neon"), None);
+        assert!(CpuLevel::Scalar < CpuLevel::Sse2 && CpuLevel::Sse2 < CpuLevel::Avx2);
+        assert_eq!(available()[0], CpuLevel::Scalar);
+        assert_eq!(*available().last().unwrap(), CpuLevel::detected());
+    }
+}

@@ -106,7 +106,8 @@ pub fn predict_luma(
             return;
         }
     }
-    predict_luma_body::<false>(reference, x, y, mvx, mvy, w, h, out, out_stride);
+    // SAFETY: no AVX2.
+    unsafe { predict_luma_body::<false>(reference, x, y, mvx, mvy, w, h, out, out_stride) };
 }
 
 /// [`predict_luma_body`] compiled for AVX2.
@@ -127,11 +128,14 @@ unsafe fn predict_luma_avx2(
     predict_luma_body::<true>(reference, x, y, mvx, mvy, w, h, out, out_stride);
 }
 
-/// The luma predictor, for any instruction set; `AVX2` (only where the
-/// CPU has it) takes the 16x16 vertical pass to AVX2 intrinsics.
+/// The luma predictor, for any instruction set; `AVX2` takes the 16x16
+/// vertical pass to AVX2 intrinsics.
+///
+/// # Safety
+/// `AVX2` is true only where the CPU has AVX2.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn predict_luma_body<const AVX2: bool>(
+pub(crate) unsafe fn predict_luma_body<const AVX2: bool>(
     reference: &Plane,
     x: isize,
     y: isize,
@@ -166,6 +170,7 @@ pub(crate) fn predict_luma_body<const AVX2: bool>(
         // The macroblock case, with sizes the compiler knows.
         let src = at(px - TAPS_BEFORE, py - TAPS_BEFORE);
         let mut block = [0u8; 256];
+        // SAFETY: this function's contract passes on.
         luma_16x16::<AVX2>(&data[src..], stride, fx, fy, &mut block);
         for (r, row) in block.chunks_exact(16).enumerate() {
             out[r * out_stride..r * out_stride + 16].copy_from_slice(row);
@@ -280,7 +285,13 @@ fn round16<T: Copy + Into<i32>>(acc: &[T; N16], o: &mut [u8]) {
 /// starting 3 rows above and 3 columns left of the block. (Functions, not
 /// closures: closures do not inherit the caller's target features.)
 #[inline(always)]
-fn luma_16x16<const AVX2: bool>(data: &[u8], stride: usize, fx: usize, fy: usize, out: &mut [u8; 256]) {
+unsafe fn luma_16x16<const AVX2: bool>(
+    data: &[u8],
+    stride: usize,
+    fx: usize,
+    fy: usize,
+    out: &mut [u8; 256],
+) {
     const N: usize = N16;
     const B: usize = TAPS_BEFORE as usize;
     if fy == 0 {
@@ -307,8 +318,7 @@ fn luma_16x16<const AVX2: bool>(data: &[u8], stride: usize, fx: usize, fy: usize
     let tv = &LUMA_TAPS[fy];
     #[cfg(target_arch = "x86_64")]
     if AVX2 {
-        // SAFETY: AVX2 is true only in predict_luma_avx2, which runs only
-        // where the CPU has AVX2.
+        // SAFETY: the caller's contract: AVX2 only where the CPU has it.
         unsafe { x86::vpass16_avx2(&tmp, tv, out) };
         return;
     }
@@ -606,7 +616,8 @@ mod tests {
             for mvx in -9..=9 {
                 for (x, y, w, h) in [(3, 5, 16, 16), (40, 20, 16, 16), (1, 2, 12, 3), (0, 0, 64, 40)] {
                     predict_luma(&p, x, y, mvx, mvy, w, h, &mut a, w);
-                    predict_luma_body::<false>(&p, x, y, mvx, mvy, w, h, &mut b, w);
+                    // SAFETY: no AVX2.
+                    unsafe { predict_luma_body::<false>(&p, x, y, mvx, mvy, w, h, &mut b, w) };
                     assert_eq!(a[..w * h], b[..w * h], "mv ({mvx},{mvy}) {w}x{h}");
                     predict_chroma(&p, x, y, mvx, mvy, w, h, &mut a, w);
                     predict_chroma_body(&p, x, y, mvx, mvy, w, h, &mut b, w);

@@ -176,7 +176,8 @@ fn fill_planes(reference: &Plane, margin: usize, planes: &mut [Plane]) {
             return;
         }
     }
-    fill_planes_body::<false>(reference, margin, planes);
+    // SAFETY: no AVX2.
+    unsafe { fill_planes_body::<false>(reference, margin, planes) };
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -185,10 +186,13 @@ unsafe fn fill_planes_avx2(reference: &Plane, margin: usize, planes: &mut [Plane
     fill_planes_body::<true>(reference, margin, planes);
 }
 
-/// The planes, for any instruction set; `AVX2` (only where the CPU has it)
-/// takes the diagonal phase's vertical pass to AVX2 intrinsics.
+/// The planes, for any instruction set; `AVX2` takes the diagonal phase's
+/// vertical pass to AVX2 intrinsics.
+///
+/// # Safety
+/// `AVX2` is true only where the CPU has AVX2.
 #[inline(always)]
-fn fill_planes_body<const AVX2: bool>(reference: &Plane, margin: usize, planes: &mut [Plane]) {
+unsafe fn fill_planes_body<const AVX2: bool>(reference: &Plane, margin: usize, planes: &mut [Plane]) {
     let (w, h, m) = (reference.width(), reference.height(), margin as isize);
     let span = w + 2 * margin;
     let clip = |v: i32| v.clamp(0, 255) as u8;
@@ -234,8 +238,7 @@ fn fill_planes_body<const AVX2: bool>(reference: &Plane, margin: usize, planes: 
         let rows: [&[i16]; 8] = std::array::from_fn(|k| hrow(y + k));
         #[cfg(target_arch = "x86_64")]
         if AVX2 {
-            // SAFETY: AVX2 is true only in fill_planes_avx2, which runs only
-            // where the CPU has AVX2.
+            // SAFETY: the caller's contract: AVX2 only where the CPU has it.
             unsafe { x86::diagonal_row_avx2(&rows, out) };
             continue;
         }
@@ -442,7 +445,8 @@ mod tests {
             let planes = || (0..3).map(|_| Plane::new(w, h).unwrap()).collect::<Vec<_>>();
             let (mut a, mut b) = (planes(), planes());
             fill_planes(&r, margin, &mut a);
-            fill_planes_body::<false>(&r, margin, &mut b);
+            // SAFETY: no AVX2.
+            unsafe { fill_planes_body::<false>(&r, margin, &mut b) };
             for (p, q) in a.iter().zip(&b) {
                 assert!(p.data() == q.data(), "{w}x{h} margin {margin}");
             }

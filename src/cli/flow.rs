@@ -26,11 +26,11 @@ use crate::viz::{draw_flow_arrows, flow_to_rgb};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Preset {
     /// The fastest (DIS: quarter-size flow without refinement, half-size
-    /// for pictures under ~450 px, full size under ~230 px; LK and HS as
-    /// fast; TV-L1: 2 warps of 15 iterations).
+    /// for pictures under ~450 px; LK and HS as fast; TV-L1: 2 warps of 15
+    /// iterations).
     Ultrafast,
     /// Fewer iterations and a smaller window (DIS: quarter-size flow,
-    /// finer for small pictures as ultrafast).
+    /// half-size under ~450 px, full size under ~230 px).
     Fast,
     /// The default balance (DIS: half-size flow, full size below ~450 px).
     Medium,

@@ -18,7 +18,7 @@ use crate::flow::tvl1::{tvl1, Tvl1Params};
 use crate::flow::warp::warp_bilinear;
 use crate::flow::Flow;
 use crate::io::{flo, image, y4m::Y4mReader};
-use crate::metrics::{flow_errors, psnr_from_mse};
+use crate::metrics::{flow_errors, psnr_from_mse, FlowErrors};
 use crate::raster::{array_to_plane, plane_to_array};
 use crate::viz::{draw_flow_arrows, flow_to_rgb};
 
@@ -246,8 +246,8 @@ fn read_pair(args: &Args) -> Result<(Array2<f32>, Array2<f32>)> {
     }
 }
 
-pub fn run(args: &Args) -> Result<()> {
-    let (i1, i2) = read_pair(args)?;
+/// The LK settings: the preset's, with the options that override it.
+fn lk_params(args: &Args) -> Result<LkParams> {
     let mut params = lk_preset(args.preset);
     if let Some(l) = args.levels {
         params.levels = l.max(1);
@@ -264,6 +264,11 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(f) = args.finest {
         params.finest = f;
     }
+    Ok(params)
+}
+
+/// The Horn-Schunck settings: the preset's, with the options.
+fn hs_params(args: &Args) -> Result<HsParams> {
     let mut hs = hs_preset(args.preset);
     if let Some(l) = args.levels {
         hs.levels = l.max(1);
@@ -286,6 +291,11 @@ pub fn run(args: &Args) -> Result<()> {
         }
         hs.gamma = g;
     }
+    Ok(hs)
+}
+
+/// The TV-L1 settings: the preset's, with the options.
+fn tvl1_params(args: &Args) -> Result<Tvl1Params> {
     let mut tv = tvl1_preset(args.preset);
     if let Some(l) = args.levels {
         tv.levels = l.max(1);
@@ -300,43 +310,106 @@ pub fn run(args: &Args) -> Result<()> {
         tv.texture = t;
         tv.validate().map_err(anyhow::Error::msg)?;
     }
-    let method = args.method.unwrap_or(FlowMethod::Dis);
+    Ok(tv)
+}
+
+/// The DIS settings: the preset's, with the options (`--finest` taken as
+/// given, whatever the picture's size).
+fn dis_params(args: &Args) -> DisParams {
+    let base = dis_preset(args.preset);
+    DisParams {
+        global_search: args.global_search,
+        seed_matches: base.seed_matches || args.matches,
+        finest: args.finest.unwrap_or(base.finest),
+        min_side: if args.finest.is_some() { 0 } else { base.min_side },
+        ..base
+    }
+}
+
+/// The chosen method, made once, outside the timing, as the OpenCV peer
+/// script makes its objects; repeated runs then reuse its buffers.
+enum Estimator {
+    Lk(Box<Lk>),
+    Hs(HsParams),
+    Dis(Box<Dis>),
+    Tvl1(Tvl1Params),
+}
+
+impl Estimator {
+    /// The method `args` chooses; every method's options are checked, so
+    /// a bad value is an error whichever method runs.
+    fn new(args: &Args) -> Result<Estimator> {
+        let (lk, hs, tv) = (lk_params(args)?, hs_params(args)?, tvl1_params(args)?);
+        Ok(match args.method.unwrap_or(FlowMethod::Dis) {
+            FlowMethod::Lk => Estimator::Lk(Box::new(Lk::new(lk))),
+            FlowMethod::Hs => Estimator::Hs(hs),
+            FlowMethod::Dis => Estimator::Dis(Box::new(Dis::new(dis_params(args)))),
+            FlowMethod::Tvl1 => Estimator::Tvl1(tv),
+        })
+    }
+
+    fn method(&self) -> FlowMethod {
+        match self {
+            Estimator::Lk(_) => FlowMethod::Lk,
+            Estimator::Hs(_) => FlowMethod::Hs,
+            Estimator::Dis(_) => FlowMethod::Dis,
+            Estimator::Tvl1(_) => FlowMethod::Tvl1,
+        }
+    }
+
+    fn compute(&mut self, a: &Array2<f32>, b: &Array2<f32>) -> Flow {
+        match self {
+            Estimator::Lk(lk) => lk.compute(a, b).flow,
+            Estimator::Hs(hs) => horn_schunck(a, b, hs).0,
+            Estimator::Dis(dis) => dis.compute(a, b),
+            Estimator::Tvl1(tv) => tvl1(a, b, tv),
+        }
+    }
+}
+
+/// The ground truth named by `--gt`, checked against the pictures' size.
+fn read_ground_truth(args: &Args, (h, w): (usize, usize)) -> Result<Option<Flow>> {
+    let Some(path) = &args.gt else {
+        return Ok(None);
+    };
+    let gt = flo::read_flo(path).with_context(|| path.display().to_string())?;
+    if (gt.width(), gt.height()) != (w, h) {
+        bail!(
+            "ground truth is {}x{}, the pictures {w}x{h}",
+            gt.width(),
+            gt.height()
+        );
+    }
+    Ok(Some(gt))
+}
+
+/// What one run measured.
+struct Measured {
+    method: FlowMethod,
+    ms: f64,
+    mc_psnr: f64,
+    /// Share of pixels failing the forward-backward check, percent.
+    inconsistent: Option<f64>,
+    errors: Option<FlowErrors>,
+}
+
+pub fn run(args: &Args) -> Result<()> {
+    let (i1, i2) = read_pair(args)?;
+    let gt = read_ground_truth(args, i1.dim())?;
     if args.runs == 0 {
         bail!("--runs must be at least 1");
     }
     let pool = super::thread_pool(args.threads)?;
+    let mut estimator = Estimator::new(args)?;
+    let mut estimate = |a: &Array2<f32>, b: &Array2<f32>| pool.install(|| estimator.compute(a, b));
     let mut times = Vec::with_capacity(args.runs);
     let mut flow = Flow::zeros(1, 1);
-    // The estimator is made once, outside the timing, as the OpenCV peer
-    // script makes its objects; repeated runs then reuse its buffers.
-    let mut lk = Lk::new(params);
-    let dis_base = dis_preset(args.preset);
-    let mut dis = Dis::new(DisParams {
-        global_search: args.global_search,
-        seed_matches: dis_base.seed_matches || args.matches,
-        finest: args.finest.unwrap_or(dis_base.finest),
-        min_side: if args.finest.is_some() {
-            0
-        } else {
-            dis_base.min_side
-        },
-        ..dis_base
-    });
-    let mut estimate = |a: &Array2<f32>, b: &Array2<f32>| {
-        pool.install(|| match method {
-            FlowMethod::Lk => lk.compute(a, b).flow,
-            FlowMethod::Hs => horn_schunck(a, b, &hs).0,
-            FlowMethod::Dis => dis.compute(a, b),
-            FlowMethod::Tvl1 => tvl1(a, b, &tv),
-        })
-    };
     for _ in 0..args.runs {
         let start = Instant::now();
         flow = estimate(&i1, &i2);
         times.push(start.elapsed().as_secs_f64() * 1000.0);
     }
     times.sort_by(f64::total_cmp);
-    let ms = times[times.len() / 2];
     let occluded = args
         .occlusion
         .as_ref()
@@ -348,85 +421,97 @@ pub fn run(args: &Args) -> Result<()> {
         .map(|(&a, &b)| f64::from(a - b).powi(2))
         .sum::<f64>()
         / i1.len() as f64;
-    let mc_psnr = psnr_from_mse(mse);
-    let errors = match &args.gt {
-        Some(path) => {
-            let gt = flo::read_flo(path).with_context(|| path.display().to_string())?;
-            if (gt.width(), gt.height()) != (flow.width(), flow.height()) {
-                bail!(
-                    "ground truth is {}x{}, the pictures {}x{}",
-                    gt.width(),
-                    gt.height(),
-                    flow.width(),
-                    flow.height()
-                );
-            }
-            Some(flow_errors(&flow, &gt).context("the ground truth has no valid pixel")?)
-        }
+    let errors = match &gt {
+        Some(gt) => Some(flow_errors(&flow, gt).context("the ground truth has no valid pixel")?),
         None => None,
     };
+    write_outputs(args, &flow, &i1, &warped, occluded.as_ref())?;
+    let measured = Measured {
+        method: estimator.method(),
+        ms: times[times.len() / 2],
+        mc_psnr: psnr_from_mse(mse),
+        inconsistent: occluded
+            .as_ref()
+            .map(|mask| 100.0 * mask.iter().filter(|&&m| m).count() as f64 / mask.len() as f64),
+        errors,
+    };
+    report(args, &flow, &measured)
+}
+
+/// The files the options ask for.
+fn write_outputs(
+    args: &Args,
+    flow: &Flow,
+    i1: &Array2<f32>,
+    warped: &Array2<f32>,
+    occluded: Option<&Array2<bool>>,
+) -> Result<()> {
     if let Some(path) = &args.output {
-        flo::write_flo(path, &flow).with_context(|| path.display().to_string())?;
+        flo::write_flo(path, flow).with_context(|| path.display().to_string())?;
     }
     if let Some(path) = &args.viz {
-        let img = flow_to_rgb(&flow, None);
+        let img = flow_to_rgb(flow, None);
         image::write_rgb(path, img.width, img.height, &img.data)
             .with_context(|| path.display().to_string())?;
     }
     if let Some(path) = &args.arrows {
-        let img = draw_flow_arrows(&array_to_plane(&i1)?, &flow, 16, 2.0);
+        let img = draw_flow_arrows(&array_to_plane(i1)?, flow, 16, 2.0);
         image::write_rgb(path, img.width, img.height, &img.data)
             .with_context(|| path.display().to_string())?;
     }
-    if let (Some(path), Some(mask)) = (&args.occlusion, &occluded) {
+    if let (Some(path), Some(mask)) = (&args.occlusion, occluded) {
         let plane = array_to_plane(&mask.mapv(|m| if m { 255.0 } else { 0.0 }))?;
         image::write_plane(path, &plane).with_context(|| path.display().to_string())?;
     }
     if let Some(path) = &args.warp {
-        image::write_plane(path, &array_to_plane(&warped)?).with_context(|| path.display().to_string())?;
+        image::write_plane(path, &array_to_plane(warped)?).with_context(|| path.display().to_string())?;
     }
+    Ok(())
+}
+
+/// The summary, as text or one JSON object.
+fn report(args: &Args, flow: &Flow, m: &Measured) -> Result<()> {
     let mut stdout = std::io::stdout().lock();
+    let (ms, mc_psnr) = (m.ms, m.mc_psnr);
     if args.json {
         let mut obj = json!({
-            "method": method.name(),
+            "method": m.method.name(),
             "preset": format!("{:?}", args.preset).to_lowercase(),
             "width": flow.width(),
             "height": flow.height(),
             "ms": ms,
             "mc_psnr": mc_psnr,
         });
-        if let Some(mask) = &occluded {
-            let share = mask.iter().filter(|&&m| m).count() as f64 / mask.len() as f64;
-            obj["inconsistent_percent"] = json!(100.0 * share);
+        if let Some(share) = m.inconsistent {
+            obj["inconsistent_percent"] = json!(share);
         }
-        if let Some(e) = errors {
+        if let Some(e) = &m.errors {
             obj["epe"] = json!(e.epe);
             obj["ae"] = json!(e.ae);
             obj["r1"] = json!(e.r1);
             obj["r3"] = json!(e.r3);
         }
         writeln!(stdout, "{obj}")?;
-    } else {
+        return Ok(());
+    }
+    writeln!(
+        stdout,
+        "flow ({}x{}, {}, {:?}): {ms:.2} ms",
+        flow.width(),
+        flow.height(),
+        m.method.name(),
+        args.preset
+    )?;
+    writeln!(stdout, "motion-compensated PSNR  {mc_psnr:.2} dB")?;
+    if let Some(share) = m.inconsistent {
+        writeln!(stdout, "forward-backward inconsistent  {share:.2} %")?;
+    }
+    if let Some(e) = &m.errors {
         writeln!(
             stdout,
-            "flow ({}x{}, {}, {:?}): {ms:.2} ms",
-            flow.width(),
-            flow.height(),
-            method.name(),
-            args.preset
+            "EPE {:.4} px  AE {:.3} deg  R1 {:.2} %  R3 {:.2} %",
+            e.epe, e.ae, e.r1, e.r3
         )?;
-        writeln!(stdout, "motion-compensated PSNR  {mc_psnr:.2} dB")?;
-        if let Some(mask) = &occluded {
-            let share = mask.iter().filter(|&&m| m).count() as f64 / mask.len() as f64;
-            writeln!(stdout, "forward-backward inconsistent  {:.2} %", 100.0 * share)?;
-        }
-        if let Some(e) = errors {
-            writeln!(
-                stdout,
-                "EPE {:.4} px  AE {:.3} deg  R1 {:.2} %  R3 {:.2} %",
-                e.epe, e.ae, e.r1, e.r3
-            )?;
-        }
     }
     Ok(())
 }

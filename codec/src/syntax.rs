@@ -412,6 +412,33 @@ pub fn write_frame(
     w.finish(state)
 }
 
+/// The frame header's bits (FORMAT.md, "Frame header"), aligned: the
+/// writer twin of [`read_frame_header`]. Panics on a header the syntax
+/// cannot carry (the encoder's bug, not input).
+fn write_frame_header(h: &FrameHeader) -> Vec<u8> {
+    assert!(h.qp <= MAX_QP);
+    let mut w = BitWriter::new();
+    w.put(u64::from(h.frame_type == FrameType::Inter), 1);
+    w.put(u64::from(h.qp), 6);
+    let tool_code = match h.tool {
+        MotionTool::Block => 0,
+        MotionTool::Obmc => 1,
+        MotionTool::Grid(_) => 2,
+    };
+    assert!(
+        h.frame_type == FrameType::Inter || tool_code == 0,
+        "I frames use the block tool"
+    );
+    w.put(tool_code, 2);
+    if let MotionTool::Grid(spacing) = h.tool {
+        let code = SPACINGS.iter().position(|&s| s == spacing);
+        assert!(code.is_some(), "grid spacing {spacing} is not 4, 8 or 16");
+        w.put(code.unwrap_or_default() as u64, 2);
+    }
+    w.align();
+    w.into_bytes()
+}
+
 /// [`write_frame`] a macroblock at a time, so that an encoder can write
 /// each macroblock as it decides it, pricing the next ones from the same
 /// coders ([`FrameWriter::modes`], [`FrameWriter::residual`]) that writing
@@ -457,26 +484,7 @@ impl FrameWriter {
         state: &EntropyState,
     ) -> FrameWriter {
         let (cols, rows) = (seq.mb_cols(), seq.mb_rows());
-        assert!(h.qp <= MAX_QP);
-        let mut w = BitWriter::new();
-        w.put(u64::from(h.frame_type == FrameType::Inter), 1);
-        w.put(u64::from(h.qp), 6);
-        let tool_code = match h.tool {
-            MotionTool::Block => 0,
-            MotionTool::Obmc => 1,
-            MotionTool::Grid(_) => 2,
-        };
-        assert!(
-            h.frame_type == FrameType::Inter || tool_code == 0,
-            "I frames use the block tool"
-        );
-        w.put(tool_code, 2);
-        if let MotionTool::Grid(spacing) = h.tool {
-            let code = SPACINGS.iter().position(|&s| s == spacing);
-            assert!(code.is_some(), "grid spacing {spacing} is not 4, 8 or 16");
-            w.put(code.unwrap_or_default() as u64, 2);
-        }
-        w.align();
+        let header = write_frame_header(h);
         assert!(
             matches!(h.tool, MotionTool::Grid(_)) == grid.is_some(),
             "grid frames, and only they, carry a grid"
@@ -498,7 +506,7 @@ impl FrameWriter {
         FrameWriter {
             cols,
             count: cols * rows,
-            header: w.into_bytes(),
+            header,
             enc,
             modes,
             residual,
@@ -661,15 +669,10 @@ fn check_vector(mv: Option<Mv>, bit: usize) -> Result<Mv, SyntaxError> {
     }
 }
 
-/// Reads a frame's payload (the bytes after its length field): the frame
-/// header, then the range-coded partition, which must be used to its end.
-/// `state` is the stream's entropy state, updated when the frame is valid.
-pub fn read_frame(
-    seq: &SequenceHeader,
-    payload: &[u8],
-    state: &mut EntropyState,
-) -> Result<FrameSyntax, SyntaxError> {
-    let (cols, rows) = (seq.mb_cols(), seq.mb_rows());
+/// Reads the frame header (FORMAT.md, "Frame header") and its alignment
+/// bits: the reader twin of [`write_frame_header`]. Returns the header
+/// and the byte at which the range-coded partition starts.
+fn read_frame_header(payload: &[u8]) -> Result<(FrameHeader, usize), SyntaxError> {
     let mut r = BitReader::new(payload);
     let frame_type = if r.get(1)? == 1 {
         FrameType::Inter
@@ -704,49 +707,63 @@ pub fn read_frame(
     if r.get(pad as u32)? != 0 {
         return Err(invalid("non-zero bits after the frame header".into(), pos));
     }
-    let start = r.position() / 8;
-    let coded = &payload[start..];
-    let mut dec = RangeDecoder::new(coded);
-    // Errors in the partition are located at the byte being read.
-    let at = |dec: &RangeDecoder<'_>| 8 * (start + dec.position().min(coded.len()));
-    let (mut modes, mut residual) = state.coders(seq, frame_type);
-    let header = FrameHeader { frame_type, qp, tool };
-    let grid = match tool {
-        MotionTool::Grid(spacing) => {
-            let mut grid = MotionGrid::new(seq.coded_width(), seq.coded_height(), spacing)
-                .map_err(|e| invalid(e.to_string(), 8 * start))?;
-            for row in 0..grid.rows() {
-                for col in 0..grid.cols() {
-                    let d = modes.read_grid(&mut dec, grid.cols(), col, row);
-                    let p = grid_prediction(&grid, col, row);
-                    let mv = check_vector(d.and_then(|d| p.checked_add(d)), at(&dec))?;
-                    grid.set(col, row, mv);
-                }
+    Ok((FrameHeader { frame_type, qp, tool }, r.position() / 8))
+}
+
+/// The range-coded partition of one frame as it is read: the decoder, the
+/// coders, and where errors are located.
+struct PartitionReader<'a> {
+    dec: RangeDecoder<'a>,
+    modes: ModeCoder,
+    residual: ResidualCoder,
+    /// The partition's first byte in the payload.
+    start: usize,
+    len: usize,
+}
+
+impl PartitionReader<'_> {
+    /// The bit position of the byte being read, for errors.
+    fn at(&self) -> usize {
+        8 * (self.start + self.dec.position().min(self.len))
+    }
+
+    /// The motion grid of a grid frame.
+    fn grid(&mut self, seq: &SequenceHeader, spacing: usize) -> Result<MotionGrid, SyntaxError> {
+        let mut grid = MotionGrid::new(seq.coded_width(), seq.coded_height(), spacing)
+            .map_err(|e| invalid(e.to_string(), 8 * self.start))?;
+        for row in 0..grid.rows() {
+            for col in 0..grid.cols() {
+                let d = self.modes.read_grid(&mut self.dec, grid.cols(), col, row);
+                let p = grid_prediction(&grid, col, row);
+                let mv = check_vector(d.and_then(|d| p.checked_add(d)), self.at())?;
+                grid.set(col, row, mv);
             }
-            Some(grid)
         }
-        _ => None,
-    };
-    let inter_frame = frame_type == FrameType::Inter;
-    let uses_mvs = matches!(tool, MotionTool::Block | MotionTool::Obmc);
-    let total = cols * rows;
-    let mut mbs = Vec::with_capacity(total);
-    let mut vectors: Vec<Option<Mv>> = Vec::with_capacity(total);
-    for i in 0..total {
-        let (mb_x, mb_y) = (i % cols, i / cols);
-        let mode = modes.read(&mut dec, mb_x, mb_y, inter_frame, uses_mvs);
-        let kind = match mode {
+        Ok(grid)
+    }
+
+    /// Macroblock (mb_x, mb_y): its mode, then its residual; `vectors`
+    /// holds the vectors of the macroblocks before it.
+    fn macroblock(
+        &mut self,
+        h: &FrameHeader,
+        vectors: &[Option<Mv>],
+        (mb_x, mb_y, cols): (usize, usize, usize),
+    ) -> Result<CodedMb, SyntaxError> {
+        let uses_mvs = matches!(h.tool, MotionTool::Block | MotionTool::Obmc);
+        let inter_frame = h.frame_type == FrameType::Inter;
+        let kind = match self.modes.read(&mut self.dec, mb_x, mb_y, inter_frame, uses_mvs) {
             None => {
                 return Err(invalid(
                     "a vector difference beyond the syntax's range".into(),
-                    at(&dec),
+                    self.at(),
                 ))
             }
-            Some(MbMode::Skip) => MbKind::Skip,
+            Some(MbMode::Skip) => return Ok(CodedMb::without_residual(MbKind::Skip)),
             Some(MbMode::Inter { mvd }) => {
-                let predicted = mv_prediction(&vectors, mb_x, mb_y, cols);
+                let predicted = mv_prediction(vectors, mb_x, mb_y, cols);
                 let mv = if uses_mvs {
-                    check_vector(predicted.checked_add(mvd), at(&dec))?
+                    check_vector(predicted.checked_add(mvd), self.at())?
                 } else {
                     Mv::ZERO
                 };
@@ -757,27 +774,57 @@ pub fn read_frame(
                     if !intra_mode_allowed(mode, mb_x, mb_y) {
                         return Err(invalid(
                             format!("{what} {mode:?} needs neighbours outside the picture"),
-                            at(&dec),
+                            self.at(),
                         ));
                     }
                 }
                 MbKind::Intra { luma, chroma }
             }
         };
-        vectors.push(mb_vector(&kind, &vectors, mb_x, mb_y, cols));
-        if kind == MbKind::Skip {
-            mbs.push(CodedMb::without_residual(kind));
-            continue;
-        }
         let intra = matches!(kind, MbKind::Intra { .. });
-        let levels = residual.read(&mut dec, mb_x, mb_y, intra).map_err(|e| match e {
+        let levels = self.residual.read(&mut self.dec, mb_x, mb_y, intra);
+        let levels = levels.map_err(|e| match e {
             ResidualError::Range { what, value, .. } => {
-                invalid(format!("{what} = {value} out of range"), at(&dec))
+                invalid(format!("{what} = {value} out of range"), self.at())
             }
         })?;
-        mbs.push(CodedMb::new(kind, levels));
+        Ok(CodedMb::new(kind, levels))
     }
-    if !dec.consumed_all() {
+}
+
+/// Reads a frame's payload (the bytes after its length field): the frame
+/// header, then the range-coded partition, which must be used to its end.
+/// `state` is the stream's entropy state, updated when the frame is valid.
+pub fn read_frame(
+    seq: &SequenceHeader,
+    payload: &[u8],
+    state: &mut EntropyState,
+) -> Result<FrameSyntax, SyntaxError> {
+    let (cols, rows) = (seq.mb_cols(), seq.mb_rows());
+    let (header, start) = read_frame_header(payload)?;
+    let coded = &payload[start..];
+    let (modes, residual) = state.coders(seq, header.frame_type);
+    let mut part = PartitionReader {
+        dec: RangeDecoder::new(coded),
+        modes,
+        residual,
+        start,
+        len: coded.len(),
+    };
+    let grid = match header.tool {
+        MotionTool::Grid(spacing) => Some(part.grid(seq, spacing)?),
+        _ => None,
+    };
+    let total = cols * rows;
+    let mut mbs = Vec::with_capacity(total);
+    let mut vectors: Vec<Option<Mv>> = Vec::with_capacity(total);
+    for i in 0..total {
+        let (mb_x, mb_y) = (i % cols, i / cols);
+        let mb = part.macroblock(&header, &vectors, (mb_x, mb_y, cols))?;
+        vectors.push(mb_vector(&mb.kind, &vectors, mb_x, mb_y, cols));
+        mbs.push(mb);
+    }
+    if !part.dec.consumed_all() {
         return Err(invalid(
             format!(
                 "the range-coded partition ({} bytes) does not end where its last macroblock does",
@@ -786,6 +833,6 @@ pub fn read_frame(
             8 * start,
         ));
     }
-    state.last = Some((modes, residual));
+    state.last = Some((part.modes, part.residual));
     Ok(FrameSyntax { header, grid, mbs })
 }

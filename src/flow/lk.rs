@@ -84,6 +84,21 @@ pub struct LkResult {
     pub fallback: Array2<bool>,
 }
 
+/// `field` (of a level `scale` times smaller) at `(h, w)`, each pixel
+/// taking the value of the coarse pixel it lies in.
+fn nearest_upscaled(field: &Array2<f32>, scale: usize, (h, w): (usize, usize)) -> Array2<f32> {
+    let (fh, fw) = field.dim();
+    let src = field.as_slice().expect("standard");
+    let mut out = Array2::zeros((h, w));
+    for (y, mut row) in out.rows_mut().into_iter().enumerate() {
+        let line = &src[(y / scale).min(fh - 1) * fw..][..fw];
+        for (x, c) in row.iter_mut().enumerate() {
+            *c = line[(x / scale).min(fw - 1)];
+        }
+    }
+    out
+}
+
 #[inline]
 fn min_eigen(a: f32, b: f32, c: f32) -> f32 {
     let half_trace = 0.5 * (a + c);
@@ -121,6 +136,59 @@ impl Scratch {
             bx: z(),
             by: z(),
             tmp: z(),
+        }
+    }
+
+    /// The window sums of the gradient products (the tensor), with the
+    /// pixels marked outside left out when `masked`.
+    fn window_tensor(&mut self, h: usize, w: usize, window: &[f32], masked: bool) {
+        let n = h * w;
+        for k in 0..3 {
+            if masked {
+                for i in 0..n {
+                    self.masked[i] = self.products[k][i] * self.inside[i];
+                }
+                separable_slice(&self.masked, h, w, window, &mut self.tmp, &mut self.tensor[k]);
+            } else {
+                separable_slice(
+                    &self.products[k],
+                    h,
+                    w,
+                    window,
+                    &mut self.tmp,
+                    &mut self.tensor[k],
+                );
+            }
+        }
+    }
+
+    /// The window sums of the gradients times the temporal difference (the
+    /// right-hand sides).
+    fn window_mismatch(&mut self, h: usize, w: usize, window: &[f32]) {
+        let n = h * w;
+        for i in 0..n {
+            self.masked[i] = self.gx[i] * self.it[i];
+        }
+        separable_slice(&self.masked, h, w, window, &mut self.tmp, &mut self.bx);
+        for i in 0..n {
+            self.masked[i] = self.gy[i] * self.it[i];
+        }
+        separable_slice(&self.masked, h, w, window, &mut self.tmp, &mut self.by);
+    }
+
+    /// One Gauss-Newton update of the first `n` pixels' flow, where the
+    /// tensor's smaller eigenvalue (kept in `lambda`) reaches `min_eigen`.
+    fn solve(&self, n: usize, u: &mut [f32], v: &mut [f32], lambda: &mut [f32], threshold: f32) {
+        let [sa, sb, sc] = [0, 1, 2].map(|k| &self.tensor[k][..n]);
+        let (sbx, sby) = (&self.bx[..n], &self.by[..n]);
+        for i in 0..n {
+            let (a, b, c) = (sa[i], sb[i], sc[i]);
+            lambda[i] = min_eigen(a, b, c);
+            if lambda[i] >= threshold {
+                let det = a * c - b * b;
+                u[i] -= (c * sbx[i] - b * sby[i]) / det;
+                v[i] -= (a * sby[i] - b * sbx[i]) / det;
+            }
         }
     }
 
@@ -299,49 +367,17 @@ impl Lk {
                 // left the picture (they see only the repeated edge); filtered
                 // once while no pixel is out.
                 if any_outside || !tensor_unmasked {
-                    for k in 0..3 {
-                        if any_outside {
-                            for i in 0..n {
-                                buf.masked[i] = buf.products[k][i] * buf.inside[i];
-                            }
-                            separable_slice(&buf.masked, h, w, &window, &mut buf.tmp, &mut buf.tensor[k]);
-                        } else {
-                            separable_slice(
-                                &buf.products[k],
-                                h,
-                                w,
-                                &window,
-                                &mut buf.tmp,
-                                &mut buf.tensor[k],
-                            );
-                        }
-                    }
+                    buf.window_tensor(h, w, &window, any_outside);
                     tensor_unmasked = !any_outside;
                 }
-                for i in 0..n {
-                    buf.masked[i] = buf.gx[i] * buf.it[i];
-                }
-                separable_slice(&buf.masked, h, w, &window, &mut buf.tmp, &mut buf.bx);
-                for i in 0..n {
-                    buf.masked[i] = buf.gy[i] * buf.it[i];
-                }
-                separable_slice(&buf.masked, h, w, &window, &mut buf.tmp, &mut buf.by);
-                let [sa, sb, sc] = [0, 1, 2].map(|k| &buf.tensor[k][..n]);
-                let (sbx, sby) = (&buf.bx[..n], &buf.by[..n]);
-                let (us, vs) = (
+                buf.window_mismatch(h, w, &window);
+                buf.solve(
+                    n,
                     u.as_slice_mut().expect("standard"),
                     v.as_slice_mut().expect("standard"),
+                    lambda.as_slice_mut().expect("standard"),
+                    p.min_eigen,
                 );
-                let ls = lambda.as_slice_mut().expect("standard");
-                for i in 0..n {
-                    let (a, b, c) = (sa[i], sb[i], sc[i]);
-                    ls[i] = min_eigen(a, b, c);
-                    if ls[i] >= p.min_eigen {
-                        let det = a * c - b * b;
-                        us[i] -= (c * sbx[i] - b * sby[i]) / det;
-                        vs[i] -= (a * sby[i] - b * sbx[i]) / det;
-                    }
-                }
             }
         }
         // From the finest level computed up to full size.
@@ -353,16 +389,7 @@ impl Lk {
             v = upsample2(&v, h, w, 2.0);
             level -= 1;
         }
-        let scale = 1usize << finest;
-        let mut confidence = Array2::zeros((h0, w0));
-        let (lh, lw) = lambda.dim();
-        let ls = lambda.as_slice().expect("standard");
-        for (y, mut row) in confidence.rows_mut().into_iter().enumerate() {
-            let src = &ls[(y / scale).min(lh - 1) * lw..][..lw];
-            for (x, c) in row.iter_mut().enumerate() {
-                *c = src[(x / scale).min(lw - 1)];
-            }
-        }
+        let confidence = nearest_upscaled(&lambda, 1 << finest, (h0, w0));
         let fallback = confidence.mapv(|l| l < p.min_eigen);
         LkResult {
             flow: Flow::from_uv(u, v),

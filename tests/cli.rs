@@ -390,6 +390,16 @@ fn errors_are_one_clear_line() {
     );
     let err = fails_cleanly(&["psnr", sample("tree_qcif.y4m").to_str().unwrap(), &small]);
     assert!(err.contains("sizes differ"), "{err}");
+
+    // Each cause said once (a wrapped error's message is not repeated by
+    // its source in the chain).
+    let huge = write("huge.y4m", b"YUV4MPEG2 W99999 H10 F25:1 C420jpeg\n");
+    let err = fails_cleanly(&["info", &huge]);
+    assert_eq!(err.matches("exceeds the maximum").count(), 1, "{err}");
+    let err = fails_cleanly(&["info", "/no/such/file.flo"]);
+    assert_eq!(err.matches("No such file").count(), 1, "{err}");
+    let err = fails_cleanly(&["flow", &flo, &flo]);
+    assert!(err.contains("takes two pictures or a Y4M"), "{err}");
 }
 
 #[test]

@@ -23,7 +23,7 @@ use crate::syntax::{
 #[derive(Debug, thiserror::Error)]
 pub enum DecodeError {
     /// Reading failed.
-    #[error("{0}")]
+    #[error(transparent)]
     Io(#[from] io::Error),
     /// The sequence header is wrong.
     #[error(transparent)]

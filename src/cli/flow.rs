@@ -231,6 +231,14 @@ fn read_pair(args: &Args) -> Result<(Array2<f32>, Array2<f32>)> {
         let Some(second) = &args.second else {
             bail!("give two pictures, or a Y4M with --frames A:B");
         };
+        for p in [&args.first, second] {
+            if p.extension().is_some_and(|e| e.eq_ignore_ascii_case("flo")) {
+                bail!(
+                    "{}: a flow file; mocomp flow takes two pictures or a Y4M (mocomp info reads .flo files)",
+                    p.display()
+                );
+            }
+        }
         let read = |p: &PathBuf| image::read_luma(p).with_context(|| p.display().to_string());
         let (a, b) = (read(&args.first)?, read(second)?);
         if (a.width(), a.height()) != (b.width(), b.height()) {

@@ -44,7 +44,7 @@ const HEADER_LEN: u64 = 12;
 #[derive(Debug, thiserror::Error)]
 pub enum FloError {
     /// The underlying file failed.
-    #[error("{0}")]
+    #[error(transparent)]
     Io(#[from] io::Error),
     /// The first four bytes are not `PIEH`.
     #[error("not a .flo file: magic is {found:?}, expected \"PIEH\" (202021.25)")]

@@ -24,13 +24,13 @@ use crate::codec::picture::{check_size, Frame, PictureError, Plane, MAX_DIMENSIO
 #[derive(Debug, thiserror::Error)]
 pub enum ImageError {
     /// Opening, reading or writing failed.
-    #[error("{0}")]
+    #[error(transparent)]
     Io(#[from] std::io::Error),
     /// The `image` crate could not decode or encode it.
-    #[error("{0}")]
+    #[error(transparent)]
     Image(#[from] image::ImageError),
     /// The picture size is out of range.
-    #[error("{0}")]
+    #[error(transparent)]
     Size(#[from] PictureError),
 }
 

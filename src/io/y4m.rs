@@ -252,7 +252,7 @@ fn parse_colorspace(value: &str) -> Result<ChromaSiting, Y4mError> {
 #[derive(Debug, thiserror::Error)]
 pub enum Y4mError {
     /// The underlying reader or writer failed.
-    #[error("{0}")]
+    #[error(transparent)]
     Io(#[from] io::Error),
     /// Nothing to read.
     #[error("empty input: not a Y4M stream")]
@@ -276,7 +276,7 @@ pub enum Y4mError {
     },
     /// The header's picture size is out of range.
     #[error("bad Y4M header: {0}")]
-    Size(#[from] PictureError),
+    Size(PictureError),
     /// The input ends inside a frame.
     #[error("frame {frame} is truncated: the input ends after {got} of its {expected} bytes")]
     Truncated {
@@ -526,5 +526,13 @@ fn map_write_error(e: y4m::Error) -> Y4mError {
     match e {
         y4m::Error::IoError(e) => Y4mError::Io(e),
         other => Y4mError::Io(io::Error::other(other.to_string())),
+    }
+}
+
+/// A size error in a header, said once (the variant's message holds it; it
+/// is not also its source, or error chains would repeat it).
+impl From<PictureError> for Y4mError {
+    fn from(e: PictureError) -> Y4mError {
+        Y4mError::Size(e)
     }
 }

@@ -629,16 +629,16 @@ pub fn backward_flow_name(t: usize) -> String {
 #[derive(Debug, thiserror::Error)]
 pub enum SampleError {
     /// Writing the video.
-    #[error("{0}")]
+    #[error(transparent)]
     Y4m(#[from] Y4mError),
     /// Writing a flow file.
-    #[error("{0}")]
+    #[error(transparent)]
     Flo(#[from] flo::FloError),
     /// Bad scene size.
-    #[error("{0}")]
+    #[error(transparent)]
     Size(#[from] PictureError),
     /// Creating the folder.
-    #[error("{0}")]
+    #[error(transparent)]
     Io(#[from] std::io::Error),
 }
 

@@ -285,8 +285,9 @@ pub fn dense_lk(i1: &Array2<f32>, i2: &Array2<f32>, p: &LkParams) -> LkResult {
 
 /// Dense Lucas-Kanade that keeps its pyramids and work buffers from one call
 /// to the next (pictures of the same size then cost no allocation beyond
-/// the result), for sequences and for timing the method rather than the
-/// allocator.
+/// the result, except the contrast normalisation's, which allocates its
+/// filtered copies per level when [`LkParams::normalize`] is on), for
+/// sequences and for timing the method rather than the allocator.
 #[derive(Debug)]
 pub struct Lk {
     params: LkParams,

@@ -153,101 +153,214 @@ struct Choice {
     samples: MbSamples,
 }
 
-/// A P frame predicted from `reference` with `motion` and `tool`,
-/// reconstructed into `recon` (coded size, contents all overwritten).
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn code_inter(
-    seq: &SequenceHeader,
-    coder: &MbCoder,
-    src: &Frame,
-    reference: &Frame,
-    motion: FrameMotion,
+/// What a P frame is predicted from and how.
+pub(crate) struct InterInputs<'a> {
+    /// The previous reconstruction (coded size).
+    pub reference: &'a Frame,
+    pub motion: FrameMotion,
+    pub tool: MotionTool,
+    pub decision: ModeDecision,
+}
+
+/// One macroblock under analysis: its source, its predicted vector and the
+/// best choice so far (x264's per-macroblock analysis context).
+struct MbAnalysis {
+    index: usize,
+    mb_x: usize,
+    mb_y: usize,
+    source: MbSource,
+    mvp: Mv,
+    /// The skip prediction (also the inter prediction with vector `mvp`).
+    skip_pred: MbSamples,
+    best: Choice,
+    /// Whether any choice but skip can win (see [`InterFrameCoder::analyse_skip`]).
+    exhaustive: bool,
+    /// The lowest luma SATD of the inter candidates, for intra's early out.
+    inter_satd: u32,
+}
+
+impl MbAnalysis {
+    /// Keeps `choice` if it costs less than the best so far.
+    fn consider(&mut self, choice: Choice) {
+        if choice.cost < self.best.cost {
+            self.best = choice;
+        }
+    }
+}
+
+/// A P frame's mode decision: one analysis context over the frame, one
+/// method per kind of candidate, macroblocks in raster order.
+struct InterFrameCoder<'a> {
+    seq: &'a SequenceHeader,
+    coder: &'a MbCoder,
+    src: &'a Frame,
+    reference: &'a Frame,
     tool: MotionTool,
     decision: ModeDecision,
-    state: &mut EntropyState,
-    mut recon: Frame,
-) -> Result<CodedFrame, PictureError> {
-    let (cols, n) = (seq.mb_cols(), seq.mb_cols() * seq.mb_rows());
-    let (w, h) = (seq.coded_width(), seq.coded_height());
-    let (searched, grid, warped) = match motion {
-        FrameMotion::Vectors(v) => (v, None, None),
-        FrameMotion::Grid(g) => {
-            let mut out = Frame::new(w, h)?;
-            warp_frame(reference, &g, &mut out);
-            (vec![Mv::ZERO; n], Some(g), Some(out))
+    /// Motion analysis' vector per macroblock (zero for grid frames).
+    searched: Vec<Mv>,
+    /// The reference warped by the grid, for grid frames.
+    warped: Option<Frame>,
+    uses_mvs: bool,
+    /// The vectors OBMC predicts with: decided ones, searched ones for the
+    /// macroblocks not decided yet.
+    context: Vec<Option<Mv>>,
+    /// The decided vectors, for the vector prediction.
+    decided: Vec<Option<Mv>>,
+    sink: MbSink,
+    /// OBMC's second pass prices residuals from the frame's start again.
+    residual_coder_at_start: Option<ResidualCoder>,
+    /// The frame so far: its macroblocks and reconstruction.
+    frame: CodedFrame,
+}
+
+impl<'a> InterFrameCoder<'a> {
+    fn new(
+        seq: &'a SequenceHeader,
+        coder: &'a MbCoder,
+        src: &'a Frame,
+        inputs: InterInputs<'a>,
+        state: &EntropyState,
+        recon: Frame,
+    ) -> Result<InterFrameCoder<'a>, PictureError> {
+        let n = seq.mb_cols() * seq.mb_rows();
+        let (searched, grid, warped) = match inputs.motion {
+            FrameMotion::Vectors(v) => (v, None, None),
+            FrameMotion::Grid(g) => {
+                let mut out = Frame::new(seq.coded_width(), seq.coded_height())?;
+                warp_frame(inputs.reference, &g, &mut out);
+                (vec![Mv::ZERO; n], Some(g), Some(out))
+            }
+        };
+        let header = FrameHeader {
+            frame_type: FrameType::Inter,
+            qp: coder.qp,
+            tool: inputs.tool,
+        };
+        let obmc = inputs.tool == MotionTool::Obmc;
+        let sink = if obmc {
+            MbSink::Adapt(Box::new(state.coders(seq, FrameType::Inter)))
+        } else {
+            MbSink::Write(Box::new(FrameWriter::new(seq, &header, grid.as_ref(), state)))
+        };
+        Ok(InterFrameCoder {
+            seq,
+            coder,
+            src,
+            reference: inputs.reference,
+            tool: inputs.tool,
+            decision: inputs.decision,
+            uses_mvs: grid.is_none(),
+            context: searched.iter().copied().map(Some).collect(),
+            searched,
+            warped,
+            decided: Vec::with_capacity(n),
+            residual_coder_at_start: obmc.then(|| sink.residual().clone()),
+            sink,
+            frame: CodedFrame {
+                syntax: FrameSyntax {
+                    header,
+                    grid,
+                    mbs: Vec::with_capacity(n),
+                },
+                bytes: Vec::new(),
+                bits: BitCounts::default(),
+                recon,
+                prediction_sse: 0,
+                kinds: [0; 3],
+            },
+        })
+    }
+
+    fn inter_context(&self) -> InterContext<'_> {
+        InterContext {
+            reference: self.reference,
+            tool: self.tool,
+            vectors: &self.context,
+            warped: self.warped.as_ref(),
+            mb_cols: self.seq.mb_cols(),
         }
-    };
-    let uses_mvs = grid.is_none();
-    // OBMC predicts a block from its neighbours' vectors too: the ones not
-    // decided yet are taken as searched.
-    let mut context: Vec<Option<Mv>> = searched.iter().copied().map(Some).collect();
-    let mut decided: Vec<Option<Mv>> = Vec::with_capacity(n);
-    let mut mbs = Vec::with_capacity(n);
-    let mut prediction_sse = 0;
-    let mut kinds = [0; 3];
-    let header = FrameHeader {
-        frame_type: FrameType::Inter,
-        qp: coder.qp,
-        tool,
-    };
-    let mut sink = if tool == MotionTool::Obmc {
-        MbSink::Adapt(Box::new(state.coders(seq, FrameType::Inter)))
-    } else {
-        MbSink::Write(Box::new(FrameWriter::new(seq, &header, grid.as_ref(), state)))
-    };
-    // OBMC's second pass prices residuals from the frame's start again.
-    let residual_coder_at_start = (tool == MotionTool::Obmc).then(|| sink.residual().clone());
-    // Bits of a mode as the frame's mode coder prices it now.
-    let mode_bits = |modes: &ModeCoder, mb_x, mb_y, mode: &MbMode| {
-        f64::from(modes.cost(mb_x, mb_y, true, uses_mvs, mode)) / 256.0
-    };
-    for i in 0..n {
-        let (mb_x, mb_y) = (i % cols, i / cols);
-        let s = MbSource::load(src, mb_x, mb_y);
-        let mvp = if uses_mvs {
-            mv_prediction(&decided, mb_x, mb_y, cols)
+    }
+
+    /// Bits of a mode as the frame's mode coder prices it now.
+    fn mode_bits(&self, mb: &MbAnalysis, mode: &MbMode) -> f64 {
+        f64::from(
+            self.sink
+                .modes()
+                .cost(mb.mb_x, mb.mb_y, true, self.uses_mvs, mode),
+        ) / 256.0
+    }
+
+    /// Macroblock `index`, decided: skip first, then inter and intra when
+    /// they can win.
+    fn analyse(&self, index: usize) -> MbAnalysis {
+        let mut mb = self.analyse_skip(index);
+        if mb.exhaustive {
+            self.analyse_inter(&mut mb);
+            self.analyse_intra(&mut mb);
+        }
+        mb
+    }
+
+    /// The analysis context of macroblock `index` with skip as its best.
+    fn analyse_skip(&self, index: usize) -> MbAnalysis {
+        let cols = self.seq.mb_cols();
+        let (mb_x, mb_y) = (index % cols, index / cols);
+        let source = MbSource::load(self.src, mb_x, mb_y);
+        let mvp = if self.uses_mvs {
+            mv_prediction(&self.decided, mb_x, mb_y, cols)
         } else {
             Mv::ZERO
         };
-        let ctx = InterContext {
-            reference,
-            tool,
-            vectors: &context,
-            warped: warped.as_ref(),
-            mb_cols: cols,
+        let skip_pred = predict_inter(&self.inter_context(), mb_x, mb_y, mvp);
+        let mut mb = MbAnalysis {
+            index,
+            mb_x,
+            mb_y,
+            mvp,
+            best: Choice {
+                cost: 0.0,
+                kind: MbKind::Skip,
+                pred: skip_pred.clone(),
+                residual: None,
+                samples: skip_pred.clone(),
+            },
+            source,
+            skip_pred,
+            exhaustive: false,
+            inter_satd: u32::MAX,
         };
-        let skip_pred = predict_inter(&ctx, mb_x, mb_y, mvp);
-        let mut best = Choice {
-            cost: coder.cost(
-                s.ssd(&skip_pred),
-                mode_bits(sink.modes(), mb_x, mb_y, &MbMode::Skip),
-            ),
-            kind: MbKind::Skip,
-            pred: skip_pred.clone(),
-            residual: None,
-            samples: skip_pred.clone(),
-        };
+        mb.best.cost = self
+            .coder
+            .cost(mb.source.ssd(&mb.skip_pred), self.mode_bits(&mb, &MbMode::Skip));
         // Every other choice spends at least the flag saying it is not
         // skipped: when skip costs no more, nothing can beat it.
-        let not_skipped = f64::from(sink.modes().not_skipped_cost(mb_x, mb_y)) / 256.0;
-        let exhaustive = best.cost > coder.cost(0, not_skipped);
-        let searched_mv = (uses_mvs && searched[i] != mvp).then_some(searched[i]);
+        let not_skipped = f64::from(self.sink.modes().not_skipped_cost(mb_x, mb_y)) / 256.0;
+        mb.exhaustive = mb.best.cost > self.coder.cost(0, not_skipped);
+        mb
+    }
+
+    /// Inter with the predicted vector and with the searched one (with
+    /// [`ModeDecision::Fast`], only the one of lower SATD + rate estimate).
+    fn analyse_inter(&self, mb: &mut MbAnalysis) {
+        let searched = self.searched[mb.index];
+        let searched_mv = (self.uses_mvs && searched != mb.mvp).then_some(searched);
         let mut candidates = Vec::with_capacity(2);
-        for mv in std::iter::once(mvp).chain(searched_mv).filter(|_| exhaustive) {
-            let pred = if mv == mvp {
-                skip_pred.clone()
+        for mv in std::iter::once(mb.mvp).chain(searched_mv) {
+            let pred = if mv == mb.mvp {
+                mb.skip_pred.clone()
             } else {
-                predict_inter(&ctx, mb_x, mb_y, mv)
+                predict_inter(&self.inter_context(), mb.mb_x, mb.mb_y, mv)
             };
-            let satd = luma_satd(&s, &pred);
+            let satd = luma_satd(&mb.source, &pred);
             candidates.push((mv, pred, satd));
         }
-        let inter_satd = candidates.iter().map(|c| c.2).min().unwrap_or(u32::MAX);
-        if decision == ModeDecision::Fast && candidates.len() == 2 {
+        mb.inter_satd = candidates.iter().map(|c| c.2).min().unwrap_or(u32::MAX);
+        if self.decision == ModeDecision::Fast && candidates.len() == 2 {
             // The lower SATD + sqrt(lambda) * vector bits is coded alone.
-            let sad_lambda = coder.lambda.sqrt();
+            let sad_lambda = self.coder.lambda.sqrt();
             let estimate = |(mv, _, satd): &(Mv, MbSamples, u32)| {
-                f64::from(*satd) + sad_lambda * f64::from(mvd_bits(*mv, mvp))
+                f64::from(*satd) + sad_lambda * f64::from(mvd_bits(*mv, mb.mvp))
             };
             if estimate(&candidates[1]) < estimate(&candidates[0]) {
                 candidates.swap(0, 1);
@@ -255,78 +368,109 @@ pub(crate) fn code_inter(
             candidates.truncate(1);
         }
         for (mv, pred, _) in candidates {
-            let coded = coder.code(&s, &pred, false, sink.residual(), mb_x, mb_y);
-            let mode = MbMode::Inter { mvd: mv - mvp };
-            let bits = mode_bits(sink.modes(), mb_x, mb_y, &mode) + coded.bits;
-            let cost = coder.cost(coded.ssd, bits);
-            if cost < best.cost {
-                best = Choice {
-                    cost,
-                    kind: MbKind::Inter { mv },
-                    pred,
-                    residual: Some(coded.residual),
-                    samples: coded.samples,
-                };
-            }
+            let mode = MbMode::Inter { mvd: mv - mb.mvp };
+            let choice = self.coded_choice(mb, MbKind::Inter { mv }, &mode, pred);
+            mb.consider(choice);
         }
-        // Intra is coded only when its luma SATD is below inter's (as the
-        // H.264 reference encoder's fast modes); its chroma mode is looked
-        // for only then.
+    }
+
+    /// Intra, coded only when its luma SATD is below inter's (as the H.264
+    /// reference encoder's fast modes); its chroma mode is looked for only
+    /// then.
+    fn analyse_intra(&self, mb: &mut MbAnalysis) {
         let mut pred = MbSamples::default();
-        let luma = exhaustive
-            .then(|| coder.best_intra_luma(&s, &recon, (mb_x, mb_y), &mut pred))
-            .filter(|&(_, satd)| satd < inter_satd);
-        if let Some((luma, _)) = luma {
-            let chroma = coder.best_intra_chroma(&s, &recon, (mb_x, mb_y), &mut pred);
-            let coded = coder.code(&s, &pred, true, sink.residual(), mb_x, mb_y);
-            let mode = MbMode::Intra { luma, chroma };
-            let bits = mode_bits(sink.modes(), mb_x, mb_y, &mode) + coded.bits;
-            let cost = coder.cost(coded.ssd, bits);
-            if cost < best.cost {
-                best = Choice {
-                    cost,
-                    kind: MbKind::Intra { luma, chroma },
-                    pred,
-                    residual: Some(coded.residual),
-                    samples: coded.samples,
-                };
-            }
+        let at = (mb.mb_x, mb.mb_y);
+        let (luma, satd) = self
+            .coder
+            .best_intra_luma(&mb.source, &self.frame.recon, at, &mut pred);
+        if satd >= mb.inter_satd {
+            return;
         }
-        write_mb(&best.samples, &mut recon, mb_x, mb_y);
-        prediction_sse += visible_luma_sse(&s, &best.pred, mb_x, mb_y, seq);
-        let v = mb_vector(&best.kind, &decided, mb_x, mb_y, cols);
-        decided.push(v);
-        context[i] = v;
-        kinds[kind_index(&best.kind)] += 1;
-        let mb = match best.residual {
+        let chroma = self
+            .coder
+            .best_intra_chroma(&mb.source, &self.frame.recon, at, &mut pred);
+        let mode = MbMode::Intra { luma, chroma };
+        let choice = self.coded_choice(mb, MbKind::Intra { luma, chroma }, &mode, pred);
+        mb.consider(choice);
+    }
+
+    /// `pred` with its residual coded, priced as `mode`.
+    fn coded_choice(&self, mb: &MbAnalysis, kind: MbKind, mode: &MbMode, pred: MbSamples) -> Choice {
+        let intra = matches!(kind, MbKind::Intra { .. });
+        let coded = self
+            .coder
+            .code(&mb.source, &pred, intra, self.sink.residual(), mb.mb_x, mb.mb_y);
+        let bits = self.mode_bits(mb, mode) + coded.bits;
+        Choice {
+            cost: self.coder.cost(coded.ssd, bits),
+            kind,
+            pred,
+            residual: Some(coded.residual),
+            samples: coded.samples,
+        }
+    }
+
+    /// Reconstructs and records the decided macroblock.
+    fn commit(&mut self, mb: MbAnalysis) {
+        let (mb_x, mb_y) = (mb.mb_x, mb.mb_y);
+        let best = mb.best;
+        write_mb(&best.samples, &mut self.frame.recon, mb_x, mb_y);
+        self.frame.prediction_sse += visible_luma_sse(&mb.source, &best.pred, mb_x, mb_y, self.seq);
+        let v = mb_vector(&best.kind, &self.decided, mb_x, mb_y, self.seq.mb_cols());
+        self.decided.push(v);
+        self.context[mb.index] = v;
+        self.frame.kinds[kind_index(&best.kind)] += 1;
+        let coded = match best.residual {
             Some(levels) => CodedMb::with_levels(best.kind, levels),
             None => CodedMb::without_residual(best.kind),
         };
-        sink.push(&mb, (mb_x, mb_y), mvp, uses_mvs);
-        mbs.push(mb);
+        self.sink.push(&coded, (mb_x, mb_y), mb.mvp, self.uses_mvs);
+        self.frame.syntax.mbs.push(coded);
     }
-    let mut frame = CodedFrame {
-        syntax: FrameSyntax { header, grid, mbs },
-        bytes: Vec::new(),
-        bits: BitCounts::default(),
-        recon,
-        prediction_sse,
-        kinds,
-    };
-    match sink {
-        MbSink::Write(writer) => (frame.bytes, frame.bits) = writer.finish(state),
-        MbSink::Adapt(_) => {
-            // Decisions saw neighbours' searched vectors; code the residuals
-            // again against the final prediction, which uses the decided
-            // ones, then write the frame.
-            if let Some(residual_coder) = residual_coder_at_start {
-                recode(seq, coder, src, reference, residual_coder, &mut frame)?;
+
+    /// The coded frame, written; `state` updated.
+    fn finish(self, state: &mut EntropyState) -> Result<CodedFrame, PictureError> {
+        let mut frame = self.frame;
+        match self.sink {
+            MbSink::Write(writer) => (frame.bytes, frame.bits) = writer.finish(state),
+            MbSink::Adapt(_) => {
+                // Decisions saw neighbours' searched vectors; code the
+                // residuals again against the final prediction, which uses
+                // the decided ones, then write the frame.
+                if let Some(residual_coder) = self.residual_coder_at_start {
+                    recode(
+                        self.seq,
+                        self.coder,
+                        self.src,
+                        self.reference,
+                        residual_coder,
+                        &mut frame,
+                    )?;
+                }
+                (frame.bytes, frame.bits) = write_frame(self.seq, &frame.syntax, state);
             }
-            (frame.bytes, frame.bits) = write_frame(seq, &frame.syntax, state);
         }
+        frame.recon.extend_borders();
+        Ok(frame)
     }
-    frame.recon.extend_borders();
-    Ok(frame)
+}
+
+/// A P frame predicted as `inputs` say, reconstructed into `recon` (coded
+/// size, contents all overwritten) and written, `state` updated.
+pub(crate) fn code_inter(
+    seq: &SequenceHeader,
+    coder: &MbCoder,
+    src: &Frame,
+    inputs: InterInputs<'_>,
+    state: &mut EntropyState,
+    recon: Frame,
+) -> Result<CodedFrame, PictureError> {
+    let mut frame_coder = InterFrameCoder::new(seq, coder, src, inputs, state, recon)?;
+    for index in 0..seq.mb_cols() * seq.mb_rows() {
+        let mb = frame_coder.analyse(index);
+        frame_coder.commit(mb);
+    }
+    frame_coder.finish(state)
 }
 
 /// Codes every macroblock's residual again, keeping the decisions, against

@@ -200,17 +200,13 @@ impl Encoder {
                     Predictor::Dense { grid, .. } => MotionTool::Grid(grid),
                     _ => MotionTool::Block,
                 };
-                frame::code_inter(
-                    &self.seq,
-                    &self.coder,
-                    &src,
+                let inputs = frame::InterInputs {
                     reference,
                     motion,
                     tool,
-                    self.config.decision,
-                    &mut self.entropy,
-                    recon,
-                )?
+                    decision: self.config.decision,
+                };
+                frame::code_inter(&self.seq, &self.coder, &src, inputs, &mut self.entropy, recon)?
             }
             _ => frame::code_intra(&self.seq, &self.coder, &src, &mut self.entropy, recon)?,
         };

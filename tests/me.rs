@@ -3,7 +3,7 @@
 
 use mocomp::codec::mv::Mv;
 use mocomp::codec::Plane;
-use mocomp::me::{estimate, lambda_for_qp, MeConfig, Method, Metric, MotionField, Subpel};
+use mocomp::me::{estimate, lambda_for_qp, search_around, MeConfig, Method, Metric, MotionField, Subpel};
 use mocomp::synth::{Motion, SceneSpec, Synth};
 
 /// Frames 1 and 0 (current, reference) of a noise-free synthetic scene
@@ -252,4 +252,47 @@ fn bad_configurations_are_errors() {
         assert_eq!(m.name().parse::<Method>(), Ok(m));
     }
     assert!("umh".parse::<Method>().is_err());
+}
+
+#[test]
+fn a_seeded_search_finds_large_shifts_its_window_alone_could_not() {
+    // A 19.25 x -13.5 px shift, beyond the range-3 window around zero: from
+    // a seed a few pixels off (a flow's error), the search lands within a
+    // quarter pixel; every fast method too, on the same window.
+    let (dx, dy) = (19.25, -13.5);
+    let (cur, reference) = (waves(160, 128, dx, dy), waves(160, 128, 0.0, 0.0));
+    let (tx, ty) = (-dx * 4.0, -dy * 4.0);
+    let seed = Mv::new(tx as i32 + 9, ty as i32 - 6);
+    let blocks = interior_textured(&cur, 16, (-20, 14), 4);
+    assert!(blocks.len() > 4, "too few blocks to test");
+    for method in [Method::Esa, Method::Epzs, Method::Hexbs] {
+        let mut cfg = MeConfig::new(method, 16, 3);
+        cfg.subpel = Subpel::Quarter;
+        cfg.metric = Metric::Satd;
+        for &(c, r) in &blocks {
+            let best = search_around(&cur, &reference, (c * 16, r * 16), seed, Mv::ZERO, &cfg).unwrap();
+            let v = best.mv;
+            assert!(
+                (f64::from(v.x) - tx).abs() <= 1.0 && (f64::from(v.y) - ty).abs() <= 1.0,
+                "{method} block ({c},{r}): {v:?}, want ({tx},{ty})"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_seeded_search_keeps_an_exact_seed_and_survives_seeds_past_the_border() {
+    let (cur, reference) = (waves(96, 96, 1.75, -0.5), waves(96, 96, 0.0, 0.0));
+    let mut cfg = MeConfig::new(Method::Esa, 16, 2);
+    cfg.subpel = Subpel::Quarter;
+    let exact = Mv::new(-7, 2);
+    let best = search_around(&cur, &reference, (32, 32), exact, Mv::ZERO, &cfg).unwrap();
+    assert_eq!(best.mv, exact);
+    // Far past the 32-pixel border: read clamped, as the decoder would; the
+    // window stays around the seed.
+    let far = Mv::full_pel(-400, 300);
+    let best = search_around(&cur, &reference, (0, 80), far, Mv::ZERO, &cfg).unwrap();
+    assert!((best.mv.x - far.x).abs() <= 2 * 4 + 3 && (best.mv.y - far.y).abs() <= 2 * 4 + 3);
+    // A block outside the picture is an error, not a panic.
+    assert!(search_around(&cur, &reference, (90, 0), exact, Mv::ZERO, &cfg).is_err());
 }

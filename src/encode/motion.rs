@@ -4,7 +4,6 @@
 use ndarray::Array2;
 
 use super::config::{FlowMethod, Predictor, SearchSettings};
-use crate::codec::interp::predict_luma;
 use crate::codec::mv::Mv;
 use crate::codec::syntax::{mv_prediction, MB};
 use crate::codec::warp::MotionGrid;
@@ -59,23 +58,21 @@ impl MotionAnalyser {
             }
             Predictor::FlowBlock { flow, refine } => {
                 let f = self.flow(flow, source.y(), prev_source.y());
-                let lambda = lambda_for_qp(Metric::Satd, self.qp);
+                let mut cfg = MeConfig::new(me::Method::Esa, MB, refine.max(1));
+                cfg.subpel = me::Subpel::Quarter;
+                cfg.metric = Metric::Satd;
+                cfg.lambda = lambda_for_qp(Metric::Satd, self.qp);
                 let mut vectors: Vec<Option<Mv>> = Vec::with_capacity(cols * rows);
                 for r in 0..rows {
                     for c in 0..cols {
                         let seed = block_median(&f, c * MB, r * MB, MB);
                         let mv = if refine > 0 {
                             let mvp = mv_prediction(&vectors, c, r, cols);
-                            refine_around(
-                                source.y(),
-                                reference.y(),
-                                c * MB,
-                                r * MB,
-                                seed,
-                                refine,
-                                mvp,
-                                lambda,
-                            )
+                            let at = (c * MB, r * MB);
+                            // The configuration was checked with the
+                            // encoder's and the block is inside the frame.
+                            me::search_around(source.y(), reference.y(), at, seed, mvp, &cfg)
+                                .map_or(seed, |best| best.mv)
                         } else {
                             seed
                         };
@@ -155,58 +152,6 @@ pub(crate) fn block_median(flow: &Flow, x0: usize, y0: usize, size: usize) -> Mv
         *s.select_nth_unstable_by(mid, f32::total_cmp).1
     };
     Mv::new(to_qpel(median(&mut us)), to_qpel(median(&mut vs)))
-}
-
-/// Searches full-pel vectors within `radius` of `seed` (rounded), then
-/// half- and quarter-pel around the best, by SATD + lambda * vector bits;
-/// the seed itself is a candidate.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn refine_around(
-    cur: &Plane,
-    reference: &Plane,
-    x: usize,
-    y: usize,
-    seed: Mv,
-    radius: i32,
-    mvp: Mv,
-    lambda: f64,
-) -> Mv {
-    let src = &cur.data()[cur.index(x as isize, y as isize)..];
-    let mut pred = [0u8; MB * MB];
-    let mut cost = |mv: Mv| -> f64 {
-        predict_luma(
-            reference, x as isize, y as isize, mv.x, mv.y, MB, MB, &mut pred, MB,
-        );
-        f64::from(Metric::Satd.cost(src, cur.stride(), &pred, MB, MB, MB))
-            + lambda * f64::from(crate::codec::mv::mvd_bits(mv, mvp))
-    };
-    let mut best = (cost(seed), seed);
-    let centre = Mv::new((seed.x + 2) & !3, (seed.y + 2) & !3);
-    for dy in -radius..=radius {
-        for dx in -radius..=radius {
-            let mv = Mv::new(centre.x + 4 * dx, centre.y + 4 * dy);
-            let c = cost(mv);
-            if c < best.0 {
-                best = (c, mv);
-            }
-        }
-    }
-    for step in [2, 1] {
-        let c0 = best.1;
-        for dy in [-step, 0, step] {
-            for dx in [-step, 0, step] {
-                if dx == 0 && dy == 0 {
-                    continue;
-                }
-                let mv = Mv::new(c0.x + dx, c0.y + dy);
-                let c = cost(mv);
-                if c < best.0 {
-                    best = (c, mv);
-                }
-            }
-        }
-    }
-    best.1
 }
 
 /// A `spacing` grid for a `width x height` picture from a dense flow: each

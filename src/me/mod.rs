@@ -318,17 +318,39 @@ pub(crate) struct SearchContext<'a> {
     mvp: Mv,
     lambda_q8: u64,
     halfpel: Option<&'a halfpel::HalfPel>,
+    /// The full-pel centre of the window: zero, or a seed's.
+    origin: (i32, i32),
 }
 
 impl SearchContext<'_> {
-    /// Distortion of the block against the reference at full-pel offset (dx, dy).
+    /// Distortion of the block against the reference at full-pel offset
+    /// (dx, dy): read in place when the reference's border holds the block
+    /// there, else through the codec's (clamping) prediction.
     fn distortion(&self, dx: i32, dy: i32) -> u32 {
         let b = self.cfg.block;
         let a = &self.cur.data()[self.cur.index(self.x, self.y)..];
-        let r = &self.reference.data()[self.reference.index(self.x + dx as isize, self.y + dy as isize)..];
-        self.cfg
-            .metric
-            .cost(a, self.cur.stride(), r, self.reference.stride(), b, b)
+        let (rx, ry) = (self.x + dx as isize, self.y + dy as isize);
+        let last = b as isize - 1;
+        if self.reference.in_padded(rx, ry) && self.reference.in_padded(rx + last, ry + last) {
+            let r = &self.reference.data()[self.reference.index(rx, ry)..];
+            return self
+                .cfg
+                .metric
+                .cost(a, self.cur.stride(), r, self.reference.stride(), b, b);
+        }
+        let mut scratch = [0u8; 32 * 32];
+        predict_luma(
+            self.reference,
+            self.x,
+            self.y,
+            4 * dx,
+            4 * dy,
+            b,
+            b,
+            &mut scratch,
+            b,
+        );
+        self.cfg.metric.cost(a, self.cur.stride(), &scratch, b, b, b)
     }
 
     /// Rate term of a quarter-pel vector, in cost units.
@@ -360,10 +382,13 @@ impl SearchContext<'_> {
     }
 }
 
-/// A candidate and its cost, ordered by the common tie-break.
+/// A vector and its cost (distortion plus rate term), ordered by the common
+/// tie-break.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct Candidate {
+pub struct Candidate {
+    /// Distortion plus `lambda` times the vector's bits.
     pub cost: u64,
+    /// Quarter-pel.
     pub mv: Mv,
 }
 
@@ -444,6 +469,7 @@ pub fn estimate_with_prior(
             },
             lambda_q8,
             halfpel: halfpel.as_ref(),
+            origin: (0, 0),
         };
         let neighbours = search::Neighbours::of(field, prior, col, row);
         let best = search::full_pel(&s, &neighbours);
@@ -478,4 +504,56 @@ pub fn estimate_with_prior(
         }
     }
     Ok(field)
+}
+
+/// Searches around `seed` (a flow's vector, say) instead of zero for the
+/// block of `cur` at (x, y): `cfg`'s method over the window of `cfg.range`
+/// full pels around the seed rounded to full pel, then its sub-pel
+/// refinement around the better of the full-pel best and the seed itself. `mvp` is the vector the
+/// rate term is priced against. Vectors may reach past the reference's
+/// border (read as the decoder reads them, clamped).
+pub fn search_around(
+    cur: &Plane,
+    reference: &Plane,
+    (x, y): (usize, usize),
+    seed: Mv,
+    mvp: Mv,
+    cfg: &MeConfig,
+) -> Result<Candidate, MeError> {
+    cfg.check()?;
+    let b = cfg.block;
+    if cur.width() != reference.width()
+        || cur.height() != reference.height()
+        || x + b > cur.width()
+        || y + b > cur.height()
+    {
+        return Err(MeError::Pictures(format!(
+            "a {b}x{b} block at ({x}, {y}) of a {}x{} picture against a {}x{} reference",
+            cur.width(),
+            cur.height(),
+            reference.width(),
+            reference.height()
+        )));
+    }
+    let s = SearchContext {
+        cur,
+        reference,
+        x: x as isize,
+        y: y as isize,
+        cfg,
+        mvp,
+        lambda_q8: (cfg.lambda * 256.0).round() as u64,
+        halfpel: None,
+        origin: ((seed.x + 2) >> 2, (seed.y + 2) >> 2),
+    };
+    let mut scratch = [0u8; 32 * 32];
+    let at_seed = Candidate {
+        cost: s.sub_pel_cost(seed, &mut scratch[..b * b]),
+        mv: seed,
+    };
+    let full = search::full_pel(&s, &search::Neighbours::single(mvp));
+    Ok(search::refine(
+        &s,
+        if at_seed.beats(&full) { at_seed } else { full },
+    ))
 }

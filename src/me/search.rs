@@ -41,6 +41,16 @@ impl Neighbours {
         n
     }
 
+    /// Only `mv` (a seeded search's predicted vector).
+    pub(crate) fn single(mv: Mv) -> Neighbours {
+        let mut n = Neighbours {
+            candidates: [Mv::ZERO; 7],
+            len: 0,
+        };
+        n.push(mv);
+        n
+    }
+
     fn push(&mut self, mv: Mv) {
         self.candidates[self.len] = mv;
         self.len += 1;
@@ -76,10 +86,12 @@ impl Seen {
     }
 }
 
-/// A walk over full-pel positions of the window, remembering the best and
-/// which positions were already evaluated.
+/// A walk over full-pel positions of the window (`range` around the
+/// context's origin), remembering the best and which positions were already
+/// evaluated.
 struct Walk<'s, 'p> {
     s: &'s SearchContext<'p>,
+    origin: (i32, i32),
     range: i32,
     side: usize,
     seen: Seen,
@@ -92,6 +104,7 @@ impl<'s, 'p> Walk<'s, 'p> {
         let side = (2 * range + 1) as usize;
         let mut walk = Walk {
             s,
+            origin: s.origin,
             range,
             side,
             seen: Seen::new(side * side),
@@ -100,16 +113,17 @@ impl<'s, 'p> Walk<'s, 'p> {
                 mv: Mv::ZERO,
             },
         };
-        walk.try_at(0, 0);
+        walk.try_at(s.origin.0, s.origin.1);
         walk
     }
 
     /// Evaluates (dx, dy) if inside the window and new; true if it became the best.
     fn try_at(&mut self, dx: i32, dy: i32) -> bool {
-        if dx.abs() > self.range || dy.abs() > self.range {
+        let (wx, wy) = (dx - self.origin.0, dy - self.origin.1);
+        if wx.abs() > self.range || wy.abs() > self.range {
             return false;
         }
-        let i = (dy + self.range) as usize * self.side + (dx + self.range) as usize;
+        let i = (wy + self.range) as usize * self.side + (wx + self.range) as usize;
         let (word, bit) = (&mut self.seen.words()[i / 64], 1u64 << (i % 64));
         if *word & bit != 0 {
             return false;
@@ -129,6 +143,12 @@ impl<'s, 'p> Walk<'s, 'p> {
     /// The best position so far, full-pel.
     fn centre(&self) -> (i32, i32) {
         (self.best.mv.x / 4, self.best.mv.y / 4)
+    }
+
+    /// The best position so far, full-pel, from the window's centre.
+    fn offset_from_origin(&self) -> (i32, i32) {
+        let (cx, cy) = self.centre();
+        (cx - self.origin.0, cy - self.origin.1)
     }
 
     /// Evaluates `offsets * step` around the current best; true if it moved.
@@ -169,6 +189,7 @@ const HEXAGON: [(i32, i32); 6] = [(-1, -2), (1, -2), (-2, 0), (2, 0), (-1, 2), (
 pub(crate) fn full_pel(s: &SearchContext<'_>, neighbours: &Neighbours) -> Candidate {
     let mut w = Walk::new(s);
     let r = s.cfg.range;
+    let (ox, oy) = s.origin;
     // Half the range, rounded (ffmpeg's ROUNDED_DIV(range, 2)): the first step
     // of the logarithmic searches.
     let half = (r + 1) / 2;
@@ -176,7 +197,7 @@ pub(crate) fn full_pel(s: &SearchContext<'_>, neighbours: &Neighbours) -> Candid
         Method::Esa => {
             for dy in -r..=r {
                 for dx in -r..=r {
-                    w.try_at(dx, dy);
+                    w.try_at(ox + dx, oy + dy);
                 }
             }
         }
@@ -191,7 +212,7 @@ pub(crate) fn full_pel(s: &SearchContext<'_>, neighbours: &Neighbours) -> Candid
             let mut step = half;
             w.pattern(&SQUARE, step);
             w.pattern(&SQUARE, 1);
-            let (cx, cy) = w.centre();
+            let (cx, cy) = w.offset_from_origin();
             if (cx, cy) == (0, 0) {
                 return w.best;
             }

@@ -207,44 +207,59 @@ pub(crate) unsafe fn predict_luma_body<const AVX2: bool>(
             }
         }
         _ => {
-            // Horizontal pass over h + 7 rows at full precision (it fits
-            // 16 bits: -6120..=22440), then vertical. Small blocks, the
-            // common case, use a small buffer.
-            let rows = h + 7;
-            let mut small = [0i16; 16 * 23];
-            let mut large = Vec::new();
-            let tmp: &mut [i16] = if w * rows <= small.len() {
-                &mut small[..w * rows]
-            } else {
-                large.resize(w * rows, 0);
-                &mut large
-            };
-            let (th, tv) = (&LUMA_TAPS[fx], &LUMA_TAPS[fy]);
-            let mut acc = [0i32; MAX_BLOCK];
-            for r in 0..rows {
-                let src = at(px - TAPS_BEFORE, py + r as isize - TAPS_BEFORE);
-                filter_row(th, |k| &data[src + k..src + k + w], &mut acc[..w]);
-                for (t, &a) in tmp[r * w..(r + 1) * w].iter_mut().zip(&acc[..w]) {
-                    *t = a as i16;
+            let origin = at(px - TAPS_BEFORE, py - TAPS_BEFORE);
+            luma_2d(&data[origin..], stride, (fx, fy), (w, h), out, out_stride);
+        }
+    }
+}
+
+/// A two-dimensional luma phase of a `w x h` block whose taps start at
+/// `data[0]`: a horizontal pass over h + 7 rows at full precision (it fits
+/// 16 bits: -6120..=22440), then vertical. Inlined into both of
+/// [`predict_luma_body`]'s instances.
+#[inline(always)]
+fn luma_2d(
+    data: &[u8],
+    stride: usize,
+    (fx, fy): (usize, usize),
+    (w, h): (usize, usize),
+    out: &mut [u8],
+    out_stride: usize,
+) {
+    // Small blocks, the common case, use a small buffer.
+    let rows = h + 7;
+    let mut small = [0i16; 16 * 23];
+    let mut large = Vec::new();
+    let tmp: &mut [i16] = if w * rows <= small.len() {
+        &mut small[..w * rows]
+    } else {
+        large.resize(w * rows, 0);
+        &mut large
+    };
+    let (th, tv) = (&LUMA_TAPS[fx], &LUMA_TAPS[fy]);
+    let mut acc = [0i32; MAX_BLOCK];
+    for r in 0..rows {
+        let src = r * stride;
+        filter_row(th, |k| &data[src + k..src + k + w], &mut acc[..w]);
+        for (t, &a) in tmp[r * w..(r + 1) * w].iter_mut().zip(&acc[..w]) {
+            *t = a as i16;
+        }
+    }
+    let mut acc = [0i32; MAX_BLOCK];
+    for r in 0..h {
+        let acc = &mut acc[..w];
+        acc.fill(0);
+        for (k, &t) in tv.iter().enumerate() {
+            if t != 0 {
+                for (a, &v) in acc.iter_mut().zip(&tmp[(r + k) * w..(r + k + 1) * w]) {
+                    *a += t * i32::from(v);
                 }
-            }
-            let mut acc = [0i32; MAX_BLOCK];
-            for r in 0..h {
-                let acc = &mut acc[..w];
-                acc.fill(0);
-                for (k, &t) in tv.iter().enumerate() {
-                    if t != 0 {
-                        for (a, &v) in acc.iter_mut().zip(&tmp[(r + k) * w..(r + k + 1) * w]) {
-                            *a += t * i32::from(v);
-                        }
-                    }
-                }
-                for a in acc.iter_mut() {
-                    *a >>= 6;
-                }
-                round_into(acc, 6, &mut out[r * out_stride..r * out_stride + w]);
             }
         }
+        for a in acc.iter_mut() {
+            *a >>= 6;
+        }
+        round_into(acc, 6, &mut out[r * out_stride..r * out_stride + w]);
     }
 }
 

@@ -126,7 +126,8 @@ fn block_epe(field: &MotionField, gt: &Flow) -> (f64, usize) {
     (sum, n)
 }
 
-pub fn run(args: &Args) -> Result<()> {
+/// The search `args` ask for.
+fn search_config(args: &Args) -> Result<MeConfig> {
     let mut cfg = MeConfig::new(args.method, args.block, args.range);
     cfg.subpel = args.subpel;
     cfg.metric = args.metric;
@@ -136,13 +137,89 @@ pub fn run(args: &Args) -> Result<()> {
         }
         cfg.lambda = lambda_for_qp(args.metric, qp);
     }
+    Ok(cfg)
+}
+
+/// What the run adds up over the frames.
+#[derive(Default)]
+struct Totals {
+    frames: usize,
+    search_ms: f64,
+    cost_sum: u64,
+    pixels: u64,
+    epe_sum: f64,
+    epe_blocks: usize,
+    /// Some ground truth was minus the forward flow.
+    approximate_gt: bool,
+}
+
+impl Totals {
+    fn add_field(&mut self, field: &MotionField, ms: f64) {
+        self.search_ms += ms;
+        self.frames += 1;
+        self.cost_sum += field.costs().iter().map(|&c| u64::from(c)).sum::<u64>();
+        self.pixels += (field.cols() * field.rows() * field.block() * field.block()) as u64;
+    }
+
+    /// Adds the field's block EPE against frame `t`'s ground truth in `dir`, if there is one.
+    fn add_ground_truth(
+        &mut self,
+        dir: &Path,
+        t: usize,
+        field: &MotionField,
+        (w, h): (usize, usize),
+    ) -> Result<()> {
+        let Some((gt, exact)) = ground_truth(dir, t)? else {
+            return Ok(());
+        };
+        if (gt.width(), gt.height()) != (w, h) {
+            bail!(
+                "ground truth for frame {t} is {}x{}, the video {w}x{h}",
+                gt.width(),
+                gt.height()
+            );
+        }
+        let (s, n) = block_epe(field, &gt);
+        self.epe_sum += s;
+        self.epe_blocks += n;
+        self.approximate_gt |= !exact;
+        Ok(())
+    }
+}
+
+/// One CSV row per block of frame `t`'s field (blocks cut at the picture's edge).
+fn write_field_rows(
+    out: &mut impl Write,
+    t: usize,
+    field: &MotionField,
+    (w, h): (usize, usize),
+) -> Result<()> {
+    for r in 0..field.rows() {
+        for c in 0..field.cols() {
+            let (x, y) = (c * field.block(), r * field.block());
+            let (bw, bh) = (field.block().min(w - x), field.block().min(h - y));
+            let v = field.vector(c, r);
+            writeln!(
+                out,
+                "{t},{x},{y},{bw},{bh},{},{},{}",
+                f64::from(v.x) / 4.0,
+                f64::from(v.y) / 4.0,
+                field.cost(c, r)
+            )?;
+        }
+    }
+    Ok(())
+}
+
+pub fn run(args: &Args) -> Result<()> {
+    let cfg = search_config(args)?;
     let (first, last) = parse_frames(args.frames.as_deref())?;
     let pool = super::thread_pool(args.threads)?;
     let name = args.input.display().to_string();
     let mut reader = Y4mReader::open(&args.input).with_context(|| name.clone())?;
-    let (w, h) = (reader.info().width, reader.info().height);
-    let mut prev = Frame::new(w, h)?;
-    let mut cur = Frame::new(w, h)?;
+    let size = (reader.info().width, reader.info().height);
+    let mut prev = Frame::new(size.0, size.1)?;
+    let mut cur = Frame::new(size.0, size.1)?;
     let mut csv = match &args.mvs {
         Some(p) => {
             let mut out = OutputFile::create(p).with_context(|| p.display().to_string())?;
@@ -154,34 +231,16 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(dir) = &args.overlay {
         std::fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
     }
-    let (mut frames, mut search_ms, mut cost_sum, mut pixels) = (0usize, 0.0f64, 0u64, 0u64);
-    let (mut epe_sum, mut epe_blocks, mut approximate_gt) = (0.0f64, 0usize, false);
+    let mut totals = Totals::default();
     let mut prior: Option<MotionField> = None;
     let mut t = 0usize;
-    let mut have_prev = false;
     while t <= last && reader.read_frame_into(&mut cur).with_context(|| name.clone())? {
-        if t > first && have_prev {
+        if t > first {
             let start = Instant::now();
             let field = pool.install(|| estimate_with_prior(cur.y(), prev.y(), &cfg, prior.as_ref()))?;
-            search_ms += start.elapsed().as_secs_f64() * 1000.0;
-            frames += 1;
-            cost_sum += field.costs().iter().map(|&c| u64::from(c)).sum::<u64>();
-            pixels += (field.cols() * field.rows() * field.block() * field.block()) as u64;
+            totals.add_field(&field, start.elapsed().as_secs_f64() * 1000.0);
             if let Some(out) = csv.as_mut() {
-                for r in 0..field.rows() {
-                    for c in 0..field.cols() {
-                        let (x, y) = (c * field.block(), r * field.block());
-                        let (bw, bh) = (field.block().min(w - x), field.block().min(h - y));
-                        let v = field.vector(c, r);
-                        writeln!(
-                            out,
-                            "{t},{x},{y},{bw},{bh},{},{},{}",
-                            f64::from(v.x) / 4.0,
-                            f64::from(v.y) / 4.0,
-                            field.cost(c, r)
-                        )?;
-                    }
-                }
+                write_field_rows(out, t, &field, size)?;
             }
             if let Some(dir) = &args.overlay {
                 let img = draw_field(cur.y(), &field);
@@ -190,38 +249,31 @@ pub fn run(args: &Args) -> Result<()> {
                     .with_context(|| path.display().to_string())?;
             }
             if let Some(dir) = &args.gt {
-                if let Some((gt, exact)) = ground_truth(dir, t)? {
-                    if (gt.width(), gt.height()) != (w, h) {
-                        bail!(
-                            "ground truth for frame {t} is {}x{}, the video {w}x{h}",
-                            gt.width(),
-                            gt.height()
-                        );
-                    }
-                    let (s, n) = block_epe(&field, &gt);
-                    epe_sum += s;
-                    epe_blocks += n;
-                    approximate_gt |= !exact;
-                }
+                totals.add_ground_truth(dir, t, &field, size)?;
             }
             prior = Some(field);
         }
         std::mem::swap(&mut prev, &mut cur);
-        have_prev = true;
         t += 1;
     }
-    if frames == 0 {
+    if totals.frames == 0 {
         bail!("no frame pairs to search in {name} (it needs at least two frames in the --frames range)");
     }
     if let Some(out) = csv {
         out.commit().context("writing --mvs")?;
     }
-    if args.gt.is_some() && epe_blocks == 0 {
+    if args.gt.is_some() && totals.epe_blocks == 0 {
         bail!("--gt: no ground-truth flow files for these frames");
     }
-    let ms_per_frame = search_ms / frames as f64;
-    let mean_cost = cost_sum as f64 / pixels as f64;
-    let epe = (epe_blocks > 0).then(|| epe_sum / epe_blocks as f64);
+    report(args, &name, &totals, pool.current_num_threads())
+}
+
+/// The summary, as text or JSON.
+fn report(args: &Args, name: &str, totals: &Totals, threads: usize) -> Result<()> {
+    let frames = totals.frames;
+    let ms_per_frame = totals.search_ms / frames as f64;
+    let mean_cost = totals.cost_sum as f64 / totals.pixels as f64;
+    let epe = (totals.epe_blocks > 0).then(|| totals.epe_sum / totals.epe_blocks as f64);
     if args.json {
         let mut obj = json!({
             "frames": frames,
@@ -231,33 +283,32 @@ pub fn run(args: &Args) -> Result<()> {
             "range": args.range,
             "block": args.block,
             "metric": args.metric.name(),
-            "threads": pool.current_num_threads(),
+            "threads": threads,
         });
         if let Some(e) = epe {
             obj["epe"] = json!(e);
-            obj["epe_from_forward_flow"] = json!(approximate_gt);
+            obj["epe_from_forward_flow"] = json!(totals.approximate_gt);
         }
         outln!("{obj}")?;
-    } else {
-        outln!(
-            "{name}: {} {}x{} blocks, range {}, {} threads",
-            args.method,
-            args.block,
-            args.block,
-            args.range,
-            pool.current_num_threads()
-        )?;
-        outln!("frames searched      {frames}")?;
-        outln!("ME time per frame    {ms_per_frame:.3} ms")?;
-        outln!("mean cost per pixel  {mean_cost:.4} ({})", args.metric)?;
-        if let Some(e) = epe {
-            let note = if approximate_gt {
-                " (against minus the forward flow: approximate)"
-            } else {
-                ""
-            };
-            outln!("block EPE            {e:.4} px{note}")?;
-        }
+        return Ok(());
+    }
+    outln!(
+        "{name}: {} {}x{} blocks, range {}, {threads} threads",
+        args.method,
+        args.block,
+        args.block,
+        args.range
+    )?;
+    outln!("frames searched      {frames}")?;
+    outln!("ME time per frame    {ms_per_frame:.3} ms")?;
+    outln!("mean cost per pixel  {mean_cost:.4} ({})", args.metric)?;
+    if let Some(e) = epe {
+        let note = if totals.approximate_gt {
+            " (against minus the forward flow: approximate)"
+        } else {
+            ""
+        };
+        outln!("block EPE            {e:.4} px{note}")?;
     }
     Ok(())
 }

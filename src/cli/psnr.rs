@@ -1,14 +1,14 @@
 //! `mocomp psnr REF.y4m TEST.y4m`: per-frame PSNR and SSIM, then the means.
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use serde_json::json;
 
 use crate::codec::Frame;
 use crate::io::{y4m::Y4mReader, OutputFile};
-use crate::metrics::{FrameQuality, QualityAccumulator};
+use crate::metrics::{FrameQuality, QualityAccumulator, SequenceQuality};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -97,25 +97,35 @@ pub fn run(args: &Args) -> Result<()> {
         bail!("no frames to compare");
     };
     if let Some(path) = &args.csv {
-        let mut out = OutputFile::create(path).with_context(|| path.display().to_string())?;
-        writeln!(out, "frame,psnr_y,psnr_u,psnr_v,psnr_yuv,ssim,mse_y,mse_u,mse_v")?;
-        for (i, q) in rows.iter().enumerate() {
-            writeln!(
-                out,
-                "{i},{:.6},{:.6},{:.6},{:.6},{:.8},{:.6},{:.6},{:.6}",
-                q.psnr.y,
-                q.psnr.u,
-                q.psnr.v,
-                q.psnr.yuv(),
-                q.ssim,
-                q.psnr.mse[0],
-                q.psnr.mse[1],
-                q.psnr.mse[2]
-            )?;
-        }
-        out.commit().with_context(|| path.display().to_string())?;
+        write_csv(path, &rows)?;
     }
-    if args.json {
+    report(args.json, &rows, &s)
+}
+
+/// One row per frame: the PSNRs, SSIM and MSEs.
+fn write_csv(path: &Path, rows: &[FrameQuality]) -> Result<()> {
+    let mut out = OutputFile::create(path).with_context(|| path.display().to_string())?;
+    writeln!(out, "frame,psnr_y,psnr_u,psnr_v,psnr_yuv,ssim,mse_y,mse_u,mse_v")?;
+    for (i, q) in rows.iter().enumerate() {
+        writeln!(
+            out,
+            "{i},{:.6},{:.6},{:.6},{:.6},{:.8},{:.6},{:.6},{:.6}",
+            q.psnr.y,
+            q.psnr.u,
+            q.psnr.v,
+            q.psnr.yuv(),
+            q.ssim,
+            q.psnr.mse[0],
+            q.psnr.mse[1],
+            q.psnr.mse[2]
+        )?;
+    }
+    out.commit().with_context(|| path.display().to_string())
+}
+
+/// The means (after the per-frame table) or, with `json`, everything as JSON.
+fn report(json: bool, rows: &[FrameQuality], s: &SequenceQuality) -> Result<()> {
+    if json {
         let per_frame: Vec<_> = rows
             .iter()
             .map(|q| json!({"psnr_y": q.psnr.y, "psnr_u": q.psnr.u, "psnr_v": q.psnr.v, "psnr_yuv": q.psnr.yuv(), "ssim": q.ssim}))

@@ -1,11 +1,14 @@
 //! `mocomp track IN.y4m`: sparse corners followed through a sequence.
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
+use ndarray::Array2;
 use serde_json::json;
+
+use crate::codec::Frame;
 
 use crate::flow::track::{good_features, track, TrackParams};
 use crate::io::{image::write_rgb, y4m::Y4mReader, OutputFile};
@@ -42,6 +45,89 @@ struct Point {
     error: f32,
 }
 
+/// A point's move from one frame to the next: from, to.
+type Step = ((f32, f32), (f32, f32));
+
+/// The points being followed and what the run adds up.
+#[derive(Default)]
+struct Tracker {
+    points: Vec<Point>,
+    next_id: usize,
+    frames: usize,
+    track_ms: f64,
+    followed: usize,
+    lost: usize,
+    /// Lengths of the tracks that ended.
+    finished_ages: Vec<usize>,
+}
+
+impl Tracker {
+    /// Follows the points from `prev` to `img`; returns each followed
+    /// point's step, for the overlay.
+    fn follow(&mut self, prev: &Array2<f32>, img: &Array2<f32>, params: &TrackParams) -> Vec<Step> {
+        let start = Instant::now();
+        let from: Vec<(f32, f32)> = self.points.iter().map(|p| (p.x, p.y)).collect();
+        let tracks = track(prev, img, &from, params);
+        self.track_ms += start.elapsed().as_secs_f64() * 1000.0;
+        let mut steps = Vec::new();
+        let mut kept = Vec::with_capacity(self.points.len());
+        for (p, t) in std::mem::take(&mut self.points).into_iter().zip(tracks) {
+            if t.found {
+                steps.push(((p.x, p.y), (t.x, t.y)));
+                kept.push(Point {
+                    x: t.x,
+                    y: t.y,
+                    age: p.age + 1,
+                    error: t.error,
+                    ..p
+                });
+                self.followed += 1;
+            } else {
+                self.finished_ages.push(p.age);
+                self.lost += 1;
+            }
+        }
+        self.points = kept;
+        steps
+    }
+
+    /// Tops up to `max` points with new corners away from the points still followed.
+    fn detect(&mut self, img: &Array2<f32>, max: usize) {
+        for (x, y) in good_features(img, max, 0.01, 8.0) {
+            if self.points.len() >= max {
+                break;
+            }
+            if self.points.iter().all(|p| (p.x - x).hypot(p.y - y) >= 8.0) {
+                self.points.push(Point {
+                    id: self.next_id,
+                    x,
+                    y,
+                    age: 0,
+                    error: 0.0,
+                });
+                self.next_id += 1;
+            }
+        }
+    }
+}
+
+/// The frame with each step in red and each point in green, as a PNG in `dir`.
+fn write_overlay(dir: &Path, frame: &Frame, tracker: &Tracker, steps: &[Step]) -> Result<()> {
+    let mut rgb = Rgb::from_luma(frame.y());
+    for &((x0, y0), (x1, y1)) in steps {
+        rgb.line(
+            (x0.round() as i64, y0.round() as i64),
+            (x1.round() as i64, y1.round() as i64),
+            [255, 40, 40],
+        );
+    }
+    for p in &tracker.points {
+        rgb.put(p.x.round() as i64, p.y.round() as i64, [40, 255, 40]);
+    }
+    let path = dir.join(format!("track_{:04}.png", tracker.frames));
+    write_rgb(&path, rgb.width, rgb.height, &rgb.data).with_context(|| path.display().to_string())
+}
+
 pub fn run(args: &Args) -> Result<()> {
     if args.max == 0 {
         bail!("--max must be at least 1");
@@ -63,88 +149,56 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(dir) = &args.overlay {
         std::fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
     }
-    let (mut points, mut next_id): (Vec<Point>, usize) = (Vec::new(), 0);
-    let mut prev: Option<ndarray::Array2<f32>> = None;
-    let (mut frames, mut track_ms, mut followed, mut lost, mut finished_ages) =
-        (0usize, 0.0f64, 0usize, 0usize, Vec::new());
-    let mut frame = crate::codec::Frame::new(reader.info().width, reader.info().height)?;
+    let mut tracker = Tracker::default();
+    let mut prev: Option<Array2<f32>> = None;
+    let mut frame = Frame::new(reader.info().width, reader.info().height)?;
     while reader.read_frame_into(&mut frame).with_context(|| name.clone())? {
         let img = plane_to_array(frame.y());
-        let mut steps: Vec<((f32, f32), (f32, f32))> = Vec::new();
-        if let Some(prev_img) = &prev {
-            let start = Instant::now();
-            let from: Vec<(f32, f32)> = points.iter().map(|p| (p.x, p.y)).collect();
-            let tracks = track(prev_img, &img, &from, &params);
-            track_ms += start.elapsed().as_secs_f64() * 1000.0;
-            let mut kept = Vec::with_capacity(points.len());
-            for (p, t) in points.into_iter().zip(tracks) {
-                if t.found {
-                    steps.push(((p.x, p.y), (t.x, t.y)));
-                    kept.push(Point {
-                        x: t.x,
-                        y: t.y,
-                        age: p.age + 1,
-                        error: t.error,
-                        ..p
-                    });
-                    followed += 1;
-                } else {
-                    finished_ages.push(p.age);
-                    lost += 1;
-                }
-            }
-            points = kept;
-        }
-        // Top up with new corners away from the points still followed.
-        if points.len() < args.max / 2 || prev.is_none() {
-            for (x, y) in good_features(&img, args.max, 0.01, 8.0) {
-                if points.len() >= args.max {
-                    break;
-                }
-                if points.iter().all(|p| (p.x - x).hypot(p.y - y) >= 8.0) {
-                    points.push(Point {
-                        id: next_id,
-                        x,
-                        y,
-                        age: 0,
-                        error: 0.0,
-                    });
-                    next_id += 1;
-                }
-            }
+        let steps = match &prev {
+            Some(prev_img) => tracker.follow(prev_img, &img, &params),
+            None => Vec::new(),
+        };
+        if tracker.points.len() < args.max / 2 || prev.is_none() {
+            tracker.detect(&img, args.max);
         }
         if let Some(out) = csv.as_mut() {
-            for p in &points {
-                writeln!(out, "{frames},{},{:.3},{:.3},{:.3}", p.id, p.x, p.y, p.error)?;
+            for p in &tracker.points {
+                writeln!(
+                    out,
+                    "{},{},{:.3},{:.3},{:.3}",
+                    tracker.frames, p.id, p.x, p.y, p.error
+                )?;
             }
         }
         if let Some(dir) = &args.overlay {
-            let mut rgb = Rgb::from_luma(frame.y());
-            for &((x0, y0), (x1, y1)) in &steps {
-                rgb.line(
-                    (x0.round() as i64, y0.round() as i64),
-                    (x1.round() as i64, y1.round() as i64),
-                    [255, 40, 40],
-                );
-            }
-            for p in &points {
-                rgb.put(p.x.round() as i64, p.y.round() as i64, [40, 255, 40]);
-            }
-            let path = dir.join(format!("track_{frames:04}.png"));
-            write_rgb(&path, rgb.width, rgb.height, &rgb.data).with_context(|| path.display().to_string())?;
+            write_overlay(dir, &frame, &tracker, &steps)?;
         }
         prev = Some(img);
-        frames += 1;
+        tracker.frames += 1;
     }
-    if frames == 0 {
+    if tracker.frames == 0 {
         bail!("{name} has no frames");
     }
     if let Some(out) = csv {
         out.commit().context("writing --out")?;
     }
-    finished_ages.extend(points.iter().map(|p| p.age));
+    report(args, &name, tracker)
+}
+
+/// The summary, as text or JSON.
+fn report(args: &Args, name: &str, mut tracker: Tracker) -> Result<()> {
+    let Tracker {
+        frames,
+        next_id,
+        followed,
+        lost,
+        track_ms,
+        ..
+    } = tracker;
+    tracker.finished_ages.extend(tracker.points.iter().map(|p| p.age));
+    let ages = &tracker.finished_ages;
     let pairs = frames.saturating_sub(1).max(1) as f64;
-    let mean_length = finished_ages.iter().sum::<usize>() as f64 / finished_ages.len().max(1) as f64;
+    let mean_length = ages.iter().sum::<usize>() as f64 / ages.len().max(1) as f64;
     if args.json {
         outln!(
             "{}",

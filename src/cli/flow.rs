@@ -9,36 +9,15 @@ use anyhow::{bail, Context, Result};
 use ndarray::Array2;
 use serde_json::json;
 
-use crate::encode::FlowMethod;
 use crate::flow::consistency::inconsistent;
-use crate::flow::dis::{Dis, DisParams, DisPreset};
-use crate::flow::hs::{horn_schunck, HsParams};
-use crate::flow::lk::{Lk, LkParams};
-use crate::flow::tvl1::{tvl1, Tvl1Params};
 use crate::flow::warp::warp_bilinear;
-use crate::flow::Flow;
+use crate::flow::{Flow, FlowEstimator, FlowMethod, FlowOptions, Preset};
 use crate::io::{flo, image, y4m::Y4mReader};
 use crate::metrics::{flow_errors, psnr_from_mse, FlowErrors};
 use crate::raster::{array_to_plane, plane_to_array};
 use crate::viz::{draw_flow_arrows, flow_to_rgb};
 
 /// Speed / accuracy trade-offs, as x264 and DIS have them.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum Preset {
-    /// The fastest (DIS: quarter-size flow without refinement, half-size
-    /// for pictures under ~450 px; LK and HS as fast; TV-L1: 2 warps of 15
-    /// iterations).
-    Ultrafast,
-    /// Fewer iterations and a smaller window (DIS: quarter-size flow,
-    /// half-size under ~450 px, full size under ~230 px).
-    Fast,
-    /// The default balance (DIS: half-size flow, full size below ~450 px).
-    Medium,
-    /// More iterations and levels (DIS: full-size flow, started from
-    /// feature matches as well, for the largest motions).
-    Accurate,
-}
-
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// First picture (an image), or a Y4M with --frames.
@@ -124,83 +103,6 @@ pub struct Args {
     pub json: bool,
 }
 
-/// The LK settings of each preset: every one with as many levels as the
-/// picture allows and contrast-normalised pictures (what large motion and
-/// lighting changes need: see the README's flow benchmark). Fast: window
-/// sigma 2.5, stops at half size; medium: sigma 4, full size; accurate:
-/// sigma 6. Larger windows suit smooth motion; they blur motion
-/// boundaries, so medium stays at sigma 4.
-pub fn lk_preset(preset: Preset) -> LkParams {
-    let base = LkParams {
-        levels: 0,
-        normalize: true,
-        ..LkParams::default()
-    };
-    match preset {
-        Preset::Ultrafast | Preset::Fast => LkParams {
-            sigma: 2.5,
-            finest: 1,
-            ..base
-        },
-        Preset::Medium => base,
-        Preset::Accurate => LkParams { sigma: 6.0, ..base },
-    }
-}
-
-/// The HS settings of each preset (alpha 20). On the flowpair: fast (one
-/// warp, at most 30 sweeps) EPE 0.074 px in 129 ms; medium (one warp, 60
-/// sweeps) 0.065 px in 225 ms; accurate adds warps for larger motion.
-pub fn hs_preset(preset: Preset) -> HsParams {
-    match preset {
-        Preset::Ultrafast | Preset::Fast => HsParams {
-            iterations: 30,
-            ..HsParams::default()
-        },
-        Preset::Medium => HsParams::default(),
-        Preset::Accurate => HsParams {
-            warps: 3,
-            iterations: 100,
-            tolerance: 0.0005,
-            ..HsParams::default()
-        },
-    }
-}
-
-/// The TV-L1 settings of each preset: fewer warps and iterations for
-/// speed, more for accuracy (`--levels`, `--warps`, `--iterations`
-/// override them).
-pub fn tvl1_preset(preset: Preset) -> Tvl1Params {
-    let base = Tvl1Params::default();
-    match preset {
-        Preset::Ultrafast => Tvl1Params {
-            warps: 2,
-            iterations: 15,
-            ..base
-        },
-        Preset::Fast => Tvl1Params {
-            warps: 3,
-            iterations: 30,
-            ..base
-        },
-        Preset::Medium => base,
-        Preset::Accurate => Tvl1Params {
-            warps: 8,
-            iterations: 100,
-            ..base
-        },
-    }
-}
-
-/// The DIS settings of each preset (`DisPreset` of the same name).
-pub fn dis_preset(preset: Preset) -> DisParams {
-    DisParams::preset(match preset {
-        Preset::Ultrafast => DisPreset::Ultrafast,
-        Preset::Fast => DisPreset::Fast,
-        Preset::Medium => DisPreset::Medium,
-        Preset::Accurate => DisPreset::Accurate,
-    })
-}
-
 fn read_pair(args: &Args) -> Result<(Array2<f32>, Array2<f32>)> {
     let is_y4m = args.first.extension().is_some_and(|e| e == "y4m") || args.first.as_os_str() == "-";
     if is_y4m {
@@ -254,124 +156,21 @@ fn read_pair(args: &Args) -> Result<(Array2<f32>, Array2<f32>)> {
     }
 }
 
-/// The LK settings: the preset's, with the options that override it.
-fn lk_params(args: &Args) -> Result<LkParams> {
-    let mut params = lk_preset(args.preset);
-    if let Some(l) = args.levels {
-        params.levels = l.max(1);
-    }
-    if let Some(s) = args.sigma {
-        if !(s > 0.0 && s <= 10.0) {
-            bail!("--sigma {s} must be in (0, 10]");
-        }
-        params.sigma = s;
-    }
-    if let Some(i) = args.iterations {
-        params.iterations = i;
-    }
-    if let Some(f) = args.finest {
-        params.finest = f;
-    }
-    Ok(params)
-}
-
-/// The Horn-Schunck settings: the preset's, with the options.
-fn hs_params(args: &Args) -> Result<HsParams> {
-    let mut hs = hs_preset(args.preset);
-    if let Some(l) = args.levels {
-        hs.levels = l.max(1);
-    }
-    if let Some(i) = args.iterations {
-        hs.iterations = i.max(1);
-    }
-    if let Some(a) = args.alpha {
-        if !(a > 0.0 && a < 1e4) {
-            bail!("--alpha {a} must be positive");
-        }
-        hs.alpha = a;
-    }
-    if let Some(wp) = args.warps {
-        hs.warps = wp.max(1);
-    }
-    if let Some(g) = args.gamma {
-        if !(0.0..1e4).contains(&g) {
-            bail!("--gamma {g} must be in [0, 10000)");
-        }
-        hs.gamma = g;
-    }
-    Ok(hs)
-}
-
-/// The TV-L1 settings: the preset's, with the options.
-fn tvl1_params(args: &Args) -> Result<Tvl1Params> {
-    let mut tv = tvl1_preset(args.preset);
-    if let Some(l) = args.levels {
-        tv.levels = l.max(1);
-    }
-    if let Some(i) = args.iterations {
-        tv.iterations = i.max(1);
-    }
-    if let Some(wp) = args.warps {
-        tv.warps = wp.max(1);
-    }
-    if let Some(t) = args.texture {
-        tv.texture = t;
-        tv.validate().map_err(anyhow::Error::msg)?;
-    }
-    Ok(tv)
-}
-
-/// The DIS settings: the preset's, with the options (`--finest` taken as
-/// given, whatever the picture's size).
-fn dis_params(args: &Args) -> DisParams {
-    let base = dis_preset(args.preset);
-    DisParams {
+/// The flow options `args` give.
+fn flow_options(args: &Args) -> FlowOptions {
+    FlowOptions {
+        method: args.method.unwrap_or_default(),
+        preset: args.preset,
+        levels: args.levels,
+        sigma: args.sigma,
+        iterations: args.iterations,
+        alpha: args.alpha,
+        gamma: args.gamma,
+        texture: args.texture,
+        warps: args.warps,
+        finest: args.finest,
         global_search: args.global_search,
-        seed_matches: base.seed_matches || args.matches,
-        finest: args.finest.unwrap_or(base.finest),
-        min_side: if args.finest.is_some() { 0 } else { base.min_side },
-        ..base
-    }
-}
-
-/// The chosen method, made once, outside the timing, as the OpenCV peer
-/// script makes its objects; repeated runs then reuse its buffers.
-enum Estimator {
-    Lk(Box<Lk>),
-    Hs(HsParams),
-    Dis(Box<Dis>),
-    Tvl1(Tvl1Params),
-}
-
-impl Estimator {
-    /// The method `args` chooses; every method's options are checked, so
-    /// a bad value is an error whichever method runs.
-    fn new(args: &Args) -> Result<Estimator> {
-        let (lk, hs, tv) = (lk_params(args)?, hs_params(args)?, tvl1_params(args)?);
-        Ok(match args.method.unwrap_or(FlowMethod::Dis) {
-            FlowMethod::Lk => Estimator::Lk(Box::new(Lk::new(lk))),
-            FlowMethod::Hs => Estimator::Hs(hs),
-            FlowMethod::Dis => Estimator::Dis(Box::new(Dis::new(dis_params(args)))),
-            FlowMethod::Tvl1 => Estimator::Tvl1(tv),
-        })
-    }
-
-    fn method(&self) -> FlowMethod {
-        match self {
-            Estimator::Lk(_) => FlowMethod::Lk,
-            Estimator::Hs(_) => FlowMethod::Hs,
-            Estimator::Dis(_) => FlowMethod::Dis,
-            Estimator::Tvl1(_) => FlowMethod::Tvl1,
-        }
-    }
-
-    fn compute(&mut self, a: &Array2<f32>, b: &Array2<f32>) -> Flow {
-        match self {
-            Estimator::Lk(lk) => lk.compute(a, b).flow,
-            Estimator::Hs(hs) => horn_schunck(a, b, hs).0,
-            Estimator::Dis(dis) => dis.compute(a, b),
-            Estimator::Tvl1(tv) => tvl1(a, b, tv),
-        }
+        matches: args.matches,
     }
 }
 
@@ -408,7 +207,7 @@ pub fn run(args: &Args) -> Result<()> {
         bail!("--runs must be at least 1");
     }
     let pool = super::thread_pool(args.threads)?;
-    let mut estimator = Estimator::new(args)?;
+    let mut estimator = FlowEstimator::new(&flow_options(args))?;
     let mut estimate = |a: &Array2<f32>, b: &Array2<f32>| pool.install(|| estimator.compute(a, b));
     let mut times = Vec::with_capacity(args.runs);
     let mut flow = Flow::zeros(1, 1);

@@ -4,48 +4,8 @@ use std::fmt;
 use std::str::FromStr;
 
 use crate::codec::transform::MAX_QP;
+pub use crate::flow::FlowMethod;
 use crate::me::{Method, Subpel, MAX_RANGE};
-
-/// A dense flow method: what `mocomp flow --method` computes and what
-/// guides a flow-based predictor.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum FlowMethod {
-    /// Pyramidal Lucas-Kanade (`crate::flow::lk`; the encoder uses the
-    /// medium preset).
-    Lk,
-    /// Horn-Schunck (`crate::flow::hs`; the encoder uses the default settings).
-    Hs,
-    /// Dense inverse search (`crate::flow::dis`; the encoder uses the
-    /// medium preset).
-    Dis,
-    /// TV-L1 (`crate::flow::tvl1`; the encoder uses the default settings).
-    Tvl1,
-}
-
-impl FlowMethod {
-    /// `lk`, `hs`, `dis` or `tvl1`.
-    pub fn name(self) -> &'static str {
-        match self {
-            FlowMethod::Lk => "lk",
-            FlowMethod::Hs => "hs",
-            FlowMethod::Dis => "dis",
-            FlowMethod::Tvl1 => "tvl1",
-        }
-    }
-}
-
-impl FromStr for FlowMethod {
-    type Err = String;
-    fn from_str(s: &str) -> Result<FlowMethod, String> {
-        match s {
-            "lk" => Ok(FlowMethod::Lk),
-            "hs" => Ok(FlowMethod::Hs),
-            "dis" => Ok(FlowMethod::Dis),
-            "tvl1" => Ok(FlowMethod::Tvl1),
-            _ => Err(format!("unknown flow method '{s}' (lk, hs, dis or tvl1)")),
-        }
-    }
-}
 
 /// The settings of the block search of the `block` and `obmc` predictors
 /// (the search itself is [`crate::me`]).

@@ -1,4 +1,5 @@
-//! Dense motion as float fields: the [`Flow`] type used everywhere, and
+//! Dense motion as float fields: the [`Flow`] type used everywhere, the
+//! methods that estimate it (one [`FlowEstimator`] over them all), and
 //! warping by a flow.
 //!
 //! Convention (used by every function of mocomp): a forward flow `w` from
@@ -6,6 +7,7 @@
 
 pub mod consistency;
 pub mod dis;
+mod estimator;
 mod field;
 pub mod hs;
 pub mod lk;
@@ -15,4 +17,8 @@ pub mod track;
 pub mod tvl1;
 pub mod warp;
 
+pub use estimator::{
+    dis_preset, hs_preset, lk_preset, tvl1_preset, FlowEstimator, FlowMethod, FlowOptionError, FlowOptions,
+    Preset,
+};
 pub use field::Flow;

@@ -56,9 +56,16 @@ fn luma_full(r: u8, g: u8, b: u8) -> u8 {
 /// Full-range BT.601 luma of an image file.
 pub fn read_luma(path: &Path) -> Result<Plane, ImageError> {
     let rgb = open_rgb(path)?;
-    let (w, h) = (rgb.width() as usize, rgb.height() as usize);
-    let mut plane = Plane::new(w, h)?;
-    for (row, src) in plane.rows_mut().zip(rgb.as_raw().chunks_exact(3 * w)) {
+    Ok(luma_from_rgb(rgb.width() as usize, rgb.height() as usize, rgb.as_raw())?)
+}
+
+/// Full-range BT.601 luma of packed RGB bytes (what [`read_luma`] gives
+/// for the same pixels).
+pub fn luma_from_rgb(width: usize, height: usize, rgb: &[u8]) -> Result<Plane, PictureError> {
+    check_size(width, height)?;
+    check_rgb_len(width, height, rgb)?;
+    let mut plane = Plane::new(width, height)?;
+    for (row, src) in plane.rows_mut().zip(rgb.chunks_exact(3 * width)) {
         for (d, px) in row.iter_mut().zip(src.chunks_exact(3)) {
             *d = luma_full(px[0], px[1], px[2]);
         }

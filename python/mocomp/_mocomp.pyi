@@ -1,0 +1,105 @@
+"""Type stubs of the extension module (the functions mocomp re-exports)."""
+
+import os
+from typing import Any, Literal, Optional, Sequence, Tuple, Union, overload
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+Picture = npt.NDArray[Any]
+Flow = npt.NDArray[np.float32]
+Yuv = Tuple[npt.NDArray[np.uint8], npt.NDArray[np.uint8], npt.NDArray[np.uint8]]
+PathLike = Union[str, "os.PathLike[str]"]
+
+def flow(
+    img1: Picture,
+    img2: Picture,
+    method: Optional[Literal["dis", "lk", "hs", "tvl1"]] = None,
+    preset: Literal["ultrafast", "fast", "medium", "accurate"] = "medium",
+    threads: Optional[int] = None,
+    *,
+    levels: Optional[int] = None,
+    sigma: Optional[float] = None,
+    iterations: Optional[int] = None,
+    alpha: Optional[float] = None,
+    gamma: Optional[float] = None,
+    texture: Optional[float] = None,
+    warps: Optional[int] = None,
+    finest: Optional[int] = None,
+    global_search: bool = False,
+    matches: bool = False,
+) -> Flow: ...
+def warp(img: Picture, flow: Flow) -> Picture: ...
+def flow_to_color(flow: Flow, max_flow: Optional[float] = None) -> npt.NDArray[np.uint8]: ...
+def read_flo(path: PathLike) -> Flow: ...
+def write_flo(path: PathLike, flow: Flow) -> None: ...
+def flow_errors(flow: Flow, gt: Flow) -> dict[str, float]: ...
+@overload
+def block_match(
+    cur: Picture,
+    ref: Picture,
+    method: str = "epzs",
+    block: int = 16,
+    search_range: int = 16,
+    subpel: Literal["none", "half", "quarter"] = "quarter",
+    metric: Literal["sad", "ssd", "satd"] = "sad",
+    qp: Optional[int] = None,
+    return_costs: Literal[False] = False,
+    threads: Optional[int] = None,
+) -> npt.NDArray[np.float32]: ...
+@overload
+def block_match(
+    cur: Picture,
+    ref: Picture,
+    method: str = "epzs",
+    block: int = 16,
+    search_range: int = 16,
+    subpel: Literal["none", "half", "quarter"] = "quarter",
+    metric: Literal["sad", "ssd", "satd"] = "sad",
+    qp: Optional[int] = None,
+    return_costs: Literal[True] = ...,
+    threads: Optional[int] = None,
+) -> Tuple[npt.NDArray[np.float32], npt.NDArray[np.uint32]]: ...
+def good_features(
+    img: Picture, max_corners: int = 200, quality: float = 0.01, min_distance: float = 8.0
+) -> npt.NDArray[np.float32]: ...
+def track(
+    frames: Sequence[Picture],
+    points: Optional[npt.NDArray[np.float32]] = None,
+    max_corners: int = 200,
+    fb_threshold: Optional[float] = None,
+) -> npt.NDArray[np.float32]: ...
+def encode(
+    source: Union[PathLike, Sequence[Yuv]],
+    qp: int = 28,
+    predictor: str = "block",
+    *,
+    gop: int = 0,
+    decision: Literal["fast", "full"] = "fast",
+    rdoq: bool = True,
+    lambda_scale: float = 1.4,
+    frames: Optional[int] = None,
+    fps: Tuple[int, int] = (25, 1),
+    threads: Optional[int] = None,
+    reconstruction: bool = False,
+) -> Union[Tuple[bytes, list[dict[str, Any]]], Tuple[bytes, list[dict[str, Any]], list[Yuv]]]: ...
+def read_y4m(path: PathLike, frames: Optional[int] = None) -> list[Yuv]: ...
+def decode(stream: bytes) -> list[Yuv]: ...
+def rd(
+    sources: Sequence[PathLike],
+    qps: Sequence[int] = (22, 27, 32, 37),
+    predictors: Sequence[str] = ("block:esa", "block"),
+    frames: Optional[int] = None,
+    threads: Optional[int] = None,
+) -> list[dict[str, Any]]: ...
+def psnr(a: npt.NDArray[np.uint8], b: npt.NDArray[np.uint8]) -> float: ...
+def ssim(a: Picture, b: Picture) -> float: ...
+def bd_rate(
+    rate_a: Sequence[float],
+    psnr_a: Sequence[float],
+    rate_b: Sequence[float],
+    psnr_b: Sequence[float],
+    method: Literal["cubic", "pchip"] = "cubic",
+) -> float: ...

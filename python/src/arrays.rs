@@ -1,0 +1,208 @@
+//! numpy arrays in and out: checked, with errors that name the argument.
+
+use mocomp::codec::{Frame, Plane};
+use mocomp::flow::Flow;
+use mocomp::io::image::luma_from_rgb;
+use ndarray::{Array2, Array3, ArrayView2, Axis};
+use numpy::{
+    PyArray2, PyArray3, PyArrayDescrMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArray,
+    PyUntypedArrayMethods,
+};
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+
+/// A `ValueError` with `message`.
+pub fn value_error(message: impl Into<String>) -> PyErr {
+    PyValueError::new_err(message.into())
+}
+
+/// What `obj` is, for error messages: dtype and shape of an array, else its type.
+fn describe(obj: &Bound<'_, PyAny>) -> String {
+    match obj.cast::<PyUntypedArray>() {
+        Ok(a) => format!("a {} array of shape {:?}", a.dtype(), a.shape()),
+        Err(_) => format!(
+            "a {}",
+            obj.get_type()
+                .name()
+                .map_or_else(|_| "?".to_string(), |n| n.to_string())
+        ),
+    }
+}
+
+/// The error for `obj` not being one of `expected`: `TypeError` for a
+/// wrong type or dtype, `ValueError` for a wrong shape.
+fn wrong(name: &str, obj: &Bound<'_, PyAny>, expected: &str) -> PyErr {
+    let message = format!("{name}: expected {expected}, got {}", describe(obj));
+    match obj.cast::<PyUntypedArray>() {
+        Ok(a)
+            if a.dtype().is_equiv_to(&numpy::dtype::<u8>(obj.py()))
+                || a.dtype().is_equiv_to(&numpy::dtype::<f32>(obj.py())) =>
+        {
+            PyValueError::new_err(message)
+        }
+        _ => PyTypeError::new_err(message),
+    }
+}
+
+const PICTURE: &str = "a uint8 array H x W (luma) or H x W x 3 (RGB), or float32 H x W";
+
+/// A picture as float luma (0..255): uint8 luma, uint8 RGB (BT.601
+/// full-range luma, as mocomp reads image files) or float32 luma.
+pub fn luma_f32(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Array2<f32>> {
+    if let Ok(a) = obj.extract::<PyReadonlyArray2<'_, f32>>() {
+        let a = a.as_array();
+        check_picture_size(name, a.dim())?;
+        return Ok(a.to_owned());
+    }
+    let plane = luma_plane(name, obj, 0).map_err(|_| wrong(name, obj, PICTURE))?;
+    Ok(mocomp::raster::plane_to_array(&plane))
+}
+
+/// A uint8 picture (luma, or RGB made luma) as a plane with `pad` pixels of
+/// replicated border (at least the default).
+pub fn luma_plane(name: &str, obj: &Bound<'_, PyAny>, pad: usize) -> PyResult<Plane> {
+    if let Ok(a) = obj.extract::<PyReadonlyArray2<'_, u8>>() {
+        return plane_from_view(name, a.as_array(), pad);
+    }
+    if let Ok(a) = obj.extract::<PyReadonlyArray3<'_, u8>>() {
+        let a = a.as_array();
+        let (h, w, c) = a.dim();
+        if c == 3 {
+            check_picture_size(name, (h, w))?;
+            let rgb: Vec<u8> = a.iter().copied().collect();
+            let plane = luma_from_rgb(w, h, &rgb).map_err(|e| value_error(format!("{name}: {e}")))?;
+            return if pad > plane.pad() {
+                plane_from_view(name, plane_view(&plane).view(), pad)
+            } else {
+                Ok(plane)
+            };
+        }
+    }
+    Err(wrong(name, obj, "a uint8 array H x W (luma) or H x W x 3 (RGB)"))
+}
+
+fn check_picture_size(name: &str, (h, w): (usize, usize)) -> PyResult<()> {
+    mocomp::codec::picture::check_size(w, h).map_err(|e| value_error(format!("{name}: {e}")))
+}
+
+/// A plane holding `view` (H x W) with at least `pad` pixels of border.
+pub fn plane_from_view(name: &str, view: ArrayView2<'_, u8>, pad: usize) -> PyResult<Plane> {
+    let (h, w) = view.dim();
+    check_picture_size(name, (h, w))?;
+    let mut plane = if pad > 0 {
+        Plane::with_padding(w, h, pad)
+    } else {
+        Plane::new(w, h)
+    }
+    .map_err(|e| value_error(format!("{name}: {e}")))?;
+    for (dst, src) in plane.rows_mut().zip(view.axis_iter(Axis(0))) {
+        for (d, s) in dst.iter_mut().zip(src.iter()) {
+            *d = *s;
+        }
+    }
+    plane.extend_border();
+    Ok(plane)
+}
+
+/// The visible samples of `plane`, H x W.
+pub fn plane_view(plane: &Plane) -> Array2<u8> {
+    let (w, h) = (plane.width(), plane.height());
+    let mut out = Array2::zeros((h, w));
+    for (mut dst, src) in out.axis_iter_mut(Axis(0)).zip(plane.rows()) {
+        dst.iter_mut().zip(src).for_each(|(d, s)| *d = *s);
+    }
+    out
+}
+
+/// `plane` as a new numpy array.
+pub fn plane_to_py<'py>(py: Python<'py>, plane: &Plane) -> Bound<'py, PyArray2<u8>> {
+    PyArray2::from_owned_array(py, plane_view(plane))
+}
+
+/// A frame's planes as a (Y, U, V) tuple of numpy arrays.
+pub fn frame_to_py<'py>(py: Python<'py>, frame: &Frame) -> PyResult<Bound<'py, pyo3::types::PyTuple>> {
+    pyo3::types::PyTuple::new(
+        py,
+        [
+            plane_to_py(py, frame.y()),
+            plane_to_py(py, frame.u()),
+            plane_to_py(py, frame.v()),
+        ],
+    )
+}
+
+/// A 4:2:0 frame from a (Y, U, V) sequence of uint8 arrays (chroma of
+/// half the luma size, rounded up).
+pub fn frame_from_py(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Frame> {
+    let planes: Vec<Bound<'_, PyAny>> = obj
+        .try_iter()
+        .and_then(|it| it.collect::<PyResult<Vec<_>>>())
+        .map_err(|_| PyTypeError::new_err(format!("{name}: expected a (Y, U, V) tuple of uint8 arrays")))?;
+    let [y, u, v] = planes.as_slice() else {
+        return Err(value_error(format!(
+            "{name}: expected 3 planes (Y, U, V), got {}",
+            planes.len()
+        )));
+    };
+    let plane = |label: &str, p: &Bound<'_, PyAny>| -> PyResult<Plane> {
+        let a = p
+            .extract::<PyReadonlyArray2<'_, u8>>()
+            .map_err(|_| wrong(&format!("{name} {label}"), p, "a uint8 array H x W"))?;
+        plane_from_view(name, a.as_array(), 0)
+    };
+    let (y, u, v) = (plane("Y", y)?, plane("U", u)?, plane("V", v)?);
+    Frame::from_planes(y, u, v).map_err(|e| value_error(format!("{name}: {e}")))
+}
+
+/// A flow from a float32 H x W x 2 array (u, then v); pixels with a
+/// non-finite or huge component (the .flo "unknown") are invalid.
+pub fn flow_from_py(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Flow> {
+    let a = obj
+        .extract::<PyReadonlyArray3<'_, f32>>()
+        .map_err(|_| wrong(name, obj, "a float32 array H x W x 2"))?;
+    let a = a.as_array();
+    let (h, w, c) = a.dim();
+    if c != 2 || h == 0 || w == 0 {
+        return Err(wrong(name, obj, "a float32 array H x W x 2"));
+    }
+    let u = a.index_axis(Axis(2), 0).to_owned();
+    let v = a.index_axis(Axis(2), 1).to_owned();
+    let known = |x: f32| x.is_finite() && x.abs() <= 1e9;
+    let valid = ndarray::Zip::from(&u)
+        .and(&v)
+        .map_collect(|&a, &b| known(a) && known(b));
+    Ok(Flow::from_parts(u, v, valid))
+}
+
+/// A flow as a new float32 H x W x 2 array; invalid pixels are NaN.
+pub fn flow_to_py<'py>(py: Python<'py>, flow: &Flow) -> Bound<'py, PyArray3<f32>> {
+    let (w, h) = (flow.width(), flow.height());
+    let mut out = Array3::zeros((h, w, 2));
+    for y in 0..h {
+        for x in 0..w {
+            let (u, v) = if flow.is_valid(x, y) {
+                flow.get(x, y)
+            } else {
+                (f32::NAN, f32::NAN)
+            };
+            out[[y, x, 0]] = u;
+            out[[y, x, 1]] = v;
+        }
+    }
+    PyArray3::from_owned_array(py, out)
+}
+
+/// Runs `f` on a pool of `threads` workers, or on the global pool.
+pub fn with_threads<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> PyResult<T> {
+    match threads {
+        None => Ok(f()),
+        Some(0) => Err(value_error("threads must be at least 1")),
+        Some(n) => {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .map_err(|e| value_error(format!("threads: {e}")))?;
+            Ok(pool.install(f))
+        }
+    }
+}

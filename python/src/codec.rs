@@ -1,0 +1,280 @@
+//! Encoding, decoding and rate-distortion sweeps.
+
+use std::path::PathBuf;
+
+use mocomp::codec::Frame;
+use mocomp::encode::{Encoder, EncoderConfig, FrameStats, ModeDecision, Predictor};
+use mocomp::io::y4m::Y4mReader;
+use mocomp::rd::{sweep, RdPoint, Sequence};
+use pyo3::exceptions::PyTypeError;
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict, PyList, PyTuple};
+
+use crate::arrays::{frame_from_py, frame_to_py, value_error, with_threads};
+
+/// Frames to code: from a Y4M path (with its frame rate) or a sequence of
+/// (Y, U, V) arrays (at `fps`).
+fn read_source(
+    py: Python<'_>,
+    source: &Bound<'_, PyAny>,
+    fps: (u32, u32),
+    max_frames: Option<usize>,
+) -> PyResult<(String, Vec<Frame>, (u32, u32))> {
+    let limit = max_frames.unwrap_or(usize::MAX);
+    if let Ok(path) = source.extract::<PathBuf>() {
+        let read = || -> Result<_, mocomp::io::y4m::Y4mError> {
+            let mut reader = Y4mReader::open(&path)?;
+            let info = reader.info().clone();
+            let mut frames = Vec::new();
+            let mut frame = Frame::new(info.width, info.height)?;
+            while frames.len() < limit && reader.read_frame_into(&mut frame)? {
+                frames.push(frame.clone());
+            }
+            Ok((info, frames))
+        };
+        let (info, frames) = py.detach(read).map_err(|e| crate::y4m_error(&path, e))?;
+        let fps = (
+            u32::try_from(info.fps.0).unwrap_or(25),
+            u32::try_from(info.fps.1).unwrap_or(1).max(1),
+        );
+        let name = path
+            .file_stem()
+            .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+        return Ok((name, frames, fps));
+    }
+    if source.is_instance_of::<pyo3::types::PyString>() || source.is_instance_of::<PyBytes>() {
+        return Err(PyTypeError::new_err(
+            "source: expected a Y4M path or a sequence of (Y, U, V) arrays",
+        ));
+    }
+    let items = source
+        .try_iter()
+        .map_err(|_| PyTypeError::new_err("source: expected a Y4M path or a sequence of (Y, U, V) arrays"))?;
+    let mut frames = Vec::new();
+    for (i, item) in items.enumerate().take(limit) {
+        frames.push(frame_from_py(&format!("source[{i}]"), &item?)?);
+    }
+    Ok((String::new(), frames, fps))
+}
+
+/// The encoder settings from the keyword arguments.
+fn config(
+    qp: u8,
+    predictor: &str,
+    gop: usize,
+    decision: &str,
+    rdoq: bool,
+    lambda_scale: f64,
+) -> PyResult<EncoderConfig> {
+    if qp > 51 {
+        return Err(value_error(format!("qp {qp} is not in 0..=51")));
+    }
+    Ok(EncoderConfig::new()
+        .qp(qp)
+        .predictor(predictor.parse::<Predictor>().map_err(value_error)?)
+        .gop(gop)
+        .decision(decision.parse::<ModeDecision>().map_err(value_error)?)
+        .rdoq(rdoq)
+        .lambda_scale(lambda_scale))
+}
+
+/// One frame's statistics as a dict.
+fn stats_dict<'py>(py: Python<'py>, s: &FrameStats) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("frame", s.index)?;
+    d.set_item("type", s.frame_type.to_string())?;
+    d.set_item("bytes", s.bytes)?;
+    d.set_item("bits_header", s.bits_header)?;
+    d.set_item("bits_motion", s.bits_motion)?;
+    d.set_item("bits_residual", s.bits_residual)?;
+    d.set_item("psnr_y", s.psnr_y)?;
+    d.set_item("psnr_u", s.psnr_u)?;
+    d.set_item("psnr_v", s.psnr_v)?;
+    d.set_item("ssim", s.ssim)?;
+    d.set_item("prediction_psnr_y", s.prediction_psnr_y)?;
+    d.set_item("skip_mbs", s.skip_mbs)?;
+    d.set_item("inter_mbs", s.inter_mbs)?;
+    d.set_item("intra_mbs", s.intra_mbs)?;
+    d.set_item("me_ms", s.me_ms)?;
+    d.set_item("total_ms", s.total_ms)?;
+    Ok(d)
+}
+
+/// What one encode gives back to Python.
+struct Encoded {
+    stream: Vec<u8>,
+    stats: Vec<FrameStats>,
+    recons: Vec<Frame>,
+}
+
+fn encode_all(frames: &[Frame], fps: (u32, u32), config: EncoderConfig, keep: bool) -> PyResult<Encoded> {
+    let first = frames
+        .first()
+        .ok_or_else(|| value_error("source holds no frames"))?;
+    let mut encoder =
+        Encoder::new(first.width(), first.height(), fps, config).map_err(|e| value_error(e.to_string()))?;
+    let mut out = Encoded {
+        stream: encoder.header(),
+        stats: Vec::with_capacity(frames.len()),
+        recons: Vec::new(),
+    };
+    for (i, f) in frames.iter().enumerate() {
+        if (f.width(), f.height()) != (first.width(), first.height()) {
+            return Err(value_error(format!(
+                "frame {i} is {}x{}, frame 0 {}x{}",
+                f.width(),
+                f.height(),
+                first.width(),
+                first.height()
+            )));
+        }
+        let coded = encoder.encode(f).map_err(|e| value_error(e.to_string()))?;
+        out.stream.extend_from_slice(&coded.bytes);
+        out.stats.push(coded.stats);
+        if keep {
+            out.recons.push(coded.recon);
+        } else {
+            encoder.recycle(coded.recon);
+        }
+    }
+    out.stream.extend_from_slice(&Encoder::trailer());
+    Ok(out)
+}
+
+/// Encodes `source` into a mocomp stream.
+///
+/// source: a Y4M path, or a sequence of (Y, U, V) uint8 arrays (4:2:0:
+///     chroma half the luma size, rounded up) at `fps`.
+/// qp: 0..51. predictor: "zero", "block[:method]", "flow-block[:lk|hs|dis|tvl1]",
+///     "dense-lk" / "dense-hs" / "dense-dis" / "dense-tvl1", "obmc" (as `mocomp encode`).
+/// gop: I-frame period (0: only the first). decision: "fast" or "full".
+/// frames: code at most this many frames.
+///
+/// Returns (stream bytes, per-frame statistics as dicts); with
+/// reconstruction=True, (stream, stats, reconstructed (Y, U, V) frames),
+/// which `decode(stream)` reproduces exactly.
+#[pyfunction]
+#[pyo3(signature = (source, qp=28, predictor="block", *, gop=0, decision="fast", rdoq=true, lambda_scale=1.4,
+    frames=None, fps=(25, 1), threads=None, reconstruction=false))]
+#[allow(clippy::too_many_arguments)]
+pub fn encode<'py>(
+    py: Python<'py>,
+    source: &Bound<'py, PyAny>,
+    qp: u8,
+    predictor: &str,
+    gop: usize,
+    decision: &str,
+    rdoq: bool,
+    lambda_scale: f64,
+    frames: Option<usize>,
+    fps: (u32, u32),
+    threads: Option<usize>,
+    reconstruction: bool,
+) -> PyResult<Bound<'py, PyTuple>> {
+    let cfg = config(qp, predictor, gop, decision, rdoq, lambda_scale)?;
+    if fps.0 == 0 || fps.1 == 0 {
+        return Err(value_error(
+            "fps must be two positive integers (numerator, denominator)",
+        ));
+    }
+    let (_, input, fps) = read_source(py, source, fps, frames)?;
+    let encoded = py.detach(|| with_threads(threads, || encode_all(&input, fps, cfg, reconstruction)))??;
+    let stats = PyList::empty(py);
+    for s in &encoded.stats {
+        stats.append(stats_dict(py, s)?)?;
+    }
+    let stream = PyBytes::new(py, &encoded.stream).into_any();
+    if !reconstruction {
+        return PyTuple::new(py, [stream, stats.into_any()]);
+    }
+    let recons = PyList::empty(py);
+    for f in &encoded.recons {
+        recons.append(frame_to_py(py, f)?)?;
+    }
+    PyTuple::new(py, [stream, stats.into_any(), recons.into_any()])
+}
+
+/// Reads a Y4M file (8-bit 4:2:0, every variant ffmpeg writes) into a
+/// list of (Y, U, V) uint8 arrays; at most `frames` frames.
+#[pyfunction]
+#[pyo3(signature = (path, frames=None))]
+pub fn read_y4m<'py>(py: Python<'py>, path: PathBuf, frames: Option<usize>) -> PyResult<Bound<'py, PyList>> {
+    let (_, frames, _) = read_source(py, &path.into_pyobject(py)?.into_any(), (25, 1), frames)?;
+    let out = PyList::empty(py);
+    for f in &frames {
+        out.append(frame_to_py(py, f)?)?;
+    }
+    Ok(out)
+}
+
+/// Decodes a mocomp stream (bytes) into a list of (Y, U, V) uint8 arrays.
+/// Raises ValueError on a damaged or truncated stream.
+#[pyfunction]
+pub fn decode<'py>(py: Python<'py>, stream: &[u8]) -> PyResult<Bound<'py, PyList>> {
+    let (_, frames) = py
+        .detach(|| mocomp::codec::decoder::decode(stream))
+        .map_err(|e| value_error(format!("stream: {e}")))?;
+    let out = PyList::empty(py);
+    for f in &frames {
+        out.append(frame_to_py(py, f)?)?;
+    }
+    Ok(out)
+}
+
+fn point_dict<'py>(py: Python<'py>, p: &RdPoint) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("codec", &p.codec)?;
+    d.set_item("q", p.q)?;
+    d.set_item("bytes", p.bytes)?;
+    d.set_item("frames", p.frames)?;
+    d.set_item("kbps", p.kbps)?;
+    d.set_item("psnr_y", p.psnr_y)?;
+    d.set_item("sequence", &p.sequence)?;
+    d.set_item("psnr_u", p.psnr_u)?;
+    d.set_item("psnr_v", p.psnr_v)?;
+    d.set_item("ssim", p.ssim)?;
+    d.set_item("bits_header", p.bits_header)?;
+    d.set_item("bits_motion", p.bits_motion)?;
+    d.set_item("bits_residual", p.bits_residual)?;
+    d.set_item("encode_ms", p.encode_ms)?;
+    d.set_item("me_ms", p.me_ms)?;
+    Ok(d)
+}
+
+/// A rate-distortion sweep: every source at every QP with every
+/// predictor, jobs in parallel. sources: Y4M paths. Returns the rows of
+/// `mocomp rd`'s CSV as dicts (codec is the predictor's label, kbps at the
+/// source's frame rate).
+#[pyfunction]
+#[pyo3(signature = (sources, qps=vec![22, 27, 32, 37], predictors=vec!["block:esa".to_string(), "block".to_string()],
+    frames=None, threads=None))]
+pub fn rd<'py>(
+    py: Python<'py>,
+    sources: Vec<PathBuf>,
+    qps: Vec<u8>,
+    predictors: Vec<String>,
+    frames: Option<usize>,
+    threads: Option<usize>,
+) -> PyResult<Bound<'py, PyList>> {
+    if let Some(q) = qps.iter().find(|&&q| q > 51) {
+        return Err(value_error(format!("qp {q} is not in 0..=51")));
+    }
+    let predictors: Vec<Predictor> = predictors
+        .iter()
+        .map(|p| p.parse::<Predictor>().map_err(value_error))
+        .collect::<PyResult<_>>()?;
+    let mut sequences = Vec::with_capacity(sources.len());
+    for path in &sources {
+        let (name, frames, fps) =
+            read_source(py, &path.clone().into_pyobject(py)?.into_any(), (25, 1), frames)?;
+        sequences.push(Sequence { name, frames, fps });
+    }
+    let points = py
+        .detach(|| with_threads(threads, || sweep(&sequences, &qps, &predictors, || {})))?
+        .map_err(|e| value_error(e.to_string()))?;
+    let out = PyList::empty(py);
+    for p in &points {
+        out.append(point_dict(py, p)?)?;
+    }
+    Ok(out)
+}

@@ -1,0 +1,85 @@
+"""Encode, decode, RD sweeps, quality metrics and BD-rate."""
+
+import numpy as np
+import pytest
+
+import mocomp
+
+
+@pytest.mark.parametrize("predictor", ["block", "obmc", "dense-lk"])
+def test_decode_equals_the_encoders_reconstruction(synth_frames, predictor):
+    source = synth_frames[:4]
+    stream, stats, recon = mocomp.encode(source, qp=30, predictor=predictor, reconstruction=True)
+    assert isinstance(stream, bytes) and len(stats) == 4
+    assert [s["type"] for s in stats] == ["I", "P", "P", "P"]
+    assert sum(s["bytes"] for s in stats) < len(stream)
+    decoded = mocomp.decode(stream)
+    assert len(decoded) == 4
+    for d, r in zip(decoded, recon):
+        for pd, pr in zip(d, r):
+            assert pd.dtype == np.uint8 and np.array_equal(pd, pr)
+    # The stats' PSNR is that of the reconstruction.
+    assert abs(mocomp.psnr(source[1][0], recon[1][0]) - stats[1]["psnr_y"]) < 1e-9
+
+
+def test_a_y4m_path_and_its_arrays_give_the_same_stream(synth_frames, samples):
+    from_path, _ = mocomp.encode(samples / "synth_qcif.y4m", qp=32, frames=3, fps=(30, 1))
+    from_arrays, _ = mocomp.encode(synth_frames[:3], qp=32, fps=(30, 1))
+    assert from_path == from_arrays
+
+
+def test_bad_streams_and_sources_raise():
+    with pytest.raises(ValueError, match="stream"):
+        mocomp.decode(b"\x00\x01garbage")
+    with pytest.raises(TypeError):
+        mocomp.encode(42)
+    with pytest.raises(ValueError, match="3 planes"):
+        mocomp.encode([(np.zeros((16, 16), np.uint8),)])
+    with pytest.raises(ValueError):
+        mocomp.encode([(np.zeros((16, 16), np.uint8), np.zeros((3, 3), np.uint8), np.zeros((8, 8), np.uint8))])
+    with pytest.raises(ValueError, match="qp"):
+        mocomp.encode([], qp=60)
+    with pytest.raises(ValueError, match="predictor"):
+        mocomp.encode([], predictor="nope")
+
+
+def test_rd_rows_match_the_encoder(samples):
+    rows = mocomp.rd([samples / "synth_qcif.y4m"], qps=[27, 37], predictors=["block:esa"], frames=3)
+    assert [(r["codec"], r["q"]) for r in rows] == [("block:esa", 27.0), ("block:esa", 37.0)]
+    assert rows[0]["kbps"] > rows[1]["kbps"] and rows[0]["psnr_y"] > rows[1]["psnr_y"]
+    stream, _ = mocomp.encode(samples / "synth_qcif.y4m", qp=27, predictor="block:esa", frames=3)
+    assert rows[0]["bytes"] == len(stream)
+
+
+def test_bd_rate_of_the_four_point_example():
+    ra, pa = [686.76, 309.58, 157.11, 85.95], [40.28, 37.18, 34.24, 31.42]
+    rb, pb = [893.34, 407.8, 204.93, 112.75], [40.39, 37.21, 34.17, 31.24]
+    assert abs(mocomp.bd_rate(ra, pa, rb, pb) - 31.397) < 5e-4
+    assert abs(mocomp.bd_rate(ra, pa, rb, pb, method="pchip") - 31.380) < 5e-4
+    with pytest.raises(ValueError, match="4"):
+        mocomp.bd_rate(ra[:3], pa[:3], rb, pb)
+    with pytest.raises(ValueError, match="method"):
+        mocomp.bd_rate(ra, pa, rb, pb, method="linear")
+
+
+def test_psnr_and_ssim_against_the_reference_figures(samples):
+    import json
+
+    ref = json.loads((samples / "reference" / "tree_qcif_mpeg4.json").read_text())
+    a = mocomp.read_y4m(samples / "tree_qcif.y4m")
+    b = mocomp.read_y4m(samples / "tree_qcif_mpeg4.y4m")
+    for i, (fa, fb) in enumerate(zip(a, b)):
+        assert abs(mocomp.psnr(fa[0], fb[0]) - ref["ffmpeg_psnr_per_frame"][i]["psnr_y"]) < 0.01
+        assert abs(mocomp.ssim(fa[0], fb[0]) - ref["skimage_ssim_y_per_frame"][i]) < 1e-4
+    assert mocomp.psnr(a[0][0], a[0][0]) == 100.0
+    with pytest.raises(ValueError, match="shape"):
+        mocomp.psnr(a[0][0], a[0][1])
+
+
+def test_missing_and_bad_files(tmp_path):
+    with pytest.raises(OSError):
+        mocomp.read_y4m(tmp_path / "missing.y4m")
+    bad = tmp_path / "bad.y4m"
+    bad.write_bytes(b"YUV4MPEG2 W99999999 H2 F25:1\n")
+    with pytest.raises(ValueError, match="bad.y4m"):
+        mocomp.read_y4m(bad)

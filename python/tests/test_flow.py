@@ -1,0 +1,116 @@
+"""Dense flow, warping, .flo files and flow errors against known motion."""
+
+import numpy as np
+import pytest
+
+import mocomp
+from conftest import textured
+
+
+def test_flow_on_the_bundled_sample_is_within_the_rust_tests_bounds(synth_frames, samples):
+    # Frames 4 -> 5 of the bundled scene, exact ground truth with
+    # occlusions marked unknown (NaN when read).
+    gt = mocomp.read_flo(samples / "synth_qcif" / "forward_0004.flo")
+    assert gt.shape == (144, 176, 2) and gt.dtype == np.float32
+    assert np.isnan(gt).any()
+    a, b = synth_frames[4][0], synth_frames[5][0]
+    for method, bound in [("dis", 0.15), ("lk", 0.35), ("hs", 0.35), ("tvl1", 0.15)]:
+        f = mocomp.flow(a, b, method=method)
+        assert f.shape == (144, 176, 2) and f.dtype == np.float32
+        e = mocomp.flow_errors(f, gt)
+        assert e["epe"] < bound and e["r3"] < 2.0, (method, e)
+
+
+def test_a_known_shift_is_found_and_warping_by_it_reproduces_the_first_picture():
+    img = textured(96, 128)
+    shifted = np.roll(img, (2, -3), axis=(0, 1))  # content moves 3 left, 2 down
+    f = mocomp.flow(shifted, img, preset="accurate")
+    inner = f[16:-16, 16:-16]
+    assert np.allclose(inner[..., 0], 3.0, atol=0.15)
+    assert np.allclose(inner[..., 1], -2.0, atol=0.15)
+    back = mocomp.warp(img, f)
+    assert back.dtype == np.uint8 and back.shape == img.shape
+    diff = np.abs(back[16:-16, 16:-16].astype(int) - shifted[16:-16, 16:-16])
+    assert diff.mean() < 2.0
+
+
+def test_one_thread_and_the_default_give_the_same_flow(synth_frames):
+    a, b = synth_frames[0][0], synth_frames[1][0]
+    for method in ("dis", "lk"):
+        assert np.array_equal(mocomp.flow(a, b, method=method, threads=1), mocomp.flow(a, b, method=method))
+
+
+def test_rgb_float_and_luma_inputs(synth_frames):
+    a, b = synth_frames[0][0], synth_frames[1][0]
+    grey = mocomp.flow(a, b, method="lk", preset="fast")
+    as_float = mocomp.flow(a.astype(np.float32), b.astype(np.float32), method="lk", preset="fast")
+    assert np.array_equal(grey, as_float)
+    rgb = mocomp.flow(np.dstack([a] * 3), np.dstack([b] * 3), method="lk", preset="fast")
+    assert np.array_equal(grey, rgb)
+    # A non-contiguous view is read as it is.
+    big = np.zeros((144, 352), np.uint8)
+    big[:, ::2] = a
+    assert np.array_equal(mocomp.flow(big[:, ::2], b, method="lk", preset="fast"), grey)
+
+
+def test_flo_round_trip_keeps_values_and_unknowns(tmp_path):
+    f = np.random.default_rng(3).normal(size=(7, 9, 2)).astype(np.float32)
+    f[2, 3] = np.nan
+    path = tmp_path / "x.flo"
+    mocomp.write_flo(path, f)
+    g = mocomp.read_flo(str(path))
+    assert np.array_equal(np.isnan(g), np.isnan(f))
+    assert np.array_equal(g[~np.isnan(g)], f[~np.isnan(f)])
+
+
+def test_flow_errors_of_a_hand_computed_case():
+    gt = np.zeros((4, 4, 2), np.float32)
+    gt[..., 0] = 1.0
+    est = gt.copy()
+    est[..., 1] = 2.0
+    e = mocomp.flow_errors(est, gt)
+    assert (e["epe"], e["r1"], e["r3"], e["pixels"]) == (2.0, 100.0, 0.0, 16)
+
+
+def test_flow_to_color():
+    f = np.zeros((5, 6, 2), np.float32)
+    f[..., 0] = np.linspace(-1, 1, 6)
+    f[0, 0] = np.nan
+    rgb = mocomp.flow_to_color(f)
+    assert rgb.shape == (5, 6, 3) and rgb.dtype == np.uint8
+    assert (rgb[0, 0] == 0).all()
+    # Zero motion is white; opposite directions differ.
+    assert (mocomp.flow_to_color(np.zeros((2, 2, 2), np.float32)) == 255).all()
+    assert not np.array_equal(rgb[1, 0], rgb[1, 5])
+
+
+def test_bad_arguments_raise_clear_errors(synth_frames, tmp_path):
+    a = synth_frames[0][0]
+    with pytest.raises(ValueError, match="differ in size"):
+        mocomp.flow(a, a[:, :-1])
+    with pytest.raises(TypeError, match="img1: expected"):
+        mocomp.flow(a.astype(np.int16), a)
+    with pytest.raises(TypeError):
+        mocomp.flow([1, 2, 3], a)
+    with pytest.raises(ValueError, match="img2: expected"):
+        mocomp.flow(a, np.zeros((4, 4, 2), np.uint8))
+    with pytest.raises(ValueError, match="unknown flow method"):
+        mocomp.flow(a, a, method="farneback")
+    with pytest.raises(ValueError, match="preset"):
+        mocomp.flow(a, a, preset="slow")
+    with pytest.raises(ValueError, match="sigma"):
+        mocomp.flow(a, a, method="lk", sigma=-1.0)
+    with pytest.raises(ValueError, match="threads"):
+        mocomp.flow(a, a, threads=0)
+    with pytest.raises(ValueError):
+        mocomp.flow(np.zeros((0, 5), np.uint8), np.zeros((0, 5), np.uint8))
+    with pytest.raises(ValueError, match="H x W x 2"):
+        mocomp.warp(a, np.zeros((144, 176, 3), np.float32))
+    with pytest.raises(ValueError, match="flow is"):
+        mocomp.flow_errors(np.zeros((4, 4, 2), np.float32), np.zeros((4, 5, 2), np.float32))
+    with pytest.raises(OSError):
+        mocomp.read_flo(tmp_path / "missing.flo")
+    bad = tmp_path / "bad.flo"
+    bad.write_bytes(b"not a flow file")
+    with pytest.raises(ValueError):
+        mocomp.read_flo(bad)

@@ -56,7 +56,11 @@ fn luma_full(r: u8, g: u8, b: u8) -> u8 {
 /// Full-range BT.601 luma of an image file.
 pub fn read_luma(path: &Path) -> Result<Plane, ImageError> {
     let rgb = open_rgb(path)?;
-    Ok(luma_from_rgb(rgb.width() as usize, rgb.height() as usize, rgb.as_raw())?)
+    Ok(luma_from_rgb(
+        rgb.width() as usize,
+        rgb.height() as usize,
+        rgb.as_raw(),
+    )?)
 }
 
 /// Full-range BT.601 luma of packed RGB bytes (what [`read_luma`] gives

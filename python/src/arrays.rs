@@ -1,5 +1,7 @@
 //! numpy arrays in and out: checked, with errors that name the argument.
 
+use std::sync::{Arc, Mutex};
+
 use mocomp::codec::{Frame, Plane};
 use mocomp::flow::Flow;
 use mocomp::io::image::luma_from_rgb;
@@ -53,6 +55,11 @@ pub fn luma_f32(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Array2<f32>> {
         let a = a.as_array();
         check_picture_size(name, a.dim())?;
         return Ok(a.to_owned());
+    }
+    if let Ok(a) = obj.extract::<PyReadonlyArray2<'_, u8>>() {
+        let a = a.as_array();
+        check_picture_size(name, a.dim())?;
+        return Ok(a.mapv(f32::from));
     }
     let plane = luma_plane(name, obj, 0).map_err(|_| wrong(name, obj, PICTURE))?;
     Ok(mocomp::raster::plane_to_array(&plane))
@@ -177,19 +184,36 @@ pub fn flow_from_py(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Flow> {
 /// A flow as a new float32 H x W x 2 array; invalid pixels are NaN.
 pub fn flow_to_py<'py>(py: Python<'py>, flow: &Flow) -> Bound<'py, PyArray3<f32>> {
     let (w, h) = (flow.width(), flow.height());
-    let mut out = Array3::zeros((h, w, 2));
-    for y in 0..h {
-        for x in 0..w {
-            let (u, v) = if flow.is_valid(x, y) {
-                flow.get(x, y)
-            } else {
-                (f32::NAN, f32::NAN)
-            };
-            out[[y, x, 0]] = u;
-            out[[y, x, 1]] = v;
+    let mut out = Vec::with_capacity(2 * w * h);
+    for ((&u, &v), &ok) in flow.u().iter().zip(flow.v()).zip(flow.valid()) {
+        if ok {
+            out.extend([u, v]);
+        } else {
+            out.extend([f32::NAN; 2]);
         }
     }
+    let Ok(out) = Array3::from_shape_vec((h, w, 2), out) else {
+        unreachable!("two values per pixel")
+    };
     PyArray3::from_owned_array(py, out)
+}
+
+/// The pools of `threads` workers made so far: a pool is made once per size
+/// (making one costs about a millisecond, a fast flow's own time).
+static POOLS: Mutex<Vec<(usize, Arc<rayon::ThreadPool>)>> = Mutex::new(Vec::new());
+
+fn pool(threads: usize) -> PyResult<Arc<rayon::ThreadPool>> {
+    let mut pools = POOLS.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((_, p)) = pools.iter().find(|(n, _)| *n == threads) {
+        return Ok(p.clone());
+    }
+    let p = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| value_error(format!("threads: {e}")))?;
+    let p = Arc::new(p);
+    pools.push((threads, p.clone()));
+    Ok(p)
 }
 
 /// Runs `f` on a pool of `threads` workers, or on the global pool.
@@ -197,12 +221,6 @@ pub fn with_threads<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Sen
     match threads {
         None => Ok(f()),
         Some(0) => Err(value_error("threads must be at least 1")),
-        Some(n) => {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(n)
-                .build()
-                .map_err(|e| value_error(format!("threads: {e}")))?;
-            Ok(pool.install(f))
-        }
+        Some(n) => Ok(pool(n)?.install(f)),
     }
 }

@@ -12,6 +12,15 @@ use pyo3::types::{PyBytes, PyDict, PyList, PyTuple};
 
 use crate::arrays::{frame_from_py, frame_to_py, value_error, with_threads};
 
+/// Frames as a list of (Y, U, V) tuples of arrays.
+fn frames_to_py<'py>(py: Python<'py>, frames: &[Frame]) -> PyResult<Bound<'py, PyList>> {
+    let out = PyList::empty(py);
+    for f in frames {
+        out.append(frame_to_py(py, f)?)?;
+    }
+    Ok(out)
+}
+
 /// Frames to code: from a Y4M path (with its frame rate) or a sequence of
 /// (Y, U, V) arrays (at `fps`).
 fn read_source(
@@ -187,10 +196,7 @@ pub fn encode<'py>(
     if !reconstruction {
         return PyTuple::new(py, [stream, stats.into_any()]);
     }
-    let recons = PyList::empty(py);
-    for f in &encoded.recons {
-        recons.append(frame_to_py(py, f)?)?;
-    }
+    let recons = frames_to_py(py, &encoded.recons)?;
     PyTuple::new(py, [stream, stats.into_any(), recons.into_any()])
 }
 
@@ -200,11 +206,7 @@ pub fn encode<'py>(
 #[pyo3(signature = (path, frames=None))]
 pub fn read_y4m<'py>(py: Python<'py>, path: PathBuf, frames: Option<usize>) -> PyResult<Bound<'py, PyList>> {
     let (_, frames, _) = read_source(py, &path.into_pyobject(py)?.into_any(), (25, 1), frames)?;
-    let out = PyList::empty(py);
-    for f in &frames {
-        out.append(frame_to_py(py, f)?)?;
-    }
-    Ok(out)
+    frames_to_py(py, &frames)
 }
 
 /// Decodes a mocomp stream (bytes) into a list of (Y, U, V) uint8 arrays.
@@ -214,11 +216,7 @@ pub fn decode<'py>(py: Python<'py>, stream: &[u8]) -> PyResult<Bound<'py, PyList
     let (_, frames) = py
         .detach(|| mocomp::codec::decoder::decode(stream))
         .map_err(|e| value_error(format!("stream: {e}")))?;
-    let out = PyList::empty(py);
-    for f in &frames {
-        out.append(frame_to_py(py, f)?)?;
-    }
-    Ok(out)
+    frames_to_py(py, &frames)
 }
 
 fn point_dict<'py>(py: Python<'py>, p: &RdPoint) -> PyResult<Bound<'py, PyDict>> {

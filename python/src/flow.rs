@@ -1,5 +1,6 @@
 //! Dense flow, warping, colour coding, .flo files, flow errors.
 
+use std::cell::RefCell;
 use std::path::PathBuf;
 
 use mocomp::flow::warp::warp_bilinear;
@@ -63,7 +64,6 @@ pub fn flow<'py>(
         global_search,
         matches,
     };
-    let mut estimator = FlowEstimator::new(&options).map_err(|e| value_error(e.to_string()))?;
     let (a, b) = (luma_f32("img1", img1)?, luma_f32("img2", img2)?);
     if a.dim() != b.dim() {
         return Err(value_error(format!(
@@ -72,8 +72,25 @@ pub fn flow<'py>(
             b.dim()
         )));
     }
-    let result = py.detach(|| with_threads(threads, || estimator.compute(&a, &b)))?;
+    let result = LAST_ESTIMATOR.with(|last| -> PyResult<_> {
+        let mut last = last.borrow_mut();
+        // The estimator (and its buffers) is kept for the next call with the
+        // same options, as OpenCV's DIS object is kept between pairs.
+        if last.as_ref().is_none_or(|(o, _)| *o != options) {
+            let estimator = FlowEstimator::new(&options).map_err(|e| value_error(e.to_string()))?;
+            *last = Some((options, estimator));
+        }
+        let Some((_, estimator)) = last.as_mut() else {
+            unreachable!("set above")
+        };
+        py.detach(|| with_threads(threads, || estimator.compute(&a, &b)))
+    })?;
     Ok(flow_to_py(py, &result))
+}
+
+thread_local! {
+    /// The calling thread's last estimator and the options it was made with.
+    static LAST_ESTIMATOR: RefCell<Option<(FlowOptions, FlowEstimator)>> = const { RefCell::new(None) };
 }
 
 /// Warps `img` backward by `flow`: out(p) = img(p + flow(p)), bilinear,

@@ -121,7 +121,8 @@ pub fn warp<'py>(
         let out = py.detach(|| warp_bilinear(&a, &f));
         return Ok(PyArray2::from_owned_array(py, out).into_any());
     }
-    let channels: Vec<Array2<f32>> = if let Ok(a) = img.extract::<PyReadonlyArray2<'_, u8>>() {
+    let plane = img.extract::<PyReadonlyArray2<'_, u8>>().ok();
+    let channels: Vec<Array2<f32>> = if let Some(a) = &plane {
         vec![a.as_array().mapv(f32::from)]
     } else if let Ok(a) = img.extract::<PyReadonlyArray3<'_, u8>>() {
         a.as_array()
@@ -137,7 +138,7 @@ pub fn warp<'py>(
     check(h, w)?;
     let warped: Vec<Array2<f32>> = py.detach(|| channels.iter().map(|c| warp_bilinear(c, &f)).collect());
     let to_u8 = |v: f32| v.round().clamp(0.0, 255.0) as u8;
-    if img.extract::<PyReadonlyArray2<'_, u8>>().is_ok() {
+    if plane.is_some() {
         return Ok(PyArray2::from_owned_array(py, warped[0].mapv(to_u8)).into_any());
     }
     let out = Array3::from_shape_fn((h, w, warped.len()), |(y, x, c)| to_u8(warped[c][[y, x]]));

@@ -11,7 +11,7 @@ use numpy::{PyArray2, PyArray3, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{flow_from_py, flow_to_py, luma_f32, value_error, with_threads};
+use crate::arrays::{flow_from_py, flow_to_py, luma_f32_into, value_error, with_threads};
 
 /// Dense optical flow from `img1` to `img2`: `img1(p) ~ img2(p + flow(p))`.
 ///
@@ -64,16 +64,22 @@ pub fn flow<'py>(
         global_search,
         matches,
     };
-    let (a, b) = (luma_f32("img1", img1)?, luma_f32("img2", img2)?);
-    if a.dim() != b.dim() {
-        return Err(value_error(format!(
-            "img1 and img2 differ in size: {:?} and {:?}",
-            a.dim(),
-            b.dim()
-        )));
-    }
-    let result = LAST_ESTIMATOR.with(|last| -> PyResult<_> {
-        let mut last = last.borrow_mut();
+    FLOW_STATE.with(|state| -> PyResult<_> {
+        let mut state = state.borrow_mut();
+        let FlowState {
+            last,
+            img1: a,
+            img2: b,
+        } = &mut *state;
+        luma_f32_into("img1", img1, a)?;
+        luma_f32_into("img2", img2, b)?;
+        if a.dim() != b.dim() {
+            return Err(value_error(format!(
+                "img1 and img2 differ in size: {:?} and {:?}",
+                a.dim(),
+                b.dim()
+            )));
+        }
         // The estimator (and its buffers) is kept for the next call with the
         // same options, as OpenCV's DIS object is kept between pairs.
         if last.as_ref().is_none_or(|(o, _)| *o != options) {
@@ -83,14 +89,25 @@ pub fn flow<'py>(
         let Some((_, estimator)) = last.as_mut() else {
             unreachable!("set above")
         };
-        py.detach(|| with_threads(threads, || estimator.compute(&a, &b)))
-    })?;
-    Ok(flow_to_py(py, &result))
+        let result = py.detach(|| with_threads(threads, || estimator.compute(a, b)))?;
+        Ok(flow_to_py(py, &result))
+    })
+}
+
+/// What `flow` keeps between calls on one thread: the last estimator with
+/// the options it was made with, and the pictures' float buffers.
+struct FlowState {
+    last: Option<(FlowOptions, FlowEstimator)>,
+    img1: Array2<f32>,
+    img2: Array2<f32>,
 }
 
 thread_local! {
-    /// The calling thread's last estimator and the options it was made with.
-    static LAST_ESTIMATOR: RefCell<Option<(FlowOptions, FlowEstimator)>> = const { RefCell::new(None) };
+    static FLOW_STATE: RefCell<FlowState> = RefCell::new(FlowState {
+        last: None,
+        img1: Array2::zeros((0, 0)),
+        img2: Array2::zeros((0, 0)),
+    });
 }
 
 /// Warps `img` backward by `flow`: out(p) = img(p + flow(p)), bilinear,

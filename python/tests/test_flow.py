@@ -53,6 +53,26 @@ def test_rgb_float_and_luma_inputs(synth_frames):
     assert np.array_equal(mocomp.flow(big[:, ::2], b, method="lk", preset="fast"), grey)
 
 
+def test_calls_that_change_size_options_or_thread_give_fresh_results(synth_frames):
+    # flow keeps its estimator and picture buffers between calls: a call
+    # after others of another size, method or thread gives what it gives
+    # first.
+    import threading
+
+    a, b = synth_frames[0][0], synth_frames[1][0]
+    first = mocomp.flow(a, b, preset="fast")
+    small = textured(40, 56)
+    small_first = mocomp.flow(small, np.roll(small, 1, axis=1), preset="fast")
+    mocomp.flow(a, b, method="lk")
+    assert np.array_equal(mocomp.flow(a, b, preset="fast"), first)
+    assert np.array_equal(mocomp.flow(small, np.roll(small, 1, axis=1), preset="fast"), small_first)
+    out = {}
+    thread = threading.Thread(target=lambda: out.update(f=mocomp.flow(a, b, preset="fast")))
+    thread.start()
+    thread.join()
+    assert np.array_equal(out["f"], first)
+
+
 def test_flo_round_trip_keeps_values_and_unknowns(tmp_path):
     f = np.random.default_rng(3).normal(size=(7, 9, 2)).astype(np.float32)
     f[2, 3] = np.nan

@@ -1,42 +1,87 @@
 #!/usr/bin/env bash
 # rd_side_by_side.sh [OUT_DIR]
 #
-# The encoder beside ffmpeg's MPEG-4 Part 2 and x264 on the shared test
-# sequences, in one run on one machine: the peers' RD points
-# (../shared/peers/rd_ffmpeg.sh: IPPP, one thread), ours for every predictor
-# and the default (block:epzs) at QP 22/27/32/37, then BD-rate tables against block:esa, mpeg4 and
-# x264_simple (luma PSNR, mean of frames, as the peer script), and the
-# encode time of the default setting, whole process, one thread, beside
-# x264_simple's.
+# The encoder beside ffmpeg's MPEG-4 Part 2, x264 restricted to simple
+# tools (x264_simple) and x264 medium, in one run on one machine, on the
+# whole development set: the three shared sequences and the ones
+# benches/seqbench/make.sh builds (static camera with noise, cuts, fast pan,
+# dark, light change, hand-held, cartoon, ffmpeg's testsrc2, 720p).
+#   - the peers' RD points (../shared/peers/rd_ffmpeg.sh: IPPP, one
+#     thread), kept in OUT_DIR and reused by later runs (they do not change);
+#   - ours for PREDICTORS at QP 22/27/32/37 (`mocomp rd`, RD_ARGS added:
+#     e.g. RD_ARGS="--ipratio 1" to measure a tool off);
+#   - per sequence, BD-rate (luma PSNR, mean of frames, cubic) of every
+#     predictor against mpeg4, x264_simple and x264;
+#   - a summary: the default (block:epzs) against x264_simple and x264 on
+#     every sequence, and the mean;
+#   - encode time of the default, whole process, one thread, on pan_cif,
+#     beside x264_simple and x264 medium (five runs each).
+# Env: SEQS (Y4M paths; default the set above), DEV (where make.sh builds
+# its sequences, default OUT_DIR/dev), PREDICTORS (default every one; the
+# summary needs block:epzs), RD_ARGS, SPEED=0 to skip the timing, MOCOMP
+# (a binary to measure instead of building this tree's).
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 SHARED=${SHARED:-$ROOT/../shared}
 OUT=${1:-rd-side-by-side}
 mkdir -p "$OUT"
-cargo build --release --manifest-path "$ROOT/Cargo.toml" -q
-M="$ROOT/target/release/mocomp"
-SEQS=${SEQS:-"pan_cif cup_vga_30 tree_qvga"}
-for s in $SEQS; do
-  IN="$SHARED/data/$s.y4m"
-  bash "$SHARED/peers/rd_ffmpeg.sh" "$IN" "$OUT/peers_$s.csv" > /dev/null
-  PREDICTORS="zero block:esa block:tss flow-block:lk flow-block:hs flow-block:dis flow-block:tvl1 dense-lk dense-hs dense-dis dense-tvl1 obmc block:epzs"
+DEV=${DEV:-$OUT/dev}
+# MOCOMP: a mocomp binary to measure (default: this tree's, built now).
+if [ -z "${MOCOMP:-}" ]; then
+  cargo build --release --manifest-path "$ROOT/Cargo.toml" -q
+fi
+M=${MOCOMP:-$ROOT/target/release/mocomp}
+if [ -z "${SEQS:-}" ]; then
+  bash "$ROOT/benches/seqbench/make.sh" "$DEV" > /dev/null
+  SEQS="$(ls "$SHARED"/data/{pan_cif,cup_vga_30,tree_qvga}.y4m) $(ls "$DEV"/*.y4m)"
+fi
+PREDICTORS=${PREDICTORS:-"zero block:esa block:tss flow-block:lk flow-block:hs flow-block:dis flow-block:tvl1 dense-lk dense-hs dense-dis dense-tvl1 obmc block:epzs"}
+DEFAULT=block:epzs
+bd() {  # ANCHOR_CSV:CODEC TEST_CSV:CODEC -> BD-rate cubic, % (n/a when the curves do not overlap)
+  local j
+  j=$("$M" bdrate "$1" "$2" --json 2> /dev/null) || { echo n/a; return; }
+  echo "$j" | sed -n 's/.*"bd_rate_cubic":\([-0-9.e]*\).*/\1/p' | awk '{printf "%+.1f", $1}'
+}
+summary="| sequence | vs x264_simple | vs x264 medium |"$'\n'"|---|---:|---:|"
+sums="0 0"
+n=0
+for IN in $SEQS; do
+  s=$(basename "$IN" .y4m)
+  [ -s "$OUT/peers_$s.csv" ] || bash "$SHARED/peers/rd_ffmpeg.sh" "$IN" "$OUT/peers_$s.csv" > /dev/null
+  # shellcheck disable=SC2086
   "$M" rd "$IN" --predictors "$(echo $PREDICTORS | tr ' ' ,)" -o "$OUT/ours_$s.csv" \
-    --plot "$OUT/ours_$s.svg" --quiet > "$OUT/table_$s.md"
-  for anchor in mpeg4 x264_simple; do
+    --anchor-csv "$OUT/peers_$s.csv:x264_simple" --quiet ${RD_ARGS:-} > "$OUT/table_$s.md"
+  for anchor in mpeg4 x264_simple x264; do
     echo "## $s against $anchor" >> "$OUT/table_$s.md"
     for p in $PREDICTORS; do
-      printf '%s ' "$p" >> "$OUT/table_$s.md"
-      "$M" bdrate "$OUT/peers_$s.csv:$anchor" "$OUT/ours_$s.csv:$p" --json >> "$OUT/table_$s.md"
+      echo "$p $(bd "$OUT/peers_$s.csv:$anchor" "$OUT/ours_$s.csv:$p")" >> "$OUT/table_$s.md"
     done
   done
-  cat "$OUT/table_$s.md"
+  if [[ " $PREDICTORS " == *" $DEFAULT "* ]]; then
+    a=$(bd "$OUT/peers_$s.csv:x264_simple" "$OUT/ours_$s.csv:$DEFAULT")
+    b=$(bd "$OUT/peers_$s.csv:x264" "$OUT/ours_$s.csv:$DEFAULT")
+    summary+=$'\n'"| $s | $a % | $b % |"
+    sums=$(echo "$sums" | awk -v a="$a" -v b="$b" '{print $1 + a, $2 + b}')
+    n=$((n + 1))
+  fi
 done
+cat "$OUT"/table_*.md > "$OUT/tables.md"
+if [ "$n" -gt 0 ]; then
+  mean=$(echo "$sums" | awk -v n="$n" '{printf "| **mean of %d** | **%+.1f %%** | **%+.1f %%** |", n, $1 / n, $2 / n}')
+  summary+=$'\n'"$mean"
+  echo "BD-rate of the default ($DEFAULT${RD_ARGS:+ $RD_ARGS}), luma PSNR, cubic:"
+  echo "$summary" | tee "$OUT/summary.md"
+fi
+[ "${SPEED:-1}" = 0 ] && exit 0
 # Speed: the default setting, whole process, one thread, five runs each.
 IN="$SHARED/data/pan_cif.y4m"
+X264="ffmpeg -hide_banner -nostdin -loglevel error -y -i $IN -c:v libx264 -preset medium -tune psnr -qp 28 -threads 1"
 for i in 1 2 3 4 5; do
-  /usr/bin/time -f "mocomp default %e s" "$M" encode "$IN" -o "$OUT/default.mcv" --threads 1 --quiet > /dev/null
-  /usr/bin/time -f "x264_simple qp28 %e s" ffmpeg -hide_banner -nostdin -loglevel error -y -i "$IN" -c:v libx264 \
-    -preset medium -tune psnr -qp 28 -threads 1 \
+  # shellcheck disable=SC2086
+  /usr/bin/time -f "mocomp default %e s" "$M" encode "$IN" -o "$OUT/default.mcv" --threads 1 --quiet ${RD_ARGS:-} > /dev/null
+  /usr/bin/time -f "x264_simple qp28 %e s" $X264 \
     -x264-params keyint=infinite:scenecut=0:bframes=0:threads=1:cabac=0:8x8dct=0:ref=1:no-deblock=1:subme=1:me=dia \
-    -f h264 "$OUT/x264.264"
+    -f h264 "$OUT/x264_simple.264"
+  /usr/bin/time -f "x264 medium qp28 %e s" $X264 \
+    -x264-params keyint=infinite:scenecut=0:bframes=0:threads=1 -f h264 "$OUT/x264.264"
 done

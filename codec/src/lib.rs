@@ -10,6 +10,7 @@
 
 pub mod bits;
 pub mod cpu;
+pub mod deblock;
 pub mod decoder;
 pub mod entropy;
 pub mod interp;

@@ -6,6 +6,7 @@
 //! Pictures are reconstructed at the coded size (a whole number of
 //! macroblocks); [`crop`] gives the visible picture.
 
+use crate::deblock::{deblock_frame, MbEdgeInfo};
 use crate::interp::{predict_chroma, predict_luma};
 use crate::intra::{self, Neighbours};
 use crate::mv::Mv;
@@ -345,6 +346,9 @@ pub fn reconstruct_frame(
             (_, None) => MbSamples::default(),
         };
         reconstruct_mb(&pred, mb.residual(), header.qp, &mut recon, mb_x, mb_y);
+    }
+    if header.deblock {
+        deblock_frame(&mut recon, &MbEdgeInfo::of_frame(frame, &vectors), header.qp);
     }
     recon.extend_borders();
     Ok(recon)

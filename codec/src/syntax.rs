@@ -20,7 +20,7 @@ use crate::warp::{MotionGrid, SPACINGS};
 pub const MAGIC: [u8; 4] = *b"MOCO";
 
 /// The format version this code writes and reads.
-pub const VERSION: u8 = 2;
+pub const VERSION: u8 = 3;
 
 /// Bytes of the sequence header.
 pub const SEQUENCE_HEADER_LEN: usize = 23;
@@ -194,6 +194,8 @@ pub struct FrameHeader {
     pub qp: u8,
     /// Motion tool (always `Block` in I frames).
     pub tool: MotionTool,
+    /// The in-loop deblocking filter runs on the frame.
+    pub deblock: bool,
 }
 
 /// How one macroblock is coded.
@@ -435,6 +437,7 @@ fn write_frame_header(h: &FrameHeader) -> Vec<u8> {
         assert!(code.is_some(), "grid spacing {spacing} is not 4, 8 or 16");
         w.put(code.unwrap_or_default() as u64, 2);
     }
+    w.put(u64::from(h.deblock), 1);
     w.align();
     w.into_bytes()
 }
@@ -448,7 +451,7 @@ fn write_frame_header(h: &FrameHeader) -> Vec<u8> {
 /// use mocomp_codec::intra::IntraMode;
 /// use mocomp_codec::syntax::*;
 /// let seq = SequenceHeader { width: 32, height: 16, fps_num: 25, fps_den: 1, frame_count: 1 };
-/// let header = FrameHeader { frame_type: FrameType::Intra, qp: 30, tool: MotionTool::Block };
+/// let header = FrameHeader { frame_type: FrameType::Intra, qp: 30, tool: MotionTool::Block, deblock: true };
 /// let kind = MbKind::Intra { luma: IntraMode::Dc, chroma: IntraMode::Dc };
 /// let frame = FrameSyntax { header, grid: None, mbs: vec![CodedMb::without_residual(kind); 2] };
 /// let mut state = EntropyState::new();
@@ -702,12 +705,21 @@ fn read_frame_header(payload: &[u8]) -> Result<(FrameHeader, usize), SyntaxError
     if frame_type == FrameType::Intra && tool != MotionTool::Block {
         return Err(invalid("an I frame with a motion tool".into(), pos));
     }
+    let deblock = r.get(1)? == 1;
     let pos = r.position();
     let pad = (8 - pos % 8) % 8;
     if r.get(pad as u32)? != 0 {
         return Err(invalid("non-zero bits after the frame header".into(), pos));
     }
-    Ok((FrameHeader { frame_type, qp, tool }, r.position() / 8))
+    Ok((
+        FrameHeader {
+            frame_type,
+            qp,
+            tool,
+            deblock,
+        },
+        r.position() / 8,
+    ))
 }
 
 /// The range-coded partition of one frame as it is read: the decoder, the

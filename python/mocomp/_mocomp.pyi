@@ -80,6 +80,7 @@ def encode(
     decision: Literal["fast", "full"] = "fast",
     rdoq: bool = True,
     lambda_scale: float = 1.4,
+    ipratio: float = 1.4,
     frames: Optional[int] = None,
     fps: Tuple[int, int] = (25, 1),
     threads: Optional[int] = None,

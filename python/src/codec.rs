@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use mocomp::codec::Frame;
-use mocomp::encode::{Encoder, EncoderConfig, FrameStats, ModeDecision, Predictor};
+use mocomp::encode::{Encoder, EncoderConfig, FrameStats, ModeDecision, Predictor, DEFAULT_IPRATIO};
 use mocomp::io::y4m::Y4mReader;
 use mocomp::rd::{sweep, RdPoint, Sequence};
 use pyo3::exceptions::PyTypeError;
@@ -74,6 +74,7 @@ fn config(
     decision: &str,
     rdoq: bool,
     lambda_scale: f64,
+    ipratio: f64,
 ) -> PyResult<EncoderConfig> {
     if qp > 51 {
         return Err(value_error(format!("qp {qp} is not in 0..=51")));
@@ -84,7 +85,8 @@ fn config(
         .gop(gop)
         .decision(decision.parse::<ModeDecision>().map_err(value_error)?)
         .rdoq(rdoq)
-        .lambda_scale(lambda_scale))
+        .lambda_scale(lambda_scale)
+        .ipratio(ipratio))
 }
 
 /// One frame's statistics as a dict.
@@ -92,6 +94,7 @@ fn stats_dict<'py>(py: Python<'py>, s: &FrameStats) -> PyResult<Bound<'py, PyDic
     let d = PyDict::new(py);
     d.set_item("frame", s.index)?;
     d.set_item("type", s.frame_type.to_string())?;
+    d.set_item("qp", s.qp)?;
     d.set_item("bytes", s.bytes)?;
     d.set_item("bits_header", s.bits_header)?;
     d.set_item("bits_motion", s.bits_motion)?;
@@ -157,6 +160,7 @@ fn encode_all(frames: &[Frame], fps: (u32, u32), config: EncoderConfig, keep: bo
 /// qp: 0..51. predictor: "zero", "block[:method]", "flow-block[:lk|hs|dis|tvl1]",
 ///     "dense-lk" / "dense-hs" / "dense-dis" / "dense-tvl1", "obmc" (as `mocomp encode`).
 /// gop: I-frame period (0: only the first). decision: "fast" or "full".
+/// ipratio: quantiser step of P frames over I frames (x264's --ipratio).
 /// frames: code at most this many frames.
 ///
 /// Returns (stream bytes, per-frame statistics as dicts); with
@@ -164,7 +168,7 @@ fn encode_all(frames: &[Frame], fps: (u32, u32), config: EncoderConfig, keep: bo
 /// which `decode(stream)` reproduces exactly.
 #[pyfunction]
 #[pyo3(signature = (source, qp=28, predictor="block", *, gop=0, decision="fast", rdoq=true, lambda_scale=1.4,
-    frames=None, fps=(25, 1), threads=None, reconstruction=false))]
+    ipratio=DEFAULT_IPRATIO, frames=None, fps=(25, 1), threads=None, reconstruction=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn encode<'py>(
     py: Python<'py>,
@@ -175,12 +179,13 @@ pub fn encode<'py>(
     decision: &str,
     rdoq: bool,
     lambda_scale: f64,
+    ipratio: f64,
     frames: Option<usize>,
     fps: (u32, u32),
     threads: Option<usize>,
     reconstruction: bool,
 ) -> PyResult<Bound<'py, PyTuple>> {
-    let cfg = config(qp, predictor, gop, decision, rdoq, lambda_scale)?;
+    let cfg = config(qp, predictor, gop, decision, rdoq, lambda_scale, ipratio)?;
     if fps.0 == 0 || fps.1 == 0 {
         return Err(value_error(
             "fps must be two positive integers (numerator, denominator)",
@@ -268,7 +273,11 @@ pub fn rd<'py>(
         sequences.push(Sequence { name, frames, fps });
     }
     let points = py
-        .detach(|| with_threads(threads, || sweep(&sequences, &qps, &predictors, || {})))?
+        .detach(|| {
+            with_threads(threads, || {
+                sweep(&sequences, &qps, &predictors, &EncoderConfig::new(), || {})
+            })
+        })?
         .map_err(|e| value_error(e.to_string()))?;
     let out = PyList::empty(py);
     for p in &points {

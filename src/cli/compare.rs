@@ -7,7 +7,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
-use super::rd::{run_sweep, ALL_PREDICTORS};
+use super::rd::{run_sweep, SweepRequest, ALL_PREDICTORS};
+use crate::encode::EncoderConfig;
 
 /// The bundled sample, relative to the repository root.
 const DEFAULT_INPUT: &str = "samples/synth_qcif.y4m";
@@ -47,19 +48,20 @@ pub fn run(args: &Args) -> Result<()> {
     let csv = args.out.join("rd.csv");
     let predictors: Vec<String> = ALL_PREDICTORS.split(',').map(String::from).collect();
     let start = std::time::Instant::now();
-    let report = run_sweep(
-        std::slice::from_ref(&input),
-        &args.qp,
-        &predictors,
-        None,
-        &csv,
-        None,
-        Some(&args.out.join("rd.svg")),
-        "block:esa",
-        None,
-        args.threads,
-        false,
-    )?;
+    let report = run_sweep(&SweepRequest {
+        inputs: std::slice::from_ref(&input),
+        qps: &args.qp,
+        predictors: &predictors,
+        frames: None,
+        tools: EncoderConfig::new(),
+        output: &csv,
+        json_path: None,
+        plot_path: Some(&args.out.join("rd.svg")),
+        anchor: "block:esa",
+        anchor_csv: None,
+        threads: args.threads,
+        quiet: false,
+    })?;
     let mut stdout = std::io::stdout().lock();
     writeln!(
         stdout,

@@ -7,7 +7,9 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::encode::{encode_y4m, EncoderConfig, FlowMethod, FrameStats, ModeDecision, Predictor, Summary};
+use crate::encode::{
+    encode_y4m, EncoderConfig, FlowMethod, FrameStats, ModeDecision, Predictor, Summary, DEFAULT_IPRATIO,
+};
 use crate::io::y4m::{Y4mReader, Y4mWriter};
 use crate::io::OutputFile;
 use crate::me::{Method, Subpel};
@@ -52,16 +54,8 @@ pub struct Args {
     /// Code at most this many frames.
     #[arg(long)]
     pub frames: Option<usize>,
-    /// Multiply the mode-decision lambda `0.85 * 2^((QP - 12) / 3)`.
-    #[arg(long, default_value_t = 1.4)]
-    pub lambda_scale: f64,
-    /// No rate-distortion optimised quantisation.
-    #[arg(long)]
-    pub no_rdoq: bool,
-    /// Inter mode decision: fast (the vector with the lower SATD is the
-    /// one coded) or full (both coded and compared by SSD + lambda * bits).
-    #[arg(long, default_value = "fast")]
-    pub decision: ModeDecision,
+    #[command(flatten)]
+    pub tools: ToolArgs,
     /// Also write the reconstruction (what the decoder outputs) as Y4M.
     #[arg(long, value_name = "REC.y4m")]
     pub recon: Option<PathBuf>,
@@ -77,6 +71,41 @@ pub struct Args {
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
+}
+
+/// The coding tools' options, the same for every predictor (`mocomp
+/// encode` and `mocomp rd` share them).
+#[derive(Debug, Clone, clap::Args)]
+pub struct ToolArgs {
+    /// Multiply the mode-decision lambda `0.85 * 2^((QP - 12) / 3)`.
+    #[arg(long, default_value_t = 1.4)]
+    pub lambda_scale: f64,
+    /// No rate-distortion optimised quantisation.
+    #[arg(long)]
+    pub no_rdoq: bool,
+    /// Inter mode decision: fast (the vector with the lower SATD is the
+    /// one coded) or full (both coded and compared by SSD + lambda * bits).
+    #[arg(long, default_value = "fast")]
+    pub decision: ModeDecision,
+    /// Quantiser step of P frames over I frames (x264's --ipratio): I
+    /// frames at QP - 6 log2(ratio).
+    #[arg(long, default_value_t = DEFAULT_IPRATIO)]
+    pub ipratio: f64,
+    /// No in-loop deblocking filter.
+    #[arg(long)]
+    pub no_deblock: bool,
+}
+
+impl ToolArgs {
+    /// `config` with these tools.
+    pub fn apply(&self, config: EncoderConfig) -> EncoderConfig {
+        config
+            .lambda_scale(self.lambda_scale)
+            .rdoq(!self.no_rdoq)
+            .decision(self.decision)
+            .ipratio(self.ipratio)
+            .deblock(!self.no_deblock)
+    }
 }
 
 /// The configuration the options describe.
@@ -118,13 +147,12 @@ pub fn config(args: &Args) -> Result<EncoderConfig> {
             args.flow.is_none() && args.refine.is_none() && args.grid.is_none(),
         )?,
     }
-    let config = EncoderConfig::new()
-        .qp(args.qp)
-        .gop(args.gop)
-        .predictor(predictor)
-        .lambda_scale(args.lambda_scale)
-        .rdoq(!args.no_rdoq)
-        .decision(args.decision);
+    let config = args.tools.apply(
+        EncoderConfig::new()
+            .qp(args.qp)
+            .gop(args.gop)
+            .predictor(predictor),
+    );
     config.check().map_err(anyhow::Error::msg)?;
     Ok(config)
 }

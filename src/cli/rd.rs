@@ -9,7 +9,8 @@ use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
-use crate::encode::Predictor;
+use super::encode::ToolArgs;
+use crate::encode::{EncoderConfig, Predictor};
 use crate::io::y4m::Y4mReader;
 use crate::io::OutputFile;
 use crate::rd::bdrate::{bd_psnr, bd_rate, Fit};
@@ -56,6 +57,8 @@ pub struct Args {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    #[command(flatten)]
+    pub tools: ToolArgs,
 }
 
 /// Reads `FILE.csv[:LABEL]`: the curve's points and its label.
@@ -127,21 +130,39 @@ pub struct SweepReport {
     pub plots: Option<crate::rd::plot::PlotFiles>,
 }
 
+/// What to sweep and where the results go.
+pub struct SweepRequest<'a> {
+    pub inputs: &'a [PathBuf],
+    pub qps: &'a [u8],
+    pub predictors: &'a [String],
+    pub frames: Option<usize>,
+    /// Every setting but the QP and the predictor.
+    pub tools: EncoderConfig,
+    pub output: &'a Path,
+    pub json_path: Option<&'a Path>,
+    pub plot_path: Option<&'a Path>,
+    pub anchor: &'a str,
+    pub anchor_csv: Option<&'a str>,
+    pub threads: Option<usize>,
+    pub quiet: bool,
+}
+
 /// Runs a sweep and writes its CSV, JSON and plots.
-#[allow(clippy::too_many_arguments)]
-pub fn run_sweep(
-    inputs: &[PathBuf],
-    qps: &[u8],
-    predictors: &[String],
-    frames: Option<usize>,
-    output: &Path,
-    json_path: Option<&Path>,
-    plot_path: Option<&Path>,
-    anchor: &str,
-    anchor_csv: Option<&str>,
-    threads: Option<usize>,
-    quiet: bool,
-) -> Result<SweepReport> {
+pub fn run_sweep(request: &SweepRequest<'_>) -> Result<SweepReport> {
+    let SweepRequest {
+        inputs,
+        qps,
+        predictors,
+        frames,
+        tools,
+        output,
+        json_path,
+        plot_path,
+        anchor,
+        anchor_csv,
+        threads,
+        quiet,
+    } = *request;
     let predictors: Vec<Predictor> = predictors
         .iter()
         .map(|s| s.parse::<Predictor>().map_err(anyhow::Error::msg))
@@ -182,7 +203,7 @@ pub fn run_sweep(
         b
     };
     let pool = super::thread_pool(threads)?;
-    let points = pool.install(|| sweep(&sequences, qps, &predictors, || bar.inc(1)))?;
+    let points = pool.install(|| sweep(&sequences, qps, &predictors, &tools, || bar.inc(1)))?;
     bar.finish_and_clear();
 
     let mut out = OutputFile::create(output).with_context(|| output.display().to_string())?;
@@ -210,19 +231,20 @@ pub fn run_sweep(
 }
 
 pub fn run(args: &Args) -> Result<()> {
-    let report = run_sweep(
-        &args.inputs,
-        &args.qp,
-        &args.predictors,
-        args.frames,
-        &args.output,
-        args.json.as_deref(),
-        args.plot.as_deref(),
-        &args.anchor,
-        args.anchor_csv.as_deref(),
-        args.threads,
-        args.quiet,
-    )?;
+    let report = run_sweep(&SweepRequest {
+        inputs: &args.inputs,
+        qps: &args.qp,
+        predictors: &args.predictors,
+        frames: args.frames,
+        tools: args.tools.apply(EncoderConfig::new()),
+        output: &args.output,
+        json_path: args.json.as_deref(),
+        plot_path: args.plot.as_deref(),
+        anchor: &args.anchor,
+        anchor_csv: args.anchor_csv.as_deref(),
+        threads: args.threads,
+        quiet: args.quiet,
+    })?;
     let mut stdout = std::io::stdout().lock();
     writeln!(stdout, "{}", report.table.trim_start())?;
     writeln!(stdout, "\nwrote {}", args.output.display())?;

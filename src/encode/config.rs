@@ -220,6 +220,9 @@ impl FromStr for ModeDecision {
     }
 }
 
+/// The default [`EncoderConfig::ipratio`].
+pub const DEFAULT_IPRATIO: f64 = 1.4;
+
 /// Everything the encoder is told, built in the builder style:
 ///
 /// ```
@@ -249,6 +252,12 @@ pub struct EncoderConfig {
     /// Measure SSIM of every frame (x264's 8x8 windows: about 1 % of the
     /// encoding time).
     pub ssim: bool,
+    /// Quantiser step of P frames over that of I frames, as x264's
+    /// `--ipratio`: I frames are coded at `qp - 6 log2(ipratio)` (rounded),
+    /// since every later frame predicts from them.
+    pub ipratio: f64,
+    /// The in-loop deblocking filter (FORMAT.md section 11) on every frame.
+    pub deblock: bool,
 }
 
 impl Default for EncoderConfig {
@@ -261,6 +270,8 @@ impl Default for EncoderConfig {
             rdoq: true,
             decision: ModeDecision::default(),
             ssim: true,
+            ipratio: DEFAULT_IPRATIO,
+            deblock: true,
         }
     }
 }
@@ -308,6 +319,24 @@ impl EncoderConfig {
         self
     }
 
+    /// Sets the quantiser step ratio of P frames over I frames.
+    pub fn ipratio(mut self, ratio: f64) -> EncoderConfig {
+        self.ipratio = ratio;
+        self
+    }
+
+    /// Turns the in-loop deblocking filter on or off.
+    pub fn deblock(mut self, on: bool) -> EncoderConfig {
+        self.deblock = on;
+        self
+    }
+
+    /// The QP of I frames: `qp - 6 log2(ipratio)`, rounded, at least 0.
+    pub fn intra_qp(&self) -> u8 {
+        let offset = (6.0 * self.ipratio.log2()).round();
+        (f64::from(self.qp) - offset).clamp(0.0, f64::from(MAX_QP)) as u8
+    }
+
     /// Turns SSIM measurement on or off.
     pub fn ssim(mut self, on: bool) -> EncoderConfig {
         self.ssim = on;
@@ -320,6 +349,9 @@ impl EncoderConfig {
         }
         if !(self.lambda_scale > 0.0 && self.lambda_scale < 1e3) {
             return Err(format!("lambda scale {} is not in (0, 1000)", self.lambda_scale));
+        }
+        if !(1.0..=16.0).contains(&self.ipratio) {
+            return Err(format!("ipratio {} is not in 1..=16", self.ipratio));
         }
         self.predictor.check()
     }

@@ -4,10 +4,11 @@
 use super::config::ModeDecision;
 use super::macroblock::{MbCoder, MbSource};
 use super::motion::FrameMotion;
+use crate::codec::deblock::{deblock_frame, MbEdgeInfo};
 use crate::codec::modes::{MbMode, ModeCoder};
 use crate::codec::mv::mvd_bits;
 use crate::codec::mv::Mv;
-use crate::codec::recon::{predict_inter, predict_intra, write_mb, InterContext, MbSamples};
+use crate::codec::recon::{frame_vectors, predict_inter, predict_intra, write_mb, InterContext, MbSamples};
 use crate::codec::residual::{MbResidual, ResidualCoder};
 use crate::codec::syntax::{
     mb_mode, mb_vector, mv_prediction, write_frame, BitCounts, CodedMb, EntropyState, FrameHeader,
@@ -102,6 +103,7 @@ pub(crate) fn code_intra(
     seq: &SequenceHeader,
     coder: &MbCoder,
     src: &Frame,
+    deblock: bool,
     state: &mut EntropyState,
     mut recon: Frame,
 ) -> Result<CodedFrame, PictureError> {
@@ -110,6 +112,7 @@ pub(crate) fn code_intra(
         frame_type: FrameType::Intra,
         qp: coder.qp,
         tool: MotionTool::Block,
+        deblock,
     };
     let mut writer = FrameWriter::new(seq, &header, None, state);
     let mut mbs = Vec::with_capacity(cols * seq.mb_rows());
@@ -127,9 +130,8 @@ pub(crate) fn code_intra(
         writer.push(&mb);
         mbs.push(mb);
     }
-    recon.extend_borders();
     let (bytes, bits) = writer.finish(state);
-    Ok(CodedFrame {
+    let mut frame = CodedFrame {
         syntax: FrameSyntax {
             header,
             grid: None,
@@ -140,7 +142,24 @@ pub(crate) fn code_intra(
         recon,
         prediction_sse,
         kinds: [0, 0, cols * seq.mb_rows()],
-    })
+    };
+    frame.finish_recon(seq);
+    Ok(frame)
+}
+
+impl CodedFrame {
+    /// The reconstruction as the decoder's: deblocked when the header says
+    /// so (after every macroblock, whose intra prediction read the samples
+    /// before it), borders extended.
+    fn finish_recon(&mut self, seq: &SequenceHeader) {
+        let header = &self.syntax.header;
+        if header.deblock {
+            let vectors = frame_vectors(seq, &self.syntax);
+            let info = MbEdgeInfo::of_frame(&self.syntax, &vectors);
+            deblock_frame(&mut self.recon, &info, header.qp);
+        }
+        self.recon.extend_borders();
+    }
 }
 
 /// One way to code a macroblock, with its cost.
@@ -160,6 +179,8 @@ pub(crate) struct InterInputs<'a> {
     pub motion: FrameMotion,
     pub tool: MotionTool,
     pub decision: ModeDecision,
+    /// Whether the frame is deblocked.
+    pub deblock: bool,
 }
 
 /// One macroblock under analysis: its source, its predicted vector and the
@@ -236,6 +257,7 @@ impl<'a> InterFrameCoder<'a> {
             frame_type: FrameType::Inter,
             qp: coder.qp,
             tool: inputs.tool,
+            deblock: inputs.deblock,
         };
         let obmc = inputs.tool == MotionTool::Obmc;
         let sink = if obmc {
@@ -450,7 +472,7 @@ impl<'a> InterFrameCoder<'a> {
                 (frame.bytes, frame.bits) = write_frame(self.seq, &frame.syntax, state);
             }
         }
-        frame.recon.extend_borders();
+        frame.finish_recon(self.seq);
         Ok(frame)
     }
 }

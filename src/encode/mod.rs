@@ -36,7 +36,8 @@ use std::io::{Read, Write};
 use std::time::Instant;
 
 pub use config::{
-    EncoderConfig, FlowMethod, ModeDecision, Predictor, SearchSettings, DEFAULT_GRID, DEFAULT_REFINE,
+    EncoderConfig, FlowMethod, ModeDecision, Predictor, SearchSettings, DEFAULT_GRID, DEFAULT_IPRATIO,
+    DEFAULT_REFINE,
 };
 pub use stats::{FrameStats, Summary, SummaryBuilder};
 
@@ -92,7 +93,10 @@ pub struct EncodedFrame {
 pub struct Encoder {
     seq: SequenceHeader,
     config: EncoderConfig,
+    /// P frames' quantiser and lambda.
     coder: MbCoder,
+    /// I frames' (at [`EncoderConfig::intra_qp`]).
+    intra_coder: MbCoder,
     analyser: MotionAnalyser,
     /// The previous reconstruction, coded size, borders extended.
     reference: Option<Frame>,
@@ -137,6 +141,7 @@ impl Encoder {
             seq,
             config,
             coder: MbCoder::new(config.qp, config.lambda_scale, config.rdoq),
+            intra_coder: MbCoder::new(config.intra_qp(), config.lambda_scale, config.rdoq),
             analyser: MotionAnalyser::new(config.predictor, config.qp),
             reference: None,
             prev_source: None,
@@ -205,10 +210,18 @@ impl Encoder {
                     motion,
                     tool,
                     decision: self.config.decision,
+                    deblock: self.config.deblock,
                 };
                 frame::code_inter(&self.seq, &self.coder, &src, inputs, &mut self.entropy, recon)?
             }
-            _ => frame::code_intra(&self.seq, &self.coder, &src, &mut self.entropy, recon)?,
+            _ => frame::code_intra(
+                &self.seq,
+                &self.intra_coder,
+                &src,
+                self.config.deblock,
+                &mut self.entropy,
+                recon,
+            )?,
         };
         let (bytes, bits) = (coded.bytes, coded.bits);
         let recon = crop_reusing(
@@ -225,6 +238,7 @@ impl Encoder {
             } else {
                 'P'
             },
+            qp: coded.syntax.header.qp,
             bytes: bytes.len(),
             bits_header: bits.header,
             bits_motion: bits.motion,

@@ -9,6 +9,8 @@ pub struct FrameStats {
     pub index: usize,
     /// `I` or `P`.
     pub frame_type: char,
+    /// The frame's quantisation parameter.
+    pub qp: u8,
     /// Bytes in the stream.
     pub bytes: usize,
     /// Framing, frame header, macroblock types, skip runs, intra modes.
@@ -43,15 +45,16 @@ pub struct FrameStats {
 impl FrameStats {
     /// The CSV header of [`FrameStats::csv_row`].
     pub const CSV_HEADER: &'static str =
-        "frame,type,bytes,bits_header,bits_motion,bits_residual,psnr_y,psnr_u,psnr_v,\
+        "frame,type,qp,bytes,bits_header,bits_motion,bits_residual,psnr_y,psnr_u,psnr_v,\
 ssim,prediction_psnr_y,skip_mbs,inter_mbs,intra_mbs,me_ms,total_ms";
 
     /// One CSV row.
     pub fn csv_row(&self) -> String {
         format!(
-            "{},{},{},{},{},{},{:.4},{:.4},{:.4},{:.6},{:.4},{},{},{},{:.3},{:.3}",
+            "{},{},{},{},{},{},{},{:.4},{:.4},{:.4},{:.6},{:.4},{},{},{},{:.3},{:.3}",
             self.index,
             self.frame_type,
+            self.qp,
             self.bytes,
             self.bits_header,
             self.bits_motion,
@@ -182,6 +185,7 @@ mod tests {
         let f = FrameStats {
             index: 0,
             frame_type: 'I',
+            qp: 28,
             bytes: 988,
             bits_header: 100,
             bits_motion: 0,

@@ -77,13 +77,15 @@ pub struct Sequence {
     pub fps: (u32, u32),
 }
 
-/// Encodes every sequence at every QP with every predictor, jobs in
-/// parallel on the current rayon pool; `done` is called after each job.
-/// Points come back in (sequence, predictor, QP) order.
+/// Encodes every sequence at every QP with every predictor, the other
+/// settings those of `tools`, jobs in parallel on the current rayon pool;
+/// `done` is called after each job. Points come back in (sequence,
+/// predictor, QP) order.
 pub fn sweep(
     sequences: &[Sequence],
     qps: &[u8],
     predictors: &[Predictor],
+    tools: &EncoderConfig,
     done: impl Fn() + Sync,
 ) -> Result<Vec<RdPoint>, EncodeError> {
     let mut jobs = Vec::new();
@@ -96,7 +98,7 @@ pub fn sweep(
     }
     jobs.par_iter()
         .map(|&(predictor, qp, seq)| {
-            let config = EncoderConfig::new().qp(qp).predictor(predictor);
+            let config = tools.qp(qp).predictor(predictor);
             let s = encode_frames(&seq.frames, seq.fps, config)?;
             done();
             Ok(RdPoint {

@@ -1,0 +1,327 @@
+//! The in-loop deblocking filter (FORMAT.md section 11): H.264's edge
+//! filter (its clause 8.7, tables 8-16 and 8-17) on every 4x4 block edge
+//! of the coded picture, as HEVC orders it: all vertical edges of the
+//! picture first, left to right, then all horizontal ones, top to bottom.
+//! How hard an edge is filtered (its boundary strength) follows from the
+//! macroblocks on either side: intra, coded coefficients, vectors apart.
+//!
+//! The filter runs once a frame is reconstructed; intra prediction inside
+//! the frame reads the samples before it, so encoder and decoder both
+//! filter the whole frame at the end.
+
+use crate::mv::Mv;
+use crate::picture::{Frame, Plane};
+use crate::recon::chroma_qp;
+use crate::residual::MbResidual;
+use crate::syntax::{FrameSyntax, MbKind, MotionTool};
+
+/// alpha of an edge by QP (H.264 table 8-16, indexA): the largest step
+/// across the edge that is still taken for a blocking artefact.
+const ALPHA: [u8; 52] = [
+    0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 4, 4, 5, 6, 7, 8, 9, 10, 12, 13, 15, 17, 20, 22, 25, 28,
+    32, 36, 40, 45, 50, 56, 63, 71, 80, 90, 101, 113, 127, 144, 162, 182, 203, 226, 255, 255,
+];
+
+/// beta by QP (table 8-16, indexB): the largest step on either side of the
+/// edge for it to count as flat there.
+const BETA: [u8; 52] = [
+    0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 6, 6, 7, 7, 8, 8, 9, 9, 10,
+    10, 11, 11, 12, 12, 13, 13, 14, 14, 15, 15, 16, 16, 17, 17, 18, 18,
+];
+
+/// tc0 by boundary strength 1, 2, 3 (rows) and QP (table 8-17): how far
+/// a sample may move.
+const TC0: [[u8; 52]; 3] = [
+    [
+        0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 2,
+        2, 2, 2, 3, 3, 3, 4, 4, 4, 5, 6, 6, 7, 8, 9, 10, 11, 13,
+    ],
+    [
+        0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 2, 2, 2,
+        2, 3, 3, 3, 4, 4, 5, 5, 6, 7, 8, 8, 10, 11, 12, 13, 15, 17,
+    ],
+    [
+        0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 2, 2, 2, 2, 3, 3, 3,
+        4, 4, 4, 5, 6, 6, 7, 8, 9, 10, 11, 13, 14, 16, 18, 20, 23, 25,
+    ],
+];
+
+/// What the boundary strength needs of one macroblock.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MbEdgeInfo {
+    /// Intra-coded.
+    pub intra: bool,
+    /// Its vector, where vectors are compared (block and OBMC frames).
+    pub mv: Option<Mv>,
+    /// Bit `by * 4 + bx`: luma 4x4 block (bx, by) has a non-zero level.
+    pub coded: u16,
+}
+
+impl MbEdgeInfo {
+    /// The information of macroblock `mb` of a frame using `tool`, whose
+    /// vector (for its neighbours' prediction) is `mv`.
+    pub fn of(kind: &MbKind, residual: &MbResidual, tool: MotionTool, mv: Option<Mv>) -> MbEdgeInfo {
+        let coded = residual
+            .luma
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| b.as_flattened().iter().any(|&l| l != 0))
+            .fold(0u16, |bits, (i, _)| bits | 1 << i);
+        MbEdgeInfo {
+            intra: matches!(kind, MbKind::Intra { .. }),
+            mv: if matches!(tool, MotionTool::Grid(_)) {
+                None
+            } else {
+                mv
+            },
+            coded,
+        }
+    }
+
+    /// Every macroblock of `frame`, with `vectors` from
+    /// [`crate::recon::frame_vectors`].
+    pub fn of_frame(frame: &FrameSyntax, vectors: &[Option<Mv>]) -> Vec<MbEdgeInfo> {
+        frame
+            .mbs
+            .iter()
+            .zip(vectors)
+            .map(|(mb, &mv)| MbEdgeInfo::of(&mb.kind, mb.residual(), frame.header.tool, mv))
+            .collect()
+    }
+
+    fn coded_at(&self, bx: usize, by: usize) -> bool {
+        self.coded >> (by * 4 + bx) & 1 == 1
+    }
+}
+
+/// The boundary strength of the edge between luma 4x4 blocks `p` (left or
+/// above) and `q`, in block units, on a picture `mb_cols` macroblocks wide.
+fn strength(info: &[MbEdgeInfo], mb_cols: usize, p: (usize, usize), q: (usize, usize)) -> u8 {
+    let mb = |(bx, by): (usize, usize)| (&info[(by / 4) * mb_cols + bx / 4], bx % 4, by % 4);
+    let ((mp, px, py), (mq, qx, qy)) = (mb(p), mb(q));
+    let mb_edge = (p.0 / 4, p.1 / 4) != (q.0 / 4, q.1 / 4);
+    if mp.intra || mq.intra {
+        return if mb_edge { 4 } else { 3 };
+    }
+    if mp.coded_at(px, py) || mq.coded_at(qx, qy) {
+        return 2;
+    }
+    match (mp.mv, mq.mv) {
+        (Some(a), Some(b)) if mb_edge && ((a.x - b.x).abs() >= 4 || (a.y - b.y).abs() >= 4) => 1,
+        _ => 0,
+    }
+}
+
+/// The thresholds of one edge.
+#[derive(Debug, Clone, Copy)]
+struct Edge {
+    bs: u8,
+    alpha: i32,
+    beta: i32,
+    /// tc0 (bS 1 to 3).
+    tc0: i32,
+}
+
+impl Edge {
+    fn new(bs: u8, qp: u8) -> Edge {
+        let q = usize::from(qp);
+        Edge {
+            bs,
+            alpha: i32::from(ALPHA[q]),
+            beta: i32::from(BETA[q]),
+            tc0: if (1..4).contains(&bs) {
+                i32::from(TC0[usize::from(bs) - 1][q])
+            } else {
+                0
+            },
+        }
+    }
+}
+
+/// Filters the line of samples across an edge: `q0` at `d[at]`, `q1` at
+/// `d[at + step]`, `p0` at `d[at - step]`, and so on.
+fn filter_line(d: &mut [u8], at: usize, step: usize, e: Edge, luma: bool) {
+    let s = |k: isize| (at as isize + k * step as isize) as usize;
+    let v = |d: &[u8], k: isize| i32::from(d[s(k)]);
+    let (p0, p1, q0, q1) = (v(d, -1), v(d, -2), v(d, 0), v(d, 1));
+    if (p0 - q0).abs() >= e.alpha || (p1 - p0).abs() >= e.beta || (q1 - q0).abs() >= e.beta {
+        return;
+    }
+    let clip = |x: i32| x.clamp(0, 255) as u8;
+    if !luma {
+        if e.bs == 4 {
+            d[s(-1)] = ((2 * p1 + p0 + q1 + 2) >> 2) as u8;
+            d[s(0)] = ((2 * q1 + q0 + p1 + 2) >> 2) as u8;
+        } else {
+            let tc = e.tc0 + 1;
+            let delta = ((((q0 - p0) << 2) + (p1 - q1) + 4) >> 3).clamp(-tc, tc);
+            d[s(-1)] = clip(p0 + delta);
+            d[s(0)] = clip(q0 - delta);
+        }
+        return;
+    }
+    let (p2, q2) = (v(d, -3), v(d, 2));
+    let (ap, aq) = ((p2 - p0).abs() < e.beta, (q2 - q0).abs() < e.beta);
+    if e.bs == 4 {
+        let strong = (p0 - q0).abs() < (e.alpha >> 2) + 2;
+        let (p3, q3) = (v(d, -4), v(d, 3));
+        if ap && strong {
+            d[s(-1)] = ((p2 + 2 * p1 + 2 * p0 + 2 * q0 + q1 + 4) >> 3) as u8;
+            d[s(-2)] = ((p2 + p1 + p0 + q0 + 2) >> 2) as u8;
+            d[s(-3)] = ((2 * p3 + 3 * p2 + p1 + p0 + q0 + 4) >> 3) as u8;
+        } else {
+            d[s(-1)] = ((2 * p1 + p0 + q1 + 2) >> 2) as u8;
+        }
+        if aq && strong {
+            d[s(0)] = ((p1 + 2 * p0 + 2 * q0 + 2 * q1 + q2 + 4) >> 3) as u8;
+            d[s(1)] = ((p0 + q0 + q1 + q2 + 2) >> 2) as u8;
+            d[s(2)] = ((2 * q3 + 3 * q2 + q1 + q0 + p0 + 4) >> 3) as u8;
+        } else {
+            d[s(0)] = ((2 * q1 + q0 + p1 + 2) >> 2) as u8;
+        }
+        return;
+    }
+    let tc = e.tc0 + i32::from(ap) + i32::from(aq);
+    let delta = ((((q0 - p0) << 2) + (p1 - q1) + 4) >> 3).clamp(-tc, tc);
+    d[s(-1)] = clip(p0 + delta);
+    d[s(0)] = clip(q0 - delta);
+    let mid = (p0 + q0 + 1) >> 1;
+    if ap {
+        d[s(-2)] = (p1 + ((p2 + mid - (p1 << 1)) >> 1).clamp(-e.tc0, e.tc0)) as u8;
+    }
+    if aq {
+        d[s(1)] = (q1 + ((q2 + mid - (q1 << 1)) >> 1).clamp(-e.tc0, e.tc0)) as u8;
+    }
+}
+
+/// Filters one plane: `sub` is 1 for luma and 2 for chroma (a chroma
+/// sample covers 2x2 luma samples; chroma edges lie on every other luma
+/// edge, each chroma row taking the strength of the luma row it covers).
+fn filter_plane(plane: &mut Plane, info: &[MbEdgeInfo], mb_cols: usize, qp: u8, sub: usize) {
+    let (w, h, stride) = (plane.width(), plane.height(), plane.stride());
+    let origin = plane.index(0, 0);
+    let luma = sub == 1;
+    let data = plane.data_mut();
+    // Vertical edges, left to right: each line runs along x.
+    for x in (4..w).step_by(4) {
+        let lx = x * sub;
+        for y in 0..h {
+            let ly = y * sub;
+            let bs = strength(info, mb_cols, (lx / 4 - 1, ly / 4), (lx / 4, ly / 4));
+            if bs > 0 {
+                filter_line(data, origin + y * stride + x, 1, Edge::new(bs, qp), luma);
+            }
+        }
+    }
+    // Horizontal edges, top to bottom: each line runs along y.
+    for y in (4..h).step_by(4) {
+        let ly = y * sub;
+        for x in 0..w {
+            let lx = x * sub;
+            let bs = strength(info, mb_cols, (lx / 4, ly / 4 - 1), (lx / 4, ly / 4));
+            if bs > 0 {
+                filter_line(data, origin + y * stride + x, stride, Edge::new(bs, qp), luma);
+            }
+        }
+    }
+}
+
+/// Deblocks `frame` (coded size), coded at `qp` with macroblocks `info`
+/// in raster order, in place. Borders are not extended.
+pub fn deblock_frame(frame: &mut Frame, info: &[MbEdgeInfo], qp: u8) {
+    let mb_cols = frame.width() / 16;
+    assert_eq!(
+        info.len(),
+        mb_cols * (frame.height() / 16),
+        "one record per macroblock"
+    );
+    let qpc = chroma_qp(qp);
+    let [y, u, v] = frame.planes_mut();
+    filter_plane(y, info, mb_cols, qp, 1);
+    filter_plane(u, info, mb_cols, qpc, 2);
+    filter_plane(v, info, mb_cols, qpc, 2);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn inter(mv: Mv, coded: u16) -> MbEdgeInfo {
+        MbEdgeInfo {
+            intra: false,
+            mv: Some(mv),
+            coded,
+        }
+    }
+
+    #[test]
+    fn strengths_follow_h264s_rules() {
+        let intra = MbEdgeInfo {
+            intra: true,
+            mv: None,
+            coded: 0,
+        };
+        let still = inter(Mv::ZERO, 0);
+        // Two macroblocks side by side: block (3, y) | (4, y) is their edge.
+        assert_eq!(strength(&[intra, still], 2, (3, 0), (4, 0)), 4);
+        assert_eq!(strength(&[intra, still], 2, (0, 0), (1, 0)), 3);
+        assert_eq!(strength(&[still, inter(Mv::ZERO, 1 << 4)], 2, (3, 1), (4, 1)), 2);
+        assert_eq!(strength(&[still, inter(Mv::ZERO, 1 << 4)], 2, (3, 0), (4, 0)), 0);
+        assert_eq!(strength(&[still, inter(Mv::new(4, 0), 0)], 2, (3, 0), (4, 0)), 1);
+        assert_eq!(strength(&[still, inter(Mv::new(3, -3), 0)], 2, (3, 0), (4, 0)), 0);
+        // Inside one macroblock, vectors are one: no strength from them.
+        assert_eq!(strength(&[inter(Mv::new(9, 9), 0)], 1, (0, 0), (1, 0)), 0);
+    }
+
+    #[test]
+    fn edges_of_strength_0_and_flat_pictures_are_left_alone() {
+        // Inter macroblocks with one vector and nothing coded: every bS is
+        // 0, so even a blocky picture stays as it is.
+        let mut blocky = Frame::new(32, 32).unwrap();
+        for y in 0..32 {
+            for x in 0..32 {
+                blocky.planes_mut()[0].set(x, y, if (x / 4 + y / 4) % 2 == 0 { 100 } else { 104 });
+            }
+        }
+        let before = blocky.clone();
+        deblock_frame(&mut blocky, &[inter(Mv::new(6, 2), 0); 4], 40);
+        assert_eq!(blocky, before);
+        // Intra (bS 3 and 4) on a flat picture: nothing to smooth.
+        let mut flat = Frame::filled(32, 32, 90, 128, 128).unwrap();
+        let intra = MbEdgeInfo {
+            intra: true,
+            mv: None,
+            coded: 0,
+        };
+        deblock_frame(&mut flat, &[intra; 4], 51);
+        assert_eq!(flat, Frame::filled(32, 32, 90, 128, 128).unwrap());
+        // The same blocky picture, intra at QP 40: its 4 px steps go.
+        deblock_frame(&mut blocky, &[intra; 4], 40);
+        assert_ne!(blocky, before);
+    }
+
+    #[test]
+    fn a_step_below_alpha_is_smoothed_and_a_real_edge_kept() {
+        // One row across a vertical edge at x = 4 of an 8-wide picture.
+        let line = |p: u8, q: u8| [p, p, p, p, q, q, q, q];
+        let run = |samples: [u8; 8], bs: u8, qp: u8| {
+            let mut d = samples.to_vec();
+            filter_line(&mut d, 4, 1, Edge::new(bs, qp), true);
+            d
+        };
+        // QP 36: alpha 63. A step of 10 is an artefact: smoothed into a
+        // ramp that still rises, p0 and q0 moved by the same amount.
+        let smoothed = run(line(100, 110), 2, 36);
+        assert!(smoothed[3] > 100 && smoothed[4] < 110, "{smoothed:?}");
+        assert!(smoothed.windows(2).all(|w| w[0] <= w[1]), "{smoothed:?}");
+        assert_eq!(smoothed[3] - 100, 110 - smoothed[4]);
+        // A step of 80 (above alpha) is an edge of the picture: kept.
+        assert_eq!(run(line(60, 140), 4, 36), line(60, 140).to_vec());
+        // Below QP 16 nothing is filtered.
+        assert_eq!(run(line(100, 104), 4, 15), line(100, 104).to_vec());
+        // bS 4 on a flat step: the strong filter spreads it over 3 samples
+        // each side.
+        let strong = run(line(100, 108), 4, 36);
+        assert!(strong[1] > 100 && strong[6] < 108, "{strong:?}");
+    }
+}

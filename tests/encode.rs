@@ -229,6 +229,52 @@ fn deblocking_lowers_the_error_at_high_qps_and_the_decoder_follows() {
 }
 
 #[test]
+fn weighted_prediction_follows_a_change_of_light_and_only_then() {
+    let seq = |w, h| SequenceHeader {
+        width: w,
+        height: h,
+        fps_num: 25,
+        fps_den: 1,
+        frame_count: 0,
+    };
+    let lit = |step: f64| {
+        let s = Synth::new(
+            SceneSpec::new("t", 96, 64, 5)
+                .seed(3)
+                .camera(Motion::translation(0.75, 0.25))
+                .brightness(step),
+        )
+        .unwrap();
+        (0..5).map(|t| s.frame(t)).collect::<Vec<_>>()
+    };
+    // The light rises 6 levels a frame: every P frame weights its luma,
+    // and the stream shrinks.
+    let frames = lit(6.0);
+    let (stream, recon, _) = encode(&frames, EncoderConfig::new().qp(30));
+    assert_eq!(decoder::decode(&stream).unwrap().1, recon);
+    let syntax = frames_of(&seq(96, 64), &stream);
+    assert!(
+        syntax[1..].iter().all(|f| f.header.weights.0[0].is_some()),
+        "{:?}",
+        syntax[1].header
+    );
+    let (unweighted, _, _) = encode(&frames, EncoderConfig::new().qp(30).weightp(false));
+    assert!(
+        stream.len() * 10 < unweighted.len() * 9,
+        "{} bytes against {}",
+        stream.len(),
+        unweighted.len()
+    );
+    // Steady light: no weights.
+    let (stream, _, _) = encode(&lit(0.0), EncoderConfig::new().qp(30));
+    let w: Vec<_> = frames_of(&seq(96, 64), &stream)
+        .iter()
+        .map(|f| f.header.weights)
+        .collect();
+    assert!(w.iter().all(|w| !w.any()), "{w:?}");
+}
+
+#[test]
 fn i_frames_are_coded_below_the_p_qp_by_the_ipratio() {
     let frames = scene(48, 32, 3, 1.0, 0.0);
     let seq = |w, h| SequenceHeader {

@@ -24,5 +24,6 @@ pub mod residual;
 pub mod syntax;
 pub mod transform;
 pub mod warp;
+pub mod weight;
 
 pub use picture::{Frame, PictureError, Plane, MAX_DIMENSION};

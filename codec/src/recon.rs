@@ -316,6 +316,15 @@ pub fn reconstruct_frame(
     let (cols, w, h) = (seq.mb_cols(), seq.coded_width(), seq.coded_height());
     let mut recon = Frame::new(w, h)?;
     let header = &frame.header;
+    let weighted = match reference {
+        Some(r) if header.weights.any() => {
+            let mut out = r.clone();
+            header.weights.apply_into(r, &mut out);
+            Some(out)
+        }
+        _ => None,
+    };
+    let reference = weighted.as_ref().or(reference);
     let vectors = frame_vectors(seq, frame);
     let warped = match (&frame.grid, reference) {
         (Some(grid), Some(r)) => {

@@ -15,6 +15,7 @@ use crate::picture::{check_size, MAX_DIMENSION};
 use crate::residual::{MbResidual, ResidualCoder, ResidualError};
 use crate::transform::MAX_QP;
 use crate::warp::{MotionGrid, SPACINGS};
+use crate::weight::Weights;
 
 /// The first four bytes of every stream.
 pub const MAGIC: [u8; 4] = *b"MOCO";
@@ -196,6 +197,9 @@ pub struct FrameHeader {
     pub tool: MotionTool,
     /// The in-loop deblocking filter runs on the frame.
     pub deblock: bool,
+    /// How the reference's planes are weighted before prediction (P
+    /// frames; none in I frames).
+    pub weights: Weights,
 }
 
 /// How one macroblock is coded.
@@ -437,6 +441,13 @@ fn write_frame_header(h: &FrameHeader) -> Vec<u8> {
         assert!(code.is_some(), "grid spacing {spacing} is not 4, 8 or 16");
         w.put(code.unwrap_or_default() as u64, 2);
     }
+    assert!(
+        h.frame_type == FrameType::Inter || !h.weights.any(),
+        "I frames have no weights"
+    );
+    if h.frame_type == FrameType::Inter {
+        h.weights.write(&mut w);
+    }
     w.put(u64::from(h.deblock), 1);
     w.align();
     w.into_bytes()
@@ -451,7 +462,13 @@ fn write_frame_header(h: &FrameHeader) -> Vec<u8> {
 /// use mocomp_codec::intra::IntraMode;
 /// use mocomp_codec::syntax::*;
 /// let seq = SequenceHeader { width: 32, height: 16, fps_num: 25, fps_den: 1, frame_count: 1 };
-/// let header = FrameHeader { frame_type: FrameType::Intra, qp: 30, tool: MotionTool::Block, deblock: true };
+/// let header = FrameHeader {
+///     frame_type: FrameType::Intra,
+///     qp: 30,
+///     tool: MotionTool::Block,
+///     deblock: true,
+///     weights: mocomp_codec::weight::Weights::NONE,
+/// };
 /// let kind = MbKind::Intra { luma: IntraMode::Dc, chroma: IntraMode::Dc };
 /// let frame = FrameSyntax { header, grid: None, mbs: vec![CodedMb::without_residual(kind); 2] };
 /// let mut state = EntropyState::new();
@@ -705,6 +722,11 @@ fn read_frame_header(payload: &[u8]) -> Result<(FrameHeader, usize), SyntaxError
     if frame_type == FrameType::Intra && tool != MotionTool::Block {
         return Err(invalid("an I frame with a motion tool".into(), pos));
     }
+    let pos = r.position();
+    let weights = match frame_type {
+        FrameType::Inter => Weights::read(&mut r)?.map_err(|what| invalid(what, pos))?,
+        FrameType::Intra => Weights::NONE,
+    };
     let deblock = r.get(1)? == 1;
     let pos = r.position();
     let pad = (8 - pos % 8) % 8;
@@ -717,6 +739,7 @@ fn read_frame_header(payload: &[u8]) -> Result<(FrameHeader, usize), SyntaxError
             qp,
             tool,
             deblock,
+            weights,
         },
         r.position() / 8,
     ))

@@ -18,6 +18,7 @@ use mocomp_codec::syntax::{
 };
 use mocomp_codec::transform::{forward_4x4, quantize};
 use mocomp_codec::warp::{warp_frame, MotionGrid};
+use mocomp_codec::weight::{PlaneWeight, Weights};
 
 fn seq(width: usize, height: usize, frames: u32) -> SequenceHeader {
     SequenceHeader {
@@ -46,6 +47,7 @@ fn i_header(qp: u8) -> FrameHeader {
         qp,
         tool: MotionTool::Block,
         deblock: false,
+        weights: Weights::NONE,
     }
 }
 
@@ -55,6 +57,7 @@ fn p_header(qp: u8, tool: MotionTool) -> FrameHeader {
         qp,
         tool,
         deblock: false,
+        weights: Weights::NONE,
     }
 }
 
@@ -204,6 +207,21 @@ fn code_frame(
     choose: &dyn Fn(usize, usize) -> MbKind,
 ) -> (FrameSyntax, Frame) {
     let (cols, rows) = (s.mb_cols(), s.mb_rows());
+    // The writer side's weighting: each sample of the padded reference
+    // through the formula, written out here.
+    let weighted = reference.map(|r| {
+        let mut out = r.clone();
+        for (i, w) in header.weights.0.iter().enumerate() {
+            if let Some(w) = w {
+                for v in out.plane_mut(i).data_mut() {
+                    let x = ((i32::from(*v) * i32::from(w.scale) + 32) >> 6) + i32::from(w.offset);
+                    *v = x.clamp(0, 255) as u8;
+                }
+            }
+        }
+        out
+    });
+    let reference = weighted.as_ref();
     let kinds: Vec<MbKind> = (0..cols * rows).map(|i| choose(i % cols, i / cols)).collect();
     let mut syntax = FrameSyntax {
         header,
@@ -313,6 +331,23 @@ fn coded_stream(width: usize, height: usize, qp: u8) -> (Vec<u8>, Vec<Frame>) {
             qp,
             tool,
             deblock: t % 2 == 1,
+            // Frames 2 to 4 weight some planes (an offset that clips, a
+            // scale that darkens).
+            weights: match t {
+                2 => Weights([
+                    Some(PlaneWeight {
+                        scale: 80,
+                        offset: -30,
+                    }),
+                    None,
+                    Some(PlaneWeight {
+                        scale: 64,
+                        offset: 200,
+                    }),
+                ]),
+                3 | 4 => Weights([Some(PlaneWeight { scale: 40, offset: 3 }), None, None]),
+                _ => Weights::NONE,
+            },
         };
         let g = matches!(tool, MotionTool::Grid(_)).then(|| grid.clone());
         let choose = move |x: usize, y: usize| -> MbKind {

@@ -81,6 +81,8 @@ def encode(
     rdoq: bool = True,
     lambda_scale: float = 1.4,
     ipratio: float = 1.4,
+    deblock: bool = True,
+    weightp: bool = True,
     frames: Optional[int] = None,
     fps: Tuple[int, int] = (25, 1),
     threads: Optional[int] = None,

@@ -67,6 +67,7 @@ fn read_source(
 }
 
 /// The encoder settings from the keyword arguments.
+#[allow(clippy::too_many_arguments)]
 fn config(
     qp: u8,
     predictor: &str,
@@ -75,6 +76,8 @@ fn config(
     rdoq: bool,
     lambda_scale: f64,
     ipratio: f64,
+    deblock: bool,
+    weightp: bool,
 ) -> PyResult<EncoderConfig> {
     if qp > 51 {
         return Err(value_error(format!("qp {qp} is not in 0..=51")));
@@ -86,7 +89,9 @@ fn config(
         .decision(decision.parse::<ModeDecision>().map_err(value_error)?)
         .rdoq(rdoq)
         .lambda_scale(lambda_scale)
-        .ipratio(ipratio))
+        .ipratio(ipratio)
+        .deblock(deblock)
+        .weightp(weightp))
 }
 
 /// One frame's statistics as a dict.
@@ -161,6 +166,7 @@ fn encode_all(frames: &[Frame], fps: (u32, u32), config: EncoderConfig, keep: bo
 ///     "dense-lk" / "dense-hs" / "dense-dis" / "dense-tvl1", "obmc" (as `mocomp encode`).
 /// gop: I-frame period (0: only the first). decision: "fast" or "full".
 /// ipratio: quantiser step of P frames over I frames (x264's --ipratio).
+/// deblock: the in-loop deblocking filter. weightp: weighted prediction.
 /// frames: code at most this many frames.
 ///
 /// Returns (stream bytes, per-frame statistics as dicts); with
@@ -168,7 +174,7 @@ fn encode_all(frames: &[Frame], fps: (u32, u32), config: EncoderConfig, keep: bo
 /// which `decode(stream)` reproduces exactly.
 #[pyfunction]
 #[pyo3(signature = (source, qp=28, predictor="block", *, gop=0, decision="fast", rdoq=true, lambda_scale=1.4,
-    ipratio=DEFAULT_IPRATIO, frames=None, fps=(25, 1), threads=None, reconstruction=false))]
+    ipratio=DEFAULT_IPRATIO, deblock=true, weightp=true, frames=None, fps=(25, 1), threads=None, reconstruction=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn encode<'py>(
     py: Python<'py>,
@@ -180,12 +186,24 @@ pub fn encode<'py>(
     rdoq: bool,
     lambda_scale: f64,
     ipratio: f64,
+    deblock: bool,
+    weightp: bool,
     frames: Option<usize>,
     fps: (u32, u32),
     threads: Option<usize>,
     reconstruction: bool,
 ) -> PyResult<Bound<'py, PyTuple>> {
-    let cfg = config(qp, predictor, gop, decision, rdoq, lambda_scale, ipratio)?;
+    let cfg = config(
+        qp,
+        predictor,
+        gop,
+        decision,
+        rdoq,
+        lambda_scale,
+        ipratio,
+        deblock,
+        weightp,
+    )?;
     if fps.0 == 0 || fps.1 == 0 {
         return Err(value_error(
             "fps must be two positive integers (numerator, denominator)",

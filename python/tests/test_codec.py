@@ -22,6 +22,20 @@ def test_decode_equals_the_encoders_reconstruction(synth_frames, predictor):
     assert abs(mocomp.psnr(source[1][0], recon[1][0]) - stats[1]["psnr_y"]) < 1e-9
 
 
+def test_coding_tools_by_keyword(synth_frames):
+    source = synth_frames[:3]
+    _, stats = mocomp.encode(source, qp=30, ipratio=2.0)
+    assert [s["qp"] for s in stats] == [24, 30, 30]
+    for tools in ({"deblock": False}, {"weightp": False}, {"ipratio": 1.0}):
+        stream, stats, recon = mocomp.encode(source, qp=30, reconstruction=True, **tools)
+        assert all(np.array_equal(a, b) for d, r in zip(mocomp.decode(stream), recon) for a, b in zip(d, r))
+    on, _ = mocomp.encode(source, qp=30)
+    off, _ = mocomp.encode(source, qp=30, deblock=False)
+    assert on != off
+    with pytest.raises(ValueError):
+        mocomp.encode(source, ipratio=0.5)
+
+
 def test_a_y4m_path_and_its_arrays_give_the_same_stream(synth_frames, samples):
     from_path, _ = mocomp.encode(samples / "synth_qcif.y4m", qp=32, frames=3, fps=(30, 1))
     from_arrays, _ = mocomp.encode(synth_frames[:3], qp=32, fps=(30, 1))

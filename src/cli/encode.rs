@@ -94,6 +94,10 @@ pub struct ToolArgs {
     /// No in-loop deblocking filter.
     #[arg(long)]
     pub no_deblock: bool,
+    /// No weighted prediction (P frames scaling and offsetting the
+    /// reference where the light changed).
+    #[arg(long)]
+    pub no_weightp: bool,
 }
 
 impl ToolArgs {
@@ -105,6 +109,7 @@ impl ToolArgs {
             .decision(self.decision)
             .ipratio(self.ipratio)
             .deblock(!self.no_deblock)
+            .weightp(!self.no_weightp)
     }
 }
 

@@ -258,6 +258,9 @@ pub struct EncoderConfig {
     pub ipratio: f64,
     /// The in-loop deblocking filter (FORMAT.md section 11) on every frame.
     pub deblock: bool,
+    /// Weighted prediction (FORMAT.md section 12): P frames scale and
+    /// offset the reference's planes where the light changed.
+    pub weightp: bool,
 }
 
 impl Default for EncoderConfig {
@@ -272,6 +275,7 @@ impl Default for EncoderConfig {
             ssim: true,
             ipratio: DEFAULT_IPRATIO,
             deblock: true,
+            weightp: true,
         }
     }
 }
@@ -328,6 +332,12 @@ impl EncoderConfig {
     /// Turns the in-loop deblocking filter on or off.
     pub fn deblock(mut self, on: bool) -> EncoderConfig {
         self.deblock = on;
+        self
+    }
+
+    /// Turns weighted prediction on or off.
+    pub fn weightp(mut self, on: bool) -> EncoderConfig {
+        self.weightp = on;
         self
     }
 

@@ -15,6 +15,7 @@ use crate::codec::syntax::{
     FrameSyntax, FrameType, FrameWriter, MbKind, MotionTool, SequenceHeader,
 };
 use crate::codec::warp::warp_frame;
+use crate::codec::weight::Weights;
 use crate::codec::{Frame, PictureError};
 use crate::metrics::squared_difference_sum;
 
@@ -113,6 +114,7 @@ pub(crate) fn code_intra(
         qp: coder.qp,
         tool: MotionTool::Block,
         deblock,
+        weights: Weights::NONE,
     };
     let mut writer = FrameWriter::new(seq, &header, None, state);
     let mut mbs = Vec::with_capacity(cols * seq.mb_rows());
@@ -181,6 +183,8 @@ pub(crate) struct InterInputs<'a> {
     pub decision: ModeDecision,
     /// Whether the frame is deblocked.
     pub deblock: bool,
+    /// The weights `reference` was weighted with (already applied).
+    pub weights: Weights,
 }
 
 /// One macroblock under analysis: its source, its predicted vector and the
@@ -258,6 +262,7 @@ impl<'a> InterFrameCoder<'a> {
             qp: coder.qp,
             tool: inputs.tool,
             deblock: inputs.deblock,
+            weights: inputs.weights,
         };
         let obmc = inputs.tool == MotionTool::Obmc;
         let sink = if obmc {

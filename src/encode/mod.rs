@@ -31,6 +31,7 @@ mod frame;
 mod macroblock;
 mod motion;
 mod stats;
+mod weights;
 
 use std::io::{Read, Write};
 use std::time::Instant;
@@ -43,6 +44,7 @@ pub use stats::{FrameStats, Summary, SummaryBuilder};
 
 use crate::codec::recon::crop_reusing;
 use crate::codec::syntax::{EntropyState, FrameType, MotionTool, SequenceHeader, STREAM_END};
+use crate::codec::weight::Weights;
 use crate::codec::{Frame, PictureError};
 use crate::io::y4m::{Y4mError, Y4mReader};
 use crate::metrics::{frame_psnr, psnr_from_mse, ssim_8x8};
@@ -196,7 +198,18 @@ impl Encoder {
         let intra = self.config.gop > 0 && self.index % self.config.gop == 0;
         let mut me_ms = 0.0;
         let coded = match (&self.reference, &self.prev_source, intra) {
-            (Some(reference), Some(prev), false) => {
+            (Some(unweighted), Some(prev), false) => {
+                let weights = if self.config.weightp {
+                    weights::estimate(&src, unweighted)
+                } else {
+                    Weights::NONE
+                };
+                let weighted = weights.any().then(|| {
+                    let mut out = unweighted.clone();
+                    weights.apply_into(unweighted, &mut out);
+                    out
+                });
+                let reference = weighted.as_ref().unwrap_or(unweighted);
                 let t = Instant::now();
                 let motion = self.analyser.analyse(&src, prev, reference);
                 me_ms = t.elapsed().as_secs_f64() * 1e3;
@@ -211,6 +224,7 @@ impl Encoder {
                     tool,
                     decision: self.config.decision,
                     deblock: self.config.deblock,
+                    weights,
                 };
                 frame::code_inter(&self.seq, &self.coder, &src, inputs, &mut self.entropy, recon)?
             }

@@ -1,0 +1,199 @@
+//! Weighted prediction (FORMAT.md section 12): a P frame may scale and
+//! offset each plane of its reference before predicting from it, so that a
+//! fade or a change of light costs a few header bits instead of a residual
+//! in every macroblock (H.264's explicit weighted prediction, applied to
+//! the reference picture rather than to each prediction, which is the same
+//! up to rounding and lets every motion tool use it unchanged).
+
+use crate::bits::{BitError, BitReader, BitWriter};
+use crate::picture::{Frame, Plane};
+
+/// The denominator of a weight: a weight of 64 is a scale of 1.
+pub const WEIGHT_ONE: i32 = 64;
+/// The largest offset magnitude.
+pub const MAX_OFFSET: i32 = 255;
+
+/// One plane's weight: `s' = Clip(((s * scale + 32) >> 6) + offset)`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PlaneWeight {
+    /// Scale in 64ths, 0..=255.
+    pub scale: u8,
+    /// Offset, -255..=255.
+    pub offset: i16,
+}
+
+impl PlaneWeight {
+    /// The identity.
+    pub const ONE: PlaneWeight = PlaneWeight { scale: 64, offset: 0 };
+
+    /// `sample` weighted.
+    #[inline]
+    pub fn apply(self, sample: u8) -> u8 {
+        let v = ((i32::from(sample) * i32::from(self.scale) + WEIGHT_ONE / 2) >> 6) + i32::from(self.offset);
+        v.clamp(0, 255) as u8
+    }
+
+    /// The 256-entry table of [`PlaneWeight::apply`].
+    fn table(self) -> [u8; 256] {
+        std::array::from_fn(|s| self.apply(s as u8))
+    }
+}
+
+/// The weights of a frame's three planes (Y, Cb, Cr); `None` where a plane
+/// is not weighted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Weights(pub [Option<PlaneWeight>; 3]);
+
+impl Weights {
+    /// No plane weighted.
+    pub const NONE: Weights = Weights([None; 3]);
+
+    /// Whether any plane is weighted.
+    pub fn any(&self) -> bool {
+        self.0.iter().any(Option::is_some)
+    }
+
+    /// `reference` with its weighted planes weighted, borders included
+    /// (weighting commutes with the border's replication), into `out`
+    /// (same size and padding).
+    pub fn apply_into(&self, reference: &Frame, out: &mut Frame) {
+        for (i, w) in self.0.iter().enumerate() {
+            let (src, dst) = (reference.plane(i), out.plane_mut(i));
+            match w {
+                Some(w) => weigh_plane(src, dst, &w.table()),
+                None => dst.copy_from(src),
+            }
+        }
+    }
+
+    /// The header bits (FORMAT.md section 3).
+    pub fn write(&self, w: &mut BitWriter) {
+        for p in &self.0 {
+            w.put_bit(p.is_some());
+            if let Some(p) = p {
+                w.put(u64::from(p.scale), 8);
+                w.put_se(i32::from(p.offset));
+            }
+        }
+    }
+
+    /// Reads the header bits; `Err(Ok(what))` for values out of range.
+    pub fn read(r: &mut BitReader<'_>) -> Result<Result<Weights, String>, BitError> {
+        let mut out = Weights::NONE;
+        for (i, slot) in out.0.iter_mut().enumerate() {
+            if !r.get_bit()? {
+                continue;
+            }
+            let scale = r.get(8)? as u8;
+            let offset = r.get_se()?;
+            if offset.abs() > MAX_OFFSET {
+                return Ok(Err(format!(
+                    "plane {i} weight offset {offset} outside -255..=255"
+                )));
+            }
+            *slot = Some(PlaneWeight {
+                scale,
+                offset: offset as i16,
+            });
+        }
+        Ok(Ok(out))
+    }
+}
+
+/// `dst = table[src]` over the whole padded buffer.
+fn weigh_plane(src: &Plane, dst: &mut Plane, table: &[u8; 256]) {
+    assert_eq!(
+        (src.width(), src.height(), src.pad()),
+        (dst.width(), dst.height(), dst.pad()),
+        "same geometry"
+    );
+    for (d, &s) in dst.data_mut().iter_mut().zip(src.data()) {
+        *d = table[usize::from(s)];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn weights_scale_offset_and_clip() {
+        let w = PlaneWeight {
+            scale: 32,
+            offset: 10,
+        };
+        assert_eq!(w.apply(100), 60);
+        assert_eq!(w.apply(0), 10);
+        assert_eq!(
+            PlaneWeight {
+                scale: 255,
+                offset: 0
+            }
+            .apply(200),
+            255
+        );
+        assert_eq!(
+            PlaneWeight {
+                scale: 64,
+                offset: -20
+            }
+            .apply(10),
+            0
+        );
+        for s in 0..=255u8 {
+            assert_eq!(PlaneWeight::ONE.apply(s), s);
+        }
+    }
+
+    #[test]
+    fn a_weighted_reference_is_weighted_everywhere_borders_included() {
+        let mut f = Frame::filled(20, 12, 100, 50, 200).unwrap();
+        f.planes_mut()[0].set(3, 4, 30);
+        f.extend_borders();
+        let weights = Weights([
+            Some(PlaneWeight {
+                scale: 96,
+                offset: -5,
+            }),
+            None,
+            Some(PlaneWeight {
+                scale: 64,
+                offset: 20,
+            }),
+        ]);
+        let mut out = Frame::new(20, 12).unwrap();
+        weights.apply_into(&f, &mut out);
+        assert_eq!(out.y().get(0, 0), 145);
+        assert_eq!(out.y().get(3, 4), 40);
+        assert_eq!(out.y().at(-5, -5), 145);
+        assert_eq!(out.u().at(-3, 20), 50);
+        assert_eq!(out.v().get(9, 5), 220);
+    }
+
+    #[test]
+    fn header_bits_round_trip_and_bad_offsets_are_errors() {
+        let weights = Weights([
+            Some(PlaneWeight {
+                scale: 0,
+                offset: -255,
+            }),
+            None,
+            Some(PlaneWeight {
+                scale: 255,
+                offset: 7,
+            }),
+        ]);
+        let mut w = BitWriter::new();
+        weights.write(&mut w);
+        w.align();
+        let bytes = w.into_bytes();
+        assert_eq!(Weights::read(&mut BitReader::new(&bytes)), Ok(Ok(weights)));
+        let mut w = BitWriter::new();
+        w.put_bit(true);
+        w.put(64, 8);
+        w.put_se(300);
+        w.align();
+        let bytes = w.into_bytes();
+        assert!(matches!(Weights::read(&mut BitReader::new(&bytes)), Ok(Err(_))));
+    }
+}

@@ -1,0 +1,127 @@
+//! Choosing a P frame's weighted prediction (the codec's
+//! [`crate::codec::weight`]): a scale and an offset per plane that map the
+//! reference's brightness and contrast onto the frame's, as x264's
+//! `--weightp` guesses them (the ratio of the planes' mean deviations, then
+//! the offset that matches the means), kept only where they explain the
+//! difference between the two frames better than no weight does.
+
+use crate::codec::picture::{Frame, Plane};
+use crate::codec::weight::{PlaneWeight, Weights, MAX_OFFSET, WEIGHT_ONE};
+
+/// A weight is kept when the 8x8 block means of the frame, predicted from
+/// the reference's through it, are off by at most this share of what they
+/// are off by without it: block means ignore texture, and a
+/// brightness change shifts every block where motion moves few.
+const KEEP_BELOW: f64 = 0.8;
+
+/// ... and when it moves the block means by this many levels on average
+/// at least (a smaller change costs its header bits for nothing).
+const MIN_SHIFT: f64 = 1.5;
+
+/// ... and by at most this share of how much the frame's block means vary:
+/// after a cut the weight matches the new shot's brightness, but the
+/// blocks still differ as much as the shot's content does.
+const CUT_ABOVE: f64 = 0.25;
+
+/// The weights of `source` predicted from `reference` (both coded size).
+pub fn estimate(source: &Frame, reference: &Frame) -> Weights {
+    let mut out = Weights::NONE;
+    for (i, slot) in out.0.iter_mut().enumerate() {
+        *slot = plane_weight(source.plane(i), reference.plane(i));
+    }
+    out
+}
+
+/// Mean and mean absolute deviation of the visible samples.
+fn moments(p: &Plane) -> (f64, f64) {
+    let n = (p.width() * p.height()) as f64;
+    let sum: u64 = p
+        .rows()
+        .map(|r| r.iter().map(|&v| u64::from(v)).sum::<u64>())
+        .sum();
+    let mean = sum as f64 / n;
+    let dev: f64 = p
+        .rows()
+        .map(|r| r.iter().map(|&v| (f64::from(v) - mean).abs()).sum::<f64>())
+        .sum();
+    (mean, dev / n)
+}
+
+/// The means of the 8x8 blocks (partial ones at the edges included).
+fn block_means(p: &Plane) -> Vec<f64> {
+    let (w, h) = (p.width(), p.height());
+    let mut out = Vec::with_capacity(w.div_ceil(8) * h.div_ceil(8));
+    for by in (0..h).step_by(8) {
+        for bx in (0..w).step_by(8) {
+            let (bw, bh) = ((w - bx).min(8), (h - by).min(8));
+            let sum: u32 = (by..by + bh)
+                .map(|y| p.row(y)[bx..bx + bw].iter().map(|&v| u32::from(v)).sum::<u32>())
+                .sum();
+            out.push(f64::from(sum) / (bw * bh) as f64);
+        }
+    }
+    out
+}
+
+fn plane_weight(source: &Plane, reference: &Plane) -> Option<PlaneWeight> {
+    let ((ms, ds), (mr, dr)) = (moments(source), moments(reference));
+    let scale = if dr > 0.5 {
+        (f64::from(WEIGHT_ONE) * ds / dr).round().clamp(0.0, 255.0)
+    } else {
+        f64::from(WEIGHT_ONE)
+    };
+    let offset = (ms - scale / f64::from(WEIGHT_ONE) * mr)
+        .round()
+        .clamp(-f64::from(MAX_OFFSET), f64::from(MAX_OFFSET));
+    let w = PlaneWeight {
+        scale: scale as u8,
+        offset: offset as i16,
+    };
+    if w == PlaneWeight::ONE {
+        return None;
+    }
+    let (bs, br) = (block_means(source), block_means(reference));
+    let err = |f: &dyn Fn(f64) -> f64| bs.iter().zip(&br).map(|(&s, &r)| (s - f(r)).abs()).sum::<f64>();
+    let weigh = |r: f64| r * scale / f64::from(WEIGHT_ONE) + offset;
+    let weighted = err(&weigh);
+    let spread = bs.iter().map(|&s| (s - ms).abs()).sum::<f64>();
+    let shift = br.iter().map(|&r| (weigh(r) - r).abs()).sum::<f64>();
+    let keep = weighted < KEEP_BELOW * err(&|r| r)
+        && weighted < CUT_ABOVE * spread
+        && shift >= MIN_SHIFT * br.len() as f64;
+    keep.then_some(w)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn textured(w: usize, h: usize, gain: f64, lift: f64) -> Frame {
+        let y = Plane::from_fn(w, h, |x, y| {
+            let v = 100.0 + 40.0 * ((x as f64 * 0.3).sin() + (y as f64 * 0.23).cos());
+            (v * gain + lift).round().clamp(0.0, 255.0) as u8
+        })
+        .unwrap();
+        let c = |v| Plane::filled(w / 2, h / 2, v).unwrap();
+        Frame::from_planes(y, c(128), c(128)).unwrap()
+    }
+
+    #[test]
+    fn a_change_of_light_is_found_and_no_change_gives_no_weight() {
+        let dark = textured(64, 48, 1.0, 0.0);
+        let bright = textured(64, 48, 1.25, 12.0);
+        let w = estimate(&bright, &dark);
+        let y = w.0[0].expect("a luma weight");
+        assert!((y.scale as i32 - 80).abs() <= 1, "{y:?}");
+        // The weighted reference matches the frame to within rounding.
+        let mut predicted = dark.clone();
+        w.apply_into(&dark, &mut predicted);
+        let worst = (0..48)
+            .flat_map(|yy| (0..64).map(move |x| (x, yy)))
+            .map(|(x, yy)| (i32::from(predicted.y().get(x, yy)) - i32::from(bright.y().get(x, yy))).abs())
+            .max();
+        assert!(worst <= Some(2), "{worst:?}");
+        assert_eq!((w.0[1], w.0[2]), (None, None));
+        assert_eq!(estimate(&dark, &dark), Weights::NONE);
+    }
+}

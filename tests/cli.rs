@@ -951,3 +951,86 @@ fn flow_with_matches_reaches_a_pan_beyond_the_pyramid() {
         "plain {plain}, with matches {seeded}"
     );
 }
+
+#[test]
+fn presets_differ_options_override_them_and_every_stream_decodes() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_owned();
+    let input = sample("tree_qcif.y4m");
+    let encode = |name: &str, extra: &[&str]| -> Vec<u8> {
+        mocomp()
+            .args([
+                "encode",
+                input.to_str().unwrap(),
+                "-o",
+                &p(name),
+                "--frames",
+                "4",
+                "--quiet",
+            ])
+            .args(extra)
+            .assert()
+            .success();
+        mocomp()
+            .args(["decode", &p(name), "-o", &p("out.y4m")])
+            .assert()
+            .success();
+        std::fs::read(p(name)).unwrap()
+    };
+    let streams: Vec<Vec<u8>> = ["ultrafast", "fast", "medium", "slow"]
+        .iter()
+        .map(|preset| encode(&format!("{preset}.mcv"), &["--preset", preset]))
+        .collect();
+    // The default is medium; ultrafast, fast and medium code differently.
+    assert_eq!(encode("default.mcv", &[]), streams[2]);
+    assert_ne!(streams[0], streams[1]);
+    assert_ne!(streams[1], streams[2]);
+    // Options given override the preset: fast with the full decision is
+    // medium.
+    assert_eq!(
+        encode("o.mcv", &["--preset", "fast", "--decision", "full"]),
+        streams[2]
+    );
+    // `mocomp rd` codes as `mocomp encode` does with the same preset,
+    // search settings included (ultrafast's half-pel).
+    mocomp()
+        .args([
+            "rd",
+            input.to_str().unwrap(),
+            "--predictors",
+            "block",
+            "--qp",
+            "28",
+            "--frames",
+            "4",
+        ])
+        .args([
+            "--preset",
+            "ultrafast",
+            "--anchor",
+            "block",
+            "--quiet",
+            "-o",
+            &p("rd.csv"),
+        ])
+        .assert()
+        .success();
+    let (header, rows) = read_csv(Path::new(&p("rd.csv")));
+    let bytes = header.iter().position(|c| c == "bytes").unwrap();
+    let rd_bytes: usize = rows[0][bytes].parse().unwrap();
+    assert_eq!(rd_bytes, streams[0].len());
+    // An unknown preset is a usage error (exit 2) that names it.
+    let out = mocomp()
+        .args([
+            "encode",
+            input.to_str().unwrap(),
+            "-o",
+            &p("x.mcv"),
+            "--preset",
+            "placebo",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("placebo"));
+}

@@ -197,30 +197,41 @@ fn filter_line(d: &mut [u8], at: usize, step: usize, e: Edge, luma: bool) {
 /// Filters one plane: `sub` is 1 for luma and 2 for chroma (a chroma
 /// sample covers 2x2 luma samples; chroma edges lie on every other luma
 /// edge, each chroma row taking the strength of the luma row it covers).
+/// The strength is found once per piece of edge along a 4x4 luma block
+/// (4 luma lines, 2 chroma ones).
 fn filter_plane(plane: &mut Plane, info: &[MbEdgeInfo], mb_cols: usize, qp: u8, sub: usize) {
+    if ALPHA[usize::from(qp)] == 0 {
+        return;
+    }
     let (w, h, stride) = (plane.width(), plane.height(), plane.stride());
     let origin = plane.index(0, 0);
-    let luma = sub == 1;
+    let (luma, piece) = (sub == 1, 4 / sub);
     let data = plane.data_mut();
     // Vertical edges, left to right: each line runs along x.
     for x in (4..w).step_by(4) {
-        let lx = x * sub;
-        for y in 0..h {
-            let ly = y * sub;
-            let bs = strength(info, mb_cols, (lx / 4 - 1, ly / 4), (lx / 4, ly / 4));
+        let bx = x * sub / 4;
+        for y0 in (0..h).step_by(piece) {
+            let by = y0 * sub / 4;
+            let bs = strength(info, mb_cols, (bx - 1, by), (bx, by));
             if bs > 0 {
-                filter_line(data, origin + y * stride + x, 1, Edge::new(bs, qp), luma);
+                let edge = Edge::new(bs, qp);
+                for y in y0..(y0 + piece).min(h) {
+                    filter_line(data, origin + y * stride + x, 1, edge, luma);
+                }
             }
         }
     }
     // Horizontal edges, top to bottom: each line runs along y.
     for y in (4..h).step_by(4) {
-        let ly = y * sub;
-        for x in 0..w {
-            let lx = x * sub;
-            let bs = strength(info, mb_cols, (lx / 4, ly / 4 - 1), (lx / 4, ly / 4));
+        let by = y * sub / 4;
+        for x0 in (0..w).step_by(piece) {
+            let bx = x0 * sub / 4;
+            let bs = strength(info, mb_cols, (bx, by - 1), (bx, by));
             if bs > 0 {
-                filter_line(data, origin + y * stride + x, stride, Edge::new(bs, qp), luma);
+                let edge = Edge::new(bs, qp);
+                for x in x0..(x0 + piece).min(w) {
+                    filter_line(data, origin + y * stride + x, stride, edge, luma);
+                }
             }
         }
     }

@@ -77,7 +77,7 @@ def encode(
     predictor: str = "block",
     *,
     gop: int = 0,
-    decision: Literal["fast", "full"] = "fast",
+    decision: Literal["fast", "full"] = "full",
     rdoq: bool = True,
     lambda_scale: float = 1.4,
     ipratio: float = 1.4,

@@ -173,7 +173,7 @@ fn encode_all(frames: &[Frame], fps: (u32, u32), config: EncoderConfig, keep: bo
 /// reconstruction=True, (stream, stats, reconstructed (Y, U, V) frames),
 /// which `decode(stream)` reproduces exactly.
 #[pyfunction]
-#[pyo3(signature = (source, qp=28, predictor="block", *, gop=0, decision="fast", rdoq=true, lambda_scale=1.4,
+#[pyo3(signature = (source, qp=28, predictor="block", *, gop=0, decision="full", rdoq=true, lambda_scale=1.4,
     ipratio=DEFAULT_IPRATIO, deblock=true, weightp=true, frames=None, fps=(25, 1), threads=None, reconstruction=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn encode<'py>(
@@ -291,11 +291,7 @@ pub fn rd<'py>(
         sequences.push(Sequence { name, frames, fps });
     }
     let points = py
-        .detach(|| {
-            with_threads(threads, || {
-                sweep(&sequences, &qps, &predictors, &EncoderConfig::new(), || {})
-            })
-        })?
+        .detach(|| with_threads(threads, || sweep(&sequences, &qps, &predictors, &|c| c, || {})))?
         .map_err(|e| value_error(e.to_string()))?;
     let out = PyList::empty(py);
     for p in &points {

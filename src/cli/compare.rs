@@ -8,7 +8,6 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 
 use super::rd::{run_sweep, SweepRequest, ALL_PREDICTORS};
-use crate::encode::EncoderConfig;
 
 /// The bundled sample, relative to the repository root.
 const DEFAULT_INPUT: &str = "samples/synth_qcif.y4m";
@@ -53,7 +52,7 @@ pub fn run(args: &Args) -> Result<()> {
         qps: &args.qp,
         predictors: &predictors,
         frames: None,
-        tools: EncoderConfig::new(),
+        tools: &|c| c,
         output: &csv,
         json_path: None,
         plot_path: Some(&args.out.join("rd.svg")),

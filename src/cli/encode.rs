@@ -8,7 +8,8 @@ use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::encode::{
-    encode_y4m, EncoderConfig, FlowMethod, FrameStats, ModeDecision, Predictor, Summary, DEFAULT_IPRATIO,
+    encode_y4m, EncoderConfig, EncoderPreset, FlowMethod, FrameStats, ModeDecision, Predictor, Summary,
+    DEFAULT_IPRATIO,
 };
 use crate::io::y4m::{Y4mReader, Y4mWriter};
 use crate::io::OutputFile;
@@ -77,6 +78,10 @@ pub struct Args {
 /// encode` and `mocomp rd` share them).
 #[derive(Debug, Clone, clap::Args)]
 pub struct ToolArgs {
+    /// Speed against compression, as x264's: ultrafast, fast, medium,
+    /// slow (the options below override it).
+    #[arg(long, default_value = "medium")]
+    pub preset: EncoderPreset,
     /// Multiply the mode-decision lambda `0.85 * 2^((QP - 12) / 3)`.
     #[arg(long, default_value_t = 1.4)]
     pub lambda_scale: f64,
@@ -84,9 +89,10 @@ pub struct ToolArgs {
     #[arg(long)]
     pub no_rdoq: bool,
     /// Inter mode decision: fast (the vector with the lower SATD is the
-    /// one coded) or full (both coded and compared by SSD + lambda * bits).
-    #[arg(long, default_value = "fast")]
-    pub decision: ModeDecision,
+    /// one coded) or full (both coded and compared by SSD + lambda * bits)
+    /// [default: the preset's].
+    #[arg(long)]
+    pub decision: Option<ModeDecision>,
     /// Quantiser step of P frames over I frames (x264's --ipratio): I
     /// frames at QP - 6 log2(ratio).
     #[arg(long, default_value_t = DEFAULT_IPRATIO)]
@@ -101,15 +107,25 @@ pub struct ToolArgs {
 }
 
 impl ToolArgs {
-    /// `config` with these tools.
+    /// `config` with the preset, then these tools.
     pub fn apply(&self, config: EncoderConfig) -> EncoderConfig {
-        config
+        let mut config = config
+            .preset(self.preset)
             .lambda_scale(self.lambda_scale)
-            .rdoq(!self.no_rdoq)
-            .decision(self.decision)
-            .ipratio(self.ipratio)
-            .deblock(!self.no_deblock)
-            .weightp(!self.no_weightp)
+            .ipratio(self.ipratio);
+        if let Some(d) = self.decision {
+            config = config.decision(d);
+        }
+        if self.no_rdoq {
+            config = config.rdoq(false);
+        }
+        if self.no_deblock {
+            config = config.deblock(false);
+        }
+        if self.no_weightp {
+            config = config.weightp(false);
+        }
+        config
     }
 }
 
@@ -120,17 +136,7 @@ pub fn config(args: &Args) -> Result<EncoderConfig> {
         anyhow::ensure!(ok, "{what} does not apply to predictor '{}'", args.predictor);
         Ok(())
     };
-    if let Some(s) = predictor.search_mut() {
-        if let Some(m) = args.me {
-            s.method = m;
-        }
-        if let Some(r) = args.range {
-            s.range = r;
-        }
-        if let Some(p) = args.subpel {
-            s.subpel = p;
-        }
-    } else {
+    if predictor.search_mut().is_none() {
         only(
             "--me/--range/--subpel",
             args.me.is_none() && args.range.is_none() && args.subpel.is_none(),
@@ -152,12 +158,24 @@ pub fn config(args: &Args) -> Result<EncoderConfig> {
             args.flow.is_none() && args.refine.is_none() && args.grid.is_none(),
         )?,
     }
-    let config = args.tools.apply(
+    // The preset first, then the options given.
+    let mut config = args.tools.apply(
         EncoderConfig::new()
             .qp(args.qp)
             .gop(args.gop)
             .predictor(predictor),
     );
+    if let Some(s) = config.predictor.search_mut() {
+        if let Some(m) = args.me {
+            s.method = m;
+        }
+        if let Some(r) = args.range {
+            s.range = r;
+        }
+        if let Some(p) = args.subpel {
+            s.subpel = p;
+        }
+    }
     config.check().map_err(anyhow::Error::msg)?;
     Ok(config)
 }

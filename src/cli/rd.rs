@@ -136,8 +136,8 @@ pub struct SweepRequest<'a> {
     pub qps: &'a [u8],
     pub predictors: &'a [String],
     pub frames: Option<usize>,
-    /// Every setting but the QP and the predictor.
-    pub tools: EncoderConfig,
+    /// The preset and tools every job's configuration goes through.
+    pub tools: &'a (dyn Fn(EncoderConfig) -> EncoderConfig + Sync),
     pub output: &'a Path,
     pub json_path: Option<&'a Path>,
     pub plot_path: Option<&'a Path>,
@@ -203,7 +203,7 @@ pub fn run_sweep(request: &SweepRequest<'_>) -> Result<SweepReport> {
         b
     };
     let pool = super::thread_pool(threads)?;
-    let points = pool.install(|| sweep(&sequences, qps, &predictors, &tools, || bar.inc(1)))?;
+    let points = pool.install(|| sweep(&sequences, qps, &predictors, tools, || bar.inc(1)))?;
     bar.finish_and_clear();
 
     let mut out = OutputFile::create(output).with_context(|| output.display().to_string())?;
@@ -236,7 +236,7 @@ pub fn run(args: &Args) -> Result<()> {
         qps: &args.qp,
         predictors: &args.predictors,
         frames: args.frames,
-        tools: args.tools.apply(EncoderConfig::new()),
+        tools: &|c| args.tools.apply(c),
         output: &args.output,
         json_path: args.json.as_deref(),
         plot_path: args.plot.as_deref(),

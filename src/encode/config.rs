@@ -190,12 +190,12 @@ impl FromStr for Predictor {
 pub enum ModeDecision {
     /// The predicted vector and the searched one (when they differ) are
     /// each coded, residual and RDOQ included, and compared by
-    /// J = SSD + lambda * bits.
+    /// J = SSD + lambda * bits. The default (the medium preset's).
+    #[default]
     Full,
     /// Only the one with the lower SATD + sqrt(lambda) * vector bits is
     /// coded (x264's decision below `--subme 6`): one residual coding per
     /// macroblock instead of up to two.
-    #[default]
     Fast,
 }
 
@@ -217,6 +217,54 @@ impl FromStr for ModeDecision {
             "fast" => Ok(ModeDecision::Fast),
             _ => Err(format!("unknown mode decision '{s}' (full or fast)")),
         }
+    }
+}
+
+/// A point of speed against compression, as x264's `--preset`: each sets
+/// the coding tools' options (the predictor's search pattern stays the
+/// predictor's own); options given after it override it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Default)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum EncoderPreset {
+    /// Half-pel vectors, no RDOQ, no weighted prediction, the fast mode
+    /// decision.
+    Ultrafast,
+    /// Quarter-pel, RDOQ, weighted prediction, the fast mode decision.
+    Fast,
+    /// As fast, with the full mode decision. The default.
+    #[default]
+    Medium,
+    /// As medium, with a search range of 32.
+    Slow,
+}
+
+impl EncoderPreset {
+    /// Every preset, fastest first.
+    pub const ALL: [EncoderPreset; 4] = [
+        EncoderPreset::Ultrafast,
+        EncoderPreset::Fast,
+        EncoderPreset::Medium,
+        EncoderPreset::Slow,
+    ];
+
+    /// `ultrafast`, `fast`, `medium` or `slow`.
+    pub fn name(self) -> &'static str {
+        match self {
+            EncoderPreset::Ultrafast => "ultrafast",
+            EncoderPreset::Fast => "fast",
+            EncoderPreset::Medium => "medium",
+            EncoderPreset::Slow => "slow",
+        }
+    }
+}
+
+impl FromStr for EncoderPreset {
+    type Err = String;
+    fn from_str(s: &str) -> Result<EncoderPreset, String> {
+        EncoderPreset::ALL
+            .into_iter()
+            .find(|p| p.name() == s)
+            .ok_or_else(|| format!("unknown preset '{s}' (ultrafast, fast, medium or slow)"))
     }
 }
 
@@ -281,8 +329,9 @@ impl Default for EncoderConfig {
 }
 
 impl EncoderConfig {
-    /// QP 28, one I frame, `block` with EPZS, range 16, quarter-pel,
-    /// RDOQ, lambda scale 1.4, fast mode decision.
+    /// QP 28, one I frame, `block` with EPZS, range 16, quarter-pel: the
+    /// medium preset (RDOQ, full mode decision, deblocking, weighted
+    /// prediction), lambda scale 1.4, ipratio 1.4.
     pub fn new() -> EncoderConfig {
         EncoderConfig::default()
     }
@@ -332,6 +381,27 @@ impl EncoderConfig {
     /// Turns the in-loop deblocking filter on or off.
     pub fn deblock(mut self, on: bool) -> EncoderConfig {
         self.deblock = on;
+        self
+    }
+
+    /// The options of `preset` (the predictor's search pattern kept).
+    pub fn preset(mut self, preset: EncoderPreset) -> EncoderConfig {
+        use EncoderPreset::*;
+        let ultrafast = preset == Ultrafast;
+        self.rdoq = !ultrafast;
+        self.weightp = !ultrafast;
+        self.decision = match preset {
+            Ultrafast | Fast => ModeDecision::Fast,
+            Medium | Slow => ModeDecision::Full,
+        };
+        if let Some(search) = self.predictor.search_mut() {
+            search.subpel = if ultrafast { Subpel::Half } else { Subpel::Quarter };
+            search.range = if preset == Slow {
+                32
+            } else {
+                SearchSettings::default().range
+            };
+        }
         self
     }
 
@@ -391,6 +461,29 @@ mod tests {
             assert_eq!(p.label(), s);
         }
         assert_eq!("block".parse::<Predictor>().unwrap(), Predictor::default());
+    }
+
+    #[test]
+    fn presets_set_the_tools_and_keep_the_search_pattern() {
+        let esa: Predictor = "block:esa".parse().unwrap();
+        let base = EncoderConfig::new().predictor(esa);
+        for p in EncoderPreset::ALL {
+            assert_eq!(p.name().parse::<EncoderPreset>(), Ok(p));
+            let c = base.preset(p);
+            let s = *c.predictor.clone().search_mut().unwrap();
+            assert_eq!(s.method, Method::Esa, "{p:?}");
+            assert_eq!(c.rdoq, p != EncoderPreset::Ultrafast);
+            assert_eq!(c.weightp, p != EncoderPreset::Ultrafast);
+            assert_eq!(s.subpel == Subpel::Half, p == EncoderPreset::Ultrafast);
+            assert_eq!(c.decision == ModeDecision::Full, p >= EncoderPreset::Medium);
+            assert_eq!(s.range, if p == EncoderPreset::Slow { 32 } else { 16 });
+        }
+        // The default configuration is the medium preset's.
+        assert_eq!(
+            EncoderConfig::new().preset(EncoderPreset::Medium),
+            EncoderConfig::new()
+        );
+        assert!("placebo".parse::<EncoderPreset>().is_err());
     }
 
     #[test]

@@ -37,8 +37,8 @@ use std::io::{Read, Write};
 use std::time::Instant;
 
 pub use config::{
-    EncoderConfig, FlowMethod, ModeDecision, Predictor, SearchSettings, DEFAULT_GRID, DEFAULT_IPRATIO,
-    DEFAULT_REFINE,
+    EncoderConfig, EncoderPreset, FlowMethod, ModeDecision, Predictor, SearchSettings, DEFAULT_GRID,
+    DEFAULT_IPRATIO, DEFAULT_REFINE,
 };
 pub use stats::{FrameStats, Summary, SummaryBuilder};
 

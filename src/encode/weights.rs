@@ -32,45 +32,64 @@ pub fn estimate(source: &Frame, reference: &Frame) -> Weights {
     out
 }
 
-/// Mean and mean absolute deviation of the visible samples.
-fn moments(p: &Plane) -> (f64, f64) {
-    let n = (p.width() * p.height()) as f64;
-    let sum: u64 = p
-        .rows()
-        .map(|r| r.iter().map(|&v| u64::from(v)).sum::<u64>())
-        .sum();
-    let mean = sum as f64 / n;
-    let dev: f64 = p
-        .rows()
-        .map(|r| r.iter().map(|&v| (f64::from(v) - mean).abs()).sum::<f64>())
-        .sum();
-    (mean, dev / n)
+/// What the guess needs of a plane.
+struct PlaneStats {
+    mean: f64,
+    /// Mean absolute deviation (it follows a change of light better than
+    /// the standard deviation where dark parts clip: light_cif 7.3 % ->
+    /// 1.8 % against x264 medium).
+    deviation: f64,
+    /// The means of the 8x8 blocks (partial ones at the edges included).
+    block_means: Vec<f64>,
 }
 
-/// The means of the 8x8 blocks (partial ones at the edges included).
-fn block_means(p: &Plane) -> Vec<f64> {
-    let (w, h) = (p.width(), p.height());
-    let mut out = Vec::with_capacity(w.div_ceil(8) * h.div_ceil(8));
-    for by in (0..h).step_by(8) {
-        for bx in (0..w).step_by(8) {
-            let (bw, bh) = ((w - bx).min(8), (h - by).min(8));
-            let sum: u32 = (by..by + bh)
-                .map(|y| p.row(y)[bx..bx + bw].iter().map(|&v| u32::from(v)).sum::<u32>())
-                .sum();
-            out.push(f64::from(sum) / (bw * bh) as f64);
+impl PlaneStats {
+    fn of(p: &Plane) -> PlaneStats {
+        let (w, h) = (p.width(), p.height());
+        let cols = w.div_ceil(8);
+        let mut block_sums = vec![0u32; cols * h.div_ceil(8)];
+        let mut sum = 0u64;
+        for y in 0..h {
+            let sums = &mut block_sums[(y / 8) * cols..][..cols];
+            for (chunk, s) in p.row(y).chunks(8).zip(sums.iter_mut()) {
+                let cs = chunk.iter().map(|&v| u32::from(v)).sum::<u32>();
+                *s += cs;
+                sum += u64::from(cs);
+            }
+        }
+        let n = (w * h) as f64;
+        let mean = sum as f64 / n;
+        let deviation = p
+            .rows()
+            .map(|r| r.iter().map(|&v| (f64::from(v) - mean).abs()).sum::<f64>())
+            .sum::<f64>()
+            / n;
+        let block_means = block_sums
+            .iter()
+            .enumerate()
+            .map(|(i, &s)| {
+                let (bx, by) = (i % cols * 8, i / cols * 8);
+                f64::from(s) / ((w - bx).min(8) * (h - by).min(8)) as f64
+            })
+            .collect();
+        PlaneStats {
+            mean,
+            deviation,
+            block_means,
         }
     }
-    out
 }
 
 fn plane_weight(source: &Plane, reference: &Plane) -> Option<PlaneWeight> {
-    let ((ms, ds), (mr, dr)) = (moments(source), moments(reference));
-    let scale = if dr > 0.5 {
-        (f64::from(WEIGHT_ONE) * ds / dr).round().clamp(0.0, 255.0)
+    let (s, r) = (PlaneStats::of(source), PlaneStats::of(reference));
+    let scale = if r.deviation > 0.5 {
+        (f64::from(WEIGHT_ONE) * s.deviation / r.deviation)
+            .round()
+            .clamp(0.0, 255.0)
     } else {
         f64::from(WEIGHT_ONE)
     };
-    let offset = (ms - scale / f64::from(WEIGHT_ONE) * mr)
+    let offset = (s.mean - scale / f64::from(WEIGHT_ONE) * r.mean)
         .round()
         .clamp(-f64::from(MAX_OFFSET), f64::from(MAX_OFFSET));
     let w = PlaneWeight {
@@ -80,11 +99,11 @@ fn plane_weight(source: &Plane, reference: &Plane) -> Option<PlaneWeight> {
     if w == PlaneWeight::ONE {
         return None;
     }
-    let (bs, br) = (block_means(source), block_means(reference));
-    let err = |f: &dyn Fn(f64) -> f64| bs.iter().zip(&br).map(|(&s, &r)| (s - f(r)).abs()).sum::<f64>();
+    let (bs, br) = (&s.block_means, &r.block_means);
+    let err = |f: &dyn Fn(f64) -> f64| bs.iter().zip(br).map(|(&s, &r)| (s - f(r)).abs()).sum::<f64>();
     let weigh = |r: f64| r * scale / f64::from(WEIGHT_ONE) + offset;
     let weighted = err(&weigh);
-    let spread = bs.iter().map(|&s| (s - ms).abs()).sum::<f64>();
+    let spread = bs.iter().map(|&b| (b - s.mean).abs()).sum::<f64>();
     let shift = br.iter().map(|&r| (weigh(r) - r).abs()).sum::<f64>();
     let keep = weighted < KEEP_BELOW * err(&|r| r)
         && weighted < CUT_ABOVE * spread

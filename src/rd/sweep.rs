@@ -77,15 +77,17 @@ pub struct Sequence {
     pub fps: (u32, u32),
 }
 
-/// Encodes every sequence at every QP with every predictor, the other
-/// settings those of `tools`, jobs in parallel on the current rayon pool;
-/// `done` is called after each job. Points come back in (sequence,
+/// Encodes every sequence at every QP with every predictor, each job's
+/// configuration `EncoderConfig::new().qp(qp).predictor(p)` passed
+/// through `configure` (a preset and tools, which may change the
+/// predictor's search settings), jobs in parallel on the current rayon
+/// pool; `done` is called after each job. Points come back in (sequence,
 /// predictor, QP) order.
 pub fn sweep(
     sequences: &[Sequence],
     qps: &[u8],
     predictors: &[Predictor],
-    tools: &EncoderConfig,
+    configure: &(dyn Fn(EncoderConfig) -> EncoderConfig + Sync),
     done: impl Fn() + Sync,
 ) -> Result<Vec<RdPoint>, EncodeError> {
     let mut jobs = Vec::new();
@@ -98,7 +100,7 @@ pub fn sweep(
     }
     jobs.par_iter()
         .map(|&(predictor, qp, seq)| {
-            let config = tools.qp(qp).predictor(predictor);
+            let config = configure(EncoderConfig::new().qp(qp).predictor(predictor));
             let s = encode_frames(&seq.frames, seq.fps, config)?;
             done();
             Ok(RdPoint {

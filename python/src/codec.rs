@@ -3,7 +3,9 @@
 use std::path::PathBuf;
 
 use mocomp::codec::Frame;
-use mocomp::encode::{Encoder, EncoderConfig, FrameStats, ModeDecision, Predictor, DEFAULT_IPRATIO};
+use mocomp::encode::{
+    Encoder, EncoderConfig, EncoderPreset, FrameStats, ModeDecision, Predictor, DEFAULT_IPRATIO,
+};
 use mocomp::io::y4m::Y4mReader;
 use mocomp::rd::{sweep, RdPoint, Sequence};
 use pyo3::exceptions::PyTypeError;
@@ -66,32 +68,41 @@ fn read_source(
     Ok((String::new(), frames, fps))
 }
 
-/// The encoder settings from the keyword arguments.
-#[allow(clippy::too_many_arguments)]
-fn config(
-    qp: u8,
-    predictor: &str,
-    gop: usize,
-    decision: &str,
-    rdoq: bool,
+/// The coding tools' keyword arguments: a preset, and options that
+/// override it where given.
+struct Tools<'a> {
+    preset: &'a str,
+    decision: Option<&'a str>,
+    rdoq: Option<bool>,
+    weightp: Option<bool>,
+    deblock: bool,
     lambda_scale: f64,
     ipratio: f64,
-    deblock: bool,
-    weightp: bool,
-) -> PyResult<EncoderConfig> {
+}
+
+/// The encoder settings from the keyword arguments.
+fn config(qp: u8, predictor: &str, gop: usize, tools: &Tools<'_>) -> PyResult<EncoderConfig> {
     if qp > 51 {
         return Err(value_error(format!("qp {qp} is not in 0..=51")));
     }
-    Ok(EncoderConfig::new()
+    let mut c = EncoderConfig::new()
         .qp(qp)
         .predictor(predictor.parse::<Predictor>().map_err(value_error)?)
         .gop(gop)
-        .decision(decision.parse::<ModeDecision>().map_err(value_error)?)
-        .rdoq(rdoq)
-        .lambda_scale(lambda_scale)
-        .ipratio(ipratio)
-        .deblock(deblock)
-        .weightp(weightp))
+        .preset(tools.preset.parse::<EncoderPreset>().map_err(value_error)?)
+        .lambda_scale(tools.lambda_scale)
+        .ipratio(tools.ipratio)
+        .deblock(tools.deblock);
+    if let Some(d) = tools.decision {
+        c = c.decision(d.parse::<ModeDecision>().map_err(value_error)?);
+    }
+    if let Some(on) = tools.rdoq {
+        c = c.rdoq(on);
+    }
+    if let Some(on) = tools.weightp {
+        c = c.weightp(on);
+    }
+    Ok(c)
 }
 
 /// One frame's statistics as a dict.
@@ -164,17 +175,20 @@ fn encode_all(frames: &[Frame], fps: (u32, u32), config: EncoderConfig, keep: bo
 ///     chroma half the luma size, rounded up) at `fps`.
 /// qp: 0..51. predictor: "zero", "block[:method]", "flow-block[:lk|hs|dis|tvl1]",
 ///     "dense-lk" / "dense-hs" / "dense-dis" / "dense-tvl1", "obmc" (as `mocomp encode`).
-/// gop: I-frame period (0: only the first). decision: "fast" or "full".
+/// gop: I-frame period (0: only the first).
+/// preset: "ultrafast", "fast", "medium" (default) or "slow", as
+///     `mocomp encode --preset`; decision ("fast" or "full"), rdoq and
+///     weightp (weighted prediction) override it when given.
 /// ipratio: quantiser step of P frames over I frames (x264's --ipratio).
-/// deblock: the in-loop deblocking filter. weightp: weighted prediction.
+/// deblock: the in-loop deblocking filter.
 /// frames: code at most this many frames.
 ///
 /// Returns (stream bytes, per-frame statistics as dicts); with
 /// reconstruction=True, (stream, stats, reconstructed (Y, U, V) frames),
 /// which `decode(stream)` reproduces exactly.
 #[pyfunction]
-#[pyo3(signature = (source, qp=28, predictor="block", *, gop=0, decision="full", rdoq=true, lambda_scale=1.4,
-    ipratio=DEFAULT_IPRATIO, deblock=true, weightp=true, frames=None, fps=(25, 1), threads=None, reconstruction=false))]
+#[pyo3(signature = (source, qp=28, predictor="block", *, gop=0, preset="medium", decision=None, rdoq=None,
+    weightp=None, deblock=true, lambda_scale=1.4, ipratio=DEFAULT_IPRATIO, frames=None, fps=(25, 1), threads=None, reconstruction=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn encode<'py>(
     py: Python<'py>,
@@ -182,28 +196,28 @@ pub fn encode<'py>(
     qp: u8,
     predictor: &str,
     gop: usize,
-    decision: &str,
-    rdoq: bool,
+    preset: &str,
+    decision: Option<&str>,
+    rdoq: Option<bool>,
+    weightp: Option<bool>,
+    deblock: bool,
     lambda_scale: f64,
     ipratio: f64,
-    deblock: bool,
-    weightp: bool,
     frames: Option<usize>,
     fps: (u32, u32),
     threads: Option<usize>,
     reconstruction: bool,
 ) -> PyResult<Bound<'py, PyTuple>> {
-    let cfg = config(
-        qp,
-        predictor,
-        gop,
+    let tools = Tools {
+        preset,
         decision,
         rdoq,
+        weightp,
+        deblock,
         lambda_scale,
         ipratio,
-        deblock,
-        weightp,
-    )?;
+    };
+    let cfg = config(qp, predictor, gop, &tools)?;
     if fps.0 == 0 || fps.1 == 0 {
         return Err(value_error(
             "fps must be two positive integers (numerator, denominator)",

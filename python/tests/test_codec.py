@@ -34,6 +34,13 @@ def test_coding_tools_by_keyword(synth_frames):
     assert on != off
     with pytest.raises(ValueError):
         mocomp.encode(source, ipratio=0.5)
+    # Presets, and options that override them: fast with the full
+    # decision is medium.
+    fast, _ = mocomp.encode(source, qp=30, preset="fast")
+    assert fast != on
+    assert mocomp.encode(source, qp=30, preset="fast", decision="full")[0] == on
+    with pytest.raises(ValueError):
+        mocomp.encode(source, preset="placebo")
 
 
 def test_a_y4m_path_and_its_arrays_give_the_same_stream(synth_frames, samples):

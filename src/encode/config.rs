@@ -229,9 +229,10 @@ pub enum EncoderPreset {
     /// Half-pel vectors, no RDOQ, no weighted prediction, the fast mode
     /// decision.
     Ultrafast,
-    /// Quarter-pel, RDOQ, weighted prediction, the fast mode decision.
+    /// Quarter-pel, weighted prediction, the fast mode decision, no RDOQ
+    /// (as x264's faster presets drop trellis).
     Fast,
-    /// As fast, with the full mode decision. The default.
+    /// As fast, with RDOQ and the full mode decision. The default.
     #[default]
     Medium,
     /// As medium, with a search range of 32.
@@ -388,7 +389,7 @@ impl EncoderConfig {
     pub fn preset(mut self, preset: EncoderPreset) -> EncoderConfig {
         use EncoderPreset::*;
         let ultrafast = preset == Ultrafast;
-        self.rdoq = !ultrafast;
+        self.rdoq = preset >= Medium;
         self.weightp = !ultrafast;
         self.decision = match preset {
             Ultrafast | Fast => ModeDecision::Fast,
@@ -472,7 +473,7 @@ mod tests {
             let c = base.preset(p);
             let s = *c.predictor.clone().search_mut().unwrap();
             assert_eq!(s.method, Method::Esa, "{p:?}");
-            assert_eq!(c.rdoq, p != EncoderPreset::Ultrafast);
+            assert_eq!(c.rdoq, p >= EncoderPreset::Medium);
             assert_eq!(c.weightp, p != EncoderPreset::Ultrafast);
             assert_eq!(s.subpel == Subpel::Half, p == EncoderPreset::Ultrafast);
             assert_eq!(c.decision == ModeDecision::Full, p >= EncoderPreset::Medium);

@@ -37,12 +37,25 @@ fn tools(c: &mut Criterion) {
     g.throughput(Throughput::Elements((frame.width() * frame.height()) as u64));
     for (name, info) in [("deblock_intra_qp32", &intra), ("deblock_inter_qp32", &inter)] {
         g.bench_function(name, |b| {
-            b.iter_batched_ref(|| frame.clone(), |f| deblock_frame(f, info, 32), BatchSize::LargeInput)
+            b.iter_batched_ref(
+                || frame.clone(),
+                |f| deblock_frame(f, info, 32),
+                BatchSize::LargeInput,
+            )
         });
     }
-    let weights = Weights([Some(PlaneWeight { scale: 72, offset: -6 }), None, None]);
+    let weights = Weights([
+        Some(PlaneWeight {
+            scale: 72,
+            offset: -6,
+        }),
+        None,
+        None,
+    ]);
     let mut out = frame.clone();
-    g.bench_function("weigh_reference_luma", |b| b.iter(|| weights.apply_into(&frame, &mut out)));
+    g.bench_function("weigh_reference_luma", |b| {
+        b.iter(|| weights.apply_into(&frame, &mut out))
+    });
     g.finish();
 }
 

@@ -50,7 +50,7 @@ for IN in $SEQS; do
   [ -s "$OUT/peers_$s.csv" ] || bash "$SHARED/peers/rd_ffmpeg.sh" "$IN" "$OUT/peers_$s.csv" > /dev/null
   # shellcheck disable=SC2086
   "$M" rd "$IN" --predictors "$(echo $PREDICTORS | tr ' ' ,)" -o "$OUT/ours_$s.csv" \
-    --anchor-csv "$OUT/peers_$s.csv:x264_simple" --quiet ${RD_ARGS:-} > "$OUT/table_$s.md"
+    --anchor-csv "$OUT/peers_$s.csv:x264_simple" ${RD_ARGS:-} > "$OUT/table_$s.md"
   for anchor in mpeg4 x264_simple x264; do
     echo "## $s against $anchor" >> "$OUT/table_$s.md"
     for p in $PREDICTORS; do

@@ -230,6 +230,9 @@ fn compare_runs_every_predictor_on_the_bundled_sample_from_anywhere() {
     for part in ["header", "motion", "residual", "block:esa", "dense-hs"] {
         assert!(bits.contains(part), "{part} missing from the bit plot");
     }
+    // Each plot's title names what it shows.
+    assert!(svg.contains("synth_qcif: PSNR-Y against rate"));
+    assert!(bits.contains("synth_qcif: bits per category") && !bits.contains("PSNR-Y against rate"));
 }
 
 #[test]
@@ -314,7 +317,6 @@ fn rd_sweeps_with_a_peer_csv_as_anchor_and_bdrate_reads_both() {
             &p("rd2.csv"),
             "--anchor-csv",
             &p("peer.csv"),
-            "--quiet",
         ])
         .assert()
         .success()
@@ -341,15 +343,83 @@ fn rd_sweeps_with_a_peer_csv_as_anchor_and_bdrate_reads_both() {
         fails_cleanly(&["bdrate", &format!("{}:x265", p("rd.csv")), &p("far.csv")])
             .contains("no codec 'x265'")
     );
+    // An anchor given must be among the predictors; with none given it is
+    // block:esa when there, else the first, and stderr says which.
     let err = fails_cleanly(&[
         "rd",
         input.to_str().unwrap(),
         "--predictors",
         "zero",
+        "--anchor",
+        "block:esa",
         "-o",
         &p("x.csv"),
     ]);
     assert!(err.contains("anchor block:esa is not among"), "{err}");
+    let out = mocomp()
+        .args([
+            "rd",
+            input.to_str().unwrap(),
+            "--predictors",
+            "zero,block:tss",
+            "--frames",
+            "2",
+        ])
+        .args(["-o", &p("x.csv")])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(stdout.contains("(anchor: zero)"), "{stdout}");
+    assert!(stderr.contains("anchor zero (block:esa is not among"), "{stderr}");
+}
+
+#[test]
+fn quiet_leaves_only_errors_and_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_owned();
+    let input = sample("tree_qcif.y4m");
+    let input = input.to_str().unwrap();
+    let silent = |args: &[&str]| {
+        let out = mocomp().args(args).output().unwrap();
+        assert!(out.status.success(), "{args:?}");
+        assert_eq!((out.stdout.len(), out.stderr.len()), (0, 0), "{args:?}");
+    };
+    silent(&["encode", input, "-o", &p("a.mcv"), "--frames", "2", "--quiet"]);
+    silent(&[
+        "rd",
+        input,
+        "--predictors",
+        "zero",
+        "--frames",
+        "2",
+        "-o",
+        &p("rd.csv"),
+        "--quiet",
+    ]);
+    let (_, rows) = read_csv(Path::new(&p("rd.csv")));
+    assert_eq!(rows.len(), 4, "the CSV is still written");
+    // --json still prints its object.
+    let v = json_stdout(mocomp().args([
+        "encode",
+        input,
+        "-o",
+        &p("b.mcv"),
+        "--frames",
+        "2",
+        "--quiet",
+        "--json",
+    ]));
+    assert_eq!(v["frames"], 2);
+    // Errors still show.
+    let out = mocomp()
+        .args(["encode", "missing.y4m", "-o", &p("c.mcv"), "--quiet"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success() && out.stderr.starts_with(b"mocomp: error: "));
 }
 
 #[test]

@@ -56,7 +56,7 @@ pub fn run(args: &Args) -> Result<()> {
         output: &csv,
         json_path: None,
         plot_path: Some(&args.out.join("rd.svg")),
-        anchor: "block:esa",
+        anchor: Some("block:esa"),
         anchor_csv: None,
         threads: args.threads,
         quiet: false,

@@ -66,7 +66,8 @@ pub struct Args {
     /// Print the summary as one JSON object.
     #[arg(long)]
     pub json: bool,
-    /// No progress bar.
+    /// Only errors on the terminal (and what --json asks for): no
+    /// progress bar, no summary.
     #[arg(long)]
     pub quiet: bool,
     /// Worker threads (default: all cores).
@@ -248,6 +249,9 @@ fn print_summary(args: &Args, config: &EncoderConfig, s: &Summary) -> Result<()>
             o.insert("qp".into(), config.qp.into());
         }
         writeln!(stdout, "{v}")?;
+        return Ok(());
+    }
+    if args.quiet {
         return Ok(());
     }
     let total = (s.bits_header + s.bits_motion + s.bits_residual).max(1) as f64;

@@ -44,9 +44,10 @@ pub struct Args {
     /// of the bit split).
     #[arg(long, value_name = "FILE.svg")]
     pub plot: Option<PathBuf>,
-    /// The predictor the others are compared with.
-    #[arg(long, default_value = "block:esa", conflicts_with = "anchor_csv")]
-    pub anchor: String,
+    /// The predictor the others are compared with [default: block:esa
+    /// when it is among the predictors, else the first].
+    #[arg(long, conflicts_with = "anchor_csv")]
+    pub anchor: Option<String>,
     /// A CSV in the peer format (e.g. from rd_ffmpeg.sh) as the anchor:
     /// `FILE.csv:CODEC`, or `FILE.csv` when it holds one codec.
     #[arg(long, value_name = "FILE.csv[:CODEC]")]
@@ -54,7 +55,8 @@ pub struct Args {
     /// Parallel jobs (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// No progress bar.
+    /// Only errors on the terminal: no progress bar, no table (the CSV,
+    /// JSON and plots are still written).
     #[arg(long)]
     pub quiet: bool,
     #[command(flatten)]
@@ -141,10 +143,39 @@ pub struct SweepRequest<'a> {
     pub output: &'a Path,
     pub json_path: Option<&'a Path>,
     pub plot_path: Option<&'a Path>,
-    pub anchor: &'a str,
+    /// The anchor predictor; `None`: `block:esa` when it is among the
+    /// predictors, else the first (said on standard error).
+    pub anchor: Option<&'a str>,
     pub anchor_csv: Option<&'a str>,
     pub threads: Option<usize>,
     pub quiet: bool,
+}
+
+/// The anchor among `labels`: `given`, or `block:esa` when it is there,
+/// else the first (said on standard error unless `quiet`).
+fn anchor_label(given: Option<&str>, labels: &[String], quiet: bool) -> Result<String> {
+    let label = match given {
+        Some(a) => a.parse::<Predictor>().map_err(anyhow::Error::msg)?.label(),
+        None => {
+            let esa = "block:esa".to_string();
+            let label = if labels.contains(&esa) {
+                esa
+            } else {
+                labels[0].clone()
+            };
+            if !quiet && label != "block:esa" {
+                eprintln!("mocomp: anchor {label} (block:esa is not among the predictors; --anchor chooses)");
+            }
+            label
+        }
+    };
+    if !labels.contains(&label) {
+        bail!(
+            "the anchor {label} is not among the predictors ({})",
+            labels.join(", ")
+        );
+    }
+    Ok(label)
 }
 
 /// Runs a sweep and writes its CSV, JSON and plots.
@@ -179,16 +210,7 @@ pub fn run_sweep(request: &SweepRequest<'_>) -> Result<SweepReport> {
             let (p, l) = load_curve(spec)?;
             (Some(p), l)
         }
-        None => {
-            let label = anchor.parse::<Predictor>().map_err(anyhow::Error::msg)?.label();
-            if !labels.contains(&label) {
-                bail!(
-                    "the anchor {label} is not among the predictors ({})",
-                    labels.join(", ")
-                );
-            }
-            (None, label)
-        }
+        None => (None, anchor_label(anchor, &labels, quiet)?),
     };
     let sequences = load(inputs, frames)?;
     let jobs = sequences.len() * qps.len() * predictors.len();
@@ -222,8 +244,7 @@ pub fn run_sweep(request: &SweepRequest<'_>) -> Result<SweepReport> {
     let plots = match plot_path {
         Some(path) => {
             let names: Vec<&str> = sequences.iter().map(|s| s.name.as_str()).collect();
-            let title = format!("{}: PSNR-Y vs rate", names.join(", "));
-            Some(plot(&points, path, &title).context("plotting")?)
+            Some(plot(&points, path, &names.join(", ")).context("plotting")?)
         }
         None => None,
     };
@@ -240,11 +261,14 @@ pub fn run(args: &Args) -> Result<()> {
         output: &args.output,
         json_path: args.json.as_deref(),
         plot_path: args.plot.as_deref(),
-        anchor: &args.anchor,
+        anchor: args.anchor.as_deref(),
         anchor_csv: args.anchor_csv.as_deref(),
         threads: args.threads,
         quiet: args.quiet,
     })?;
+    if args.quiet {
+        return Ok(());
+    }
     let mut stdout = std::io::stdout().lock();
     writeln!(stdout, "{}", report.table.trim_start())?;
     writeln!(stdout, "\nwrote {}", args.output.display())?;

@@ -227,8 +227,12 @@ fn draw_bits<DB: DrawingBackend>(
 }
 
 /// Writes `path` (SVG) and the PNG beside it with the RD curves, and
-/// `<stem>_bits.svg` / `.png` with the bit split. `title` heads both.
-pub fn plot(points: &[RdPoint], path: &Path, title: &str) -> PlotResult<PlotFiles> {
+/// `<stem>_bits.svg` / `.png` with the bit split. `subject` (the sequences'
+/// names) starts both titles: "SUBJECT: PSNR-Y against rate" and
+/// "SUBJECT: bits per category (header, motion, residual)".
+pub fn plot(points: &[RdPoint], path: &Path, subject: &str) -> PlotResult<PlotFiles> {
+    let title = format!("{subject}: PSNR-Y against rate");
+    let title = title.as_str();
     if points.is_empty() {
         return Err(PlotError::Empty);
     }
@@ -251,7 +255,7 @@ pub fn plot(points: &[RdPoint], path: &Path, title: &str) -> PlotResult<PlotFile
         points,
         title,
     )?;
-    let bits_title = format!("{title}: where the bits go");
+    let bits_title = format!("{subject}: bits per category (header, motion, residual)");
     draw_bits(
         SVGBackend::new(&files.bits[0], bits_size).into_drawing_area(),
         points,

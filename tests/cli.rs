@@ -6,6 +6,8 @@ use std::path::{Path, PathBuf};
 use assert_cmd::Command;
 use predicates::prelude::*;
 
+const CSV_COLUMNS_OF_OURS: [&str; 16] = mocomp::rd::CSV_COLUMNS;
+
 fn mocomp() -> Command {
     Command::new(assert_cmd::cargo::cargo_bin!("mocomp"))
 }
@@ -279,6 +281,26 @@ fn rd_sweeps_with_a_peer_csv_as_anchor_and_bdrate_reads_both() {
     assert_eq!(polylines(&std::fs::read_to_string(p("p.svg")).unwrap()), 3);
     assert!(Path::new(&p("p.png")).exists() && Path::new(&p("p_bits.png")).exists());
 
+    // The PSNR of the mean MSE is a column of its own, at most the mean
+    // of frames' (Jensen), and BD figures can use it.
+    let mse_col = CSV_COLUMNS_OF_OURS
+        .iter()
+        .position(|c| *c == "psnr_y_mse")
+        .unwrap();
+    for r in &rows {
+        let (mean, mse): (f64, f64) = (r[5].parse().unwrap(), r[mse_col].parse().unwrap());
+        assert!(mse <= mean + 1e-3 && mse > mean - 3.0, "{mean} {mse}");
+    }
+    let tss = format!("{}:block:tss", p("rd.csv"));
+    let zero = format!("{}:zero", p("rd.csv"));
+    let by_mse = json_stdout(mocomp().args(["bdrate", &zero, &tss, "--psnr", "mse", "--json"]));
+    let by_mean = json_stdout(mocomp().args(["bdrate", &zero, &tss, "--json"]));
+    let (a, b) = (
+        by_mse["bd_rate_cubic"].as_f64().unwrap(),
+        by_mean["bd_rate_cubic"].as_f64().unwrap(),
+    );
+    assert!(a.is_finite() && a != b, "{a} {b}");
+
     // A peer-format CSV as the anchor: our block:tss rates times 1.25, so
     // block:tss needs exactly 20 % fewer bits.
     let mut peer = String::from("codec,q,bytes,frames,kbps,psnr_y\n");
@@ -298,6 +320,15 @@ fn rd_sweeps_with_a_peer_csv_as_anchor_and_bdrate_reads_both() {
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    // Peer CSVs have no psnr_y_mse: asking for it is a clear error.
+    let err = fails_cleanly(&[
+        "bdrate",
+        &format!("{}:mpeg4", p("peer.csv")),
+        &tss,
+        "--psnr",
+        "mse",
+    ]);
+    assert!(err.contains("no psnr_y_mse"), "{err}");
     for key in ["bd_rate_cubic", "bd_rate_pchip"] {
         assert!((v[key].as_f64().unwrap() + 20.0).abs() < 1e-3, "{v}");
     }

@@ -275,6 +275,24 @@ fn weighted_prediction_follows_a_change_of_light_and_only_then() {
 }
 
 #[test]
+fn the_psnr_of_the_mean_mse_is_not_lifted_by_frames_coded_exactly() {
+    // Three flat grey frames (coded exactly: 100 dB), then a textured one.
+    let mut frames = vec![Frame::filled(48, 32, 128, 128, 128).unwrap(); 3];
+    frames.extend(scene(48, 32, 1, 0.0, 0.0));
+    let s = mocomp::encode::encode_frames(&frames, (25, 1), EncoderConfig::new().qp(30)).unwrap();
+    let (_, _, stats) = encode(&frames, EncoderConfig::new().qp(30));
+    assert!(stats[..3].iter().all(|f| f.psnr_y >= 99.0), "{stats:?}");
+    let last = stats[3].psnr_y;
+    assert!(last < 60.0, "{last}");
+    // Mean of frames: (3 x 100 + p) / 4; of the MSE: p + 10 log10(4).
+    assert!((s.psnr_y - (300.0 + last) / 4.0).abs() < 1e-6);
+    assert!(
+        (s.psnr_y_mse - (last + 10.0 * 4f64.log10())).abs() < 0.01,
+        "{s:?}"
+    );
+}
+
+#[test]
 fn i_frames_are_coded_below_the_p_qp_by_the_ipratio() {
     let frames = scene(48, 32, 3, 1.0, 0.0);
     let seq = |w, h| SequenceHeader {

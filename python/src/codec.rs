@@ -264,6 +264,7 @@ fn point_dict<'py>(py: Python<'py>, p: &RdPoint) -> PyResult<Bound<'py, PyDict>>
     d.set_item("frames", p.frames)?;
     d.set_item("kbps", p.kbps)?;
     d.set_item("psnr_y", p.psnr_y)?;
+    d.set_item("psnr_y_mse", p.psnr_y_mse)?;
     d.set_item("sequence", &p.sequence)?;
     d.set_item("psnr_u", p.psnr_u)?;
     d.set_item("psnr_v", p.psnr_v)?;

@@ -60,6 +60,7 @@ pub fn run(args: &Args) -> Result<()> {
         anchor_csv: None,
         threads: args.threads,
         quiet: false,
+        psnr: crate::rd::PsnrKind::Mean,
     })?;
     let mut stdout = std::io::stdout().lock();
     writeln!(

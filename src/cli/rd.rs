@@ -14,7 +14,7 @@ use crate::encode::{EncoderConfig, Predictor};
 use crate::io::y4m::Y4mReader;
 use crate::io::OutputFile;
 use crate::rd::bdrate::{bd_psnr, bd_rate, Fit};
-use crate::rd::{compare, markdown, plot::plot, read_csv, sweep, write_csv, RdPoint, Sequence};
+use crate::rd::{compare, markdown, plot::plot, read_csv, sweep, write_csv, PsnrKind, RdPoint, Sequence};
 
 /// Every predictor, as `mocomp rd` runs them by default.
 pub const ALL_PREDICTORS: &str =
@@ -59,6 +59,10 @@ pub struct Args {
     /// JSON and plots are still written).
     #[arg(long)]
     pub quiet: bool,
+    /// Which luma PSNR the tables compare: the mean over frames of each
+    /// frame's (psnr_y) or that of the mean MSE (psnr_y_mse).
+    #[arg(long, default_value = "mean")]
+    pub psnr: PsnrKind,
     #[command(flatten)]
     pub tools: ToolArgs,
 }
@@ -149,6 +153,16 @@ pub struct SweepRequest<'a> {
     pub anchor_csv: Option<&'a str>,
     pub threads: Option<usize>,
     pub quiet: bool,
+    /// The PSNR the tables compare.
+    pub psnr: PsnrKind,
+}
+
+/// Fails when `points` (from `what`) lack the PSNR `psnr` asks for.
+fn check_psnr(points: &[RdPoint], psnr: PsnrKind, what: &str) -> Result<()> {
+    if points.iter().any(|p| psnr.of(p).is_nan()) {
+        bail!("{what} has no psnr_y_mse column (peer CSVs hold the mean of frames only): use --psnr mean");
+    }
+    Ok(())
 }
 
 /// The anchor among `labels`: `given`, or `block:esa` when it is there,
@@ -193,6 +207,7 @@ pub fn run_sweep(request: &SweepRequest<'_>) -> Result<SweepReport> {
         anchor_csv,
         threads,
         quiet,
+        psnr,
     } = *request;
     let predictors: Vec<Predictor> = predictors
         .iter()
@@ -233,7 +248,8 @@ pub fn run_sweep(request: &SweepRequest<'_>) -> Result<SweepReport> {
     out.commit().with_context(|| output.display().to_string())?;
 
     let anchor_points = anchor_points.unwrap_or_else(|| points.clone());
-    let rows = compare(&points, &anchor_points, &anchor_name);
+    check_psnr(&anchor_points, psnr, "the anchor")?;
+    let rows = compare(&points, &anchor_points, &anchor_name, psnr);
     let table = markdown(&rows, &anchor_name);
     if let Some(path) = json_path {
         let mut f = OutputFile::create(path).with_context(|| path.display().to_string())?;
@@ -265,6 +281,7 @@ pub fn run(args: &Args) -> Result<()> {
         anchor_csv: args.anchor_csv.as_deref(),
         threads: args.threads,
         quiet: args.quiet,
+        psnr: args.psnr,
     })?;
     if args.quiet {
         return Ok(());
@@ -289,6 +306,10 @@ pub struct BdArgs {
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
+    /// Which luma PSNR: the mean over frames (psnr_y) or that of the mean
+    /// MSE (psnr_y_mse).
+    #[arg(long, default_value = "mean")]
+    pub psnr: PsnrKind,
 }
 
 /// `bd_rate` or `bd_psnr`.
@@ -297,7 +318,9 @@ type BdFn = fn(&[(f64, f64)], &[(f64, f64)], Fit) -> Result<f64, crate::rd::bdra
 pub fn run_bdrate(args: &BdArgs) -> Result<()> {
     let (a, an) = load_curve(&args.anchor)?;
     let (t, tn) = load_curve(&args.test)?;
-    let xy = |p: &[RdPoint]| p.iter().map(|p| (p.kbps, p.psnr_y)).collect::<Vec<_>>();
+    check_psnr(&a, args.psnr, &an)?;
+    check_psnr(&t, args.psnr, &tn)?;
+    let xy = |p: &[RdPoint]| p.iter().map(|p| (p.kbps, args.psnr.of(p))).collect::<Vec<_>>();
     let (a, t) = (xy(&a), xy(&t));
     let fig = |f: BdFn, fit| f(&a, &t, fit).map_err(|e| anyhow::anyhow!("{tn} against {an}: {e}"));
     let (rc, rp) = (fig(bd_rate, Fit::Cubic)?, fig(bd_rate, Fit::Pchip)?);

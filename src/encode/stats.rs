@@ -2,6 +2,8 @@
 
 use serde::Serialize;
 
+use crate::metrics::psnr_from_mse;
+
 /// What one frame cost and gave.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct FrameStats {
@@ -84,6 +86,10 @@ pub struct Summary {
     pub kbps: f64,
     /// Mean over frames of luma PSNR, dB (as ffmpeg's psnr stats and HM).
     pub psnr_y: f64,
+    /// Luma PSNR of the mean over frames of the MSE, dB (ffmpeg's psnr
+    /// summary, x264's "Global"): a black or repeated frame, coded
+    /// exactly, does not lift it as it lifts the mean of frames.
+    pub psnr_y_mse: f64,
     /// Mean Cb PSNR, dB.
     pub psnr_u: f64,
     /// Mean Cr PSNR, dB.
@@ -105,6 +111,11 @@ pub struct Summary {
     pub fps: f64,
 }
 
+/// The MSE (peak 255) a PSNR stands for.
+fn mse_from_psnr(psnr: f64) -> f64 {
+    255.0 * 255.0 / 10f64.powf(psnr / 10.0)
+}
+
 /// Adds frames up into a [`Summary`].
 #[derive(Debug, Clone)]
 pub struct SummaryBuilder {
@@ -123,6 +134,7 @@ impl SummaryBuilder {
                 bytes: stream_bytes as u64,
                 kbps: 0.0,
                 psnr_y: 0.0,
+                psnr_y_mse: 0.0,
                 psnr_u: 0.0,
                 psnr_v: 0.0,
                 ssim: 0.0,
@@ -147,6 +159,8 @@ impl SummaryBuilder {
         s.frames += 1;
         s.bytes += f.bytes as u64;
         s.psnr_y += f.psnr_y;
+        // Summed as MSE here; made a PSNR in `finish`.
+        s.psnr_y_mse += mse_from_psnr(f.psnr_y);
         s.psnr_u += f.psnr_u;
         s.psnr_v += f.psnr_v;
         s.ssim += f.ssim;
@@ -162,6 +176,7 @@ impl SummaryBuilder {
         let mut s = self.s;
         let n = s.frames.max(1) as f64;
         s.psnr_y /= n;
+        s.psnr_y_mse = psnr_from_mse(s.psnr_y_mse / n);
         s.psnr_u /= n;
         s.psnr_v /= n;
         s.ssim /= n;

@@ -6,5 +6,6 @@ pub mod plot;
 pub mod sweep;
 
 pub use sweep::{
-    compare, markdown, read_csv, sweep, write_csv, Comparison, CsvError, RdPoint, Sequence, CSV_COLUMNS,
+    compare, markdown, read_csv, sweep, write_csv, Comparison, CsvError, PsnrKind, RdPoint, Sequence,
+    CSV_COLUMNS,
 };

@@ -45,10 +45,35 @@ pub struct RdPoint {
     pub encode_ms: f64,
     /// Of which motion estimation or flow, ms.
     pub me_ms: f64,
+    /// Luma PSNR of the mean MSE over frames, dB (NaN when a CSV lacks it).
+    pub psnr_y_mse: f64,
+}
+
+/// Which luma PSNR a curve uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum PsnrKind {
+    /// The mean over frames of each frame's PSNR (`psnr_y`; ffmpeg's
+    /// per-frame stats, HM, AWCY). The default.
+    #[default]
+    Mean,
+    /// The PSNR of the mean MSE (`psnr_y_mse`; ffmpeg's summary, x264's
+    /// "Global"): not lifted by frames coded exactly.
+    Mse,
+}
+
+impl PsnrKind {
+    /// That PSNR of `p`.
+    pub fn of(self, p: &RdPoint) -> f64 {
+        match self {
+            PsnrKind::Mean => p.psnr_y,
+            PsnrKind::Mse => p.psnr_y_mse,
+        }
+    }
 }
 
 /// The CSV columns: `../shared/peers/rd_ffmpeg.sh`'s, then ours.
-pub const CSV_COLUMNS: [&str; 15] = [
+pub const CSV_COLUMNS: [&str; 16] = [
     "codec",
     "q",
     "bytes",
@@ -64,6 +89,7 @@ pub const CSV_COLUMNS: [&str; 15] = [
     "bits_residual",
     "encode_ms",
     "me_ms",
+    "psnr_y_mse",
 ];
 
 /// A sequence to sweep.
@@ -119,6 +145,7 @@ pub fn sweep(
                 bits_residual: s.bits_residual,
                 encode_ms: s.encode_ms,
                 me_ms: s.me_ms,
+                psnr_y_mse: s.psnr_y_mse,
             })
         })
         .collect()
@@ -145,6 +172,7 @@ pub fn write_csv(points: &[RdPoint], out: impl Write) -> csv::Result<()> {
             p.bits_residual.to_string(),
             format!("{:.1}", p.encode_ms),
             format!("{:.1}", p.me_ms),
+            format!("{:.4}", p.psnr_y_mse),
         ])?;
     }
     w.flush()?;
@@ -219,17 +247,22 @@ pub fn read_csv(input: impl Read) -> Result<Vec<RdPoint>, CsvError> {
             bits_residual: num("bits_residual")? as u64,
             encode_ms: num("encode_ms")?,
             me_ms: num("me_ms")?,
+            psnr_y_mse: if col("psnr_y_mse").is_some() {
+                num("psnr_y_mse")?
+            } else {
+                f64::NAN
+            },
         });
     }
     Ok(out)
 }
 
 /// The (kbps, PSNR-Y) points of one codec (and sequence, when given).
-pub fn curve(points: &[RdPoint], codec: &str, sequence: Option<&str>) -> Vec<(f64, f64)> {
+pub fn curve(points: &[RdPoint], codec: &str, sequence: Option<&str>, psnr: PsnrKind) -> Vec<(f64, f64)> {
     points
         .iter()
         .filter(|p| p.codec == codec && sequence.is_none_or(|s| p.sequence.is_empty() || p.sequence == s))
-        .map(|p| (p.kbps, p.psnr_y))
+        .map(|p| (p.kbps, psnr.of(p)))
         .collect()
 }
 
@@ -258,7 +291,7 @@ pub struct Comparison {
 /// Compares every codec of `points` with the anchor curve, per sequence.
 /// `anchor` is a codec in `points`, or given as its own points (a peer
 /// CSV); `anchor_name` labels it.
-pub fn compare(points: &[RdPoint], anchor: &[RdPoint], anchor_name: &str) -> Vec<Comparison> {
+pub fn compare(points: &[RdPoint], anchor: &[RdPoint], anchor_name: &str, psnr: PsnrKind) -> Vec<Comparison> {
     let mut sequences: Vec<&str> = Vec::new();
     let mut codecs: Vec<&str> = Vec::new();
     for p in points {
@@ -271,13 +304,13 @@ pub fn compare(points: &[RdPoint], anchor: &[RdPoint], anchor_name: &str) -> Vec
     }
     let mut out = Vec::new();
     for &seq in &sequences {
-        let a = curve(anchor, anchor_name, Some(seq));
+        let a = curve(anchor, anchor_name, Some(seq), psnr);
         for &codec in &codecs {
             let mine: Vec<&RdPoint> = points
                 .iter()
                 .filter(|p| p.codec == codec && p.sequence == seq)
                 .collect();
-            let t: Vec<(f64, f64)> = mine.iter().map(|p| (p.kbps, p.psnr_y)).collect();
+            let t: Vec<(f64, f64)> = mine.iter().map(|p| (p.kbps, psnr.of(p))).collect();
             let bits: u64 = mine
                 .iter()
                 .map(|p| p.bits_header + p.bits_motion + p.bits_residual)

@@ -6,8 +6,6 @@ use std::path::{Path, PathBuf};
 use assert_cmd::Command;
 use predicates::prelude::*;
 
-const CSV_COLUMNS_OF_OURS: [&str; 16] = mocomp::rd::CSV_COLUMNS;
-
 fn mocomp() -> Command {
     Command::new(assert_cmd::cargo::cargo_bin!("mocomp"))
 }
@@ -283,7 +281,7 @@ fn rd_sweeps_with_a_peer_csv_as_anchor_and_bdrate_reads_both() {
 
     // The PSNR of the mean MSE is a column of its own, at most the mean
     // of frames' (Jensen), and BD figures can use it.
-    let mse_col = CSV_COLUMNS_OF_OURS
+    let mse_col = mocomp::rd::CSV_COLUMNS
         .iter()
         .position(|c| *c == "psnr_y_mse")
         .unwrap();
@@ -1131,4 +1129,145 @@ fn presets_differ_options_override_them_and_every_stream_decodes() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("placebo"));
+}
+
+/// A CSV's rows without the timing columns (encode_ms, me_ms).
+fn rows_without_timing(path: &Path) -> Vec<Vec<String>> {
+    let (header, rows) = read_csv(path);
+    let timing: Vec<usize> = ["encode_ms", "me_ms"]
+        .iter()
+        .map(|c| header.iter().position(|h| h == c).unwrap())
+        .collect();
+    rows.into_iter()
+        .map(|r| {
+            r.into_iter()
+                .enumerate()
+                .filter(|(i, _)| !timing.contains(i))
+                .map(|(_, c)| c)
+                .collect()
+        })
+        .collect()
+}
+
+#[test]
+fn shards_merge_into_the_unsharded_rows_and_a_killed_shard_resumes() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_owned();
+    let input = sample("tree_qcif.y4m");
+    let sweep = |out: &str, extra: &[&str]| {
+        let mut c = mocomp();
+        c.args([
+            "rd",
+            input.to_str().unwrap(),
+            "--predictors",
+            "zero,block:tss",
+            "--frames",
+            "3",
+        ])
+        .args(["--threads", "1", "-o", &p(out)])
+        .args(extra);
+        c
+    };
+    sweep("whole.csv", &["--quiet"]).assert().success();
+    for i in 1..=3 {
+        sweep(&format!("part{i}.csv"), &["--shard", &format!("{i}/3")])
+            .assert()
+            .success()
+            .stdout(predicate::str::contains(format!("shard {i}/3")));
+    }
+    // The shares differ and cover the study.
+    let sizes: Vec<usize> = (1..=3)
+        .map(|i| read_csv(Path::new(&p(&format!("part{i}.csv")))).1.len())
+        .collect();
+    assert_eq!(sizes, [3, 3, 2]);
+    mocomp()
+        .args([
+            "rd",
+            "merge",
+            &p("part1.csv"),
+            &p("part2.csv"),
+            &p("part3.csv"),
+            "-o",
+            &p("merged.csv"),
+        ])
+        .args(["--plot", &p("m.svg")])
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("| block:tss |"));
+    let whole = rows_without_timing(Path::new(&p("whole.csv")));
+    assert_eq!(whole.len(), 8);
+    assert_eq!(rows_without_timing(Path::new(&p("merged.csv"))), whole);
+    assert!(Path::new(&p("m.svg")).exists());
+
+    // A part missing: its jobs are named. Parts of another study: refused.
+    let err = fails_cleanly(&["rd", "merge", &p("part1.csv"), &p("part3.csv"), "-o", &p("x.csv")]);
+    assert!(
+        err.contains("3 of the study's 8 jobs are in no part: 1, 4, 7"),
+        "{err}"
+    );
+    sweep("other.csv", &["--qp", "20,25,30,35", "--shard", "2/3"])
+        .assert()
+        .success();
+    let err = fails_cleanly(&["rd", "merge", &p("part1.csv"), &p("other.csv"), "-o", &p("x.csv")]);
+    assert!(err.contains("parts of different studies"), "{err}");
+    // ... and a CSV of another study is not resumed into.
+    let out = sweep("part1.csv", &["--qp", "20,25,30,35", "--shard", "1/3"])
+        .output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&out.stderr).contains("holds rows of study"));
+
+    // A shard killed as it wrote its third row (the line cut short) runs
+    // only that job again, with no duplicate row.
+    let text = std::fs::read_to_string(p("part2.csv")).unwrap();
+    let cut = text.len() - text.lines().last().unwrap().len() / 2 - 1;
+    std::fs::write(p("killed.csv"), &text[..cut]).unwrap();
+    sweep("killed.csv", &["--shard", "2/3"])
+        .assert()
+        .success()
+        .stderr(predicate::str::contains(
+            "2 of the 3 jobs of shard 2/3 are there already; running the other 1",
+        ));
+    assert_eq!(
+        rows_without_timing(Path::new(&p("killed.csv"))),
+        rows_without_timing(Path::new(&p("part2.csv")))
+    );
+    // A real kill, whenever it lands: the rerun completes the shard
+    // without duplicates.
+    let mut child = std::process::Command::new(assert_cmd::cargo::cargo_bin!("mocomp"))
+        .args([
+            "rd",
+            input.to_str().unwrap(),
+            "--predictors",
+            "zero,block:tss",
+            "--frames",
+            "3",
+        ])
+        .args([
+            "--threads",
+            "1",
+            "-o",
+            &p("real.csv"),
+            "--shard",
+            "1/3",
+            "--quiet",
+        ])
+        .spawn()
+        .unwrap();
+    while std::fs::read_to_string(p("real.csv")).map_or(0, |t| t.lines().count()) < 2 {
+        if child.try_wait().unwrap().is_some() {
+            break;
+        }
+        std::thread::yield_now();
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+    sweep("real.csv", &["--shard", "1/3", "--quiet"])
+        .assert()
+        .success();
+    assert_eq!(
+        rows_without_timing(Path::new(&p("real.csv"))),
+        rows_without_timing(Path::new(&p("part1.csv")))
+    );
+    // A shard out of range is a usage error.
+    sweep("x.csv", &["--shard", "4/3"]).assert().code(2);
 }

@@ -61,7 +61,9 @@ pub fn run(args: &Args) -> Result<()> {
         threads: args.threads,
         quiet: false,
         psnr: crate::rd::PsnrKind::Mean,
-    })?;
+        shard: (1, 1),
+    })?
+    .context("a whole sweep reports")?;
     let mut stdout = std::io::stdout().lock();
     writeln!(
         stdout,

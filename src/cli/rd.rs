@@ -14,14 +14,18 @@ use crate::encode::{EncoderConfig, Predictor};
 use crate::io::y4m::Y4mReader;
 use crate::io::OutputFile;
 use crate::rd::bdrate::{bd_psnr, bd_rate, Fit};
-use crate::rd::{compare, markdown, plot::plot, read_csv, sweep, write_csv, PsnrKind, RdPoint, Sequence};
+use crate::rd::part::{merge, PartFile};
+use crate::rd::{compare, markdown, plot::plot, read_csv, write_csv, PsnrKind, RdPoint, Sequence, Study};
 
 /// Every predictor, as `mocomp rd` runs them by default.
 pub const ALL_PREDICTORS: &str =
     "zero,block:esa,block:tss,flow-block:lk,flow-block:hs,dense-lk,dense-hs,obmc";
 
 #[derive(Debug, clap::Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
 pub struct Args {
+    #[command(subcommand)]
+    pub command: Option<RdCommand>,
     /// Source Y4M files.
     #[arg(required = true)]
     pub inputs: Vec<PathBuf>,
@@ -34,7 +38,8 @@ pub struct Args {
     /// Code at most this many frames of each sequence.
     #[arg(long)]
     pub frames: Option<usize>,
-    /// The CSV to write.
+    /// The CSV to write, a row as each encode ends; a CSV of the same
+    /// study already there is resumed (its jobs are not run again).
     #[arg(short, long, default_value = "rd.csv")]
     pub output: PathBuf,
     /// Also write the points and the comparison as JSON.
@@ -63,6 +68,10 @@ pub struct Args {
     /// frame's (psnr_y) or that of the mean MSE (psnr_y_mse).
     #[arg(long, default_value = "mean")]
     pub psnr: PsnrKind,
+    /// Run only the I-th of N shares of the jobs (the same split on every
+    /// machine; merge the CSVs with `mocomp rd merge`).
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<Shard>,
     #[command(flatten)]
     pub tools: ToolArgs,
 }
@@ -155,6 +164,9 @@ pub struct SweepRequest<'a> {
     pub quiet: bool,
     /// The PSNR the tables compare.
     pub psnr: PsnrKind,
+    /// This run's shard and the number of shards (1-based; `(1, 1)`: the
+    /// whole sweep).
+    pub shard: (usize, usize),
 }
 
 /// Fails when `points` (from `what`) lack the PSNR `psnr` asks for.
@@ -192,74 +204,135 @@ fn anchor_label(given: Option<&str>, labels: &[String], quiet: bool) -> Result<S
     Ok(label)
 }
 
-/// Runs a sweep and writes its CSV, JSON and plots.
-pub fn run_sweep(request: &SweepRequest<'_>) -> Result<SweepReport> {
-    let SweepRequest {
-        inputs,
-        qps,
-        predictors,
-        frames,
-        tools,
-        output,
-        json_path,
-        plot_path,
-        anchor,
-        anchor_csv,
-        threads,
-        quiet,
-        psnr,
-    } = *request;
-    let predictors: Vec<Predictor> = predictors
+/// Runs a sweep (or the request's shard of it), its rows appended to the
+/// output CSV as they come, jobs already there skipped; then, for a whole
+/// sweep, the tables, JSON and plots. A shard's report is `None`.
+pub fn run_sweep(request: &SweepRequest<'_>) -> Result<Option<SweepReport>> {
+    let r = request;
+    let predictors: Vec<Predictor> = r
+        .predictors
         .iter()
         .map(|s| s.parse::<Predictor>().map_err(anyhow::Error::msg))
         .collect::<Result<_>>()?;
-    if qps.is_empty() || predictors.is_empty() {
+    if r.qps.is_empty() || predictors.is_empty() {
         bail!("nothing to sweep: give at least one QP and one predictor");
     }
-    if let Some(q) = qps.iter().find(|&&q| q > crate::codec::transform::MAX_QP) {
+    if let Some(q) = r.qps.iter().find(|&&q| q > crate::codec::transform::MAX_QP) {
         bail!("QP {q} is not in 0..=51");
     }
     let labels: Vec<String> = predictors.iter().map(Predictor::label).collect();
-    let (anchor_points, anchor_name) = match anchor_csv {
-        Some(spec) => {
-            let (p, l) = load_curve(spec)?;
-            (Some(p), l)
-        }
-        None => (None, anchor_label(anchor, &labels, quiet)?),
+    // The anchor is checked before any encode (a shard makes no table).
+    let whole = r.shard.1 == 1;
+    let anchor = match (r.anchor_csv, whole) {
+        (_, false) => None,
+        (Some(spec), true) => Some(Anchor::Curve(load_curve(spec)?)),
+        (None, true) => Some(Anchor::Predictor(anchor_label(r.anchor, &labels, r.quiet)?)),
     };
-    let sequences = load(inputs, frames)?;
-    let jobs = sequences.len() * qps.len() * predictors.len();
-    let bar = if quiet || !std::io::stderr().is_terminal() {
+    let sequences = load(r.inputs, r.frames)?;
+    let study = Study {
+        sequences: &sequences,
+        qps: r.qps,
+        predictors: &predictors,
+        configure: r.tools,
+    };
+    let points = run_jobs(&study, r)?;
+    let Some(anchor) = anchor else {
+        return Ok(None);
+    };
+    // Every job is in: the CSV again in job order, atomically.
+    let mut out = OutputFile::create(r.output).with_context(|| r.output.display().to_string())?;
+    write_csv(&points, &mut out).with_context(|| r.output.display().to_string())?;
+    out.commit().with_context(|| r.output.display().to_string())?;
+    report(points, &anchor, r).map(Some)
+}
+
+/// The anchor of a sweep's tables.
+enum Anchor {
+    /// One of the sweep's predictors, by label.
+    Predictor(String),
+    /// A curve from a CSV: its points and label.
+    Curve((Vec<RdPoint>, String)),
+}
+
+/// Runs the request's shard of `study` into the output CSV, skipping the
+/// jobs already there; returns every row the CSV then holds, in job order.
+fn run_jobs(study: &Study<'_>, r: &SweepRequest<'_>) -> Result<Vec<RdPoint>> {
+    let (shard, shards) = r.shard;
+    let (part, mut points) = PartFile::open(r.output, &study.id())?;
+    let done: std::collections::HashSet<usize> = points.iter().filter_map(|p| p.job.map(|j| j.0)).collect();
+    let mine: Vec<usize> = (0..study.len()).filter(|j| j % shards == shard - 1).collect();
+    let todo: Vec<usize> = mine.iter().copied().filter(|j| !done.contains(j)).collect();
+    if !r.quiet && todo.len() < mine.len() {
+        eprintln!(
+            "mocomp: {}: {} of the {} jobs{} are there already; running the other {}",
+            r.output.display(),
+            mine.len() - todo.len(),
+            mine.len(),
+            if shards > 1 {
+                format!(" of shard {shard}/{shards}")
+            } else {
+                String::new()
+            },
+            todo.len()
+        );
+    }
+    let bar = if r.quiet || !std::io::stderr().is_terminal() {
         ProgressBar::hidden()
     } else {
-        let b = ProgressBar::new(jobs as u64);
+        let b = ProgressBar::new(todo.len() as u64);
         b.set_style(
             ProgressStyle::with_template("{bar:40} {pos}/{len} encodes  {elapsed}<{eta}")
                 .unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
         b
     };
-    let pool = super::thread_pool(threads)?;
-    let points = pool.install(|| sweep(&sequences, qps, &predictors, tools, || bar.inc(1)))?;
+    let new = std::sync::Mutex::new(Vec::with_capacity(todo.len()));
+    let pool = super::thread_pool(r.threads)?;
+    pool.install(|| {
+        study.run(&todo, |p| -> Result<()> {
+            part.append(&p)?;
+            new.lock().unwrap_or_else(|e| e.into_inner()).push(p);
+            bar.inc(1);
+            Ok(())
+        })
+    })?;
     bar.finish_and_clear();
+    points.extend(new.into_inner().unwrap_or_else(|e| e.into_inner()));
+    points.sort_by_key(|p| p.job);
+    if !r.quiet && shards > 1 {
+        println!(
+            "shard {shard}/{shards}: {} jobs run, {} rows in {}",
+            todo.len(),
+            points.len(),
+            r.output.display()
+        );
+    }
+    Ok(points)
+}
 
-    let mut out = OutputFile::create(output).with_context(|| output.display().to_string())?;
-    write_csv(&points, &mut out).with_context(|| output.display().to_string())?;
-    out.commit().with_context(|| output.display().to_string())?;
-
-    let anchor_points = anchor_points.unwrap_or_else(|| points.clone());
-    check_psnr(&anchor_points, psnr, "the anchor")?;
-    let rows = compare(&points, &anchor_points, &anchor_name, psnr);
+/// The tables, JSON and plots of a whole sweep's `points`.
+fn report(points: Vec<RdPoint>, anchor: &Anchor, r: &SweepRequest<'_>) -> Result<SweepReport> {
+    let (anchor_points, anchor_name) = match anchor {
+        Anchor::Curve((p, l)) => (p.clone(), l.clone()),
+        Anchor::Predictor(l) => (points.clone(), l.clone()),
+    };
+    check_psnr(&anchor_points, r.psnr, "the anchor")?;
+    let rows = compare(&points, &anchor_points, &anchor_name, r.psnr);
     let table = markdown(&rows, &anchor_name);
-    if let Some(path) = json_path {
+    if let Some(path) = r.json_path {
         let mut f = OutputFile::create(path).with_context(|| path.display().to_string())?;
         let v = json!({ "anchor": anchor_name, "points": points, "comparison": rows });
         writeln!(f, "{}", serde_json::to_string_pretty(&v)?)?;
         f.commit().with_context(|| path.display().to_string())?;
     }
-    let plots = match plot_path {
+    let plots = match r.plot_path {
         Some(path) => {
-            let names: Vec<&str> = sequences.iter().map(|s| s.name.as_str()).collect();
+            let mut names: Vec<&str> = Vec::new();
+            for p in &points {
+                if !names.contains(&p.sequence.as_str()) {
+                    names.push(&p.sequence);
+                }
+            }
             Some(plot(&points, path, &names.join(", ")).context("plotting")?)
         }
         None => None,
@@ -268,6 +341,9 @@ pub fn run_sweep(request: &SweepRequest<'_>) -> Result<SweepReport> {
 }
 
 pub fn run(args: &Args) -> Result<()> {
+    if let Some(RdCommand::Merge(m)) = &args.command {
+        return run_merge(m);
+    }
     let report = run_sweep(&SweepRequest {
         inputs: &args.inputs,
         qps: &args.qp,
@@ -282,19 +358,120 @@ pub fn run(args: &Args) -> Result<()> {
         threads: args.threads,
         quiet: args.quiet,
         psnr: args.psnr,
+        shard: args.shard.map_or((1, 1), |s| (s.index, s.count)),
     })?;
-    if args.quiet {
-        return Ok(());
+    match report {
+        Some(report) if !args.quiet => print_report(&report, &args.output),
+        _ => Ok(()),
     }
+}
+
+/// The table and the files written.
+fn print_report(report: &SweepReport, csv: &Path) -> Result<()> {
     let mut stdout = std::io::stdout().lock();
     writeln!(stdout, "{}", report.table.trim_start())?;
-    writeln!(stdout, "\nwrote {}", args.output.display())?;
+    writeln!(stdout, "\nwrote {}", csv.display())?;
     if let Some(p) = &report.plots {
         for f in p.rd.iter().chain(&p.bits) {
             writeln!(stdout, "wrote {}", f.display())?;
         }
     }
     Ok(())
+}
+
+/// `I/N`: the I-th (1-based) of N shares of a sweep's jobs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    pub index: usize,
+    pub count: usize,
+}
+
+impl std::str::FromStr for Shard {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Shard, String> {
+        let bad = || format!("'{s}' is not a shard: I/N with 1 <= I <= N");
+        let (i, n) = s.split_once('/').ok_or_else(bad)?;
+        let (index, count) = (i.parse().map_err(|_| bad())?, n.parse().map_err(|_| bad())?);
+        if index == 0 || index > count {
+            return Err(bad());
+        }
+        Ok(Shard { index, count })
+    }
+}
+
+#[derive(Debug, clap::Subcommand)]
+pub enum RdCommand {
+    /// Merge the CSVs that the shards of one study wrote into one, with
+    /// the tables and plots of an unsharded run.
+    Merge(MergeArgs),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct MergeArgs {
+    /// The shards' CSVs.
+    #[arg(required = true)]
+    pub parts: Vec<PathBuf>,
+    /// The merged CSV.
+    #[arg(short, long, default_value = "rd.csv")]
+    pub output: PathBuf,
+    /// Also write the points and the comparison as JSON.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    /// Plot the RD curves to this SVG.
+    #[arg(long, value_name = "FILE.svg")]
+    pub plot: Option<PathBuf>,
+    /// The predictor the others are compared with [default: block:esa
+    /// when it is among the predictors, else the first].
+    #[arg(long, conflicts_with = "anchor_csv")]
+    pub anchor: Option<String>,
+    /// A CSV in the peer format as the anchor.
+    #[arg(long, value_name = "FILE.csv[:CODEC]")]
+    pub anchor_csv: Option<String>,
+    /// Which luma PSNR the tables compare.
+    #[arg(long, default_value = "mean")]
+    pub psnr: PsnrKind,
+    /// Only errors on the terminal.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// `mocomp rd merge`.
+fn run_merge(m: &MergeArgs) -> Result<()> {
+    let points = merge(&m.parts)?;
+    let mut labels: Vec<String> = Vec::new();
+    for p in &points {
+        if !labels.contains(&p.codec) {
+            labels.push(p.codec.clone());
+        }
+    }
+    let anchor = match &m.anchor_csv {
+        Some(spec) => Anchor::Curve(load_curve(spec)?),
+        None => Anchor::Predictor(anchor_label(m.anchor.as_deref(), &labels, m.quiet)?),
+    };
+    let mut out = OutputFile::create(&m.output).with_context(|| m.output.display().to_string())?;
+    write_csv(&points, &mut out).with_context(|| m.output.display().to_string())?;
+    out.commit().with_context(|| m.output.display().to_string())?;
+    let request = SweepRequest {
+        inputs: &[],
+        qps: &[],
+        predictors: &[],
+        frames: None,
+        tools: &|c| c,
+        output: &m.output,
+        json_path: m.json.as_deref(),
+        plot_path: m.plot.as_deref(),
+        anchor: None,
+        anchor_csv: None,
+        threads: None,
+        quiet: m.quiet,
+        psnr: m.psnr,
+        shard: (1, 1),
+    };
+    let report = report(points, &anchor, &request)?;
+    if m.quiet {
+        return Ok(());
+    }
+    print_report(&report, &m.output)
 }
 
 #[derive(Debug, clap::Args)]

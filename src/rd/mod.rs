@@ -1,11 +1,12 @@
 //! Rate-distortion tooling: BD-rate, sweeps over QPs and predictors, plots.
 
 pub mod bdrate;
+pub mod part;
 #[cfg(feature = "plot")]
 pub mod plot;
 pub mod sweep;
 
 pub use sweep::{
-    compare, markdown, read_csv, sweep, write_csv, Comparison, CsvError, PsnrKind, RdPoint, Sequence,
-    CSV_COLUMNS,
+    compare, csv_record, markdown, read_csv, sweep, write_csv, Comparison, CsvError, PsnrKind, RdPoint,
+    Sequence, Study, CSV_COLUMNS,
 };

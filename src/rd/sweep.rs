@@ -47,6 +47,11 @@ pub struct RdPoint {
     pub me_ms: f64,
     /// Luma PSNR of the mean MSE over frames, dB (NaN when a CSV lacks it).
     pub psnr_y_mse: f64,
+    /// The [`Study::id`] of the sweep that made the point (empty in peer
+    /// CSVs).
+    pub study: String,
+    /// Its job's number in the study and the study's number of jobs.
+    pub job: Option<(usize, usize)>,
 }
 
 /// Which luma PSNR a curve uses.
@@ -73,7 +78,7 @@ impl PsnrKind {
 }
 
 /// The CSV columns: `../shared/peers/rd_ffmpeg.sh`'s, then ours.
-pub const CSV_COLUMNS: [&str; 16] = [
+pub const CSV_COLUMNS: [&str; 18] = [
     "codec",
     "q",
     "bytes",
@@ -90,6 +95,8 @@ pub const CSV_COLUMNS: [&str; 16] = [
     "encode_ms",
     "me_ms",
     "psnr_y_mse",
+    "study",
+    "job",
 ];
 
 /// A sequence to sweep.
@@ -103,33 +110,90 @@ pub struct Sequence {
     pub fps: (u32, u32),
 }
 
-/// Encodes every sequence at every QP with every predictor, each job's
+/// A sweep: every sequence at every QP with every predictor, each job's
 /// configuration `EncoderConfig::new().qp(qp).predictor(p)` passed
 /// through `configure` (a preset and tools, which may change the
-/// predictor's search settings), jobs in parallel on the current rayon
-/// pool; `done` is called after each job. Points come back in (sequence,
-/// predictor, QP) order.
-pub fn sweep(
-    sequences: &[Sequence],
-    qps: &[u8],
-    predictors: &[Predictor],
-    configure: &(dyn Fn(EncoderConfig) -> EncoderConfig + Sync),
-    done: impl Fn() + Sync,
-) -> Result<Vec<RdPoint>, EncodeError> {
-    let mut jobs = Vec::new();
-    for seq in sequences {
-        for p in predictors {
-            for &qp in qps {
-                jobs.push((*p, qp, seq));
-            }
-        }
+/// predictor's search settings). Jobs are numbered in (sequence,
+/// predictor, QP) order, the same on every machine, so that a study can be
+/// split into shards and its rows merged back.
+pub struct Study<'a> {
+    /// The sequences, in order.
+    pub sequences: &'a [Sequence],
+    /// The QPs, in order.
+    pub qps: &'a [u8],
+    /// The predictors, in order.
+    pub predictors: &'a [Predictor],
+    /// What every job's configuration goes through.
+    pub configure: &'a (dyn Fn(EncoderConfig) -> EncoderConfig + Sync),
+}
+
+impl Study<'_> {
+    /// How many jobs.
+    pub fn len(&self) -> usize {
+        self.sequences.len() * self.predictors.len() * self.qps.len()
     }
-    jobs.par_iter()
-        .map(|&(predictor, qp, seq)| {
-            let config = configure(EncoderConfig::new().qp(qp).predictor(predictor));
+
+    /// Whether there is no job.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Job `index`: its sequence, predictor and QP.
+    fn job(&self, index: usize) -> (&Sequence, Predictor, u8) {
+        let (q, p) = (self.qps.len(), self.predictors.len());
+        (
+            &self.sequences[index / (q * p)],
+            self.predictors[index / q % p],
+            self.qps[index % q],
+        )
+    }
+
+    /// What identifies the study: a hash (16 hex digits) of the sequences
+    /// (names, frame counts, sizes, rates, and a checksum of their
+    /// samples), the QPs and every job's full configuration. Paths are
+    /// left out: the same study reads its files from different places on
+    /// different machines.
+    pub fn id(&self) -> String {
+        let mut text = String::new();
+        for s in self.sequences {
+            let first = s.frames.first();
+            let _ = write!(
+                text,
+                "{}:{}:{:?}:{:?}:{:016x};",
+                s.name,
+                s.frames.len(),
+                first.map(|f| (f.width(), f.height())),
+                s.fps,
+                s.frames
+                    .iter()
+                    .fold(0xcbf2_9ce4_8422_2325u64, |h, f| fnv1a(h, f.y().data()))
+            );
+        }
+        let _ = write!(text, "{:?};", self.qps);
+        for p in self.predictors {
+            let _ = write!(
+                text,
+                "{:?};",
+                (self.configure)(EncoderConfig::new().predictor(*p))
+            );
+        }
+        format!("{:016x}", fnv1a(0xcbf2_9ce4_8422_2325, text.as_bytes()))
+    }
+
+    /// Runs the jobs `indices` in parallel on the current rayon pool,
+    /// giving each point to `done` as it is made (from the worker
+    /// threads, in no set order); the first error of either stops it.
+    pub fn run<E: From<EncodeError> + Send>(
+        &self,
+        indices: &[usize],
+        done: impl Fn(RdPoint) -> Result<(), E> + Sync,
+    ) -> Result<(), E> {
+        let (id, total) = (self.id(), self.len());
+        indices.par_iter().try_for_each(|&index| {
+            let (seq, predictor, qp) = self.job(index);
+            let config = (self.configure)(EncoderConfig::new().qp(qp).predictor(predictor));
             let s = encode_frames(&seq.frames, seq.fps, config)?;
-            done();
-            Ok(RdPoint {
+            done(RdPoint {
                 codec: predictor.label(),
                 q: f64::from(qp),
                 bytes: s.bytes,
@@ -146,9 +210,71 @@ pub fn sweep(
                 encode_ms: s.encode_ms,
                 me_ms: s.me_ms,
                 psnr_y_mse: s.psnr_y_mse,
+                study: id.clone(),
+                job: Some((index, total)),
             })
         })
-        .collect()
+    }
+}
+
+/// 64-bit FNV-1a of `bytes`, continuing from `hash`.
+fn fnv1a(hash: u64, bytes: &[u8]) -> u64 {
+    bytes.iter().fold(hash, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}
+
+/// Encodes every sequence at every QP with every predictor (a whole
+/// [`Study`]), jobs in parallel on the current rayon pool; `done` is
+/// called after each job. Points come back in (sequence, predictor, QP)
+/// order.
+pub fn sweep(
+    sequences: &[Sequence],
+    qps: &[u8],
+    predictors: &[Predictor],
+    configure: &(dyn Fn(EncoderConfig) -> EncoderConfig + Sync),
+    done: impl Fn() + Sync,
+) -> Result<Vec<RdPoint>, EncodeError> {
+    let study = Study {
+        sequences,
+        qps,
+        predictors,
+        configure,
+    };
+    let all: Vec<usize> = (0..study.len()).collect();
+    let points = std::sync::Mutex::new(Vec::with_capacity(all.len()));
+    study.run(&all, |p| -> Result<(), EncodeError> {
+        points.lock().unwrap_or_else(|e| e.into_inner()).push(p);
+        done();
+        Ok(())
+    })?;
+    let mut points = points.into_inner().unwrap_or_else(|e| e.into_inner());
+    points.sort_by_key(|p| p.job);
+    Ok(points)
+}
+
+/// The CSV cells of `p`, in [`CSV_COLUMNS`] order.
+pub fn csv_record(p: &RdPoint) -> [String; 18] {
+    [
+        p.codec.clone(),
+        format!("{}", p.q),
+        p.bytes.to_string(),
+        p.frames.to_string(),
+        format!("{:.3}", p.kbps),
+        format!("{:.4}", p.psnr_y),
+        p.sequence.clone(),
+        format!("{:.4}", p.psnr_u),
+        format!("{:.4}", p.psnr_v),
+        format!("{:.6}", p.ssim),
+        p.bits_header.to_string(),
+        p.bits_motion.to_string(),
+        p.bits_residual.to_string(),
+        format!("{:.1}", p.encode_ms),
+        format!("{:.1}", p.me_ms),
+        format!("{:.4}", p.psnr_y_mse),
+        p.study.clone(),
+        p.job.map_or(String::new(), |(i, n)| format!("{i}/{n}")),
+    ]
 }
 
 /// Writes points as CSV with [`CSV_COLUMNS`].
@@ -156,24 +282,7 @@ pub fn write_csv(points: &[RdPoint], out: impl Write) -> csv::Result<()> {
     let mut w = csv::Writer::from_writer(out);
     w.write_record(CSV_COLUMNS)?;
     for p in points {
-        w.write_record([
-            p.codec.clone(),
-            format!("{}", p.q),
-            p.bytes.to_string(),
-            p.frames.to_string(),
-            format!("{:.3}", p.kbps),
-            format!("{:.4}", p.psnr_y),
-            p.sequence.clone(),
-            format!("{:.4}", p.psnr_u),
-            format!("{:.4}", p.psnr_v),
-            format!("{:.6}", p.ssim),
-            p.bits_header.to_string(),
-            p.bits_motion.to_string(),
-            p.bits_residual.to_string(),
-            format!("{:.1}", p.encode_ms),
-            format!("{:.1}", p.me_ms),
-            format!("{:.4}", p.psnr_y_mse),
-        ])?;
+        w.write_record(csv_record(p))?;
     }
     w.flush()?;
     Ok(())
@@ -252,9 +361,25 @@ pub fn read_csv(input: impl Read) -> Result<Vec<RdPoint>, CsvError> {
             } else {
                 f64::NAN
             },
+            study: text("study"),
+            job: match text("job") {
+                t if t.is_empty() => None,
+                t => Some(parse_job(&t).ok_or(CsvError::NotANumber {
+                    row: line + 2,
+                    column: "job",
+                    text: t,
+                })?),
+            },
         });
     }
     Ok(out)
+}
+
+/// `I/N` with I < N.
+fn parse_job(t: &str) -> Option<(usize, usize)> {
+    let (i, n) = t.split_once('/')?;
+    let (i, n) = (i.parse().ok()?, n.parse().ok()?);
+    (i < n).then_some((i, n))
 }
 
 /// The (kbps, PSNR-Y) points of one codec (and sequence, when given).

@@ -1271,3 +1271,61 @@ fn shards_merge_into_the_unsharded_rows_and_a_killed_shard_resumes() {
     // A shard out of range is a usage error.
     sweep("x.csv", &["--shard", "4/3"]).assert().code(2);
 }
+
+#[test]
+fn aspect_ratio_siting_and_range_survive_encode_and_decode() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_owned();
+    let header_of = |path: &str| -> String {
+        let bytes = std::fs::read(path).unwrap();
+        let end = bytes.iter().position(|&b| b == b'\n').unwrap();
+        String::from_utf8(bytes[..end].to_vec()).unwrap()
+    };
+    // The bundled sample's frames under a header with the tags.
+    let src = std::fs::read(sample("tree_qcif.y4m")).unwrap();
+    let end = src.iter().position(|&b| b == b'\n').unwrap();
+    for (tags, expected) in [
+        (
+            "A1:1 C420jpeg XCOLORRANGE=LIMITED",
+            ["A1:1", "C420jpeg", "XCOLORRANGE=LIMITED"],
+        ),
+        (
+            "A16:11 C420mpeg2 XCOLORRANGE=FULL",
+            ["A16:11", "C420mpeg2", "XCOLORRANGE=FULL"],
+        ),
+        ("A0:0 C420paldv", ["A0:0", "C420paldv", "C420paldv"]),
+    ] {
+        let mut input = format!("YUV4MPEG2 W176 H144 F25:1 Ip {tags}").into_bytes();
+        input.extend_from_slice(&src[end..]);
+        std::fs::write(p("in.y4m"), input).unwrap();
+        mocomp()
+            .args([
+                "encode",
+                &p("in.y4m"),
+                "-o",
+                &p("a.mcv"),
+                "--frames",
+                "2",
+                "--quiet",
+            ])
+            .args(["--recon", &p("rec.y4m")])
+            .assert()
+            .success();
+        mocomp()
+            .args(["decode", &p("a.mcv"), "-o", &p("dec.y4m")])
+            .assert()
+            .success();
+        let decoded = header_of(&p("dec.y4m"));
+        assert_eq!(decoded, header_of(&p("rec.y4m")), "{tags}");
+        for tag in expected {
+            assert!(
+                decoded.split(' ').any(|t| t == tag),
+                "{tag} missing from '{decoded}'"
+            );
+        }
+        assert_eq!(
+            std::fs::read(p("dec.y4m")).unwrap(),
+            std::fs::read(p("rec.y4m")).unwrap()
+        );
+    }
+}

@@ -106,7 +106,11 @@ fn decoder_output_equals_the_encoder_reconstruction_for_every_predictor() {
                 );
             }
             let bytes: usize = stats.iter().map(|s| s.bytes).sum();
-            assert_eq!(bytes + 24, stream.len(), "frame sizes add up to the stream");
+            assert_eq!(
+                bytes + SEQUENCE_HEADER_LEN + 1,
+                stream.len(),
+                "frame sizes add up to the stream"
+            );
             let types: String = stats.iter().map(|s| s.frame_type).collect();
             let expected: String = (0..frames.len())
                 .map(|i| {
@@ -236,6 +240,7 @@ fn weighted_prediction_follows_a_change_of_light_and_only_then() {
         fps_num: 25,
         fps_den: 1,
         frame_count: 0,
+        vui: Default::default(),
     };
     let lit = |step: f64| {
         let s = Synth::new(
@@ -301,6 +306,7 @@ fn i_frames_are_coded_below_the_p_qp_by_the_ipratio() {
         fps_num: 25,
         fps_den: 1,
         frame_count: 0,
+        vui: Default::default(),
     };
     // 6 log2(ratio) QP steps below: 2 -> 6, 1.4 -> 2.91 (3), 1 -> 0.
     for (ratio, i_qp) in [(2.0, 24), (1.4, 27), (1.0, 30)] {

@@ -24,7 +24,7 @@ pub const MAGIC: [u8; 4] = *b"MOCO";
 pub const VERSION: u8 = 3;
 
 /// Bytes of the sequence header.
-pub const SEQUENCE_HEADER_LEN: usize = 23;
+pub const SEQUENCE_HEADER_LEN: usize = 29;
 
 /// Byte that starts a frame.
 pub const FRAME_START: u8 = 0xA5;
@@ -48,6 +48,48 @@ pub struct SequenceHeader {
     pub fps_den: u32,
     /// Number of frames, or 0 when not known in advance.
     pub frame_count: u32,
+    /// What the samples mean, for whoever shows the pictures; decoding
+    /// does not use it.
+    pub vui: Vui,
+}
+
+/// Video usability information (as a codec's VUI): carried from the
+/// source to the decoder's output, not used in decoding.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Vui {
+    /// Sample (pixel) aspect ratio, width:height; 0:0 when unknown.
+    pub sar: (u16, u16),
+    /// The samples' range.
+    pub range: ColourRange,
+    /// Where chroma samples sit against luma.
+    pub siting: ChromaSiting,
+}
+
+/// The range of the samples' values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ColourRange {
+    /// Not said.
+    #[default]
+    Unknown = 0,
+    /// Limited ("TV"): luma 16-235, chroma 16-240.
+    Limited = 1,
+    /// Full ("PC"): 0-255.
+    Full = 2,
+}
+
+/// Where 4:2:0 chroma samples sit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ChromaSiting {
+    /// Not said.
+    #[default]
+    Unknown = 0,
+    /// Centred between the four luma samples (JPEG, MPEG-1).
+    Centred = 1,
+    /// Co-sited with the left luma samples, centred vertically (MPEG-2,
+    /// H.264).
+    Left = 2,
+    /// PAL DV's siting.
+    PalDv = 3,
 }
 
 /// Why a sequence header is refused.
@@ -101,7 +143,7 @@ impl SequenceHeader {
         6 * samples + 1024
     }
 
-    /// Writes the 23 bytes.
+    /// Writes the header's bytes.
     pub fn to_bytes(&self) -> Vec<u8> {
         let mut w = BitWriter::new();
         w.put_bytes(&MAGIC);
@@ -113,10 +155,14 @@ impl SequenceHeader {
         w.put(u64::from(self.fps_num), 32);
         w.put(u64::from(self.fps_den), 32);
         w.put(u64::from(self.frame_count), 32);
+        w.put(u64::from(self.vui.sar.0), 16);
+        w.put(u64::from(self.vui.sar.1), 16);
+        w.put(self.vui.range as u64, 8);
+        w.put(self.vui.siting as u64, 8);
         w.into_bytes()
     }
 
-    /// Parses and checks the first 23 bytes of a stream.
+    /// Parses and checks the first bytes of a stream.
     pub fn parse(bytes: &[u8]) -> Result<SequenceHeader, HeaderError> {
         if bytes.len() < SEQUENCE_HEADER_LEN {
             if bytes.len() >= 4 && bytes[..4] != MAGIC {
@@ -155,6 +201,31 @@ impl SequenceHeader {
         let fps_den = field(&mut r, 32)? as u32;
         check("fps_den", u64::from(fps_den), fps_den != 0)?;
         let frame_count = field(&mut r, 32)? as u32;
+        let sar = (field(&mut r, 16)? as u16, field(&mut r, 16)? as u16);
+        check("sar", u64::from(sar.0), (sar.0 == 0) == (sar.1 == 0))?;
+        let range = match field(&mut r, 8)? {
+            0 => ColourRange::Unknown,
+            1 => ColourRange::Limited,
+            2 => ColourRange::Full,
+            v => {
+                return Err(HeaderError::Field {
+                    what: "colour_range",
+                    value: v,
+                })
+            }
+        };
+        let siting = match field(&mut r, 8)? {
+            0 => ChromaSiting::Unknown,
+            1 => ChromaSiting::Centred,
+            2 => ChromaSiting::Left,
+            3 => ChromaSiting::PalDv,
+            v => {
+                return Err(HeaderError::Field {
+                    what: "chroma_siting",
+                    value: v,
+                })
+            }
+        };
         debug_assert!(check_size(width, height).is_ok());
         Ok(SequenceHeader {
             width,
@@ -162,6 +233,7 @@ impl SequenceHeader {
             fps_num,
             fps_den,
             frame_count,
+            vui: Vui { sar, range, siting },
         })
     }
 }
@@ -461,7 +533,7 @@ fn write_frame_header(h: &FrameHeader) -> Vec<u8> {
 /// ```
 /// use mocomp_codec::intra::IntraMode;
 /// use mocomp_codec::syntax::*;
-/// let seq = SequenceHeader { width: 32, height: 16, fps_num: 25, fps_den: 1, frame_count: 1 };
+/// let seq = SequenceHeader { width: 32, height: 16, fps_num: 25, fps_den: 1, frame_count: 1, vui: Vui::default() };
 /// let header = FrameHeader {
 ///     frame_type: FrameType::Intra,
 ///     qp: 30,

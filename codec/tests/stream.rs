@@ -14,7 +14,7 @@ use mocomp_codec::recon::{crop, frame_vectors, predict_inter, predict_intra, rec
 use mocomp_codec::residual::MbResidual;
 use mocomp_codec::syntax::{
     read_frame, write_frame, write_stream, CodedMb, EntropyState, FrameHeader, FrameSyntax, FrameType,
-    MbKind, MotionTool, SequenceHeader,
+    MbKind, MotionTool, SequenceHeader, SEQUENCE_HEADER_LEN,
 };
 use mocomp_codec::transform::{forward_4x4, quantize};
 use mocomp_codec::warp::{warp_frame, MotionGrid};
@@ -27,6 +27,7 @@ fn seq(width: usize, height: usize, frames: u32) -> SequenceHeader {
         fps_num: 30,
         fps_den: 1,
         frame_count: frames,
+        vui: Default::default(),
     }
 }
 
@@ -410,7 +411,7 @@ fn syntax_round_trips() {
     for (w, h, qp) in [(48, 32, 20), (35, 19, 3)] {
         let (bytes, _) = coded_stream(w, h, qp);
         let s = SequenceHeader::parse(&bytes).unwrap();
-        let mut at = 23;
+        let mut at = SEQUENCE_HEADER_LEN;
         let mut frames = 0;
         let (mut read_state, mut write_state) = (EntropyState::new(), EntropyState::new());
         while bytes[at] == 0xA5 {
@@ -457,16 +458,25 @@ fn malformed_streams_are_clear_errors() {
     let mut b = good.clone();
     b[5] = 0xFF; // width - 1 = 0xFF?? > 16383
     assert!(expect_err(&b).to_string().contains("width"));
+    // VUI values outside their codes, a half-known aspect ratio.
+    for (at, value, what) in [(27, 3, "colour_range"), (28, 4, "chroma_siting"), (25, 0, "sar")] {
+        let mut b = good.clone();
+        b[at] = value;
+        if what == "sar" {
+            b[26] = 1; // 0:1
+        }
+        assert!(expect_err(&b).to_string().contains(what), "{what}");
+    }
     // A wrong start code.
     let mut b = good.clone();
-    b[23] = 0x00;
+    b[29] = 0x00;
     assert!(matches!(
         expect_err(&b),
-        DecodeError::StartCode { byte: 23, found: 0 }
+        DecodeError::StartCode { byte: 29, found: 0 }
     ));
     // A frame length beyond any frame of this size.
     let mut b = good.clone();
-    b[24..28].copy_from_slice(&u32::MAX.to_be_bytes());
+    b[30..34].copy_from_slice(&u32::MAX.to_be_bytes());
     assert!(matches!(
         expect_err(&b),
         DecodeError::FrameLength { frame: 0, .. }
@@ -614,7 +624,7 @@ fn ten_thousand_mutated_streams_never_panic() {
             0 => {
                 // Flip 1 to 8 bits anywhere after the sequence header.
                 for _ in 0..1 + rng.below(8) {
-                    let at = 23 + rng.below(b.len() - 23);
+                    let at = SEQUENCE_HEADER_LEN + rng.below(b.len() - SEQUENCE_HEADER_LEN);
                     b[at] ^= 1 << rng.below(8);
                 }
             }
@@ -629,7 +639,7 @@ fn ten_thousand_mutated_streams_never_panic() {
             }
             4 => {
                 // Overwrite a run with random bytes.
-                let at = 23 + rng.below(b.len() - 23);
+                let at = SEQUENCE_HEADER_LEN + rng.below(b.len() - SEQUENCE_HEADER_LEN);
                 let n = (1 + rng.below(16)).min(b.len() - at);
                 for k in 0..n {
                     b[at + k] = rng.next() as u8;

@@ -23,11 +23,7 @@ pub fn run(args: &Args) -> Result<()> {
     let reader = std::io::BufReader::new(open_input(&args.input).with_context(|| input.clone())?);
     let mut decoder = Decoder::new(reader).with_context(|| input.clone())?;
     let seq = *decoder.sequence();
-    let info = Y4mInfo::new(
-        seq.width,
-        seq.height,
-        (u64::from(seq.fps_num), u64::from(seq.fps_den)),
-    );
+    let info = Y4mInfo::for_sequence(&seq);
     let mut out = OutputFile::create(&args.output).with_context(|| args.output.display().to_string())?;
     {
         let mut writer = Y4mWriter::new(&mut out, &info)?;

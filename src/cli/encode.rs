@@ -192,8 +192,9 @@ pub fn run(args: &Args) -> Result<()> {
         Some(p) => Some(OutputFile::create(p).with_context(|| p.display().to_string())?),
         None => None,
     };
+    // The reconstruction's header is the one the decoder will write.
     let mut recon = match recon_file.as_mut() {
-        Some(f) => Some(Y4mWriter::new(f, &info)?),
+        Some(f) => Some(Y4mWriter::new(f, &info.as_decoded())?),
         None => None,
     };
     let mut stats_rows = args

@@ -43,7 +43,7 @@ pub use config::{
 pub use stats::{FrameStats, Summary, SummaryBuilder};
 
 use crate::codec::recon::crop_reusing;
-use crate::codec::syntax::{EntropyState, FrameType, MotionTool, SequenceHeader, STREAM_END};
+use crate::codec::syntax::{EntropyState, FrameType, MotionTool, SequenceHeader, Vui, STREAM_END};
 use crate::codec::weight::Weights;
 use crate::codec::{Frame, PictureError};
 use crate::io::y4m::{Y4mError, Y4mReader};
@@ -138,6 +138,7 @@ impl Encoder {
             fps_num: fps.0,
             fps_den: fps.1,
             frame_count: 0,
+            vui: Vui::default(),
         };
         Ok(Encoder {
             seq,
@@ -153,6 +154,13 @@ impl Encoder {
             entropy: EntropyState::new(),
             index: 0,
         })
+    }
+
+    /// Sets what the sequence header says about the samples (aspect ratio,
+    /// range, chroma siting) for the decoder's output; call it before
+    /// [`Encoder::header`].
+    pub fn set_vui(&mut self, vui: Vui) {
+        self.seq.vui = vui;
     }
 
     /// The sequence header that starts the stream (frame count 0: not
@@ -328,6 +336,7 @@ pub fn encode_y4m<R: Read, W: Write>(
             .map_err(|_| EncodeError::Config("frame rate denominator too large".into()))?,
     );
     let mut encoder = Encoder::new(info.width, info.height, fps, config)?;
+    encoder.set_vui(info.vui());
     let header = encoder.header();
     out.write_all(&header)?;
     let mut summary = SummaryBuilder::new(info.fps_f64(), header.len() + 1);

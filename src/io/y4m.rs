@@ -33,6 +33,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
 use crate::codec::picture::{check_size, Frame, PictureError};
+use crate::codec::syntax::{ChromaSiting as Siting, ColourRange, SequenceHeader, Vui};
 
 /// The conversion a user can run to get a stream mocomp reads.
 pub const CONVERT_HINT: &str = "ffmpeg -i in -pix_fmt yuv420p -f yuv4mpegpipe out.y4m";
@@ -68,14 +69,13 @@ impl ChromaSiting {
             ChromaSiting::Paldv => "C420paldv",
         }
     }
+}
 
-    fn colorspace(self) -> y4m::Colorspace {
-        match self {
-            ChromaSiting::Jpeg => y4m::Colorspace::C420jpeg,
-            ChromaSiting::Plain => y4m::Colorspace::C420,
-            ChromaSiting::Mpeg2 => y4m::Colorspace::C420mpeg2,
-            ChromaSiting::Paldv => y4m::Colorspace::C420paldv,
-        }
+fn gcd(a: u64, b: u64) -> u64 {
+    if b == 0 {
+        a
+    } else {
+        gcd(b, a % b)
     }
 }
 
@@ -114,6 +114,62 @@ impl Y4mInfo {
     /// Frames per second as a float.
     pub fn fps_f64(&self) -> f64 {
         self.fps.0 as f64 / self.fps.1 as f64
+    }
+
+    /// What the header says about the samples, as a stream carries it: the
+    /// pixel aspect ratio (reduced; 0:0 when unknown or beyond 16 bits),
+    /// the chroma siting and `XCOLORRANGE`.
+    pub fn vui(&self) -> Vui {
+        let (a, b) = self.aspect;
+        let g = gcd(a, b).max(1);
+        let sar = match (u16::try_from(a / g), u16::try_from(b / g)) {
+            (Ok(x), Ok(y)) if x > 0 && y > 0 => (x, y),
+            _ => (0, 0),
+        };
+        let range = match self.color_range() {
+            Some("LIMITED") => ColourRange::Limited,
+            Some("FULL") => ColourRange::Full,
+            _ => ColourRange::Unknown,
+        };
+        let siting = match self.siting {
+            ChromaSiting::Jpeg => Siting::Centred,
+            ChromaSiting::Plain => Siting::Unknown,
+            ChromaSiting::Mpeg2 => Siting::Left,
+            ChromaSiting::Paldv => Siting::PalDv,
+        };
+        Vui { sar, range, siting }
+    }
+
+    /// The header of the pictures a stream with `seq` decodes to: size,
+    /// rate, and what its VUI says (`A0:0`, plain `C420` and no
+    /// `XCOLORRANGE` where it says nothing). An encode's reconstruction is
+    /// written with the same header.
+    pub fn for_sequence(seq: &SequenceHeader) -> Y4mInfo {
+        let fps = (u64::from(seq.fps_num), u64::from(seq.fps_den));
+        Y4mInfo::with_vui(seq.width, seq.height, fps, seq.vui)
+    }
+
+    /// The header a stream coded from this one decodes to (the tags a
+    /// stream does not carry left out).
+    pub fn as_decoded(&self) -> Y4mInfo {
+        Y4mInfo::with_vui(self.width, self.height, self.fps, self.vui())
+    }
+
+    fn with_vui(width: usize, height: usize, fps: (u64, u64), v: Vui) -> Y4mInfo {
+        let mut info = Y4mInfo::new(width, height, fps);
+        info.aspect = (u64::from(v.sar.0), u64::from(v.sar.1));
+        info.siting = match v.siting {
+            Siting::Unknown => ChromaSiting::Plain,
+            Siting::Centred => ChromaSiting::Jpeg,
+            Siting::Left => ChromaSiting::Mpeg2,
+            Siting::PalDv => ChromaSiting::Paldv,
+        };
+        match v.range {
+            ColourRange::Limited => info.extensions.push("COLORRANGE=LIMITED".into()),
+            ColourRange::Full => info.extensions.push("COLORRANGE=FULL".into()),
+            ColourRange::Unknown => {}
+        }
+        info
     }
 
     /// The `XCOLORRANGE=` value, if present (`FULL` or `LIMITED`).
@@ -465,29 +521,40 @@ impl<R: Read> fmt::Debug for Y4mReader<R> {
 ///
 /// [`OutputFile`]: crate::io::OutputFile
 pub struct Y4mWriter<W: Write> {
-    encoder: y4m::Encoder<W>,
+    writer: W,
     info: Y4mInfo,
-    packed: [Vec<u8>; 3],
 }
 
 impl<W: Write> Y4mWriter<W> {
-    /// Writes the stream header.
-    pub fn new(writer: W, info: &Y4mInfo) -> Result<Self, Y4mError> {
+    /// Writes the stream header. Every tag is written, `A1:1` included
+    /// (the y4m crate leaves it out, and ffmpeg reads a missing `A` as an
+    /// unknown aspect ratio), so a header read and written is the same.
+    pub fn new(mut writer: W, info: &Y4mInfo) -> Result<Self, Y4mError> {
         check_size(info.width, info.height)?;
-        let fps = y4m::Ratio::new(info.fps.0 as usize, info.fps.1 as usize);
-        let mut builder = y4m::EncoderBuilder::new(info.width, info.height, fps)
-            .with_colorspace(info.siting.colorspace())
-            .with_pixel_aspect(y4m::Ratio::new(info.aspect.0 as usize, info.aspect.1 as usize));
-        for x in &info.extensions {
-            let ext = y4m::VendorExtensionString::new(x.as_bytes().to_vec())
-                .map_err(|_| Y4mError::BadHeader(format!("extension tag 'X{x}' contains a space")))?;
-            builder = builder.append_vendor_extension(ext);
+        if let Some(x) = info.extensions.iter().find(|x| x.contains(char::is_whitespace)) {
+            return Err(Y4mError::BadHeader(format!(
+                "extension tag 'X{x}' contains a space"
+            )));
         }
-        let encoder = builder.write_header(writer).map_err(map_write_error)?;
+        let mut line = format!(
+            "YUV4MPEG2 W{} H{} F{}:{} Ip A{}:{} {}",
+            info.width,
+            info.height,
+            info.fps.0,
+            info.fps.1,
+            info.aspect.0,
+            info.aspect.1,
+            info.siting.tag()
+        );
+        for x in &info.extensions {
+            line.push_str(" X");
+            line.push_str(x);
+        }
+        line.push('\n');
+        writer.write_all(line.as_bytes())?;
         Ok(Y4mWriter {
-            encoder,
+            writer,
             info: info.clone(),
-            packed: Default::default(),
         })
     }
 
@@ -499,14 +566,13 @@ impl<W: Write> Y4mWriter<W> {
     /// Appends one frame.
     pub fn write_frame(&mut self, frame: &Frame) -> Result<(), Y4mError> {
         check_frame_size(&self.info, frame)?;
-        for (buf, plane) in self.packed.iter_mut().zip(frame.planes()) {
-            buf.clear();
+        self.writer.write_all(b"FRAME\n")?;
+        for plane in frame.planes() {
             for row in plane.rows() {
-                buf.extend_from_slice(row);
+                self.writer.write_all(row)?;
             }
         }
-        let data = y4m::Frame::new([&self.packed[0], &self.packed[1], &self.packed[2]], None);
-        self.encoder.write_frame(&data).map_err(map_write_error)
+        Ok(())
     }
 }
 
@@ -520,13 +586,6 @@ fn check_frame_size(info: &Y4mInfo, frame: &Frame) -> Result<(), Y4mError> {
         });
     }
     Ok(())
-}
-
-fn map_write_error(e: y4m::Error) -> Y4mError {
-    match e {
-        y4m::Error::IoError(e) => Y4mError::Io(e),
-        other => Y4mError::Io(io::Error::other(other.to_string())),
-    }
 }
 
 /// A size error in a header, said once (the variant's message holds it; it

@@ -126,6 +126,18 @@ fn decoder_output_equals_the_encoder_reconstruction_for_every_predictor() {
     }
 }
 
+/// The sequence header of a `w x h` stream at 25 fps.
+fn seq_header(w: usize, h: usize) -> SequenceHeader {
+    SequenceHeader {
+        width: w,
+        height: h,
+        fps_num: 25,
+        fps_den: 1,
+        frame_count: 0,
+        vui: Default::default(),
+    }
+}
+
 /// Every frame's syntax, read with the codec's parser.
 fn frames_of(seq: &SequenceHeader, stream: &[u8]) -> Vec<FrameSyntax> {
     let mut at = SEQUENCE_HEADER_LEN;
@@ -234,14 +246,6 @@ fn deblocking_lowers_the_error_at_high_qps_and_the_decoder_follows() {
 
 #[test]
 fn weighted_prediction_follows_a_change_of_light_and_only_then() {
-    let seq = |w, h| SequenceHeader {
-        width: w,
-        height: h,
-        fps_num: 25,
-        fps_den: 1,
-        frame_count: 0,
-        vui: Default::default(),
-    };
     let lit = |step: f64| {
         let s = Synth::new(
             SceneSpec::new("t", 96, 64, 5)
@@ -257,7 +261,7 @@ fn weighted_prediction_follows_a_change_of_light_and_only_then() {
     let frames = lit(6.0);
     let (stream, recon, _) = encode(&frames, EncoderConfig::new().qp(30));
     assert_eq!(decoder::decode(&stream).unwrap().1, recon);
-    let syntax = frames_of(&seq(96, 64), &stream);
+    let syntax = frames_of(&seq_header(96, 64), &stream);
     assert!(
         syntax[1..].iter().all(|f| f.header.weights.0[0].is_some()),
         "{:?}",
@@ -272,7 +276,7 @@ fn weighted_prediction_follows_a_change_of_light_and_only_then() {
     );
     // Steady light: no weights.
     let (stream, _, _) = encode(&lit(0.0), EncoderConfig::new().qp(30));
-    let w: Vec<_> = frames_of(&seq(96, 64), &stream)
+    let w: Vec<_> = frames_of(&seq_header(96, 64), &stream)
         .iter()
         .map(|f| f.header.weights)
         .collect();
@@ -300,20 +304,12 @@ fn the_psnr_of_the_mean_mse_is_not_lifted_by_frames_coded_exactly() {
 #[test]
 fn i_frames_are_coded_below_the_p_qp_by_the_ipratio() {
     let frames = scene(48, 32, 3, 1.0, 0.0);
-    let seq = |w, h| SequenceHeader {
-        width: w,
-        height: h,
-        fps_num: 25,
-        fps_den: 1,
-        frame_count: 0,
-        vui: Default::default(),
-    };
     // 6 log2(ratio) QP steps below: 2 -> 6, 1.4 -> 2.91 (3), 1 -> 0.
     for (ratio, i_qp) in [(2.0, 24), (1.4, 27), (1.0, 30)] {
         let config = EncoderConfig::new().qp(30).gop(2).ipratio(ratio);
         assert_eq!(config.intra_qp(), i_qp);
         let (stream, recon, stats) = encode(&frames, config);
-        let qps: Vec<u8> = frames_of(&seq(48, 32), &stream)
+        let qps: Vec<u8> = frames_of(&seq_header(48, 32), &stream)
             .iter()
             .map(|f| f.header.qp)
             .collect();

@@ -42,21 +42,8 @@ pub struct Args {
     /// study already there is resumed (its jobs are not run again).
     #[arg(short, long, default_value = "rd.csv")]
     pub output: PathBuf,
-    /// Also write the points and the comparison as JSON.
-    #[arg(long, value_name = "FILE")]
-    pub json: Option<PathBuf>,
-    /// Plot the RD curves to this SVG (a PNG beside it, and `_bits` plots
-    /// of the bit split).
-    #[arg(long, value_name = "FILE.svg")]
-    pub plot: Option<PathBuf>,
-    /// The predictor the others are compared with [default: block:esa
-    /// when it is among the predictors, else the first].
-    #[arg(long, conflicts_with = "anchor_csv")]
-    pub anchor: Option<String>,
-    /// A CSV in the peer format (e.g. from rd_ffmpeg.sh) as the anchor:
-    /// `FILE.csv:CODEC`, or `FILE.csv` when it holds one codec.
-    #[arg(long, value_name = "FILE.csv[:CODEC]")]
-    pub anchor_csv: Option<String>,
+    #[command(flatten)]
+    pub report: ReportArgs,
     /// Parallel jobs (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -64,10 +51,6 @@ pub struct Args {
     /// JSON and plots are still written).
     #[arg(long)]
     pub quiet: bool,
-    /// Which luma PSNR the tables compare: the mean over frames of each
-    /// frame's (psnr_y) or that of the mean MSE (psnr_y_mse).
-    #[arg(long, default_value = "mean")]
-    pub psnr: PsnrKind,
     /// Run only the I-th of N shares of the jobs (the same split on every
     /// machine; merge the CSVs with `mocomp rd merge`).
     #[arg(long, value_name = "I/N")]
@@ -351,13 +334,13 @@ pub fn run(args: &Args) -> Result<()> {
         frames: args.frames,
         tools: &|c| args.tools.apply(c),
         output: &args.output,
-        json_path: args.json.as_deref(),
-        plot_path: args.plot.as_deref(),
-        anchor: args.anchor.as_deref(),
-        anchor_csv: args.anchor_csv.as_deref(),
+        json_path: args.report.json.as_deref(),
+        plot_path: args.report.plot.as_deref(),
+        anchor: args.report.anchor.as_deref(),
+        anchor_csv: args.report.anchor_csv.as_deref(),
         threads: args.threads,
         quiet: args.quiet,
-        psnr: args.psnr,
+        psnr: args.report.psnr,
         shard: args.shard.map_or((1, 1), |s| (s.index, s.count)),
     })?;
     match report {
@@ -414,25 +397,35 @@ pub struct MergeArgs {
     /// The merged CSV.
     #[arg(short, long, default_value = "rd.csv")]
     pub output: PathBuf,
+    #[command(flatten)]
+    pub report: ReportArgs,
+    /// Only errors on the terminal.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// The tables' and reports' options, of `rd` and `rd merge` alike.
+#[derive(Debug, clap::Args)]
+pub struct ReportArgs {
     /// Also write the points and the comparison as JSON.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
-    /// Plot the RD curves to this SVG.
+    /// Plot the RD curves to this SVG (a PNG beside it, and `_bits` plots
+    /// of the bit split).
     #[arg(long, value_name = "FILE.svg")]
     pub plot: Option<PathBuf>,
     /// The predictor the others are compared with [default: block:esa
     /// when it is among the predictors, else the first].
     #[arg(long, conflicts_with = "anchor_csv")]
     pub anchor: Option<String>,
-    /// A CSV in the peer format as the anchor.
+    /// A CSV in the peer format (e.g. from rd_ffmpeg.sh) as the anchor:
+    /// `FILE.csv:CODEC`, or `FILE.csv` when it holds one codec.
     #[arg(long, value_name = "FILE.csv[:CODEC]")]
     pub anchor_csv: Option<String>,
-    /// Which luma PSNR the tables compare.
+    /// Which luma PSNR the tables compare: the mean over frames of each
+    /// frame's (psnr_y) or that of the mean MSE (psnr_y_mse).
     #[arg(long, default_value = "mean")]
     pub psnr: PsnrKind,
-    /// Only errors on the terminal.
-    #[arg(long)]
-    pub quiet: bool,
 }
 
 /// `mocomp rd merge`.
@@ -444,9 +437,9 @@ fn run_merge(m: &MergeArgs) -> Result<()> {
             labels.push(p.codec.clone());
         }
     }
-    let anchor = match &m.anchor_csv {
+    let anchor = match &m.report.anchor_csv {
         Some(spec) => Anchor::Curve(load_curve(spec)?),
-        None => Anchor::Predictor(anchor_label(m.anchor.as_deref(), &labels, m.quiet)?),
+        None => Anchor::Predictor(anchor_label(m.report.anchor.as_deref(), &labels, m.quiet)?),
     };
     let mut out = OutputFile::create(&m.output).with_context(|| m.output.display().to_string())?;
     write_csv(&points, &mut out).with_context(|| m.output.display().to_string())?;
@@ -458,13 +451,13 @@ fn run_merge(m: &MergeArgs) -> Result<()> {
         frames: None,
         tools: &|c| c,
         output: &m.output,
-        json_path: m.json.as_deref(),
-        plot_path: m.plot.as_deref(),
+        json_path: m.report.json.as_deref(),
+        plot_path: m.report.plot.as_deref(),
         anchor: None,
         anchor_csv: None,
         threads: None,
         quiet: m.quiet,
-        psnr: m.psnr,
+        psnr: m.report.psnr,
         shard: (1, 1),
     };
     let report = report(points, &anchor, &request)?;

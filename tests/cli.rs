@@ -1084,9 +1084,12 @@ fn presets_differ_options_override_them_and_every_stream_decodes() {
     assert_eq!(encode("default.mcv", &[]), streams[2]);
     assert_ne!(streams[0], streams[1]);
     assert_ne!(streams[1], streams[2]);
-    // Options given override the preset: medium with the fast decision
-    // and without RDOQ is fast.
-    assert_eq!(encode("o.mcv", &["--decision", "fast", "--no-rdoq"]), streams[1]);
+    // Options given override the preset: fast with half-pel vectors and
+    // without weighted prediction is ultrafast.
+    assert_eq!(
+        encode("o.mcv", &["--preset", "fast", "--subpel", "half", "--no-weightp"]),
+        streams[0]
+    );
     // `mocomp rd` codes as `mocomp encode` does with the same preset,
     // search settings included (ultrafast's half-pel).
     mocomp()

@@ -296,3 +296,43 @@ fn a_seeded_search_keeps_an_exact_seed_and_survives_seeds_past_the_border() {
     // A block outside the picture is an error, not a panic.
     assert!(search_around(&cur, &reference, (90, 0), exact, Mv::ZERO, &cfg).is_err());
 }
+
+/// Flat shapes crossing a smooth background, as in cartoons: the
+/// background moves (1, 0), the shapes (5, -3) and (-4, 4).
+fn cartoon(shift: bool) -> Plane {
+    let (w, h) = (128usize, 96usize);
+    Plane::from_fn(w, h, |x, y| {
+        let t = if shift { 1.0 } else { 0.0 };
+        let inside = |cx: f64, cy: f64, dx: f64, dy: f64, r: f64| {
+            (x as f64 - (cx + dx * t)).abs() < r && (y as f64 - (cy + dy * t)).abs() < r
+        };
+        if inside(40.0, 40.0, 5.0, -3.0, 14.0) {
+            200
+        } else if inside(90.0, 60.0, -4.0, 4.0, 12.0) {
+            60
+        } else {
+            (90.0 + 0.4 * (x as f64 - t) + 0.3 * y as f64) as u8
+        }
+    })
+    .unwrap()
+}
+
+#[test]
+fn epzs_window_never_loses_and_closes_on_exhaustive_search_for_flat_shapes() {
+    let (reference, cur) = (cartoon(false), cartoon(true));
+    let run = |method: Method, window: i32| {
+        let mut cfg = MeConfig::new(method, 16, 8);
+        cfg.window = window;
+        estimate(&cur, &reference, &cfg).unwrap()
+    };
+    let (plain, windowed, esa) = (run(Method::Epzs, 0), run(Method::Epzs, 4), run(Method::Esa, 0));
+    // The window only adds candidates to the same walk: no block gets worse.
+    for (i, (a, b)) in plain.costs().iter().zip(windowed.costs()).enumerate() {
+        assert!(b <= a, "block {i}: {b} > {a}");
+    }
+    let total = |f: &MotionField| f.costs().iter().map(|&c| u64::from(c)).sum::<u64>();
+    let (p, w, e) = (total(&plain), total(&windowed), total(&esa));
+    assert!(w < p, "the window finds nothing: {w} against {p}");
+    // ... and takes most of the way to exhaustive search.
+    assert!(w - e < (p - e) / 2, "plain {p}, windowed {w}, exhaustive {e}");
+}

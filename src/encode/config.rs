@@ -17,6 +17,9 @@ pub struct SearchSettings {
     pub range: i32,
     /// Sub-pel refinement.
     pub subpel: Subpel,
+    /// EPZS's exhaustive window around its best, full pels (0: none; see
+    /// `me::MeConfig::window`).
+    pub window: i32,
 }
 
 impl Default for SearchSettings {
@@ -25,6 +28,8 @@ impl Default for SearchSettings {
             method: Method::Epzs,
             range: 16,
             subpel: Subpel::Quarter,
+            // The medium preset's.
+            window: 4,
         }
     }
 }
@@ -232,7 +237,8 @@ pub enum EncoderPreset {
     /// Quarter-pel, weighted prediction, the fast mode decision, no RDOQ
     /// (as x264's faster presets drop trellis).
     Fast,
-    /// As fast, with RDOQ and the full mode decision. The default.
+    /// As fast, with RDOQ, the full mode decision and EPZS's exhaustive
+    /// window of 4 pels. The default.
     #[default]
     Medium,
     /// As medium, with a search range of 32.
@@ -402,6 +408,7 @@ impl EncoderConfig {
             } else {
                 SearchSettings::default().range
             };
+            search.window = if preset >= Medium { 4 } else { 0 };
         }
         self
     }
@@ -478,6 +485,7 @@ mod tests {
             assert_eq!(s.subpel == Subpel::Half, p == EncoderPreset::Ultrafast);
             assert_eq!(c.decision == ModeDecision::Full, p >= EncoderPreset::Medium);
             assert_eq!(s.range, if p == EncoderPreset::Slow { 32 } else { 16 });
+            assert_eq!(s.window, if p >= EncoderPreset::Medium { 4 } else { 0 });
         }
         // The default configuration is the medium preset's.
         assert_eq!(

@@ -91,6 +91,7 @@ impl MotionAnalyser {
     fn search(&mut self, cur: &Plane, reference: &Plane, s: SearchSettings) -> Vec<Mv> {
         let mut cfg = MeConfig::new(s.method, MB, s.range);
         cfg.subpel = s.subpel;
+        cfg.window = s.window;
         cfg.metric = Metric::Satd;
         cfg.lambda = lambda_for_qp(Metric::Satd, self.qp);
         // The configuration was checked when the encoder was made and the

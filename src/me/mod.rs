@@ -184,6 +184,11 @@ pub struct MeConfig {
     pub metric: Metric,
     /// Weight of the vector's bits, or 0 for none. See [`lambda_for_qp`].
     pub lambda: f64,
+    /// EPZS only: after its descent, every full-pel position within this
+    /// many pels of the best is tried, and the descent resumed (0: none).
+    /// Flat shapes over smooth backgrounds leave the descent in a local
+    /// minimum; a window of 4 closes most of the gap to exhaustive search.
+    pub window: i32,
 }
 
 impl MeConfig {
@@ -197,6 +202,7 @@ impl MeConfig {
             subpel: Subpel::None,
             metric: Metric::Sad,
             lambda: 0.0,
+            window: 0,
         }
     }
 
@@ -209,6 +215,9 @@ impl MeConfig {
         }
         if !(self.lambda >= 0.0 && self.lambda < 1e6) {
             return Err(MeError::Lambda(self.lambda));
+        }
+        if !(0..=MAX_RANGE).contains(&self.window) {
+            return Err(MeError::Range(self.window));
         }
         Ok(())
     }

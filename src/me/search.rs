@@ -257,6 +257,18 @@ pub(crate) fn full_pel(s: &SearchContext<'_>, neighbours: &Neighbours) -> Candid
                 w.try_at((mv.x + 2) >> 2, (mv.y + 2) >> 2);
             }
             while w.pattern(&CROSS, 1) {}
+            // Every position near the best (MeConfig::window): flat shapes
+            // over smooth backgrounds leave the descent in a local minimum.
+            let r = w.s.cfg.window;
+            if r > 0 {
+                let (cx, cy) = w.centre();
+                for dy in -r..=r {
+                    for dx in -r..=r {
+                        w.try_at(cx + dx, cy + dy);
+                    }
+                }
+                while w.pattern(&CROSS, 1) {}
+            }
         }
     }
     w.best

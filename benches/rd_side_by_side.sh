@@ -14,8 +14,9 @@
 #     predictor against mpeg4, x264_simple and x264;
 #   - a summary: the default (block:epzs) against x264_simple and x264 on
 #     every sequence, and the mean;
-#   - encode time of the default, whole process, one thread, on pan_cif,
-#     beside x264_simple and x264 medium (five runs each).
+#   - encode time of every preset, whole process, one thread, on pan_cif,
+#     beside x264_simple and x264 medium (medians of RUNS interleaved
+#     rounds, default 10).
 # Env: SEQS (Y4M paths; default the set above), DEV (where make.sh builds
 # its sequences, default OUT_DIR/dev), PREDICTORS (default every one; the
 # summary needs block:epzs), RD_ARGS, SPEED=0 to skip the timing, MOCOMP
@@ -65,7 +66,7 @@ for IN in $SEQS; do
     n=$((n + 1))
   fi
 done
-cat "$OUT"/table_*.md > "$OUT/tables.md"
+cat "$OUT"/table_*.md > "$OUT/tables.md" 2> /dev/null || true
 if [ "$n" -gt 0 ]; then
   mean=$(echo "$sums" | awk -v n="$n" '{printf "| **mean of %d** | **%+.1f %%** | **%+.1f %%** |", n, $1 / n, $2 / n}')
   summary+=$'\n'"$mean"
@@ -73,15 +74,24 @@ if [ "$n" -gt 0 ]; then
   echo "$summary" | tee "$OUT/summary.md"
 fi
 [ "${SPEED:-1}" = 0 ] && exit 0
-# Speed: the default setting, whole process, one thread, five runs each.
+# Speed: every preset and the two x264 settings, whole process, one
+# thread, QP 28 on pan_cif, interleaved over RUNS rounds (default 10);
+# the median of each (the README's preset table).
 IN="$SHARED/data/pan_cif.y4m"
 X264="ffmpeg -hide_banner -nostdin -loglevel error -y -i $IN -c:v libx264 -preset medium -tune psnr -qp 28 -threads 1"
-for i in 1 2 3 4 5; do
-  # shellcheck disable=SC2086
-  /usr/bin/time -f "mocomp default %e s" "$M" encode "$IN" -o "$OUT/default.mcv" --threads 1 --quiet ${RD_ARGS:-} > /dev/null
-  /usr/bin/time -f "x264_simple qp28 %e s" $X264 \
+for i in $(seq "${RUNS:-10}"); do
+  for p in ultrafast fast medium slow; do
+    # shellcheck disable=SC2086
+    /usr/bin/time -f "$p %e" "$M" encode "$IN" -o "$OUT/$p.mcv" --threads 1 --quiet --preset $p ${RD_ARGS:-} > /dev/null
+  done
+  /usr/bin/time -f "x264_simple %e" $X264 \
     -x264-params keyint=infinite:scenecut=0:bframes=0:threads=1:cabac=0:8x8dct=0:ref=1:no-deblock=1:subme=1:me=dia \
     -f h264 "$OUT/x264_simple.264"
-  /usr/bin/time -f "x264 medium qp28 %e s" $X264 \
+  /usr/bin/time -f "x264_medium %e" $X264 \
     -x264-params keyint=infinite:scenecut=0:bframes=0:threads=1 -f h264 "$OUT/x264.264"
+done 2> "$OUT/times.txt"
+echo "encode time, pan_cif, one thread, median of ${RUNS:-10} (s):"
+for k in ultrafast fast medium slow x264_simple x264_medium; do
+  awk -v k="$k" '$1 == k {print $2}' "$OUT/times.txt" | sort -n |
+    awk -v k="$k" '{v[NR] = $1} END {printf "  %-12s %.2f\n", k, v[int((NR + 1) / 2)]}'
 done

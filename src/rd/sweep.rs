@@ -181,14 +181,17 @@ impl Study<'_> {
     }
 
     /// Runs the jobs `indices` in parallel on the current rayon pool,
-    /// giving each point to `done` as it is made (from the worker
-    /// threads, in no set order); the first error of either stops it.
+    /// giving each point, tagged with `id` (the caller's [`Study::id`],
+    /// computed once since it reads every frame), to `done` as it is made
+    /// (from the worker threads, in no set order); the first error of
+    /// either stops it.
     pub fn run<E: From<EncodeError> + Send>(
         &self,
+        id: &str,
         indices: &[usize],
         done: impl Fn(RdPoint) -> Result<(), E> + Sync,
     ) -> Result<(), E> {
-        let (id, total) = (self.id(), self.len());
+        let total = self.len();
         indices.par_iter().try_for_each(|&index| {
             let (seq, predictor, qp) = self.job(index);
             let config = (self.configure)(EncoderConfig::new().qp(qp).predictor(predictor));
@@ -210,7 +213,7 @@ impl Study<'_> {
                 encode_ms: s.encode_ms,
                 me_ms: s.me_ms,
                 psnr_y_mse: s.psnr_y_mse,
-                study: id.clone(),
+                study: id.to_string(),
                 job: Some((index, total)),
             })
         })
@@ -243,7 +246,7 @@ pub fn sweep(
     };
     let all: Vec<usize> = (0..study.len()).collect();
     let points = std::sync::Mutex::new(Vec::with_capacity(all.len()));
-    study.run(&all, |p| -> Result<(), EncodeError> {
+    study.run(&study.id(), &all, |p| -> Result<(), EncodeError> {
         points.lock().unwrap_or_else(|e| e.into_inner()).push(p);
         done();
         Ok(())

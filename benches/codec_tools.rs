@@ -19,7 +19,7 @@ fn tools(c: &mut Criterion) {
     let intra = vec![
         MbEdgeInfo {
             intra: true,
-            mv: None,
+            mvs: [None; 4],
             coded: 0,
         };
         mbs
@@ -28,7 +28,7 @@ fn tools(c: &mut Criterion) {
     let inter = vec![
         MbEdgeInfo {
             intra: false,
-            mv: Some(Mv::new(5, -3)),
+            mvs: [Some(Mv::new(5, -3)); 4],
             coded: 0x5a5a,
         };
         mbs

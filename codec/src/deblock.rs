@@ -9,7 +9,7 @@
 //! the frame reads the samples before it, so encoder and decoder both
 //! filter the whole frame at the end.
 
-use crate::mv::Mv;
+use crate::partition::MbVectors;
 use crate::picture::{Frame, Plane};
 use crate::recon::chroma_qp;
 use crate::residual::MbResidual;
@@ -51,8 +51,9 @@ const TC0: [[u8; 52]; 3] = [
 pub struct MbEdgeInfo {
     /// Intra-coded.
     pub intra: bool,
-    /// Its vector, where vectors are compared (block and OBMC frames).
-    pub mv: Option<Mv>,
+    /// Its 8x8 blocks' vectors (raster order), where vectors are compared
+    /// (block and OBMC frames).
+    pub mvs: MbVectors,
     /// Bit `by * 4 + bx`: luma 4x4 block (bx, by) has a non-zero level.
     pub coded: u16,
 }
@@ -60,7 +61,7 @@ pub struct MbEdgeInfo {
 impl MbEdgeInfo {
     /// The information of macroblock `mb` of a frame using `tool`, whose
     /// vector (for its neighbours' prediction) is `mv`.
-    pub fn of(kind: &MbKind, residual: &MbResidual, tool: MotionTool, mv: Option<Mv>) -> MbEdgeInfo {
+    pub fn of(kind: &MbKind, residual: &MbResidual, tool: MotionTool, mvs: MbVectors) -> MbEdgeInfo {
         let coded = residual
             .luma
             .iter()
@@ -69,10 +70,10 @@ impl MbEdgeInfo {
             .fold(0u16, |bits, (i, _)| bits | 1 << i);
         MbEdgeInfo {
             intra: matches!(kind, MbKind::Intra { .. }),
-            mv: if matches!(tool, MotionTool::Grid(_)) {
-                None
+            mvs: if matches!(tool, MotionTool::Grid(_)) {
+                [None; 4]
             } else {
-                mv
+                mvs
             },
             coded,
         }
@@ -80,7 +81,7 @@ impl MbEdgeInfo {
 
     /// Every macroblock of `frame`, with `vectors` from
     /// [`crate::recon::frame_vectors`].
-    pub fn of_frame(frame: &FrameSyntax, vectors: &[Option<Mv>]) -> Vec<MbEdgeInfo> {
+    pub fn of_frame(frame: &FrameSyntax, vectors: &[MbVectors]) -> Vec<MbEdgeInfo> {
         frame
             .mbs
             .iter()
@@ -106,8 +107,11 @@ fn strength(info: &[MbEdgeInfo], mb_cols: usize, p: (usize, usize), q: (usize, u
     if mp.coded_at(px, py) || mq.coded_at(qx, qy) {
         return 2;
     }
-    match (mp.mv, mq.mv) {
-        (Some(a), Some(b)) if mb_edge && ((a.x - b.x).abs() >= 4 || (a.y - b.y).abs() >= 4) => 1,
+    // Vectors are compared per 8x8 block (within a 16x16 macroblock they
+    // are one, so only partitions' and macroblocks' edges can differ).
+    let vector = |m: &MbEdgeInfo, x: usize, y: usize| m.mvs[(y / 2) * 2 + x / 2];
+    match (vector(mp, px, py), vector(mq, qx, qy)) {
+        (Some(a), Some(b)) if (a.x - b.x).abs() >= 4 || (a.y - b.y).abs() >= 4 => 1,
         _ => 0,
     }
 }
@@ -257,10 +261,12 @@ pub fn deblock_frame(frame: &mut Frame, info: &[MbEdgeInfo], qp: u8) {
 mod tests {
     use super::*;
 
+    use crate::mv::Mv;
+
     fn inter(mv: Mv, coded: u16) -> MbEdgeInfo {
         MbEdgeInfo {
             intra: false,
-            mv: Some(mv),
+            mvs: [Some(mv); 4],
             coded,
         }
     }
@@ -269,7 +275,7 @@ mod tests {
     fn strengths_follow_h264s_rules() {
         let intra = MbEdgeInfo {
             intra: true,
-            mv: None,
+            mvs: [None; 4],
             coded: 0,
         };
         let still = inter(Mv::ZERO, 0);
@@ -282,6 +288,20 @@ mod tests {
         assert_eq!(strength(&[still, inter(Mv::new(3, -3), 0)], 2, (3, 0), (4, 0)), 0);
         // Inside one macroblock, vectors are one: no strength from them.
         assert_eq!(strength(&[inter(Mv::new(9, 9), 0)], 1, (0, 0), (1, 0)), 0);
+        // ... unless it is split: its partitions' edge (x = 8) compares
+        // their vectors, the 4x4 edges inside a partition do not.
+        let split = MbEdgeInfo {
+            mvs: [
+                Some(Mv::ZERO),
+                Some(Mv::new(0, 8)),
+                Some(Mv::ZERO),
+                Some(Mv::new(0, 8)),
+            ],
+            ..inter(Mv::ZERO, 0)
+        };
+        assert_eq!(strength(&[split], 1, (1, 2), (2, 2)), 1);
+        assert_eq!(strength(&[split], 1, (0, 2), (1, 2)), 0);
+        assert_eq!(strength(&[split], 1, (2, 1), (2, 2)), 0);
     }
 
     #[test]
@@ -301,7 +321,7 @@ mod tests {
         let mut flat = Frame::filled(32, 32, 90, 128, 128).unwrap();
         let intra = MbEdgeInfo {
             intra: true,
-            mv: None,
+            mvs: [None; 4],
             coded: 0,
         };
         deblock_frame(&mut flat, &[intra; 4], 51);

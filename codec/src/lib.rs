@@ -18,6 +18,7 @@ pub mod intra;
 pub mod modes;
 pub mod mv;
 pub mod obmc;
+pub mod partition;
 pub mod picture;
 pub mod recon;
 pub mod residual;

@@ -15,6 +15,7 @@ use crate::entropy::{
 };
 use crate::intra::IntraMode;
 use crate::mv::Mv;
+use crate::partition::{Part, Split, WHOLE};
 
 // Context layout.
 const SKIP: usize = 0; // 3: skipped neighbours
@@ -26,7 +27,9 @@ const MVD: usize = INTRA + 3; // 2 components
 const GRID: usize = MVD + 2 * VECTOR_CONTEXTS; // 2 components
 const LUMA_MODE: usize = GRID + 2 * VECTOR_CONTEXTS; // 3
 const CHROMA_MODE: usize = LUMA_MODE + 3; // 3
-const CONTEXTS: usize = CHROMA_MODE + 3;
+/// Split flag (3: split neighbours), then quad (1) and vertical (1).
+const SPLIT: usize = CHROMA_MODE + 3;
+const CONTEXTS: usize = SPLIT + 5;
 
 /// Unary bins of |d| - 1 before the Exp-Golomb suffix.
 const UNARY_MAX: u32 = 8;
@@ -47,6 +50,14 @@ pub enum MbMode {
         /// Vector minus predicted vector, quarter-pel.
         mvd: Mv,
     },
+    /// Inter, split into partitions, with their vector differences in
+    /// coding order (entries past the split's partitions are zero).
+    Split {
+        /// How it is split.
+        split: Split,
+        /// Vector minus predicted vector per partition, quarter-pel.
+        mvds: [Mv; 4],
+    },
     /// Intra with these modes.
     Intra {
         /// Luma mode.
@@ -61,8 +72,27 @@ pub enum MbMode {
 struct MbState {
     skip: bool,
     intra: bool,
-    /// |mvd| per component (0 unless inter).
-    mvd_abs: [u32; 2],
+    split: bool,
+    /// Per 8x8 block (raster order), |mvd| per component (0 unless inter).
+    mvd_abs: [[u32; 2]; 4],
+}
+
+/// Which vectors a frame's macroblocks code.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum VectorSyntax {
+    /// None (I frames, grid frames).
+    None,
+    /// One per inter macroblock (OBMC frames).
+    PerMacroblock,
+    /// One per partition, the split coded (block frames).
+    PerPartition,
+}
+
+impl VectorSyntax {
+    /// Whether any vector is coded.
+    pub fn any(self) -> bool {
+        self != VectorSyntax::None
+    }
 }
 
 /// Context increment of a vector difference's zero flag from the sum of
@@ -129,6 +159,46 @@ fn read_intra_mode(dec: &mut RangeDecoder<'_>, c: &mut [Context], base: usize) -
     }
 }
 
+/// The split (when the frame codes one) and vector differences of an inter
+/// macroblock: the reader twin of [`code_flags`]' split and [`code_mvd`].
+fn read_inter(
+    dec: &mut RangeDecoder<'_>,
+    c: &mut [Context],
+    n: &[MbState; 2],
+    vectors: VectorSyntax,
+) -> Option<MbMode> {
+    let split = if vectors == VectorSyntax::PerPartition
+        && dec.decode(&mut c[SPLIT + n.iter().filter(|s| s.split).count()])
+    {
+        Some(if dec.decode(&mut c[SPLIT + 3]) {
+            Split::Quad
+        } else if dec.decode(&mut c[SPLIT + 4]) {
+            Split::Vertical
+        } else {
+            Split::Horizontal
+        })
+    } else {
+        None
+    };
+    let parts = split.map_or(std::slice::from_ref(&WHOLE), Split::parts);
+    let mut mvds = [Mv::ZERO; 4];
+    if vectors.any() {
+        let mut own = [[0u32; 2]; 4];
+        for (p, d) in parts.iter().zip(&mut mvds) {
+            let sums = neighbour_sums(n, &own, p);
+            d.x = read_component(dec, c, MVD, sums[0])?;
+            d.y = read_component(dec, c, MVD + VECTOR_CONTEXTS, sums[1])?;
+            for k in p.blocks() {
+                own[k] = [d.x.unsigned_abs(), d.y.unsigned_abs()];
+            }
+        }
+    }
+    Some(match split {
+        Some(split) => MbMode::Split { split, mvds },
+        None => MbMode::Inter { mvd: mvds[0] },
+    })
+}
+
 /// Neighbour state of macroblock (x, y): the left and above ones (default
 /// outside the picture).
 fn neighbours(states: &[MbState], cols: usize, x: usize, y: usize) -> [MbState; 2] {
@@ -146,7 +216,7 @@ fn neighbours(states: &[MbState], cols: usize, x: usize, y: usize) -> [MbState; 
 }
 
 /// Everything of a macroblock's mode but its vector difference.
-fn code_flags<B: Bins>(b: &mut B, n: &[MbState; 2], inter_frame: bool, mode: &MbMode) {
+fn code_flags<B: Bins>(b: &mut B, n: &[MbState; 2], inter_frame: bool, mode: &MbMode, vectors: VectorSyntax) {
     if inter_frame {
         let skipped = n.iter().filter(|s| s.skip).count();
         b.bin(SKIP + skipped, *mode == MbMode::Skip);
@@ -156,26 +226,74 @@ fn code_flags<B: Bins>(b: &mut B, n: &[MbState; 2], inter_frame: bool, mode: &Mb
         let intra = n.iter().filter(|s| s.intra).count();
         b.bin(INTRA + intra, matches!(mode, MbMode::Intra { .. }));
     }
-    if let MbMode::Intra { luma, chroma } = *mode {
-        code_intra_mode(b, LUMA_MODE, luma);
-        code_intra_mode(b, CHROMA_MODE, chroma);
+    match *mode {
+        MbMode::Intra { luma, chroma } => {
+            code_intra_mode(b, LUMA_MODE, luma);
+            code_intra_mode(b, CHROMA_MODE, chroma);
+        }
+        MbMode::Inter { .. } if vectors == VectorSyntax::PerPartition => code_split(b, n, None),
+        MbMode::Split { split, .. } => code_split(b, n, Some(split)),
+        _ => {}
     }
 }
 
-/// The vector difference of an inter macroblock (none for the others, or
-/// when the frame codes no vectors).
-fn code_mvd<B: Bins>(b: &mut B, n: &[MbState; 2], mode: &MbMode, uses_mvs: bool) {
-    if let (MbMode::Inter { mvd }, true) = (mode, uses_mvs) {
-        for (c, d) in [mvd.x, mvd.y].into_iter().enumerate() {
-            let sum = n[0].mvd_abs[c] + n[1].mvd_abs[c];
-            code_component(b, MVD + c * VECTOR_CONTEXTS, sum, d);
+/// The vector differences of an inter macroblock (none for the others, or
+/// when the frame codes no vectors), each component's context from the
+/// differences of the 8x8 blocks left of and above the partition's
+/// top-left block.
+fn code_mvd<B: Bins>(b: &mut B, n: &[MbState; 2], mode: &MbMode, vectors: VectorSyntax) {
+    if !vectors.any() {
+        return;
+    }
+    let (parts, mvds) = match mode {
+        MbMode::Inter { mvd } => (std::slice::from_ref(&WHOLE), std::slice::from_ref(mvd)),
+        MbMode::Split { split, mvds } => (split.parts(), &mvds[..]),
+        _ => return,
+    };
+    let mut own = [[0u32; 2]; 4];
+    for (p, d) in parts.iter().zip(mvds) {
+        let sums = neighbour_sums(n, &own, p);
+        for (c, v) in [d.x, d.y].into_iter().enumerate() {
+            code_component(b, MVD + c * VECTOR_CONTEXTS, sums[c], v);
+        }
+        for k in p.blocks() {
+            own[k] = [d.x.unsigned_abs(), d.y.unsigned_abs()];
         }
     }
 }
 
-fn code_mb<B: Bins>(b: &mut B, n: &[MbState; 2], inter_frame: bool, mode: &MbMode, uses_mvs: bool) {
-    code_flags(b, n, inter_frame, mode);
-    code_mvd(b, n, mode, uses_mvs);
+/// Per component, |mvd| of the 8x8 block left of partition `p`'s top-left
+/// block plus that of the one above it: in the macroblock (`own`, its
+/// partitions coded so far) or in the neighbours `n`.
+fn neighbour_sums(n: &[MbState; 2], own: &[[u32; 2]; 4], p: &Part) -> [u32; 2] {
+    let left = if p.x8 > 0 {
+        own[p.y8 * 2]
+    } else {
+        n[0].mvd_abs[p.y8 * 2 + 1]
+    };
+    let above = if p.y8 > 0 {
+        own[p.x8]
+    } else {
+        n[1].mvd_abs[2 + p.x8]
+    };
+    [left[0] + above[0], left[1] + above[1]]
+}
+
+/// The split of an inter macroblock of a frame coding vectors per partition.
+fn code_split<B: Bins>(b: &mut B, n: &[MbState; 2], split: Option<Split>) {
+    let ctx = SPLIT + n.iter().filter(|s| s.split).count();
+    b.bin(ctx, split.is_some());
+    if let Some(split) = split {
+        b.bin(SPLIT + 3, split == Split::Quad);
+        if split != Split::Quad {
+            b.bin(SPLIT + 4, split == Split::Vertical);
+        }
+    }
+}
+
+fn code_mb<B: Bins>(b: &mut B, n: &[MbState; 2], inter_frame: bool, mode: &MbMode, vectors: VectorSyntax) {
+    code_flags(b, n, inter_frame, mode, vectors);
+    code_mvd(b, n, mode, vectors);
 }
 
 fn state_of(mode: &MbMode) -> MbState {
@@ -185,9 +303,21 @@ fn state_of(mode: &MbMode) -> MbState {
             ..MbState::default()
         },
         MbMode::Inter { mvd } => MbState {
-            mvd_abs: [mvd.x.unsigned_abs(), mvd.y.unsigned_abs()],
+            mvd_abs: [[mvd.x.unsigned_abs(), mvd.y.unsigned_abs()]; 4],
             ..MbState::default()
         },
+        MbMode::Split { split, mvds } => {
+            let mut state = MbState {
+                split: true,
+                ..MbState::default()
+            };
+            for (p, d) in split.parts().iter().zip(mvds) {
+                for k in p.blocks() {
+                    state.mvd_abs[k] = [d.x.unsigned_abs(), d.y.unsigned_abs()];
+                }
+            }
+            state
+        }
         MbMode::Intra { .. } => MbState {
             intra: true,
             ..MbState::default()
@@ -201,7 +331,7 @@ fn state_of(mode: &MbMode) -> MbState {
 /// ```
 /// use mocomp_codec::entropy::{RangeDecoder, RangeEncoder};
 /// use mocomp_codec::intra::IntraMode;
-/// use mocomp_codec::modes::{MbMode, ModeCoder};
+/// use mocomp_codec::modes::{MbMode, ModeCoder, VectorSyntax};
 /// use mocomp_codec::mv::Mv;
 /// let modes = [
 ///     MbMode::Skip,
@@ -211,13 +341,13 @@ fn state_of(mode: &MbMode) -> MbState {
 /// let mut coder = ModeCoder::new(3, 1);
 /// let mut enc = RangeEncoder::new();
 /// for (x, m) in modes.iter().enumerate() {
-///     coder.write(&mut enc, x, 0, true, true, m);
+///     coder.write(&mut enc, x, 0, true, VectorSyntax::PerPartition, m);
 /// }
 /// let bytes = enc.finish();
 /// let mut coder = ModeCoder::new(3, 1);
 /// let mut dec = RangeDecoder::new(&bytes);
 /// for (x, m) in modes.iter().enumerate() {
-///     assert_eq!(coder.read(&mut dec, x, 0, true, true), Some(*m));
+///     assert_eq!(coder.read(&mut dec, x, 0, true, VectorSyntax::PerPartition), Some(*m));
 /// }
 /// ```
 #[derive(Debug, Clone)]
@@ -256,11 +386,18 @@ impl ModeCoder {
     }
 
     /// The rate estimate, in 1/256 bit, of coding macroblock (mb_x, mb_y)
-    /// as `mode` now (`inter_frame`: a P frame; `uses_mvs`: its vectors are
-    /// coded, not a grid's). Not normative.
-    pub fn cost(&self, mb_x: usize, mb_y: usize, inter_frame: bool, uses_mvs: bool, mode: &MbMode) -> u32 {
+    /// as `mode` now (`inter_frame`: a P frame; `vectors`: which vectors the
+    /// frame codes). Not normative.
+    pub fn cost(
+        &self,
+        mb_x: usize,
+        mb_y: usize,
+        inter_frame: bool,
+        vectors: VectorSyntax,
+        mode: &MbMode,
+    ) -> u32 {
         let mut p = Pricer::new(&self.contexts[..], 0);
-        code_mb(&mut p, &self.neighbours(mb_x, mb_y), inter_frame, mode, uses_mvs);
+        code_mb(&mut p, &self.neighbours(mb_x, mb_y), inter_frame, mode, vectors);
         p.cost
     }
 
@@ -273,14 +410,21 @@ impl ModeCoder {
     }
 
     /// Adapts and records as [`ModeCoder::write`] does, without writing.
-    pub fn commit(&mut self, mb_x: usize, mb_y: usize, inter_frame: bool, uses_mvs: bool, mode: &MbMode) {
+    pub fn commit(
+        &mut self,
+        mb_x: usize,
+        mb_y: usize,
+        inter_frame: bool,
+        vectors: VectorSyntax,
+        mode: &MbMode,
+    ) {
         let n = self.neighbours(mb_x, mb_y);
         code_mb(
             &mut Adapter(&mut self.contexts[..]),
             &n,
             inter_frame,
             mode,
-            uses_mvs,
+            vectors,
         );
         self.states[mb_y * self.mb_cols + mb_x] = state_of(mode);
     }
@@ -293,16 +437,16 @@ impl ModeCoder {
         mb_x: usize,
         mb_y: usize,
         inter_frame: bool,
-        uses_mvs: bool,
+        vectors: VectorSyntax,
         mode: &MbMode,
     ) -> (u32, u32) {
         let n = self.neighbours(mb_x, mb_y);
         // The flags and modes first, priced apart from the vector.
         let mut w = Writer::new(enc, &mut self.contexts[..]);
-        code_flags(&mut w, &n, inter_frame, mode);
+        code_flags(&mut w, &n, inter_frame, mode, vectors);
         let rest = w.cost;
         w.cost = 0;
-        code_mvd(&mut w, &n, mode, uses_mvs);
+        code_mvd(&mut w, &n, mode, vectors);
         let motion = w.cost;
         self.states[mb_y * self.mb_cols + mb_x] = state_of(mode);
         (motion, rest)
@@ -316,7 +460,7 @@ impl ModeCoder {
         mb_x: usize,
         mb_y: usize,
         inter_frame: bool,
-        uses_mvs: bool,
+        vectors: VectorSyntax,
     ) -> Option<MbMode> {
         let n = self.neighbours(mb_x, mb_y);
         let c = &mut self.contexts;
@@ -334,12 +478,7 @@ impl ModeCoder {
             let chroma = read_intra_mode(dec, c, CHROMA_MODE);
             MbMode::Intra { luma, chroma }
         } else {
-            let mut mvd = Mv::ZERO;
-            if uses_mvs {
-                mvd.x = read_component(dec, c, MVD, n[0].mvd_abs[0] + n[1].mvd_abs[0])?;
-                mvd.y = read_component(dec, c, MVD + VECTOR_CONTEXTS, n[0].mvd_abs[1] + n[1].mvd_abs[1])?;
-            }
-            MbMode::Inter { mvd }
+            read_inter(dec, c, &n, vectors)?
         };
         self.states[mb_y * self.mb_cols + mb_x] = state_of(&mode);
         Some(mode)
@@ -395,6 +534,18 @@ mod tests {
         prop_oneof![
             Just(MbMode::Skip),
             (-40_000i32..=40_000, -300i32..=300).prop_map(|(x, y)| MbMode::Inter { mvd: Mv::new(x, y) }),
+            (
+                0usize..3,
+                proptest::collection::vec((-3000i32..=3000, -40i32..=40), 4)
+            )
+                .prop_map(|(s, d)| {
+                    let split = Split::ALL[s];
+                    let mut mvds = [Mv::ZERO; 4];
+                    for (m, &(x, y)) in mvds.iter_mut().zip(&d).take(split.parts().len()) {
+                        *m = Mv::new(x, y);
+                    }
+                    MbMode::Split { split, mvds }
+                }),
             (0u32..4, 0u32..4).prop_map(|(l, c)| MbMode::Intra {
                 luma: IntraMode::from_code(l).unwrap_or(IntraMode::Dc),
                 chroma: IntraMode::from_code(c).unwrap_or(IntraMode::Dc),
@@ -421,8 +572,8 @@ mod tests {
                 w.write_grid(&mut enc, 3, i % 3, i / 3, Mv::new(x, y));
             }
             for (i, m) in modes.iter().enumerate() {
-                w.write(&mut enc, i % 4, i / 4, inter_frame, true, m);
-                shadow.commit(i % 4, i / 4, inter_frame, true, m);
+                w.write(&mut enc, i % 4, i / 4, inter_frame, VectorSyntax::PerPartition, m);
+                shadow.commit(i % 4, i / 4, inter_frame, VectorSyntax::PerPartition, m);
             }
             let bytes = enc.finish();
             let mut r = ModeCoder::new(4, 3);
@@ -431,7 +582,7 @@ mod tests {
                 prop_assert_eq!(r.read_grid(&mut dec, 3, i % 3, i / 3), Some(Mv::new(x, y)));
             }
             for (i, m) in modes.iter().enumerate() {
-                prop_assert_eq!(r.read(&mut dec, i % 4, i / 4, inter_frame, true), Some(*m));
+                prop_assert_eq!(r.read(&mut dec, i % 4, i / 4, inter_frame, VectorSyntax::PerPartition), Some(*m));
             }
             prop_assert!(dec.consumed_all());
             // Committing adapts the macroblock contexts as writing does.
@@ -447,7 +598,7 @@ mod tests {
                 let _ = r.read_grid(&mut dec, 2, i % 2, i / 2);
             }
             for i in 0..9 {
-                let _ = r.read(&mut dec, i % 3, i / 3, i % 2 == 0, true);
+                let _ = r.read(&mut dec, i % 3, i / 3, i % 2 == 0, VectorSyntax::PerPartition);
             }
         }
     }
@@ -455,11 +606,11 @@ mod tests {
     #[test]
     fn a_run_of_skips_gets_cheap() {
         let mut c = ModeCoder::new(40, 1);
-        let first = c.cost(0, 0, true, true, &MbMode::Skip);
+        let first = c.cost(0, 0, true, VectorSyntax::PerPartition, &MbMode::Skip);
         for x in 0..39 {
-            c.commit(x, 0, true, true, &MbMode::Skip);
+            c.commit(x, 0, true, VectorSyntax::PerPartition, &MbMode::Skip);
         }
-        let later = c.cost(39, 0, true, true, &MbMode::Skip);
+        let later = c.cost(39, 0, true, VectorSyntax::PerPartition, &MbMode::Skip);
         assert_eq!(first, 256);
         assert!(later < 64, "{later}"); // under a quarter of a bit
     }

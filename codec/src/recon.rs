@@ -11,9 +11,10 @@ use crate::interp::{predict_chroma, predict_luma};
 use crate::intra::{self, Neighbours};
 use crate::mv::Mv;
 use crate::obmc::{self, Neighbourhood};
+use crate::partition::MbVectors;
 use crate::picture::{Frame, PictureError, Plane};
 use crate::residual::MbResidual;
-use crate::syntax::{mb_vector, FrameSyntax, FrameType, MbKind, MotionTool, SequenceHeader, MB};
+use crate::syntax::{mb_vectors, FrameSyntax, FrameType, MbKind, MotionTool, SequenceHeader, MB};
 use crate::transform::{dequantize, inverse_4x4, Block4};
 use crate::warp::warp_frame;
 
@@ -55,8 +56,8 @@ pub struct InterContext<'a> {
     pub reference: &'a Frame,
     /// The frame's motion tool.
     pub tool: MotionTool,
-    /// Every macroblock's vector (`None` for intra), for OBMC.
-    pub vectors: &'a [Option<Mv>],
+    /// Every macroblock's vectors (`None` for intra), for OBMC.
+    pub vectors: &'a [MbVectors],
     /// The whole reference warped by the grid, for grid frames.
     pub warped: Option<&'a Frame>,
     /// Macroblocks per row.
@@ -167,25 +168,72 @@ impl IntraEdges {
 /// Inter prediction of macroblock (mb_x, mb_y) with vector `mv` (ignored in
 /// grid frames).
 pub fn predict_inter(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mv: Mv) -> MbSamples {
+    predict_inter_blocks(ctx, mb_x, mb_y, &[mv; 4])
+}
+
+/// Block motion compensation of the `w x h` luma rectangle at (bx, by) in
+/// macroblock (mb_x, mb_y), and of its chroma, with vector `mv`, into the
+/// same place of `pred`.
+fn predict_rect(
+    reference: &Frame,
+    (mb_x, mb_y): (usize, usize),
+    (bx, by, w, h): (usize, usize, usize, usize),
+    mv: Mv,
+    pred: &mut MbSamples,
+) {
+    let (x, y) = ((mb_x * MB + bx) as isize, (mb_y * MB + by) as isize);
+    predict_luma(
+        reference.y(),
+        x,
+        y,
+        mv.x,
+        mv.y,
+        w,
+        h,
+        &mut pred.luma[by * MB + bx..],
+        MB,
+    );
+    let (cx, cy, c) = (bx / 2, by / 2, MB / 2);
+    for p in 0..2 {
+        predict_chroma(
+            reference.plane(p + 1),
+            x / 2,
+            y / 2,
+            mv.x,
+            mv.y,
+            w / 2,
+            h / 2,
+            &mut pred.chroma[p][cy * c + cx..],
+            c,
+        );
+    }
+}
+
+/// Inter prediction of macroblock (mb_x, mb_y) whose 8x8 blocks have the
+/// vectors `mvs` (raster order; block frames: each block predicted with
+/// its own; OBMC frames: the first for the whole macroblock; grid frames:
+/// ignored).
+pub fn predict_inter_blocks(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mvs: &[Mv; 4]) -> MbSamples {
     let mut pred = MbSamples::default();
     let (x, y) = ((mb_x * MB) as isize, (mb_y * MB) as isize);
     let (cx, cy) = (x / 2, y / 2);
     let r = ctx.reference;
+    let mv = mvs[0];
     match ctx.tool {
         MotionTool::Block => {
-            predict_luma(r.y(), x, y, mv.x, mv.y, MB, MB, &mut pred.luma, MB);
-            for p in 0..2 {
-                predict_chroma(
-                    r.plane(p + 1),
-                    cx,
-                    cy,
-                    mv.x,
-                    mv.y,
-                    MB / 2,
-                    MB / 2,
-                    &mut pred.chroma[p],
-                    MB / 2,
-                );
+            // Samples depend only on their own vector: equal blocks are
+            // predicted together, which is faster and gives the same.
+            let rects: &[(usize, usize, usize, usize, usize)] = if mvs.iter().all(|&m| m == mv) {
+                &[(0, 0, 0, 16, 16)]
+            } else if mvs[0] == mvs[1] && mvs[2] == mvs[3] {
+                &[(0, 0, 0, 16, 8), (2, 0, 8, 16, 8)]
+            } else if mvs[0] == mvs[2] && mvs[1] == mvs[3] {
+                &[(0, 0, 0, 8, 16), (1, 8, 0, 8, 16)]
+            } else {
+                &[(0, 0, 0, 8, 8), (1, 8, 0, 8, 8), (2, 0, 8, 8, 8), (3, 8, 8, 8, 8)]
+            };
+            for &(k, bx, by, w, h) in rects {
+                predict_rect(r, (mb_x, mb_y), (bx, by, w, h), mvs[k], &mut pred);
             }
         }
         MotionTool::Obmc => {
@@ -195,7 +243,7 @@ pub fn predict_inter(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mv: Mv) -
                 for (dx, slot) in row.iter_mut().enumerate() {
                     let (nx, ny) = (mb_x as isize + dx as isize - 1, mb_y as isize + dy as isize - 1);
                     if nx >= 0 && ny >= 0 && (nx as usize) < ctx.mb_cols && (ny as usize) < rows {
-                        *slot = ctx.vectors[ny as usize * ctx.mb_cols + nx as usize];
+                        *slot = ctx.vectors[ny as usize * ctx.mb_cols + nx as usize][0];
                     }
                 }
             }
@@ -295,11 +343,11 @@ pub fn reconstruct_mb(
 }
 
 /// The vectors of every macroblock of a frame (`None` for intra).
-pub fn frame_vectors(seq: &SequenceHeader, frame: &FrameSyntax) -> Vec<Option<Mv>> {
+pub fn frame_vectors(seq: &SequenceHeader, frame: &FrameSyntax) -> Vec<MbVectors> {
     let cols = seq.mb_cols();
     let mut vectors = Vec::with_capacity(frame.mbs.len());
     for (i, mb) in frame.mbs.iter().enumerate() {
-        let v = mb_vector(&mb.kind, &vectors, i % cols, i / cols, cols);
+        let v = mb_vectors(&mb.kind, &vectors, i % cols, i / cols, cols);
         vectors.push(v);
     }
     vectors
@@ -350,7 +398,7 @@ pub fn reconstruct_frame(
                     warped: warped.as_ref(),
                     mb_cols: cols,
                 };
-                predict_inter(&ctx, mb_x, mb_y, vectors[i].unwrap_or_default())
+                predict_inter_blocks(&ctx, mb_x, mb_y, &vectors[i].map(Option::unwrap_or_default))
             }
             (_, None) => MbSamples::default(),
         };

@@ -9,8 +9,9 @@
 use crate::bits::{BitError, BitReader, BitWriter};
 use crate::entropy::{RangeDecoder, RangeEncoder};
 use crate::intra::IntraMode;
-use crate::modes::{MbMode, ModeCoder};
+use crate::modes::{MbMode, ModeCoder, VectorSyntax};
 use crate::mv::{predict_mv, Mv, MV_LIMIT};
+use crate::partition::{MbVectors, Split, VectorNeighbourhood, WHOLE};
 use crate::picture::{check_size, MAX_DIMENSION};
 use crate::residual::{MbResidual, ResidualCoder, ResidualError};
 use crate::transform::MAX_QP;
@@ -286,6 +287,15 @@ pub enum MbKind {
         /// The macroblock's vector, quarter-pel.
         mv: Mv,
     },
+    /// Motion-compensated prediction of each partition plus residual
+    /// (block frames).
+    Split {
+        /// How the macroblock is split.
+        split: Split,
+        /// Each partition's vector in coding order, quarter-pel; entries
+        /// past the split's partitions are zero.
+        mvs: [Mv; 4],
+    },
     /// Intra prediction plus residual.
     Intra {
         /// Luma 16x16 mode.
@@ -370,21 +380,42 @@ impl BitCounts {
     }
 }
 
-/// The vector a macroblock uses: its own for inter, the prediction for
-/// skip, none for intra (which counts as unavailable to its neighbours).
-/// `vectors` holds the vectors of the macroblocks before it in raster order.
-pub fn mb_vector(
-    kind: &MbKind,
-    vectors: &[Option<Mv>],
-    mb_x: usize,
-    mb_y: usize,
-    mb_cols: usize,
-) -> Option<Mv> {
+/// The vectors a macroblock's 8x8 blocks use: its own for inter, the
+/// prediction for skip, none for intra (which counts as unavailable to its
+/// neighbours). `done` holds the vectors of the macroblocks before it in
+/// raster order.
+pub fn mb_vectors(kind: &MbKind, done: &[MbVectors], mb_x: usize, mb_y: usize, mb_cols: usize) -> MbVectors {
     match kind {
-        MbKind::Skip => Some(mv_prediction(vectors, mb_x, mb_y, mb_cols)),
-        MbKind::Inter { mv } => Some(*mv),
-        MbKind::Intra { .. } => None,
+        MbKind::Skip => [Some(mv_prediction(done, mb_x, mb_y, mb_cols)); 4],
+        MbKind::Inter { mv } => [Some(*mv); 4],
+        MbKind::Split { split, mvs } => split.block_vectors(mvs).map(Some),
+        MbKind::Intra { .. } => [None; 4],
     }
+}
+
+/// Walks the partitions of a split macroblock in coding order: `step(k,
+/// predicted)` gives partition k's vector from its predicted vector (which
+/// reads the partitions before it), `None` to stop.
+pub fn walk_partitions(
+    split: Split,
+    done: &[MbVectors],
+    (mb_x, mb_y, mb_cols): (usize, usize, usize),
+    mut step: impl FnMut(usize, Mv) -> Option<Mv>,
+) -> Option<()> {
+    let mut current: MbVectors = [None; 4];
+    for (k, p) in split.parts().iter().enumerate() {
+        let n = VectorNeighbourhood {
+            done,
+            mb_cols,
+            mb: (mb_x, mb_y),
+            current: &current,
+        };
+        let mv = step(k, n.predict(p))?;
+        for b in p.blocks() {
+            current[b] = Some(mv);
+        }
+    }
+    Some(())
 }
 
 /// The predicted vector of the element at (col, row) of a grid `cols`
@@ -406,10 +437,16 @@ pub fn predict_in_grid(cols: usize, col: usize, row: usize, at: impl Fn(usize, u
     predict_mv(left, top, top_right, top_left)
 }
 
-/// The predicted vector of macroblock (mb_x, mb_y) from the vectors of the
-/// macroblocks before it in raster order (`None` for intra ones).
-pub fn mv_prediction(vectors: &[Option<Mv>], mb_x: usize, mb_y: usize, mb_cols: usize) -> Mv {
-    predict_in_grid(mb_cols, mb_x, mb_y, |x, y| vectors[y * mb_cols + x])
+/// The predicted vector of macroblock (mb_x, mb_y) as one 16x16 block,
+/// from the vectors of the macroblocks before it in raster order.
+pub fn mv_prediction(done: &[MbVectors], mb_x: usize, mb_y: usize, mb_cols: usize) -> Mv {
+    VectorNeighbourhood {
+        done,
+        mb_cols,
+        mb: (mb_x, mb_y),
+        current: &[None; 4],
+    }
+    .predict(&WHOLE)
 }
 
 /// The predicted vector of grid node (col, row) from the nodes before it.
@@ -417,15 +454,42 @@ fn grid_prediction(grid: &MotionGrid, col: usize, row: usize) -> Mv {
     predict_in_grid(grid.cols(), col, row, |c, r| Some(grid.get(c, r)))
 }
 
-/// The mode layer's view of a macroblock: its vector as a difference from
-/// the prediction (zero when the frame codes no vectors).
-pub fn mb_mode(kind: &MbKind, predicted: Mv, uses_mvs: bool) -> MbMode {
+/// The mode layer's view of macroblock (mb_x, mb_y): its vectors as
+/// differences from their predictions (zero when the frame codes none).
+/// `done` holds the vectors of the macroblocks before it.
+pub fn mb_mode(
+    kind: &MbKind,
+    done: &[MbVectors],
+    (mb_x, mb_y, mb_cols): (usize, usize, usize),
+    vectors: VectorSyntax,
+) -> MbMode {
     match *kind {
         MbKind::Skip => MbMode::Skip,
         MbKind::Inter { mv } => MbMode::Inter {
-            mvd: if uses_mvs { mv - predicted } else { Mv::ZERO },
+            mvd: if vectors.any() {
+                mv - mv_prediction(done, mb_x, mb_y, mb_cols)
+            } else {
+                Mv::ZERO
+            },
         },
+        MbKind::Split { split, mvs } => {
+            let mut mvds = [Mv::ZERO; 4];
+            walk_partitions(split, done, (mb_x, mb_y, mb_cols), |k, predicted| {
+                mvds[k] = mvs[k] - predicted;
+                Some(mvs[k])
+            });
+            MbMode::Split { split, mvds }
+        }
         MbKind::Intra { luma, chroma } => MbMode::Intra { luma, chroma },
+    }
+}
+
+/// Which vectors a frame with this header codes.
+pub fn vector_syntax(h: &FrameHeader) -> VectorSyntax {
+    match (h.frame_type, h.tool) {
+        (FrameType::Intra, _) | (_, MotionTool::Grid(_)) => VectorSyntax::None,
+        (_, MotionTool::Obmc) => VectorSyntax::PerMacroblock,
+        (_, MotionTool::Block) => VectorSyntax::PerPartition,
     }
 }
 
@@ -560,9 +624,9 @@ pub struct FrameWriter {
     residual: ResidualCoder,
     /// Estimated costs (1/256 bit) of header, motion and residual bins.
     estimates: [u64; 3],
-    vectors: Vec<Option<Mv>>,
+    vectors: Vec<MbVectors>,
     inter_frame: bool,
-    uses_mvs: bool,
+    syntax: VectorSyntax,
 }
 
 impl FrameWriter {
@@ -605,7 +669,7 @@ impl FrameWriter {
             estimates,
             vectors: Vec::with_capacity(cols * rows),
             inter_frame: h.frame_type == FrameType::Inter,
-            uses_mvs: matches!(h.tool, MotionTool::Block | MotionTool::Obmc),
+            syntax: vector_syntax(h),
         }
     }
 
@@ -621,7 +685,7 @@ impl FrameWriter {
 
     /// The vectors of the macroblocks written so far (raster order; `None`
     /// for intra), as vector prediction reads them.
-    pub fn vectors(&self) -> &[Option<Mv>] {
+    pub fn vectors(&self) -> &[MbVectors] {
         &self.vectors
     }
 
@@ -634,22 +698,16 @@ impl FrameWriter {
             self.inter_frame || matches!(mb.kind, MbKind::Intra { .. }),
             "I frames hold only intra macroblocks"
         );
-        if let MbKind::Inter { mv } = mb.kind {
-            assert!(
-                self.uses_mvs || mv == Mv::ZERO,
-                "inter macroblocks of grid frames have no vector"
-            );
-            assert!(mv.in_range(), "vector {mv:?} out of range");
-        }
-        let predicted = mv_prediction(&self.vectors, mb_x, mb_y, self.cols);
-        let mode = mb_mode(&mb.kind, predicted, self.uses_mvs);
+        check_kind(&mb.kind, self.syntax);
+        let at = (mb_x, mb_y, self.cols);
+        let mode = mb_mode(&mb.kind, &self.vectors, at, self.syntax);
         let (motion, rest) =
             self.modes
-                .write(&mut self.enc, mb_x, mb_y, self.inter_frame, self.uses_mvs, &mode);
+                .write(&mut self.enc, mb_x, mb_y, self.inter_frame, self.syntax, &mode);
         self.estimates[0] += u64::from(rest);
         self.estimates[1] += u64::from(motion);
         self.vectors
-            .push(mb_vector(&mb.kind, &self.vectors, mb_x, mb_y, self.cols));
+            .push(mb_vectors(&mb.kind, &self.vectors, mb_x, mb_y, self.cols));
         if mb.kind == MbKind::Skip {
             assert!(mb.residual.is_none(), "skipped macroblocks have no residual");
             return;
@@ -682,6 +740,35 @@ impl FrameWriter {
         out.extend_from_slice(&header);
         out.extend_from_slice(&coded);
         (out, counts)
+    }
+}
+
+/// Panics unless a frame coding `syntax` can hold `kind` (an encoder bug).
+fn check_kind(kind: &MbKind, syntax: VectorSyntax) {
+    match *kind {
+        MbKind::Inter { mv } => {
+            assert!(
+                syntax.any() || mv == Mv::ZERO,
+                "inter macroblocks of grid frames have no vector"
+            );
+            assert!(mv.in_range(), "vector {mv:?} out of range");
+        }
+        MbKind::Split { split, mvs } => {
+            assert!(
+                syntax == VectorSyntax::PerPartition,
+                "only block frames split macroblocks"
+            );
+            let n = split.parts().len();
+            assert!(
+                mvs[..n].iter().all(|mv| mv.in_range()),
+                "vectors {mvs:?} out of range"
+            );
+            assert!(
+                mvs[n..].iter().all(|&mv| mv == Mv::ZERO),
+                "unused partition vectors"
+            );
+        }
+        _ => {}
     }
 }
 
@@ -854,12 +941,12 @@ impl PartitionReader<'_> {
     fn macroblock(
         &mut self,
         h: &FrameHeader,
-        vectors: &[Option<Mv>],
+        vectors: &[MbVectors],
         (mb_x, mb_y, cols): (usize, usize, usize),
     ) -> Result<CodedMb, SyntaxError> {
-        let uses_mvs = matches!(h.tool, MotionTool::Block | MotionTool::Obmc);
+        let syntax = vector_syntax(h);
         let inter_frame = h.frame_type == FrameType::Inter;
-        let kind = match self.modes.read(&mut self.dec, mb_x, mb_y, inter_frame, uses_mvs) {
+        let kind = match self.modes.read(&mut self.dec, mb_x, mb_y, inter_frame, syntax) {
             None => {
                 return Err(invalid(
                     "a vector difference beyond the syntax's range".into(),
@@ -868,13 +955,36 @@ impl PartitionReader<'_> {
             }
             Some(MbMode::Skip) => return Ok(CodedMb::without_residual(MbKind::Skip)),
             Some(MbMode::Inter { mvd }) => {
-                let predicted = mv_prediction(vectors, mb_x, mb_y, cols);
-                let mv = if uses_mvs {
+                let mv = if syntax.any() {
+                    let predicted = mv_prediction(vectors, mb_x, mb_y, cols);
                     check_vector(predicted.checked_add(mvd), self.at())?
                 } else {
                     Mv::ZERO
                 };
                 MbKind::Inter { mv }
+            }
+            Some(MbMode::Split { split, mvds }) => {
+                let mut mvs = [Mv::ZERO; 4];
+                let mut error = None;
+                walk_partitions(
+                    split,
+                    vectors,
+                    (mb_x, mb_y, cols),
+                    |k, predicted| match check_vector(predicted.checked_add(mvds[k]), self.at()) {
+                        Ok(mv) => {
+                            mvs[k] = mv;
+                            Some(mv)
+                        }
+                        Err(e) => {
+                            error = Some(e);
+                            None
+                        }
+                    },
+                );
+                if let Some(e) = error {
+                    return Err(e);
+                }
+                MbKind::Split { split, mvs }
             }
             Some(MbMode::Intra { luma, chroma }) => {
                 for (what, mode) in [("luma intra mode", luma), ("chroma intra mode", chroma)] {
@@ -924,11 +1034,11 @@ pub fn read_frame(
     };
     let total = cols * rows;
     let mut mbs = Vec::with_capacity(total);
-    let mut vectors: Vec<Option<Mv>> = Vec::with_capacity(total);
+    let mut vectors: Vec<MbVectors> = Vec::with_capacity(total);
     for i in 0..total {
         let (mb_x, mb_y) = (i % cols, i / cols);
         let mb = part.macroblock(&header, &vectors, (mb_x, mb_y, cols))?;
-        vectors.push(mb_vector(&mb.kind, &vectors, mb_x, mb_y, cols));
+        vectors.push(mb_vectors(&mb.kind, &vectors, mb_x, mb_y, cols));
         mbs.push(mb);
     }
     if !part.dec.consumed_all() {

@@ -7,10 +7,13 @@ use mocomp_codec::deblock::{deblock_frame, MbEdgeInfo};
 use mocomp_codec::decoder::{decode, DecodeError};
 use mocomp_codec::entropy::RangeEncoder;
 use mocomp_codec::intra::IntraMode;
-use mocomp_codec::modes::{MbMode, ModeCoder};
+use mocomp_codec::modes::{MbMode, ModeCoder, VectorSyntax};
 use mocomp_codec::mv::Mv;
+use mocomp_codec::partition::Split;
 use mocomp_codec::picture::{Frame, Plane};
-use mocomp_codec::recon::{crop, frame_vectors, predict_inter, predict_intra, reconstruct_mb, InterContext};
+use mocomp_codec::recon::{
+    crop, frame_vectors, predict_inter_blocks, predict_intra, reconstruct_mb, InterContext,
+};
 use mocomp_codec::residual::MbResidual;
 use mocomp_codec::syntax::{
     read_frame, write_frame, write_stream, CodedMb, EntropyState, FrameHeader, FrameSyntax, FrameType,
@@ -251,7 +254,7 @@ fn code_frame(
                     warped: warped.as_ref(),
                     mb_cols: cols,
                 };
-                predict_inter(&ctx, mb_x, mb_y, vectors[i].unwrap_or_default())
+                predict_inter_blocks(&ctx, mb_x, mb_y, &vectors[i].map(Option::unwrap_or_default))
             }
         };
         let mut residual = MbResidual::default();
@@ -375,6 +378,16 @@ fn coded_stream(width: usize, height: usize, qp: u8) -> (Vec<u8>, Vec<Frame>) {
                 0 => MbKind::Skip,
                 1 => intra_dc(),
                 _ if matches!(tool, MotionTool::Grid(_)) => MbKind::Inter { mv: Mv::ZERO },
+                // Block frames split some macroblocks, every way, each
+                // partition with its own vector.
+                4 if tool == MotionTool::Block => {
+                    let split = Split::ALL[(x + 2 * y) % 3];
+                    let mut mvs = [Mv::ZERO; 4];
+                    for (k, mv) in mvs.iter_mut().enumerate().take(split.parts().len()) {
+                        *mv = Mv::new(-9 + 7 * k as i32 + x as i32, 3 - 5 * k as i32 + y as i32);
+                    }
+                    MbKind::Split { split, mvs }
+                }
                 k => MbKind::Inter {
                     mv: Mv::new(-13 + 3 * k as i32, 5 - (x as i32 % 3)),
                 },
@@ -552,7 +565,7 @@ fn invalid_frame_syntax_is_located() {
         luma: IntraMode::Vertical, // no row above
         chroma: IntraMode::Dc,
     };
-    ModeCoder::new(2, 1).write(&mut enc, 0, 0, false, true, &vertical);
+    ModeCoder::new(2, 1).write(&mut enc, 0, 0, false, VectorSyntax::None, &vertical);
     payload.extend(enc.finish());
     let mut b = s.to_bytes();
     b.push(0xA5);

@@ -105,6 +105,19 @@ pub struct ToolArgs {
     /// reference where the light changed).
     #[arg(long)]
     pub no_weightp: bool,
+    /// Macroblock partitions, as x264's --partitions: all (16x8, 8x16 and
+    /// 8x8 in P frames) or none [default: the preset's].
+    #[arg(long, value_name = "all|none")]
+    pub partitions: Option<Partitions>,
+}
+
+/// The values of `--partitions`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Partitions {
+    /// 16x8, 8x16 and 8x8 partitions of P macroblocks.
+    All,
+    /// 16x16 only.
+    None,
 }
 
 impl ToolArgs {
@@ -125,6 +138,9 @@ impl ToolArgs {
         }
         if self.no_weightp {
             config = config.weightp(false);
+        }
+        if let Some(p) = self.partitions {
+            config = config.partitions(p == Partitions::All);
         }
         config
     }

@@ -237,8 +237,8 @@ pub enum EncoderPreset {
     /// Quarter-pel, weighted prediction, the fast mode decision, no RDOQ
     /// (as x264's faster presets drop trellis).
     Fast,
-    /// As fast, with RDOQ, the full mode decision and EPZS's exhaustive
-    /// window of 4 pels. The default.
+    /// As fast, with RDOQ, the full mode decision, macroblock partitions
+    /// and EPZS's exhaustive window of 4 pels. The default.
     #[default]
     Medium,
     /// As medium, with a search range of 32.
@@ -316,6 +316,9 @@ pub struct EncoderConfig {
     /// Weighted prediction (FORMAT.md section 12): P frames scale and
     /// offset the reference's planes where the light changed.
     pub weightp: bool,
+    /// Inter macroblocks of block frames may be split into 16x8, 8x16 or
+    /// 8x8 partitions, each with its own vector (FORMAT.md section 3.2).
+    pub partitions: bool,
 }
 
 impl Default for EncoderConfig {
@@ -331,6 +334,7 @@ impl Default for EncoderConfig {
             ipratio: DEFAULT_IPRATIO,
             deblock: true,
             weightp: true,
+            partitions: true,
         }
     }
 }
@@ -397,6 +401,7 @@ impl EncoderConfig {
         let ultrafast = preset == Ultrafast;
         self.rdoq = preset >= Medium;
         self.weightp = !ultrafast;
+        self.partitions = preset >= Medium;
         self.decision = match preset {
             Ultrafast | Fast => ModeDecision::Fast,
             Medium | Slow => ModeDecision::Full,
@@ -410,6 +415,12 @@ impl EncoderConfig {
             };
             search.window = if preset >= Medium { 4 } else { 0 };
         }
+        self
+    }
+
+    /// Turns macroblock partitions on or off.
+    pub fn partitions(mut self, on: bool) -> EncoderConfig {
+        self.partitions = on;
         self
     }
 
@@ -482,6 +493,7 @@ mod tests {
             assert_eq!(s.method, Method::Esa, "{p:?}");
             assert_eq!(c.rdoq, p >= EncoderPreset::Medium);
             assert_eq!(c.weightp, p != EncoderPreset::Ultrafast);
+            assert_eq!(c.partitions, p >= EncoderPreset::Medium);
             assert_eq!(s.subpel == Subpel::Half, p == EncoderPreset::Ultrafast);
             assert_eq!(c.decision == ModeDecision::Full, p >= EncoderPreset::Medium);
             assert_eq!(s.range, if p == EncoderPreset::Slow { 32 } else { 16 });

@@ -30,6 +30,7 @@ mod config;
 mod frame;
 mod macroblock;
 mod motion;
+mod partition;
 mod stats;
 mod weights;
 
@@ -145,7 +146,7 @@ impl Encoder {
             config,
             coder: MbCoder::new(config.qp, config.lambda_scale, config.rdoq),
             intra_coder: MbCoder::new(config.intra_qp(), config.lambda_scale, config.rdoq),
-            analyser: MotionAnalyser::new(config.predictor, config.qp),
+            analyser: MotionAnalyser::new(config.predictor, config.qp, config.partitions),
             reference: None,
             prev_source: None,
             spare_recon: None,
@@ -233,6 +234,7 @@ impl Encoder {
                     decision: self.config.decision,
                     deblock: self.config.deblock,
                     weights,
+                    partitions: self.config.partitions,
                 };
                 frame::code_inter(&self.seq, &self.coder, &src, inputs, &mut self.entropy, recon)?
             }

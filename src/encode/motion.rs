@@ -5,6 +5,7 @@ use ndarray::Array2;
 
 use super::config::{FlowMethod, Predictor, SearchSettings};
 use crate::codec::mv::Mv;
+use crate::codec::partition::MbVectors;
 use crate::codec::syntax::{mv_prediction, MB};
 use crate::codec::warp::MotionGrid;
 use crate::codec::{Frame, Plane};
@@ -13,17 +14,33 @@ use crate::flow::hs::{horn_schunck, HsParams};
 use crate::flow::lk::{Lk, LkParams};
 use crate::flow::tvl1::{tvl1, Tvl1Params};
 use crate::flow::Flow;
+use crate::me::halfpel::HalfPel;
 use crate::me::{self, lambda_for_qp, MeConfig, Metric, MotionField};
 use crate::raster::plane_to_array;
 
 /// What motion analysis hands to mode decision.
-#[derive(Debug, Clone)]
 pub(crate) enum FrameMotion {
-    /// One candidate vector per macroblock (raster order).
-    Vectors(Vec<Mv>),
+    /// Candidate vectors.
+    Vectors(BlockMotion),
     /// A motion grid to warp with.
     Grid(MotionGrid),
 }
+
+/// Candidate vectors of a block-motion frame.
+pub(crate) struct BlockMotion {
+    /// One per macroblock (raster order).
+    pub mb: Vec<Mv>,
+    /// One per 8x8 block (raster order over the picture), when partitions
+    /// are analysed: the partitions' candidates.
+    pub blocks: Option<Vec<Mv>>,
+    /// The reference's half-pel planes, when partitions are analysed (the
+    /// search made them; the partitions' search reads them again).
+    pub halfpel: Option<HalfPel>,
+}
+
+/// How far beyond the picture the half-pel planes kept for the partition
+/// search reach (candidates further out use the codec's filter).
+pub(crate) const PARTITION_MARGIN: usize = 48;
 
 /// The state motion analysis keeps between frames.
 pub(crate) struct MotionAnalyser {
@@ -31,16 +48,21 @@ pub(crate) struct MotionAnalyser {
     qp: u8,
     /// The previous frame's field, for EPZS's co-located candidates.
     prior: Option<MotionField>,
+    /// Whether partitions are analysed: flows give 8x8 blocks' vectors
+    /// too, and the reference's half-pel planes are kept.
+    blocks: bool,
     lk: Option<Lk>,
     dis: Option<Dis>,
 }
 
 impl MotionAnalyser {
-    pub fn new(predictor: Predictor, qp: u8) -> MotionAnalyser {
+    /// `partitions`: flow predictors give 8x8 blocks' vectors too.
+    pub fn new(predictor: Predictor, qp: u8, partitions: bool) -> MotionAnalyser {
         MotionAnalyser {
             predictor,
             qp,
             prior: None,
+            blocks: partitions,
             lk: None,
             dis: None,
         }
@@ -52,17 +74,31 @@ impl MotionAnalyser {
         let cols = source.width() / MB;
         let rows = source.height() / MB;
         match self.predictor {
-            Predictor::Zero => FrameMotion::Vectors(vec![Mv::ZERO; cols * rows]),
-            Predictor::Block(s) | Predictor::Obmc(s) => {
-                FrameMotion::Vectors(self.search(source.y(), reference.y(), s))
+            Predictor::Zero => FrameMotion::Vectors(BlockMotion {
+                mb: vec![Mv::ZERO; cols * rows],
+                blocks: None,
+                halfpel: self.planes(reference),
+            }),
+            Predictor::Block(s) => {
+                let halfpel = self.planes(reference);
+                FrameMotion::Vectors(BlockMotion {
+                    mb: self.search(source.y(), reference.y(), s, halfpel.as_ref()),
+                    blocks: None,
+                    halfpel,
+                })
             }
+            Predictor::Obmc(s) => FrameMotion::Vectors(BlockMotion {
+                mb: self.search(source.y(), reference.y(), s, None),
+                blocks: None,
+                halfpel: None,
+            }),
             Predictor::FlowBlock { flow, refine } => {
                 let f = self.flow(flow, source.y(), prev_source.y());
                 let mut cfg = MeConfig::new(me::Method::Esa, MB, refine.max(1));
                 cfg.subpel = me::Subpel::Quarter;
                 cfg.metric = Metric::Satd;
                 cfg.lambda = lambda_for_qp(Metric::Satd, self.qp);
-                let mut vectors: Vec<Option<Mv>> = Vec::with_capacity(cols * rows);
+                let mut vectors: Vec<MbVectors> = Vec::with_capacity(cols * rows);
                 for r in 0..rows {
                     for c in 0..cols {
                         let seed = block_median(&f, c * MB, r * MB, MB);
@@ -76,10 +112,21 @@ impl MotionAnalyser {
                         } else {
                             seed
                         };
-                        vectors.push(Some(mv));
+                        vectors.push([Some(mv); 4]);
                     }
                 }
-                FrameMotion::Vectors(vectors.into_iter().flatten().collect())
+                // The flow's 8x8 medians: the partitions' candidates.
+                let blocks = self.blocks.then(|| {
+                    (0..2 * rows)
+                        .flat_map(|r| (0..2 * cols).map(move |c| (c, r)))
+                        .map(|(c, r)| block_median(&f, c * 8, r * 8, 8))
+                        .collect()
+                });
+                FrameMotion::Vectors(BlockMotion {
+                    mb: vectors.into_iter().map(|v| v[0].unwrap_or_default()).collect(),
+                    blocks,
+                    halfpel: self.planes(reference),
+                })
             }
             Predictor::Dense { flow, grid } => {
                 let f = self.flow(flow, source.y(), prev_source.y());
@@ -88,7 +135,23 @@ impl MotionAnalyser {
         }
     }
 
-    fn search(&mut self, cur: &Plane, reference: &Plane, s: SearchSettings) -> Vec<Mv> {
+    /// The half-pel planes of `reference`'s luma, when partitions are
+    /// analysed.
+    fn planes(&self, reference: &Frame) -> Option<HalfPel> {
+        self.blocks
+            .then(|| HalfPel::new(reference.y(), PARTITION_MARGIN))
+            .flatten()
+    }
+
+    /// The searched vector of every macroblock (`planes`: the reference's
+    /// half-pel planes, when made already).
+    fn search(
+        &mut self,
+        cur: &Plane,
+        reference: &Plane,
+        s: SearchSettings,
+        planes: Option<&HalfPel>,
+    ) -> Vec<Mv> {
         let mut cfg = MeConfig::new(s.method, MB, s.range);
         cfg.subpel = s.subpel;
         cfg.window = s.window;
@@ -96,7 +159,7 @@ impl MotionAnalyser {
         cfg.lambda = lambda_for_qp(Metric::Satd, self.qp);
         // The configuration was checked when the encoder was made and the
         // frames are the encoder's own, so the search cannot refuse them.
-        match me::estimate_with_prior(cur, reference, &cfg, self.prior.as_ref()) {
+        match me::estimate_with_planes(cur, reference, &cfg, self.prior.as_ref(), planes) {
             Ok(field) => {
                 let v = field.vectors().to_vec();
                 self.prior = Some(field);

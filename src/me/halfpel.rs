@@ -62,6 +62,11 @@ impl HalfPel {
         Some(HalfPel { planes, margin: m })
     }
 
+    /// How far beyond the picture the planes are filled.
+    pub fn margin(&self) -> usize {
+        self.margin as usize
+    }
+
     /// The `b x b` block at (x, y) displaced by the quarter-pel vector
     /// (mvx, mvy), into `out`; `false` (nothing written) when it reaches
     /// beyond the filled margin.
@@ -114,6 +119,9 @@ impl HalfPel {
             16 => x86::average_16x16(rows(from), rows(to), out),
             #[cfg(not(target_arch = "x86_64"))]
             16 => average_rows(16, rows(from), rows(to), out),
+            #[cfg(target_arch = "x86_64")]
+            8 => x86::average_8x8(rows(from), rows(to), out),
+            #[cfg(not(target_arch = "x86_64"))]
             8 => average_rows(8, rows(from), rows(to), out),
             _ => average_rows(b, rows(from), rows(to), out),
         };
@@ -299,6 +307,25 @@ mod x86 {
         }
     }
 
+    /// [`super::average_rows`] at 8 (the partitions' blocks), as
+    /// [`average_16x16`] with 8-byte loads.
+    pub(super) fn average_8x8((a, sa): (&[u8], usize), (c, sc): (&[u8], usize), out: &mut [u8]) {
+        let fits = |len: usize, stride: usize| stride >= 8 && len >= 7 * stride + 8;
+        assert!(
+            fits(a.len(), sa) && fits(c.len(), sc) && fits(out.len(), 8),
+            "8x8 block past its slice"
+        );
+        for r in 0..8 {
+            // SAFETY: rows 0..8 of the three blocks lie inside their
+            // slices (checked above); SSE2 is part of x86-64.
+            unsafe {
+                let x = _mm_loadl_epi64(a.as_ptr().add(r * sa) as *const __m128i);
+                let y = _mm_loadl_epi64(c.as_ptr().add(r * sc) as *const __m128i);
+                _mm_storel_epi64(out.as_mut_ptr().add(r * 8) as *mut __m128i, _mm_avg_epu8(x, y));
+            }
+        }
+    }
+
     /// One row of the diagonal phase: the half-pel filter down the eight
     /// rows of the unrounded horizontal pass, taps in pairs, each pair one
     /// `pmaddwd` of two interleaved rows (exact 32-bit sums, as the scalar
@@ -424,6 +451,9 @@ mod tests {
             x86::average_16x16((&a[5..], 40), (&c, 33), &mut x);
             average_rows(16, (&a[5..], 40), (&c, 33), &mut y);
             assert_eq!(x, y);
+            x86::average_8x8((&a[7..], 40), (&c[2..], 33), &mut x[..64]);
+            average_rows(8, (&a[7..], 40), (&c[2..], 33), &mut y[..64]);
+            assert_eq!(x[..64], y[..64]);
         }
         // The scalar rounding itself: (u + v + 1) >> 1.
         average_rows(16, (&[255u8; 256], 16), (&[0u8; 256], 16), &mut y);

@@ -35,7 +35,7 @@
 //! ```
 
 pub mod cost;
-mod halfpel;
+pub(crate) mod halfpel;
 mod search;
 pub mod simd;
 
@@ -451,6 +451,19 @@ pub fn estimate_with_prior(
     cfg: &MeConfig,
     prior: Option<&MotionField>,
 ) -> Result<MotionField, MeError> {
+    estimate_with_planes(cur, reference, cfg, prior, None)
+}
+
+/// As [`estimate_with_prior`], with the reference's half-pel planes when
+/// the caller has them (wide enough margin) rather than making its own:
+/// the encoder's partition search reads the same planes afterwards.
+pub(crate) fn estimate_with_planes(
+    cur: &Plane,
+    reference: &Plane,
+    cfg: &MeConfig,
+    prior: Option<&MotionField>,
+    planes: Option<&halfpel::HalfPel>,
+) -> Result<MotionField, MeError> {
     cfg.check()?;
     check_pictures(cur, reference, cfg)?;
     let mut field = MotionField::new(cur.width(), cur.height(), cfg.block);
@@ -460,9 +473,16 @@ pub fn estimate_with_prior(
     // Half-pel planes over the window's reach (range, plus one for the
     // sub-pel steps and one for the quarter-pel average's neighbour),
     // rounded up to 8, when the border holds them.
-    let halfpel = match cfg.subpel {
-        Subpel::None => None,
-        _ => halfpel::HalfPel::new(reference, (cfg.range as usize + 2).div_ceil(8) * 8),
+    let margin = (cfg.range as usize + 2).div_ceil(8) * 8;
+    let given = planes.filter(|p| p.margin() >= margin);
+    let own = match (cfg.subpel, given) {
+        (Subpel::None, _) | (_, Some(_)) => None,
+        _ => halfpel::HalfPel::new(reference, margin),
+    };
+    let halfpel = if cfg.subpel == Subpel::None {
+        None
+    } else {
+        given.or(own.as_ref())
     };
     let search_one = |field: &MotionField, col: usize, row: usize| -> Candidate {
         let s = SearchContext {
@@ -477,7 +497,7 @@ pub fn estimate_with_prior(
                 Mv::ZERO
             },
             lambda_q8,
-            halfpel: halfpel.as_ref(),
+            halfpel,
             origin: (0, 0),
         };
         let neighbours = search::Neighbours::of(field, prior, col, row);

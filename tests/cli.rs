@@ -1090,6 +1090,13 @@ fn presets_differ_options_override_them_and_every_stream_decodes() {
         encode("o.mcv", &["--preset", "fast", "--subpel", "half", "--no-weightp"]),
         streams[0]
     );
+    // Partitions are medium's: turned off there they change the stream,
+    // and fast with them is not fast.
+    assert_ne!(encode("np.mcv", &["--partitions", "none"]), streams[2]);
+    assert_ne!(
+        encode("fp.mcv", &["--preset", "fast", "--partitions", "all"]),
+        streams[1]
+    );
     // `mocomp rd` codes as `mocomp encode` does with the same preset,
     // search settings included (ultrafast's half-pel).
     mocomp()

@@ -81,6 +81,7 @@ def encode(
     decision: Optional[Literal["fast", "full"]] = None,
     rdoq: Optional[bool] = None,
     weightp: Optional[bool] = None,
+    partitions: Optional[bool] = None,
     deblock: bool = True,
     lambda_scale: float = 1.4,
     ipratio: float = 1.4,

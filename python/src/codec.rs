@@ -75,6 +75,7 @@ struct Tools<'a> {
     decision: Option<&'a str>,
     rdoq: Option<bool>,
     weightp: Option<bool>,
+    partitions: Option<bool>,
     deblock: bool,
     lambda_scale: f64,
     ipratio: f64,
@@ -101,6 +102,9 @@ fn config(qp: u8, predictor: &str, gop: usize, tools: &Tools<'_>) -> PyResult<En
     }
     if let Some(on) = tools.weightp {
         c = c.weightp(on);
+    }
+    if let Some(on) = tools.partitions {
+        c = c.partitions(on);
     }
     Ok(c)
 }
@@ -177,8 +181,9 @@ fn encode_all(frames: &[Frame], fps: (u32, u32), config: EncoderConfig, keep: bo
 ///     "dense-lk" / "dense-hs" / "dense-dis" / "dense-tvl1", "obmc" (as `mocomp encode`).
 /// gop: I-frame period (0: only the first).
 /// preset: "ultrafast", "fast", "medium" (default) or "slow", as
-///     `mocomp encode --preset`; decision ("fast" or "full"), rdoq and
-///     weightp (weighted prediction) override it when given.
+///     `mocomp encode --preset`; decision ("fast" or "full"), rdoq,
+///     weightp (weighted prediction) and partitions (16x8, 8x16 and 8x8
+///     macroblock partitions) override it when given.
 /// ipratio: quantiser step of P frames over I frames (x264's --ipratio).
 /// deblock: the in-loop deblocking filter.
 /// frames: code at most this many frames.
@@ -188,7 +193,7 @@ fn encode_all(frames: &[Frame], fps: (u32, u32), config: EncoderConfig, keep: bo
 /// which `decode(stream)` reproduces exactly.
 #[pyfunction]
 #[pyo3(signature = (source, qp=28, predictor="block", *, gop=0, preset="medium", decision=None, rdoq=None,
-    weightp=None, deblock=true, lambda_scale=1.4, ipratio=DEFAULT_IPRATIO, frames=None, fps=(25, 1), threads=None, reconstruction=false))]
+    weightp=None, partitions=None, deblock=true, lambda_scale=1.4, ipratio=DEFAULT_IPRATIO, frames=None, fps=(25, 1), threads=None, reconstruction=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn encode<'py>(
     py: Python<'py>,
@@ -200,6 +205,7 @@ pub fn encode<'py>(
     decision: Option<&str>,
     rdoq: Option<bool>,
     weightp: Option<bool>,
+    partitions: Option<bool>,
     deblock: bool,
     lambda_scale: f64,
     ipratio: f64,
@@ -213,6 +219,7 @@ pub fn encode<'py>(
         decision,
         rdoq,
         weightp,
+        partitions,
         deblock,
         lambda_scale,
         ipratio,

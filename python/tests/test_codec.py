@@ -26,7 +26,7 @@ def test_coding_tools_by_keyword(synth_frames):
     source = synth_frames[:3]
     _, stats = mocomp.encode(source, qp=30, ipratio=2.0)
     assert [s["qp"] for s in stats] == [24, 30, 30]
-    for tools in ({"deblock": False}, {"weightp": False}, {"ipratio": 1.0}):
+    for tools in ({"deblock": False}, {"weightp": False}, {"partitions": False}, {"ipratio": 1.0}):
         stream, stats, recon = mocomp.encode(source, qp=30, reconstruction=True, **tools)
         assert all(np.array_equal(a, b) for d, r in zip(mocomp.decode(stream), recon) for a, b in zip(d, r))
     on, _ = mocomp.encode(source, qp=30)

@@ -11,7 +11,7 @@ use crate::codec::deblock::{deblock_frame, MbEdgeInfo};
 use crate::codec::modes::{MbMode, ModeCoder, VectorSyntax};
 use crate::codec::mv::mvd_bits;
 use crate::codec::mv::Mv;
-use crate::codec::partition::{MbVectors, Split};
+use crate::codec::partition::{MbVectors, Part, Split};
 use crate::codec::recon::{
     frame_vectors, predict_inter, predict_inter_blocks, predict_intra, write_mb, InterContext, MbSamples,
 };
@@ -506,34 +506,21 @@ impl<'a> InterFrameCoder<'a> {
         quad: Option<&[Mv; 4]>,
         refine: bool,
     ) -> (f64, Split, [Mv; 4]) {
-        let (cols, rows) = (self.seq.mb_cols(), self.seq.mb_rows());
         let (mut mvs, mut total) = ([Mv::ZERO; 4], 0.0);
-        walk_partitions(split, &self.decided, (mb.mb_x, mb.mb_y, cols), |k, mvp| {
-            let p = &split.parts()[k];
-            let mut candidates = Vec::with_capacity(16);
-            candidates.push(self.searched[mb.index]);
-            for b in p.blocks() {
-                if let Some(blocks) = &self.blocks {
-                    candidates.push(blocks[(2 * mb.mb_y + b / 2) * 2 * cols + 2 * mb.mb_x + b % 2]);
-                }
-                if let Some(q) = quad {
-                    candidates.push(q[b]);
-                }
-                // The searched vectors of the macroblocks the block touches:
-                // a block on a motion edge moves with one of them.
-                let (dx, dy) = (2 * (b % 2) as isize - 1, 2 * (b / 2) as isize - 1);
-                for (ox, oy) in [(dx, 0), (0, dy), (dx, dy)] {
-                    let (x, y) = (mb.mb_x as isize + ox, mb.mb_y as isize + oy);
-                    if x >= 0 && y >= 0 && (x as usize) < cols && (y as usize) < rows {
-                        candidates.push(self.searched[y as usize * cols + x as usize]);
-                    }
-                }
-            }
-            let best = search.best(p, &candidates, mvp, refine);
-            mvs[k] = best.mv;
-            total += best.cost;
-            Some(best.mv)
-        });
+        let mut candidates = Vec::with_capacity(16);
+        walk_partitions(
+            split,
+            &self.decided,
+            (mb.mb_x, mb.mb_y, self.seq.mb_cols()),
+            |k, mvp| {
+                let p = &split.parts()[k];
+                self.partition_candidates(mb, p, quad, &mut candidates);
+                let best = search.best(p, &candidates, mvp, refine);
+                mvs[k] = best.mv;
+                total += best.cost;
+                Some(best.mv)
+            },
+        );
         // The split's own flags, over a 16x16 macroblock's.
         let flags = self.mode_bits(
             mb,
@@ -543,6 +530,32 @@ impl<'a> InterFrameCoder<'a> {
             },
         ) - self.mode_bits(mb, &MbMode::Inter { mvd: Mv::ZERO });
         (total + search.sad_lambda * flags.max(0.0), split, mvs)
+    }
+
+    /// The candidate vectors of partition `p` of `mb` into `out` (emptied
+    /// first): the macroblock's searched vector, and per 8x8 block of the
+    /// partition the flow's vector (flow predictors), `quad`'s and the
+    /// searched vectors of the macroblocks the block touches (a block on
+    /// a motion edge moves with one of them).
+    fn partition_candidates(&self, mb: &MbAnalysis, p: &Part, quad: Option<&[Mv; 4]>, out: &mut Vec<Mv>) {
+        let (cols, rows) = (self.seq.mb_cols(), self.seq.mb_rows());
+        out.clear();
+        out.push(self.searched[mb.index]);
+        for b in p.blocks() {
+            if let Some(blocks) = &self.blocks {
+                out.push(blocks[(2 * mb.mb_y + b / 2) * 2 * cols + 2 * mb.mb_x + b % 2]);
+            }
+            if let Some(q) = quad {
+                out.push(q[b]);
+            }
+            let (dx, dy) = (2 * (b % 2) as isize - 1, 2 * (b / 2) as isize - 1);
+            for (ox, oy) in [(dx, 0), (0, dy), (dx, dy)] {
+                let (x, y) = (mb.mb_x as isize + ox, mb.mb_y as isize + oy);
+                if x >= 0 && y >= 0 && (x as usize) < cols && (y as usize) < rows {
+                    out.push(self.searched[y as usize * cols + x as usize]);
+                }
+            }
+        }
     }
 
     /// Intra, coded only when its luma SATD is below inter's (as the H.264

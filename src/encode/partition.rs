@@ -74,7 +74,7 @@ pub(crate) struct PartChoice {
 
 /// Half- then quarter-pel steps around the best, and the moves each may
 /// make. (Full-pel steps and two moves a step: 0.2 % better on the
-/// development set's mean, 10 % slower.)
+/// development set's mean, pan_cif 0.33 s against 0.31-0.32 s.)
 const REFINE_STEPS: [(i32, usize); 2] = [(2, 1), (1, 1)];
 /// A diamond at each step, walked until its centre is best (x264's
 /// sub-pel refinement of partitions at its medium settings).

@@ -56,6 +56,20 @@ fn every_kernel_set_equals_scalar_on_every_size() {
 }
 
 #[test]
+fn every_paired_4x4_satd_equals_scalar() {
+    // Chunks of long runs: some all 0 or 255 (the extremes), some mixed.
+    let (long_a, long_b) = (bytes(11, 32 * 400), bytes(12, 32 * 401));
+    for seed in 0..400 {
+        let chunk = |v: &[u8], at: usize| -> [u8; 32] { v[at..at + 32].try_into().unwrap() };
+        let (a, b) = (chunk(&long_a, 32 * seed), chunk(&long_b, 32 * seed + 5));
+        let want = [0, 4].map(|o| cost::satd(&a[o..], 8, &b[o..], 8, 4, 4));
+        for k in available() {
+            assert_eq!((k.satd_4x4_pair)(&a, &b), want, "{} seed {seed}", k.isa);
+        }
+    }
+}
+
+#[test]
 fn blocks_at_picture_edges_read_only_their_slice() {
     // The last block of a padded plane ends exactly at the buffer's end.
     let p = Plane::from_fn(48, 32, |x, y| (x * 5 + y * 11) as u8).unwrap();

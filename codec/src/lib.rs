@@ -15,6 +15,7 @@ pub mod decoder;
 pub mod entropy;
 pub mod interp;
 pub mod intra;
+pub mod intra4x4;
 pub mod modes;
 pub mod mv;
 pub mod obmc;

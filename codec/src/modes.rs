@@ -14,6 +14,7 @@ use crate::entropy::{
     get_exp_golomb, put_exp_golomb, Adapter, Bins, Context, Pricer, RangeDecoder, RangeEncoder, Writer,
 };
 use crate::intra::IntraMode;
+use crate::intra4x4::{most_probable, neighbour_modes, Intra4x4Mode, LumaIntra, CODING_ORDER};
 use crate::mv::Mv;
 use crate::partition::{Part, Split, WHOLE};
 
@@ -29,7 +30,12 @@ const LUMA_MODE: usize = GRID + 2 * VECTOR_CONTEXTS; // 3
 const CHROMA_MODE: usize = LUMA_MODE + 3; // 3
 /// Split flag (3: split neighbours), then quad (1) and vertical (1).
 const SPLIT: usize = CHROMA_MODE + 3;
-const CONTEXTS: usize = SPLIT + 5;
+/// Luma coded in 4x4 blocks (3: such neighbours), then the 4x4 modes'
+/// most-probable flag (1) and the bins of the others (1).
+const BLOCKS4: usize = SPLIT + 5;
+const MOST_PROBABLE: usize = BLOCKS4 + 3;
+const REMAINING: usize = MOST_PROBABLE + 1;
+const CONTEXTS: usize = REMAINING + 1;
 
 /// Unary bins of |d| - 1 before the Exp-Golomb suffix.
 const UNARY_MAX: u32 = 8;
@@ -60,8 +66,8 @@ pub enum MbMode {
     },
     /// Intra with these modes.
     Intra {
-        /// Luma mode.
-        luma: IntraMode,
+        /// Luma mode(s).
+        luma: LumaIntra,
         /// Chroma mode.
         chroma: IntraMode,
     },
@@ -70,11 +76,23 @@ pub enum MbMode {
 /// What the neighbours of a macroblock say about it.
 #[derive(Debug, Clone, Copy, Default)]
 struct MbState {
+    /// Inside the picture (a macroblock coded already).
+    inside: bool,
     skip: bool,
     intra: bool,
     split: bool,
     /// Per 8x8 block (raster order), |mvd| per component (0 unless inter).
     mvd_abs: [[u32; 2]; 4],
+    /// The 4x4 intra modes, when coded in 4x4 blocks.
+    modes4: Option<[Intra4x4Mode; 16]>,
+}
+
+impl MbState {
+    /// The 4x4 modes a block of the next macroblocks sees here: none
+    /// outside the picture, DC unless coded in 4x4 blocks.
+    fn modes4_seen(&self) -> Option<[Intra4x4Mode; 16]> {
+        self.inside.then(|| self.modes4.unwrap_or([Intra4x4Mode::Dc; 16]))
+    }
 }
 
 /// Which vectors a frame's macroblocks code.
@@ -159,6 +177,57 @@ fn read_intra_mode(dec: &mut RangeDecoder<'_>, c: &mut [Context], base: usize) -
     }
 }
 
+/// The luma modes of an intra macroblock: whether in 4x4 blocks, then
+/// either each block's mode against its most probable one (a flag, else
+/// the 3 bits of its rank among the other eight, least significant
+/// first), or the 16x16 mode.
+fn code_luma_intra<B: Bins>(b: &mut B, n: &[MbState; 2], luma: &LumaIntra) {
+    let blocks4 = n.iter().filter(|s| s.modes4.is_some()).count();
+    b.bin(BLOCKS4 + blocks4, matches!(luma, LumaIntra::Blocks(_)));
+    match luma {
+        LumaIntra::Whole(mode) => code_intra_mode(b, LUMA_MODE, *mode),
+        LumaIntra::Blocks(modes) => {
+            let around = [n[0].modes4_seen(), n[1].modes4_seen()];
+            for k in CODING_ORDER {
+                let (l, a) = neighbour_modes(k, modes, around[0].as_ref(), around[1].as_ref());
+                let (mode, predicted) = (modes[k] as u32, most_probable(l, a) as u32);
+                b.bin(MOST_PROBABLE, mode == predicted);
+                if mode != predicted {
+                    let rank = mode - u32::from(mode > predicted);
+                    for bit in 0..3 {
+                        b.bin(REMAINING, (rank >> bit) & 1 == 1);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Reads what [`code_luma_intra`] codes.
+fn read_luma_intra(dec: &mut RangeDecoder<'_>, c: &mut [Context], n: &[MbState; 2]) -> LumaIntra {
+    let blocks4 = n.iter().filter(|s| s.modes4.is_some()).count();
+    if !dec.decode(&mut c[BLOCKS4 + blocks4]) {
+        return LumaIntra::Whole(read_intra_mode(dec, c, LUMA_MODE));
+    }
+    let around = [n[0].modes4_seen(), n[1].modes4_seen()];
+    let mut modes = [Intra4x4Mode::Dc; 16];
+    for k in CODING_ORDER {
+        let (l, a) = neighbour_modes(k, &modes, around[0].as_ref(), around[1].as_ref());
+        let predicted = most_probable(l, a);
+        modes[k] = if dec.decode(&mut c[MOST_PROBABLE]) {
+            predicted
+        } else {
+            let mut rank = 0;
+            for bit in 0..3 {
+                rank |= u32::from(dec.decode(&mut c[REMAINING])) << bit;
+            }
+            let code = rank + u32::from(rank >= predicted as u32);
+            Intra4x4Mode::from_code(code).unwrap_or(Intra4x4Mode::Dc)
+        };
+    }
+    LumaIntra::Blocks(modes)
+}
+
 /// The split (when the frame codes one) and vector differences of an inter
 /// macroblock: the reader twin of [`code_flags`]' split and [`code_mvd`].
 fn read_inter(
@@ -228,7 +297,7 @@ fn code_flags<B: Bins>(b: &mut B, n: &[MbState; 2], inter_frame: bool, mode: &Mb
     }
     match *mode {
         MbMode::Intra { luma, chroma } => {
-            code_intra_mode(b, LUMA_MODE, luma);
+            code_luma_intra(b, n, &luma);
             code_intra_mode(b, CHROMA_MODE, chroma);
         }
         MbMode::Inter { .. } if vectors == VectorSyntax::PerPartition => code_split(b, n, None),
@@ -297,7 +366,7 @@ fn code_mb<B: Bins>(b: &mut B, n: &[MbState; 2], inter_frame: bool, mode: &MbMod
 }
 
 fn state_of(mode: &MbMode) -> MbState {
-    match *mode {
+    let state = match *mode {
         MbMode::Skip => MbState {
             skip: true,
             ..MbState::default()
@@ -318,10 +387,18 @@ fn state_of(mode: &MbMode) -> MbState {
             }
             state
         }
-        MbMode::Intra { .. } => MbState {
+        MbMode::Intra { luma, .. } => MbState {
             intra: true,
+            modes4: match luma {
+                LumaIntra::Blocks(m) => Some(m),
+                LumaIntra::Whole(_) => None,
+            },
             ..MbState::default()
         },
+    };
+    MbState {
+        inside: true,
+        ..state
     }
 }
 
@@ -331,12 +408,13 @@ fn state_of(mode: &MbMode) -> MbState {
 /// ```
 /// use mocomp_codec::entropy::{RangeDecoder, RangeEncoder};
 /// use mocomp_codec::intra::IntraMode;
+/// use mocomp_codec::intra4x4::LumaIntra;
 /// use mocomp_codec::modes::{MbMode, ModeCoder, VectorSyntax};
 /// use mocomp_codec::mv::Mv;
 /// let modes = [
 ///     MbMode::Skip,
 ///     MbMode::Inter { mvd: Mv::new(-5, 130) },
-///     MbMode::Intra { luma: IntraMode::Dc, chroma: IntraMode::Horizontal },
+///     MbMode::Intra { luma: LumaIntra::Whole(IntraMode::Dc), chroma: IntraMode::Horizontal },
 /// ];
 /// let mut coder = ModeCoder::new(3, 1);
 /// let mut enc = RangeEncoder::new();
@@ -409,6 +487,26 @@ impl ModeCoder {
         self.contexts[SKIP + skipped].cost(false)
     }
 
+    /// The 4x4 intra modes the blocks of macroblock (mb_x, mb_y) see in
+    /// the macroblocks left of and above it (`None` outside the picture,
+    /// all DC when not coded in 4x4 blocks): what an encoder needs to
+    /// predict modes while choosing them.
+    pub fn modes4_around(&self, mb_x: usize, mb_y: usize) -> [Option<[Intra4x4Mode; 16]>; 2] {
+        self.neighbours(mb_x, mb_y).map(|s| s.modes4_seen())
+    }
+
+    /// The rate estimates, in 1/256 bit, of a 4x4 intra mode that is the
+    /// most probable one and of one that is not (its three bins taken at
+    /// their mean price). Not normative.
+    pub fn mode4_costs(&self) -> (u32, u32) {
+        let flag = &self.contexts[MOST_PROBABLE];
+        let rest = &self.contexts[REMAINING];
+        (
+            flag.cost(true),
+            flag.cost(false) + 3 * (rest.cost(false) + rest.cost(true)) / 2,
+        )
+    }
+
     /// Adapts and records as [`ModeCoder::write`] does, without writing.
     pub fn commit(
         &mut self,
@@ -474,7 +572,7 @@ impl ModeCoder {
             intra = dec.decode(&mut c[INTRA + n.iter().filter(|s| s.intra).count()]);
         }
         let mode = if intra {
-            let luma = read_intra_mode(dec, c, LUMA_MODE);
+            let luma = read_luma_intra(dec, c, &n);
             let chroma = read_intra_mode(dec, c, CHROMA_MODE);
             MbMode::Intra { luma, chroma }
         } else {
@@ -547,8 +645,18 @@ mod tests {
                     MbMode::Split { split, mvds }
                 }),
             (0u32..4, 0u32..4).prop_map(|(l, c)| MbMode::Intra {
-                luma: IntraMode::from_code(l).unwrap_or(IntraMode::Dc),
+                luma: LumaIntra::Whole(IntraMode::from_code(l).unwrap_or(IntraMode::Dc)),
                 chroma: IntraMode::from_code(c).unwrap_or(IntraMode::Dc),
+            }),
+            (proptest::collection::vec(0u32..9, 16), 0u32..4).prop_map(|(l, c)| {
+                let mut modes = [Intra4x4Mode::Dc; 16];
+                for (m, &code) in modes.iter_mut().zip(&l) {
+                    *m = Intra4x4Mode::from_code(code).unwrap_or(Intra4x4Mode::Dc);
+                }
+                MbMode::Intra {
+                    luma: LumaIntra::Blocks(modes),
+                    chroma: IntraMode::from_code(c).unwrap_or(IntraMode::Dc),
+                }
             }),
         ]
     }
@@ -563,7 +671,11 @@ mod tests {
             // 4 x 3 macroblocks; a 3 x 2 grid first. I frames hold intra only.
             let modes: Vec<MbMode> = modes
                 .into_iter()
-                .map(|m| if inter_frame { m } else { MbMode::Intra { luma: IntraMode::Dc, chroma: IntraMode::Plane } })
+                .map(|m| match m {
+                    MbMode::Intra { .. } => m,
+                    _ if inter_frame => m,
+                    _ => MbMode::Intra { luma: LumaIntra::Whole(IntraMode::Dc), chroma: IntraMode::Plane },
+                })
                 .collect();
             let mut w = ModeCoder::new(4, 3);
             let mut shadow = ModeCoder::new(4, 3);

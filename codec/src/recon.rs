@@ -9,6 +9,7 @@
 use crate::deblock::{deblock_frame, MbEdgeInfo};
 use crate::interp::{predict_chroma, predict_luma};
 use crate::intra::{self, Neighbours};
+use crate::intra4x4::{self, Intra4x4Mode, LumaIntra};
 use crate::mv::Mv;
 use crate::obmc::{self, Neighbourhood};
 use crate::partition::MbVectors;
@@ -76,6 +77,33 @@ pub fn predict_intra(
 ) -> MbSamples {
     let mut pred = MbSamples::default();
     predict_intra_plane(recon, 0, mb_x, mb_y, luma, &mut pred.luma);
+    predict_intra_plane(recon, 1, mb_x, mb_y, chroma, &mut pred.chroma[0]);
+    predict_intra_plane(recon, 2, mb_x, mb_y, chroma, &mut pred.chroma[1]);
+    pred
+}
+
+/// The prediction of an intra macroblock whose luma is coded in 4x4
+/// blocks (each predicted from the reconstruction of those before it, so
+/// the macroblock's `residual` at `qp` takes part), chroma in `chroma`.
+pub fn predict_intra4x4(
+    recon: &Frame,
+    (mb_x, mb_y): (usize, usize),
+    modes: &[Intra4x4Mode; 16],
+    chroma: intra::IntraMode,
+    residual: &MbResidual,
+    qp: u8,
+) -> MbSamples {
+    let luma = intra4x4::predict_mb(
+        recon.y(),
+        (mb_x, mb_y),
+        modes,
+        &residual.luma,
+        |levels, own, at| add_block(levels, qp, own, MB, at),
+    );
+    let mut pred = MbSamples {
+        luma,
+        ..MbSamples::default()
+    };
     predict_intra_plane(recon, 1, mb_x, mb_y, chroma, &mut pred.chroma[0]);
     predict_intra_plane(recon, 2, mb_x, mb_y, chroma, &mut pred.chroma[1]);
     pred
@@ -282,7 +310,7 @@ pub fn predict_inter_blocks(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mv
 /// held in `out` (a `stride`-wide block) at (bx, by), clipping; a block
 /// without levels leaves it as it is.
 #[inline(always)]
-fn add_block(levels: &Block4, qp: u8, out: &mut [u8], stride: usize, (bx, by): (usize, usize)) {
+pub fn add_block(levels: &Block4, qp: u8, out: &mut [u8], stride: usize, (bx, by): (usize, usize)) {
     if levels.as_flattened().iter().all(|&v| v == 0) {
         return;
     }
@@ -389,7 +417,20 @@ pub fn reconstruct_frame(
     for (i, mb) in frame.mbs.iter().enumerate() {
         let (mb_x, mb_y) = (i % cols, i / cols);
         let pred = match (mb.kind, reference) {
-            (MbKind::Intra { luma, chroma }, _) => predict_intra(&recon, mb_x, mb_y, luma, chroma),
+            (
+                MbKind::Intra {
+                    luma: LumaIntra::Whole(luma),
+                    chroma,
+                },
+                _,
+            ) => predict_intra(&recon, mb_x, mb_y, luma, chroma),
+            (
+                MbKind::Intra {
+                    luma: LumaIntra::Blocks(modes),
+                    chroma,
+                },
+                _,
+            ) => predict_intra4x4(&recon, (mb_x, mb_y), &modes, chroma, mb.residual(), header.qp),
             (_, Some(reference)) => {
                 let ctx = InterContext {
                     reference,

@@ -9,6 +9,7 @@
 use crate::bits::{BitError, BitReader, BitWriter};
 use crate::entropy::{RangeDecoder, RangeEncoder};
 use crate::intra::IntraMode;
+use crate::intra4x4::{self, LumaIntra};
 use crate::modes::{MbMode, ModeCoder, VectorSyntax};
 use crate::mv::{predict_mv, Mv, MV_LIMIT};
 use crate::partition::{MbVectors, Split, VectorNeighbourhood, WHOLE};
@@ -298,8 +299,8 @@ pub enum MbKind {
     },
     /// Intra prediction plus residual.
     Intra {
-        /// Luma 16x16 mode.
-        luma: IntraMode,
+        /// Luma mode(s): one 16x16 mode or sixteen 4x4 ones.
+        luma: LumaIntra,
         /// Chroma 8x8 mode.
         chroma: IntraMode,
     },
@@ -596,6 +597,7 @@ fn write_frame_header(h: &FrameHeader) -> Vec<u8> {
 ///
 /// ```
 /// use mocomp_codec::intra::IntraMode;
+/// use mocomp_codec::intra4x4::LumaIntra;
 /// use mocomp_codec::syntax::*;
 /// let seq = SequenceHeader { width: 32, height: 16, fps_num: 25, fps_den: 1, frame_count: 1, vui: Vui::default() };
 /// let header = FrameHeader {
@@ -605,7 +607,7 @@ fn write_frame_header(h: &FrameHeader) -> Vec<u8> {
 ///     deblock: true,
 ///     weights: mocomp_codec::weight::Weights::NONE,
 /// };
-/// let kind = MbKind::Intra { luma: IntraMode::Dc, chroma: IntraMode::Dc };
+/// let kind = MbKind::Intra { luma: LumaIntra::Whole(IntraMode::Dc), chroma: IntraMode::Dc };
 /// let frame = FrameSyntax { header, grid: None, mbs: vec![CodedMb::without_residual(kind); 2] };
 /// let mut state = EntropyState::new();
 /// let mut w = FrameWriter::new(&seq, &frame.header, None, &state);
@@ -834,6 +836,20 @@ pub fn intra_mode_allowed(mode: IntraMode, mb_x: usize, mb_y: usize) -> bool {
     }
 }
 
+/// Whether macroblock (mb_x, mb_y) of a picture `mb_cols` macroblocks
+/// wide has the neighbours of its luma intra modes: the 16x16 mode's, or
+/// each 4x4 block's (inside the macroblock, its blocks above and to the
+/// left).
+pub fn luma_intra_allowed(luma: &LumaIntra, mb_x: usize, mb_y: usize, mb_cols: usize) -> bool {
+    match luma {
+        LumaIntra::Whole(mode) => intra_mode_allowed(*mode, mb_x, mb_y),
+        LumaIntra::Blocks(modes) => modes.iter().enumerate().all(|(k, m)| {
+            let (above, left, _) = intra4x4::neighbours(k, mb_x, mb_y, mb_cols);
+            m.is_available(above, left)
+        }),
+    }
+}
+
 fn check_vector(mv: Option<Mv>, bit: usize) -> Result<Mv, SyntaxError> {
     match mv {
         Some(mv) if mv.in_range() => Ok(mv),
@@ -987,13 +1003,21 @@ impl PartitionReader<'_> {
                 MbKind::Split { split, mvs }
             }
             Some(MbMode::Intra { luma, chroma }) => {
-                for (what, mode) in [("luma intra mode", luma), ("chroma intra mode", chroma)] {
-                    if !intra_mode_allowed(mode, mb_x, mb_y) {
-                        return Err(invalid(
-                            format!("{what} {mode:?} needs neighbours outside the picture"),
-                            self.at(),
-                        ));
-                    }
+                if !luma_intra_allowed(&luma, mb_x, mb_y, cols) {
+                    let what = match luma {
+                        LumaIntra::Whole(mode) => format!("luma intra mode {mode:?} needs"),
+                        LumaIntra::Blocks(modes) => format!("luma 4x4 intra modes {modes:?} need"),
+                    };
+                    return Err(invalid(
+                        format!("{what} neighbours outside the picture"),
+                        self.at(),
+                    ));
+                }
+                if !intra_mode_allowed(chroma, mb_x, mb_y) {
+                    return Err(invalid(
+                        format!("chroma intra mode {chroma:?} needs neighbours outside the picture"),
+                        self.at(),
+                    ));
                 }
                 MbKind::Intra { luma, chroma }
             }

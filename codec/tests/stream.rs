@@ -7,6 +7,7 @@ use mocomp_codec::deblock::{deblock_frame, MbEdgeInfo};
 use mocomp_codec::decoder::{decode, DecodeError};
 use mocomp_codec::entropy::RangeEncoder;
 use mocomp_codec::intra::IntraMode;
+use mocomp_codec::intra4x4::{Intra4x4Mode, LumaIntra, CODING_ORDER};
 use mocomp_codec::modes::{MbMode, ModeCoder, VectorSyntax};
 use mocomp_codec::mv::Mv;
 use mocomp_codec::partition::Split;
@@ -19,7 +20,7 @@ use mocomp_codec::syntax::{
     read_frame, write_frame, write_stream, CodedMb, EntropyState, FrameHeader, FrameSyntax, FrameType,
     MbKind, MotionTool, SequenceHeader, SEQUENCE_HEADER_LEN,
 };
-use mocomp_codec::transform::{forward_4x4, quantize};
+use mocomp_codec::transform::{dequantize, forward_4x4, inverse_4x4, quantize};
 use mocomp_codec::warp::{warp_frame, MotionGrid};
 use mocomp_codec::weight::{PlaneWeight, Weights};
 
@@ -36,9 +37,66 @@ fn seq(width: usize, height: usize, frames: u32) -> SequenceHeader {
 
 fn intra_dc() -> MbKind {
     MbKind::Intra {
-        luma: IntraMode::Dc,
+        luma: LumaIntra::Whole(IntraMode::Dc),
         chroma: IntraMode::Dc,
     }
+}
+
+/// Macroblock (x, y) intra in 4x4 blocks, every mode somewhere: block k
+/// in mode `(k + seed) % 9` where it has that mode's neighbours, else DC.
+fn intra4x4(x: usize, y: usize, cols: usize, seed: usize) -> MbKind {
+    let mut modes = [Intra4x4Mode::Dc; 16];
+    for (k, m) in modes.iter_mut().enumerate() {
+        let (above, left, _) = mocomp_codec::intra4x4::neighbours(k, x, y, cols);
+        let want = Intra4x4Mode::ALL[(k + seed) % 9];
+        if want.is_available(above, left) {
+            *m = want;
+        }
+    }
+    MbKind::Intra {
+        luma: LumaIntra::Blocks(modes),
+        chroma: IntraMode::Dc,
+    }
+}
+
+/// The luma prediction of a macroblock in 4x4 blocks as a writer makes it:
+/// each block predicted from the reconstruction so far, its levels the
+/// quantised difference to the source, reconstructed before the next.
+fn code_intra4x4_luma(
+    source: &Plane,
+    recon: &Frame,
+    (mb_x, mb_y): (usize, usize),
+    modes: &[Intra4x4Mode; 16],
+    qp: u8,
+    levels: &mut [[[i32; 4]; 4]; 16],
+) -> [u8; 256] {
+    let (mut own, mut pred) = ([0u8; 256], [0u8; 256]);
+    for k in CODING_ORDER {
+        let mut block = [0u8; 16];
+        let e = mocomp_codec::intra4x4::edges(recon.y(), &own, mb_x, mb_y, k);
+        mocomp_codec::intra4x4::predict(modes[k], &e, &mut block);
+        let (bx, by) = (4 * (k % 4), 4 * (k / 4));
+        let mut diff = [[0i32; 4]; 4];
+        for r in 0..4 {
+            for c in 0..4 {
+                let s = source.get(mb_x * 16 + bx + c, mb_y * 16 + by + r);
+                diff[r][c] = i32::from(s) - i32::from(block[r * 4 + c]);
+            }
+        }
+        let mut c = forward_4x4(&diff);
+        quantize(&mut c, qp, 1.0 / 3.0);
+        levels[k] = c;
+        dequantize(&mut c, qp);
+        let res = inverse_4x4(&c);
+        for r in 0..4 {
+            for col in 0..4 {
+                let i = (by + r) * 16 + bx + col;
+                pred[i] = block[r * 4 + col];
+                own[i] = (i32::from(block[r * 4 + col]) + res[r][col]).clamp(0, 255) as u8;
+            }
+        }
+    }
+    pred
 }
 
 fn empty(kind: MbKind) -> CodedMb {
@@ -148,7 +206,7 @@ fn hand_built_intra_in_a_p_frame_and_obmc_and_grid() {
         mbs: vec![
             empty(MbKind::Skip),
             empty(MbKind::Intra {
-                luma: IntraMode::Horizontal,
+                luma: LumaIntra::Whole(IntraMode::Horizontal),
                 chroma: IntraMode::Dc,
             }),
         ],
@@ -244,8 +302,21 @@ fn code_frame(
     };
     for (i, kind) in kinds.iter().enumerate() {
         let (mb_x, mb_y) = (i % cols, i / cols);
+        let mut residual = MbResidual::default();
         let pred = match *kind {
-            MbKind::Intra { luma, chroma } => predict_intra(&recon, mb_x, mb_y, luma, chroma),
+            MbKind::Intra {
+                luma: LumaIntra::Whole(luma),
+                chroma,
+            } => predict_intra(&recon, mb_x, mb_y, luma, chroma),
+            MbKind::Intra {
+                luma: LumaIntra::Blocks(modes),
+                chroma,
+            } => {
+                let mut pred = predict_intra(&recon, mb_x, mb_y, IntraMode::Dc, chroma);
+                let at = (mb_x, mb_y);
+                pred.luma = code_intra4x4_luma(source.y(), &recon, at, &modes, header.qp, &mut residual.luma);
+                pred
+            }
             _ => {
                 let ctx = InterContext {
                     reference: reference.unwrap(),
@@ -257,7 +328,6 @@ fn code_frame(
                 predict_inter_blocks(&ctx, mb_x, mb_y, &vectors[i].map(Option::unwrap_or_default))
             }
         };
-        let mut residual = MbResidual::default();
         if *kind != MbKind::Skip {
             let block = |plane: &Plane, pred: &[u8], size: usize, bx: usize, by: usize| {
                 let mut b = [[0i32; 4]; 4];
@@ -269,7 +339,14 @@ fn code_frame(
                 }
                 b
             };
-            for k in 0..16 {
+            let blocks4 = matches!(
+                kind,
+                MbKind::Intra {
+                    luma: LumaIntra::Blocks(_),
+                    ..
+                }
+            );
+            for k in (0..16).filter(|_| !blocks4) {
                 let mut c = forward_4x4(&block(source.y(), &pred.luma, 16, k % 4, k / 4));
                 quantize(&mut c, header.qp, 1.0 / 3.0);
                 residual.luma[k] = c;
@@ -354,6 +431,7 @@ fn coded_stream(width: usize, height: usize, qp: u8) -> (Vec<u8>, Vec<Frame>) {
             },
         };
         let g = matches!(tool, MotionTool::Grid(_)).then(|| grid.clone());
+        let cols = s.mb_cols();
         let choose = move |x: usize, y: usize| -> MbKind {
             if ft == FrameType::Intra {
                 let mode = |m: usize| {
@@ -372,10 +450,17 @@ fn coded_stream(width: usize, height: usize, qp: u8) -> (Vec<u8>, Vec<Frame>) {
                     _ => true,
                 };
                 let m = if ok { mode(pick) } else { IntraMode::Dc };
-                return MbKind::Intra { luma: m, chroma: m };
+                if (x + y + t) % 3 == 1 {
+                    return intra4x4(x, y, cols, x + 3 * y);
+                }
+                return MbKind::Intra {
+                    luma: LumaIntra::Whole(m),
+                    chroma: m,
+                };
             }
             match (x + y + t) % 5 {
                 0 => MbKind::Skip,
+                1 if (x + t) % 2 == 0 => intra4x4(x, y, cols, x + y + t),
                 1 => intra_dc(),
                 _ if matches!(tool, MotionTool::Grid(_)) => MbKind::Inter { mv: Mv::ZERO },
                 // Block frames split some macroblocks, every way, each
@@ -562,7 +647,7 @@ fn invalid_frame_syntax_is_located() {
     let mut payload = w.into_bytes();
     let mut enc = RangeEncoder::new();
     let vertical = MbMode::Intra {
-        luma: IntraMode::Vertical, // no row above
+        luma: LumaIntra::Whole(IntraMode::Vertical), // no row above
         chroma: IntraMode::Dc,
     };
     ModeCoder::new(2, 1).write(&mut enc, 0, 0, false, VectorSyntax::None, &vertical);

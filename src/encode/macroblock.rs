@@ -343,6 +343,23 @@ impl MbCoder {
         (b, c)
     }
 
+    /// The levels of intra luma block (bx, by) (in blocks) of `src -
+    /// pred`, as [`MbCoder::code`] quantises them (RDOQ priced by `rate`
+    /// when given): what a 4x4 intra search reconstructs each block from.
+    pub fn intra_luma_levels(
+        &self,
+        src: &MbSource,
+        pred: &[u8; 256],
+        at: (usize, usize),
+        rate: Option<&BlockPricer>,
+    ) -> Block4 {
+        let (diff, mut levels) = Self::block_levels(&src.luma, pred, MB, at, self.qp, true);
+        if let Some(rate) = rate {
+            lower_levels(&diff, &mut levels, self.qp, self.lambda, rate);
+        }
+        levels
+    }
+
     #[inline(always)]
     fn code_body(
         &self,

@@ -28,6 +28,7 @@
 
 mod config;
 mod frame;
+mod intra4x4;
 mod macroblock;
 mod motion;
 mod partition;

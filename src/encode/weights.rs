@@ -59,11 +59,24 @@ impl PlaneStats {
         }
         let n = (w * h) as f64;
         let mean = sum as f64 / n;
-        let deviation = p
-            .rows()
-            .map(|r| r.iter().map(|&v| (f64::from(v) - mean).abs()).sum::<f64>())
-            .sum::<f64>()
-            / n;
+        // sum |v - mean| from the sum and count of the samples above the
+        // mean, integer sums the compiler vectorises (a float sum of
+        // absolute values a sample is not).
+        let cut = mean.floor().clamp(0.0, 255.0) as u8;
+        let (mut above_sum, mut above_n) = (0u64, 0u64);
+        for r in p.rows() {
+            let (mut s, mut c) = (0u32, 0u32);
+            for &v in r {
+                let above = u32::from(v > cut);
+                s += above * u32::from(v);
+                c += above;
+            }
+            above_sum += u64::from(s);
+            above_n += u64::from(c);
+        }
+        let below_sum = (sum - above_sum) as f64;
+        let below_n = (w * h) as f64 - above_n as f64;
+        let deviation = ((above_sum as f64 - mean * above_n as f64) + (mean * below_n - below_sum)) / n;
         let block_means = block_sums
             .iter()
             .enumerate()

@@ -20,6 +20,16 @@ use super::cost;
 /// Signature of a block cost kernel: `(a, a_stride, b, b_stride, w, h)`.
 pub type CostFn = fn(&[u8], usize, &[u8], usize, usize, usize) -> u32;
 
+/// Signature of the paired 4x4 SATD: two 4x4 tiles side by side in 8x4
+/// blocks (rows of 8 bytes), each tile's SATD (halved, rounded up, as
+/// [`cost::satd`] of that tile alone).
+pub type PairFn = fn(&[u8; 32], &[u8; 32]) -> [u32; 2];
+
+/// The scalar paired 4x4 SATD.
+pub fn satd_4x4_pair(a: &[u8; 32], b: &[u8; 32]) -> [u32; 2] {
+    [0, 4].map(|o| cost::satd(&a[o..], 8, &b[o..], 8, 4, 4))
+}
+
 /// The kernels selected for this machine.
 #[derive(Clone, Copy)]
 pub struct Kernels {
@@ -27,6 +37,8 @@ pub struct Kernels {
     pub sad: CostFn,
     /// Sum of absolute 4x4 Hadamard coefficients, halved.
     pub satd: CostFn,
+    /// SATD of two 4x4 tiles at once (4x4 intra mode search).
+    pub satd_4x4_pair: PairFn,
     /// Name of the instruction set in use, for reports.
     pub isa: &'static str,
 }
@@ -41,6 +53,7 @@ impl std::fmt::Debug for Kernels {
 pub const SCALAR: Kernels = Kernels {
     sad: cost::sad,
     satd: cost::satd,
+    satd_4x4_pair,
     isa: "scalar",
 };
 
@@ -86,11 +99,13 @@ mod x86 {
     pub const SSE2: Kernels = Kernels {
         sad: sad_sse2,
         satd: satd_sse2,
+        satd_4x4_pair: satd_4x4_pair_sse2,
         isa: "sse2",
     };
     pub const AVX2: Kernels = Kernels {
         sad: sad_avx2,
         satd: satd_avx2,
+        satd_4x4_pair: satd_4x4_pair_sse2,
         isa: "avx2",
     };
 
@@ -222,9 +237,22 @@ mod x86 {
         sum.div_ceil(2)
     }
 
+    fn satd_4x4_pair_sse2(a: &[u8; 32], b: &[u8; 32]) -> [u32; 2] {
+        // SAFETY: SSE2 is part of x86-64; both 8x4 blocks are the arrays.
+        let [l, r] = unsafe { hadamard_abs_tiles_sse2(a.as_ptr(), 8, b.as_ptr(), 8) };
+        [l.div_ceil(2), r.div_ceil(2)]
+    }
+
     /// `sum |H D H^T|` over two side-by-side 4x4 tiles of `a - b`.
     #[target_feature(enable = "sse2")]
     unsafe fn hadamard_abs_8x4_sse2(a: *const u8, sa: usize, b: *const u8, sb: usize) -> u32 {
+        let [l, r] = hadamard_abs_tiles_sse2(a, sa, b, sb);
+        l + r
+    }
+
+    /// `sum |H D H^T|` of each of two side-by-side 4x4 tiles of `a - b`.
+    #[target_feature(enable = "sse2")]
+    unsafe fn hadamard_abs_tiles_sse2(a: *const u8, sa: usize, b: *const u8, sb: usize) -> [u32; 2] {
         let zero = _mm_setzero_si128();
         let row = |r: usize| {
             let x = _mm_unpacklo_epi8(_mm_loadl_epi64(a.add(r * sa) as *const __m128i), zero);
@@ -242,8 +270,9 @@ mod x86 {
         // Transpose each tile into vectors holding two columns of four.
         let (t0, t1) = (_mm_unpacklo_epi16(v0, v1), _mm_unpacklo_epi16(v2, v3));
         let (t2, t3) = (_mm_unpackhi_epi16(v0, v1), _mm_unpackhi_epi16(v2, v3));
-        let mut acc = _mm_setzero_si128();
-        for (lo, hi) in [(t0, t1), (t2, t3)] {
+        let mut sums = [0u32; 2];
+        for (tile, (lo, hi)) in [(t0, t1), (t2, t3)].into_iter().enumerate() {
+            let mut acc = _mm_setzero_si128();
             let c01 = _mm_unpacklo_epi32(lo, hi); // columns 0 | 1
             let c23 = _mm_unpackhi_epi32(lo, hi); // columns 2 | 3
                                                   // Horizontal butterflies (across columns).
@@ -257,10 +286,11 @@ mod x86 {
                 let abs = _mm_max_epi16(v, _mm_sub_epi16(zero, v));
                 acc = _mm_add_epi32(acc, _mm_madd_epi16(abs, _mm_set1_epi16(1)));
             }
+            let s = _mm_add_epi32(acc, _mm_shuffle_epi32(acc, 0b01_00_11_10));
+            let s = _mm_add_epi32(s, _mm_shuffle_epi32(s, 0b10_11_00_01));
+            sums[tile] = _mm_cvtsi128_si32(s) as u32;
         }
-        let s = _mm_add_epi32(acc, _mm_shuffle_epi32(acc, 0b01_00_11_10));
-        let s = _mm_add_epi32(s, _mm_shuffle_epi32(s, 0b10_11_00_01));
-        _mm_cvtsi128_si32(s) as u32
+        sums
     }
 
     fn sad_sse2(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {

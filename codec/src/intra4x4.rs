@@ -1,0 +1,441 @@
+//! Intra prediction of luma in 4x4 blocks (normative, FORMAT.md section
+//! 9.1), H.264's Intra_4x4 (its clause 8.3.1): nine directional modes, the
+//! blocks in coding order, each predicted from the reconstruction of the
+//! blocks before it (its own macroblock's included), and the most probable
+//! mode its coding predicts.
+//!
+//! Edges are the eight samples above the block (four above, four above
+//! right), the four to its left and the corner. Samples above right that
+//! are not decoded yet repeat the last one above, as in H.264.
+//!
+//! ```
+//! use mocomp_codec::intra4x4::{predict, Edges, Intra4x4Mode};
+//! let e = Edges { top: Some([10, 20, 30, 40, 50, 60, 70, 80]), left: Some([1, 2, 3, 4]), top_left: Some(0) };
+//! let mut out = [0u8; 16];
+//! predict(Intra4x4Mode::Vertical, &e, &mut out);
+//! assert_eq!(&out[12..], &[10, 20, 30, 40]);
+//! ```
+
+use crate::intra::IntraMode;
+use crate::picture::Plane;
+use crate::syntax::MB;
+use crate::transform::Block4;
+
+/// A 4x4 intra prediction mode; the value is its code (H.264's numbering).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[repr(u8)]
+pub enum Intra4x4Mode {
+    /// Copy the row above.
+    Vertical = 0,
+    /// Copy the column to the left.
+    Horizontal = 1,
+    /// Mean of the neighbours.
+    Dc = 2,
+    /// Along the 45-degree diagonal down and to the left (from above and above right).
+    DiagonalDownLeft = 3,
+    /// Along the diagonal down and to the right.
+    DiagonalDownRight = 4,
+    /// Steeply down and to the right.
+    VerticalRight = 5,
+    /// Shallowly down and to the right.
+    HorizontalDown = 6,
+    /// Steeply down and to the left.
+    VerticalLeft = 7,
+    /// Shallowly up and to the right (from the left column).
+    HorizontalUp = 8,
+}
+
+/// How a macroblock's luma is intra-predicted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum LumaIntra {
+    /// As one 16x16 block, in this mode (section 9).
+    Whole(IntraMode),
+    /// In 4x4 blocks, with these modes (raster order of the blocks).
+    Blocks([Intra4x4Mode; 16]),
+}
+
+/// Raster index (block k covers luma `(4 (k % 4), 4 (k / 4))` onwards) of
+/// the blocks in coding order: the 8x8 quadrants in raster order, each
+/// quadrant's four blocks in raster order.
+pub const CODING_ORDER: [usize; 16] = [0, 1, 4, 5, 2, 3, 6, 7, 8, 9, 12, 13, 10, 11, 14, 15];
+
+/// Position in coding order of each raster block.
+const CODING_POSITION: [usize; 16] = {
+    let mut p = [0; 16];
+    let mut i = 0;
+    while i < 16 {
+        p[CODING_ORDER[i]] = i;
+        i += 1;
+    }
+    p
+};
+
+impl Intra4x4Mode {
+    /// All modes, in code order.
+    pub const ALL: [Intra4x4Mode; 9] = [
+        Intra4x4Mode::Vertical,
+        Intra4x4Mode::Horizontal,
+        Intra4x4Mode::Dc,
+        Intra4x4Mode::DiagonalDownLeft,
+        Intra4x4Mode::DiagonalDownRight,
+        Intra4x4Mode::VerticalRight,
+        Intra4x4Mode::HorizontalDown,
+        Intra4x4Mode::VerticalLeft,
+        Intra4x4Mode::HorizontalUp,
+    ];
+
+    /// The mode with this code, if any.
+    pub fn from_code(code: u32) -> Option<Intra4x4Mode> {
+        Intra4x4Mode::ALL.get(code as usize).copied()
+    }
+
+    /// Which edges the mode reads: (above, left); the corner is read by
+    /// the modes needing both.
+    pub fn needs(self) -> (bool, bool) {
+        use Intra4x4Mode::*;
+        match self {
+            Vertical | DiagonalDownLeft | VerticalLeft => (true, false),
+            Horizontal | HorizontalUp => (false, true),
+            Dc => (false, false),
+            DiagonalDownRight | VerticalRight | HorizontalDown => (true, true),
+        }
+    }
+
+    /// Whether a block with these neighbours (above, left) can use it.
+    pub fn is_available(self, above: bool, left: bool) -> bool {
+        let (a, l) = self.needs();
+        (above || !a) && (left || !l)
+    }
+}
+
+/// The reconstructed samples around a 4x4 block.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Edges {
+    /// The four samples above and the four above right (the last above
+    /// repeated where those are not decoded yet).
+    pub top: Option<[u8; 8]>,
+    /// The four samples to the left, top to bottom.
+    pub left: Option<[u8; 4]>,
+    /// The sample above-left (present when both others are).
+    pub top_left: Option<u8>,
+}
+
+/// Which neighbours raster block `k` of macroblock (mb_x, mb_y) has in a
+/// picture `mb_cols` macroblocks wide: (above, left, above right decoded).
+pub fn neighbours(k: usize, mb_x: usize, mb_y: usize, mb_cols: usize) -> (bool, bool, bool) {
+    let (i, j) = (k % 4, k / 4);
+    let above = j > 0 || mb_y > 0;
+    let left = i > 0 || mb_x > 0;
+    let above_right = match (i, j) {
+        (3, 0) => mb_y > 0 && mb_x + 1 < mb_cols,
+        (_, 0) => mb_y > 0,
+        (3, _) => false,
+        _ => CODING_POSITION[k - 3] < CODING_POSITION[k],
+    };
+    (above, left, above_right)
+}
+
+/// The edges of raster block `k` of macroblock (mb_x, mb_y): samples
+/// outside the macroblock from `recon` (the luma reconstructed so far),
+/// inside it from `own` (the macroblock's blocks reconstructed so far,
+/// 16x16 row-major).
+pub fn edges(recon: &Plane, own: &[u8; 256], mb_x: usize, mb_y: usize, k: usize) -> Edges {
+    let (above, left, above_right) = neighbours(k, mb_x, mb_y, recon.width() / MB);
+    let (mx, my) = ((mb_x * MB) as isize, (mb_y * MB) as isize);
+    // Sample (x, y) relative to the macroblock: its own inside it, the
+    // picture's outside (-1 is left of or above it).
+    let at = |x: isize, y: isize| -> u8 {
+        if x >= 0 && y >= 0 && x < MB as isize {
+            own[y as usize * MB + x as usize]
+        } else {
+            recon.get((mx + x) as usize, (my + y) as usize)
+        }
+    };
+    let (bx, by) = (4 * (k % 4) as isize, 4 * (k / 4) as isize);
+    let top = above.then(|| {
+        let mut t = [0u8; 8];
+        for (c, v) in t.iter_mut().enumerate() {
+            let c = c as isize;
+            *v = if c < 4 || above_right {
+                at(bx + c, by - 1)
+            } else {
+                at(bx + 3, by - 1)
+            };
+        }
+        t
+    });
+    let left_col = left.then(|| [0, 1, 2, 3].map(|r| at(bx - 1, by + r)));
+    let top_left = (above && left).then(|| at(bx - 1, by - 1));
+    Edges {
+        top,
+        left: left_col,
+        top_left,
+    }
+}
+
+/// Predicts a 4x4 block in `mode` into `out` (row-major). The mode must be
+/// available with these edges ([`Intra4x4Mode::is_available`]); panics
+/// otherwise.
+pub fn predict(mode: Intra4x4Mode, e: &Edges, out: &mut [u8; 16]) {
+    use Intra4x4Mode::*;
+    let (needs_top, needs_left) = mode.needs();
+    assert!(
+        (e.top.is_some() || !needs_top)
+            && (e.left.is_some() || !needs_left)
+            && (e.top_left.is_some() || !(needs_top && needs_left)),
+        "4x4 intra mode {mode:?} without its neighbours"
+    );
+    // The edge as one line: left column bottom to top, the corner, then
+    // the row above and above right. p(-1, y) = line[3 - y], p(x, -1) =
+    // line[5 + x], the corner being both at index 4.
+    let mut line = [0i32; 13];
+    if let Some(l) = e.left {
+        for y in 0..4 {
+            line[3 - y] = i32::from(l[y]);
+        }
+    }
+    line[4] = i32::from(e.top_left.unwrap_or(0));
+    if let Some(t) = e.top {
+        for x in 0..8 {
+            line[5 + x] = i32::from(t[x]);
+        }
+    }
+    let t = |x: i32| line[(5 + x) as usize];
+    let l = |y: i32| line[(3 - y) as usize];
+    // Three-tap and two-tap filters along the edge.
+    let f3 = |a: i32, b: i32, c: i32| (a + 2 * b + c + 2) >> 2;
+    let f2 = |a: i32, b: i32| (a + b + 1) >> 1;
+    for y in 0..4i32 {
+        for x in 0..4i32 {
+            let v = match mode {
+                Vertical => t(x),
+                Horizontal => l(y),
+                Dc => dc(e),
+                DiagonalDownLeft if x == 3 && y == 3 => (t(6) + 3 * t(7) + 2) >> 2,
+                DiagonalDownLeft => f3(t(x + y), t(x + y + 1), t(x + y + 2)),
+                DiagonalDownRight if x > y => f3(t(x - y - 2), t(x - y - 1), t(x - y)),
+                DiagonalDownRight if x < y => f3(l(y - x - 2), l(y - x - 1), l(y - x)),
+                DiagonalDownRight => f3(t(0), t(-1), l(0)),
+                VerticalRight => match 2 * x - y {
+                    z @ 0..=6 if z % 2 == 0 => f2(t(x - (y >> 1) - 1), t(x - (y >> 1))),
+                    1 | 3 | 5 => f3(t(x - (y >> 1) - 2), t(x - (y >> 1) - 1), t(x - (y >> 1))),
+                    -1 => f3(l(0), l(-1), t(0)),
+                    _ => f3(l(y - 1), l(y - 2), l(y - 3)),
+                },
+                HorizontalDown => match 2 * y - x {
+                    z @ 0..=6 if z % 2 == 0 => f2(l(y - (x >> 1) - 1), l(y - (x >> 1))),
+                    1 | 3 | 5 => f3(l(y - (x >> 1) - 2), l(y - (x >> 1) - 1), l(y - (x >> 1))),
+                    -1 => f3(l(0), l(-1), t(0)),
+                    _ => f3(t(x - 1), t(x - 2), t(x - 3)),
+                },
+                VerticalLeft if y % 2 == 0 => f2(t(x + (y >> 1)), t(x + (y >> 1) + 1)),
+                VerticalLeft => f3(t(x + (y >> 1)), t(x + (y >> 1) + 1), t(x + (y >> 1) + 2)),
+                HorizontalUp => match x + 2 * y {
+                    0 | 2 | 4 => f2(l(y + (x >> 1)), l(y + (x >> 1) + 1)),
+                    1 | 3 => f3(l(y + (x >> 1)), l(y + (x >> 1) + 1), l(y + (x >> 1) + 2)),
+                    5 => (l(2) + 3 * l(3) + 2) >> 2,
+                    _ => l(3),
+                },
+            };
+            out[(y * 4 + x) as usize] = v as u8;
+        }
+    }
+}
+
+/// DC of a 4x4 block: the rounded mean of the edges it has, 128 with none.
+fn dc(e: &Edges) -> i32 {
+    let top: i32 = e.top.map_or(0, |t| t[..4].iter().map(|&v| i32::from(v)).sum());
+    let left: i32 = e.left.map_or(0, |l| l.iter().map(|&v| i32::from(v)).sum());
+    match (e.top.is_some(), e.left.is_some()) {
+        (true, true) => (top + left + 4) >> 3,
+        (true, false) => (top + 2) >> 2,
+        (false, true) => (left + 2) >> 2,
+        (false, false) => 128,
+    }
+}
+
+/// The most probable mode of a block from the modes of the blocks left of
+/// and above it (`None` outside the picture; DC for a block of a
+/// macroblock not coded in 4x4 blocks): the lower of the two, DC when
+/// either is outside.
+pub fn most_probable(left: Option<Intra4x4Mode>, above: Option<Intra4x4Mode>) -> Intra4x4Mode {
+    match (left, above) {
+        (Some(a), Some(b)) => a.min(b),
+        _ => Intra4x4Mode::Dc,
+    }
+}
+
+/// The modes of the blocks left of and above raster block `k` of a
+/// macroblock whose own blocks have `own` modes (those before `k` in coding
+/// order decided), given the neighbour macroblocks' modes (`None` outside
+/// the picture; all DC when not coded in 4x4 blocks).
+pub fn neighbour_modes(
+    k: usize,
+    own: &[Intra4x4Mode; 16],
+    left_mb: Option<&[Intra4x4Mode; 16]>,
+    above_mb: Option<&[Intra4x4Mode; 16]>,
+) -> (Option<Intra4x4Mode>, Option<Intra4x4Mode>) {
+    let (i, j) = (k % 4, k / 4);
+    let left = if i > 0 {
+        Some(own[k - 1])
+    } else {
+        left_mb.map(|m| m[k + 3])
+    };
+    let above = if j > 0 {
+        Some(own[k - 4])
+    } else {
+        above_mb.map(|m| m[12 + i])
+    };
+    (left, above)
+}
+
+/// The luma prediction of a macroblock coded in 4x4 blocks: each block, in
+/// coding order, predicted in its mode from the reconstruction before it:
+/// `recon` (the picture so far) outside the macroblock, inside it the
+/// blocks before, each its prediction plus its levels (`add` adds one
+/// block's levels to a 16x16 buffer at a block position, as
+/// reconstruction does). The macroblock's reconstruction is this
+/// prediction plus the same levels.
+pub fn predict_mb(
+    recon: &Plane,
+    (mb_x, mb_y): (usize, usize),
+    modes: &[Intra4x4Mode; 16],
+    levels: &[Block4; 16],
+    add: impl Fn(&Block4, &mut [u8; 256], (usize, usize)),
+) -> [u8; 256] {
+    let mut own = [0u8; 256];
+    let mut pred = [0u8; 256];
+    for &k in &CODING_ORDER {
+        let mut block = [0u8; 16];
+        predict(modes[k], &edges(recon, &own, mb_x, mb_y, k), &mut block);
+        let (bx, by) = (4 * (k % 4), 4 * (k / 4));
+        for r in 0..4 {
+            let i = (by + r) * MB + bx;
+            own[i..i + 4].copy_from_slice(&block[r * 4..r * 4 + 4]);
+            pred[i..i + 4].copy_from_slice(&block[r * 4..r * 4 + 4]);
+        }
+        add(&levels[k], &mut own, (bx, by));
+    }
+    pred
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn edges_of(top: [u8; 8], left: [u8; 4], corner: u8) -> Edges {
+        Edges {
+            top: Some(top),
+            left: Some(left),
+            top_left: Some(corner),
+        }
+    }
+
+    #[test]
+    fn hand_computed_predictions() {
+        // Above: A..H = 10, 20, ..., 80; left: I..L = 1, 2, 3, 4; corner M = 0.
+        let e = edges_of([10, 20, 30, 40, 50, 60, 70, 80], [1, 2, 3, 4], 0);
+        let mut out = [0u8; 16];
+        predict(Intra4x4Mode::Horizontal, &e, &mut out);
+        assert_eq!(out, [1, 1, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4]);
+        predict(Intra4x4Mode::Dc, &e, &mut out);
+        assert!(out.iter().all(|&v| v == 14)); // (100 + 10 + 4) >> 3
+                                               // Down-left: (A + 2B + C + 2) >> 2 = 20 at (0, 0); (G + 3H + 2) >> 2 = 78 at (3, 3).
+        predict(Intra4x4Mode::DiagonalDownLeft, &e, &mut out);
+        assert_eq!((out[0], out[1], out[5], out[15]), (20, 30, 40, 78));
+        // Down-right: (A + 2M + I + 2) >> 2 on the diagonal; (M + 2A + B + 2) >> 2 right of it.
+        predict(Intra4x4Mode::DiagonalDownRight, &e, &mut out);
+        assert_eq!((out[0], out[1], out[4], out[15]), (3, 10, 1, 3));
+        // Vertical-left: (A + B + 1) >> 1 in row 0, (A + 2B + C + 2) >> 2 in row 1.
+        predict(Intra4x4Mode::VerticalLeft, &e, &mut out);
+        assert_eq!((out[0], out[4], out[8], out[15]), (15, 20, 25, 60));
+        // Horizontal-up: past the bottom of the column, L.
+        predict(Intra4x4Mode::HorizontalUp, &e, &mut out);
+        assert_eq!((out[0], out[1], out[2], out[11], out[15]), (2, 2, 3, 4, 4));
+        // Vertical-right: (M + A + 1) >> 1 at (0, 0); (I + 2M + A + 2) >> 2 at (0, 1).
+        predict(Intra4x4Mode::VerticalRight, &e, &mut out);
+        assert_eq!((out[0], out[4], out[8]), (5, 3, 1));
+        // Horizontal-down: (M + I + 1) >> 1 at (0, 0); (I + 2M + A + 2) >> 2 at
+        // (1, 0); (B + 2A + M + 2) >> 2 at (2, 0).
+        predict(Intra4x4Mode::HorizontalDown, &e, &mut out);
+        assert_eq!((out[0], out[1], out[2], out[3]), (1, 3, 10, 20));
+    }
+
+    #[test]
+    fn a_picture_constant_along_a_direction_is_continued_exactly() {
+        // Samples that change linearly across a direction and not along it
+        // are continued exactly by that direction's mode (the filters
+        // average linear runs to their middle value); `skip` is where the
+        // mode's definition departs from the direction.
+        let check = |s: &dyn Fn(i32, i32) -> u8, mode: Intra4x4Mode, skip: (i32, i32)| {
+            let e = Edges {
+                top: Some([0, 1, 2, 3, 4, 5, 6, 7].map(|x| s(x, -1))),
+                left: Some([0, 1, 2, 3].map(|y| s(-1, y))),
+                top_left: Some(s(-1, -1)),
+            };
+            let mut out = [0u8; 16];
+            predict(mode, &e, &mut out);
+            for y in 0..4 {
+                for x in (0..4).filter(|&x| (x, y) != skip) {
+                    assert_eq!(out[(y * 4 + x) as usize], s(x, y), "{mode:?} at ({x}, {y})");
+                }
+            }
+        };
+        let none = (-9, -9);
+        check(
+            &|x, _| [5, 9, 200, 31, 77, 0, 0, 0, 0][(x + 1) as usize],
+            Intra4x4Mode::Vertical,
+            none,
+        );
+        check(&|_, y| (y * 50 + 7) as u8, Intra4x4Mode::Horizontal, none);
+        check(
+            &|x, y| (20 + 10 * (x + y)) as u8,
+            Intra4x4Mode::DiagonalDownLeft,
+            (3, 3),
+        );
+        check(
+            &|x, y| (100 + 10 * (x - y)) as u8,
+            Intra4x4Mode::DiagonalDownRight,
+            none,
+        );
+        check(&|_, _| 77, Intra4x4Mode::Dc, none);
+    }
+
+    #[test]
+    fn coding_order_and_above_right_availability() {
+        // Quadrants in raster order, blocks in raster order inside them.
+        assert_eq!(CODING_ORDER[..4], [0, 1, 4, 5]);
+        // Inside a macroblock away from the picture's edges, as H.264's
+        // Figure 6-10: no above-right for raster blocks 5, 7, 11, 13, 15
+        // (decoded after it, or in the next macroblock).
+        let missing: Vec<usize> = (0..16).filter(|&k| !neighbours(k, 1, 1, 3).2).collect();
+        assert_eq!(missing, vec![5, 7, 11, 13, 15]);
+        // The last macroblock of a row has no above-right for block 3.
+        assert!(!neighbours(3, 2, 1, 3).2);
+        // The top row has nothing above.
+        assert_eq!(neighbours(1, 1, 0, 3), (false, true, false));
+        assert_eq!(neighbours(0, 0, 1, 3), (true, false, true));
+    }
+
+    #[test]
+    fn most_probable_is_the_lower_mode_or_dc() {
+        use Intra4x4Mode::*;
+        assert_eq!(
+            most_probable(Some(HorizontalUp), Some(VerticalRight)),
+            VerticalRight
+        );
+        assert_eq!(most_probable(None, Some(Vertical)), Dc);
+        assert_eq!(most_probable(Some(Vertical), None), Dc);
+        let own = [HorizontalDown; 16];
+        let left = [Vertical; 16];
+        // Block 0 looks into the left macroblock's block 3 and the one above's 12.
+        assert_eq!(
+            neighbour_modes(0, &own, Some(&left), None),
+            (Some(Vertical), None)
+        );
+        assert_eq!(
+            neighbour_modes(5, &own, None, None),
+            (Some(HorizontalDown), Some(HorizontalDown))
+        );
+    }
+}

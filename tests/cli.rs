@@ -1084,12 +1084,30 @@ fn presets_differ_options_override_them_and_every_stream_decodes() {
     assert_eq!(encode("default.mcv", &[]), streams[2]);
     assert_ne!(streams[0], streams[1]);
     assert_ne!(streams[1], streams[2]);
-    // Options given override the preset: fast with half-pel vectors and
-    // without weighted prediction is ultrafast.
+    // Options given override the preset: fast with half-pel vectors,
+    // without weighted prediction and without 4x4 intra is ultrafast.
+    let as_ultrafast = ["--subpel", "half", "--no-weightp", "--partitions", "none"];
     assert_eq!(
-        encode("o.mcv", &["--preset", "fast", "--subpel", "half", "--no-weightp"]),
+        encode("o.mcv", &[&["--preset", "fast"][..], &as_ultrafast].concat()),
         streams[0]
     );
+    // x264's partition names: medium without 4x4 intra differs, and is
+    // medium with p8x8 alone.
+    let p8x8 = encode("p8.mcv", &["--partitions", "p8x8"]);
+    assert_ne!(p8x8, streams[2]);
+    assert_eq!(encode("p8b.mcv", &["--partitions", "p8x8,i4x4"]), streams[2]);
+    mocomp()
+        .args([
+            "encode",
+            input.to_str().unwrap(),
+            "-o",
+            &p("bad.mcv"),
+            "--partitions",
+            "p4x4",
+        ])
+        .assert()
+        .failure()
+        .stderr(predicates::str::contains("unknown partition 'p4x4'"));
     // Partitions are medium's: turned off there they change the stream,
     // and fast with them is not fast.
     assert_ne!(encode("np.mcv", &["--partitions", "none"]), streams[2]);

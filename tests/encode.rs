@@ -9,7 +9,7 @@ use mocomp::codec::syntax::{
     SEQUENCE_HEADER_LEN,
 };
 use mocomp::codec::Frame;
-use mocomp::encode::{Encoder, EncoderConfig, FrameStats, ModeDecision, Predictor};
+use mocomp::encode::{Encoder, EncoderConfig, FrameStats, ModeDecision, Partitions, Predictor};
 use mocomp::synth::{Motion, SceneSpec, Shape, Synth};
 
 /// A scene with a moving camera and an object moving against it.
@@ -348,7 +348,11 @@ fn macroblocks_whose_halves_move_apart_are_split_and_follow_each_motion() {
         "{split_right} of {straddling}"
     );
     // And the stream is smaller than without partitions.
-    let (whole, _, _) = encode(&frames, EncoderConfig::new().qp(26).partitions(false));
+    let no_p8x8 = Partitions {
+        p8x8: false,
+        ..Partitions::ALL
+    };
+    let (whole, _, _) = encode(&frames, EncoderConfig::new().qp(26).partitions(no_p8x8));
     assert!(
         stream.len() * 10 < whole.len() * 9,
         "{} bytes against {}",
@@ -411,4 +415,92 @@ fn bad_configurations_and_frames_are_errors() {
     }
     let mut e = Encoder::new(16, 16, (25, 1), EncoderConfig::new()).unwrap();
     assert!(e.encode(&Frame::new(17, 16).unwrap()).is_err());
+}
+
+/// A picture whose 16x16 areas each hold a different oriented pattern, so
+/// that one 16x16 intra mode fits none of them: 4x4 intra fits each.
+fn oriented_patches(w: usize, h: usize) -> Frame {
+    let y = mocomp::codec::Plane::from_fn(w, h, |x, y| {
+        let (xf, yf) = (x as f64, y as f64);
+        // Per 8x8 area: stripes along one of four directions.
+        let phase = match ((x / 8) + 3 * (y / 8)) % 4 {
+            0 => xf + yf,
+            1 => xf - yf,
+            2 => xf,
+            _ => yf,
+        };
+        (128.0 + 70.0 * (phase * std::f64::consts::TAU / 7.0).sin()).round() as u8
+    })
+    .unwrap();
+    let (cw, ch) = Frame::chroma_size(w, h);
+    let c = || mocomp::codec::Plane::filled(cw, ch, 128).unwrap();
+    Frame::from_planes(y, c(), c()).unwrap()
+}
+
+#[test]
+fn intra_4x4_follows_the_directions_of_a_picture_and_saves_bits() {
+    use mocomp::codec::intra4x4::{Intra4x4Mode, LumaIntra};
+    use mocomp::codec::syntax::MbKind;
+    let frames = vec![oriented_patches(96, 64)];
+    let (stream, recon, stats) = encode(&frames, EncoderConfig::new().qp(26));
+    assert_eq!(decoder::decode(&stream).unwrap().1, recon);
+    let only_p8x8 = Partitions {
+        i4x4: false,
+        ..Partitions::ALL
+    };
+    let (whole, _, whole_stats) = encode(&frames, EncoderConfig::new().qp(26).partitions(only_p8x8));
+    // Fewer bytes at no lower quality (measured: 9 % fewer, 0.16 dB more).
+    assert!(
+        stream.len() * 20 < whole.len() * 19,
+        "{} against {} bytes",
+        stream.len(),
+        whole.len()
+    );
+    assert!(
+        stats[0].psnr_y + 0.1 > whole_stats[0].psnr_y,
+        "{} against {} dB",
+        stats[0].psnr_y,
+        whole_stats[0].psnr_y
+    );
+    // Blocks of the inner macroblocks take the mode of their stripes:
+    // vertical stripes (constant along y) the vertical mode, horizontal
+    // the horizontal one (the diagonals may go to any of their neighbours).
+    let seq = seq_header(96, 64);
+    let syntax = &frames_of(&seq, &stream)[0];
+    let (mut checked, mut right, mut blocks4) = (0, 0, 0);
+    for (i, mb) in syntax.mbs.iter().enumerate() {
+        let (mx, my) = (i % 6, i / 6);
+        let MbKind::Intra {
+            luma: LumaIntra::Blocks(modes),
+            ..
+        } = mb.kind
+        else {
+            continue;
+        };
+        blocks4 += 1;
+        if mx == 0 || my == 0 {
+            continue;
+        }
+        for (k, m) in modes.iter().enumerate() {
+            let (x, y) = (16 * mx + 4 * (k % 4), 16 * my + 4 * (k / 4));
+            let want = match ((x / 8) + 3 * (y / 8)) % 4 {
+                2 => Intra4x4Mode::Vertical,
+                3 => Intra4x4Mode::Horizontal,
+                _ => continue,
+            };
+            // Blocks whose edges lie in the same 8x8 area.
+            if x % 8 == 0 && want == Intra4x4Mode::Horizontal || y % 8 == 0 && want == Intra4x4Mode::Vertical
+            {
+                continue;
+            }
+            checked += 1;
+            right += usize::from(*m == want);
+        }
+    }
+    assert!(
+        blocks4 * 2 > syntax.mbs.len(),
+        "{blocks4} of {} macroblocks in 4x4 blocks",
+        syntax.mbs.len()
+    );
+    assert!(checked >= 20 && right * 10 >= checked * 9, "{right} of {checked}");
 }

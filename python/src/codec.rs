@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use mocomp::codec::Frame;
 use mocomp::encode::{
-    Encoder, EncoderConfig, EncoderPreset, FrameStats, ModeDecision, Predictor, DEFAULT_IPRATIO,
+    Encoder, EncoderConfig, EncoderPreset, FrameStats, ModeDecision, Partitions, Predictor, DEFAULT_IPRATIO,
 };
 use mocomp::io::y4m::Y4mReader;
 use mocomp::rd::{sweep, RdPoint, Sequence};
@@ -75,10 +75,28 @@ struct Tools<'a> {
     decision: Option<&'a str>,
     rdoq: Option<bool>,
     weightp: Option<bool>,
-    partitions: Option<bool>,
+    partitions: Option<PartitionsArg>,
     deblock: bool,
     lambda_scale: f64,
     ipratio: f64,
+}
+
+/// `partitions=`: True (all), False (none), or x264's names ("all",
+/// "none", "p8x8,i4x4", ...).
+#[derive(FromPyObject, Clone)]
+pub enum PartitionsArg {
+    Flag(bool),
+    Names(String),
+}
+
+impl PartitionsArg {
+    fn parse(&self) -> PyResult<Partitions> {
+        match self {
+            PartitionsArg::Flag(true) => Ok(Partitions::ALL),
+            PartitionsArg::Flag(false) => Ok(Partitions::NONE),
+            PartitionsArg::Names(s) => s.parse::<Partitions>().map_err(value_error),
+        }
+    }
 }
 
 /// The encoder settings from the keyword arguments.
@@ -103,8 +121,8 @@ fn config(qp: u8, predictor: &str, gop: usize, tools: &Tools<'_>) -> PyResult<En
     if let Some(on) = tools.weightp {
         c = c.weightp(on);
     }
-    if let Some(on) = tools.partitions {
-        c = c.partitions(on);
+    if let Some(p) = &tools.partitions {
+        c = c.partitions(p.parse()?);
     }
     Ok(c)
 }
@@ -182,8 +200,10 @@ fn encode_all(frames: &[Frame], fps: (u32, u32), config: EncoderConfig, keep: bo
 /// gop: I-frame period (0: only the first).
 /// preset: "ultrafast", "fast", "medium" (default) or "slow", as
 ///     `mocomp encode --preset`; decision ("fast" or "full"), rdoq,
-///     weightp (weighted prediction) and partitions (16x8, 8x16 and 8x8
-///     macroblock partitions) override it when given.
+///     weightp (weighted prediction) and partitions (True, False, or x264's
+///     names: "all", "none", "p8x8" for 16x8, 8x16 and 8x8 inter
+///     partitions, "i4x4" for intra in 4x4 blocks, "p8x8,i4x4") override
+///     it when given.
 /// ipratio: quantiser step of P frames over I frames (x264's --ipratio).
 /// deblock: the in-loop deblocking filter.
 /// frames: code at most this many frames.
@@ -205,7 +225,7 @@ pub fn encode<'py>(
     decision: Option<&str>,
     rdoq: Option<bool>,
     weightp: Option<bool>,
-    partitions: Option<bool>,
+    partitions: Option<PartitionsArg>,
     deblock: bool,
     lambda_scale: f64,
     ipratio: f64,

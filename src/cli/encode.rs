@@ -8,8 +8,8 @@ use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::encode::{
-    encode_y4m, EncoderConfig, EncoderPreset, FlowMethod, FrameStats, ModeDecision, Predictor, Summary,
-    DEFAULT_IPRATIO,
+    encode_y4m, EncoderConfig, EncoderPreset, FlowMethod, FrameStats, ModeDecision, Partitions, Predictor,
+    Summary, DEFAULT_IPRATIO,
 };
 use crate::io::y4m::{Y4mReader, Y4mWriter};
 use crate::io::OutputFile;
@@ -105,19 +105,11 @@ pub struct ToolArgs {
     /// reference where the light changed).
     #[arg(long)]
     pub no_weightp: bool,
-    /// Macroblock partitions, as x264's --partitions: all (16x8, 8x16 and
-    /// 8x8 in P frames) or none [default: the preset's].
-    #[arg(long, value_name = "all|none")]
+    /// Macroblock partitions, as x264's --partitions: all, none, or a list
+    /// of p8x8 (16x8, 8x16 and 8x8 inter partitions) and i4x4 (intra luma
+    /// in 4x4 blocks) [default: the preset's].
+    #[arg(long, value_name = "all|none|p8x8,i4x4")]
     pub partitions: Option<Partitions>,
-}
-
-/// The values of `--partitions`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum Partitions {
-    /// 16x8, 8x16 and 8x8 partitions of P macroblocks.
-    All,
-    /// 16x16 only.
-    None,
 }
 
 impl ToolArgs {
@@ -140,7 +132,7 @@ impl ToolArgs {
             config = config.weightp(false);
         }
         if let Some(p) = self.partitions {
-            config = config.partitions(p == Partitions::All);
+            config = config.partitions(p);
         }
         config
     }

@@ -316,9 +316,81 @@ pub struct EncoderConfig {
     /// Weighted prediction (FORMAT.md section 12): P frames scale and
     /// offset the reference's planes where the light changed.
     pub weightp: bool,
-    /// Inter macroblocks of block frames may be split into 16x8, 8x16 or
-    /// 8x8 partitions, each with its own vector (FORMAT.md section 3.2).
-    pub partitions: bool,
+    /// Which macroblock partitions the mode decision tries.
+    pub partitions: Partitions,
+}
+
+/// The macroblock partitions the mode decision tries, as x264's
+/// `--partitions`: written `all`, `none` or a comma-separated list of
+/// `p8x8` and `i4x4`.
+///
+/// ```
+/// use mocomp::encode::Partitions;
+/// let p: Partitions = "i4x4".parse().unwrap();
+/// assert!(p.i4x4 && !p.p8x8);
+/// assert_eq!("all".parse::<Partitions>().unwrap(), Partitions::ALL);
+/// assert_eq!(Partitions::ALL.to_string(), "p8x8,i4x4");
+/// assert!("p4x4".parse::<Partitions>().is_err());
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Partitions {
+    /// Inter macroblocks of block frames split into 16x8, 8x16 or 8x8
+    /// partitions, each with its own vector (FORMAT.md section 3.2).
+    pub p8x8: bool,
+    /// Intra luma predicted in 4x4 blocks (FORMAT.md section 9.1).
+    pub i4x4: bool,
+}
+
+impl Partitions {
+    /// Every partition.
+    pub const ALL: Partitions = Partitions {
+        p8x8: true,
+        i4x4: true,
+    };
+    /// 16x16 only.
+    pub const NONE: Partitions = Partitions {
+        p8x8: false,
+        i4x4: false,
+    };
+}
+
+impl std::str::FromStr for Partitions {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Partitions, String> {
+        match s {
+            "all" => return Ok(Partitions::ALL),
+            "none" => return Ok(Partitions::NONE),
+            _ => {}
+        }
+        let mut p = Partitions::NONE;
+        for name in s.split(',').map(str::trim) {
+            match name {
+                "p8x8" => p.p8x8 = true,
+                "i4x4" => p.i4x4 = true,
+                _ => {
+                    return Err(format!(
+                        "unknown partition '{name}': expected all, none, or a list of p8x8 and i4x4"
+                    ))
+                }
+            }
+        }
+        Ok(p)
+    }
+}
+
+impl std::fmt::Display for Partitions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let names: Vec<&str> = [(self.p8x8, "p8x8"), (self.i4x4, "i4x4")]
+            .into_iter()
+            .filter_map(|(on, name)| on.then_some(name))
+            .collect();
+        if names.is_empty() {
+            f.write_str("none")
+        } else {
+            f.write_str(&names.join(","))
+        }
+    }
 }
 
 impl Default for EncoderConfig {
@@ -334,7 +406,7 @@ impl Default for EncoderConfig {
             ipratio: DEFAULT_IPRATIO,
             deblock: true,
             weightp: true,
-            partitions: true,
+            partitions: Partitions::ALL,
         }
     }
 }
@@ -401,7 +473,13 @@ impl EncoderConfig {
         let ultrafast = preset == Ultrafast;
         self.rdoq = preset >= Medium;
         self.weightp = !ultrafast;
-        self.partitions = preset >= Medium;
+        // As x264: none in ultrafast, 4x4 intra from the next preset up;
+        // inter partitions from medium (in fast they cost more time than
+        // x264_simple takes).
+        self.partitions = Partitions {
+            p8x8: preset >= Medium,
+            i4x4: !ultrafast,
+        };
         self.decision = match preset {
             Ultrafast | Fast => ModeDecision::Fast,
             Medium | Slow => ModeDecision::Full,
@@ -418,9 +496,9 @@ impl EncoderConfig {
         self
     }
 
-    /// Turns macroblock partitions on or off.
-    pub fn partitions(mut self, on: bool) -> EncoderConfig {
-        self.partitions = on;
+    /// The macroblock partitions to try.
+    pub fn partitions(mut self, p: Partitions) -> EncoderConfig {
+        self.partitions = p;
         self
     }
 
@@ -493,7 +571,8 @@ mod tests {
             assert_eq!(s.method, Method::Esa, "{p:?}");
             assert_eq!(c.rdoq, p >= EncoderPreset::Medium);
             assert_eq!(c.weightp, p != EncoderPreset::Ultrafast);
-            assert_eq!(c.partitions, p >= EncoderPreset::Medium);
+            assert_eq!(c.partitions.p8x8, p >= EncoderPreset::Medium);
+            assert_eq!(c.partitions.i4x4, p > EncoderPreset::Ultrafast);
             assert_eq!(s.subpel == Subpel::Half, p == EncoderPreset::Ultrafast);
             assert_eq!(c.decision == ModeDecision::Full, p >= EncoderPreset::Medium);
             assert_eq!(s.range, if p == EncoderPreset::Slow { 32 } else { 16 });

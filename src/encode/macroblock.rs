@@ -77,6 +77,8 @@ pub(crate) struct MbCoder {
     pub lambda: f64,
     /// Rate-distortion optimised quantisation (see [`lower_levels`]).
     pub rdoq: bool,
+    /// Intra luma may be coded in 4x4 blocks.
+    pub intra4x4: bool,
 }
 
 /// H.264 reference-encoder cost of a 4x4 block's levels for the zeroing
@@ -274,7 +276,13 @@ impl MbCoder {
             qp,
             lambda: lambda_scale * crate::me::lambda_for_qp(Metric::Ssd, qp),
             rdoq,
+            intra4x4: true,
         }
+    }
+
+    /// This coder with 4x4 intra on or off.
+    pub fn intra4x4(self, on: bool) -> MbCoder {
+        MbCoder { intra4x4: on, ..self }
     }
 
     /// Transforms and quantises `src - pred`, reconstructs the macroblock

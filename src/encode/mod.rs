@@ -39,8 +39,8 @@ use std::io::{Read, Write};
 use std::time::Instant;
 
 pub use config::{
-    EncoderConfig, EncoderPreset, FlowMethod, ModeDecision, Predictor, SearchSettings, DEFAULT_GRID,
-    DEFAULT_IPRATIO, DEFAULT_REFINE,
+    EncoderConfig, EncoderPreset, FlowMethod, ModeDecision, Partitions, Predictor, SearchSettings,
+    DEFAULT_GRID, DEFAULT_IPRATIO, DEFAULT_REFINE,
 };
 pub use stats::{FrameStats, Summary, SummaryBuilder};
 
@@ -145,9 +145,10 @@ impl Encoder {
         Ok(Encoder {
             seq,
             config,
-            coder: MbCoder::new(config.qp, config.lambda_scale, config.rdoq),
-            intra_coder: MbCoder::new(config.intra_qp(), config.lambda_scale, config.rdoq),
-            analyser: MotionAnalyser::new(config.predictor, config.qp, config.partitions),
+            coder: MbCoder::new(config.qp, config.lambda_scale, config.rdoq).intra4x4(config.partitions.i4x4),
+            intra_coder: MbCoder::new(config.intra_qp(), config.lambda_scale, config.rdoq)
+                .intra4x4(config.partitions.i4x4),
+            analyser: MotionAnalyser::new(config.predictor, config.qp, config.partitions.p8x8),
             reference: None,
             prev_source: None,
             spare_recon: None,
@@ -235,7 +236,7 @@ impl Encoder {
                     decision: self.config.decision,
                     deblock: self.config.deblock,
                     weights,
-                    partitions: self.config.partitions,
+                    partitions: self.config.partitions.p8x8,
                 };
                 frame::code_inter(&self.seq, &self.coder, &src, inputs, &mut self.entropy, recon)?
             }

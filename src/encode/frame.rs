@@ -9,14 +9,14 @@ use super::macroblock::{MbCoder, MbSource};
 use super::motion::{BlockMotion, FrameMotion};
 use super::partition::{PartitionSearch, SatdCache};
 use crate::codec::deblock::{deblock_frame, MbEdgeInfo};
-use crate::codec::intra::IntraMode;
 use crate::codec::intra4x4::LumaIntra;
 use crate::codec::modes::{MbMode, ModeCoder, VectorSyntax};
 use crate::codec::mv::mvd_bits;
 use crate::codec::mv::Mv;
 use crate::codec::partition::{MbVectors, Part, Split};
 use crate::codec::recon::{
-    frame_vectors, predict_inter, predict_inter_blocks, predict_intra, write_mb, InterContext, MbSamples,
+    frame_vectors, predict_inter, predict_inter_blocks, predict_intra, predict_intra_plane, write_mb,
+    InterContext, MbSamples,
 };
 use crate::codec::residual::{MbResidual, ResidualCoder};
 use crate::codec::syntax::{
@@ -199,26 +199,26 @@ fn best_intra(
     let mut pred = MbSamples::default();
     let (luma, satd) = coder.best_intra_luma(s, recon, at, &mut pred);
     let whole = bound.is_none_or(|(inter_satd, _)| satd < inter_satd);
-    let (around, mode_bits) = intra4x4::pricing(modes, at);
-    let search = Intra4x4Search {
-        coder,
-        recon,
-        at,
-        around,
-        mode_bits,
-        residual: residual_coder,
-    };
     // In P frames, where inter mostly wins, 4x4 blocks are searched only
     // when 16x16 intra is within 1.25 times inter's SATD (as x264's
     // fast-intra threshold; its 2 times at medium measured 0.1 % better
     // on the development set's mean against x264 medium, for 15 % more
     // time; 1 time, 0.8 % worse).
     let hopeless = bound.is_some_and(|(inter_satd, _)| 4 * u64::from(satd) > 5 * u64::from(inter_satd));
-    let blocks = if hopeless || !coder.intra4x4 {
-        None
-    } else {
-        search.run(s, None, bound.map_or(f64::INFINITY, |b| b.1))
-    };
+    let blocks = (coder.intra4x4 && !hopeless)
+        .then(|| {
+            let (around, mode_bits) = intra4x4::pricing(modes, at);
+            let search = Intra4x4Search {
+                coder,
+                recon,
+                at,
+                around,
+                mode_bits,
+                residual: residual_coder,
+            };
+            search.run(s, None, bound.map_or(f64::INFINITY, |b| b.1))
+        })
+        .flatten();
     if !whole && blocks.is_none() {
         return None;
     }
@@ -779,9 +779,12 @@ fn recode(
                     mode_bits: (0, 0),
                     residual: &residual_coder,
                 };
-                let mut pred = predict_intra(&recon, mb_x, mb_y, IntraMode::Dc, chroma);
+                let mut pred = MbSamples::default();
                 if let Some(b) = search.run(&s, Some(&modes), f64::INFINITY) {
                     pred.luma = b.pred;
+                }
+                for p in 0..2 {
+                    predict_intra_plane(&recon, p + 1, mb_x, mb_y, chroma, &mut pred.chroma[p]);
                 }
                 (pred, true)
             }

@@ -1,6 +1,8 @@
 //! Metrics against hand computation and against independent implementations
 //! (ffmpeg's psnr and ssim filters, scikit-image's SSIM) on a real pair.
-//! The reference figures come from `samples/reference/make_tree_reference.sh`.
+//! The reference figures come from `samples/reference/make_tree_reference.sh`;
+//! those of MS-SSIM, PSNR-HVS, CIEDE2000 (libvmaf's, which AWCY reports)
+//! from `samples/reference/make_libvmaf_reference.sh`.
 
 use std::path::Path;
 
@@ -8,7 +10,8 @@ use mocomp::codec::{Frame, Plane};
 use mocomp::flow::Flow;
 use mocomp::io::y4m::Y4mReader;
 use mocomp::metrics::{
-    flow_errors, frame_psnr, psnr, sse, ssim, ssim_8x8, FrameQuality, QualityAccumulator, PSNR_CAP_DB,
+    ciede2000, flow_errors, frame_psnr, ms_ssim, psnr, psnr_hvs, sse, ssim, ssim_8x8, FrameQuality, Metrics,
+    QualityAccumulator, PSNR_CAP_DB,
 };
 use ndarray::Array2;
 
@@ -192,4 +195,148 @@ fn angular_error_sees_small_motion_differences_epe_does_not_scale() {
         .acos()
         .to_degrees();
     assert!((e.ae - want).abs() < 1e-6 && (e.epe - 0.1).abs() < 1e-6);
+}
+
+fn libvmaf_reference() -> Vec<serde_json::Value> {
+    let text = std::fs::read_to_string(samples().join("reference/libvmaf_metrics.json")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    v["pairs"].as_array().unwrap().clone()
+}
+
+/// Each libvmaf pair's frames and its reference figures.
+fn libvmaf_pairs() -> Vec<(Vec<Frame>, Vec<Frame>, serde_json::Value)> {
+    let read = |n: &serde_json::Value| {
+        Y4mReader::open(&samples().join(n.as_str().unwrap()))
+            .unwrap()
+            .read_all()
+            .unwrap()
+    };
+    libvmaf_reference()
+        .into_iter()
+        .map(|p| (read(&p["reference"]), read(&p["test"]), p))
+        .collect()
+}
+
+fn per_frame(v: &serde_json::Value, key: &str) -> Vec<f64> {
+    v[key]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
+}
+
+#[test]
+fn psnr_hvs_matches_libvmaf_on_real_pairs() {
+    for (a, b, r) in libvmaf_pairs() {
+        let (y, total) = (per_frame(&r, "psnr_hvs_y"), per_frame(&r, "psnr_hvs"));
+        let (cb, cr) = (per_frame(&r, "psnr_hvs_cb"), per_frame(&r, "psnr_hvs_cr"));
+        assert_eq!(y.len(), a.len());
+        for i in 0..a.len() {
+            let got = psnr_hvs(&a[i], &b[i]);
+            for (g, w) in [
+                (got.y, y[i]),
+                (got.cb, cb[i]),
+                (got.cr, cr[i]),
+                (got.total, total[i]),
+            ] {
+                assert!(
+                    (g - w).abs() < 1e-4,
+                    "{}: frame {i}: {g} against libvmaf's {w}",
+                    r["test"]
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn ciede2000_matches_libvmaf_on_real_pairs() {
+    for (a, b, r) in libvmaf_pairs() {
+        for (i, want) in per_frame(&r, "ciede2000").into_iter().enumerate() {
+            let got = ciede2000(&a[i], &b[i]);
+            assert!(
+                (got - want).abs() < 1e-4,
+                "{}: frame {i}: {got} against {want}",
+                r["test"]
+            );
+        }
+    }
+}
+
+#[test]
+fn ms_ssim_matches_libvmaf_on_a_real_pair() {
+    let pairs = libvmaf_pairs();
+    let (a, b, r) = pairs
+        .iter()
+        .find(|(_, _, r)| r.get("float_ms_ssim").is_some())
+        .unwrap();
+    for (i, want) in per_frame(r, "float_ms_ssim").into_iter().enumerate() {
+        let got = ms_ssim(a[i].y(), b[i].y());
+        // libvmaf filters in single precision with taps rounded to 6 digits.
+        assert!((got - want).abs() < 5e-5, "frame {i}: {got} against {want}");
+    }
+}
+
+#[test]
+fn measure_with_computes_only_what_is_asked() {
+    let (a, b) = real_pair();
+    let q = FrameQuality::measure_with(&a[0], &b[0], "ms-ssim,ciede2000".parse::<Metrics>().unwrap());
+    assert!(q.ssim.is_nan() && q.psnr_hvs.is_nan() && q.vmaf.is_nan());
+    assert!(q.ms_ssim > 0.9 && q.ms_ssim < 1.0, "{q:?}");
+    assert_eq!(q.ciede2000, ciede2000(&a[0], &b[0]));
+    let all = FrameQuality::measure_with(&a[0], &b[0], Metrics::all_builtin());
+    assert_eq!(all.psnr_hvs, psnr_hvs(&a[0], &b[0]).total);
+    assert_eq!(all.ssim, FrameQuality::measure(&a[0], &b[0]).ssim);
+}
+
+#[test]
+fn the_new_metrics_fall_as_distortion_grows() {
+    // Same picture, more and more noise: each metric must rank them.
+    let clean = libvmaf_pairs().swap_remove(1).0.swap_remove(0);
+    let noisy = |amp: i32| {
+        let mut f = clean.clone();
+        for p in 0..3 {
+            let plane = f.plane_mut(p);
+            for y in 0..plane.height() {
+                for x in 0..plane.width() {
+                    let n = ((x * 7919 + y * 104_729 + p * 31) % 17) as i32 - 8;
+                    let v = i32::from(plane.get(x, y)) + n * amp / 8;
+                    plane.set(x, y, v.clamp(0, 255) as u8);
+                }
+            }
+        }
+        f
+    };
+    let (mild, strong) = (noisy(2), noisy(8));
+    let all = Metrics::all_builtin();
+    let (qm, qs) = (
+        FrameQuality::measure_with(&clean, &mild, all),
+        FrameQuality::measure_with(&clean, &strong, all),
+    );
+    assert!(
+        qm.ms_ssim > qs.ms_ssim && qm.psnr_hvs > qs.psnr_hvs && qm.ciede2000 > qs.ciede2000,
+        "{qm:?} {qs:?}"
+    );
+    let same = FrameQuality::measure_with(&clean, &clean, all);
+    assert_eq!((same.psnr_hvs, same.ciede2000), (PSNR_CAP_DB, 100.0));
+    assert!((same.ms_ssim - 1.0).abs() < 1e-12);
+}
+
+#[test]
+fn vmaf_through_ffmpeg_matches_libvmaf_where_there_is_one() {
+    // Runs where an ffmpeg with libvmaf exists (MOCOMP_FFMPEG or the PATH);
+    // elsewhere the error must say what is missing.
+    let (a, b, r) = libvmaf_pairs().swap_remove(1);
+    match mocomp::metrics::vmaf::vmaf(&a, &b) {
+        Ok(got) => {
+            let want = per_frame(&r, "vmaf");
+            assert_eq!(got.len(), want.len());
+            for (g, w) in got.iter().zip(&want) {
+                // Another libvmaf build may round differently; the model is the same.
+                assert!((g - w).abs() < 0.05, "{got:?} against {want:?}");
+            }
+        }
+        Err(e) => assert!(matches!(e, mocomp::metrics::vmaf::VmafError::NoLibvmaf), "{e}"),
+    }
 }

@@ -59,7 +59,9 @@ enum Command {
     Rd(rd::Args),
     /// Write the synthetic samples with exact ground-truth flow.
     Samples(samples::Args),
-    /// PSNR and SSIM of a Y4M against a reference, per frame and overall.
+    /// Quality of a Y4M against a reference, per frame and overall: PSNR,
+    /// SSIM, and with --metrics MS-SSIM, PSNR-HVS, CIEDE2000, VMAF.
+    #[command(name = "quality", visible_alias = "psnr")]
     Psnr(psnr::Args),
     /// Follow corners through a sequence (sparse pyramidal LK).
     Track(track::Args),

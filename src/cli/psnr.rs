@@ -1,14 +1,16 @@
-//! `mocomp psnr REF.y4m TEST.y4m`: per-frame PSNR and SSIM, then the means.
+//! `mocomp quality REF.y4m TEST.y4m` (also `mocomp psnr`): per-frame
+//! quality figures, then the means. PSNR always; SSIM by default; MS-SSIM,
+//! PSNR-HVS, CIEDE2000 and VMAF when `--metrics` asks for them.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use serde_json::json;
+use serde_json::{json, Map, Value};
 
 use crate::codec::Frame;
 use crate::io::{y4m::Y4mReader, OutputFile};
-use crate::metrics::{FrameQuality, QualityAccumulator, SequenceQuality};
+use crate::metrics::{vmaf, FrameQuality, Metric, Metrics, QualityAccumulator, SequenceQuality};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -16,6 +18,11 @@ pub struct Args {
     pub reference: PathBuf,
     /// The Y4M to measure (`-` for standard input).
     pub test: PathBuf,
+    /// Metrics, comma-separated: psnr, ssim, ms-ssim, psnr-hvs, ciede2000,
+    /// vmaf (through an ffmpeg built with libvmaf), or all (all but vmaf).
+    /// PSNR is always measured.
+    #[arg(long, default_value = "psnr,ssim", value_name = "LIST")]
+    pub metrics: Metrics,
     /// Print one JSON object (means and per-frame values) instead of text.
     #[arg(long)]
     pub json: bool,
@@ -24,7 +31,44 @@ pub struct Args {
     pub csv: Option<PathBuf>,
 }
 
+/// A per-frame column: its name and how to read it.
+type Column = (&'static str, fn(&FrameQuality) -> f64);
+
+/// The per-frame columns beside PSNR, in order.
+fn extra_columns(m: Metrics) -> Vec<Column> {
+    let mut cols: Vec<Column> = Vec::new();
+    if m.has(Metric::Ssim) {
+        cols.push(("ssim", |q| q.ssim));
+    }
+    if m.has(Metric::MsSsim) {
+        cols.push(("ms_ssim", |q| q.ms_ssim));
+    }
+    if m.has(Metric::PsnrHvs) {
+        cols.push(("psnr_hvs", |q| q.psnr_hvs));
+        cols.push(("psnr_hvs_y", |q| q.psnr_hvs_y));
+    }
+    if m.has(Metric::Ciede2000) {
+        cols.push(("ciede2000", |q| q.ciede2000));
+    }
+    if m.has(Metric::Vmaf) {
+        cols.push(("vmaf", |q| q.vmaf));
+    }
+    cols
+}
+
 pub fn run(args: &Args) -> Result<()> {
+    let (rows, s) = measure(args)?;
+    if let Some(path) = &args.csv {
+        write_csv(path, &rows, args.metrics)?;
+    }
+    report(args, &rows, &s)
+}
+
+/// Reads both files frame by frame and measures every pair.
+fn measure(args: &Args) -> Result<(Vec<FrameQuality>, SequenceQuality)> {
+    if args.metrics.has(Metric::Vmaf) && vmaf::ffmpeg_with_libvmaf().is_none() {
+        bail!(vmaf::VmafError::NoLibvmaf);
+    }
     let open = |p: &PathBuf| Y4mReader::open(p).with_context(|| p.display().to_string());
     let mut reference = open(&args.reference)?;
     let mut test = open(&args.test)?;
@@ -40,21 +84,11 @@ pub fn run(args: &Args) -> Result<()> {
             ti.height
         );
     }
+    let keep = args.metrics.has(Metric::Vmaf);
+    let (mut kept_a, mut kept_b) = (Vec::new(), Vec::new());
     let mut a = Frame::new(ri.width, ri.height)?;
     let mut b = Frame::new(ri.width, ri.height)?;
-    let mut acc = QualityAccumulator::default();
     let mut rows = Vec::new();
-    if !args.json {
-        outln!(
-            "{:>6} {:>8} {:>8} {:>8} {:>8} {:>8}",
-            "frame",
-            "psnr_y",
-            "psnr_u",
-            "psnr_v",
-            "psnr_yuv",
-            "ssim"
-        )?;
-    }
     loop {
         let more_a = reference
             .read_frame_into(&mut a)
@@ -63,7 +97,7 @@ pub fn run(args: &Args) -> Result<()> {
             .read_frame_into(&mut b)
             .with_context(|| args.test.display().to_string())?;
         if !(more_a && more_b) {
-            if more_a || more_b {
+            if more_a != more_b {
                 let (longer, shorter) = if more_a {
                     (&args.reference, &args.test)
                 } else {
@@ -73,48 +107,48 @@ pub fn run(args: &Args) -> Result<()> {
                     "mocomp: note: {} has more frames than {}; compared the first {}",
                     longer.display(),
                     shorter.display(),
-                    acc.frames()
+                    rows.len()
                 );
             }
             break;
         }
-        let q = FrameQuality::measure(&a, &b);
-        if !args.json {
-            outln!(
-                "{:>6} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8.6}",
-                acc.frames(),
-                q.psnr.y,
-                q.psnr.u,
-                q.psnr.v,
-                q.psnr.yuv(),
-                q.ssim
-            )?;
+        rows.push(FrameQuality::measure_with(&a, &b, args.metrics));
+        if keep {
+            kept_a.push(a.clone());
+            kept_b.push(b.clone());
         }
-        rows.push(q);
-        acc.push(&q);
     }
+    if keep {
+        for (q, v) in rows.iter_mut().zip(vmaf::vmaf(&kept_a, &kept_b)?) {
+            q.vmaf = v;
+        }
+    }
+    let mut acc = QualityAccumulator::default();
+    rows.iter().for_each(|q| acc.push(q));
     let Some(s) = acc.summary() else {
         bail!("no frames to compare");
     };
-    if let Some(path) = &args.csv {
-        write_csv(path, &rows)?;
-    }
-    report(args.json, &rows, &s)
+    Ok((rows, s))
 }
 
-/// One row per frame: the PSNRs, SSIM and MSEs.
-fn write_csv(path: &Path, rows: &[FrameQuality]) -> Result<()> {
+/// One row per frame: the PSNRs, the other metrics asked for, the MSEs.
+fn write_csv(path: &Path, rows: &[FrameQuality], metrics: Metrics) -> Result<()> {
+    let cols = extra_columns(metrics);
     let mut out = OutputFile::create(path).with_context(|| path.display().to_string())?;
-    writeln!(out, "frame,psnr_y,psnr_u,psnr_v,psnr_yuv,ssim,mse_y,mse_u,mse_v")?;
+    let names: String = cols.iter().map(|(n, _)| format!("{n},")).collect();
+    writeln!(
+        out,
+        "frame,psnr_y,psnr_u,psnr_v,psnr_yuv,{names}mse_y,mse_u,mse_v"
+    )?;
     for (i, q) in rows.iter().enumerate() {
+        let values: String = cols.iter().map(|(_, f)| format!("{:.8},", f(q))).collect();
         writeln!(
             out,
-            "{i},{:.6},{:.6},{:.6},{:.6},{:.8},{:.6},{:.6},{:.6}",
+            "{i},{:.6},{:.6},{:.6},{:.6},{values}{:.6},{:.6},{:.6}",
             q.psnr.y,
             q.psnr.u,
             q.psnr.v,
             q.psnr.yuv(),
-            q.ssim,
             q.psnr.mse[0],
             q.psnr.mse[1],
             q.psnr.mse[2]
@@ -123,33 +157,77 @@ fn write_csv(path: &Path, rows: &[FrameQuality]) -> Result<()> {
     out.commit().with_context(|| path.display().to_string())
 }
 
-/// The means (after the per-frame table) or, with `json`, everything as JSON.
-fn report(json: bool, rows: &[FrameQuality], s: &SequenceQuality) -> Result<()> {
-    if json {
-        let per_frame: Vec<_> = rows
+/// The per-frame table and the means, or with `--json` everything as JSON
+/// (keys for the metrics not asked for are left out).
+fn report(args: &Args, rows: &[FrameQuality], s: &SequenceQuality) -> Result<()> {
+    let cols = extra_columns(args.metrics);
+    if args.json {
+        let per_frame: Vec<Value> = rows
             .iter()
-            .map(|q| json!({"psnr_y": q.psnr.y, "psnr_u": q.psnr.u, "psnr_v": q.psnr.v, "psnr_yuv": q.psnr.yuv(), "ssim": q.ssim}))
+            .map(|q| {
+                let mut o = Map::new();
+                o.insert("psnr_y".into(), json!(q.psnr.y));
+                o.insert("psnr_u".into(), json!(q.psnr.u));
+                o.insert("psnr_v".into(), json!(q.psnr.v));
+                o.insert("psnr_yuv".into(), json!(q.psnr.yuv()));
+                for (name, f) in &cols {
+                    o.insert((*name).into(), json!(f(q)));
+                }
+                Value::Object(o)
+            })
             .collect();
         let mut obj = serde_json::to_value(s)?;
-        obj["per_frame"] = serde_json::Value::Array(per_frame);
+        if let Value::Object(map) = &mut obj {
+            map.retain(|_, v| !v.is_null());
+        }
+        obj["per_frame"] = Value::Array(per_frame);
         outln!("{obj}")?;
-    } else {
-        outln!(
-            "{:>6} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8.6}",
-            "mean",
-            s.psnr_y,
-            s.psnr_u,
-            s.psnr_v,
-            s.psnr_yuv,
-            s.ssim
-        )?;
-        outln!(
-            "{} frames; PSNR of the mean MSE: y {:.4}  u {:.4}  v {:.4} dB",
-            s.frames,
-            s.psnr_y_mse,
-            s.psnr_u_mse,
-            s.psnr_v_mse
-        )?;
+        return Ok(());
     }
+    let header: String = cols.iter().map(|(n, _)| format!(" {n:>10}")).collect();
+    outln!(
+        "{:>6} {:>8} {:>8} {:>8} {:>8}{header}",
+        "frame",
+        "psnr_y",
+        "psnr_u",
+        "psnr_v",
+        "psnr_yuv"
+    )?;
+    let line = |label: String, p: [f64; 4], extra: Vec<f64>| -> Result<()> {
+        let extra: String = extra.iter().map(|v| format!(" {v:>10.6}")).collect();
+        outln!(
+            "{label:>6} {:>8.4} {:>8.4} {:>8.4} {:>8.4}{extra}",
+            p[0],
+            p[1],
+            p[2],
+            p[3]
+        )?;
+        Ok(())
+    };
+    for (i, q) in rows.iter().enumerate() {
+        let p = [q.psnr.y, q.psnr.u, q.psnr.v, q.psnr.yuv()];
+        line(i.to_string(), p, cols.iter().map(|(_, f)| f(q)).collect())?;
+    }
+    let means: Vec<f64> = cols.iter().map(|(name, _)| sequence_value(s, name)).collect();
+    line("mean".into(), [s.psnr_y, s.psnr_u, s.psnr_v, s.psnr_yuv], means)?;
+    outln!(
+        "{} frames; PSNR of the mean MSE: y {:.4}  u {:.4}  v {:.4} dB",
+        s.frames,
+        s.psnr_y_mse,
+        s.psnr_u_mse,
+        s.psnr_v_mse
+    )?;
     Ok(())
+}
+
+/// The sequence mean that goes under a per-frame column.
+fn sequence_value(s: &SequenceQuality, column: &str) -> f64 {
+    match column {
+        "ssim" => s.ssim,
+        "ms_ssim" => s.ms_ssim,
+        "psnr_hvs" => s.psnr_hvs,
+        "psnr_hvs_y" => s.psnr_hvs_y,
+        "ciede2000" => s.ciede2000,
+        _ => s.vmaf,
+    }
 }

@@ -1,13 +1,23 @@
-//! Quality and error measures: PSNR and SSIM of pictures, errors of flow
-//! fields against ground truth, and per-sequence summaries.
+//! Quality and error measures: PSNR, SSIM, MS-SSIM, PSNR-HVS, CIEDE2000
+//! (and VMAF through ffmpeg) of pictures, errors of flow fields against
+//! ground truth, and per-sequence summaries.
 
+mod ciede2000;
 mod flow_error;
+mod ms_ssim;
 mod psnr;
+mod psnr_hvs;
+mod select;
 mod ssim;
 mod ssim_8x8;
+pub mod vmaf;
 
+pub use ciede2000::ciede2000;
 pub use flow_error::{flow_errors, FlowErrors};
+pub use ms_ssim::ms_ssim;
 pub use psnr::{frame_psnr, mse, psnr, psnr_from_mse, squared_difference_sum, sse, FramePsnr, PSNR_CAP_DB};
+pub use psnr_hvs::{psnr_hvs, PsnrHvs};
+pub use select::{Metric, Metrics, UnknownMetric};
 pub use ssim::ssim;
 pub use ssim_8x8::ssim_8x8;
 
@@ -15,21 +25,58 @@ use serde::Serialize;
 
 use crate::codec::Frame;
 
-/// The quality of one decoded or predicted frame against its source.
+/// The quality of one decoded or predicted frame against its source. A
+/// metric that was not asked for is NaN.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct FrameQuality {
     /// PSNR of each plane.
     pub psnr: FramePsnr,
-    /// SSIM of the luma plane.
+    /// SSIM of the luma plane (Wang et al.'s, [`ssim`]).
     pub ssim: f64,
+    /// MS-SSIM of the luma plane ([`ms_ssim`]).
+    pub ms_ssim: f64,
+    /// PSNR-HVS of the three planes combined, dB ([`psnr_hvs`]).
+    pub psnr_hvs: f64,
+    /// PSNR-HVS of the luma plane, dB.
+    pub psnr_hvs_y: f64,
+    /// CIEDE2000, dB ([`ciede2000`]).
+    pub ciede2000: f64,
+    /// VMAF (set by the caller from [`vmaf::vmaf`], which works on whole
+    /// sequences).
+    pub vmaf: f64,
 }
 
 impl FrameQuality {
     /// PSNR of every plane and luma SSIM of `test` against `reference`.
     pub fn measure(reference: &Frame, test: &Frame) -> FrameQuality {
+        FrameQuality::measure_with(reference, test, Metrics::default())
+    }
+
+    /// PSNR of every plane and the in-process metrics of `which` (VMAF is
+    /// left NaN).
+    pub fn measure_with(reference: &Frame, test: &Frame, which: Metrics) -> FrameQuality {
+        let when = |m: Metric, f: &dyn Fn() -> f64| if which.has(m) { f() } else { f64::NAN };
+        let hvs = which.has(Metric::PsnrHvs).then(|| psnr_hvs(reference, test));
         FrameQuality {
             psnr: frame_psnr(reference, test),
-            ssim: ssim(reference.y(), test.y()),
+            ssim: when(Metric::Ssim, &|| ssim(reference.y(), test.y())),
+            ms_ssim: when(Metric::MsSsim, &|| ms_ssim(reference.y(), test.y())),
+            psnr_hvs: hvs.map_or(f64::NAN, |h| h.total),
+            psnr_hvs_y: hvs.map_or(f64::NAN, |h| h.y),
+            ciede2000: when(Metric::Ciede2000, &|| ciede2000(reference, test)),
+            vmaf: f64::NAN,
+        }
+    }
+
+    /// The value of metric `m` (luma PSNR for [`Metric::Psnr`]).
+    pub fn get(&self, m: Metric) -> f64 {
+        match m {
+            Metric::Psnr => self.psnr.y,
+            Metric::Ssim => self.ssim,
+            Metric::MsSsim => self.ms_ssim,
+            Metric::PsnrHvs => self.psnr_hvs,
+            Metric::Ciede2000 => self.ciede2000,
+            Metric::Vmaf => self.vmaf,
         }
     }
 }
@@ -55,8 +102,34 @@ pub struct SequenceQuality {
     pub psnr_u_mse: f64,
     /// Cr PSNR of the MSE averaged over frames (dB).
     pub psnr_v_mse: f64,
-    /// Mean over frames of luma SSIM.
+    /// Mean over frames of luma SSIM (NaN when not measured, as the
+    /// following).
     pub ssim: f64,
+    /// Mean over frames of luma MS-SSIM.
+    pub ms_ssim: f64,
+    /// Mean over frames of PSNR-HVS, dB.
+    pub psnr_hvs: f64,
+    /// Mean over frames of luma PSNR-HVS, dB.
+    pub psnr_hvs_y: f64,
+    /// Mean over frames of CIEDE2000, dB.
+    pub ciede2000: f64,
+    /// Mean over frames of VMAF.
+    pub vmaf: f64,
+}
+
+impl SequenceQuality {
+    /// The sequence figure of metric `m` (mean luma PSNR for
+    /// [`Metric::Psnr`]).
+    pub fn get(&self, m: Metric) -> f64 {
+        match m {
+            Metric::Psnr => self.psnr_y,
+            Metric::Ssim => self.ssim,
+            Metric::MsSsim => self.ms_ssim,
+            Metric::PsnrHvs => self.psnr_hvs,
+            Metric::Ciede2000 => self.ciede2000,
+            Metric::Vmaf => self.vmaf,
+        }
+    }
 }
 
 /// Accumulates [`FrameQuality`] values into a [`SequenceQuality`].
@@ -81,7 +154,8 @@ pub struct QualityAccumulator {
     psnr: [f64; 3],
     psnr_yuv: f64,
     mse: [f64; 3],
-    ssim: f64,
+    /// Sums of ssim, ms_ssim, psnr_hvs, psnr_hvs_y, ciede2000, vmaf.
+    others: [f64; 6],
 }
 
 impl QualityAccumulator {
@@ -97,7 +171,13 @@ impl QualityAccumulator {
             self.mse[i] += m;
         }
         self.psnr_yuv += q.psnr.yuv();
-        self.ssim += q.ssim;
+        for (sum, v) in
+            self.others
+                .iter_mut()
+                .zip([q.ssim, q.ms_ssim, q.psnr_hvs, q.psnr_hvs_y, q.ciede2000, q.vmaf])
+        {
+            *sum += v;
+        }
     }
 
     /// Frames added so far.
@@ -120,7 +200,12 @@ impl QualityAccumulator {
             psnr_y_mse: psnr_from_mse(self.mse[0] / n),
             psnr_u_mse: psnr_from_mse(self.mse[1] / n),
             psnr_v_mse: psnr_from_mse(self.mse[2] / n),
-            ssim: self.ssim / n,
+            ssim: self.others[0] / n,
+            ms_ssim: self.others[1] / n,
+            psnr_hvs: self.others[2] / n,
+            psnr_hvs_y: self.others[3] / n,
+            ciede2000: self.others[4] / n,
+            vmaf: self.others[5] / n,
         })
     }
 }

@@ -60,7 +60,7 @@ pub fn run(args: &Args) -> Result<()> {
         anchor_csv: None,
         threads: args.threads,
         quiet: false,
-        psnr: crate::rd::PsnrKind::Mean,
+        axis: crate::rd::PsnrKind::Mean.into(),
         shard: (1, 1),
     })?
     .context("a whole sweep reports")?;

@@ -14,6 +14,7 @@ use crate::encode::{
 use crate::io::y4m::{Y4mReader, Y4mWriter};
 use crate::io::OutputFile;
 use crate::me::{Method, Subpel};
+use crate::metrics::{vmaf, Metric, Metrics};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -110,6 +111,11 @@ pub struct ToolArgs {
     /// in 4x4 blocks) [default: the preset's].
     #[arg(long, value_name = "all|none|p8x8,i4x4")]
     pub partitions: Option<Partitions>,
+    /// Quality metrics to measure, comma-separated: psnr, ssim, ms-ssim,
+    /// psnr-hvs, ciede2000, vmaf (through an ffmpeg built with libvmaf), or
+    /// all (all but vmaf). PSNR is always measured.
+    #[arg(long, default_value = "psnr,ssim", value_name = "LIST")]
+    pub metrics: Metrics,
 }
 
 impl ToolArgs {
@@ -118,7 +124,9 @@ impl ToolArgs {
         let mut config = config
             .preset(self.preset)
             .lambda_scale(self.lambda_scale)
-            .ipratio(self.ipratio);
+            .ipratio(self.ipratio)
+            .ssim(self.metrics.has(Metric::Ssim))
+            .metrics(self.metrics);
         if let Some(d) = self.decision {
             config = config.decision(d);
         }
@@ -205,10 +213,15 @@ pub fn run(args: &Args) -> Result<()> {
         Some(f) => Some(Y4mWriter::new(f, &info.as_decoded())?),
         None => None,
     };
-    let mut stats_rows = args
-        .stats
-        .as_ref()
-        .map(|_| vec![FrameStats::CSV_HEADER.to_string()]);
+    let with_vmaf = config.metrics.has(Metric::Vmaf);
+    if with_vmaf && args.input.as_os_str() == "-" {
+        anyhow::bail!("--metrics vmaf needs the source as a file (it is read again after the encode)");
+    }
+    if with_vmaf && vmaf::ffmpeg_with_libvmaf().is_none() {
+        anyhow::bail!(vmaf::VmafError::NoLibvmaf);
+    }
+    let mut frame_stats: Vec<FrameStats> = Vec::new();
+    let mut recons = Vec::new();
     let bar = if args.quiet || args.json || !std::io::stderr().is_terminal() {
         ProgressBar::hidden()
     } else {
@@ -224,8 +237,9 @@ pub fn run(args: &Args) -> Result<()> {
             if let Some(w) = recon.as_mut() {
                 w.write_frame(&coded.recon)?;
             }
-            if let Some(rows) = stats_rows.as_mut() {
-                rows.push(coded.stats.csv_row());
+            frame_stats.push(coded.stats);
+            if with_vmaf {
+                recons.push(coded.recon.clone());
             }
             bar.inc(1);
             bar.set_message(format!("{:.2} dB  {} B", coded.stats.psnr_y, coded.stats.bytes));
@@ -233,16 +247,28 @@ pub fn run(args: &Args) -> Result<()> {
         })
     });
     bar.finish_and_clear();
-    let summary = summary.with_context(|| input.clone())?;
+    let mut summary = summary.with_context(|| input.clone())?;
+    if with_vmaf {
+        let sources: Vec<_> = Y4mReader::open(&args.input)
+            .with_context(|| input.clone())?
+            .read_all()
+            .with_context(|| input.clone())?;
+        let scores = vmaf::vmaf(&sources[..recons.len()], &recons)?;
+        for (f, v) in frame_stats.iter_mut().zip(&scores) {
+            f.vmaf = *v;
+        }
+        summary.vmaf = scores.iter().sum::<f64>() / scores.len().max(1) as f64;
+    }
     out.commit().with_context(|| args.output.display().to_string())?;
     drop(recon);
     if let (Some(f), Some(path)) = (recon_file, &args.recon) {
         f.commit().with_context(|| path.display().to_string())?;
     }
-    if let (Some(rows), Some(path)) = (stats_rows, &args.stats) {
+    if let Some(path) = &args.stats {
         let mut f = OutputFile::create(path).with_context(|| path.display().to_string())?;
-        for r in rows {
-            writeln!(f, "{r}")?;
+        writeln!(f, "{}", FrameStats::CSV_HEADER)?;
+        for s in &frame_stats {
+            writeln!(f, "{}", s.csv_row())?;
         }
         f.commit()?;
     }
@@ -274,11 +300,23 @@ fn print_summary(args: &Args, config: &EncoderConfig, s: &Summary) -> Result<()>
         config.predictor.describe()
     )?;
     writeln!(stdout, "  {} bytes, {:.2} kbit/s", s.bytes, s.kbps)?;
-    writeln!(
+    write!(
         stdout,
-        "  PSNR Y {:.3} U {:.3} V {:.3} dB, SSIM {:.5}",
-        s.psnr_y, s.psnr_u, s.psnr_v, s.ssim
+        "  PSNR Y {:.3} U {:.3} V {:.3} dB",
+        s.psnr_y, s.psnr_u, s.psnr_v
     )?;
+    for (name, v, unit) in [
+        ("SSIM", s.ssim, ""),
+        ("MS-SSIM", s.ms_ssim, ""),
+        ("PSNR-HVS", s.psnr_hvs, " dB"),
+        ("CIEDE2000", s.ciede2000, " dB"),
+        ("VMAF", s.vmaf, ""),
+    ] {
+        if !v.is_nan() {
+            write!(stdout, ", {name} {v:.5}{unit}")?;
+        }
+    }
+    writeln!(stdout)?;
     writeln!(
         stdout,
         "  bits: header {} ({:.1} %), motion {} ({:.1} %), residual {} ({:.1} %)",

@@ -13,9 +13,12 @@ use super::encode::ToolArgs;
 use crate::encode::{EncoderConfig, Predictor};
 use crate::io::y4m::Y4mReader;
 use crate::io::OutputFile;
+use crate::metrics::Metric;
 use crate::rd::bdrate::{bd_psnr, bd_rate, Fit};
 use crate::rd::part::{merge, PartFile};
-use crate::rd::{compare, markdown, plot::plot, read_csv, write_csv, PsnrKind, RdPoint, Sequence, Study};
+use crate::rd::{
+    compare, markdown, plot::plot, read_csv, write_csv, PsnrKind, QualityAxis, RdPoint, Sequence, Study,
+};
 
 /// Every predictor, as `mocomp rd` runs them by default.
 pub const ALL_PREDICTORS: &str =
@@ -145,19 +148,26 @@ pub struct SweepRequest<'a> {
     pub anchor_csv: Option<&'a str>,
     pub threads: Option<usize>,
     pub quiet: bool,
-    /// The PSNR the tables compare.
-    pub psnr: PsnrKind,
+    /// The quality the tables and plots compare.
+    pub axis: QualityAxis,
     /// This run's shard and the number of shards (1-based; `(1, 1)`: the
     /// whole sweep).
     pub shard: (usize, usize),
 }
 
-/// Fails when `points` (from `what`) lack the PSNR `psnr` asks for.
-fn check_psnr(points: &[RdPoint], psnr: PsnrKind, what: &str) -> Result<()> {
-    if points.iter().any(|p| psnr.of(p).is_nan()) {
+/// Fails when `points` (from `what`) lack the quality `axis` asks for.
+fn check_axis(points: &[RdPoint], axis: QualityAxis, what: &str) -> Result<()> {
+    if !points.iter().any(|p| axis.of(p).is_nan()) {
+        return Ok(());
+    }
+    if axis.metric == Metric::Psnr {
         bail!("{what} has no psnr_y_mse column (peer CSVs hold the mean of frames only): use --psnr mean");
     }
-    Ok(())
+    bail!(
+        "{what} has no {} values: sweep with --metrics {} (peer CSVs: measure them with mocomp quality)",
+        axis.metric.column(),
+        axis.metric.name()
+    )
 }
 
 /// The anchor among `labels`: `given`, or `block:esa` when it is there,
@@ -300,8 +310,9 @@ fn report(points: Vec<RdPoint>, anchor: &Anchor, r: &SweepRequest<'_>) -> Result
         Anchor::Curve((p, l)) => (p.clone(), l.clone()),
         Anchor::Predictor(l) => (points.clone(), l.clone()),
     };
-    check_psnr(&anchor_points, r.psnr, "the anchor")?;
-    let rows = compare(&points, &anchor_points, &anchor_name, r.psnr);
+    check_axis(&anchor_points, r.axis, "the anchor")?;
+    check_axis(&points, r.axis, "the sweep")?;
+    let rows = compare(&points, &anchor_points, &anchor_name, r.axis);
     let table = markdown(&rows, &anchor_name);
     if let Some(path) = r.json_path {
         let mut f = OutputFile::create(path).with_context(|| path.display().to_string())?;
@@ -317,7 +328,7 @@ fn report(points: Vec<RdPoint>, anchor: &Anchor, r: &SweepRequest<'_>) -> Result
                     names.push(&p.sequence);
                 }
             }
-            Some(plot(&points, path, &names.join(", ")).context("plotting")?)
+            Some(plot(&points, path, &names.join(", "), r.axis).context("plotting")?)
         }
         None => None,
     };
@@ -327,6 +338,13 @@ fn report(points: Vec<RdPoint>, anchor: &Anchor, r: &SweepRequest<'_>) -> Result
 pub fn run(args: &Args) -> Result<()> {
     if let Some(RdCommand::Merge(m)) = &args.command {
         return run_merge(m);
+    }
+    let metric = args.report.bd_metric;
+    if !args.tools.metrics.has(metric) && args.report.anchor_csv.is_none() {
+        bail!("--bd-metric {metric} needs the sweep to measure it: add --metrics {metric}");
+    }
+    if metric == Metric::Vmaf && crate::metrics::vmaf::ffmpeg_with_libvmaf().is_none() {
+        bail!(crate::metrics::vmaf::VmafError::NoLibvmaf);
     }
     let report = run_sweep(&SweepRequest {
         inputs: &args.inputs,
@@ -341,7 +359,7 @@ pub fn run(args: &Args) -> Result<()> {
         anchor_csv: args.report.anchor_csv.as_deref(),
         threads: args.threads,
         quiet: args.quiet,
-        psnr: args.report.psnr,
+        axis: args.report.axis(),
         shard: args.shard.map_or((1, 1), |s| (s.index, s.count)),
     })?;
     match report {
@@ -427,6 +445,20 @@ pub struct ReportArgs {
     /// frame's (psnr_y) or that of the mean MSE (psnr_y_mse).
     #[arg(long, default_value = "mean")]
     pub psnr: PsnrKind,
+    /// The quality metric of the BD tables and plots: psnr, ssim, ms-ssim,
+    /// psnr-hvs, ciede2000, vmaf (SSIM and MS-SSIM in dB,
+    /// -10 log10(1 - x), as AWCY); the sweep must measure it (--metrics).
+    #[arg(long, default_value = "psnr", value_name = "METRIC")]
+    pub bd_metric: Metric,
+}
+
+impl ReportArgs {
+    fn axis(&self) -> QualityAxis {
+        QualityAxis {
+            metric: self.bd_metric,
+            psnr: self.psnr,
+        }
+    }
 }
 
 /// `mocomp rd merge`.
@@ -458,7 +490,7 @@ fn run_merge(m: &MergeArgs) -> Result<()> {
         anchor_csv: None,
         threads: None,
         quiet: m.quiet,
-        psnr: m.report.psnr,
+        axis: m.report.axis(),
         shard: (1, 1),
     };
     let report = report(points, &anchor, &request)?;
@@ -481,6 +513,10 @@ pub struct BdArgs {
     /// MSE (psnr_y_mse).
     #[arg(long, default_value = "mean")]
     pub psnr: PsnrKind,
+    /// The quality metric: psnr, ssim, ms-ssim, psnr-hvs, ciede2000, vmaf
+    /// (similarities in dB, -10 log10(1 - x)).
+    #[arg(long, default_value = "psnr", value_name = "METRIC")]
+    pub metric: Metric,
 }
 
 /// `bd_rate` or `bd_psnr`.
@@ -489,25 +525,32 @@ type BdFn = fn(&[(f64, f64)], &[(f64, f64)], Fit) -> Result<f64, crate::rd::bdra
 pub fn run_bdrate(args: &BdArgs) -> Result<()> {
     let (a, an) = load_curve(&args.anchor)?;
     let (t, tn) = load_curve(&args.test)?;
-    check_psnr(&a, args.psnr, &an)?;
-    check_psnr(&t, args.psnr, &tn)?;
-    let xy = |p: &[RdPoint]| p.iter().map(|p| (p.kbps, args.psnr.of(p))).collect::<Vec<_>>();
+    let axis = QualityAxis {
+        metric: args.metric,
+        psnr: args.psnr,
+    };
+    check_axis(&a, axis, &an)?;
+    check_axis(&t, axis, &tn)?;
+    let xy = |p: &[RdPoint]| p.iter().map(|p| (p.kbps, axis.of(p))).collect::<Vec<_>>();
     let (a, t) = (xy(&a), xy(&t));
     let fig = |f: BdFn, fit| f(&a, &t, fit).map_err(|e| anyhow::anyhow!("{tn} against {an}: {e}"));
     let (rc, rp) = (fig(bd_rate, Fit::Cubic)?, fig(bd_rate, Fit::Pchip)?);
     let (pc, pp) = (fig(bd_psnr, Fit::Cubic)?, fig(bd_psnr, Fit::Pchip)?);
     let mut stdout = std::io::stdout().lock();
     if args.json {
+        // bd_psnr_*: the BD-quality on the chosen metric (the key keeps
+        // its name so that scripts reading PSNR figures go on working).
         let v = json!({
-            "anchor": an, "test": tn,
+            "anchor": an, "test": tn, "metric": axis.metric.name(),
             "bd_rate_cubic": rc, "bd_rate_pchip": rp,
             "bd_psnr_cubic": pc, "bd_psnr_pchip": pp,
         });
         writeln!(stdout, "{v}")?;
     } else {
-        writeln!(stdout, "{tn} against {an}:")?;
+        let (bd, unit) = (axis.bd_name(), axis.metric.unit());
+        writeln!(stdout, "{tn} against {an} ({}):", axis.label())?;
         writeln!(stdout, "  BD-rate  cubic {rc:+.3} %   pchip {rp:+.3} %")?;
-        writeln!(stdout, "  BD-PSNR  cubic {pc:+.4} dB  pchip {pp:+.4} dB")?;
+        writeln!(stdout, "  {bd}  cubic {pc:+.4}{unit}  pchip {pp:+.4}{unit}")?;
     }
     Ok(())
 }

@@ -6,6 +6,7 @@ use std::str::FromStr;
 use crate::codec::transform::MAX_QP;
 pub use crate::flow::FlowMethod;
 use crate::me::{Method, Subpel, MAX_RANGE};
+use crate::metrics::Metrics;
 
 /// The settings of the block search of the `block` and `obmc` predictors
 /// (the search itself is [`crate::me`]).
@@ -307,6 +308,11 @@ pub struct EncoderConfig {
     /// Measure SSIM of every frame (x264's 8x8 windows: about 1 % of the
     /// encoding time).
     pub ssim: bool,
+    /// Further metrics to measure on every frame (MS-SSIM, PSNR-HVS,
+    /// CIEDE2000); VMAF, a whole-sequence measure, is measured by the
+    /// callers that see the decoded sequence (`mocomp encode`, sweeps).
+    /// They cost time, so none by default.
+    pub metrics: Metrics,
     /// Quantiser step of P frames over that of I frames, as x264's
     /// `--ipratio`: I frames are coded at `qp - 6 log2(ipratio)` (rounded),
     /// since every later frame predicts from them.
@@ -403,6 +409,7 @@ impl Default for EncoderConfig {
             rdoq: true,
             decision: ModeDecision::default(),
             ssim: true,
+            metrics: Metrics::psnr_only(),
             ipratio: DEFAULT_IPRATIO,
             deblock: true,
             weightp: true,
@@ -517,6 +524,12 @@ impl EncoderConfig {
     /// Turns SSIM measurement on or off.
     pub fn ssim(mut self, on: bool) -> EncoderConfig {
         self.ssim = on;
+        self
+    }
+
+    /// The further metrics to measure (see [`EncoderConfig::metrics`]).
+    pub fn metrics(mut self, metrics: Metrics) -> EncoderConfig {
+        self.metrics = metrics;
         self
     }
 

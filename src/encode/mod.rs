@@ -49,7 +49,7 @@ use crate::codec::syntax::{EntropyState, FrameType, MotionTool, SequenceHeader, 
 use crate::codec::weight::Weights;
 use crate::codec::{Frame, PictureError};
 use crate::io::y4m::{Y4mError, Y4mReader};
-use crate::metrics::{frame_psnr, psnr_from_mse, ssim_8x8};
+use crate::metrics::{ciede2000, frame_psnr, ms_ssim, psnr_from_mse, psnr_hvs, ssim_8x8, Metric};
 use macroblock::MbCoder;
 use motion::MotionAnalyser;
 
@@ -256,6 +256,9 @@ impl Encoder {
             self.seq.height,
             self.spare_output.take(),
         )?;
+        // The quality measurements are not coding time: some cost more than
+        // the coding.
+        let coding_ms = start.elapsed().as_secs_f64() * 1e3;
         let psnr = frame_psnr(source, &recon);
         let stats = FrameStats {
             index: self.index,
@@ -277,6 +280,10 @@ impl Encoder {
             } else {
                 f64::NAN
             },
+            ms_ssim: self.measured(Metric::MsSsim, || ms_ssim(source.y(), recon.y())),
+            psnr_hvs: self.measured(Metric::PsnrHvs, || psnr_hvs(source, &recon).total),
+            ciede2000: self.measured(Metric::Ciede2000, || ciede2000(source, &recon)),
+            vmaf: f64::NAN,
             prediction_psnr_y: psnr_from_mse(
                 coded.prediction_sse as f64 / (self.seq.width * self.seq.height) as f64,
             ),
@@ -284,12 +291,23 @@ impl Encoder {
             inter_mbs: coded.kinds[1],
             intra_mbs: coded.kinds[2],
             me_ms,
-            total_ms: start.elapsed().as_secs_f64() * 1e3,
+            total_ms: coding_ms,
         };
         self.spare_recon = self.reference.replace(coded.recon);
         self.spare_source = self.prev_source.replace(src);
         self.index += 1;
         Ok(EncodedFrame { bytes, recon, stats })
+    }
+}
+
+impl Encoder {
+    /// `f()` when the configuration asks for metric `m`, else NaN.
+    fn measured(&self, m: Metric, f: impl FnOnce() -> f64) -> f64 {
+        if self.config.metrics.has(m) {
+            f()
+        } else {
+            f64::NAN
+        }
     }
 }
 
@@ -361,21 +379,34 @@ pub fn encode_y4m<R: Read, W: Write>(
 }
 
 /// Encodes frames held in memory, keeping only the statistics (the stream
-/// is measured, not kept): what rate-distortion sweeps need.
+/// is measured, not kept).
 pub fn encode_frames(
     frames: &[Frame],
     fps: (u32, u32),
     config: EncoderConfig,
 ) -> Result<Summary, EncodeError> {
+    encode_frames_keeping_stream(frames, fps, config).map(|(summary, _)| summary)
+}
+
+/// Encodes frames held in memory: the statistics and the whole stream
+/// (what rate-distortion sweeps need, to time its decoding).
+pub fn encode_frames_keeping_stream(
+    frames: &[Frame],
+    fps: (u32, u32),
+    config: EncoderConfig,
+) -> Result<(Summary, Vec<u8>), EncodeError> {
     let first = frames
         .first()
         .ok_or_else(|| EncodeError::Config("no frames to encode".into()))?;
     let mut encoder = Encoder::new(first.width(), first.height(), fps, config)?;
-    let mut summary = SummaryBuilder::new(f64::from(fps.0) / f64::from(fps.1), encoder.header().len() + 1);
+    let mut stream = encoder.header();
+    let mut summary = SummaryBuilder::new(f64::from(fps.0) / f64::from(fps.1), stream.len() + 1);
     for f in frames {
         let coded = encoder.encode(f)?;
+        stream.extend_from_slice(&coded.bytes);
         summary.push(&coded.stats);
         encoder.recycle(coded.recon);
     }
-    Ok(summary.finish())
+    stream.extend_from_slice(&Encoder::trailer());
+    Ok((summary.finish(), stream))
 }

@@ -30,6 +30,14 @@ pub struct FrameStats {
     /// Luma SSIM as x264 and ffmpeg's `ssim` filter compute it
     /// ([`ssim_8x8`](crate::metrics::ssim_8x8)); NaN when not measured.
     pub ssim: f64,
+    /// Luma MS-SSIM (NaN when not measured, as the next three).
+    pub ms_ssim: f64,
+    /// PSNR-HVS of the planes combined, dB.
+    pub psnr_hvs: f64,
+    /// CIEDE2000, dB.
+    pub ciede2000: f64,
+    /// VMAF (set after the encode by callers that measure it).
+    pub vmaf: f64,
     /// Luma PSNR of the prediction before the residual, dB.
     pub prediction_psnr_y: f64,
     /// Macroblocks skipped.
@@ -40,7 +48,7 @@ pub struct FrameStats {
     pub intra_mbs: usize,
     /// Motion estimation or flow time, ms.
     pub me_ms: f64,
-    /// Time to code the frame, measurements included, ms.
+    /// Time to code the frame, ms (the quality measurements not included).
     pub total_ms: f64,
 }
 
@@ -48,7 +56,7 @@ impl FrameStats {
     /// The CSV header of [`FrameStats::csv_row`].
     pub const CSV_HEADER: &'static str =
         "frame,type,qp,bytes,bits_header,bits_motion,bits_residual,psnr_y,psnr_u,psnr_v,\
-ssim,prediction_psnr_y,skip_mbs,inter_mbs,intra_mbs,me_ms,total_ms";
+ssim,prediction_psnr_y,skip_mbs,inter_mbs,intra_mbs,me_ms,total_ms,ms_ssim,psnr_hvs,ciede2000,vmaf";
 
     /// One CSV row.
     pub fn csv_row(&self) -> String {
@@ -71,7 +79,21 @@ ssim,prediction_psnr_y,skip_mbs,inter_mbs,intra_mbs,me_ms,total_ms";
             self.intra_mbs,
             self.me_ms,
             self.total_ms
-        )
+        ) + &[
+            (self.ms_ssim, 6),
+            (self.psnr_hvs, 4),
+            (self.ciede2000, 4),
+            (self.vmaf, 4),
+        ]
+        .iter()
+        .map(|&(v, d)| {
+            if v.is_nan() {
+                ",".to_string()
+            } else {
+                format!(",{v:.d$}")
+            }
+        })
+        .collect::<String>()
     }
 }
 
@@ -95,8 +117,16 @@ pub struct Summary {
     /// Mean Cr PSNR, dB.
     pub psnr_v: f64,
     /// Mean over frames of luma SSIM as x264 and ffmpeg compute it (NaN
-    /// when not measured).
+    /// when not measured, as the next four).
     pub ssim: f64,
+    /// Mean over frames of luma MS-SSIM.
+    pub ms_ssim: f64,
+    /// Mean over frames of PSNR-HVS, dB.
+    pub psnr_hvs: f64,
+    /// Mean over frames of CIEDE2000, dB.
+    pub ciede2000: f64,
+    /// Mean over frames of VMAF.
+    pub vmaf: f64,
     /// Header bits (the sequence header and end marker included).
     pub bits_header: u64,
     /// Motion bits.
@@ -138,6 +168,10 @@ impl SummaryBuilder {
                 psnr_u: 0.0,
                 psnr_v: 0.0,
                 ssim: 0.0,
+                ms_ssim: 0.0,
+                psnr_hvs: 0.0,
+                ciede2000: 0.0,
+                vmaf: 0.0,
                 bits_header: 8 * stream_bytes as u64,
                 bits_motion: 0,
                 bits_residual: 0,
@@ -164,6 +198,10 @@ impl SummaryBuilder {
         s.psnr_u += f.psnr_u;
         s.psnr_v += f.psnr_v;
         s.ssim += f.ssim;
+        s.ms_ssim += f.ms_ssim;
+        s.psnr_hvs += f.psnr_hvs;
+        s.ciede2000 += f.ciede2000;
+        s.vmaf += f.vmaf;
         s.bits_header += f.bits_header;
         s.bits_motion += f.bits_motion;
         s.bits_residual += f.bits_residual;
@@ -180,6 +218,10 @@ impl SummaryBuilder {
         s.psnr_u /= n;
         s.psnr_v /= n;
         s.ssim /= n;
+        s.ms_ssim /= n;
+        s.psnr_hvs /= n;
+        s.ciede2000 /= n;
+        s.vmaf /= n;
         s.kbps = s.bytes as f64 * 8.0 / (n / self.frame_rate) / 1000.0;
         s.fps = if s.encode_ms > 0.0 {
             n / (s.encode_ms / 1000.0)
@@ -209,6 +251,10 @@ mod tests {
             psnr_u: 42.0,
             psnr_v: 43.0,
             ssim: 0.9,
+            ms_ssim: 0.95,
+            psnr_hvs: f64::NAN,
+            ciede2000: f64::NAN,
+            vmaf: f64::NAN,
             prediction_psnr_y: 20.0,
             skip_mbs: 0,
             inter_mbs: 0,
@@ -225,5 +271,13 @@ mod tests {
         assert!((s.psnr_y - 35.0).abs() < 1e-12);
         assert_eq!(s.bits_header, 24 * 8 + 200);
         assert!((s.fps - 100.0).abs() < 1e-9);
+        // Measured metrics are averaged; the others stay NaN and their
+        // CSV cells empty.
+        assert!((s.ms_ssim - 0.95).abs() < 1e-12 && s.psnr_hvs.is_nan());
+        assert!(f.csv_row().ends_with(",0.950000,,,"), "{}", f.csv_row());
+        assert_eq!(
+            f.csv_row().split(',').count(),
+            FrameStats::CSV_HEADER.split(',').count()
+        );
     }
 }

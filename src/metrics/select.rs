@@ -63,9 +63,9 @@ impl Metric {
     }
 
     /// The value BD-rate curves use: dB for similarities, the figure
-    /// itself otherwise.
+    /// itself otherwise (NaN stays NaN: not measured).
     pub fn curve_value(self, v: f64) -> f64 {
-        if self.is_similarity() {
+        if self.is_similarity() && !v.is_nan() {
             -10.0 * (1.0 - v).max(1e-10).log10()
         } else {
             v
@@ -226,5 +226,7 @@ mod tests {
     fn similarities_become_decibels() {
         assert!((Metric::MsSsim.curve_value(0.99) - 20.0).abs() < 1e-9);
         assert_eq!(Metric::PsnrHvs.curve_value(41.5), 41.5);
+        assert!(Metric::MsSsim.curve_value(f64::NAN).is_nan());
+        assert_eq!(Metric::Ssim.curve_value(1.0), 100.0);
     }
 }

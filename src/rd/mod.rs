@@ -7,6 +7,6 @@ pub mod plot;
 pub mod sweep;
 
 pub use sweep::{
-    compare, csv_record, markdown, read_csv, sweep, write_csv, Comparison, CsvError, PsnrKind, RdPoint,
-    Sequence, Study, CSV_COLUMNS,
+    compare, csv_record, markdown, read_csv, sweep, write_csv, Comparison, CsvError, PsnrKind, QualityAxis,
+    RdPoint, Sequence, Study, CSV_COLUMNS,
 };

@@ -9,7 +9,7 @@ use std::sync::Once;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::sweep::RdPoint;
+use super::sweep::{QualityAxis, RdPoint};
 
 /// The files a plot call wrote.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -88,6 +88,7 @@ fn draw_rd<DB: DrawingBackend>(
     root: DrawingArea<DB, Shift>,
     points: &[RdPoint],
     title: &str,
+    axis: QualityAxis,
 ) -> PlotResult<()> {
     root.fill(&WHITE).map_err(err)?;
     let series = series(points);
@@ -95,8 +96,8 @@ fn draw_rd<DB: DrawingBackend>(
     for p in points {
         r0 = r0.min(p.kbps);
         r1 = r1.max(p.kbps);
-        p0 = p0.min(p.psnr_y);
-        p1 = p1.max(p.psnr_y);
+        p0 = p0.min(axis.of(p));
+        p1 = p1.max(axis.of(p));
     }
     let (r0, r1) = (r0 * 0.9, r1 * 1.1);
     let (p0, p1) = (p0 - 0.5, p1 + 0.5);
@@ -110,13 +111,13 @@ fn draw_rd<DB: DrawingBackend>(
     chart
         .configure_mesh()
         .x_desc("bit rate (kbit/s, log scale)")
-        .y_desc("PSNR-Y (dB)")
+        .y_desc(axis.label())
         .label_style(("sans-serif", 14))
         .draw()
         .map_err(err)?;
     for (i, (name, pts)) in series.iter().enumerate() {
         let color = Palette99::pick(i).to_rgba();
-        let xy: Vec<(f64, f64)> = pts.iter().map(|p| (p.kbps, p.psnr_y)).collect();
+        let xy: Vec<(f64, f64)> = pts.iter().map(|p| (p.kbps, axis.of(p))).collect();
         chart
             .draw_series(LineSeries::new(xy.clone(), color.stroke_width(2)))
             .map_err(err)?
@@ -230,8 +231,10 @@ fn draw_bits<DB: DrawingBackend>(
 /// `<stem>_bits.svg` / `.png` with the bit split. `subject` (the sequences'
 /// names) starts both titles: "SUBJECT: PSNR-Y against rate" and
 /// "SUBJECT: bits per category (header, motion, residual)".
-pub fn plot(points: &[RdPoint], path: &Path, subject: &str) -> PlotResult<PlotFiles> {
-    let title = format!("{subject}: PSNR-Y against rate");
+pub fn plot(points: &[RdPoint], path: &Path, subject: &str, axis: QualityAxis) -> PlotResult<PlotFiles> {
+    let label = axis.label();
+    let name = label.split(" (").next().unwrap_or(&label);
+    let title = format!("{subject}: {name} against rate");
     let title = title.as_str();
     if points.is_empty() {
         return Err(PlotError::Empty);
@@ -249,11 +252,13 @@ pub fn plot(points: &[RdPoint], path: &Path, subject: &str) -> PlotResult<PlotFi
         SVGBackend::new(&files.rd[0], size).into_drawing_area(),
         points,
         title,
+        axis,
     )?;
     draw_rd(
         BitMapBackend::new(&files.rd[1], size).into_drawing_area(),
         points,
         title,
+        axis,
     )?;
     let bits_title = format!("{subject}: bits per category (header, motion, residual)");
     draw_bits(

@@ -10,7 +10,8 @@ use serde::Serialize;
 
 use super::bdrate::{bd_psnr, bd_rate, Fit};
 use crate::codec::Frame;
-use crate::encode::{encode_frames, EncodeError, EncoderConfig, Predictor};
+use crate::encode::{encode_frames_keeping_stream, EncodeError, EncoderConfig, Predictor};
+use crate::metrics::{vmaf, Metric};
 
 /// One point of a rate-distortion curve.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -52,6 +53,31 @@ pub struct RdPoint {
     pub study: String,
     /// Its job's number in the study and the study's number of jobs.
     pub job: Option<(usize, usize)>,
+    /// Decode time, ms (NaN when a CSV lacks it, as the metrics below
+    /// when not measured).
+    pub decode_ms: f64,
+    /// Mean luma MS-SSIM.
+    pub ms_ssim: f64,
+    /// Mean PSNR-HVS (planes combined), dB.
+    pub psnr_hvs: f64,
+    /// Mean CIEDE2000, dB.
+    pub ciede2000: f64,
+    /// Mean VMAF.
+    pub vmaf: f64,
+}
+
+impl RdPoint {
+    /// The sequence figure of `m` (mean luma PSNR for [`Metric::Psnr`]).
+    pub fn metric(&self, m: Metric) -> f64 {
+        match m {
+            Metric::Psnr => self.psnr_y,
+            Metric::Ssim => self.ssim,
+            Metric::MsSsim => self.ms_ssim,
+            Metric::PsnrHvs => self.psnr_hvs,
+            Metric::Ciede2000 => self.ciede2000,
+            Metric::Vmaf => self.vmaf,
+        }
+    }
 }
 
 /// Which luma PSNR a curve uses.
@@ -77,8 +103,68 @@ impl PsnrKind {
     }
 }
 
+/// The quality axis of curves and BD figures: a metric (and for PSNR,
+/// which PSNR). Similarities (SSIM, MS-SSIM) are taken in dB,
+/// `-10 log10(1 - x)`, as AWCY takes them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct QualityAxis {
+    /// The metric.
+    pub metric: Metric,
+    /// Which PSNR, when the metric is PSNR.
+    pub psnr: PsnrKind,
+}
+
+impl From<PsnrKind> for QualityAxis {
+    fn from(psnr: PsnrKind) -> QualityAxis {
+        QualityAxis {
+            metric: Metric::Psnr,
+            psnr,
+        }
+    }
+}
+
+impl From<Metric> for QualityAxis {
+    fn from(metric: Metric) -> QualityAxis {
+        QualityAxis {
+            metric,
+            psnr: PsnrKind::Mean,
+        }
+    }
+}
+
+impl QualityAxis {
+    /// The curve's quality value of `p` (NaN when `p` lacks the metric).
+    pub fn of(self, p: &RdPoint) -> f64 {
+        match self.metric {
+            Metric::Psnr => self.psnr.of(p),
+            m => m.curve_value(p.metric(m)),
+        }
+    }
+
+    /// Its name in tables and plots, with the unit.
+    pub fn label(self) -> String {
+        match (self.metric, self.psnr) {
+            (Metric::Psnr, PsnrKind::Mean) => "PSNR-Y (dB)".into(),
+            (Metric::Psnr, PsnrKind::Mse) => "PSNR-Y of the mean MSE (dB)".into(),
+            (Metric::Ssim, _) => "SSIM (dB)".into(),
+            (Metric::MsSsim, _) => "MS-SSIM (dB)".into(),
+            (Metric::PsnrHvs, _) => "PSNR-HVS (dB)".into(),
+            (Metric::Ciede2000, _) => "CIEDE2000 (dB)".into(),
+            (Metric::Vmaf, _) => "VMAF".into(),
+        }
+    }
+
+    /// The short name of the BD-quality figure ("BD-PSNR", "BD-MS-SSIM").
+    pub fn bd_name(self) -> String {
+        match self.metric {
+            Metric::Psnr => "BD-PSNR".into(),
+            m => format!("BD-{}", m.name().to_uppercase()),
+        }
+    }
+}
+
 /// The CSV columns: `../shared/peers/rd_ffmpeg.sh`'s, then ours.
-pub const CSV_COLUMNS: [&str; 18] = [
+pub const CSV_COLUMNS: [&str; 23] = [
     "codec",
     "q",
     "bytes",
@@ -97,6 +183,11 @@ pub const CSV_COLUMNS: [&str; 18] = [
     "psnr_y_mse",
     "study",
     "job",
+    "decode_ms",
+    "ms_ssim",
+    "psnr_hvs",
+    "ciede2000",
+    "vmaf",
 ];
 
 /// A sequence to sweep.
@@ -195,7 +286,8 @@ impl Study<'_> {
         indices.par_iter().try_for_each(|&index| {
             let (seq, predictor, qp) = self.job(index);
             let config = (self.configure)(EncoderConfig::new().qp(qp).predictor(predictor));
-            let s = encode_frames(&seq.frames, seq.fps, config)?;
+            let (s, stream) = encode_frames_keeping_stream(&seq.frames, seq.fps, config)?;
+            let decoded = DecodedJob::of(&stream, &seq.frames, config.metrics.has(Metric::Vmaf))?;
             done(RdPoint {
                 codec: predictor.label(),
                 q: f64::from(qp),
@@ -215,8 +307,36 @@ impl Study<'_> {
                 psnr_y_mse: s.psnr_y_mse,
                 study: id.to_string(),
                 job: Some((index, total)),
+                decode_ms: decoded.ms,
+                ms_ssim: s.ms_ssim,
+                psnr_hvs: s.psnr_hvs,
+                ciede2000: s.ciede2000,
+                vmaf: decoded.vmaf,
             })
         })
+    }
+}
+
+/// What decoding a sweep job's stream gives: the time, and VMAF of the
+/// decoded frames when asked for.
+struct DecodedJob {
+    ms: f64,
+    vmaf: f64,
+}
+
+impl DecodedJob {
+    fn of(stream: &[u8], source: &[Frame], with_vmaf: bool) -> Result<DecodedJob, EncodeError> {
+        let start = std::time::Instant::now();
+        let (_, frames) = crate::codec::decoder::decode(stream)
+            .map_err(|e| EncodeError::Config(format!("the encoder's own stream does not decode: {e}")))?;
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        let vmaf = if with_vmaf {
+            let v = vmaf::vmaf(source, &frames).map_err(|e| EncodeError::Config(e.to_string()))?;
+            v.iter().sum::<f64>() / v.len().max(1) as f64
+        } else {
+            f64::NAN
+        };
+        Ok(DecodedJob { ms, vmaf })
     }
 }
 
@@ -256,8 +376,17 @@ pub fn sweep(
     Ok(points)
 }
 
+/// `v` with `decimals` decimals, or an empty cell for NaN (not measured).
+fn cell(v: f64, decimals: usize) -> String {
+    if v.is_nan() {
+        String::new()
+    } else {
+        format!("{v:.decimals$}")
+    }
+}
+
 /// The CSV cells of `p`, in [`CSV_COLUMNS`] order.
-pub fn csv_record(p: &RdPoint) -> [String; 18] {
+pub fn csv_record(p: &RdPoint) -> [String; 23] {
     [
         p.codec.clone(),
         format!("{}", p.q),
@@ -277,6 +406,11 @@ pub fn csv_record(p: &RdPoint) -> [String; 18] {
         format!("{:.4}", p.psnr_y_mse),
         p.study.clone(),
         p.job.map_or(String::new(), |(i, n)| format!("{i}/{n}")),
+        cell(p.decode_ms, 1),
+        cell(p.ms_ssim, 6),
+        cell(p.psnr_hvs, 4),
+        cell(p.ciede2000, 4),
+        cell(p.vmaf, 4),
     ]
 }
 
@@ -343,6 +477,14 @@ pub fn read_csv(input: impl Read) -> Result<Vec<RdPoint>, CsvError> {
                 text: t,
             })
         };
+        // Columns that may be absent or empty: NaN, not 0.
+        let optional = |name: &'static str| -> Result<f64, CsvError> {
+            if text(name).is_empty() {
+                Ok(f64::NAN)
+            } else {
+                num(name)
+            }
+        };
         out.push(RdPoint {
             codec: text("codec"),
             q: num("q")?,
@@ -364,6 +506,11 @@ pub fn read_csv(input: impl Read) -> Result<Vec<RdPoint>, CsvError> {
             } else {
                 f64::NAN
             },
+            decode_ms: optional("decode_ms")?,
+            ms_ssim: optional("ms_ssim")?,
+            psnr_hvs: optional("psnr_hvs")?,
+            ciede2000: optional("ciede2000")?,
+            vmaf: optional("vmaf")?,
             study: text("study"),
             job: match text("job") {
                 t if t.is_empty() => None,
@@ -385,12 +532,18 @@ fn parse_job(t: &str) -> Option<(usize, usize)> {
     (i < n).then_some((i, n))
 }
 
-/// The (kbps, PSNR-Y) points of one codec (and sequence, when given).
-pub fn curve(points: &[RdPoint], codec: &str, sequence: Option<&str>, psnr: PsnrKind) -> Vec<(f64, f64)> {
+/// The (kbps, quality) points of one codec (and sequence, when given).
+pub fn curve(
+    points: &[RdPoint],
+    codec: &str,
+    sequence: Option<&str>,
+    axis: impl Into<QualityAxis>,
+) -> Vec<(f64, f64)> {
+    let axis = axis.into();
     points
         .iter()
         .filter(|p| p.codec == codec && sequence.is_none_or(|s| p.sequence.is_empty() || p.sequence == s))
-        .map(|p| (p.kbps, psnr.of(p)))
+        .map(|p| (p.kbps, axis.of(p)))
         .collect()
 }
 
@@ -406,7 +559,8 @@ pub struct Comparison {
     pub bd_rate_cubic: Option<f64>,
     /// See `bd_rate_cubic`.
     pub bd_rate_pchip: Option<f64>,
-    /// BD-PSNR against the anchor, dB.
+    /// BD-quality against the anchor in the axis' unit (BD-PSNR, dB, by
+    /// default).
     pub bd_psnr_cubic: Option<f64>,
     /// See `bd_psnr_cubic`.
     pub bd_psnr_pchip: Option<f64>,
@@ -414,12 +568,23 @@ pub struct Comparison {
     pub motion_share: f64,
     /// Mean encode time per frame, ms.
     pub ms_per_frame: f64,
+    /// Mean decode time per frame, ms (NaN when not known).
+    pub decode_ms_per_frame: f64,
+    /// The quality axis' BD name ("BD-PSNR", "BD-MS-SSIM").
+    pub quality: String,
 }
 
-/// Compares every codec of `points` with the anchor curve, per sequence.
-/// `anchor` is a codec in `points`, or given as its own points (a peer
-/// CSV); `anchor_name` labels it.
-pub fn compare(points: &[RdPoint], anchor: &[RdPoint], anchor_name: &str, psnr: PsnrKind) -> Vec<Comparison> {
+/// Compares every codec of `points` with the anchor curve, per sequence,
+/// on the quality `axis` (a [`PsnrKind`] or a [`Metric`]). `anchor` is a
+/// codec in `points`, or given as its own points (a peer CSV);
+/// `anchor_name` labels it.
+pub fn compare(
+    points: &[RdPoint],
+    anchor: &[RdPoint],
+    anchor_name: &str,
+    axis: impl Into<QualityAxis>,
+) -> Vec<Comparison> {
+    let axis = axis.into();
     let mut sequences: Vec<&str> = Vec::new();
     let mut codecs: Vec<&str> = Vec::new();
     for p in points {
@@ -432,13 +597,13 @@ pub fn compare(points: &[RdPoint], anchor: &[RdPoint], anchor_name: &str, psnr: 
     }
     let mut out = Vec::new();
     for &seq in &sequences {
-        let a = curve(anchor, anchor_name, Some(seq), psnr);
+        let a = curve(anchor, anchor_name, Some(seq), axis);
         for &codec in &codecs {
             let mine: Vec<&RdPoint> = points
                 .iter()
                 .filter(|p| p.codec == codec && p.sequence == seq)
                 .collect();
-            let t: Vec<(f64, f64)> = mine.iter().map(|p| (p.kbps, psnr.of(p))).collect();
+            let t: Vec<(f64, f64)> = mine.iter().map(|p| (p.kbps, axis.of(p))).collect();
             let bits: u64 = mine
                 .iter()
                 .map(|p| p.bits_header + p.bits_motion + p.bits_residual)
@@ -454,6 +619,8 @@ pub fn compare(points: &[RdPoint], anchor: &[RdPoint], anchor_name: &str, psnr: 
                 motion_share: 100.0 * mine.iter().map(|p| p.bits_motion).sum::<u64>() as f64
                     / bits.max(1) as f64,
                 ms_per_frame: mine.iter().map(|p| p.encode_ms).sum::<f64>() / frames.max(1) as f64,
+                decode_ms_per_frame: mine.iter().map(|p| p.decode_ms).sum::<f64>() / frames.max(1) as f64,
+                quality: axis.bd_name(),
             });
         }
     }
@@ -463,9 +630,11 @@ pub fn compare(points: &[RdPoint], anchor: &[RdPoint], anchor_name: &str, psnr: 
 /// Markdown tables: one per sequence, then the mean over sequences.
 pub fn markdown(rows: &[Comparison], anchor_name: &str) -> String {
     let fmt = |v: Option<f64>, unit: &str| v.map_or("n/a".to_string(), |v| format!("{v:+.2}{unit}"));
-    let header = concat!(
-        "| predictor | BD-rate cubic | BD-rate pchip | BD-PSNR cubic | BD-PSNR pchip | motion bits | ms/frame |\n",
-        "|---|---:|---:|---:|---:|---:|---:|\n"
+    let bd = rows.first().map_or("BD-PSNR", |r| r.quality.as_str());
+    let unit = if bd == "BD-VMAF" { "" } else { " dB" };
+    let header = format!(
+        "| predictor | BD-rate cubic | BD-rate pchip | {bd} cubic | {bd} pchip | motion bits | ms/frame | decode ms/frame |\n\
+         |---|---:|---:|---:|---:|---:|---:|---:|\n"
     );
     let mut s = String::new();
     let mut by_seq: BTreeMap<&str, Vec<&Comparison>> = BTreeMap::new();
@@ -474,16 +643,21 @@ pub fn markdown(rows: &[Comparison], anchor_name: &str) -> String {
     }
     let mut table = |title: &str, rows: &[Comparison]| {
         let _ = writeln!(s, "\n### {title} (anchor: {anchor_name})\n");
-        s.push_str(header);
+        s.push_str(&header);
         for r in rows {
+            let decode = if r.decode_ms_per_frame.is_nan() {
+                "n/a".to_string()
+            } else {
+                format!("{:.1}", r.decode_ms_per_frame)
+            };
             let _ = writeln!(
                 s,
-                "| {} | {} | {} | {} | {} | {:.1} % | {:.1} |",
+                "| {} | {} | {} | {} | {} | {:.1} % | {:.1} | {decode} |",
                 r.codec,
                 fmt(r.bd_rate_cubic, " %"),
                 fmt(r.bd_rate_pchip, " %"),
-                fmt(r.bd_psnr_cubic, " dB"),
-                fmt(r.bd_psnr_pchip, " dB"),
+                fmt(r.bd_psnr_cubic, unit),
+                fmt(r.bd_psnr_pchip, unit),
                 r.motion_share,
                 r.ms_per_frame
             );
@@ -518,6 +692,8 @@ pub fn markdown(rows: &[Comparison], anchor_name: &str) -> String {
                     bd_psnr_pchip: mean(of.iter().map(|r| r.bd_psnr_pchip).collect()),
                     motion_share: of.iter().map(|r| r.motion_share).sum::<f64>() / n,
                     ms_per_frame: of.iter().map(|r| r.ms_per_frame).sum::<f64>() / n,
+                    decode_ms_per_frame: of.iter().map(|r| r.decode_ms_per_frame).sum::<f64>() / n,
+                    quality: of[0].quality.clone(),
                 }
             })
             .collect();

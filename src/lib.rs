@@ -22,6 +22,7 @@
 
 pub use mocomp_codec as codec;
 
+pub mod analyze;
 #[cfg(feature = "cli")]
 pub mod cli;
 pub mod encode;

@@ -236,6 +236,19 @@ impl<R: Read> Decoder<R> {
         Ok(self.reference.as_ref())
     }
 
+    /// The next frame's syntax and its picture, cropped to the picture
+    /// size (what stream analysis reads); `None` at the end.
+    pub fn next_frame_with_syntax(&mut self) -> Result<Option<(FrameSyntax, Frame)>, DecodeError> {
+        let Some(syntax) = self.next_syntax()? else {
+            return Ok(None);
+        };
+        let recon = reconstruct_frame(&self.seq, &syntax, self.reference.as_ref())?;
+        self.frames += 1;
+        let frame = crop(&recon, self.seq.width, self.seq.height)?;
+        self.reference = Some(recon);
+        Ok(Some((syntax, frame)))
+    }
+
     /// The next frame, cropped to the picture size; `None` at the end.
     pub fn next_frame(&mut self) -> Result<Option<Frame>, DecodeError> {
         let (w, h) = (self.seq.width, self.seq.height);

@@ -685,6 +685,13 @@ impl FrameWriter {
         &self.residual
     }
 
+    /// The cost of the bins written so far, header (flags, types, intra
+    /// modes), motion and residual, in 1/256 bit: what `finish` splits the
+    /// coded bits by, and what analysis attributes to each macroblock.
+    pub fn estimates(&self) -> [u64; 3] {
+        self.estimates
+    }
+
     /// The vectors of the macroblocks written so far (raster order; `None`
     /// for intra), as vector prediction reads them.
     pub fn vectors(&self) -> &[MbVectors] {

@@ -10,6 +10,7 @@ macro_rules! outln {
     }};
 }
 
+mod analyze;
 mod compare;
 mod decode;
 mod encode;
@@ -59,6 +60,9 @@ enum Command {
     Rd(rd::Args),
     /// Write the synthetic samples with exact ground-truth flow.
     Samples(samples::Args),
+    /// What a stream holds, per frame and macroblock: modes, partitions,
+    /// vectors, coded blocks, bits by category; overlays of them.
+    Analyze(analyze::Args),
     /// Quality of a Y4M against a reference, per frame and overall: PSNR,
     /// SSIM, and with --metrics MS-SSIM, PSNR-HVS, CIEDE2000, VMAF.
     #[command(name = "quality", visible_alias = "psnr")]
@@ -88,6 +92,7 @@ pub fn main() -> ExitCode {
         Some(Command::Rd(a)) => rd::run(&a),
         Some(Command::Samples(a)) => samples::run(&a),
         Some(Command::Psnr(a)) => psnr::run(&a),
+        Some(Command::Analyze(a)) => analyze::run(&a),
         Some(Command::Track(a)) => track::run(&a),
         None => unreachable!("set to compare above"),
     };

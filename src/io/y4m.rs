@@ -574,6 +574,11 @@ impl<W: Write> Y4mWriter<W> {
         }
         Ok(())
     }
+
+    /// The writer the frames went to.
+    pub fn into_inner(self) -> W {
+        self.writer
+    }
 }
 
 fn check_frame_size(info: &Y4mInfo, frame: &Frame) -> Result<(), Y4mError> {

@@ -14,6 +14,7 @@ or TypeError for arrays of the wrong shape or dtype.
 
 from ._mocomp import (
     __version__,
+    analyze,
     bd_rate,
     block_match,
     decode,
@@ -23,6 +24,7 @@ from ._mocomp import (
     flow_to_color,
     good_features,
     psnr,
+    quality,
     rd,
     read_flo,
     read_y4m,
@@ -33,6 +35,7 @@ from ._mocomp import (
 )
 
 __all__ = [
+    "analyze",
     "bd_rate",
     "block_match",
     "decode",
@@ -42,6 +45,7 @@ __all__ = [
     "flow_to_color",
     "good_features",
     "psnr",
+    "quality",
     "rd",
     "read_flo",
     "read_y4m",

@@ -2,6 +2,7 @@
 //! crate: arrays are checked and converted (errors as ValueError /
 //! TypeError, never a crash), the GIL is released while Rust computes.
 
+mod analyze;
 mod arrays;
 mod codec;
 mod flow;
@@ -56,9 +57,11 @@ fn _mocomp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(codec::decode, m)?)?;
     m.add_function(wrap_pyfunction!(codec::rd, m)?)?;
     m.add_function(wrap_pyfunction!(codec::read_y4m, m)?)?;
+    m.add_function(wrap_pyfunction!(analyze::analyze, m)?)?;
     m.add_function(wrap_pyfunction!(metrics::psnr, m)?)?;
     m.add_function(wrap_pyfunction!(metrics::ssim, m)?)?;
     m.add_function(wrap_pyfunction!(metrics::bd_rate, m)?)?;
+    m.add_function(wrap_pyfunction!(metrics::quality, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -5,7 +5,7 @@ use mocomp::rd::bdrate::{bd_rate as bd, Fit};
 use numpy::{PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
-use crate::arrays::{luma_plane, value_error};
+use crate::arrays::{frame_from_py, luma_plane, value_error};
 
 /// PSNR of `b` against `a` (uint8 arrays of one shape: a plane, an RGB
 /// picture, a stack), in dB over all samples: 10 log10(255^2 / MSE),
@@ -83,4 +83,52 @@ pub fn bd_rate(
     };
     let (a, b) = (curve("a", rate_a, psnr_a)?, curve("b", rate_b, psnr_b)?);
     bd(&a, &b, fit).map_err(|e| value_error(e.to_string()))
+}
+
+/// The quality of `test` against `reference`, both (Y, U, V) uint8 frames
+/// (4:2:0, chroma half the luma size rounded up): a dict with `psnr_y`,
+/// `psnr_u`, `psnr_v` and the metrics asked for (comma-separated: ssim,
+/// ms-ssim, psnr-hvs, ciede2000, or all), as `mocomp quality` reports them
+/// (AWCY's figures as libvmaf computes them).
+#[pyfunction]
+#[pyo3(signature = (reference, test, metrics="psnr,ssim"))]
+pub fn quality<'py>(
+    py: Python<'py>,
+    reference: &Bound<'py, PyAny>,
+    test: &Bound<'py, PyAny>,
+    metrics: &str,
+) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
+    use mocomp::metrics::{FrameQuality, Metric, Metrics};
+    let which: Metrics = metrics
+        .parse()
+        .map_err(|e: mocomp::metrics::UnknownMetric| value_error(e.to_string()))?;
+    if which.has(Metric::Vmaf) {
+        return Err(value_error(
+            "vmaf works on sequences: use mocomp quality on Y4M files",
+        ));
+    }
+    let (a, b) = (
+        frame_from_py("reference", reference)?,
+        frame_from_py("test", test)?,
+    );
+    if (a.width(), a.height()) != (b.width(), b.height()) {
+        return Err(value_error("reference and test differ in size"));
+    }
+    let q = py.detach(|| FrameQuality::measure_with(&a, &b, which));
+    let d = pyo3::types::PyDict::new(py);
+    d.set_item("psnr_y", q.psnr.y)?;
+    d.set_item("psnr_u", q.psnr.u)?;
+    d.set_item("psnr_v", q.psnr.v)?;
+    for (m, key, v) in [
+        (Metric::Ssim, "ssim", q.ssim),
+        (Metric::MsSsim, "ms_ssim", q.ms_ssim),
+        (Metric::PsnrHvs, "psnr_hvs", q.psnr_hvs),
+        (Metric::PsnrHvs, "psnr_hvs_y", q.psnr_hvs_y),
+        (Metric::Ciede2000, "ciede2000", q.ciede2000),
+    ] {
+        if which.has(m) {
+            d.set_item(key, v)?;
+        }
+    }
+    Ok(d)
 }

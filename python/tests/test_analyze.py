@@ -1,0 +1,57 @@
+"""Stream analysis as numpy arrays, and the quality metrics AWCY reports."""
+
+import numpy as np
+import pytest
+
+import mocomp
+
+
+def test_analysis_agrees_with_the_encoder_and_the_decoder(synth_frames):
+    source = synth_frames[:3]
+    stream, stats = mocomp.encode(source, qp=26)
+    frames = mocomp.analyze(stream)
+    decoded = mocomp.decode(stream)
+    assert len(frames) == 3
+    for f, s, d in zip(frames, stats, decoded):
+        assert (f["type"], f["qp"], f["bytes"]) == (s["type"], s["qp"], s["bytes"])
+        assert (f["bits_header"], f["bits_motion"], f["bits_residual"]) == (
+            s["bits_header"], s["bits_motion"], s["bits_residual"])
+        assert f["kind"].shape == (9, 11) and f["vectors"].shape == (18, 22, 2)
+        counts = [int((f["kind"] == k).sum()) for k in range(3)]
+        assert counts == [s["skip_mbs"], s["inter_mbs"], s["intra_mbs"]]
+        for pf, pd in zip(f["picture"], d):
+            assert np.array_equal(pf, pd)
+        # Intra macroblocks have no vectors; the others do, in every 8x8 block.
+        intra = np.kron(f["kind"] == 2, np.ones((2, 2), bool))
+        assert np.array_equal(f["has_vector"], ~intra)
+    assert (frames[0]["kind"] == 2).all() and frames[0]["grid"] is None
+    # The sample pans: the P frames' vectors are mostly not zero.
+    moving = np.abs(frames[2]["vectors"]).sum(-1)[frames[2]["has_vector"]] > 0
+    assert moving.mean() > 0.5
+
+
+def test_grid_frames_carry_their_grid(synth_frames):
+    stream, _ = mocomp.encode(synth_frames[:2], qp=30, predictor="dense-hs")
+    frames = mocomp.analyze(stream)
+    grid = frames[1]["grid"]
+    assert frames[1]["tool"] == "grid" and grid.ndim == 3 and grid.shape[2] == 2
+
+
+def test_a_damaged_stream_is_a_value_error(synth_frames):
+    stream, _ = mocomp.encode(synth_frames[:2], qp=30)
+    with pytest.raises(ValueError):
+        mocomp.analyze(stream[: len(stream) // 2])
+
+
+def test_quality_metrics_rank_distortions(synth_frames):
+    ref = synth_frames[0]
+    noisy = tuple(np.clip(p.astype(int) + (np.indices(p.shape).sum(0) % 7 - 3) * k, 0, 255).astype(np.uint8)
+                  for p, k in zip(ref, (2, 1, 1)))
+    q = mocomp.quality(ref, noisy, metrics="all")
+    assert set(q) == {"psnr_y", "psnr_u", "psnr_v", "ssim", "ms_ssim", "psnr_hvs", "psnr_hvs_y", "ciede2000"}
+    same = mocomp.quality(ref, ref, metrics="ms-ssim,ciede2000")
+    assert same["ciede2000"] == 100.0 and abs(same["ms_ssim"] - 1.0) < 1e-12
+    assert q["ms_ssim"] < 1.0 and q["ciede2000"] < 100.0
+    assert "ssim" not in same
+    with pytest.raises(ValueError):
+        mocomp.quality(ref, noisy, metrics="butteraugli")

@@ -337,6 +337,10 @@ fn vmaf_through_ffmpeg_matches_libvmaf_where_there_is_one() {
                 assert!((g - w).abs() < 0.05, "{got:?} against {want:?}");
             }
         }
-        Err(e) => assert!(matches!(e, mocomp::metrics::vmaf::VmafError::NoLibvmaf), "{e}"),
+        Err(e) => {
+            // CI brings an ffmpeg with libvmaf and says so: there it must work.
+            assert!(std::env::var_os("MOCOMP_REQUIRE_VMAF").is_none(), "{e}");
+            assert!(matches!(e, mocomp::metrics::vmaf::VmafError::NoLibvmaf), "{e}");
+        }
     }
 }

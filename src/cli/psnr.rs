@@ -31,29 +31,69 @@ pub struct Args {
     pub csv: Option<PathBuf>,
 }
 
-/// A per-frame column: its name and how to read it.
-type Column = (&'static str, fn(&FrameQuality) -> f64);
+/// A column beside PSNR: its name, its per-frame value and its mean.
+struct Column {
+    name: &'static str,
+    frame: fn(&FrameQuality) -> f64,
+    mean: fn(&SequenceQuality) -> f64,
+}
 
-/// The per-frame columns beside PSNR, in order.
+/// The columns of the metrics in `m`, in order.
 fn extra_columns(m: Metrics) -> Vec<Column> {
-    let mut cols: Vec<Column> = Vec::new();
-    if m.has(Metric::Ssim) {
-        cols.push(("ssim", |q| q.ssim));
-    }
-    if m.has(Metric::MsSsim) {
-        cols.push(("ms_ssim", |q| q.ms_ssim));
-    }
-    if m.has(Metric::PsnrHvs) {
-        cols.push(("psnr_hvs", |q| q.psnr_hvs));
-        cols.push(("psnr_hvs_y", |q| q.psnr_hvs_y));
-    }
-    if m.has(Metric::Ciede2000) {
-        cols.push(("ciede2000", |q| q.ciede2000));
-    }
-    if m.has(Metric::Vmaf) {
-        cols.push(("vmaf", |q| q.vmaf));
-    }
-    cols
+    let all = [
+        (
+            Metric::Ssim,
+            Column {
+                name: "ssim",
+                frame: |q| q.ssim,
+                mean: |s| s.ssim,
+            },
+        ),
+        (
+            Metric::MsSsim,
+            Column {
+                name: "ms_ssim",
+                frame: |q| q.ms_ssim,
+                mean: |s| s.ms_ssim,
+            },
+        ),
+        (
+            Metric::PsnrHvs,
+            Column {
+                name: "psnr_hvs",
+                frame: |q| q.psnr_hvs,
+                mean: |s| s.psnr_hvs,
+            },
+        ),
+        (
+            Metric::PsnrHvs,
+            Column {
+                name: "psnr_hvs_y",
+                frame: |q| q.psnr_hvs_y,
+                mean: |s| s.psnr_hvs_y,
+            },
+        ),
+        (
+            Metric::Ciede2000,
+            Column {
+                name: "ciede2000",
+                frame: |q| q.ciede2000,
+                mean: |s| s.ciede2000,
+            },
+        ),
+        (
+            Metric::Vmaf,
+            Column {
+                name: "vmaf",
+                frame: |q| q.vmaf,
+                mean: |s| s.vmaf,
+            },
+        ),
+    ];
+    all.into_iter()
+        .filter(|(metric, _)| m.has(*metric))
+        .map(|(_, c)| c)
+        .collect()
 }
 
 pub fn run(args: &Args) -> Result<()> {
@@ -135,13 +175,13 @@ fn measure(args: &Args) -> Result<(Vec<FrameQuality>, SequenceQuality)> {
 fn write_csv(path: &Path, rows: &[FrameQuality], metrics: Metrics) -> Result<()> {
     let cols = extra_columns(metrics);
     let mut out = OutputFile::create(path).with_context(|| path.display().to_string())?;
-    let names: String = cols.iter().map(|(n, _)| format!("{n},")).collect();
+    let names: String = cols.iter().map(|c| format!("{},", c.name)).collect();
     writeln!(
         out,
         "frame,psnr_y,psnr_u,psnr_v,psnr_yuv,{names}mse_y,mse_u,mse_v"
     )?;
     for (i, q) in rows.iter().enumerate() {
-        let values: String = cols.iter().map(|(_, f)| format!("{:.8},", f(q))).collect();
+        let values: String = cols.iter().map(|c| format!("{:.8},", (c.frame)(q))).collect();
         writeln!(
             out,
             "{i},{:.6},{:.6},{:.6},{:.6},{values}{:.6},{:.6},{:.6}",
@@ -170,8 +210,8 @@ fn report(args: &Args, rows: &[FrameQuality], s: &SequenceQuality) -> Result<()>
                 o.insert("psnr_u".into(), json!(q.psnr.u));
                 o.insert("psnr_v".into(), json!(q.psnr.v));
                 o.insert("psnr_yuv".into(), json!(q.psnr.yuv()));
-                for (name, f) in &cols {
-                    o.insert((*name).into(), json!(f(q)));
+                for c in &cols {
+                    o.insert(c.name.into(), json!((c.frame)(q)));
                 }
                 Value::Object(o)
             })
@@ -184,7 +224,7 @@ fn report(args: &Args, rows: &[FrameQuality], s: &SequenceQuality) -> Result<()>
         outln!("{obj}")?;
         return Ok(());
     }
-    let header: String = cols.iter().map(|(n, _)| format!(" {n:>10}")).collect();
+    let header: String = cols.iter().map(|c| format!(" {:>10}", c.name)).collect();
     outln!(
         "{:>6} {:>8} {:>8} {:>8} {:>8}{header}",
         "frame",
@@ -206,9 +246,9 @@ fn report(args: &Args, rows: &[FrameQuality], s: &SequenceQuality) -> Result<()>
     };
     for (i, q) in rows.iter().enumerate() {
         let p = [q.psnr.y, q.psnr.u, q.psnr.v, q.psnr.yuv()];
-        line(i.to_string(), p, cols.iter().map(|(_, f)| f(q)).collect())?;
+        line(i.to_string(), p, cols.iter().map(|c| (c.frame)(q)).collect())?;
     }
-    let means: Vec<f64> = cols.iter().map(|(name, _)| sequence_value(s, name)).collect();
+    let means: Vec<f64> = cols.iter().map(|c| (c.mean)(s)).collect();
     line("mean".into(), [s.psnr_y, s.psnr_u, s.psnr_v, s.psnr_yuv], means)?;
     outln!(
         "{} frames; PSNR of the mean MSE: y {:.4}  u {:.4}  v {:.4} dB",
@@ -218,16 +258,4 @@ fn report(args: &Args, rows: &[FrameQuality], s: &SequenceQuality) -> Result<()>
         s.psnr_v_mse
     )?;
     Ok(())
-}
-
-/// The sequence mean that goes under a per-frame column.
-fn sequence_value(s: &SequenceQuality, column: &str) -> f64 {
-    match column {
-        "ssim" => s.ssim,
-        "ms_ssim" => s.ms_ssim,
-        "psnr_hvs" => s.psnr_hvs,
-        "psnr_hvs_y" => s.psnr_hvs_y,
-        "ciede2000" => s.ciede2000,
-        _ => s.vmaf,
-    }
 }

@@ -67,18 +67,6 @@ impl FrameQuality {
             vmaf: f64::NAN,
         }
     }
-
-    /// The value of metric `m` (luma PSNR for [`Metric::Psnr`]).
-    pub fn get(&self, m: Metric) -> f64 {
-        match m {
-            Metric::Psnr => self.psnr.y,
-            Metric::Ssim => self.ssim,
-            Metric::MsSsim => self.ms_ssim,
-            Metric::PsnrHvs => self.psnr_hvs,
-            Metric::Ciede2000 => self.ciede2000,
-            Metric::Vmaf => self.vmaf,
-        }
-    }
 }
 
 /// Sequence figures over frames: PSNR as the mean of per-frame PSNRs (as HM
@@ -115,21 +103,6 @@ pub struct SequenceQuality {
     pub ciede2000: f64,
     /// Mean over frames of VMAF.
     pub vmaf: f64,
-}
-
-impl SequenceQuality {
-    /// The sequence figure of metric `m` (mean luma PSNR for
-    /// [`Metric::Psnr`]).
-    pub fn get(&self, m: Metric) -> f64 {
-        match m {
-            Metric::Psnr => self.psnr_y,
-            Metric::Ssim => self.ssim,
-            Metric::MsSsim => self.ms_ssim,
-            Metric::PsnrHvs => self.psnr_hvs,
-            Metric::Ciede2000 => self.ciede2000,
-            Metric::Vmaf => self.vmaf,
-        }
-    }
 }
 
 /// Accumulates [`FrameQuality`] values into a [`SequenceQuality`].

@@ -10,8 +10,9 @@
 //! error over all coefficients is turned into dB like an MSE.
 //!
 //! The transform is Daala's integer 8-point DCT (a lifting factorisation
-//! of the orthonormal DCT-II whose rounding the figures depend on: the
-//! orthonormal DCT in floating point moves them by about 0.2 dB).
+//! of the orthonormal DCT-II whose rounding the figures depend on: on
+//! `samples/tree_qcif*.y4m` the orthonormal DCT in floating point gave
+//! 36.40 dB for frame 0's luma where libvmaf gives 36.20).
 
 use super::PSNR_CAP_DB;
 use crate::codec::{Frame, Plane};

@@ -68,13 +68,21 @@ pub fn vmaf(reference: &[Frame], test: &[Frame]) -> Result<Vec<f64>, VmafError> 
         for f in frames {
             w.write_frame(f).map_err(|e| VmafError::Failed(e.to_string()))?;
         }
-        drop(w);
+        // A write error must not pass for a shorter sequence.
+        std::io::Write::flush(&mut w.into_inner())?;
         Ok(path)
     };
     let n = reference.len().min(test.len());
     let r = write("reference.y4m", &reference[..n])?;
     let t = write("test.y4m", &test[..n])?;
-    vmaf_files(&r, &t)
+    let scores = vmaf_files(&r, &t)?;
+    if scores.len() != n {
+        return Err(VmafError::Failed(format!(
+            "{} scores for {n} frames",
+            scores.len()
+        )));
+    }
+    Ok(scores)
 }
 
 /// Per-frame VMAF of the Y4M file `test` against the Y4M file `reference`.

@@ -21,6 +21,7 @@ fn tools(c: &mut Criterion) {
             intra: true,
             mvs: [None; 4],
             coded: 0,
+            transform_8x8: false,
         };
         mbs
     ];
@@ -30,6 +31,7 @@ fn tools(c: &mut Criterion) {
             intra: false,
             mvs: [Some(Mv::new(5, -3)); 4],
             coded: 0x5a5a,
+            transform_8x8: false,
         };
         mbs
     ];

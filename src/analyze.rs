@@ -45,7 +45,11 @@ pub struct MbRecord {
     pub vectors: [Option<(i32, i32)>; 4],
     /// The frame's QP (the format has no per-macroblock QP).
     pub qp: u8,
-    /// Luma 4x4 blocks with levels (0..=16).
+    /// The luma's transform size, 4 or 8 (intra and inter macroblocks
+    /// without luma levels: 4).
+    pub transform: u8,
+    /// Luma 4x4 blocks with levels (0..=16; with the 8x8 transform, four
+    /// for each 8x8 block with levels).
     pub coded_luma_blocks: u8,
     /// Chroma 4x4 blocks with levels (0..=8).
     pub coded_chroma_blocks: u8,
@@ -231,7 +235,8 @@ fn record(
         intra_modes,
         vectors: vectors.map(|v| v.map(|v| (v.x, v.y))),
         qp,
-        coded_luma_blocks: r.luma.iter().filter(coded).count() as u8,
+        transform: if r.transform_8x8() { 8 } else { 4 },
+        coded_luma_blocks: r.luma_coded().iter().filter(|&&c| c).count() as u8,
         coded_chroma_blocks: r.chroma.iter().flatten().filter(coded).count() as u8,
         bits_header: bits[0],
         bits_motion: bits[1],
@@ -241,7 +246,7 @@ fn record(
 
 /// The CSV header of [`csv_row`].
 pub const CSV_HEADER: &str = "frame,type,mb_x,mb_y,kind,partition,intra_modes,\
-mv0_x,mv0_y,mv1_x,mv1_y,mv2_x,mv2_y,mv3_x,mv3_y,qp,coded_luma_blocks,coded_chroma_blocks,\
+mv0_x,mv0_y,mv1_x,mv1_y,mv2_x,mv2_y,mv3_x,mv3_y,qp,transform,coded_luma_blocks,coded_chroma_blocks,\
 bits_header,bits_motion,bits_residual";
 
 /// One macroblock as a CSV row (vectors of the 8x8 blocks in quarter-pel,
@@ -254,7 +259,7 @@ pub fn csv_row(frame: &FrameAnalysis, m: &MbRecord) -> String {
         .collect::<Vec<_>>()
         .join(",");
     format!(
-        "{},{},{},{},{},{},{},{vectors},{},{},{},{:.3},{:.3},{:.3}",
+        "{},{},{},{},{},{},{},{vectors},{},{},{},{},{:.3},{:.3},{:.3}",
         frame.index,
         frame.frame_type,
         m.mb_x,
@@ -263,6 +268,7 @@ pub fn csv_row(frame: &FrameAnalysis, m: &MbRecord) -> String {
         m.partition,
         m.intra_modes.replace(',', ";"),
         m.qp,
+        m.transform,
         m.coded_luma_blocks,
         m.coded_chroma_blocks,
         m.bits_header,

@@ -54,8 +54,12 @@ pub struct MbEdgeInfo {
     /// Its 8x8 blocks' vectors (raster order), where vectors are compared
     /// (block and OBMC frames).
     pub mvs: MbVectors,
-    /// Bit `by * 4 + bx`: luma 4x4 block (bx, by) has a non-zero level.
+    /// Bit `by * 4 + bx`: luma 4x4 block (bx, by) has a non-zero level
+    /// (all four of an 8x8 transform block with levels).
     pub coded: u16,
+    /// Its luma uses the 8x8 transform: the edges inside its 8x8 blocks
+    /// are not block edges and are not filtered.
+    pub transform_8x8: bool,
 }
 
 impl MbEdgeInfo {
@@ -63,10 +67,10 @@ impl MbEdgeInfo {
     /// vector (for its neighbours' prediction) is `mv`.
     pub fn of(kind: &MbKind, residual: &MbResidual, tool: MotionTool, mvs: MbVectors) -> MbEdgeInfo {
         let coded = residual
-            .luma
+            .luma_coded()
             .iter()
             .enumerate()
-            .filter(|(_, b)| b.as_flattened().iter().any(|&l| l != 0))
+            .filter(|(_, &c)| c)
             .fold(0u16, |bits, (i, _)| bits | 1 << i);
         MbEdgeInfo {
             intra: matches!(kind, MbKind::Intra { .. }),
@@ -76,6 +80,7 @@ impl MbEdgeInfo {
                 mvs
             },
             coded,
+            transform_8x8: residual.transform_8x8(),
         }
     }
 
@@ -101,6 +106,12 @@ fn strength(info: &[MbEdgeInfo], mb_cols: usize, p: (usize, usize), q: (usize, u
     let mb = |(bx, by): (usize, usize)| (&info[(by / 4) * mb_cols + bx / 4], bx % 4, by % 4);
     let ((mp, px, py), (mq, qx, qy)) = (mb(p), mb(q));
     let mb_edge = (p.0 / 4, p.1 / 4) != (q.0 / 4, q.1 / 4);
+    // Inside a macroblock, an edge before an odd block column (vertical
+    // edges, p and q on one row) or row (horizontal) cuts an 8x8 block.
+    let inside_8x8 = if p.1 == q.1 { qx % 2 == 1 } else { qy % 2 == 1 };
+    if !mb_edge && mq.transform_8x8 && inside_8x8 {
+        return 0;
+    }
     if mp.intra || mq.intra {
         return if mb_edge { 4 } else { 3 };
     }
@@ -268,6 +279,7 @@ mod tests {
             intra: false,
             mvs: [Some(mv); 4],
             coded,
+            transform_8x8: false,
         }
     }
 
@@ -277,6 +289,7 @@ mod tests {
             intra: true,
             mvs: [None; 4],
             coded: 0,
+            transform_8x8: false,
         };
         let still = inter(Mv::ZERO, 0);
         // Two macroblocks side by side: block (3, y) | (4, y) is their edge.
@@ -302,6 +315,27 @@ mod tests {
         assert_eq!(strength(&[split], 1, (1, 2), (2, 2)), 1);
         assert_eq!(strength(&[split], 1, (0, 2), (1, 2)), 0);
         assert_eq!(strength(&[split], 1, (2, 1), (2, 2)), 0);
+        // With the 8x8 transform, coded blocks inside an 8x8 block have no
+        // edge between them; the 8x8 blocks' own edges keep theirs.
+        let t8 = MbEdgeInfo {
+            transform_8x8: true,
+            ..inter(Mv::ZERO, 0xffff)
+        };
+        for (p, q, bs) in [
+            ((0, 1), (1, 1), 0),
+            ((2, 3), (3, 3), 0),
+            ((1, 0), (1, 1), 0),
+            ((1, 2), (1, 3), 0),
+            ((1, 1), (2, 1), 2),
+            ((3, 1), (3, 2), 2),
+        ] {
+            assert_eq!(strength(&[t8], 1, p, q), bs, "{p:?} {q:?}");
+            let t4 = MbEdgeInfo {
+                transform_8x8: false,
+                ..t8
+            };
+            assert_eq!(strength(&[t4], 1, p, q), 2, "{p:?} {q:?}");
+        }
     }
 
     #[test]
@@ -323,6 +357,7 @@ mod tests {
             intra: true,
             mvs: [None; 4],
             coded: 0,
+            transform_8x8: false,
         };
         deblock_frame(&mut flat, &[intra; 4], 51);
         assert_eq!(flat, Frame::filled(32, 32, 90, 128, 128).unwrap());

@@ -25,6 +25,7 @@ pub mod recon;
 pub mod residual;
 pub mod syntax;
 pub mod transform;
+pub mod transform8x8;
 pub mod warp;
 pub mod weight;
 

@@ -17,6 +17,7 @@ use crate::picture::{Frame, PictureError, Plane};
 use crate::residual::MbResidual;
 use crate::syntax::{mb_vectors, FrameSyntax, FrameType, MbKind, MotionTool, SequenceHeader, MB};
 use crate::transform::{dequantize, inverse_4x4, Block4};
+use crate::transform8x8::{dequantize_8x8, inverse_8x8, Block8};
 use crate::warp::warp_frame;
 
 /// Chroma QP from luma QP (H.264 Table 8-15).
@@ -325,13 +326,38 @@ pub fn add_block(levels: &Block4, qp: u8, out: &mut [u8], stride: usize, (bx, by
     }
 }
 
+/// Adds one 8x8 block of levels, dequantised at `qp`, to the macroblock's
+/// luma prediction `out` at sample (x, y), clipping.
+pub fn add_block8(levels: &Block8, qp: u8, out: &mut [u8; 256], (x, y): (usize, usize)) {
+    if levels.as_flattened().iter().all(|&v| v == 0) {
+        return;
+    }
+    let mut c = *levels;
+    dequantize_8x8(&mut c, qp);
+    for (r, res) in inverse_8x8(&c).iter().enumerate() {
+        let i = (y + r) * MB + x;
+        for (o, &d) in out[i..i + 8].iter_mut().zip(res) {
+            *o = (i32::from(*o) + d).clamp(0, 255) as u8;
+        }
+    }
+}
+
 /// The samples macroblock coding gives: `pred` plus `residual` dequantised
 /// at `qp` (chroma at [`chroma_qp`]), in a macroblock-shaped block.
 #[inline]
 pub fn reconstruct_samples(pred: &MbSamples, residual: &MbResidual, qp: u8) -> MbSamples {
     let mut out = pred.clone();
-    for (i, levels) in residual.luma.iter().enumerate() {
-        add_block(levels, qp, &mut out.luma, MB, ((i % 4) * 4, (i / 4) * 4));
+    match &residual.luma8 {
+        Some(b8) => {
+            for (q, levels) in b8.iter().enumerate() {
+                add_block8(levels, qp, &mut out.luma, ((q % 2) * 8, (q / 2) * 8));
+            }
+        }
+        None => {
+            for (i, levels) in residual.luma.iter().enumerate() {
+                add_block(levels, qp, &mut out.luma, MB, ((i % 4) * 4, (i / 4) * 4));
+            }
+        }
     }
     let cqp = chroma_qp(qp);
     for (p, plane) in out.chroma.iter_mut().enumerate() {

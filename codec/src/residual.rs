@@ -33,6 +33,7 @@ use crate::entropy::{
     Writer,
 };
 use crate::transform::Block4;
+use crate::transform8x8::{Block8, ZIGZAG8};
 
 /// H.264's 4x4 frame zig-zag scan: `ZIGZAG[k]` is the raster index
 /// (`row * 4 + col`) of the k-th coefficient.
@@ -65,16 +66,26 @@ pub enum ResidualError {
 }
 
 /// The levels of one macroblock: 16 luma blocks in raster order of 4x4
-/// blocks within the macroblock, then 4 Cb and 4 Cr blocks.
+/// blocks within the macroblock (or four 8x8 blocks), then 4 Cb and 4 Cr
+/// blocks.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct MbResidual {
-    /// Luma 4x4 blocks, index `by * 4 + bx`.
+    /// Luma 4x4 blocks, index `by * 4 + bx` (all zero when `luma8` holds
+    /// the luma).
     pub luma: [Block4; 16],
     /// Chroma 4x4 blocks, `[plane][by * 2 + bx]`, plane 0 = Cb.
     pub chroma: [[Block4; 4]; 2],
+    /// The luma in the 8x8 transform's blocks (quadrant `qy * 2 + qx`),
+    /// when the macroblock uses it. An inter macroblock says so only when
+    /// it has luma levels: `Some` must hold at least one.
+    pub luma8: Option<Box<[Block8; 4]>>,
 }
 
 fn is_zero(b: &Block4) -> bool {
+    b.as_flattened().iter().all(|&v| v == 0)
+}
+
+fn is_zero8(b: &Block8) -> bool {
     b.as_flattened().iter().all(|&v| v == 0)
 }
 
@@ -88,16 +99,32 @@ fn quadrant_blocks(q: usize) -> [usize; 4] {
 impl MbResidual {
     /// Whether every level is zero.
     pub fn is_empty(&self) -> bool {
-        self.luma.iter().all(is_zero) && self.chroma.iter().flatten().all(is_zero)
+        self.luma.iter().all(is_zero)
+            && self.chroma.iter().flatten().all(is_zero)
+            && self.luma8.as_deref().is_none_or(|b| b.iter().all(is_zero8))
     }
 
     /// The coded block pattern of these levels: bit q for luma quadrant q,
     /// bit 4 for Cb, bit 5 for Cr.
     pub fn cbp(&self) -> u32 {
         cbp_of(
-            &coded_flags(&self.luma),
+            &self.luma_coded(),
             &[coded_flags(&self.chroma[0]), coded_flags(&self.chroma[1])],
         )
+    }
+
+    /// Whether each luma 4x4 block (raster, `by * 4 + bx`) has levels; with
+    /// the 8x8 transform, the four of an 8x8 block with levels all do.
+    pub fn luma_coded(&self) -> [bool; 16] {
+        match &self.luma8 {
+            None => coded_flags(&self.luma),
+            Some(b8) => std::array::from_fn(|k| !is_zero8(&b8[(k / 8) * 2 + (k % 4) / 2])),
+        }
+    }
+
+    /// Whether the luma uses the 8x8 transform.
+    pub fn transform_8x8(&self) -> bool {
+        self.luma8.is_some()
     }
 }
 
@@ -113,7 +140,19 @@ const CBP: usize = 4 * CLASS_CONTEXTS;
 /// Per kind: 4 luma (left + 2 above), 3 Cb (left + above), 6 Cr (left +
 /// above + 3 Cb).
 const CBP_CONTEXTS: usize = 13;
-const CONTEXTS: usize = CBP + 2 * CBP_CONTEXTS;
+// The 8x8 blocks' classes (luma of intra and of inter macroblocks): no
+// coded flag (the pattern bit says), significance and last by the
+// position's anti-diagonal (15, and 8 in pairs of diagonals).
+const SIG8: usize = 0;
+const LAST8: usize = SIG8 + 15;
+const GT1_8: usize = LAST8 + 8;
+const ABS8: usize = GT1_8 + 5;
+const CLASS8_CONTEXTS: usize = ABS8 + 5;
+const CLASS8: usize = CBP + 2 * CBP_CONTEXTS;
+/// The transform-size flag of inter macroblocks: neighbours left and
+/// above that use the 8x8 transform.
+const T8_FLAG: usize = CLASS8 + 2 * CLASS8_CONTEXTS;
+const CONTEXTS: usize = T8_FLAG + 3;
 
 /// One of the four block classes whose contexts are kept apart: luma or
 /// chroma blocks, of intra or inter macroblocks.
@@ -150,6 +189,9 @@ struct Edges {
     /// Per chroma plane, blocks left of rows 0..2, above columns 0..2.
     chroma_left: [[bool; 2]; 2],
     chroma_above: [[bool; 2]; 2],
+    /// The macroblocks left and above use the 8x8 transform.
+    t8_left: bool,
+    t8_above: bool,
 }
 
 /// Context increment of a block's coded flag: coded blocks left and above,
@@ -251,20 +293,38 @@ fn code_group<B: Bins>(
     }
 }
 
+fn t8_ctx(e: &Edges) -> usize {
+    T8_FLAG + usize::from(e.t8_left) + usize::from(e.t8_above)
+}
+
+fn class8_base(intra: bool) -> usize {
+    CLASS8 + usize::from(intra) * CLASS8_CONTEXTS
+}
+
 fn code_mb<B: Bins>(b: &mut B, e: &Edges, intra: bool, res: &MbResidual) {
-    let luma_flags = coded_flags(&res.luma);
+    let luma_flags = res.luma_coded();
     let chroma_flags = [coded_flags(&res.chroma[0]), coded_flags(&res.chroma[1])];
     let cbp = cbp_of(&luma_flags, &chroma_flags);
     let base = cbp_base(intra);
     for q in 0..4 {
         b.bin(base + luma_cbp_ctx(e, cbp, q), cbp & (1 << q) != 0);
     }
+    if !intra && cbp & 15 != 0 {
+        b.bin(t8_ctx(e), res.transform_8x8());
+    }
     let cb = cbp & 16 != 0;
     b.bin(base + 4 + chroma_cbp_ctx(e, 0, false), cb);
     b.bin(base + 4 + chroma_cbp_ctx(e, 1, cb), cbp & 32 != 0);
+    if let Some(b8) = &res.luma8 {
+        for (q, block) in b8.iter().enumerate() {
+            if cbp & (1 << q) != 0 {
+                code_block8(b, class8_base(intra), block);
+            }
+        }
+    }
     let cls = BlockClass::luma(intra).first_context();
     for q in 0..4 {
-        if cbp & (1 << q) != 0 {
+        if cbp & (1 << q) != 0 && !res.transform_8x8() {
             code_group(
                 b,
                 cls,
@@ -308,13 +368,50 @@ fn code_block<B: Bins>(b: &mut B, cls: usize, block: &Block4) {
             }
         }
     }
+    code_levels(b, cls + GT1, cls + ABS, &scan[..=last]);
+}
+
+/// The anti-diagonal of each scan position of an 8x8 block: its
+/// significance context (its last context is half of it).
+const DIAGONAL8: [usize; 64] = {
+    let mut d = [0usize; 64];
+    let mut k = 0;
+    while k < 64 {
+        d[k] = ZIGZAG8[k] / 8 + ZIGZAG8[k] % 8;
+        k += 1;
+    }
+    d
+};
+
+/// One 8x8 block with at least one non-zero level, in the class whose
+/// first context is `cls`.
+fn code_block8<B: Bins>(b: &mut B, cls: usize, block: &Block8) {
+    let flat = block.as_flattened();
+    let scan: [i32; 64] = std::array::from_fn(|k| flat[ZIGZAG8[k]]);
+    let last = scan.iter().rposition(|&v| v != 0).unwrap_or(0);
+    for (i, &v) in scan.iter().enumerate().take(63) {
+        b.bin(cls + SIG8 + DIAGONAL8[i], v != 0);
+        if v != 0 {
+            b.bin(cls + LAST8 + DIAGONAL8[i] / 2, i == last);
+            if i == last {
+                break;
+            }
+        }
+    }
+    code_levels(b, cls + GT1_8, cls + ABS8, &scan[..=last]);
+}
+
+/// The levels of a block up to its last, in reverse scan order: `> 1` in
+/// the contexts from `gt1_ctx`, the rest of the magnitude from `abs_ctx`,
+/// the sign.
+fn code_levels<B: Bins>(b: &mut B, gt1_ctx: usize, abs_ctx: usize, scan: &[i32]) {
     let (mut eq1, mut gt1) = (0usize, 0usize);
-    for &v in scan[..=last].iter().rev().filter(|&&v| v != 0) {
+    for &v in scan.iter().rev().filter(|&&v| v != 0) {
         let a = v.unsigned_abs();
         let ctx = if gt1 > 0 { 0 } else { (1 + eq1).min(4) };
-        b.bin(cls + GT1 + ctx, a > 1);
+        b.bin(gt1_ctx + ctx, a > 1);
         if a > 1 {
-            let ctx = cls + ABS + gt1.min(4);
+            let ctx = abs_ctx + gt1.min(4);
             let m = a - 2;
             for _ in 0..m.min(UNARY_MAX) {
                 b.bin(ctx, true);
@@ -351,7 +448,8 @@ impl BlockPricer {
             return 0;
         }
         let mut p = TablePricer {
-            pricer: self,
+            costs: &self.costs,
+            first: self.cls,
             cost: self.flag.1,
         };
         code_block(&mut p, self.cls, block);
@@ -359,16 +457,43 @@ impl BlockPricer {
     }
 }
 
-/// Prices bins from a [`BlockPricer`]'s table.
+/// The bin costs of the 8x8 blocks of intra or inter luma in a
+/// [`ResidualCoder`]'s state ([`ResidualCoder::block8_pricer`]).
+#[derive(Debug, Clone)]
+pub struct Block8Pricer {
+    costs: [[u32; 2]; CLASS8_CONTEXTS],
+    cls: usize,
+}
+
+impl Block8Pricer {
+    /// The cost in 1/256 bit of `block`'s levels (0 for an all-zero block;
+    /// its pattern bit is the caller's).
+    pub fn block_cost(&self, block: &Block8) -> u32 {
+        if is_zero8(block) {
+            return 0;
+        }
+        let mut p = TablePricer {
+            costs: &self.costs,
+            first: self.cls,
+            cost: 0,
+        };
+        code_block8(&mut p, self.cls, block);
+        p.cost
+    }
+}
+
+/// Prices bins from a table of one class's bin costs (`first`: the
+/// class's first context).
 struct TablePricer<'a> {
-    pricer: &'a BlockPricer,
+    costs: &'a [[u32; 2]],
+    first: usize,
     cost: u32,
 }
 
 impl Bins for TablePricer<'_> {
     #[inline]
     fn bin(&mut self, ctx: usize, bit: bool) {
-        self.cost += self.pricer.costs[ctx - self.pricer.cls][usize::from(bit)];
+        self.cost += self.costs[ctx - self.first][usize::from(bit)];
     }
     fn bypass(&mut self, _: bool) {
         self.cost += crate::entropy::BYPASS_COST;
@@ -403,6 +528,8 @@ pub struct ResidualCoder {
     luma: Vec<bool>,
     /// Per plane, of the chroma 4x4 blocks, `2 mb_cols` a row.
     chroma: [Vec<bool>; 2],
+    /// Per macroblock, whether it used the 8x8 transform.
+    t8: Vec<bool>,
 }
 
 impl ResidualCoder {
@@ -417,6 +544,7 @@ impl ResidualCoder {
                 vec![false; 4 * mb_cols * mb_rows],
                 vec![false; 4 * mb_cols * mb_rows],
             ],
+            t8: vec![false; mb_cols * mb_rows],
         }
     }
 
@@ -441,6 +569,12 @@ impl ResidualCoder {
                 e.luma_above[i] = self.luma[(4 * mb_y - 1) * lw + 4 * mb_x + i];
             }
         }
+        if mb_x > 0 {
+            e.t8_left = self.t8[mb_y * self.mb_cols + mb_x - 1];
+        }
+        if mb_y > 0 {
+            e.t8_above = self.t8[(mb_y - 1) * self.mb_cols + mb_x];
+        }
         for p in 0..2 {
             for i in 0..2 {
                 if mb_x > 0 {
@@ -456,9 +590,10 @@ impl ResidualCoder {
 
     fn record(&mut self, mb_x: usize, mb_y: usize, res: &MbResidual) {
         let lw = 4 * self.mb_cols;
-        for (k, b) in res.luma.iter().enumerate() {
-            self.luma[(4 * mb_y + k / 4) * lw + 4 * mb_x + k % 4] = !is_zero(b);
+        for (k, coded) in res.luma_coded().into_iter().enumerate() {
+            self.luma[(4 * mb_y + k / 4) * lw + 4 * mb_x + k % 4] = coded;
         }
+        self.t8[mb_y * self.mb_cols + mb_x] = res.transform_8x8();
         let cw = 2 * self.mb_cols;
         for p in 0..2 {
             for (k, b) in res.chroma[p].iter().enumerate() {
@@ -507,6 +642,17 @@ impl ResidualCoder {
         }
     }
 
+    /// The pricer of 8x8 luma blocks of intra (`true`) or inter
+    /// macroblocks in the present state.
+    pub fn block8_pricer(&self, intra: bool) -> Block8Pricer {
+        let cls = class8_base(intra);
+        let table = cost_table();
+        Block8Pricer {
+            costs: std::array::from_fn(|k| self.contexts[cls + k].costs_in(table)),
+            cls,
+        }
+    }
+
     /// Adapts the contexts and records the coded flags as
     /// [`ResidualCoder::write`] does, without writing.
     pub fn commit(&mut self, mb_x: usize, mb_y: usize, intra: bool, res: &MbResidual) {
@@ -534,7 +680,12 @@ impl ResidualCoder {
             .chain(res.chroma.iter().flatten())
             .flatten()
             .flatten()
+            .chain(res.luma8.iter().flat_map(|b| b.as_flattened().as_flattened()))
             .all(|v| v.unsigned_abs() <= MAX_LEVEL));
+        debug_assert!(
+            res.luma8.as_deref().is_none_or(|b| !intra && b.iter().any(|b| !is_zero8(b))),
+            "the 8x8 transform is for inter macroblocks with luma levels"
+        );
         let e = self.edges(mb_x, mb_y);
         let mut w = Writer::new(enc, &mut self.contexts[..]);
         code_mb(&mut w, &e, intra, res);
@@ -560,13 +711,23 @@ impl ResidualCoder {
                 cbp |= 1 << q;
             }
         }
+        let t8 = !intra && cbp != 0 && dec.decode(&mut c[t8_ctx(&e)]);
         let cb = dec.decode(&mut c[base + 4 + chroma_cbp_ctx(&e, 0, false)]);
         let cr = dec.decode(&mut c[base + 4 + chroma_cbp_ctx(&e, 1, cb)]);
         cbp |= u32::from(cb) << 4 | u32::from(cr) << 5;
         let mut out = MbResidual::default();
+        if t8 {
+            let mut b8 = Box::new([[[0; 8]; 8]; 4]);
+            for (q, block) in b8.iter_mut().enumerate() {
+                if cbp & (1 << q) != 0 {
+                    *block = read_block8(dec, c, class8_base(intra))?;
+                }
+            }
+            out.luma8 = Some(b8);
+        }
         let cls = BlockClass::luma(intra).first_context();
         for q in 0..4 {
-            if cbp & (1 << q) != 0 {
+            if cbp & (1 << q) != 0 && !t8 {
                 read_group(
                     dec,
                     c,
@@ -647,12 +808,52 @@ fn read_block(
     }
     significant[last] = true;
     let mut block = [[0i32; 4]; 4];
+    read_levels(dec, c, cls + GT1, cls + ABS, &significant[..=last], |i, v| {
+        let idx = ZIGZAG[i];
+        block[idx / 4][idx % 4] = v;
+    })?;
+    Ok(block)
+}
+
+fn read_block8(
+    dec: &mut RangeDecoder<'_>,
+    c: &mut [Context; CONTEXTS],
+    cls: usize,
+) -> Result<Block8, ResidualError> {
+    let mut significant = [false; 64];
+    let mut last = 63;
+    for (i, s) in significant.iter_mut().enumerate().take(63) {
+        *s = dec.decode(&mut c[cls + SIG8 + DIAGONAL8[i]]);
+        if *s && dec.decode(&mut c[cls + LAST8 + DIAGONAL8[i] / 2]) {
+            last = i;
+            break;
+        }
+    }
+    significant[last] = true;
+    let mut block = [[0i32; 8]; 8];
+    read_levels(dec, c, cls + GT1_8, cls + ABS8, &significant[..=last], |i, v| {
+        let idx = ZIGZAG8[i];
+        block[idx / 8][idx % 8] = v;
+    })?;
+    Ok(block)
+}
+
+/// Reads what [`code_levels`] writes for the scan positions flagged in
+/// `significant`, handing each position and level to `put`.
+fn read_levels(
+    dec: &mut RangeDecoder<'_>,
+    c: &mut [Context; CONTEXTS],
+    gt1_ctx: usize,
+    abs_ctx: usize,
+    significant: &[bool],
+    mut put: impl FnMut(usize, i32),
+) -> Result<(), ResidualError> {
     let (mut eq1, mut gt1) = (0usize, 0usize);
-    for i in (0..=last).rev().filter(|&i| significant[i]) {
+    for i in (0..significant.len()).rev().filter(|&i| significant[i]) {
         let ctx = if gt1 > 0 { 0 } else { (1 + eq1).min(4) };
         let mut a = 1u32;
-        if dec.decode(&mut c[cls + GT1 + ctx]) {
-            let ctx = cls + ABS + gt1.min(4);
+        if dec.decode(&mut c[gt1_ctx + ctx]) {
+            let ctx = abs_ctx + gt1.min(4);
             let mut m = 0;
             while m < UNARY_MAX && dec.decode(&mut c[ctx]) {
                 m += 1;
@@ -681,10 +882,9 @@ fn read_block(
         } else {
             a as i32
         };
-        let idx = ZIGZAG[i];
-        block[idx / 4][idx % 4] = v;
+        put(i, v);
     }
-    Ok(block)
+    Ok(())
 }
 
 #[cfg(test)]
@@ -728,6 +928,42 @@ mod tests {
             }
             // Adapt, so that later rounds price other states.
             coder.commit((round % 4) as usize, (round / 4 % 4) as usize, intra, &res);
+        }
+    }
+
+    #[test]
+    fn the_8x8_pricer_prices_what_the_blocks_add() {
+        let mut seed = 77u32;
+        let mut next = |n: u32| {
+            seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
+            ((seed >> 16) % n) as i32
+        };
+        let coder = ResidualCoder::new(1, 1);
+        let pricer = coder.block8_pricer(false);
+        for _ in 0..50 {
+            let mut b8 = Box::new([[[0; 8]; 8]; 4]);
+            for v in b8.as_flattened_mut().as_flattened_mut() {
+                *v = if next(6) == 0 { next(9) - 4 } else { 0 };
+            }
+            b8[0][0][0] = 2;
+            let res = MbResidual {
+                luma8: Some(b8.clone()),
+                ..Default::default()
+            };
+            // The macroblock's price less what its pattern and flag cost
+            // (priced by an all-4x4 twin with one level per quadrant and
+            // their own block costs taken off) is the blocks' price.
+            let blocks: u32 = b8.iter().map(|b| pricer.block_cost(b)).sum();
+            let mut p = Pricer::new(&coder.contexts[..], 0);
+            let e = Edges::default();
+            let cbp = res.cbp();
+            for q in 0..4 {
+                p.bin(cbp_base(false) + luma_cbp_ctx(&e, cbp, q), cbp & (1 << q) != 0);
+            }
+            p.bin(t8_ctx(&e), true);
+            p.bin(cbp_base(false) + 4, false);
+            p.bin(cbp_base(false) + 4 + 3, false);
+            assert_eq!(coder.cost(0, 0, false, &res), p.cost + blocks);
         }
     }
 
@@ -818,7 +1054,9 @@ mod tests {
         // The pattern's first bin differs (quadrant 0 coded): price it apart.
         let base = cbp_base(false);
         let pattern_one = pattern - coder.contexts[base].cost(false) + coder.contexts[base].cost(true);
-        assert_eq!(coder.cost(0, 0, false, &one), pattern_one + flags + p.cost);
+        // An inter macroblock with luma levels says which transform it uses.
+        let t4 = coder.contexts[T8_FLAG].cost(false);
+        assert_eq!(coder.cost(0, 0, false, &one), pattern_one + t4 + flags + p.cost);
         assert!(coder.cost(0, 0, false, &two) > coder.cost(0, 0, false, &one));
     }
 
@@ -842,8 +1080,9 @@ mod tests {
             proptest::collection::vec(block_strategy(), 24),
             any::<u32>(),
             any::<bool>(),
+            any::<bool>(),
         )
-            .prop_map(|(blocks, empty_mask, intra)| {
+            .prop_map(|(blocks, empty_mask, intra, t8)| {
                 let mut res = MbResidual::default();
                 for (i, b) in blocks.into_iter().enumerate() {
                     if empty_mask & (1 << i) == 0 {
@@ -852,6 +1091,19 @@ mod tests {
                             _ => res.chroma[(i - 16) / 4][i % 4] = b,
                         }
                     }
+                }
+                // Inter macroblocks with luma levels may take them as four
+                // 8x8 blocks (each quadrant's four 4x4 blocks side by side).
+                if t8 && !intra && res.luma_coded().iter().any(|&c| c) {
+                    let mut b8 = Box::new([[[0; 8]; 8]; 4]);
+                    for (k, b) in res.luma.iter().enumerate() {
+                        let (q, x, y) = ((k / 8) * 2 + (k % 4) / 2, (k % 2) * 4, ((k / 4) % 2) * 4);
+                        for (r, row) in b.iter().enumerate() {
+                            b8[q][y + r][x..x + 4].copy_from_slice(row);
+                        }
+                    }
+                    res.luma = Default::default();
+                    res.luma8 = Some(b8);
                 }
                 (res, intra)
             })

@@ -318,9 +318,10 @@ pub struct CodedMb {
 }
 
 /// All-zero levels.
-const NO_RESIDUAL: MbResidual = MbResidual {
+static NO_RESIDUAL: MbResidual = MbResidual {
     luma: [[[0; 4]; 4]; 16],
     chroma: [[[[0; 4]; 4]; 4]; 2],
+    luma8: None,
 };
 
 impl CodedMb {

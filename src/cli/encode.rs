@@ -106,6 +106,10 @@ pub struct ToolArgs {
     /// reference where the light changed).
     #[arg(long)]
     pub no_weightp: bool,
+    /// No 8x8 transform (x264's --no-8x8dct): inter luma in 4x4
+    /// transforms only.
+    #[arg(long = "no-8x8dct")]
+    pub no_8x8dct: bool,
     /// Macroblock partitions, as x264's --partitions: all, none, or a list
     /// of p8x8 (16x8, 8x16 and 8x8 inter partitions) and i4x4 (intra luma
     /// in 4x4 blocks) [default: the preset's].
@@ -138,6 +142,9 @@ impl ToolArgs {
         }
         if self.no_weightp {
             config = config.weightp(false);
+        }
+        if self.no_8x8dct {
+            config = config.transform_8x8(false);
         }
         if let Some(p) = self.partitions {
             config = config.partitions(p);

@@ -324,6 +324,9 @@ pub struct EncoderConfig {
     pub weightp: bool,
     /// Which macroblock partitions the mode decision tries.
     pub partitions: Partitions,
+    /// Inter macroblocks may code their luma in the 8x8 transform
+    /// (FORMAT.md section 10.2), as x264's `--8x8dct`.
+    pub transform_8x8: bool,
 }
 
 /// The macroblock partitions the mode decision tries, as x264's
@@ -414,6 +417,7 @@ impl Default for EncoderConfig {
             deblock: true,
             weightp: true,
             partitions: Partitions::ALL,
+            transform_8x8: true,
         }
     }
 }
@@ -487,6 +491,7 @@ impl EncoderConfig {
             p8x8: preset >= Medium,
             i4x4: !ultrafast,
         };
+        self.transform_8x8 = !ultrafast;
         self.decision = match preset {
             Ultrafast | Fast => ModeDecision::Fast,
             Medium | Slow => ModeDecision::Full,
@@ -506,6 +511,12 @@ impl EncoderConfig {
     /// The macroblock partitions to try.
     pub fn partitions(mut self, p: Partitions) -> EncoderConfig {
         self.partitions = p;
+        self
+    }
+
+    /// Turns the adaptive 8x8 transform of inter luma on or off.
+    pub fn transform_8x8(mut self, on: bool) -> EncoderConfig {
+        self.transform_8x8 = on;
         self
     }
 

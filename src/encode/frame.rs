@@ -230,6 +230,7 @@ fn best_intra(
         let mode_bits = f64::from(modes.cost(at.0, at.1, inter_frame, VectorSyntax::None, &mode)) / 256.0;
         Choice {
             cost: coder.cost(c.ssd, c.bits + mode_bits),
+            residual_cost: coder.cost(c.ssd, c.bits),
             kind: MbKind::Intra { luma, chroma },
             pred,
             residual: Some(c.residual),
@@ -266,6 +267,9 @@ impl CodedFrame {
 /// One way to code a macroblock, with its cost.
 struct Choice {
     cost: f64,
+    /// The part of `cost` the residual accounts for (its SSD + lambda *
+    /// bits; 0 for skip).
+    residual_cost: f64,
     kind: MbKind,
     pred: MbSamples,
     residual: Option<Box<MbResidual>>,
@@ -452,8 +456,33 @@ impl<'a> InterFrameCoder<'a> {
             self.analyse_inter(&mut mb);
             self.analyse_split(&mut mb);
             self.analyse_intra(&mut mb);
+            self.analyse_transform(&mut mb);
         }
         mb
+    }
+
+    /// An inter choice's luma in the 8x8 transform, kept when it costs
+    /// less than in 4x4 ones.
+    fn analyse_transform(&self, mb: &mut MbAnalysis) {
+        let best = &mut mb.best;
+        let (MbKind::Inter { .. } | MbKind::Split { .. }, Some(residual)) = (&best.kind, &best.residual)
+        else {
+            return;
+        };
+        let at = (mb.mb_x, mb.mb_y);
+        let Some(c8) = self
+            .coder
+            .luma8_alternative(&mb.source, &best.pred, residual, self.sink.residual(), at)
+        else {
+            return;
+        };
+        let cost8 = self.coder.cost(c8.ssd, c8.bits);
+        if cost8 < best.residual_cost {
+            best.cost += cost8 - best.residual_cost;
+            best.residual_cost = cost8;
+            best.residual = Some(c8.residual);
+            best.samples = c8.samples;
+        }
     }
 
     /// The analysis context of macroblock `index` with skip as its best.
@@ -474,6 +503,7 @@ impl<'a> InterFrameCoder<'a> {
             mvp,
             best: Choice {
                 cost: 0.0,
+                residual_cost: 0.0,
                 kind: MbKind::Skip,
                 pred: skip_pred.clone(),
                 residual: None,
@@ -664,6 +694,7 @@ impl<'a> InterFrameCoder<'a> {
         let bits = self.mode_bits(mb, mode) + coded.bits;
         Choice {
             cost: self.coder.cost(coded.ssd, bits),
+            residual_cost: self.coder.cost(coded.ssd, coded.bits),
             kind,
             pred,
             residual: Some(coded.residual),
@@ -797,7 +828,11 @@ fn recode(
         if mb.kind == MbKind::Skip {
             write_mb(&pred, &mut recon, mb_x, mb_y);
         } else {
-            let coded = coder.code(&s, &pred, intra, &residual_coder, mb_x, mb_y);
+            let coded = if intra {
+                coder.code(&s, &pred, true, &residual_coder, mb_x, mb_y)
+            } else {
+                coder.code_inter(&s, &pred, &residual_coder, mb_x, mb_y)
+            };
             write_mb(&coded.samples, &mut recon, mb_x, mb_y);
             residual_coder.commit(mb_x, mb_y, intra, &coded.residual);
             *mb = CodedMb::with_levels(mb.kind, coded.residual);

@@ -12,6 +12,7 @@ use crate::codec::transform::{
     dequantize, dequantize_level, forward_4x4, inverse_4x4, inverse_4x4_unrounded, quantize, Block4,
 };
 use crate::codec::Frame;
+use super::transform8x8::inter_luma8;
 use crate::me::Metric;
 use crate::metrics::squared_difference_sum;
 
@@ -79,6 +80,8 @@ pub(crate) struct MbCoder {
     pub rdoq: bool,
     /// Intra luma may be coded in 4x4 blocks.
     pub intra4x4: bool,
+    /// Inter luma may be coded in the 8x8 transform.
+    pub transform_8x8: bool,
 }
 
 /// H.264 reference-encoder cost of a 4x4 block's levels for the zeroing
@@ -277,12 +280,21 @@ impl MbCoder {
             lambda: lambda_scale * crate::me::lambda_for_qp(Metric::Ssd, qp),
             rdoq,
             intra4x4: true,
+            transform_8x8: true,
         }
     }
 
     /// This coder with 4x4 intra on or off.
     pub fn intra4x4(self, on: bool) -> MbCoder {
         MbCoder { intra4x4: on, ..self }
+    }
+
+    /// This coder with the inter 8x8 transform on or off.
+    pub fn transform_8x8(self, on: bool) -> MbCoder {
+        MbCoder {
+            transform_8x8: on,
+            ..self
+        }
     }
 
     /// Transforms and quantises `src - pred`, reconstructs the macroblock
@@ -431,6 +443,54 @@ impl MbCoder {
             ssd: src.ssd(&samples),
             residual,
             samples,
+        }
+    }
+
+    /// An inter macroblock's `residual` (as [`MbCoder::code`] codes it, in
+    /// 4x4 transforms) with its luma in the 8x8 transform instead, when
+    /// this coder allows it and levels are left: the chroma kept, the rate
+    /// priced as [`MbCoder::code`] prices it. Whichever costs less is the
+    /// caller's to keep (x264 decides the transform size once the mode is
+    /// decided).
+    pub fn luma8_alternative(
+        &self,
+        src: &MbSource,
+        pred: &MbSamples,
+        residual: &MbResidual,
+        residual_coder: &ResidualCoder,
+        (mb_x, mb_y): (usize, usize),
+    ) -> Option<Coded> {
+        if !self.transform_8x8 {
+            return None;
+        }
+        let rate = self.rdoq.then(|| residual_coder.block8_pricer(false));
+        let luma8 = inter_luma8(&src.luma, &pred.luma, self.qp, self.lambda, rate.as_ref())?;
+        let mut residual = Box::new(residual.clone());
+        residual.luma = Default::default();
+        residual.luma8 = Some(luma8);
+        let samples = reconstruct_samples(pred, &residual, self.qp);
+        Some(Coded {
+            bits: f64::from(residual_coder.cost(mb_x, mb_y, false, &residual)) / 256.0,
+            ssd: src.ssd(&samples),
+            residual,
+            samples,
+        })
+    }
+
+    /// [`MbCoder::code`] of an inter macroblock, then the cheaper of it and
+    /// its [`MbCoder::luma8_alternative`].
+    pub fn code_inter(
+        &self,
+        src: &MbSource,
+        pred: &MbSamples,
+        residual_coder: &ResidualCoder,
+        mb_x: usize,
+        mb_y: usize,
+    ) -> Coded {
+        let coded = self.code(src, pred, false, residual_coder, mb_x, mb_y);
+        match self.luma8_alternative(src, pred, &coded.residual, residual_coder, (mb_x, mb_y)) {
+            Some(c8) if self.cost(c8.ssd, c8.bits) < self.cost(coded.ssd, coded.bits) => c8,
+            _ => coded,
         }
     }
 

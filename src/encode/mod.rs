@@ -29,6 +29,7 @@
 mod config;
 mod frame;
 mod intra4x4;
+mod transform8x8;
 mod macroblock;
 mod motion;
 mod partition;
@@ -145,7 +146,9 @@ impl Encoder {
         Ok(Encoder {
             seq,
             config,
-            coder: MbCoder::new(config.qp, config.lambda_scale, config.rdoq).intra4x4(config.partitions.i4x4),
+            coder: MbCoder::new(config.qp, config.lambda_scale, config.rdoq)
+                .intra4x4(config.partitions.i4x4)
+                .transform_8x8(config.transform_8x8),
             intra_coder: MbCoder::new(config.intra_qp(), config.lambda_scale, config.rdoq)
                 .intra4x4(config.partitions.i4x4),
             analyser: MotionAnalyser::new(config.predictor, config.qp, config.partitions.p8x8),

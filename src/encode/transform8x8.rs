@@ -1,0 +1,232 @@
+//! The luma of an inter macroblock in the 8x8 transform (FORMAT.md section
+//! 10.2): its levels, the small-level zeroing and rate-distortion optimised
+//! quantisation, for the macroblock coder to weigh against four 4x4
+//! transforms per quadrant.
+
+use crate::codec::residual::Block8Pricer;
+use crate::codec::syntax::MB;
+use crate::codec::transform8x8::{
+    dequantize_level_8x8, dequantized_orthonormal, forward_8x8, orthonormal_scale, quantize_8x8, Block8,
+    ZIGZAG8,
+};
+
+/// Quantiser rounding of inter residuals (as the 4x4 blocks').
+const ROUND_INTER: f64 = 1.0 / 6.0;
+
+/// Zeroing cost of a lone ±1 after a run of `r` zeros in scan order: the
+/// 4x4 rule's (3 right after another level, nothing after 6 zeros) with
+/// runs four times as long, as 64 positions hold four blocks' worth.
+fn lone_level_cost(run: usize) -> u32 {
+    match run {
+        0..=3 => 3,
+        4..=11 => 2,
+        12..=23 => 1,
+        _ => 0,
+    }
+}
+
+/// The reference encoder's measure of whether a block's levels are worth
+/// their bits: large for any level above 1, else the lone levels' costs.
+fn coefficient_cost8(b: &Block8) -> u32 {
+    let flat = b.as_flattened();
+    if flat.iter().any(|v| v.unsigned_abs() > 1) {
+        return 999;
+    }
+    let (mut cost, mut run) = (0, 0);
+    for &k in &ZIGZAG8 {
+        if flat[k] != 0 {
+            cost += lone_level_cost(run);
+            run = 0;
+        } else {
+            run += 1;
+        }
+    }
+    cost
+}
+
+/// Drops the 8x8 blocks whose levels cost < 4, and all of them when what
+/// is left costs < 6 (the thresholds of the 4x4 quadrants).
+fn drop_costly_small(blocks: &mut [Block8; 4]) {
+    let mut total = 0;
+    for b in blocks.iter_mut() {
+        let cost = coefficient_cost8(b);
+        if cost < 4 {
+            *b = [[0; 8]; 8];
+        } else {
+            total += cost;
+        }
+    }
+    if total < 6 {
+        *blocks = [[[0; 8]; 8]; 4];
+    }
+}
+
+/// The residual of quadrant `q` of `src - pred` (16x16 luma).
+fn quadrant_residual(src: &[u8; 256], pred: &[u8; 256], q: usize) -> Block8 {
+    let (x0, y0) = ((q % 2) * 8, (q / 2) * 8);
+    std::array::from_fn(|r| {
+        std::array::from_fn(|c| {
+            let i = (y0 + r) * MB + x0 + c;
+            i32::from(src[i]) - i32::from(pred[i])
+        })
+    })
+}
+
+/// Rate-distortion optimised quantisation of one block, greedy from the
+/// last level to the first: a level steps toward zero where that lowers
+/// squared error + lambda * bits. The error is measured on the orthonormal
+/// coefficients (`source`, which the transform keeps to within its
+/// rounding), so a trial costs no inverse transform.
+fn lower_levels8(source: &[f64; 64], levels: &mut Block8, qp: u8, lambda: f64, rate: &Block8Pricer) {
+    let recon = |v: i32, k: usize| dequantized_orthonormal(dequantize_level_8x8(v, qp, k / 8, k % 8), k / 8, k % 8);
+    let sq = |x: f64| x * x;
+    let mut bits = f64::from(rate.block_cost(levels)) / 256.0;
+    if bits == 0.0 {
+        return;
+    }
+    let mut error: f64 = (0..64).map(|k| sq(source[k] - recon(levels[k / 8][k % 8], k))).sum();
+    for &k in ZIGZAG8.iter().rev() {
+        let (r, c) = (k / 8, k % 8);
+        let v = levels[r][c];
+        if v == 0 {
+            continue;
+        }
+        let lowered = v - v.signum();
+        let delta = sq(source[k] - recon(lowered, k)) - sq(source[k] - recon(v, k));
+        // Fewer bits than none cannot pay for more error than this.
+        if delta >= lambda * bits {
+            continue;
+        }
+        let mut trial = *levels;
+        trial[r][c] = lowered;
+        let b = f64::from(rate.block_cost(&trial)) / 256.0;
+        if delta + lambda * (b - bits) < 0.0 {
+            *levels = trial;
+            error += delta;
+            bits = b;
+        }
+    }
+    // Last, the whole block against none of it.
+    let zero_error: f64 = source.iter().map(|&a| sq(a)).sum();
+    if bits > 0.0 && zero_error - error <= lambda * bits {
+        *levels = [[0; 8]; 8];
+    }
+}
+
+/// The luma levels of an inter macroblock in the 8x8 transform (RDOQ
+/// priced by `rate` when given), or `None` when none is left.
+pub(crate) fn inter_luma8(
+    src: &[u8; 256],
+    pred: &[u8; 256],
+    qp: u8,
+    lambda: f64,
+    rate: Option<&Block8Pricer>,
+) -> Option<Box<[Block8; 4]>> {
+    let mut blocks = Box::new([[[0; 8]; 8]; 4]);
+    let mut sources = [[0.0; 64]; 4];
+    for (q, (levels, source)) in blocks.iter_mut().zip(&mut sources).enumerate() {
+        let w = forward_8x8(&quadrant_residual(src, pred, q));
+        for (k, s) in source.iter_mut().enumerate() {
+            *s = f64::from(w[k / 8][k % 8]) * orthonormal_scale(k / 8, k % 8);
+        }
+        *levels = w;
+        quantize_8x8(levels, qp, ROUND_INTER);
+    }
+    drop_costly_small(&mut blocks);
+    if let Some(rate) = rate {
+        for (levels, source) in blocks.iter_mut().zip(&sources) {
+            lower_levels8(source, levels, qp, lambda, rate);
+        }
+        drop_costly_small(&mut blocks);
+    }
+    let any = blocks.as_flattened().as_flattened().iter().any(|&v| v != 0);
+    any.then_some(blocks)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::codec::recon::add_block8;
+    use crate::codec::residual::ResidualCoder;
+
+    /// A smooth ramp residual over a flat prediction.
+    fn ramp() -> ([u8; 256], [u8; 256]) {
+        let src = std::array::from_fn(|i| (60 + (i % 16) * 3 + (i / 16) * 2) as u8);
+        (src, [80; 256])
+    }
+
+    fn reconstruct(pred: &[u8; 256], blocks: &[Block8; 4], qp: u8) -> [u8; 256] {
+        let mut out = *pred;
+        for (q, b) in blocks.iter().enumerate() {
+            add_block8(b, qp, &mut out, ((q % 2) * 8, (q / 2) * 8));
+        }
+        out
+    }
+
+    fn sse(a: &[u8; 256], b: &[u8; 256]) -> u64 {
+        a.iter().zip(b).map(|(&x, &y)| u64::from(x.abs_diff(y)).pow(2)).sum()
+    }
+
+    #[test]
+    fn a_smooth_residual_comes_back_within_the_step() {
+        let (src, pred) = ramp();
+        for qp in [12u8, 22, 32] {
+            let blocks = inter_luma8(&src, &pred, qp, 0.0, None).expect("levels");
+            let rec = reconstruct(&pred, &blocks, qp);
+            let rms = (sse(&src, &rec) as f64 / 256.0).sqrt();
+            assert!(rms < 0.5 * crate::codec::transform::qstep(qp) + 0.5, "qp {qp}: rms {rms}");
+        }
+    }
+
+    #[test]
+    fn rdoq_lowers_levels_and_never_raises_the_cost() {
+        let coder = ResidualCoder::new(1, 1);
+        let rate = coder.block8_pricer(false);
+        let mut seed = 3u32;
+        let mut noise = || {
+            seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
+            (seed >> 16) % 23
+        };
+        let src: [u8; 256] = std::array::from_fn(|i| (70 + (i % 16) * 4) as u8 + noise() as u8);
+        let pred = [90; 256];
+        for qp in [18u8, 26, 34] {
+            let lambda = crate::me::lambda_for_qp(crate::me::Metric::Ssd, qp);
+            let plain = inter_luma8(&src, &pred, qp, lambda, None).expect("levels");
+            let cost = |b: &Option<Box<[Block8; 4]>>| {
+                let zero = Box::new([[[0; 8]; 8]; 4]);
+                let b = b.as_ref().unwrap_or(&zero);
+                let bits: u32 = b.iter().map(|x| rate.block_cost(x)).sum();
+                sse(&src, &reconstruct(&pred, b, qp)) as f64 + lambda * f64::from(bits) / 256.0
+            };
+            let lowered = inter_luma8(&src, &pred, qp, lambda, Some(&rate));
+            if let Some(l) = &lowered {
+                for (a, b) in l.as_flattened().as_flattened().iter().zip(plain.as_flattened().as_flattened()) {
+                    assert!(a.abs() <= b.abs() && (a.signum() == b.signum() || *a == 0));
+                }
+            }
+            // The decisions use the transform domain's error: the true
+            // cost may differ by the integer transform's rounding.
+            assert!(cost(&lowered) <= cost(&Some(plain.clone())) * 1.02, "qp {qp}");
+        }
+    }
+
+    #[test]
+    fn lone_small_levels_are_dropped() {
+        let mut b = [[[0; 8]; 8]; 4];
+        // A lone ±1 late in the scan costs nothing to drop; two ±1 at the
+        // scan's start cost 3 + 3 and stay; a level above 1 always stays.
+        b[0][7][7] = 1;
+        b[1][0][0] = 5;
+        b[2][0][1] = -1;
+        b[2][1][0] = 1;
+        drop_costly_small(&mut b);
+        assert_eq!(b[0], [[0; 8]; 8]);
+        assert_eq!((b[1][0][0], b[2][0][1], b[2][1][0]), (5, -1, 1));
+        // One ±1 near the start costs 3, under 4: dropped like the late one.
+        let mut pair = [[[0; 8]; 8]; 4];
+        pair[2][0][1] = -1;
+        pair[3][4][4] = 1;
+        drop_costly_small(&mut pair);
+        assert_eq!(pair, [[[0; 8]; 8]; 4]);
+    }
+}

@@ -118,7 +118,10 @@ impl MbResidual {
     pub fn luma_coded(&self) -> [bool; 16] {
         match &self.luma8 {
             None => coded_flags(&self.luma),
-            Some(b8) => std::array::from_fn(|k| !is_zero8(&b8[(k / 8) * 2 + (k % 4) / 2])),
+            Some(b8) => {
+                let coded = [0, 1, 2, 3].map(|q| !is_zero8(&b8[q]));
+                std::array::from_fn(|k| coded[(k / 8) * 2 + (k % 4) / 2])
+            }
         }
     }
 

@@ -104,46 +104,79 @@ const QUANT8: [[u64; 64]; 6] = {
     t
 };
 
-/// Forward transform `T X T^T` (exact; 9-bit residuals give outputs within
-/// 21 bits), by the even/odd halves of each row.
-pub fn forward_8x8(x: &Block8) -> Block8 {
-    let pass = |v: [i32; 8]| -> [i32; 8] {
-        let s: [i32; 4] = std::array::from_fn(|i| v[i] + v[7 - i]);
-        let d: [i32; 4] = std::array::from_fn(|i| v[i] - v[7 - i]);
-        [
-            8 * (s[0] + s[1] + s[2] + s[3]),
-            12 * d[0] + 10 * d[1] + 6 * d[2] + 3 * d[3],
-            8 * (s[0] - s[3]) + 4 * (s[1] - s[2]),
-            10 * d[0] - 3 * d[1] - 12 * d[2] - 6 * d[3],
-            8 * (s[0] - s[1] - s[2] + s[3]),
-            6 * d[0] - 12 * d[1] + 3 * d[2] + 10 * d[3],
-            4 * (s[0] - s[3]) - 8 * (s[1] - s[2]),
-            3 * d[0] - 6 * d[1] + 10 * d[2] - 12 * d[3],
-        ]
-    };
-    let rows = x.map(pass);
+/// `T X`: the forward butterfly down every column at once (each step a
+/// row-wide operation, which vectorises), by the even/odd halves.
+#[inline(always)]
+fn forward_columns(x: &Block8) -> Block8 {
     let mut out = [[0i32; 8]; 8];
     for c in 0..8 {
-        let col = pass(std::array::from_fn(|r| rows[r][c]));
-        for (r, v) in col.into_iter().enumerate() {
-            out[r][c] = v;
-        }
+        let s: [i32; 4] = std::array::from_fn(|i| x[i][c] + x[7 - i][c]);
+        let d: [i32; 4] = std::array::from_fn(|i| x[i][c] - x[7 - i][c]);
+        out[0][c] = 8 * (s[0] + s[1] + s[2] + s[3]);
+        out[1][c] = 12 * d[0] + 10 * d[1] + 6 * d[2] + 3 * d[3];
+        out[2][c] = 8 * (s[0] - s[3]) + 4 * (s[1] - s[2]);
+        out[3][c] = 10 * d[0] - 3 * d[1] - 12 * d[2] - 6 * d[3];
+        out[4][c] = 8 * (s[0] - s[1] - s[2] + s[3]);
+        out[5][c] = 6 * d[0] - 12 * d[1] + 3 * d[2] + 10 * d[3];
+        out[6][c] = 4 * (s[0] - s[3]) - 8 * (s[1] - s[2]);
+        out[7][c] = 3 * d[0] - 6 * d[1] + 10 * d[2] - 12 * d[3];
     }
     out
 }
 
+#[inline(always)]
+fn transpose(x: &Block8) -> Block8 {
+    std::array::from_fn(|r| std::array::from_fn(|c| x[c][r]))
+}
+
+/// Forward transform `T X T^T` (exact; 9-bit residuals give outputs within
+/// 21 bits): `T X`, then `(T (T X)^T)^T`.
+#[inline]
+pub fn forward_8x8(x: &Block8) -> Block8 {
+    transpose(&forward_columns(&transpose(&forward_columns(x))))
+}
+
 /// Quantises in place: `level = sign(w) ((|w| MF + f 2^s) >> s)` with
 /// `s = 22 + qp / 6` and the rounding offset `f` in [0, 0.5].
+#[inline]
 pub fn quantize_8x8(coeffs: &mut Block8, qp: u8, rounding: f64) {
     assert!(qp <= MAX_QP, "qp {qp} above {MAX_QP}");
     let shift = QUANT_SHIFT + u32::from(qp / 6);
     let offset = (rounding.clamp(0.0, 0.5) * (1u64 << shift) as f64) as u64;
-    let mf = &QUANT8[usize::from(qp % 6)];
-    for (w, &m) in coeffs.as_flattened_mut().iter_mut().zip(mf) {
-        let level = ((u64::from(w.unsigned_abs()) * m + offset) >> shift) as i32;
-        *w = if *w < 0 { -level } else { level };
+    let mf = &QUANT8_32[usize::from(qp % 6)];
+    let w = coeffs.as_flattened_mut();
+    // Magnitudes below 2^16 (most residuals') keep |w| MF + offset within
+    // 32 bits (MF < 2^15, offset <= 2^29): the same result in arithmetic
+    // that vectorises.
+    if w.iter().all(|v| v.unsigned_abs() < 1 << 16) {
+        let offset = offset as u32;
+        for (w, &m) in w.iter_mut().zip(mf) {
+            let level = ((w.unsigned_abs() * m + offset) >> shift) as i32;
+            *w = if *w < 0 { -level } else { level };
+        }
+    } else {
+        for (w, &m) in w.iter_mut().zip(mf) {
+            let level = ((u64::from(w.unsigned_abs()) * u64::from(m) + offset) >> shift) as i32;
+            *w = if *w < 0 { -level } else { level };
+        }
     }
 }
+
+/// [`QUANT8`] in 32 bits (every entry is below 2^15).
+const QUANT8_32: [[u32; 64]; 6] = {
+    let mut t = [[0u32; 64]; 6];
+    let mut m = 0;
+    while m < 6 {
+        let mut k = 0;
+        while k < 64 {
+            assert!(QUANT8[m][k] < 1 << 15);
+            t[m][k] = QUANT8[m][k] as u32;
+            k += 1;
+        }
+        m += 1;
+    }
+    t
+};
 
 /// [`dequantize_8x8`] of the one level at row `r`, column `c`.
 #[inline]
@@ -156,57 +189,79 @@ pub fn dequantize_level_8x8(level: i32, qp: u8, r: usize, c: usize) -> i32 {
 }
 
 /// Normative dequantisation in place (`qp` at most [`MAX_QP`]).
+#[inline]
 pub fn dequantize_8x8(coeffs: &mut Block8, qp: u8) {
-    for (r, row) in coeffs.iter_mut().enumerate() {
-        for (c, w) in row.iter_mut().enumerate() {
-            *w = dequantize_level_8x8(*w, qp, r, c);
+    debug_assert!(qp <= MAX_QP);
+    let v = &DEQUANT8_BY_POSITION[usize::from(qp % 6)];
+    let w = coeffs.as_flattened_mut();
+    // Levels below 2^12 (all an encoder of 8-bit video makes) keep
+    // `(l V) << (qp / 6)` within 32 bits: arithmetic that vectorises.
+    if w.iter().all(|l| l.unsigned_abs() < 1 << 12) {
+        for (l, &v) in w.iter_mut().zip(v) {
+            *l = ((((*l * v) << (qp / 6)) + 2) >> 2).clamp(-32768, 32767);
+        }
+    } else {
+        for (k, l) in w.iter_mut().enumerate() {
+            *l = dequantize_level_8x8(*l, qp, k / 8, k % 8);
         }
     }
 }
+
+/// [`DEQUANT8`] spread over the 64 positions, row by row.
+const DEQUANT8_BY_POSITION: [[i32; 64]; 6] = {
+    let mut t = [[0i32; 64]; 6];
+    let mut m = 0;
+    while m < 6 {
+        let mut k = 0;
+        while k < 64 {
+            t[m][k] = DEQUANT8[m][class8(k / 8, k % 8)];
+            k += 1;
+        }
+        m += 1;
+    }
+    t
+};
 
 /// One pass of the inverse butterfly (H.264 8.5.13.2, equations 8-339 to
-/// 8-362): inputs within 20 bits stay within 24.
+/// 8-362) down every column at once: inputs within 20 bits stay within 24.
 #[inline(always)]
-fn inverse_pass(d: [i32; 8]) -> [i32; 8] {
-    let e0 = d[0] + d[4];
-    let e1 = -d[3] + d[5] - d[7] - (d[7] >> 1);
-    let e2 = d[0] - d[4];
-    let e3 = d[1] + d[7] - d[3] - (d[3] >> 1);
-    let e4 = (d[2] >> 1) - d[6];
-    let e5 = -d[1] + d[7] + d[5] + (d[5] >> 1);
-    let e6 = d[2] + (d[6] >> 1);
-    let e7 = d[3] + d[5] + d[1] + (d[1] >> 1);
-    let f0 = e0 + e6;
-    let f1 = e1 + (e7 >> 2);
-    let f2 = e2 + e4;
-    let f3 = e3 + (e5 >> 2);
-    let f4 = e2 - e4;
-    let f5 = (e3 >> 2) - e5;
-    let f6 = e0 - e6;
-    let f7 = e7 - (e1 >> 2);
-    [
-        f0 + f7,
-        f2 + f5,
-        f4 + f3,
-        f6 + f1,
-        f6 - f1,
-        f4 - f3,
-        f2 - f5,
-        f0 - f7,
-    ]
-}
-
-/// Normative inverse transform: rows, then columns, then `(x + 32) >> 6`.
-pub fn inverse_8x8(d: &Block8) -> Block8 {
-    let rows = d.map(inverse_pass);
+fn inverse_columns(d: &Block8) -> Block8 {
     let mut out = [[0i32; 8]; 8];
     for c in 0..8 {
-        let col = inverse_pass(std::array::from_fn(|r| rows[r][c]));
-        for (r, v) in col.into_iter().enumerate() {
-            out[r][c] = (v + 32) >> 6;
-        }
+        let e0 = d[0][c] + d[4][c];
+        let e1 = -d[3][c] + d[5][c] - d[7][c] - (d[7][c] >> 1);
+        let e2 = d[0][c] - d[4][c];
+        let e3 = d[1][c] + d[7][c] - d[3][c] - (d[3][c] >> 1);
+        let e4 = (d[2][c] >> 1) - d[6][c];
+        let e5 = -d[1][c] + d[7][c] + d[5][c] + (d[5][c] >> 1);
+        let e6 = d[2][c] + (d[6][c] >> 1);
+        let e7 = d[3][c] + d[5][c] + d[1][c] + (d[1][c] >> 1);
+        let f0 = e0 + e6;
+        let f1 = e1 + (e7 >> 2);
+        let f2 = e2 + e4;
+        let f3 = e3 + (e5 >> 2);
+        let f4 = e2 - e4;
+        let f5 = (e3 >> 2) - e5;
+        let f6 = e0 - e6;
+        let f7 = e7 - (e1 >> 2);
+        out[0][c] = f0 + f7;
+        out[1][c] = f2 + f5;
+        out[2][c] = f4 + f3;
+        out[3][c] = f6 + f1;
+        out[4][c] = f6 - f1;
+        out[5][c] = f4 - f3;
+        out[6][c] = f2 - f5;
+        out[7][c] = f0 - f7;
     }
     out
+}
+
+/// Normative inverse transform: the butterfly on each row, then on each
+/// column, then `(x + 32) >> 6`.
+#[inline]
+pub fn inverse_8x8(d: &Block8) -> Block8 {
+    let rows = transpose(&inverse_columns(&transpose(d)));
+    inverse_columns(&rows).map(|r| r.map(|v| (v + 32) >> 6))
 }
 
 /// The weight that turns a coefficient of [`forward_8x8`] at (r, c) into
@@ -356,6 +411,15 @@ mod tests {
         }
 
         #[test]
+        fn both_dequantisers_agree(values in proptest::collection::vec(-4095i32..=4095, 64), qp in 0u8..=MAX_QP) {
+            let mut fast = block(&values);
+            dequantize_8x8(&mut fast, qp);
+            for k in 0..64 {
+                prop_assert_eq!(fast[k / 8][k % 8], dequantize_level_8x8(values[k], qp, k / 8, k % 8));
+            }
+        }
+
+        #[test]
         fn dequantized_levels_never_overflow_the_inverse(values in proptest::collection::vec(any::<i32>(), 64), qp in 0u8..=MAX_QP) {
             let mut c = block(&values);
             dequantize_8x8(&mut c, qp);
@@ -364,8 +428,9 @@ mod tests {
         }
 
         #[test]
-        fn quantize_follows_its_formula(values in proptest::collection::vec(-(1i32 << 21)..(1 << 21), 64), qp in 0u8..=MAX_QP, rounding in 0.0f64..=0.5) {
-            let x = block(&values);
+        fn quantize_follows_its_formula(values in proptest::collection::vec(-(1i32 << 21)..(1 << 21), 64), small in any::<bool>(), qp in 0u8..=MAX_QP, rounding in 0.0f64..=0.5) {
+            // Small blocks take the 32-bit path, the rest the 64-bit one.
+            let x = block(&values).map(|r| r.map(|v| if small { v >> 6 } else { v }));
             let mut got = x;
             quantize_8x8(&mut got, qp, rounding);
             let shift = QUANT_SHIFT + u32::from(qp / 6);

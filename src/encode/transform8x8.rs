@@ -27,6 +27,7 @@ fn lone_level_cost(run: usize) -> u32 {
 
 /// The reference encoder's measure of whether a block's levels are worth
 /// their bits: large for any level above 1, else the lone levels' costs.
+#[inline(always)]
 fn coefficient_cost8(b: &Block8) -> u32 {
     let flat = b.as_flattened();
     // (Branch-free passes the compiler vectorises: most blocks are empty.)
@@ -55,6 +56,7 @@ fn coefficient_cost8(b: &Block8) -> u32 {
 
 /// Drops the 8x8 blocks whose levels cost < 4, and all of them when what
 /// is left costs < 6 (the thresholds of the 4x4 quadrants).
+#[inline(always)]
 fn drop_costly_small(blocks: &mut [Block8; 4]) {
     let mut total = 0;
     for b in blocks.iter_mut() {
@@ -71,6 +73,7 @@ fn drop_costly_small(blocks: &mut [Block8; 4]) {
 }
 
 /// The residual of quadrant `q` of `src - pred` (16x16 luma).
+#[inline(always)]
 fn quadrant_residual(src: &[u8; 256], pred: &[u8; 256], q: usize) -> Block8 {
     let (x0, y0) = ((q % 2) * 8, (q / 2) * 8);
     std::array::from_fn(|r| {
@@ -86,6 +89,7 @@ fn quadrant_residual(src: &[u8; 256], pred: &[u8; 256], q: usize) -> Block8 {
 /// squared error + lambda * bits. The error is measured on the orthonormal
 /// coefficients (`source`, which the transform keeps to within its
 /// rounding), so a trial costs no inverse transform.
+#[inline(always)]
 fn lower_levels8(source: &[f64; 64], levels: &mut Block8, qp: u8, lambda: f64, rate: &Block8Pricer) {
     let recon = |v: i32, k: usize| dequantized_orthonormal(dequantize_level_8x8(v, qp, k / 8, k % 8), k / 8, k % 8);
     let sq = |x: f64| x * x;
@@ -124,6 +128,7 @@ fn lower_levels8(source: &[f64; 64], levels: &mut Block8, qp: u8, lambda: f64, r
 
 /// The luma levels of an inter macroblock in the 8x8 transform (RDOQ
 /// priced by `rate` when given), or `None` when none is left.
+#[inline(always)]
 pub(crate) fn inter_luma8(
     src: &[u8; 256],
     pred: &[u8; 256],

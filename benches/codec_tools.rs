@@ -5,7 +5,6 @@
 //! macroblock's luma, the 4x4 and 8x8 transforms (forward + quantise,
 //! dequantise + inverse) and the nine 4x4 intra predictions of a block.
 
-use std::hint::black_box;
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use mocomp::codec::deblock::{deblock_frame, MbEdgeInfo};
 use mocomp::codec::intra4x4::{self, Edges, Intra4x4Mode};
@@ -14,6 +13,7 @@ use mocomp::codec::transform::{dequantize, forward_4x4, inverse_4x4, quantize, B
 use mocomp::codec::transform8x8::{dequantize_8x8, forward_8x8, inverse_8x8, quantize_8x8, Block8};
 use mocomp::codec::weight::{PlaneWeight, Weights};
 use mocomp::synth::{standard_scenes, Synth};
+use std::hint::black_box;
 
 fn tools(c: &mut Criterion) {
     let spec = standard_scenes()

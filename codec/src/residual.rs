@@ -686,7 +686,9 @@ impl ResidualCoder {
             .chain(res.luma8.iter().flat_map(|b| b.as_flattened().as_flattened()))
             .all(|v| v.unsigned_abs() <= MAX_LEVEL));
         debug_assert!(
-            res.luma8.as_deref().is_none_or(|b| !intra && b.iter().any(|b| !is_zero8(b))),
+            res.luma8
+                .as_deref()
+                .is_none_or(|b| !intra && b.iter().any(|b| !is_zero8(b))),
             "the 8x8 transform is for inter macroblocks with luma levels"
         );
         let e = self.edges(mb_x, mb_y);

@@ -264,18 +264,28 @@ pub fn inverse_8x8(d: &Block8) -> Block8 {
     inverse_columns(&rows).map(|r| r.map(|v| (v + 32) >> 6))
 }
 
+/// `1 / sqrt(n)` of each row's squared norm `n` (512, 578, 320, ...).
+const INVERSE_ROW_NORM: [f64; 8] = {
+    const A: f64 = 0.044_194_173_824_159_216; // 1 / sqrt(512)
+    const B: f64 = 0.041_594_516_540_385_42; // 1 / sqrt(578)
+    const C: f64 = 0.055_901_699_437_494_74; // 1 / sqrt(320)
+    [A, B, C, B, A, B, C, B]
+};
+
 /// The weight that turns a coefficient of [`forward_8x8`] at (r, c) into
 /// the orthonormal transform's: `1 / sqrt(n_r n_c)`. Squared errors of
 /// orthonormal coefficients are squared errors of samples, which is what
 /// an encoder weighing single levels needs (not normative).
+#[inline]
 pub fn orthonormal_scale(r: usize, c: usize) -> f64 {
-    1.0 / ((ROW_NORM[r] * ROW_NORM[c]) as f64).sqrt()
+    INVERSE_ROW_NORM[r] * INVERSE_ROW_NORM[c]
 }
 
 /// The orthonormal coefficient a dequantised value at (r, c) stands for:
 /// `D sqrt(n_r n_c) / 4096` (not normative).
+#[inline]
 pub fn dequantized_orthonormal(d: i32, r: usize, c: usize) -> f64 {
-    f64::from(d) * ((ROW_NORM[r] * ROW_NORM[c]) as f64).sqrt() / 4096.0
+    f64::from(d) / (4096.0 * orthonormal_scale(r, c))
 }
 
 #[cfg(test)]
@@ -330,6 +340,13 @@ mod tests {
     }
 
     #[test]
+    fn the_orthonormal_scales_are_the_row_norms() {
+        for (r, &n) in ROW_NORM.iter().enumerate() {
+            assert!((INVERSE_ROW_NORM[r] - 1.0 / (n as f64).sqrt()).abs() < 1e-15);
+        }
+    }
+
+    #[test]
     fn the_scan_walks_every_position_along_the_diagonals() {
         let mut seen = [false; 64];
         for (k, &i) in ZIGZAG8.iter().enumerate() {
@@ -369,7 +386,9 @@ mod tests {
             seed ^= seed << 17;
             (seed % 511) as i32 - 255
         };
-        let blocks: Vec<Block8> = (0..500).map(|_| std::array::from_fn(|_| std::array::from_fn(|_| next()))).collect();
+        let blocks: Vec<Block8> = (0..500)
+            .map(|_| std::array::from_fn(|_| std::array::from_fn(|_| next())))
+            .collect();
         for qp in 0..=MAX_QP {
             let (mut se, mut max, mut n) = (0f64, 0i32, 0f64);
             for x in &blocks {

@@ -470,10 +470,13 @@ impl<'a> InterFrameCoder<'a> {
             return;
         };
         let at = (mb.mb_x, mb.mb_y);
-        let Some(c8) = self
-            .coder
-            .luma8_alternative(&mb.source, &best.pred, residual, self.sink.residual(), at)
-        else {
+        let Some(c8) = self.coder.luma8_alternative(
+            &mb.source,
+            &best.pred,
+            (residual, &best.samples),
+            self.sink.residual(),
+            at,
+        ) else {
             return;
         };
         let cost8 = self.coder.cost(c8.ssd, c8.bits);

@@ -3,16 +3,16 @@
 //! residual coder prices it in its present state, and the rate-distortion
 //! cost J = SSD + lambda * bits of each way to code it.
 
+use super::transform8x8::inter_luma8;
 use crate::codec::bits::ue_len;
 use crate::codec::intra::IntraMode;
-use crate::codec::recon::{chroma_qp, reconstruct_samples, IntraEdges, MbSamples};
+use crate::codec::recon::{add_block8, chroma_qp, reconstruct_samples, IntraEdges, MbSamples};
 use crate::codec::residual::{BlockClass, BlockPricer, MbResidual, ResidualCoder, ZIGZAG};
 use crate::codec::syntax::{intra_mode_allowed, MB};
 use crate::codec::transform::{
     dequantize, dequantize_level, forward_4x4, inverse_4x4, inverse_4x4_unrounded, quantize, Block4,
 };
 use crate::codec::Frame;
-use super::transform8x8::inter_luma8;
 use crate::me::Metric;
 use crate::metrics::squared_difference_sum;
 
@@ -446,8 +446,9 @@ impl MbCoder {
         }
     }
 
-    /// An inter macroblock's `residual` (as [`MbCoder::code`] codes it, in
-    /// 4x4 transforms) with its luma in the 8x8 transform instead, when
+    /// An inter macroblock's `residual` and reconstructed `samples` (as
+    /// [`MbCoder::code`] codes them, in 4x4 transforms) with its luma in
+    /// the 8x8 transform instead, when
     /// this coder allows it and levels are left: the chroma kept, the rate
     /// priced as [`MbCoder::code`] prices it. Whichever costs less is the
     /// caller's to keep (x264 decides the transform size once the mode is
@@ -456,7 +457,7 @@ impl MbCoder {
         &self,
         src: &MbSource,
         pred: &MbSamples,
-        residual: &MbResidual,
+        (residual, samples): (&MbResidual, &MbSamples),
         residual_coder: &ResidualCoder,
         at: (usize, usize),
     ) -> Option<Coded> {
@@ -469,10 +470,10 @@ impl MbCoder {
                 // SAFETY: the CPU has AVX2; the same safe code compiled
                 // with it (integer arithmetic and the same floating-point
                 // operations: the same result).
-                return unsafe { self.luma8_avx2(src, pred, residual, residual_coder, at) };
+                return unsafe { self.luma8_avx2(src, pred, (residual, samples), residual_coder, at) };
             }
         }
-        self.luma8_body(src, pred, residual, residual_coder, at)
+        self.luma8_body(src, pred, (residual, samples), residual_coder, at)
     }
 
     /// [`MbCoder::luma8_alternative`] compiled for AVX2 (the transforms'
@@ -483,11 +484,11 @@ impl MbCoder {
         &self,
         src: &MbSource,
         pred: &MbSamples,
-        residual: &MbResidual,
+        (residual, samples): (&MbResidual, &MbSamples),
         residual_coder: &ResidualCoder,
         at: (usize, usize),
     ) -> Option<Coded> {
-        self.luma8_body(src, pred, residual, residual_coder, at)
+        self.luma8_body(src, pred, (residual, samples), residual_coder, at)
     }
 
     #[inline(always)]
@@ -495,16 +496,21 @@ impl MbCoder {
         &self,
         src: &MbSource,
         pred: &MbSamples,
-        residual: &MbResidual,
+        (residual, samples): (&MbResidual, &MbSamples),
         residual_coder: &ResidualCoder,
         (mb_x, mb_y): (usize, usize),
     ) -> Option<Coded> {
         let rate = self.rdoq.then(|| residual_coder.block8_pricer(false));
         let luma8 = inter_luma8(&src.luma, &pred.luma, self.qp, self.lambda, rate.as_ref())?;
+        // The chroma as coded already: only the luma is reconstructed.
+        let mut samples = samples.clone();
+        samples.luma = pred.luma;
+        for (q, levels) in luma8.iter().enumerate() {
+            add_block8(levels, self.qp, &mut samples.luma, ((q % 2) * 8, (q / 2) * 8));
+        }
         let mut residual = Box::new(residual.clone());
         residual.luma = Default::default();
         residual.luma8 = Some(luma8);
-        let samples = reconstruct_samples(pred, &residual, self.qp);
         Some(Coded {
             bits: f64::from(residual_coder.cost(mb_x, mb_y, false, &residual)) / 256.0,
             ssd: src.ssd(&samples),
@@ -524,7 +530,8 @@ impl MbCoder {
         mb_y: usize,
     ) -> Coded {
         let coded = self.code(src, pred, false, residual_coder, mb_x, mb_y);
-        match self.luma8_alternative(src, pred, &coded.residual, residual_coder, (mb_x, mb_y)) {
+        let coded4 = (&*coded.residual, &coded.samples);
+        match self.luma8_alternative(src, pred, coded4, residual_coder, (mb_x, mb_y)) {
             Some(c8) if self.cost(c8.ssd, c8.bits) < self.cost(coded.ssd, coded.bits) => c8,
             _ => coded,
         }

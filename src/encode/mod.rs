@@ -29,11 +29,11 @@
 mod config;
 mod frame;
 mod intra4x4;
-mod transform8x8;
 mod macroblock;
 mod motion;
 mod partition;
 mod stats;
+mod transform8x8;
 mod weights;
 
 use std::io::{Read, Write};

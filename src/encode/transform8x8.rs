@@ -91,13 +91,16 @@ fn quadrant_residual(src: &[u8; 256], pred: &[u8; 256], q: usize) -> Block8 {
 /// rounding), so a trial costs no inverse transform.
 #[inline(always)]
 fn lower_levels8(source: &[f64; 64], levels: &mut Block8, qp: u8, lambda: f64, rate: &Block8Pricer) {
-    let recon = |v: i32, k: usize| dequantized_orthonormal(dequantize_level_8x8(v, qp, k / 8, k % 8), k / 8, k % 8);
+    let recon =
+        |v: i32, k: usize| dequantized_orthonormal(dequantize_level_8x8(v, qp, k / 8, k % 8), k / 8, k % 8);
     let sq = |x: f64| x * x;
     let mut bits = f64::from(rate.block_cost(levels)) / 256.0;
     if bits == 0.0 {
         return;
     }
-    let mut error: f64 = (0..64).map(|k| sq(source[k] - recon(levels[k / 8][k % 8], k))).sum();
+    let mut error: f64 = (0..64)
+        .map(|k| sq(source[k] - recon(levels[k / 8][k % 8], k)))
+        .sum();
     for &k in ZIGZAG8.iter().rev() {
         let (r, c) = (k / 8, k % 8);
         let v = levels[r][c];
@@ -178,7 +181,10 @@ mod tests {
     }
 
     fn sse(a: &[u8; 256], b: &[u8; 256]) -> u64 {
-        a.iter().zip(b).map(|(&x, &y)| u64::from(x.abs_diff(y)).pow(2)).sum()
+        a.iter()
+            .zip(b)
+            .map(|(&x, &y)| u64::from(x.abs_diff(y)).pow(2))
+            .sum()
     }
 
     #[test]
@@ -188,7 +194,10 @@ mod tests {
             let blocks = inter_luma8(&src, &pred, qp, 0.0, None).expect("levels");
             let rec = reconstruct(&pred, &blocks, qp);
             let rms = (sse(&src, &rec) as f64 / 256.0).sqrt();
-            assert!(rms < 0.5 * crate::codec::transform::qstep(qp) + 0.5, "qp {qp}: rms {rms}");
+            assert!(
+                rms < 0.5 * crate::codec::transform::qstep(qp) + 0.5,
+                "qp {qp}: rms {rms}"
+            );
         }
     }
 
@@ -214,7 +223,12 @@ mod tests {
             };
             let lowered = inter_luma8(&src, &pred, qp, lambda, Some(&rate));
             if let Some(l) = &lowered {
-                for (a, b) in l.as_flattened().as_flattened().iter().zip(plain.as_flattened().as_flattened()) {
+                for (a, b) in l
+                    .as_flattened()
+                    .as_flattened()
+                    .iter()
+                    .zip(plain.as_flattened().as_flattened())
+                {
                     assert!(a.abs() <= b.abs() && (a.signum() == b.signum() || *a == 0));
                 }
             }

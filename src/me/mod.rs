@@ -189,6 +189,9 @@ pub struct MeConfig {
     /// Flat shapes over smooth backgrounds leave the descent in a local
     /// minimum; a window of 4 closes most of the gap to exhaustive search.
     pub window: i32,
+    /// Full-pel positions are compared by SAD, only the sub-pel steps by
+    /// `metric` (x264's way: SATD where it decides little costs most).
+    pub full_pel_sad: bool,
 }
 
 impl MeConfig {
@@ -203,6 +206,16 @@ impl MeConfig {
             metric: Metric::Sad,
             lambda: 0.0,
             window: 0,
+            full_pel_sad: false,
+        }
+    }
+
+    /// The measure of full-pel positions.
+    fn full_pel_metric(&self) -> Metric {
+        if self.full_pel_sad {
+            Metric::Sad
+        } else {
+            self.metric
         }
     }
 
@@ -344,7 +357,7 @@ impl SearchContext<'_> {
             let r = &self.reference.data()[self.reference.index(rx, ry)..];
             return self
                 .cfg
-                .metric
+                .full_pel_metric()
                 .cost(a, self.cur.stride(), r, self.reference.stride(), b, b);
         }
         let mut scratch = [0u8; 32 * 32];
@@ -359,7 +372,9 @@ impl SearchContext<'_> {
             &mut scratch,
             b,
         );
-        self.cfg.metric.cost(a, self.cur.stride(), &scratch, b, b, b)
+        self.cfg
+            .full_pel_metric()
+            .cost(a, self.cur.stride(), &scratch, b, b, b)
     }
 
     /// Rate term of a quarter-pel vector, in cost units.
@@ -368,6 +383,20 @@ impl SearchContext<'_> {
             return 0;
         }
         (self.lambda_q8 * u64::from(mvd_bits(mv, self.mvp)) + 128) >> 8
+    }
+
+    /// `best` of the full-pel search with its cost in the measure of the
+    /// sub-pel steps, which compare against it.
+    fn in_sub_pel_measure(&self, best: Candidate) -> Candidate {
+        if !self.cfg.full_pel_sad || self.cfg.subpel == Subpel::None || self.cfg.metric == Metric::Sad {
+            return best;
+        }
+        let mut scratch = [0u8; 32 * 32];
+        let b = self.cfg.block;
+        Candidate {
+            cost: self.sub_pel_cost(best.mv, &mut scratch[..b * b]),
+            mv: best.mv,
+        }
     }
 
     /// Full cost of full-pel (dx, dy).
@@ -502,7 +531,7 @@ pub(crate) fn estimate_with_planes(
         };
         let neighbours = search::Neighbours::of(field, prior, col, row);
         let best = search::full_pel(&s, &neighbours);
-        search::refine(&s, best)
+        search::refine(&s, s.in_sub_pel_measure(best))
     };
     if lambda_q8 > 0 || cfg.method.uses_neighbours() {
         // Wavefronts: block (c, r) reads (c-1, r), (c-1, r-1), (c, r-1) and
@@ -580,7 +609,7 @@ pub fn search_around(
         cost: s.sub_pel_cost(seed, &mut scratch[..b * b]),
         mv: seed,
     };
-    let full = search::full_pel(&s, &search::Neighbours::single(mvp));
+    let full = s.in_sub_pel_measure(search::full_pel(&s, &search::Neighbours::single(mvp)));
     Ok(search::refine(
         &s,
         if at_seed.beats(&full) { at_seed } else { full },

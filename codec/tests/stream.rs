@@ -21,6 +21,7 @@ use mocomp_codec::syntax::{
     MbKind, MotionTool, SequenceHeader, SEQUENCE_HEADER_LEN,
 };
 use mocomp_codec::transform::{dequantize, forward_4x4, inverse_4x4, quantize};
+use mocomp_codec::transform8x8::{forward_8x8, quantize_8x8};
 use mocomp_codec::warp::{warp_frame, MotionGrid};
 use mocomp_codec::weight::{PlaneWeight, Weights};
 
@@ -346,7 +347,26 @@ fn code_frame(
                     ..
                 }
             );
-            for k in (0..16).filter(|_| !blocks4) {
+            let intra = matches!(kind, MbKind::Intra { .. });
+            // Every other inter macroblock codes its luma in the 8x8
+            // transform (when levels are left).
+            if !intra && (mb_x + mb_y) % 2 == 0 {
+                let mut b8 = Box::new([[[0i32; 8]; 8]; 4]);
+                for (q, levels) in b8.iter_mut().enumerate() {
+                    let diff: [[i32; 8]; 8] = std::array::from_fn(|r| {
+                        std::array::from_fn(|c| {
+                            let (x, y) = ((q % 2) * 8 + c, (q / 2) * 8 + r);
+                            source.y().get(mb_x * 16 + x, mb_y * 16 + y) as i32 - pred.luma[y * 16 + x] as i32
+                        })
+                    });
+                    *levels = forward_8x8(&diff);
+                    quantize_8x8(levels, header.qp, 1.0 / 6.0);
+                }
+                if b8.as_flattened().as_flattened().iter().any(|&v| v != 0) {
+                    residual.luma8 = Some(b8);
+                }
+            }
+            for k in (0..16).filter(|_| !blocks4 && residual.luma8.is_none()) {
                 let mut c = forward_4x4(&block(source.y(), &pred.luma, 16, k % 4, k / 4));
                 quantize(&mut c, header.qp, 1.0 / 3.0);
                 residual.luma[k] = c;
@@ -510,13 +530,14 @@ fn syntax_round_trips() {
         let (bytes, _) = coded_stream(w, h, qp);
         let s = SequenceHeader::parse(&bytes).unwrap();
         let mut at = SEQUENCE_HEADER_LEN;
-        let mut frames = 0;
+        let (mut frames, mut t8) = (0, 0);
         let (mut read_state, mut write_state) = (EntropyState::new(), EntropyState::new());
         while bytes[at] == 0xA5 {
             let len = u32::from_be_bytes(bytes[at + 1..at + 5].try_into().unwrap()) as usize;
             let original = &bytes[at..at + 5 + len];
             let fresh = read_frame(&s, &original[5..], &mut EntropyState::new());
             let syntax = read_frame(&s, &original[5..], &mut read_state).unwrap();
+            t8 += syntax.mbs.iter().filter(|m| m.residual().transform_8x8()).count();
             // P frames start from the contexts the previous frame left:
             // read from the initial ones, they say something else.
             if syntax.header.frame_type == FrameType::Inter {
@@ -533,6 +554,7 @@ fn syntax_round_trips() {
             frames += 1;
         }
         assert_eq!((frames, bytes[at], at + 1), (5, 0x5A, bytes.len()));
+        assert!(t8 > 3, "{t8} macroblocks in the 8x8 transform");
     }
 }
 

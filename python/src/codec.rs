@@ -76,6 +76,7 @@ struct Tools<'a> {
     rdoq: Option<bool>,
     weightp: Option<bool>,
     partitions: Option<PartitionsArg>,
+    dct8x8: Option<bool>,
     deblock: bool,
     lambda_scale: f64,
     ipratio: f64,
@@ -123,6 +124,9 @@ fn config(qp: u8, predictor: &str, gop: usize, tools: &Tools<'_>) -> PyResult<En
     }
     if let Some(p) = &tools.partitions {
         c = c.partitions(p.parse()?);
+    }
+    if let Some(on) = tools.dct8x8 {
+        c = c.transform_8x8(on);
     }
     Ok(c)
 }
@@ -202,7 +206,8 @@ fn encode_all(frames: &[Frame], fps: (u32, u32), config: EncoderConfig, keep: bo
 ///     `mocomp encode --preset`; decision ("fast" or "full"), rdoq,
 ///     weightp (weighted prediction) and partitions (True, False, or x264's
 ///     names: "all", "none", "p8x8" for 16x8, 8x16 and 8x8 inter
-///     partitions, "i4x4" for intra in 4x4 blocks, "p8x8,i4x4") override
+///     partitions, "i4x4" for intra in 4x4 blocks, "p8x8,i4x4") and dct8x8
+///     (the adaptive 8x8 transform of inter luma, x264's 8x8dct) override
 ///     it when given.
 /// ipratio: quantiser step of P frames over I frames (x264's --ipratio).
 /// deblock: the in-loop deblocking filter.
@@ -213,7 +218,7 @@ fn encode_all(frames: &[Frame], fps: (u32, u32), config: EncoderConfig, keep: bo
 /// which `decode(stream)` reproduces exactly.
 #[pyfunction]
 #[pyo3(signature = (source, qp=28, predictor="block", *, gop=0, preset="medium", decision=None, rdoq=None,
-    weightp=None, partitions=None, deblock=true, lambda_scale=1.4, ipratio=DEFAULT_IPRATIO, frames=None, fps=(25, 1), threads=None, reconstruction=false))]
+    weightp=None, partitions=None, dct8x8=None, deblock=true, lambda_scale=1.4, ipratio=DEFAULT_IPRATIO, frames=None, fps=(25, 1), threads=None, reconstruction=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn encode<'py>(
     py: Python<'py>,
@@ -226,6 +231,7 @@ pub fn encode<'py>(
     rdoq: Option<bool>,
     weightp: Option<bool>,
     partitions: Option<PartitionsArg>,
+    dct8x8: Option<bool>,
     deblock: bool,
     lambda_scale: f64,
     ipratio: f64,
@@ -240,6 +246,7 @@ pub fn encode<'py>(
         rdoq,
         weightp,
         partitions,
+        dct8x8,
         deblock,
         lambda_scale,
         ipratio,

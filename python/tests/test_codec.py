@@ -26,7 +26,8 @@ def test_coding_tools_by_keyword(synth_frames):
     source = synth_frames[:3]
     _, stats = mocomp.encode(source, qp=30, ipratio=2.0)
     assert [s["qp"] for s in stats] == [24, 30, 30]
-    tools_off = ({"deblock": False}, {"weightp": False}, {"partitions": False}, {"partitions": "i4x4"}, {"ipratio": 1.0})
+    tools_off = ({"deblock": False}, {"weightp": False}, {"partitions": False}, {"partitions": "i4x4"}, {"ipratio": 1.0},
+                 {"dct8x8": False})
     for tools in tools_off:
         stream, stats, recon = mocomp.encode(source, qp=30, reconstruction=True, **tools)
         assert all(np.array_equal(a, b) for d, r in zip(mocomp.decode(stream), recon) for a, b in zip(d, r))
@@ -41,6 +42,9 @@ def test_coding_tools_by_keyword(synth_frames):
     assert mocomp.encode(source, qp=30, partitions="none")[0] == mocomp.encode(source, qp=30, partitions=False)[0]
     with pytest.raises(ValueError):
         mocomp.encode(source, partitions="p4x4")
+    # The 8x8 transform: on in the default preset, off on request.
+    assert mocomp.encode(source, qp=30, dct8x8=True)[0] == on
+    assert mocomp.encode(source, qp=30, dct8x8=False)[0] != on
     # Presets, and options that override them: the full decision changes
     # what fast codes; the default is medium.
     fast, _ = mocomp.encode(source, qp=30, preset="fast")

@@ -448,11 +448,16 @@ impl MbCoder {
 
     /// An inter macroblock's `residual` and reconstructed `samples` (as
     /// [`MbCoder::code`] codes them, in 4x4 transforms) with its luma in
-    /// the 8x8 transform instead, when
-    /// this coder allows it and levels are left: the chroma kept, the rate
-    /// priced as [`MbCoder::code`] prices it. Whichever costs less is the
-    /// caller's to keep (x264 decides the transform size once the mode is
-    /// decided).
+    /// the 8x8 transform instead, when this coder allows it, the 4x4
+    /// transforms left luma levels and the 8x8 one leaves some: the chroma
+    /// kept, the rate priced as [`MbCoder::code`] prices it. Whichever
+    /// costs less is the caller's to keep (x264 decides the transform size
+    /// once the mode is decided).
+    ///
+    /// Trying it where the 4x4 transforms left no luma levels too gained
+    /// 0.2 % more on the development set's mean (-0.8 % against -0.6 %,
+    /// BD-rate against no 8x8 transform) for twice the time (+11 % against
+    /// +6 % of the medium preset's on pan_cif).
     pub fn luma8_alternative(
         &self,
         src: &MbSource,
@@ -461,7 +466,7 @@ impl MbCoder {
         residual_coder: &ResidualCoder,
         at: (usize, usize),
     ) -> Option<Coded> {
-        if !self.transform_8x8 {
+        if !self.transform_8x8 || residual.cbp() & 15 == 0 {
             return None;
         }
         #[cfg(target_arch = "x86_64")]

@@ -118,10 +118,20 @@ fn partitions_intra_modes_and_vectors_are_reported_as_coded() {
                 (0, 0, 0.0)
             );
         }
+        // The 8x8 transform: inter only, with luma levels in whole 8x8
+        // blocks (four 4x4 blocks each).
+        assert!(m.transform == 4 || m.transform == 8, "{m:?}");
+        if m.transform == 8 {
+            assert!(m.kind == "inter" && m.coded_luma_blocks % 4 == 0 && m.coded_luma_blocks > 0, "{m:?}");
+        }
     }
     assert!(
         all.iter().any(|(_, m)| m.partition == "4x4"),
         "4x4 intra appears at QP 24"
+    );
+    assert!(
+        all.iter().any(|(_, m)| m.transform == 8),
+        "the 8x8 transform appears at QP 24"
     );
     // The sample pans: most inter vectors are not zero.
     let moving = all

@@ -122,7 +122,10 @@ fn partitions_intra_modes_and_vectors_are_reported_as_coded() {
         // blocks (four 4x4 blocks each).
         assert!(m.transform == 4 || m.transform == 8, "{m:?}");
         if m.transform == 8 {
-            assert!(m.kind == "inter" && m.coded_luma_blocks % 4 == 0 && m.coded_luma_blocks > 0, "{m:?}");
+            assert!(
+                m.kind == "inter" && m.coded_luma_blocks % 4 == 0 && m.coded_luma_blocks > 0,
+                "{m:?}"
+            );
         }
     }
     assert!(

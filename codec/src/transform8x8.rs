@@ -38,10 +38,10 @@ pub type Block8 = [[i32; 8]; 8];
 /// odd ones walked downward, even ones upward (the 4x4 scan's rule).
 pub const ZIGZAG8: [usize; 64] = {
     let mut scan = [0usize; 64];
-    let (mut k, mut d) = (0, 0);
+    let (mut k, mut d) = (0, 0usize);
     while d < 15 {
         // Rows lo..=hi lie on anti-diagonal d.
-        let (lo, hi) = (if d > 7 { d - 7 } else { 0 }, if d < 7 { d } else { 7 });
+        let (lo, hi) = (d.saturating_sub(7), if d < 7 { d } else { 7 });
         let mut i = 0;
         while i <= hi - lo {
             let row = if d % 2 == 1 { lo + i } else { hi - i };
@@ -184,7 +184,7 @@ pub fn dequantize_level_8x8(level: i32, qp: u8, r: usize, c: usize) -> i32 {
     debug_assert!(qp <= MAX_QP);
     let v = i64::from(DEQUANT8[usize::from(qp % 6)][class8(r, c)]);
     // i64: |level| <= 2^31, V < 2^6, qp / 6 <= 8: within 46 bits.
-    let value = ((i64::from(level) * v) << (qp / 6)) + 2 >> 2;
+    let value = (((i64::from(level) * v) << (qp / 6)) + 2) >> 2;
     value.clamp(-32768, 32767) as i32
 }
 

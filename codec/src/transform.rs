@@ -105,12 +105,22 @@ pub fn quantize(coeffs: &mut Block4, qp: u8, rounding: f64) {
     assert!(qp <= MAX_QP, "qp {qp} above {MAX_QP}");
     let shift = 15 + u32::from(qp / 6);
     let offset = (rounding.clamp(0.0, 0.5) * f64::from(1u32 << shift)) as u64;
-    let mf = &QUANT_BY_POSITION[(qp % 6) as usize];
-    let w = coeffs.as_flattened_mut();
     // Magnitudes below 2^17 (every 8-bit residual's) keep |w| * MF +
-    // offset within 32 bits (MF < 2^14, offset <= 2^22): the same result
-    // in arithmetic that vectorises.
-    if w.iter().all(|v| v.unsigned_abs() < 1 << 17) {
+    // offset within 32 bits (MF < 2^14, offset <= 2^22).
+    quantize_levels(
+        coeffs.as_flattened_mut(),
+        &QUANT_BY_POSITION[(qp % 6) as usize],
+        (shift, offset),
+        1 << 17,
+    );
+}
+
+/// `w = sign(w) ((|w| mf + offset) >> shift)` over coefficients and their
+/// multipliers; in 32-bit arithmetic, which vectorises, when every
+/// magnitude is below `small` (the caller's bound for that to be exact).
+#[inline(always)]
+pub(crate) fn quantize_levels(w: &mut [i32], mf: &[u32], (shift, offset): (u32, u64), small: u32) {
+    if w.iter().all(|v| v.unsigned_abs() < small) {
         let offset = offset as u32;
         for (w, &m) in w.iter_mut().zip(mf) {
             let level = ((w.unsigned_abs() * m + offset) >> shift) as i32;

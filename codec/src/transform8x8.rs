@@ -28,7 +28,7 @@
 //! }
 //! ```
 
-use crate::transform::MAX_QP;
+use crate::transform::{quantize_levels, MAX_QP};
 
 /// An 8x8 block of samples or coefficients, `[row][column]`.
 pub type Block8 = [[i32; 8]; 8];
@@ -143,23 +143,10 @@ pub fn quantize_8x8(coeffs: &mut Block8, qp: u8, rounding: f64) {
     assert!(qp <= MAX_QP, "qp {qp} above {MAX_QP}");
     let shift = QUANT_SHIFT + u32::from(qp / 6);
     let offset = (rounding.clamp(0.0, 0.5) * (1u64 << shift) as f64) as u64;
-    let mf = &QUANT8_32[usize::from(qp % 6)];
-    let w = coeffs.as_flattened_mut();
     // Magnitudes below 2^16 (most residuals') keep |w| MF + offset within
-    // 32 bits (MF < 2^15, offset <= 2^29): the same result in arithmetic
-    // that vectorises.
-    if w.iter().all(|v| v.unsigned_abs() < 1 << 16) {
-        let offset = offset as u32;
-        for (w, &m) in w.iter_mut().zip(mf) {
-            let level = ((w.unsigned_abs() * m + offset) >> shift) as i32;
-            *w = if *w < 0 { -level } else { level };
-        }
-    } else {
-        for (w, &m) in w.iter_mut().zip(mf) {
-            let level = ((u64::from(w.unsigned_abs()) * u64::from(m) + offset) >> shift) as i32;
-            *w = if *w < 0 { -level } else { level };
-        }
-    }
+    // 32 bits (MF < 2^15, offset <= 2^29).
+    let mf = &QUANT8_32[usize::from(qp % 6)];
+    quantize_levels(coeffs.as_flattened_mut(), mf, (shift, offset), 1 << 16);
 }
 
 /// [`QUANT8`] in 32 bits (every entry is below 2^15).

@@ -299,9 +299,9 @@ mod tests {
 
     #[test]
     fn the_basis_is_orthogonal_with_the_folded_norms() {
-        for i in 0..8 {
-            for j in 0..8 {
-                let dot: i64 = (0..8).map(|k| T[i][k] * T[j][k]).sum();
+        for (i, a) in T.iter().enumerate() {
+            for (j, b) in T.iter().enumerate() {
+                let dot: i64 = a.iter().zip(b).map(|(x, y)| x * y).sum();
                 assert_eq!(dot, if i == j { ROW_NORM[i] as i64 } else { 0 }, "rows {i} {j}");
             }
         }

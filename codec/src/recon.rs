@@ -342,17 +342,21 @@ pub fn add_block8(levels: &Block8, qp: u8, out: &mut [u8; 256], (x, y): (usize, 
     }
 }
 
+/// Adds a macroblock's four 8x8 luma blocks of levels (quadrant `qy * 2 +
+/// qx`), dequantised at `qp`, to its luma prediction `out`, clipping.
+pub fn add_luma8(blocks: &[Block8; 4], qp: u8, out: &mut [u8; 256]) {
+    for (q, levels) in blocks.iter().enumerate() {
+        add_block8(levels, qp, out, ((q % 2) * 8, (q / 2) * 8));
+    }
+}
+
 /// The samples macroblock coding gives: `pred` plus `residual` dequantised
 /// at `qp` (chroma at [`chroma_qp`]), in a macroblock-shaped block.
 #[inline]
 pub fn reconstruct_samples(pred: &MbSamples, residual: &MbResidual, qp: u8) -> MbSamples {
     let mut out = pred.clone();
     match &residual.luma8 {
-        Some(b8) => {
-            for (q, levels) in b8.iter().enumerate() {
-                add_block8(levels, qp, &mut out.luma, ((q % 2) * 8, (q / 2) * 8));
-            }
-        }
+        Some(b8) => add_luma8(b8, qp, &mut out.luma),
         None => {
             for (i, levels) in residual.luma.iter().enumerate() {
                 add_block(levels, qp, &mut out.luma, MB, ((i % 4) * 4, (i / 4) * 4));

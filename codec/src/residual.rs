@@ -955,9 +955,8 @@ mod tests {
                 luma8: Some(b8.clone()),
                 ..Default::default()
             };
-            // The macroblock's price less what its pattern and flag cost
-            // (priced by an all-4x4 twin with one level per quadrant and
-            // their own block costs taken off) is the blocks' price.
+            // The macroblock's price is its pattern's and flag's bins
+            // (priced here one by one) plus the blocks' prices.
             let blocks: u32 = b8.iter().map(|b| pricer.block_cost(b)).sum();
             let mut p = Pricer::new(&coder.contexts[..], 0);
             let e = Edges::default();

@@ -6,7 +6,7 @@
 use super::transform8x8::inter_luma8;
 use crate::codec::bits::ue_len;
 use crate::codec::intra::IntraMode;
-use crate::codec::recon::{add_block8, chroma_qp, reconstruct_samples, IntraEdges, MbSamples};
+use crate::codec::recon::{add_luma8, chroma_qp, reconstruct_samples, IntraEdges, MbSamples};
 use crate::codec::residual::{BlockClass, BlockPricer, MbResidual, ResidualCoder, ZIGZAG};
 use crate::codec::syntax::{intra_mode_allowed, MB};
 use crate::codec::transform::{
@@ -68,6 +68,25 @@ pub(crate) struct Coded {
     pub ssd: u64,
     /// The reconstructed macroblock.
     pub samples: MbSamples,
+}
+
+impl Coded {
+    /// `residual` reconstructed as `samples`, measured against `src` and
+    /// priced by the frame's `residual_coder` for macroblock `at`.
+    fn priced(
+        src: &MbSource,
+        residual: Box<MbResidual>,
+        samples: MbSamples,
+        (residual_coder, intra): (&ResidualCoder, bool),
+        (mb_x, mb_y): (usize, usize),
+    ) -> Coded {
+        Coded {
+            bits: f64::from(residual_coder.cost(mb_x, mb_y, intra, &residual)) / 256.0,
+            ssd: src.ssd(&samples),
+            residual,
+            samples,
+        }
+    }
 }
 
 /// The per-frame constants of macroblock coding.
@@ -438,12 +457,7 @@ impl MbCoder {
             }
         }
         let samples = reconstruct_samples(pred, &residual, self.qp);
-        Coded {
-            bits: f64::from(residual_coder.cost(mb_x, mb_y, intra, &residual)) / 256.0,
-            ssd: src.ssd(&samples),
-            residual,
-            samples,
-        }
+        Coded::priced(src, residual, samples, (residual_coder, intra), (mb_x, mb_y))
     }
 
     /// An inter macroblock's `residual` and reconstructed `samples` (as
@@ -503,25 +517,18 @@ impl MbCoder {
         pred: &MbSamples,
         (residual, samples): (&MbResidual, &MbSamples),
         residual_coder: &ResidualCoder,
-        (mb_x, mb_y): (usize, usize),
+        at: (usize, usize),
     ) -> Option<Coded> {
         let rate = self.rdoq.then(|| residual_coder.block8_pricer(false));
         let luma8 = inter_luma8(&src.luma, &pred.luma, self.qp, self.lambda, rate.as_ref())?;
         // The chroma as coded already: only the luma is reconstructed.
         let mut samples = samples.clone();
         samples.luma = pred.luma;
-        for (q, levels) in luma8.iter().enumerate() {
-            add_block8(levels, self.qp, &mut samples.luma, ((q % 2) * 8, (q / 2) * 8));
-        }
+        add_luma8(&luma8, self.qp, &mut samples.luma);
         let mut residual = Box::new(residual.clone());
         residual.luma = Default::default();
         residual.luma8 = Some(luma8);
-        Some(Coded {
-            bits: f64::from(residual_coder.cost(mb_x, mb_y, false, &residual)) / 256.0,
-            ssd: src.ssd(&samples),
-            residual,
-            samples,
-        })
+        Some(Coded::priced(src, residual, samples, (residual_coder, false), at))
     }
 
     /// [`MbCoder::code`] of an inter macroblock, then the cheaper of it and

@@ -163,7 +163,7 @@ pub(crate) fn inter_luma8(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::codec::recon::add_block8;
+    use crate::codec::recon::add_luma8;
     use crate::codec::residual::ResidualCoder;
 
     /// A smooth ramp residual over a flat prediction.
@@ -174,9 +174,7 @@ mod tests {
 
     fn reconstruct(pred: &[u8; 256], blocks: &[Block8; 4], qp: u8) -> [u8; 256] {
         let mut out = *pred;
-        for (q, b) in blocks.iter().enumerate() {
-            add_block8(b, qp, &mut out, ((q % 2) * 8, (q / 2) * 8));
-        }
+        add_luma8(blocks, qp, &mut out);
         out
     }
 
@@ -202,7 +200,7 @@ mod tests {
     }
 
     #[test]
-    fn rdoq_lowers_levels_and_never_raises_the_cost() {
+    fn rdoq_lowers_levels_and_keeps_the_cost_within_the_transforms_rounding() {
         let coder = ResidualCoder::new(1, 1);
         let rate = coder.block8_pricer(false);
         let mut seed = 3u32;

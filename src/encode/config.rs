@@ -196,7 +196,9 @@ impl FromStr for Predictor {
 pub enum ModeDecision {
     /// The predicted vector and the searched one (when they differ) are
     /// each coded, residual and RDOQ included, and compared by
-    /// J = SSD + lambda * bits. The default (the medium preset's).
+    /// J = SSD + lambda * bits, unless one's SATD + rate estimate is more
+    /// than 5/4 of the other's (as x264's RD decision). The default (the
+    /// medium preset's).
     #[default]
     Full,
     /// Only the one with the lower SATD + sqrt(lambda) * vector bits is

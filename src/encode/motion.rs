@@ -156,7 +156,6 @@ impl MotionAnalyser {
         cfg.subpel = s.subpel;
         cfg.window = s.window;
         cfg.metric = Metric::Satd;
-        cfg.full_pel_sad = std::env::var_os("FULLPEL_SAD").is_some();
         cfg.lambda = lambda_for_qp(Metric::Satd, self.qp);
         // The configuration was checked when the encoder was made and the
         // frames are the encoder's own, so the search cannot refuse them.

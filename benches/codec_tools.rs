@@ -9,6 +9,7 @@ use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughpu
 use mocomp::codec::deblock::{deblock_frame, MbEdgeInfo};
 use mocomp::codec::intra4x4::{self, Edges, Intra4x4Mode};
 use mocomp::codec::mv::Mv;
+use mocomp::codec::partition::RefMv;
 use mocomp::codec::transform::{dequantize, forward_4x4, inverse_4x4, quantize, Block4};
 use mocomp::codec::transform8x8::{dequantize_8x8, forward_8x8, inverse_8x8, quantize_8x8, Block8};
 use mocomp::codec::weight::{PlaneWeight, Weights};
@@ -35,7 +36,7 @@ fn tools(c: &mut Criterion) {
     let inter = vec![
         MbEdgeInfo {
             intra: false,
-            mvs: [Some(Mv::new(5, -3)); 4],
+            mvs: [Some(RefMv::previous(Mv::new(5, -3))); 4],
             coded: 0x5a5a,
             transform_8x8: false,
         };

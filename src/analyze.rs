@@ -15,8 +15,7 @@ use serde::Serialize;
 
 use crate::codec::decoder::{DecodeError, Decoder};
 use crate::codec::intra4x4::LumaIntra;
-use crate::codec::mv::Mv;
-use crate::codec::partition::Split;
+use crate::codec::partition::{MbVectors, Split};
 use crate::codec::syntax::{
     BitCounts, CodedMb, EntropyState, FrameSyntax, FrameType, FrameWriter, MbKind, MotionTool, SequenceHeader,
 };
@@ -43,6 +42,9 @@ pub struct MbRecord {
     /// skipped macroblock's is its predicted vector; grid frames: zero, the
     /// grid moves the samples); `None` for intra.
     pub vectors: [Option<(i32, i32)>; 4],
+    /// The reference index of each 8x8 block's vector (0: the previous
+    /// frame); `None` for intra.
+    pub refs: [Option<u8>; 4],
     /// The frame's QP (the format has no per-macroblock QP).
     pub qp: u8,
     /// The luma's transform size, 4 or 8 (intra and inter macroblocks
@@ -198,7 +200,7 @@ fn record(
     mb: &CodedMb,
     (mb_x, mb_y): (usize, usize),
     qp: u8,
-    vectors: [Option<Mv>; 4],
+    vectors: MbVectors,
     bits: [f64; 3],
 ) -> MbRecord {
     let (kind, partition, intra_modes) = match &mb.kind {
@@ -233,7 +235,8 @@ fn record(
         kind,
         partition,
         intra_modes,
-        vectors: vectors.map(|v| v.map(|v| (v.x, v.y))),
+        vectors: vectors.map(|v| v.map(|v| (v.mv.x, v.mv.y))),
+        refs: vectors.map(|v| v.map(|v| v.ref_idx)),
         qp,
         transform: if r.transform_8x8() { 8 } else { 4 },
         coded_luma_blocks: r.luma_coded().iter().filter(|&&c| c).count() as u8,
@@ -246,11 +249,11 @@ fn record(
 
 /// The CSV header of [`csv_row`].
 pub const CSV_HEADER: &str = "frame,type,mb_x,mb_y,kind,partition,intra_modes,\
-mv0_x,mv0_y,mv1_x,mv1_y,mv2_x,mv2_y,mv3_x,mv3_y,qp,transform,coded_luma_blocks,coded_chroma_blocks,\
+mv0_x,mv0_y,mv1_x,mv1_y,mv2_x,mv2_y,mv3_x,mv3_y,refs,qp,transform,coded_luma_blocks,coded_chroma_blocks,\
 bits_header,bits_motion,bits_residual";
 
-/// One macroblock as a CSV row (vectors of the 8x8 blocks in quarter-pel,
-/// empty for intra).
+/// One macroblock as a CSV row (vectors of the 8x8 blocks in quarter-pel
+/// and their reference indices separated by `/`, empty for intra).
 pub fn csv_row(frame: &FrameAnalysis, m: &MbRecord) -> String {
     let vectors: String = m
         .vectors
@@ -258,8 +261,9 @@ pub fn csv_row(frame: &FrameAnalysis, m: &MbRecord) -> String {
         .map(|v| v.map_or(",".to_string(), |(x, y)| format!("{x},{y}")))
         .collect::<Vec<_>>()
         .join(",");
+    let refs: Vec<String> = m.refs.iter().flatten().map(u8::to_string).collect();
     format!(
-        "{},{},{},{},{},{},{},{vectors},{},{},{},{},{:.3},{:.3},{:.3}",
+        "{},{},{},{},{},{},{},{vectors},{},{},{},{},{},{:.3},{:.3},{:.3}",
         frame.index,
         frame.frame_type,
         m.mb_x,
@@ -267,6 +271,7 @@ pub fn csv_row(frame: &FrameAnalysis, m: &MbRecord) -> String {
         m.kind,
         m.partition,
         m.intra_modes.replace(',', ";"),
+        refs.join("/"),
         m.qp,
         m.transform,
         m.coded_luma_blocks,

@@ -4,6 +4,7 @@
 
 use mocomp::codec::decoder;
 use mocomp::codec::mv::Mv;
+use mocomp::codec::partition::RefMv;
 use mocomp::codec::syntax::{
     read_frame, EntropyState, FrameSyntax, FrameType, MbKind, SequenceHeader, FRAME_START,
     SEQUENCE_HEADER_LEN,
@@ -135,6 +136,7 @@ fn seq_header(w: usize, h: usize) -> SequenceHeader {
         fps_den: 1,
         frame_count: 0,
         vui: Default::default(),
+        max_refs: 1,
     }
 }
 
@@ -189,8 +191,8 @@ fn block_vectors_follow_a_known_translation() {
                 // candidates on averaged half-pel samples, and skip keeps
                 // the predicted vector when that costs fewer bits.
                 // Every 8x8 block's (partitions included).
-                let near = |v: &Option<Mv>| {
-                    v.is_some_and(|v| (v.x - truth.x).abs() <= 1 && (v.y - truth.y).abs() <= 1)
+                let near = |v: &Option<RefMv>| {
+                    v.is_some_and(|v| (v.mv.x - truth.x).abs() <= 1 && (v.mv.y - truth.y).abs() <= 1)
                 };
                 if vectors[i].iter().all(near) {
                     right += 1;
@@ -331,7 +333,7 @@ fn macroblocks_whose_halves_move_apart_are_split_and_follow_each_motion() {
                 continue;
             }
             straddling += 1;
-            let right = |b: usize, row: usize| vectors[i][b] == Some(truth(row));
+            let right = |b: usize, row: usize| vectors[i][b] == Some(RefMv::previous(truth(row)));
             if matches!(mb.kind, MbKind::Split { .. })
                 && right(0, 16 * y)
                 && right(1, 16 * y)

@@ -118,11 +118,15 @@ fn strength(info: &[MbEdgeInfo], mb_cols: usize, p: (usize, usize), q: (usize, u
     if mp.coded_at(px, py) || mq.coded_at(qx, qy) {
         return 2;
     }
-    // Vectors are compared per 8x8 block (within a 16x16 macroblock they
-    // are one, so only partitions' and macroblocks' edges can differ).
-    let vector = |m: &MbEdgeInfo, x: usize, y: usize| m.mvs[(y / 2) * 2 + x / 2];
-    match (vector(mp, px, py), vector(mq, qx, qy)) {
-        (Some(a), Some(b)) if (a.x - b.x).abs() >= 4 || (a.y - b.y).abs() >= 4 => 1,
+    // Motion is compared per 8x8 block (within a 16x16 macroblock it is
+    // one, so only partitions' and macroblocks' edges can differ).
+    let motion = |m: &MbEdgeInfo, x: usize, y: usize| m.mvs[(y / 2) * 2 + x / 2];
+    match (motion(mp, px, py), motion(mq, qx, qy)) {
+        (Some(a), Some(b))
+            if a.ref_idx != b.ref_idx || (a.mv.x - b.mv.x).abs() >= 4 || (a.mv.y - b.mv.y).abs() >= 4 =>
+        {
+            1
+        }
         _ => 0,
     }
 }
@@ -273,11 +277,12 @@ mod tests {
     use super::*;
 
     use crate::mv::Mv;
+    use crate::partition::RefMv;
 
     fn inter(mv: Mv, coded: u16) -> MbEdgeInfo {
         MbEdgeInfo {
             intra: false,
-            mvs: [Some(mv); 4],
+            mvs: [Some(RefMv::previous(mv)); 4],
             coded,
             transform_8x8: false,
         }
@@ -299,17 +304,18 @@ mod tests {
         assert_eq!(strength(&[still, inter(Mv::ZERO, 1 << 4)], 2, (3, 0), (4, 0)), 0);
         assert_eq!(strength(&[still, inter(Mv::new(4, 0), 0)], 2, (3, 0), (4, 0)), 1);
         assert_eq!(strength(&[still, inter(Mv::new(3, -3), 0)], 2, (3, 0), (4, 0)), 0);
+        // Equal vectors into different references: bS 1.
+        let other_reference = MbEdgeInfo {
+            mvs: [Some(RefMv::new(Mv::ZERO, 1)); 4],
+            ..still
+        };
+        assert_eq!(strength(&[still, other_reference], 2, (3, 0), (4, 0)), 1);
         // Inside one macroblock, vectors are one: no strength from them.
         assert_eq!(strength(&[inter(Mv::new(9, 9), 0)], 1, (0, 0), (1, 0)), 0);
         // ... unless it is split: its partitions' edge (x = 8) compares
         // their vectors, the 4x4 edges inside a partition do not.
         let split = MbEdgeInfo {
-            mvs: [
-                Some(Mv::ZERO),
-                Some(Mv::new(0, 8)),
-                Some(Mv::ZERO),
-                Some(Mv::new(0, 8)),
-            ],
+            mvs: [Mv::ZERO, Mv::new(0, 8), Mv::ZERO, Mv::new(0, 8)].map(|m| Some(RefMv::previous(m))),
             ..inter(Mv::ZERO, 0)
         };
         assert_eq!(strength(&[split], 1, (1, 2), (2, 2)), 1);

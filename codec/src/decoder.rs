@@ -91,7 +91,9 @@ pub enum DecodeError {
 pub struct Decoder<R: Read> {
     reader: R,
     seq: SequenceHeader,
-    reference: Option<Frame>,
+    /// The decoded frames a P frame can predict from, the latest first:
+    /// those since the last I frame, at most the sequence's `max_refs`.
+    references: Vec<Frame>,
     /// Contexts carried from frame to frame.
     entropy: EntropyState,
     frames: usize,
@@ -121,7 +123,7 @@ impl<R: Read> Decoder<R> {
         Ok(Decoder {
             reader,
             seq,
-            reference: None,
+            references: Vec::new(),
             entropy: EntropyState::new(),
             frames: 0,
             offset: SEQUENCE_HEADER_LEN as u64,
@@ -213,15 +215,48 @@ impl<R: Read> Decoder<R> {
             bit: (e.bit % 8) as u8,
             what: e.what,
         })?;
-        if syntax.header.frame_type == FrameType::Inter && self.reference.is_none() {
+        let h = &syntax.header;
+        if h.refs > self.seq.max_refs {
             return Err(DecodeError::Syntax {
                 frame: self.frames,
                 byte: payload_start,
                 bit: 0,
-                what: "a P frame with no frame before it to predict from".into(),
+                what: format!(
+                    "a P frame predicting from {} references, more than the sequence's {}",
+                    h.refs, self.seq.max_refs
+                ),
+            });
+        }
+        let available = self.references.len();
+        if h.frame_type == FrameType::Inter && usize::from(h.refs) > available {
+            let what = if available == 0 {
+                "a P frame with no frame before it to predict from".into()
+            } else {
+                format!(
+                    "a P frame predicting from {} references, with {available} decoded since the last I frame",
+                    h.refs
+                )
+            };
+            return Err(DecodeError::Syntax {
+                frame: self.frames,
+                byte: payload_start,
+                bit: 0,
+                what,
             });
         }
         Ok(Some(syntax))
+    }
+
+    /// Reconstructs `syntax` and keeps it as the latest reference.
+    fn reconstruct(&mut self, syntax: &FrameSyntax) -> Result<&Frame, DecodeError> {
+        let recon = reconstruct_frame(&self.seq, syntax, &self.references)?;
+        self.frames += 1;
+        if syntax.header.frame_type == FrameType::Intra {
+            self.references.clear();
+        }
+        self.references.truncate(usize::from(self.seq.max_refs) - 1);
+        self.references.insert(0, recon);
+        Ok(&self.references[0])
     }
 
     /// The next frame at the coded (macroblock-aligned) size, as the
@@ -230,10 +265,7 @@ impl<R: Read> Decoder<R> {
         let Some(syntax) = self.next_syntax()? else {
             return Ok(None);
         };
-        let recon = reconstruct_frame(&self.seq, &syntax, self.reference.as_ref())?;
-        self.frames += 1;
-        self.reference = Some(recon);
-        Ok(self.reference.as_ref())
+        self.reconstruct(&syntax).map(Some)
     }
 
     /// The next frame's syntax and its picture, cropped to the picture
@@ -242,10 +274,8 @@ impl<R: Read> Decoder<R> {
         let Some(syntax) = self.next_syntax()? else {
             return Ok(None);
         };
-        let recon = reconstruct_frame(&self.seq, &syntax, self.reference.as_ref())?;
-        self.frames += 1;
-        let frame = crop(&recon, self.seq.width, self.seq.height)?;
-        self.reference = Some(recon);
+        let (w, h) = (self.seq.width, self.seq.height);
+        let frame = crop(self.reconstruct(&syntax)?, w, h)?;
         Ok(Some((syntax, frame)))
     }
 

@@ -35,7 +35,13 @@ const SPLIT: usize = CHROMA_MODE + 3;
 const BLOCKS4: usize = SPLIT + 5;
 const MOST_PROBABLE: usize = BLOCKS4 + 3;
 const REMAINING: usize = MOST_PROBABLE + 1;
-const CONTEXTS: usize = REMAINING + 1;
+/// Reference index: the first bin (3: neighbours with an index above 0),
+/// the second (1), the rest (1).
+const REF: usize = REMAINING + 1;
+const CONTEXTS: usize = REF + 5;
+
+/// The most references a P frame can predict from.
+pub const MAX_REFS: u8 = 8;
 
 /// Unary bins of |d| - 1 before the Exp-Golomb suffix.
 const UNARY_MAX: u32 = 8;
@@ -51,18 +57,23 @@ pub enum MbMode {
     /// Skipped (P frames).
     Skip,
     /// Inter with this vector difference (zero, and not coded, in grid
-    /// frames).
+    /// frames) into reference `ref_idx` (0 unless the frame has several).
     Inter {
         /// Vector minus predicted vector, quarter-pel.
         mvd: Mv,
+        /// Index in the frame's reference list.
+        ref_idx: u8,
     },
-    /// Inter, split into partitions, with their vector differences in
-    /// coding order (entries past the split's partitions are zero).
+    /// Inter, split into partitions, with their reference indices and
+    /// vector differences in coding order (entries past the split's
+    /// partitions are zero).
     Split {
         /// How it is split.
         split: Split,
         /// Vector minus predicted vector per partition, quarter-pel.
         mvds: [Mv; 4],
+        /// Reference index per partition.
+        refs: [u8; 4],
     },
     /// Intra with these modes.
     Intra {
@@ -83,11 +94,21 @@ struct MbState {
     split: bool,
     /// Per 8x8 block (raster order), |mvd| per component (0 unless inter).
     mvd_abs: [[u32; 2]; 4],
+    /// Per 8x8 block, the reference index (0 unless inter).
+    refs: [u8; 4],
     /// The 4x4 intra modes, when coded in 4x4 blocks.
     modes4: Option<[Intra4x4Mode; 16]>,
 }
 
 impl MbState {
+    /// Records partition `p`'s difference and reference on its blocks.
+    fn set_partition(&mut self, p: &Part, d: Mv, ref_idx: u8) {
+        for k in p.blocks() {
+            self.mvd_abs[k] = [d.x.unsigned_abs(), d.y.unsigned_abs()];
+            self.refs[k] = ref_idx;
+        }
+    }
+
     /// The 4x4 modes a block of the next macroblocks sees here: none
     /// outside the picture, DC unless coded in 4x4 blocks.
     fn modes4_seen(&self) -> Option<[Intra4x4Mode; 16]> {
@@ -102,15 +123,69 @@ pub enum VectorSyntax {
     None,
     /// One per inter macroblock (OBMC frames).
     PerMacroblock,
-    /// One per partition, the split coded (block frames).
-    PerPartition,
+    /// One per partition, the split coded, each partition's vector into
+    /// one of `refs` references (block frames).
+    PerPartition {
+        /// References the frame predicts from, 1..=[`MAX_REFS`].
+        refs: u8,
+    },
 }
 
 impl VectorSyntax {
+    /// [`VectorSyntax::PerPartition`] with one reference.
+    pub const ONE_REFERENCE: VectorSyntax = VectorSyntax::PerPartition { refs: 1 };
+
     /// Whether any vector is coded.
     pub fn any(self) -> bool {
         self != VectorSyntax::None
     }
+
+    /// Whether vectors are coded per partition (the split coded).
+    pub fn per_partition(self) -> bool {
+        matches!(self, VectorSyntax::PerPartition { .. })
+    }
+
+    /// How many references the frame's vectors can point into.
+    pub fn refs(self) -> u8 {
+        match self {
+            VectorSyntax::PerPartition { refs } => refs,
+            _ => 1,
+        }
+    }
+}
+
+/// A reference index in truncated unary over `refs - 1` bins (none with
+/// one reference): the first bin's context by how many of the blocks left
+/// of and above the partition use a reference above 0.
+fn code_ref<B: Bins>(b: &mut B, neighbours_above_0: usize, ref_idx: u8, refs: u8) {
+    for i in 0..refs.saturating_sub(1) {
+        let ctx = match i {
+            0 => REF + neighbours_above_0,
+            1 => REF + 3,
+            _ => REF + 4,
+        };
+        b.bin(ctx, ref_idx > i);
+        if ref_idx == i {
+            return;
+        }
+    }
+}
+
+/// Reads what [`code_ref`] writes.
+fn read_ref(dec: &mut RangeDecoder<'_>, c: &mut [Context], neighbours_above_0: usize, refs: u8) -> u8 {
+    let mut r = 0;
+    while r + 1 < refs {
+        let ctx = match r {
+            0 => REF + neighbours_above_0,
+            1 => REF + 3,
+            _ => REF + 4,
+        };
+        if !dec.decode(&mut c[ctx]) {
+            break;
+        }
+        r += 1;
+    }
+    r
 }
 
 /// Context increment of a vector difference's zero flag from the sum of
@@ -236,8 +311,7 @@ fn read_inter(
     n: &[MbState; 2],
     vectors: VectorSyntax,
 ) -> Option<MbMode> {
-    let split = if vectors == VectorSyntax::PerPartition
-        && dec.decode(&mut c[SPLIT + n.iter().filter(|s| s.split).count()])
+    let split = if vectors.per_partition() && dec.decode(&mut c[SPLIT + n.iter().filter(|s| s.split).count()])
     {
         Some(if dec.decode(&mut c[SPLIT + 3]) {
             Split::Quad
@@ -250,21 +324,23 @@ fn read_inter(
         None
     };
     let parts = split.map_or(std::slice::from_ref(&WHOLE), Split::parts);
-    let mut mvds = [Mv::ZERO; 4];
+    let (mut mvds, mut refs) = ([Mv::ZERO; 4], [0u8; 4]);
     if vectors.any() {
-        let mut own = [[0u32; 2]; 4];
-        for (p, d) in parts.iter().zip(&mut mvds) {
+        let mut own = MbState::default();
+        for ((p, d), r) in parts.iter().zip(&mut mvds).zip(&mut refs) {
+            *r = read_ref(dec, c, refs_above_0(n, &own, p), vectors.refs());
             let sums = neighbour_sums(n, &own, p);
             d.x = read_component(dec, c, MVD, sums[0])?;
             d.y = read_component(dec, c, MVD + VECTOR_CONTEXTS, sums[1])?;
-            for k in p.blocks() {
-                own[k] = [d.x.unsigned_abs(), d.y.unsigned_abs()];
-            }
+            own.set_partition(p, *d, *r);
         }
     }
     Some(match split {
-        Some(split) => MbMode::Split { split, mvds },
-        None => MbMode::Inter { mvd: mvds[0] },
+        Some(split) => MbMode::Split { split, mvds, refs },
+        None => MbMode::Inter {
+            mvd: mvds[0],
+            ref_idx: refs[0],
+        },
     })
 }
 
@@ -300,52 +376,70 @@ fn code_flags<B: Bins>(b: &mut B, n: &[MbState; 2], inter_frame: bool, mode: &Mb
             code_luma_intra(b, n, &luma);
             code_intra_mode(b, CHROMA_MODE, chroma);
         }
-        MbMode::Inter { .. } if vectors == VectorSyntax::PerPartition => code_split(b, n, None),
+        MbMode::Inter { .. } if vectors.per_partition() => code_split(b, n, None),
         MbMode::Split { split, .. } => code_split(b, n, Some(split)),
         _ => {}
     }
 }
 
-/// The vector differences of an inter macroblock (none for the others, or
-/// when the frame codes no vectors), each component's context from the
-/// differences of the 8x8 blocks left of and above the partition's
-/// top-left block.
+/// The reference indices and vector differences of an inter macroblock
+/// (none for the others, or when the frame codes no vectors), per
+/// partition, each element's context from the 8x8 blocks left of and
+/// above the partition's top-left block.
 fn code_mvd<B: Bins>(b: &mut B, n: &[MbState; 2], mode: &MbMode, vectors: VectorSyntax) {
     if !vectors.any() {
         return;
     }
-    let (parts, mvds) = match mode {
-        MbMode::Inter { mvd } => (std::slice::from_ref(&WHOLE), std::slice::from_ref(mvd)),
-        MbMode::Split { split, mvds } => (split.parts(), &mvds[..]),
+    let (parts, mvds, refs) = match mode {
+        MbMode::Inter { mvd, ref_idx } => (
+            std::slice::from_ref(&WHOLE),
+            std::slice::from_ref(mvd),
+            std::slice::from_ref(ref_idx),
+        ),
+        MbMode::Split { split, mvds, refs } => (split.parts(), &mvds[..], &refs[..]),
         _ => return,
     };
-    let mut own = [[0u32; 2]; 4];
-    for (p, d) in parts.iter().zip(mvds) {
+    let mut own = MbState::default();
+    for ((p, d), &r) in parts.iter().zip(mvds).zip(refs) {
+        code_ref(b, refs_above_0(n, &own, p), r, vectors.refs());
         let sums = neighbour_sums(n, &own, p);
         for (c, v) in [d.x, d.y].into_iter().enumerate() {
             code_component(b, MVD + c * VECTOR_CONTEXTS, sums[c], v);
         }
-        for k in p.blocks() {
-            own[k] = [d.x.unsigned_abs(), d.y.unsigned_abs()];
-        }
+        own.set_partition(p, *d, r);
     }
 }
 
-/// Per component, |mvd| of the 8x8 block left of partition `p`'s top-left
-/// block plus that of the one above it: in the macroblock (`own`, its
-/// partitions coded so far) or in the neighbours `n`.
-fn neighbour_sums(n: &[MbState; 2], own: &[[u32; 2]; 4], p: &Part) -> [u32; 2] {
+/// The 8x8 blocks left of and above partition `p`'s top-left block: in
+/// the macroblock (`own`, its partitions coded so far) or in the
+/// neighbours `n`, as (state, block index).
+fn left_and_above<'a>(n: &'a [MbState; 2], own: &'a MbState, p: &Part) -> [(&'a MbState, usize); 2] {
     let left = if p.x8 > 0 {
-        own[p.y8 * 2]
+        (own, p.y8 * 2)
     } else {
-        n[0].mvd_abs[p.y8 * 2 + 1]
+        (&n[0], p.y8 * 2 + 1)
     };
-    let above = if p.y8 > 0 {
-        own[p.x8]
-    } else {
-        n[1].mvd_abs[2 + p.x8]
-    };
-    [left[0] + above[0], left[1] + above[1]]
+    let above = if p.y8 > 0 { (own, p.x8) } else { (&n[1], 2 + p.x8) };
+    [left, above]
+}
+
+/// Per component, |mvd| of the 8x8 block left of partition `p`'s top-left
+/// block plus that of the one above it.
+fn neighbour_sums(n: &[MbState; 2], own: &MbState, p: &Part) -> [u32; 2] {
+    let [(l, i), (a, j)] = left_and_above(n, own, p);
+    [
+        l.mvd_abs[i][0] + a.mvd_abs[j][0],
+        l.mvd_abs[i][1] + a.mvd_abs[j][1],
+    ]
+}
+
+/// How many of the 8x8 blocks left of and above partition `p`'s top-left
+/// block use a reference above 0.
+fn refs_above_0(n: &[MbState; 2], own: &MbState, p: &Part) -> usize {
+    left_and_above(n, own, p)
+        .iter()
+        .filter(|(s, k)| s.refs[*k] > 0)
+        .count()
 }
 
 /// The split of an inter macroblock of a frame coding vectors per partition.
@@ -371,19 +465,18 @@ fn state_of(mode: &MbMode) -> MbState {
             skip: true,
             ..MbState::default()
         },
-        MbMode::Inter { mvd } => MbState {
-            mvd_abs: [[mvd.x.unsigned_abs(), mvd.y.unsigned_abs()]; 4],
-            ..MbState::default()
-        },
-        MbMode::Split { split, mvds } => {
+        MbMode::Inter { mvd, ref_idx } => {
+            let mut state = MbState::default();
+            state.set_partition(&WHOLE, mvd, ref_idx);
+            state
+        }
+        MbMode::Split { split, mvds, refs } => {
             let mut state = MbState {
                 split: true,
                 ..MbState::default()
             };
-            for (p, d) in split.parts().iter().zip(mvds) {
-                for k in p.blocks() {
-                    state.mvd_abs[k] = [d.x.unsigned_abs(), d.y.unsigned_abs()];
-                }
+            for ((p, &d), &r) in split.parts().iter().zip(&mvds).zip(&refs) {
+                state.set_partition(p, d, r);
             }
             state
         }
@@ -413,19 +506,19 @@ fn state_of(mode: &MbMode) -> MbState {
 /// use mocomp_codec::mv::Mv;
 /// let modes = [
 ///     MbMode::Skip,
-///     MbMode::Inter { mvd: Mv::new(-5, 130) },
+///     MbMode::Inter { mvd: Mv::new(-5, 130), ref_idx: 0 },
 ///     MbMode::Intra { luma: LumaIntra::Whole(IntraMode::Dc), chroma: IntraMode::Horizontal },
 /// ];
 /// let mut coder = ModeCoder::new(3, 1);
 /// let mut enc = RangeEncoder::new();
 /// for (x, m) in modes.iter().enumerate() {
-///     coder.write(&mut enc, x, 0, true, VectorSyntax::PerPartition, m);
+///     coder.write(&mut enc, x, 0, true, VectorSyntax::ONE_REFERENCE, m);
 /// }
 /// let bytes = enc.finish();
 /// let mut coder = ModeCoder::new(3, 1);
 /// let mut dec = RangeDecoder::new(&bytes);
 /// for (x, m) in modes.iter().enumerate() {
-///     assert_eq!(coder.read(&mut dec, x, 0, true, VectorSyntax::PerPartition), Some(*m));
+///     assert_eq!(coder.read(&mut dec, x, 0, true, VectorSyntax::ONE_REFERENCE), Some(*m));
 /// }
 /// ```
 #[derive(Debug, Clone)]
@@ -631,18 +724,22 @@ mod tests {
     fn mode_strategy() -> impl Strategy<Value = MbMode> {
         prop_oneof![
             Just(MbMode::Skip),
-            (-40_000i32..=40_000, -300i32..=300).prop_map(|(x, y)| MbMode::Inter { mvd: Mv::new(x, y) }),
+            (-40_000i32..=40_000, -300i32..=300, 0..MAX_REFS).prop_map(|(x, y, ref_idx)| MbMode::Inter {
+                mvd: Mv::new(x, y),
+                ref_idx
+            }),
             (
                 0usize..3,
-                proptest::collection::vec((-3000i32..=3000, -40i32..=40), 4)
+                proptest::collection::vec((-3000i32..=3000, -40i32..=40, 0..MAX_REFS), 4)
             )
                 .prop_map(|(s, d)| {
                     let split = Split::ALL[s];
-                    let mut mvds = [Mv::ZERO; 4];
-                    for (m, &(x, y)) in mvds.iter_mut().zip(&d).take(split.parts().len()) {
-                        *m = Mv::new(x, y);
+                    let (mut mvds, mut refs) = ([Mv::ZERO; 4], [0; 4]);
+                    for (k, &(x, y, r)) in d.iter().enumerate().take(split.parts().len()) {
+                        mvds[k] = Mv::new(x, y);
+                        refs[k] = r;
                     }
-                    MbMode::Split { split, mvds }
+                    MbMode::Split { split, mvds, refs }
                 }),
             (0u32..4, 0u32..4).prop_map(|(l, c)| MbMode::Intra {
                 luma: LumaIntra::Whole(IntraMode::from_code(l).unwrap_or(IntraMode::Dc)),
@@ -667,12 +764,19 @@ mod tests {
             modes in proptest::collection::vec(mode_strategy(), 12),
             grid in proptest::collection::vec((-70_000i32..=70_000, -5i32..=5), 6),
             inter_frame in any::<bool>(),
+            refs in 1..=MAX_REFS,
         ) {
-            // 4 x 3 macroblocks; a 3 x 2 grid first. I frames hold intra only.
+            // 4 x 3 macroblocks; a 3 x 2 grid first. I frames hold intra
+            // only; reference indices below `refs`.
+            let syntax = VectorSyntax::PerPartition { refs };
             let modes: Vec<MbMode> = modes
                 .into_iter()
                 .map(|m| match m {
                     MbMode::Intra { .. } => m,
+                    MbMode::Inter { mvd, ref_idx } if inter_frame => MbMode::Inter { mvd, ref_idx: ref_idx % refs },
+                    MbMode::Split { split, mvds, refs: r } if inter_frame => {
+                        MbMode::Split { split, mvds, refs: r.map(|r| r % refs) }
+                    }
                     _ if inter_frame => m,
                     _ => MbMode::Intra { luma: LumaIntra::Whole(IntraMode::Dc), chroma: IntraMode::Plane },
                 })
@@ -684,8 +788,8 @@ mod tests {
                 w.write_grid(&mut enc, 3, i % 3, i / 3, Mv::new(x, y));
             }
             for (i, m) in modes.iter().enumerate() {
-                w.write(&mut enc, i % 4, i / 4, inter_frame, VectorSyntax::PerPartition, m);
-                shadow.commit(i % 4, i / 4, inter_frame, VectorSyntax::PerPartition, m);
+                w.write(&mut enc, i % 4, i / 4, inter_frame, syntax, m);
+                shadow.commit(i % 4, i / 4, inter_frame, syntax, m);
             }
             let bytes = enc.finish();
             let mut r = ModeCoder::new(4, 3);
@@ -694,7 +798,7 @@ mod tests {
                 prop_assert_eq!(r.read_grid(&mut dec, 3, i % 3, i / 3), Some(Mv::new(x, y)));
             }
             for (i, m) in modes.iter().enumerate() {
-                prop_assert_eq!(r.read(&mut dec, i % 4, i / 4, inter_frame, VectorSyntax::PerPartition), Some(*m));
+                prop_assert_eq!(r.read(&mut dec, i % 4, i / 4, inter_frame, syntax), Some(*m));
             }
             prop_assert!(dec.consumed_all());
             // Committing adapts the macroblock contexts as writing does.
@@ -710,7 +814,8 @@ mod tests {
                 let _ = r.read_grid(&mut dec, 2, i % 2, i / 2);
             }
             for i in 0..9 {
-                let _ = r.read(&mut dec, i % 3, i / 3, i % 2 == 0, VectorSyntax::PerPartition);
+                let refs = 1 + i as u8 % MAX_REFS;
+                let _ = r.read(&mut dec, i % 3, i / 3, i % 2 == 0, VectorSyntax::PerPartition { refs });
             }
         }
     }
@@ -718,12 +823,36 @@ mod tests {
     #[test]
     fn a_run_of_skips_gets_cheap() {
         let mut c = ModeCoder::new(40, 1);
-        let first = c.cost(0, 0, true, VectorSyntax::PerPartition, &MbMode::Skip);
+        let first = c.cost(0, 0, true, VectorSyntax::ONE_REFERENCE, &MbMode::Skip);
         for x in 0..39 {
-            c.commit(x, 0, true, VectorSyntax::PerPartition, &MbMode::Skip);
+            c.commit(x, 0, true, VectorSyntax::ONE_REFERENCE, &MbMode::Skip);
         }
-        let later = c.cost(39, 0, true, VectorSyntax::PerPartition, &MbMode::Skip);
+        let later = c.cost(39, 0, true, VectorSyntax::ONE_REFERENCE, &MbMode::Skip);
         assert_eq!(first, 256);
         assert!(later < 64, "{later}"); // under a quarter of a bit
+    }
+
+    #[test]
+    fn reference_indices_cost_nothing_with_one_reference_and_grow_with_the_index() {
+        let c = ModeCoder::new(2, 1);
+        let inter = |ref_idx| MbMode::Inter {
+            mvd: Mv::new(4, 0),
+            ref_idx,
+        };
+        let one = c.cost(0, 0, true, VectorSyntax::ONE_REFERENCE, &inter(0));
+        // A first bin at even odds costs one bit.
+        let three = VectorSyntax::PerPartition { refs: 3 };
+        assert_eq!(c.cost(0, 0, true, three, &inter(0)), one + 256);
+        assert_eq!(c.cost(0, 0, true, three, &inter(1)), one + 512);
+        // The last index needs no terminating bin.
+        assert_eq!(c.cost(0, 0, true, three, &inter(2)), one + 512);
+        // A neighbour on reference 2 moves the first bin to another context.
+        let mut c = ModeCoder::new(2, 1);
+        for _ in 0..20 {
+            c.commit(0, 0, true, three, &inter(0));
+        }
+        let after_zeros = c.cost(1, 0, true, three, &inter(0));
+        c.commit(0, 0, true, three, &inter(2));
+        assert!(c.cost(1, 0, true, three, &inter(0)) > after_zeros);
     }
 }

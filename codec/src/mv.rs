@@ -72,8 +72,9 @@ impl std::ops::Add for Mv {
     }
 }
 
+/// The median of three values.
 #[inline]
-fn median3(a: i32, b: i32, c: i32) -> i32 {
+pub fn median3(a: i32, b: i32, c: i32) -> i32 {
     a.max(b).min(a.min(b).max(c))
 }
 

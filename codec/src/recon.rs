@@ -12,7 +12,7 @@ use crate::intra::{self, Neighbours};
 use crate::intra4x4::{self, Intra4x4Mode, LumaIntra};
 use crate::mv::Mv;
 use crate::obmc::{self, Neighbourhood};
-use crate::partition::MbVectors;
+use crate::partition::{MbVectors, RefMv};
 use crate::picture::{Frame, PictureError, Plane};
 use crate::residual::MbResidual;
 use crate::syntax::{mb_vectors, FrameSyntax, FrameType, MbKind, MotionTool, SequenceHeader, MB};
@@ -54,8 +54,9 @@ impl Default for MbSamples {
 /// What inter prediction of a frame needs.
 #[derive(Debug, Clone, Copy)]
 pub struct InterContext<'a> {
-    /// The previous reconstructed frame (coded size).
-    pub reference: &'a Frame,
+    /// The frame's references (coded size), the previous frame first
+    /// (FORMAT.md section 4).
+    pub references: &'a [&'a Frame],
     /// The frame's motion tool.
     pub tool: MotionTool,
     /// Every macroblock's vectors (`None` for intra), for OBMC.
@@ -194,9 +195,9 @@ impl IntraEdges {
     }
 }
 
-/// Inter prediction of macroblock (mb_x, mb_y) with vector `mv` (ignored in
-/// grid frames).
-pub fn predict_inter(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mv: Mv) -> MbSamples {
+/// Inter prediction of macroblock (mb_x, mb_y) with motion `mv` (ignored
+/// in grid frames).
+pub fn predict_inter(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mv: RefMv) -> MbSamples {
     predict_inter_blocks(ctx, mb_x, mb_y, &[mv; 4])
 }
 
@@ -239,20 +240,21 @@ fn predict_rect(
 }
 
 /// Inter prediction of macroblock (mb_x, mb_y) whose 8x8 blocks have the
-/// vectors `mvs` (raster order; block frames: each block predicted with
-/// its own; OBMC frames: the first for the whole macroblock; grid frames:
-/// ignored).
-pub fn predict_inter_blocks(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mvs: &[Mv; 4]) -> MbSamples {
+/// motion `mvs` (raster order; block frames: each block predicted with
+/// its own; OBMC frames: the first for the whole macroblock, from
+/// reference 0; grid frames: ignored). Panics on a reference index past
+/// the context's references.
+pub fn predict_inter_blocks(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mvs: &[RefMv; 4]) -> MbSamples {
     let mut pred = MbSamples::default();
     let (x, y) = ((mb_x * MB) as isize, (mb_y * MB) as isize);
     let (cx, cy) = (x / 2, y / 2);
-    let r = ctx.reference;
-    let mv = mvs[0];
+    let r = ctx.references[0];
+    let mv = mvs[0].mv;
     match ctx.tool {
         MotionTool::Block => {
             // Samples depend only on their own vector: equal blocks are
             // predicted together, which is faster and gives the same.
-            let rects: &[(usize, usize, usize, usize, usize)] = if mvs.iter().all(|&m| m == mv) {
+            let rects: &[(usize, usize, usize, usize, usize)] = if mvs.iter().all(|&m| m == mvs[0]) {
                 &[(0, 0, 0, 16, 16)]
             } else if mvs[0] == mvs[1] && mvs[2] == mvs[3] {
                 &[(0, 0, 0, 16, 8), (2, 0, 8, 16, 8)]
@@ -262,7 +264,9 @@ pub fn predict_inter_blocks(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mv
                 &[(0, 0, 0, 8, 8), (1, 8, 0, 8, 8), (2, 0, 8, 8, 8), (3, 8, 8, 8, 8)]
             };
             for &(k, bx, by, w, h) in rects {
-                predict_rect(r, (mb_x, mb_y), (bx, by, w, h), mvs[k], &mut pred);
+                let m = mvs[k];
+                let reference = ctx.references[usize::from(m.ref_idx)];
+                predict_rect(reference, (mb_x, mb_y), (bx, by, w, h), m.mv, &mut pred);
             }
         }
         MotionTool::Obmc => {
@@ -272,7 +276,7 @@ pub fn predict_inter_blocks(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mv
                 for (dx, slot) in row.iter_mut().enumerate() {
                     let (nx, ny) = (mb_x as isize + dx as isize - 1, mb_y as isize + dy as isize - 1);
                     if nx >= 0 && ny >= 0 && (nx as usize) < ctx.mb_cols && (ny as usize) < rows {
-                        *slot = ctx.vectors[ny as usize * ctx.mb_cols + nx as usize][0];
+                        *slot = ctx.vectors[ny as usize * ctx.mb_cols + nx as usize][0].map(|m| m.mv);
                     }
                 }
             }
@@ -412,17 +416,17 @@ pub fn frame_vectors(seq: &SequenceHeader, frame: &FrameSyntax) -> Vec<MbVectors
 }
 
 /// Reconstructs a whole frame at the coded size, borders extended. P frames
-/// need the previous reconstruction as `reference` (panics without one; the
-/// decoder checks first).
+/// need their references, the previous frame first (at least the
+/// header's `refs` of them; panics with fewer, the decoder checks first).
 pub fn reconstruct_frame(
     seq: &SequenceHeader,
     frame: &FrameSyntax,
-    reference: Option<&Frame>,
+    references: &[Frame],
 ) -> Result<Frame, PictureError> {
     let (cols, w, h) = (seq.mb_cols(), seq.coded_width(), seq.coded_height());
     let mut recon = Frame::new(w, h)?;
     let header = &frame.header;
-    let weighted = match reference {
+    let weighted = match references.first() {
         Some(r) if header.weights.any() => {
             let mut out = r.clone();
             header.weights.apply_into(r, &mut out);
@@ -430,7 +434,17 @@ pub fn reconstruct_frame(
         }
         _ => None,
     };
-    let reference = weighted.as_ref().or(reference);
+    // Weights apply to reference 0 alone (FORMAT.md section 12).
+    let list: Vec<&Frame> = weighted
+        .iter()
+        .chain(references.iter().skip(usize::from(weighted.is_some())))
+        .take(usize::from(header.refs))
+        .collect();
+    let reference = list.first().copied();
+    assert!(
+        header.frame_type == FrameType::Intra || list.len() == usize::from(header.refs),
+        "a P frame needs its references"
+    );
     let vectors = frame_vectors(seq, frame);
     let warped = match (&frame.grid, reference) {
         (Some(grid), Some(r)) => {
@@ -440,10 +454,6 @@ pub fn reconstruct_frame(
         }
         _ => None,
     };
-    assert!(
-        header.frame_type == FrameType::Intra || reference.is_some(),
-        "a P frame needs a reference"
-    );
     for (i, mb) in frame.mbs.iter().enumerate() {
         let (mb_x, mb_y) = (i % cols, i / cols);
         let pred = match (mb.kind, reference) {
@@ -461,9 +471,9 @@ pub fn reconstruct_frame(
                 },
                 _,
             ) => predict_intra4x4(&recon, (mb_x, mb_y), &modes, chroma, mb.residual(), header.qp),
-            (_, Some(reference)) => {
+            (_, Some(_)) => {
                 let ctx = InterContext {
-                    reference,
+                    references: &list,
                     tool: header.tool,
                     vectors: &vectors,
                     warped: warped.as_ref(),

@@ -10,9 +10,9 @@ use crate::bits::{BitError, BitReader, BitWriter};
 use crate::entropy::{RangeDecoder, RangeEncoder};
 use crate::intra::IntraMode;
 use crate::intra4x4::{self, LumaIntra};
-use crate::modes::{MbMode, ModeCoder, VectorSyntax};
+use crate::modes::{MbMode, ModeCoder, VectorSyntax, MAX_REFS};
 use crate::mv::{predict_mv, Mv, MV_LIMIT};
-use crate::partition::{MbVectors, Split, VectorNeighbourhood, WHOLE};
+use crate::partition::{MbVectors, RefMv, Split, VectorNeighbourhood, WHOLE};
 use crate::picture::{check_size, MAX_DIMENSION};
 use crate::residual::{MbResidual, ResidualCoder, ResidualError};
 use crate::transform::MAX_QP;
@@ -26,7 +26,7 @@ pub const MAGIC: [u8; 4] = *b"MOCO";
 pub const VERSION: u8 = 3;
 
 /// Bytes of the sequence header.
-pub const SEQUENCE_HEADER_LEN: usize = 29;
+pub const SEQUENCE_HEADER_LEN: usize = 30;
 
 /// Byte that starts a frame.
 pub const FRAME_START: u8 = 0xA5;
@@ -53,6 +53,9 @@ pub struct SequenceHeader {
     /// What the samples mean, for whoever shows the pictures; decoding
     /// does not use it.
     pub vui: Vui,
+    /// The most references a P frame of the stream predicts from,
+    /// 1..=[`MAX_REFS`]: how many decoded frames a decoder keeps.
+    pub max_refs: u8,
 }
 
 /// Video usability information (as a codec's VUI): carried from the
@@ -161,6 +164,7 @@ impl SequenceHeader {
         w.put(u64::from(self.vui.sar.1), 16);
         w.put(self.vui.range as u64, 8);
         w.put(self.vui.siting as u64, 8);
+        w.put(u64::from(self.max_refs), 8);
         w.into_bytes()
     }
 
@@ -228,6 +232,12 @@ impl SequenceHeader {
                 })
             }
         };
+        let max_refs = field(&mut r, 8)? as u8;
+        check(
+            "max_refs",
+            u64::from(max_refs),
+            (1..=MAX_REFS).contains(&max_refs),
+        )?;
         debug_assert!(check_size(width, height).is_ok());
         Ok(SequenceHeader {
             width,
@@ -236,6 +246,7 @@ impl SequenceHeader {
             fps_den,
             frame_count,
             vui: Vui { sar, range, siting },
+            max_refs,
         })
     }
 }
@@ -269,6 +280,9 @@ pub struct FrameHeader {
     pub qp: u8,
     /// Motion tool (always `Block` in I frames).
     pub tool: MotionTool,
+    /// How many references the frame predicts from, 1..=[`MAX_REFS`]
+    /// (1 in I frames, OBMC and grid frames; FORMAT.md section 4).
+    pub refs: u8,
     /// The in-loop deblocking filter runs on the frame.
     pub deblock: bool,
     /// How the reference's planes are weighted before prediction (P
@@ -283,19 +297,19 @@ pub enum MbKind {
     /// (grid); no residual.
     Skip,
     /// Motion-compensated prediction plus residual. `mv` is the vector
-    /// (block, OBMC); ignored (zero) with a grid.
+    /// and its reference (block, OBMC); ignored (zero) with a grid.
     Inter {
-        /// The macroblock's vector, quarter-pel.
-        mv: Mv,
+        /// The macroblock's motion.
+        mv: RefMv,
     },
     /// Motion-compensated prediction of each partition plus residual
     /// (block frames).
     Split {
         /// How the macroblock is split.
         split: Split,
-        /// Each partition's vector in coding order, quarter-pel; entries
-        /// past the split's partitions are zero.
-        mvs: [Mv; 4],
+        /// Each partition's motion in coding order; entries past the
+        /// split's partitions are zero.
+        mvs: [RefMv; 4],
     },
     /// Intra prediction plus residual.
     Intra {
@@ -388,7 +402,7 @@ impl BitCounts {
 /// raster order.
 pub fn mb_vectors(kind: &MbKind, done: &[MbVectors], mb_x: usize, mb_y: usize, mb_cols: usize) -> MbVectors {
     match kind {
-        MbKind::Skip => [Some(mv_prediction(done, mb_x, mb_y, mb_cols)); 4],
+        MbKind::Skip => [Some(RefMv::previous(mv_prediction(done, mb_x, mb_y, mb_cols))); 4],
         MbKind::Inter { mv } => [Some(*mv); 4],
         MbKind::Split { split, mvs } => split.block_vectors(mvs).map(Some),
         MbKind::Intra { .. } => [None; 4],
@@ -396,13 +410,14 @@ pub fn mb_vectors(kind: &MbKind, done: &[MbVectors], mb_x: usize, mb_y: usize, m
 }
 
 /// Walks the partitions of a split macroblock in coding order: `step(k,
-/// predicted)` gives partition k's vector from its predicted vector (which
-/// reads the partitions before it), `None` to stop.
+/// predict)` gives partition k's motion, `predict(ref_idx)` being its
+/// predicted vector into reference `ref_idx` (which reads the partitions
+/// before it), `None` to stop.
 pub fn walk_partitions(
     split: Split,
     done: &[MbVectors],
     (mb_x, mb_y, mb_cols): (usize, usize, usize),
-    mut step: impl FnMut(usize, Mv) -> Option<Mv>,
+    mut step: impl FnMut(usize, &dyn Fn(u8) -> Mv) -> Option<RefMv>,
 ) -> Option<()> {
     let mut current: MbVectors = [None; 4];
     for (k, p) in split.parts().iter().enumerate() {
@@ -412,7 +427,7 @@ pub fn walk_partitions(
             mb: (mb_x, mb_y),
             current: &current,
         };
-        let mv = step(k, n.predict(p))?;
+        let mv = step(k, &|ref_idx| n.predict(p, ref_idx))?;
         for b in p.blocks() {
             current[b] = Some(mv);
         }
@@ -439,16 +454,26 @@ pub fn predict_in_grid(cols: usize, col: usize, row: usize, at: impl Fn(usize, u
     predict_mv(left, top, top_right, top_left)
 }
 
-/// The predicted vector of macroblock (mb_x, mb_y) as one 16x16 block,
-/// from the vectors of the macroblocks before it in raster order.
+/// The predicted vector of macroblock (mb_x, mb_y) as one 16x16 block
+/// into reference 0 (skip's vector), from the vectors of the macroblocks
+/// before it in raster order.
 pub fn mv_prediction(done: &[MbVectors], mb_x: usize, mb_y: usize, mb_cols: usize) -> Mv {
+    mv_prediction_into(done, (mb_x, mb_y, mb_cols), 0)
+}
+
+/// [`mv_prediction`] into reference `ref_idx`.
+pub fn mv_prediction_into(
+    done: &[MbVectors],
+    (mb_x, mb_y, mb_cols): (usize, usize, usize),
+    ref_idx: u8,
+) -> Mv {
     VectorNeighbourhood {
         done,
         mb_cols,
         mb: (mb_x, mb_y),
         current: &[None; 4],
     }
-    .predict(&WHOLE)
+    .predict(&WHOLE, ref_idx)
 }
 
 /// The predicted vector of grid node (col, row) from the nodes before it.
@@ -469,18 +494,23 @@ pub fn mb_mode(
         MbKind::Skip => MbMode::Skip,
         MbKind::Inter { mv } => MbMode::Inter {
             mvd: if vectors.any() {
-                mv - mv_prediction(done, mb_x, mb_y, mb_cols)
+                mv.mv - mv_prediction_into(done, (mb_x, mb_y, mb_cols), mv.ref_idx)
             } else {
                 Mv::ZERO
             },
+            ref_idx: mv.ref_idx,
         },
         MbKind::Split { split, mvs } => {
             let mut mvds = [Mv::ZERO; 4];
-            walk_partitions(split, done, (mb_x, mb_y, mb_cols), |k, predicted| {
-                mvds[k] = mvs[k] - predicted;
+            walk_partitions(split, done, (mb_x, mb_y, mb_cols), |k, predict| {
+                mvds[k] = mvs[k].mv - predict(mvs[k].ref_idx);
                 Some(mvs[k])
             });
-            MbMode::Split { split, mvds }
+            MbMode::Split {
+                split,
+                mvds,
+                refs: mvs.map(|m| m.ref_idx),
+            }
         }
         MbKind::Intra { luma, chroma } => MbMode::Intra { luma, chroma },
     }
@@ -491,7 +521,7 @@ pub fn vector_syntax(h: &FrameHeader) -> VectorSyntax {
     match (h.frame_type, h.tool) {
         (FrameType::Intra, _) | (_, MotionTool::Grid(_)) => VectorSyntax::None,
         (_, MotionTool::Obmc) => VectorSyntax::PerMacroblock,
-        (_, MotionTool::Block) => VectorSyntax::PerPartition,
+        (_, MotionTool::Block) => VectorSyntax::PerPartition { refs: h.refs },
     }
 }
 
@@ -579,6 +609,16 @@ fn write_frame_header(h: &FrameHeader) -> Vec<u8> {
         assert!(code.is_some(), "grid spacing {spacing} is not 4, 8 or 16");
         w.put(code.unwrap_or_default() as u64, 2);
     }
+    let block_p = h.frame_type == FrameType::Inter && h.tool == MotionTool::Block;
+    assert!(
+        (1..=MAX_REFS).contains(&h.refs) && (block_p || h.refs == 1),
+        "{} references in a frame that can have {}",
+        h.refs,
+        if block_p { "1 to 8" } else { "only 1" }
+    );
+    if block_p {
+        w.put(u64::from(h.refs - 1), 3);
+    }
     assert!(
         h.frame_type == FrameType::Inter || !h.weights.any(),
         "I frames have no weights"
@@ -600,11 +640,12 @@ fn write_frame_header(h: &FrameHeader) -> Vec<u8> {
 /// use mocomp_codec::intra::IntraMode;
 /// use mocomp_codec::intra4x4::LumaIntra;
 /// use mocomp_codec::syntax::*;
-/// let seq = SequenceHeader { width: 32, height: 16, fps_num: 25, fps_den: 1, frame_count: 1, vui: Vui::default() };
+/// let seq = SequenceHeader { width: 32, height: 16, fps_num: 25, fps_den: 1, frame_count: 1, vui: Vui::default(), max_refs: 1 };
 /// let header = FrameHeader {
 ///     frame_type: FrameType::Intra,
 ///     qp: 30,
 ///     tool: MotionTool::Block,
+///     refs: 1,
 ///     deblock: true,
 ///     weights: mocomp_codec::weight::Weights::NONE,
 /// };
@@ -758,23 +799,28 @@ fn check_kind(kind: &MbKind, syntax: VectorSyntax) {
     match *kind {
         MbKind::Inter { mv } => {
             assert!(
-                syntax.any() || mv == Mv::ZERO,
+                syntax.any() || mv == RefMv::default(),
                 "inter macroblocks of grid frames have no vector"
             );
-            assert!(mv.in_range(), "vector {mv:?} out of range");
+            assert!(mv.mv.in_range(), "vector {mv:?} out of range");
+            assert!(
+                mv.ref_idx < syntax.refs(),
+                "reference {} of {}",
+                mv.ref_idx,
+                syntax.refs()
+            );
         }
         MbKind::Split { split, mvs } => {
-            assert!(
-                syntax == VectorSyntax::PerPartition,
-                "only block frames split macroblocks"
-            );
+            assert!(syntax.per_partition(), "only block frames split macroblocks");
             let n = split.parts().len();
             assert!(
-                mvs[..n].iter().all(|mv| mv.in_range()),
+                mvs[..n]
+                    .iter()
+                    .all(|m| m.mv.in_range() && m.ref_idx < syntax.refs()),
                 "vectors {mvs:?} out of range"
             );
             assert!(
-                mvs[n..].iter().all(|&mv| mv == Mv::ZERO),
+                mvs[n..].iter().all(|&mv| mv == RefMv::default()),
                 "unused partition vectors"
             );
         }
@@ -905,6 +951,11 @@ fn read_frame_header(payload: &[u8]) -> Result<(FrameHeader, usize), SyntaxError
     if frame_type == FrameType::Intra && tool != MotionTool::Block {
         return Err(invalid("an I frame with a motion tool".into(), pos));
     }
+    let refs = if frame_type == FrameType::Inter && tool == MotionTool::Block {
+        r.get(3)? as u8 + 1
+    } else {
+        1
+    };
     let pos = r.position();
     let weights = match frame_type {
         FrameType::Inter => Weights::read(&mut r)?.map_err(|what| invalid(what, pos))?,
@@ -921,6 +972,7 @@ fn read_frame_header(payload: &[u8]) -> Result<(FrameHeader, usize), SyntaxError
             frame_type,
             qp,
             tool,
+            refs,
             deblock,
             weights,
         },
@@ -978,26 +1030,28 @@ impl PartitionReader<'_> {
                 ))
             }
             Some(MbMode::Skip) => return Ok(CodedMb::without_residual(MbKind::Skip)),
-            Some(MbMode::Inter { mvd }) => {
+            Some(MbMode::Inter { mvd, ref_idx }) => {
                 let mv = if syntax.any() {
-                    let predicted = mv_prediction(vectors, mb_x, mb_y, cols);
+                    let predicted = mv_prediction_into(vectors, (mb_x, mb_y, cols), ref_idx);
                     check_vector(predicted.checked_add(mvd), self.at())?
                 } else {
                     Mv::ZERO
                 };
-                MbKind::Inter { mv }
+                MbKind::Inter {
+                    mv: RefMv::new(mv, ref_idx),
+                }
             }
-            Some(MbMode::Split { split, mvds }) => {
-                let mut mvs = [Mv::ZERO; 4];
+            Some(MbMode::Split { split, mvds, refs }) => {
+                let mut mvs = [RefMv::default(); 4];
                 let mut error = None;
                 walk_partitions(
                     split,
                     vectors,
                     (mb_x, mb_y, cols),
-                    |k, predicted| match check_vector(predicted.checked_add(mvds[k]), self.at()) {
+                    |k, predict| match check_vector(predict(refs[k]).checked_add(mvds[k]), self.at()) {
                         Ok(mv) => {
-                            mvs[k] = mv;
-                            Some(mv)
+                            mvs[k] = RefMv::new(mv, refs[k]);
+                            Some(mvs[k])
                         }
                         Err(e) => {
                             error = Some(e);

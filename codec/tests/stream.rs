@@ -10,7 +10,7 @@ use mocomp_codec::intra::IntraMode;
 use mocomp_codec::intra4x4::{Intra4x4Mode, LumaIntra, CODING_ORDER};
 use mocomp_codec::modes::{MbMode, ModeCoder, VectorSyntax};
 use mocomp_codec::mv::Mv;
-use mocomp_codec::partition::Split;
+use mocomp_codec::partition::{RefMv, Split};
 use mocomp_codec::picture::{Frame, Plane};
 use mocomp_codec::recon::{
     crop, frame_vectors, predict_inter_blocks, predict_intra, reconstruct_mb, InterContext,
@@ -33,6 +33,7 @@ fn seq(width: usize, height: usize, frames: u32) -> SequenceHeader {
         fps_den: 1,
         frame_count: frames,
         vui: Default::default(),
+        max_refs: 3,
     }
 }
 
@@ -109,6 +110,7 @@ fn i_header(qp: u8) -> FrameHeader {
         frame_type: FrameType::Intra,
         qp,
         tool: MotionTool::Block,
+        refs: 1,
         deblock: false,
         weights: Weights::NONE,
     }
@@ -119,6 +121,7 @@ fn p_header(qp: u8, tool: MotionTool) -> FrameHeader {
         frame_type: FrameType::Inter,
         qp,
         tool,
+        refs: 1,
         deblock: false,
         weights: Weights::NONE,
     }
@@ -184,7 +187,7 @@ fn hand_built_inter_and_skip() {
         grid: None,
         mbs: vec![
             empty(MbKind::Inter {
-                mv: Mv::full_pel(8, 0),
+                mv: RefMv::previous(Mv::full_pel(8, 0)),
             }),
             empty(MbKind::Skip),
         ],
@@ -195,6 +198,36 @@ fn hand_built_inter_and_skip() {
     plane_is(frames[0].y(), |x, _| if x < 16 { 128 } else { 132 });
     plane_is(frames[1].y(), |x, _| if x < 8 { 128 } else { 132 });
     plane_is(frames[1].u(), |_, _| 128);
+}
+
+#[test]
+fn hand_built_prediction_from_an_older_reference() {
+    // Frame 1 moves frame 0 (128 | 132 at x = 16) 8 px left: 128 | 132 at
+    // x = 8. Frame 2's left macroblock copies reference 1 (frame 0) and
+    // its right one reference 0 (frame 1): 128 | 132 at x = 16 again.
+    let s = seq(32, 16, 3);
+    let inter = |mv, ref_idx| {
+        empty(MbKind::Inter {
+            mv: RefMv::new(mv, ref_idx),
+        })
+    };
+    let p1 = FrameSyntax {
+        header: p_header(28, MotionTool::Block),
+        grid: None,
+        mbs: vec![inter(Mv::full_pel(8, 0), 0), empty(MbKind::Skip)],
+    };
+    let p2 = FrameSyntax {
+        header: FrameHeader {
+            refs: 2,
+            ..p_header(28, MotionTool::Block)
+        },
+        grid: None,
+        mbs: vec![inter(Mv::ZERO, 1), inter(Mv::ZERO, 0)],
+    };
+    let (bytes, _) = write_stream(&s, &[two_tone_intra(), p1, p2]);
+    let (_, frames) = decode(&bytes).unwrap();
+    plane_is(frames[1].y(), |x, _| if x < 8 { 128 } else { 132 });
+    plane_is(frames[2].y(), |x, _| if x < 16 { 128 } else { 132 });
 }
 
 #[test]
@@ -216,7 +249,7 @@ fn hand_built_intra_in_a_p_frame_and_obmc_and_grid() {
     let p_obmc = FrameSyntax {
         header: p_header(30, MotionTool::Obmc),
         grid: None,
-        mbs: vec![empty(MbKind::Inter { mv: Mv::ZERO }), empty(MbKind::Skip)],
+        mbs: vec![empty(MbKind::Inter { mv: RefMv::default() }), empty(MbKind::Skip)],
     };
     // A grid of constant (-4, 0) px: every pixel takes the one 4 px to its left.
     let mut grid = MotionGrid::new(32, 16, 16).unwrap();
@@ -228,7 +261,7 @@ fn hand_built_intra_in_a_p_frame_and_obmc_and_grid() {
     let p_grid = FrameSyntax {
         header: p_header(30, MotionTool::Grid(16)),
         grid: Some(grid),
-        mbs: vec![empty(MbKind::Skip), empty(MbKind::Inter { mv: Mv::ZERO })],
+        mbs: vec![empty(MbKind::Skip), empty(MbKind::Inter { mv: RefMv::default() })],
     };
     let (bytes, _) = write_stream(&s, &[two_tone_intra(), p_intra, p_obmc, p_grid]);
     let (_, frames) = decode(&bytes).unwrap();
@@ -259,12 +292,13 @@ fn hand_built_intra_in_a_p_frame_and_obmc_and_grid() {
 
 /// A small encoder for tests: every macroblock's kind comes from `choose`;
 /// residuals are the quantised difference to the prediction, so pictures
-/// carry real content. Returns the syntax and the writer side's own
+/// carry real content. `references`: the frames since the last I frame,
+/// the latest first. Returns the syntax and the writer side's own
 /// reconstruction (coded size).
 fn code_frame(
     s: &SequenceHeader,
     source: &Frame,
-    reference: Option<&Frame>,
+    references: &[Frame],
     header: FrameHeader,
     grid: Option<MotionGrid>,
     choose: &dyn Fn(usize, usize) -> MbKind,
@@ -272,7 +306,7 @@ fn code_frame(
     let (cols, rows) = (s.mb_cols(), s.mb_rows());
     // The writer side's weighting: each sample of the padded reference
     // through the formula, written out here.
-    let weighted = reference.map(|r| {
+    let weighted = references.first().map(|r| {
         let mut out = r.clone();
         for (i, w) in header.weights.0.iter().enumerate() {
             if let Some(w) = w {
@@ -285,6 +319,12 @@ fn code_frame(
         out
     });
     let reference = weighted.as_ref();
+    // Weights apply to reference 0 only.
+    let list: Vec<&Frame> = reference
+        .into_iter()
+        .chain(references.iter().skip(1))
+        .take(usize::from(header.refs))
+        .collect();
     let kinds: Vec<MbKind> = (0..cols * rows).map(|i| choose(i % cols, i / cols)).collect();
     let mut syntax = FrameSyntax {
         header,
@@ -320,7 +360,7 @@ fn code_frame(
             }
             _ => {
                 let ctx = InterContext {
-                    reference: reference.unwrap(),
+                    references: &list,
                     tool: header.tool,
                     vectors: &vectors,
                     warped: warped.as_ref(),
@@ -407,8 +447,9 @@ fn source(s: &SequenceHeader, t: usize) -> Frame {
     .unwrap()
 }
 
-/// A stream of 5 frames (I, then P with each tool and a mix of kinds) and
-/// the writer side's reconstructions, cropped.
+/// A stream of 5 frames (I, then P with each tool and a mix of kinds; the
+/// last predicting from three references) and the writer side's
+/// reconstructions, cropped.
 fn coded_stream(width: usize, height: usize, qp: u8) -> (Vec<u8>, Vec<Frame>) {
     let s = seq(width, height, 5);
     let mut frames = Vec::new();
@@ -427,10 +468,12 @@ fn coded_stream(width: usize, height: usize, qp: u8) -> (Vec<u8>, Vec<Frame>) {
         (FrameType::Inter, MotionTool::Block),
     ];
     for (t, (ft, tool)) in tools.into_iter().enumerate() {
+        let refs = if t == 4 { 3 } else { 1 };
         let header = FrameHeader {
             frame_type: ft,
             qp,
             tool,
+            refs,
             deblock: t % 2 == 1,
             // Frames 2 to 4 weight some planes (an offset that clips, a
             // scale that darkens).
@@ -482,23 +525,30 @@ fn coded_stream(width: usize, height: usize, qp: u8) -> (Vec<u8>, Vec<Frame>) {
                 0 => MbKind::Skip,
                 1 if (x + t) % 2 == 0 => intra4x4(x, y, cols, x + y + t),
                 1 => intra_dc(),
-                _ if matches!(tool, MotionTool::Grid(_)) => MbKind::Inter { mv: Mv::ZERO },
+                _ if matches!(tool, MotionTool::Grid(_)) => MbKind::Inter { mv: RefMv::default() },
                 // Block frames split some macroblocks, every way, each
-                // partition with its own vector.
+                // partition with its own vector and reference.
                 4 if tool == MotionTool::Block => {
                     let split = Split::ALL[(x + 2 * y) % 3];
-                    let mut mvs = [Mv::ZERO; 4];
+                    let mut mvs = [RefMv::default(); 4];
                     for (k, mv) in mvs.iter_mut().enumerate().take(split.parts().len()) {
-                        *mv = Mv::new(-9 + 7 * k as i32 + x as i32, 3 - 5 * k as i32 + y as i32);
+                        *mv = RefMv::new(
+                            Mv::new(-9 + 7 * k as i32 + x as i32, 3 - 5 * k as i32 + y as i32),
+                            ((x + k) % usize::from(refs)) as u8,
+                        );
                     }
                     MbKind::Split { split, mvs }
                 }
                 k => MbKind::Inter {
-                    mv: Mv::new(-13 + 3 * k as i32, 5 - (x as i32 % 3)),
+                    mv: RefMv::new(
+                        Mv::new(-13 + 3 * k as i32, 5 - (x as i32 % 3)),
+                        ((x + 2 * y) % usize::from(refs)) as u8,
+                    ),
                 },
             }
         };
-        let (syntax, recon) = code_frame(&s, &source(&s, t), recons.last(), header, g, &choose);
+        let since_intra: Vec<Frame> = recons.iter().rev().cloned().collect();
+        let (syntax, recon) = code_frame(&s, &source(&s, t), &since_intra, header, g, &choose);
         frames.push(syntax);
         recons.push(recon);
     }
@@ -587,16 +637,50 @@ fn malformed_streams_are_clear_errors() {
         }
         assert!(expect_err(&b).to_string().contains(what), "{what}");
     }
+    // No references, or more than a P frame can have.
+    for refs in [0, 9] {
+        let mut b = good.clone();
+        b[29] = refs;
+        assert!(expect_err(&b).to_string().contains("max_refs"), "{refs}");
+    }
+    // A P frame predicting from more frames than were decoded since the
+    // I frame, or than the sequence keeps.
+    let s = seq(16, 16, 0);
+    let p = |refs| FrameSyntax {
+        header: FrameHeader {
+            refs,
+            ..p_header(30, MotionTool::Block)
+        },
+        grid: None,
+        mbs: vec![empty(MbKind::Skip)],
+    };
+    let i = FrameSyntax {
+        header: i_header(30),
+        grid: None,
+        mbs: vec![empty(intra_dc())],
+    };
+    let (b, _) = write_stream(&s, &[i.clone(), p(1), p(2), p(3)]);
+    assert_eq!(decode(&b).unwrap().1.len(), 4);
+    let (b, _) = write_stream(&s, &[i.clone(), p(1), p(3)]);
+    assert!(expect_err(&b)
+        .to_string()
+        .contains("predicting from 3 references, with 2 decoded"));
+    let (b, _) = write_stream(&s, &[i.clone(), p(1), p(2), i.clone(), p(2)]);
+    assert!(expect_err(&b)
+        .to_string()
+        .contains("with 1 decoded since the last I frame"));
+    let (b, _) = write_stream(&s, &[i, p(1), p(2), p(3), p(4)]);
+    assert!(expect_err(&b).to_string().contains("more than the sequence's 3"));
     // A wrong start code.
     let mut b = good.clone();
-    b[29] = 0x00;
+    b[30] = 0x00;
     assert!(matches!(
         expect_err(&b),
-        DecodeError::StartCode { byte: 29, found: 0 }
+        DecodeError::StartCode { byte: 30, found: 0 }
     ));
     // A frame length beyond any frame of this size.
     let mut b = good.clone();
-    b[30..34].copy_from_slice(&u32::MAX.to_be_bytes());
+    b[31..35].copy_from_slice(&u32::MAX.to_be_bytes());
     assert!(matches!(
         expect_err(&b),
         DecodeError::FrameLength { frame: 0, .. }

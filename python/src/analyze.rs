@@ -21,7 +21,8 @@ const PARTITIONS: [&str; 5] = ["16x16", "16x8", "8x16", "8x8", "4x4"];
 /// `coded_blocks` (luma and chroma 4x4 blocks with levels), `bits`
 /// (mb_rows, mb_cols, 3: header, motion, residual); per 8x8 block,
 /// `vectors` (2 mb_rows, 2 mb_cols, 2) in quarter-pel (x, y) with
-/// `has_vector` false for intra; `grid` (rows, cols, 2) for grid frames,
+/// `has_vector` false for intra, and `refs` (2 mb_rows, 2 mb_cols) the
+/// reference index of each vector (0: the previous frame; -1 for intra); `grid` (rows, cols, 2) for grid frames,
 /// else None. Raises ValueError on a damaged stream.
 #[pyfunction]
 pub fn analyze<'py>(py: Python<'py>, stream: &[u8]) -> PyResult<Bound<'py, PyList>> {
@@ -38,6 +39,7 @@ pub fn analyze<'py>(py: Python<'py>, stream: &[u8]) -> PyResult<Bound<'py, PyLis
         let mut bits = Array3::<f64>::zeros((rows, cols, 3));
         let mut vectors = Array3::<i32>::zeros((2 * rows, 2 * cols, 2));
         let mut has_vector = Array2::<bool>::from_elem((2 * rows, 2 * cols), false);
+        let mut refs = Array2::<i8>::from_elem((2 * rows, 2 * cols), -1);
         for m in &f.mbs {
             let (r, c) = (m.mb_y, m.mb_x);
             kind[[r, c]] = KINDS.iter().position(|&k| k == m.kind).unwrap_or(0) as u8;
@@ -56,6 +58,9 @@ pub fn analyze<'py>(py: Python<'py>, stream: &[u8]) -> PyResult<Bound<'py, PyLis
                     vectors[[y, x, 1]] = vy;
                     has_vector[[y, x]] = true;
                 }
+                if let Some(r) = m.refs[k] {
+                    refs[[y, x]] = r as i8;
+                }
             }
         }
         let d = PyDict::new(py);
@@ -73,6 +78,7 @@ pub fn analyze<'py>(py: Python<'py>, stream: &[u8]) -> PyResult<Bound<'py, PyLis
         d.set_item("bits", bits.into_pyarray(py))?;
         d.set_item("vectors", vectors.into_pyarray(py))?;
         d.set_item("has_vector", has_vector.into_pyarray(py))?;
+        d.set_item("refs", refs.into_pyarray(py))?;
         let grid: Option<Bound<'py, PyArray3<i32>>> = f.grid.as_ref().map(|g| {
             let mut a = Array3::<i32>::zeros((g.rows(), g.cols(), 2));
             for row in 0..g.rows() {

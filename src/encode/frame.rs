@@ -13,7 +13,7 @@ use crate::codec::intra4x4::LumaIntra;
 use crate::codec::modes::{MbMode, ModeCoder, VectorSyntax};
 use crate::codec::mv::mvd_bits;
 use crate::codec::mv::Mv;
-use crate::codec::partition::{MbVectors, Part, Split};
+use crate::codec::partition::{MbVectors, Part, RefMv, Split};
 use crate::codec::recon::{
     frame_vectors, predict_inter, predict_inter_blocks, predict_intra, predict_intra_plane, write_mb,
     InterContext, MbSamples,
@@ -135,6 +135,7 @@ pub(crate) fn code_intra(
         frame_type: FrameType::Intra,
         qp: coder.qp,
         tool: MotionTool::Block,
+        refs: 1,
         deblock,
         weights: Weights::NONE,
     };
@@ -283,8 +284,9 @@ struct Choice {
 
 /// What a P frame is predicted from and how.
 pub(crate) struct InterInputs<'a> {
-    /// The previous reconstruction (coded size).
-    pub reference: &'a Frame,
+    /// The references (coded size): the previous reconstruction (weighted)
+    /// first, then older ones (block frames).
+    pub references: Vec<&'a Frame>,
     pub motion: FrameMotion,
     pub tool: MotionTool,
     pub decision: ModeDecision,
@@ -331,7 +333,8 @@ struct InterFrameCoder<'a> {
     seq: &'a SequenceHeader,
     coder: &'a MbCoder,
     src: &'a Frame,
-    reference: &'a Frame,
+    /// The frame's references, the previous reconstruction first.
+    references: Vec<&'a Frame>,
     tool: MotionTool,
     decision: ModeDecision,
     /// Motion analysis' vector per macroblock (zero for grid frames).
@@ -382,7 +385,7 @@ impl<'a> InterFrameCoder<'a> {
             FrameMotion::Vectors(v) => (v, None, None),
             FrameMotion::Grid(g) => {
                 let mut out = Frame::new(seq.coded_width(), seq.coded_height())?;
-                warp_frame(inputs.reference, &g, &mut out);
+                warp_frame(inputs.references[0], &g, &mut out);
                 let none = BlockMotion {
                     mb: vec![Mv::ZERO; n],
                     blocks: None,
@@ -395,6 +398,7 @@ impl<'a> InterFrameCoder<'a> {
             frame_type: FrameType::Inter,
             qp: coder.qp,
             tool: inputs.tool,
+            refs: inputs.references.len() as u8,
             deblock: inputs.deblock,
             weights: inputs.weights,
         };
@@ -408,11 +412,11 @@ impl<'a> InterFrameCoder<'a> {
             seq,
             coder,
             src,
-            reference: inputs.reference,
+            references: inputs.references,
             tool: inputs.tool,
             decision: inputs.decision,
             syntax: vector_syntax(&header),
-            context: searched.iter().map(|&v| [Some(v); 4]).collect(),
+            context: searched.iter().map(|&v| [Some(RefMv::previous(v)); 4]).collect(),
             searched,
             partitions: inputs.partitions && inputs.tool == MotionTool::Block,
             halfpel,
@@ -439,7 +443,7 @@ impl<'a> InterFrameCoder<'a> {
 
     fn inter_context(&self) -> InterContext<'_> {
         InterContext {
-            reference: self.reference,
+            references: &self.references,
             tool: self.tool,
             vectors: &self.context,
             warped: self.warped.as_ref(),
@@ -502,7 +506,7 @@ impl<'a> InterFrameCoder<'a> {
         } else {
             Mv::ZERO
         };
-        let skip_pred = predict_inter(&self.inter_context(), mb_x, mb_y, mvp);
+        let skip_pred = predict_inter(&self.inter_context(), mb_x, mb_y, RefMv::previous(mvp));
         let mut mb = MbAnalysis {
             index,
             mb_x,
@@ -542,7 +546,7 @@ impl<'a> InterFrameCoder<'a> {
             let pred = if mv == mb.mvp {
                 mb.skip_pred.clone()
             } else {
-                predict_inter(&self.inter_context(), mb.mb_x, mb.mb_y, mv)
+                predict_inter(&self.inter_context(), mb.mb_x, mb.mb_y, RefMv::previous(mv))
             };
             let satd = luma_satd(&mb.source, &pred);
             candidates.push((mv, pred, satd));
@@ -566,8 +570,14 @@ impl<'a> InterFrameCoder<'a> {
             candidates.retain(|c| estimate(c) <= RD_MARGIN * mb.inter_estimate);
         }
         for (mv, pred, _) in candidates {
-            let mode = MbMode::Inter { mvd: mv - mb.mvp };
-            let choice = self.coded_choice(mb, MbKind::Inter { mv }, &mode, pred);
+            let mode = MbMode::Inter {
+                mvd: mv - mb.mvp,
+                ref_idx: 0,
+            };
+            let kind = MbKind::Inter {
+                mv: RefMv::previous(mv),
+            };
+            let choice = self.coded_choice(mb, kind, &mode, pred);
             mb.consider(choice);
         }
     }
@@ -582,7 +592,7 @@ impl<'a> InterFrameCoder<'a> {
         }
         let search = PartitionSearch {
             source: &mb.source.luma,
-            reference: self.reference.y(),
+            reference: self.references[0].y(),
             halfpel: self.halfpel.as_ref(),
             mb: (mb.mb_x, mb.mb_y),
             sad_lambda: self.coder.lambda.sqrt(),
@@ -606,14 +616,17 @@ impl<'a> InterFrameCoder<'a> {
             .into_iter()
             .fold(quad, |a, b| if b.0 < a.0 { b } else { a });
         let (_, split, mvs) = best;
-        let kind = MbKind::Split { split, mvs };
+        let kind = MbKind::Split {
+            split,
+            mvs: mvs.map(RefMv::previous),
+        };
         let at = (mb.mb_x, mb.mb_y, self.seq.mb_cols());
         let mode = mb_mode(&kind, &self.decided, at, self.syntax);
         let pred = predict_inter_blocks(
             &self.inter_context(),
             mb.mb_x,
             mb.mb_y,
-            &split.block_vectors(&mvs),
+            &split.block_vectors(&mvs.map(RefMv::previous)),
         );
         let choice = self.coded_choice(mb, kind, &mode, pred);
         mb.consider(choice);
@@ -638,13 +651,14 @@ impl<'a> InterFrameCoder<'a> {
             split,
             &self.decided,
             (mb.mb_x, mb.mb_y, self.seq.mb_cols()),
-            |k, mvp| {
+            |k, predict| {
+                let mvp = predict(0);
                 let p = &split.parts()[k];
                 self.partition_candidates(mb, p, quad, &mut candidates);
                 let best = search.best(p, &candidates, mvp, refine);
                 mvs[k] = best.mv;
                 total += best.cost;
-                Some(best.mv)
+                Some(RefMv::previous(best.mv))
             },
         );
         // The split's own flags, over a 16x16 macroblock's.
@@ -653,8 +667,15 @@ impl<'a> InterFrameCoder<'a> {
             &MbMode::Split {
                 split,
                 mvds: [Mv::ZERO; 4],
+                refs: [0; 4],
             },
-        ) - self.mode_bits(mb, &MbMode::Inter { mvd: Mv::ZERO });
+        ) - self.mode_bits(
+            mb,
+            &MbMode::Inter {
+                mvd: Mv::ZERO,
+                ref_idx: 0,
+            },
+        );
         (total + search.sad_lambda * flags.max(0.0), split, mvs)
     }
 
@@ -748,7 +769,7 @@ impl<'a> InterFrameCoder<'a> {
                         self.seq,
                         self.coder,
                         self.src,
-                        self.reference,
+                        self.references[0],
                         residual_coder,
                         &mut frame,
                     )?;
@@ -794,7 +815,7 @@ fn recode(
     let mut recon = Frame::new(seq.coded_width(), seq.coded_height())?;
     frame.prediction_sse = 0;
     let ctx = InterContext {
-        reference,
+        references: &[reference],
         tool: frame.syntax.header.tool,
         vectors: &vectors,
         warped: None,

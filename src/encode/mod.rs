@@ -142,6 +142,7 @@ impl Encoder {
             fps_den: fps.1,
             frame_count: 0,
             vui: Vui::default(),
+            max_refs: 1,
         };
         Ok(Encoder {
             seq,
@@ -233,7 +234,7 @@ impl Encoder {
                     _ => MotionTool::Block,
                 };
                 let inputs = frame::InterInputs {
-                    reference,
+                    references: vec![reference],
                     motion,
                     tool,
                     decision: self.config.decision,

@@ -5,7 +5,7 @@ use ndarray::Array2;
 
 use super::config::{FlowMethod, Predictor, SearchSettings};
 use crate::codec::mv::Mv;
-use crate::codec::partition::MbVectors;
+use crate::codec::partition::{MbVectors, RefMv};
 use crate::codec::syntax::{mv_prediction, MB};
 use crate::codec::warp::MotionGrid;
 use crate::codec::{Frame, Plane};
@@ -112,7 +112,7 @@ impl MotionAnalyser {
                         } else {
                             seed
                         };
-                        vectors.push([Some(mv); 4]);
+                        vectors.push([Some(RefMv::previous(mv)); 4]);
                     }
                 }
                 // The flow's 8x8 medians: the partitions' candidates.
@@ -123,7 +123,7 @@ impl MotionAnalyser {
                         .collect()
                 });
                 FrameMotion::Vectors(BlockMotion {
-                    mb: vectors.into_iter().map(|v| v[0].unwrap_or_default()).collect(),
+                    mb: vectors.into_iter().map(|v| v[0].unwrap_or_default().mv).collect(),
                     blocks,
                     halfpel: self.planes(reference),
                 })

@@ -77,6 +77,7 @@ struct Tools<'a> {
     weightp: Option<bool>,
     partitions: Option<PartitionsArg>,
     dct8x8: Option<bool>,
+    refs: Option<u8>,
     deblock: bool,
     lambda_scale: f64,
     ipratio: f64,
@@ -127,6 +128,12 @@ fn config(qp: u8, predictor: &str, gop: usize, tools: &Tools<'_>) -> PyResult<En
     }
     if let Some(on) = tools.dct8x8 {
         c = c.transform_8x8(on);
+    }
+    if let Some(n) = tools.refs {
+        if !(1..=8).contains(&n) {
+            return Err(value_error(format!("refs {n} is not in 1..=8")));
+        }
+        c = c.refs(n);
     }
     Ok(c)
 }
@@ -207,8 +214,9 @@ fn encode_all(frames: &[Frame], fps: (u32, u32), config: EncoderConfig, keep: bo
 ///     weightp (weighted prediction) and partitions (True, False, or x264's
 ///     names: "all", "none", "p8x8" for 16x8, 8x16 and 8x8 inter
 ///     partitions, "i4x4" for intra in 4x4 blocks, "p8x8,i4x4") and dct8x8
-///     (the adaptive 8x8 transform of inter luma, x264's 8x8dct) override
-///     it when given.
+///     (the adaptive 8x8 transform of inter luma, x264's 8x8dct) and refs
+///     (1..8 references P frames may predict from, x264's --ref; `block`
+///     only) override it when given.
 /// ipratio: quantiser step of P frames over I frames (x264's --ipratio).
 /// deblock: the in-loop deblocking filter.
 /// frames: code at most this many frames.
@@ -218,7 +226,7 @@ fn encode_all(frames: &[Frame], fps: (u32, u32), config: EncoderConfig, keep: bo
 /// which `decode(stream)` reproduces exactly.
 #[pyfunction]
 #[pyo3(signature = (source, qp=28, predictor="block", *, gop=0, preset="medium", decision=None, rdoq=None,
-    weightp=None, partitions=None, dct8x8=None, deblock=true, lambda_scale=1.4, ipratio=DEFAULT_IPRATIO, frames=None, fps=(25, 1), threads=None, reconstruction=false))]
+    weightp=None, partitions=None, dct8x8=None, refs=None, deblock=true, lambda_scale=1.4, ipratio=DEFAULT_IPRATIO, frames=None, fps=(25, 1), threads=None, reconstruction=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn encode<'py>(
     py: Python<'py>,
@@ -232,6 +240,7 @@ pub fn encode<'py>(
     weightp: Option<bool>,
     partitions: Option<PartitionsArg>,
     dct8x8: Option<bool>,
+    refs: Option<u8>,
     deblock: bool,
     lambda_scale: f64,
     ipratio: f64,
@@ -247,6 +256,7 @@ pub fn encode<'py>(
         weightp,
         partitions,
         dct8x8,
+        refs,
         deblock,
         lambda_scale,
         ipratio,

@@ -24,6 +24,8 @@ def test_analysis_agrees_with_the_encoder_and_the_decoder(synth_frames):
         # Intra macroblocks have no vectors; the others do, in every 8x8 block.
         intra = np.kron(f["kind"] == 2, np.ones((2, 2), bool))
         assert np.array_equal(f["has_vector"], ~intra)
+        # One reference: index 0 wherever there is a vector, -1 for intra.
+        assert np.array_equal(f["refs"], np.where(intra, -1, 0))
     assert (frames[0]["kind"] == 2).all() and frames[0]["grid"] is None
     # The sample pans: the P frames' vectors are mostly not zero.
     moving = np.abs(frames[2]["vectors"]).sum(-1)[frames[2]["has_vector"]] > 0
@@ -55,3 +57,12 @@ def test_quality_metrics_rank_distortions(synth_frames):
     assert "ssim" not in same
     with pytest.raises(ValueError):
         mocomp.quality(ref, noisy, metrics="butteraugli")
+
+
+def test_reference_indices_stay_below_the_references_given(synth_frames):
+    source = synth_frames[:5]
+    stream, _, recon = mocomp.encode(source, qp=30, refs=3, reconstruction=True)
+    assert all(np.array_equal(a, b) for d, r in zip(mocomp.decode(stream), recon) for a, b in zip(d, r))
+    for i, f in enumerate(mocomp.analyze(stream)):
+        # Frame i has i earlier frames (at most 3) to predict from.
+        assert f["refs"].max() < min(i, 3) or f["type"] == "I"

@@ -106,6 +106,10 @@ pub struct ToolArgs {
     /// reference where the light changed).
     #[arg(long)]
     pub no_weightp: bool,
+    /// References P frames may predict from, 1 to 8, as x264's --ref
+    /// (`block` only) [default: the preset's].
+    #[arg(long, value_name = "N")]
+    pub refs: Option<u8>,
     /// No 8x8 transform (x264's --no-8x8dct): inter luma in 4x4
     /// transforms only.
     #[arg(long = "no-8x8dct")]
@@ -148,6 +152,9 @@ impl ToolArgs {
         }
         if let Some(p) = self.partitions {
             config = config.partitions(p);
+        }
+        if let Some(n) = self.refs {
+            config = config.refs(n);
         }
         config
     }

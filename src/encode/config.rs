@@ -3,6 +3,7 @@
 use std::fmt;
 use std::str::FromStr;
 
+use crate::codec::modes::MAX_REFS;
 use crate::codec::transform::MAX_QP;
 pub use crate::flow::FlowMethod;
 use crate::me::{Method, Subpel, MAX_RANGE};
@@ -329,6 +330,10 @@ pub struct EncoderConfig {
     /// Inter macroblocks may code their luma in the 8x8 transform
     /// (FORMAT.md section 10.2), as x264's `--8x8dct`.
     pub transform_8x8: bool,
+    /// How many earlier reconstructions P frames may predict from, 1..=8,
+    /// as x264's `--ref` (FORMAT.md section 4). `block` frames only: the
+    /// other predictors predict from the previous frame.
+    pub refs: u8,
 }
 
 /// The macroblock partitions the mode decision tries, as x264's
@@ -420,6 +425,7 @@ impl Default for EncoderConfig {
             weightp: true,
             partitions: Partitions::ALL,
             transform_8x8: true,
+            refs: 1,
         }
     }
 }
@@ -524,6 +530,21 @@ impl EncoderConfig {
         self
     }
 
+    /// How many references P frames may predict from (x264's `--ref`).
+    pub fn refs(mut self, refs: u8) -> EncoderConfig {
+        self.refs = refs;
+        self
+    }
+
+    /// The references P frames predict from: the configuration's for
+    /// `block`, one for the other predictors.
+    pub fn effective_refs(&self) -> u8 {
+        match self.predictor {
+            Predictor::Block(_) => self.refs,
+            _ => 1,
+        }
+    }
+
     /// Turns weighted prediction on or off.
     pub fn weightp(mut self, on: bool) -> EncoderConfig {
         self.weightp = on;
@@ -557,6 +578,9 @@ impl EncoderConfig {
         }
         if !(1.0..=16.0).contains(&self.ipratio) {
             return Err(format!("ipratio {} is not in 1..=16", self.ipratio));
+        }
+        if !(1..=MAX_REFS).contains(&self.refs) {
+            return Err(format!("{} references is not in 1..={MAX_REFS}", self.refs));
         }
         self.predictor.check()
     }

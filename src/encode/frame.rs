@@ -20,8 +20,9 @@ use crate::codec::recon::{
 };
 use crate::codec::residual::{MbResidual, ResidualCoder};
 use crate::codec::syntax::{
-    mb_mode, mb_vectors, mv_prediction, vector_syntax, walk_partitions, write_frame, BitCounts, CodedMb,
-    EntropyState, FrameHeader, FrameSyntax, FrameType, FrameWriter, MbKind, MotionTool, SequenceHeader,
+    mb_mode, mb_vectors, mv_prediction, mv_prediction_into, vector_syntax, walk_partitions, write_frame,
+    BitCounts, CodedMb, EntropyState, FrameHeader, FrameSyntax, FrameType, FrameWriter, MbKind, MotionTool,
+    SequenceHeader,
 };
 use crate::codec::warp::warp_frame;
 use crate::codec::weight::Weights;
@@ -32,6 +33,23 @@ use crate::metrics::squared_difference_sum;
 /// With the full decision, an inter candidate is coded only when its
 /// SATD + rate estimate is within this factor of the best's (x264's 5/4).
 const RD_MARGIN: f64 = 1.25;
+
+/// A 16x16 inter candidate of the mode decision.
+struct InterCandidate {
+    mv: RefMv,
+    /// The predicted vector into its reference.
+    mvp: Mv,
+    satd: u32,
+    /// SATD + sqrt(lambda) * (vector and reference index bits).
+    estimate: f64,
+    pred: MbSamples,
+}
+
+/// The length of reference index `ref_idx`'s truncated unary code among
+/// `refs` references (the rate estimate of the motion search).
+fn reference_bits(ref_idx: u8, refs: u8) -> u32 {
+    u32::from(if ref_idx + 1 < refs { ref_idx + 1 } else { ref_idx })
+}
 
 /// A coded frame.
 pub(crate) struct CodedFrame {
@@ -343,6 +361,8 @@ struct InterFrameCoder<'a> {
     partitions: bool,
     /// A vector per 8x8 block, when motion analysis has one (flows).
     blocks: Option<Vec<Mv>>,
+    /// Motion analysis' vectors per macroblock into each older reference.
+    older: Vec<Vec<Mv>>,
     /// The reference's half-pel planes, for the partitions' search.
     halfpel: Option<HalfPel>,
     /// The partition search's cache (kept: emptied, not reallocated).
@@ -378,6 +398,7 @@ impl<'a> InterFrameCoder<'a> {
                 mb: searched,
                 blocks,
                 halfpel,
+                older,
             },
             grid,
             warped,
@@ -390,6 +411,7 @@ impl<'a> InterFrameCoder<'a> {
                     mb: vec![Mv::ZERO; n],
                     blocks: None,
                     halfpel: None,
+                    older: Vec::new(),
                 };
                 (none, Some(g), Some(out))
             }
@@ -413,6 +435,7 @@ impl<'a> InterFrameCoder<'a> {
             coder,
             src,
             references: inputs.references,
+            older,
             tool: inputs.tool,
             decision: inputs.decision,
             syntax: vector_syntax(&header),
@@ -536,50 +559,72 @@ impl<'a> InterFrameCoder<'a> {
         mb
     }
 
-    /// Inter with the predicted vector and with the searched one (with
-    /// [`ModeDecision::Fast`], only the one of lower SATD + rate estimate).
+    /// Inter with the predicted vector and with the searched one, and
+    /// with each older reference's searched vector (with
+    /// [`ModeDecision::Fast`], only the one of lowest SATD + rate
+    /// estimate; with the full decision, those within [`RD_MARGIN`] of it).
     fn analyse_inter(&self, mb: &mut MbAnalysis) {
         let searched = self.searched[mb.index];
         let searched_mv = (self.syntax.any() && searched != mb.mvp).then_some(searched);
-        let mut candidates = Vec::with_capacity(2);
+        let mut candidates = Vec::with_capacity(1 + usize::from(self.syntax.refs()));
         for mv in std::iter::once(mb.mvp).chain(searched_mv) {
             let pred = if mv == mb.mvp {
                 mb.skip_pred.clone()
             } else {
                 predict_inter(&self.inter_context(), mb.mb_x, mb.mb_y, RefMv::previous(mv))
             };
-            let satd = luma_satd(&mb.source, &pred);
-            candidates.push((mv, pred, satd));
+            candidates.push(self.inter_candidate(mb, RefMv::previous(mv), mb.mvp, pred));
         }
-        mb.inter_satd = candidates.iter().map(|c| c.2).min().unwrap_or(u32::MAX);
-        let sad_lambda = self.coder.lambda.sqrt();
-        let estimate = |(mv, _, satd): &(Mv, MbSamples, u32)| {
-            f64::from(*satd) + sad_lambda * f64::from(mvd_bits(*mv, mb.mvp))
-        };
-        mb.inter_estimate = candidates.iter().map(estimate).fold(f64::INFINITY, f64::min);
-        if self.decision == ModeDecision::Fast && candidates.len() == 2 {
-            // The lower SATD + sqrt(lambda) * vector bits is coded alone.
-            if estimate(&candidates[1]) < estimate(&candidates[0]) {
-                candidates.swap(0, 1);
-            }
+        for ref_idx in 1..self.syntax.refs() {
+            candidates.push(self.older_reference_candidate(mb, ref_idx));
+        }
+        mb.inter_satd = candidates.iter().map(|c| c.satd).min().unwrap_or(u32::MAX);
+        mb.inter_estimate = candidates
+            .iter()
+            .map(|c| c.estimate)
+            .fold(f64::INFINITY, f64::min);
+        if self.decision == ModeDecision::Fast {
+            // The lowest SATD + sqrt(lambda) * vector bits is coded alone.
+            candidates.sort_by(|a, b| a.estimate.total_cmp(&b.estimate));
             candidates.truncate(1);
         } else {
             // Only the candidates whose estimate is within a quarter of
             // the best are coded (x264's threshold for RD mode decision):
             // as good on the development set, 2 % fewer instructions.
-            candidates.retain(|c| estimate(c) <= RD_MARGIN * mb.inter_estimate);
+            candidates.retain(|c| c.estimate <= RD_MARGIN * mb.inter_estimate);
         }
-        for (mv, pred, _) in candidates {
+        for c in candidates {
             let mode = MbMode::Inter {
-                mvd: mv - mb.mvp,
-                ref_idx: 0,
+                mvd: c.mv.mv - c.mvp,
+                ref_idx: c.mv.ref_idx,
             };
-            let kind = MbKind::Inter {
-                mv: RefMv::previous(mv),
-            };
-            let choice = self.coded_choice(mb, kind, &mode, pred);
+            let choice = self.coded_choice(mb, MbKind::Inter { mv: c.mv }, &mode, c.pred);
             mb.consider(choice);
         }
+    }
+
+    /// A 16x16 inter candidate with its SATD and its estimate, SATD +
+    /// sqrt(lambda) * (vector and reference index bits).
+    fn inter_candidate(&self, mb: &MbAnalysis, mv: RefMv, mvp: Mv, pred: MbSamples) -> InterCandidate {
+        let satd = luma_satd(&mb.source, &pred);
+        let bits = mvd_bits(mv.mv, mvp) + reference_bits(mv.ref_idx, self.syntax.refs());
+        InterCandidate {
+            mv,
+            mvp,
+            estimate: f64::from(satd) + self.coder.lambda.sqrt() * f64::from(bits),
+            satd,
+            pred,
+        }
+    }
+
+    /// The 16x16 candidate into older reference `ref_idx`, with motion
+    /// analysis' vector.
+    fn older_reference_candidate(&self, mb: &MbAnalysis, ref_idx: u8) -> InterCandidate {
+        let at = (mb.mb_x, mb.mb_y, self.seq.mb_cols());
+        let mvp = mv_prediction_into(&self.decided, at, ref_idx);
+        let mv = RefMv::new(self.older[usize::from(ref_idx) - 1][mb.index], ref_idx);
+        let pred = predict_inter(&self.inter_context(), mb.mb_x, mb.mb_y, mv);
+        self.inter_candidate(mb, mv, mvp, pred)
     }
 
     /// The macroblock split into partitions (block frames): the 8x8 split

@@ -103,8 +103,9 @@ pub struct Encoder {
     /// I frames' (at [`EncoderConfig::intra_qp`]).
     intra_coder: MbCoder,
     analyser: MotionAnalyser,
-    /// The previous reconstruction, coded size, borders extended.
-    reference: Option<Frame>,
+    /// The reconstructions since the last I frame, the latest first, at
+    /// most the configuration's references (coded size, borders extended).
+    references: Vec<Frame>,
     /// The previous source, coded size (flow predictors read it).
     prev_source: Option<Frame>,
     /// Coded-size frames to reuse (the reference and source before the
@@ -142,7 +143,7 @@ impl Encoder {
             fps_den: fps.1,
             frame_count: 0,
             vui: Vui::default(),
-            max_refs: 1,
+            max_refs: config.effective_refs(),
         };
         Ok(Encoder {
             seq,
@@ -153,7 +154,7 @@ impl Encoder {
             intra_coder: MbCoder::new(config.intra_qp(), config.lambda_scale, config.rdoq)
                 .intra4x4(config.partitions.i4x4),
             analyser: MotionAnalyser::new(config.predictor, config.qp, config.partitions.p8x8),
-            reference: None,
+            references: Vec::new(),
             prev_source: None,
             spare_recon: None,
             spare_output: None,
@@ -212,7 +213,7 @@ impl Encoder {
         };
         let intra = self.config.gop > 0 && self.index % self.config.gop == 0;
         let mut me_ms = 0.0;
-        let coded = match (&self.reference, &self.prev_source, intra) {
+        let coded = match (self.references.first(), &self.prev_source, intra) {
             (Some(unweighted), Some(prev), false) => {
                 let weights = if self.config.weightp {
                     weights::estimate(&src, unweighted)
@@ -226,15 +227,22 @@ impl Encoder {
                 });
                 let reference = weighted.as_ref().unwrap_or(unweighted);
                 let t = Instant::now();
-                let motion = self.analyser.analyse(&src, prev, reference);
+                // Older references: `block` only (the list holds one
+                // frame for the other predictors).
+                let motion = self
+                    .analyser
+                    .analyse(&src, prev, reference, &self.references[1..]);
                 me_ms = t.elapsed().as_secs_f64() * 1e3;
                 let tool = match self.config.predictor {
                     Predictor::Obmc(_) => MotionTool::Obmc,
                     Predictor::Dense { grid, .. } => MotionTool::Grid(grid),
                     _ => MotionTool::Block,
                 };
+                // Weights apply to reference 0 alone (FORMAT.md section 12).
+                let mut references = vec![reference];
+                references.extend(&self.references[1..]);
                 let inputs = frame::InterInputs {
-                    references: vec![reference],
+                    references,
                     motion,
                     tool,
                     decision: self.config.decision,
@@ -297,7 +305,13 @@ impl Encoder {
             me_ms,
             total_ms: coding_ms,
         };
-        self.spare_recon = self.reference.replace(coded.recon);
+        if intra {
+            self.references.clear();
+        }
+        if self.references.len() == usize::from(self.seq.max_refs) {
+            self.spare_recon = self.references.pop();
+        }
+        self.references.insert(0, coded.recon);
         self.spare_source = self.prev_source.replace(src);
         self.index += 1;
         Ok(EncodedFrame { bytes, recon, stats })

@@ -36,6 +36,8 @@ pub(crate) struct BlockMotion {
     /// The reference's half-pel planes, when partitions are analysed (the
     /// search made them; the partitions' search reads them again).
     pub halfpel: Option<HalfPel>,
+    /// Per older reference (index 1, 2, ...), one vector per macroblock.
+    pub older: Vec<Vec<Mv>>,
 }
 
 /// How far beyond the picture the half-pel planes kept for the partition
@@ -69,8 +71,16 @@ impl MotionAnalyser {
     }
 
     /// Motion of `source` (coded size) against `reference` (the previous
-    /// reconstruction); flow predictors look at `prev_source` instead.
-    pub fn analyse(&mut self, source: &Frame, prev_source: &Frame, reference: &Frame) -> FrameMotion {
+    /// reconstruction) and, for `block`, against the `older` ones (the
+    /// frame before it first); flow predictors look at `prev_source`
+    /// instead.
+    pub fn analyse(
+        &mut self,
+        source: &Frame,
+        prev_source: &Frame,
+        reference: &Frame,
+        older: &[Frame],
+    ) -> FrameMotion {
         let cols = source.width() / MB;
         let rows = source.height() / MB;
         match self.predictor {
@@ -78,19 +88,24 @@ impl MotionAnalyser {
                 mb: vec![Mv::ZERO; cols * rows],
                 blocks: None,
                 halfpel: self.planes(reference),
+                older: Vec::new(),
             }),
             Predictor::Block(s) => {
                 let halfpel = self.planes(reference);
+                let mb = self.search(source.y(), reference.y(), s, halfpel.as_ref());
+                let older = self.search_older(source.y(), older, s);
                 FrameMotion::Vectors(BlockMotion {
-                    mb: self.search(source.y(), reference.y(), s, halfpel.as_ref()),
+                    mb,
                     blocks: None,
                     halfpel,
+                    older,
                 })
             }
             Predictor::Obmc(s) => FrameMotion::Vectors(BlockMotion {
                 mb: self.search(source.y(), reference.y(), s, None),
                 blocks: None,
                 halfpel: None,
+                older: Vec::new(),
             }),
             Predictor::FlowBlock { flow, refine } => {
                 let f = self.flow(flow, source.y(), prev_source.y());
@@ -126,6 +141,7 @@ impl MotionAnalyser {
                     mb: vectors.into_iter().map(|v| v[0].unwrap_or_default().mv).collect(),
                     blocks,
                     halfpel: self.planes(reference),
+                    older: Vec::new(),
                 })
             }
             Predictor::Dense { flow, grid } => {
@@ -167,6 +183,30 @@ impl MotionAnalyser {
             }
             Err(_) => vec![Mv::ZERO; (cur.width() / MB) * (cur.height() / MB)],
         }
+    }
+
+    /// Per older reference, the vector of every macroblock: EPZS without
+    /// its window (the frame-level search gives each block its
+    /// neighbours' vectors into the same reference as candidates), the
+    /// reference-0 field scaled by the frame distance as the temporal one.
+    fn search_older(&self, cur: &Plane, older: &[Frame], s: SearchSettings) -> Vec<Vec<Mv>> {
+        let mut cfg = MeConfig::new(me::Method::Epzs, MB, s.range);
+        cfg.subpel = s.subpel;
+        cfg.metric = Metric::Satd;
+        cfg.lambda = lambda_for_qp(Metric::Satd, self.qp);
+        older
+            .iter()
+            .zip(2..)
+            .map(|(reference, distance)| {
+                let steady = self.prior.as_ref().map(|f| f.scaled(distance));
+                // As in `search`: the configuration and frames are the
+                // encoder's own.
+                match me::estimate_with_planes(cur, reference.y(), &cfg, steady.as_ref(), None) {
+                    Ok(field) => field.vectors().to_vec(),
+                    Err(_) => vec![Mv::ZERO; (cur.width() / MB) * (cur.height() / MB)],
+                }
+            })
+            .collect()
     }
 
     /// Flow from `cur` to `prev`: `cur(x) ~ prev(x + flow(x))`, which is the

@@ -323,6 +323,21 @@ impl MotionField {
         &self.costs
     }
 
+    /// The field with every vector times `k` (kept within the codec's
+    /// range): the motion over `k` frames of what moves steadily.
+    pub fn scaled(&self, k: i32) -> MotionField {
+        let limit = crate::codec::mv::MV_LIMIT;
+        let scale = |v: i32| v.saturating_mul(k).clamp(-limit, limit);
+        MotionField {
+            vectors: self
+                .vectors
+                .iter()
+                .map(|v| Mv::new(scale(v.x), scale(v.y)))
+                .collect(),
+            ..self.clone()
+        }
+    }
+
     /// The codec's predicted vector for block (col, row) from the blocks
     /// before it in raster order.
     pub fn predictor(&self, col: usize, row: usize) -> Mv {

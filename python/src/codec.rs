@@ -130,9 +130,6 @@ fn config(qp: u8, predictor: &str, gop: usize, tools: &Tools<'_>) -> PyResult<En
         c = c.transform_8x8(on);
     }
     if let Some(n) = tools.refs {
-        if !(1..=8).contains(&n) {
-            return Err(value_error(format!("refs {n} is not in 1..=8")));
-        }
         c = c.refs(n);
     }
     Ok(c)

@@ -48,7 +48,7 @@ def test_coding_tools_by_keyword(synth_frames):
     # References: one in the default preset; 0 or 9 are errors.
     assert mocomp.encode(source, qp=30, refs=1)[0] == on
     for refs in (0, 9):
-        with pytest.raises(ValueError, match="refs"):
+        with pytest.raises(ValueError, match="references"):
             mocomp.encode(source, refs=refs)
     # Presets, and options that override them: the full decision changes
     # what fast codes; the default is medium.

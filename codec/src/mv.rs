@@ -14,6 +14,7 @@
 //!    one counting as zero.
 
 use crate::bits::se_len;
+use crate::partition::{predict_with_references, RefMv};
 
 /// Largest coded vector component magnitude, quarter-pel: 4096 pixels.
 pub const MV_LIMIT: i32 = 1 << 14;
@@ -74,7 +75,7 @@ impl std::ops::Add for Mv {
 
 /// The median of three values.
 #[inline]
-pub fn median3(a: i32, b: i32, c: i32) -> i32 {
+pub(crate) fn median3(a: i32, b: i32, c: i32) -> i32 {
     a.max(b).min(a.min(b).max(c))
 }
 
@@ -88,17 +89,9 @@ pub fn median3(a: i32, b: i32, c: i32) -> i32 {
 /// assert_eq!(predict_mv(Some(a), None, None, None), a);
 /// ```
 pub fn predict_mv(left: Option<Mv>, top: Option<Mv>, top_right: Option<Mv>, top_left: Option<Mv>) -> Mv {
+    // One reference: the rule of several with every neighbour on it.
     let c = top_right.or(top_left);
-    if let (Some(a), None, None) = (left, top, c) {
-        return a;
-    }
-    let available = [left, top, c];
-    let mut only = available.iter().flatten();
-    if let (Some(&one), None) = (only.next(), only.next()) {
-        return one;
-    }
-    let [a, b, c] = available.map(|m| m.unwrap_or(Mv::ZERO));
-    Mv::new(median3(a.x, b.x, c.x), median3(a.y, b.y, c.y))
+    predict_with_references([left, top, c].map(|m| m.map(RefMv::previous)), 0)
 }
 
 /// The rate estimate of the vector `mv` predicted by `mvp`: `se(dx) +

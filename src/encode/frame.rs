@@ -590,7 +590,8 @@ impl<'a> InterFrameCoder<'a> {
         } else {
             // Only the candidates whose estimate is within a quarter of
             // the best are coded (x264's threshold for RD mode decision):
-            // as good on the development set, 2 % fewer instructions.
+            // as good on the development set's mean, 2 % fewer
+            // instructions on pan_cif (callgrind).
             candidates.retain(|c| c.estimate <= RD_MARGIN * mb.inter_estimate);
         }
         for c in candidates {

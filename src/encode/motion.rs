@@ -168,11 +168,7 @@ impl MotionAnalyser {
         s: SearchSettings,
         planes: Option<&HalfPel>,
     ) -> Vec<Mv> {
-        let mut cfg = MeConfig::new(s.method, MB, s.range);
-        cfg.subpel = s.subpel;
-        cfg.window = s.window;
-        cfg.metric = Metric::Satd;
-        cfg.lambda = lambda_for_qp(Metric::Satd, self.qp);
+        let cfg = self.search_config(s);
         // The configuration was checked when the encoder was made and the
         // frames are the encoder's own, so the search cannot refuse them.
         match me::estimate_with_planes(cur, reference, &cfg, self.prior.as_ref(), planes) {
@@ -185,15 +181,26 @@ impl MotionAnalyser {
         }
     }
 
+    /// Macroblock search by `s`, SATD + rate at the encoder's QP.
+    fn search_config(&self, s: SearchSettings) -> MeConfig {
+        let mut cfg = MeConfig::new(s.method, MB, s.range);
+        cfg.subpel = s.subpel;
+        cfg.window = s.window;
+        cfg.metric = Metric::Satd;
+        cfg.lambda = lambda_for_qp(Metric::Satd, self.qp);
+        cfg
+    }
+
     /// Per older reference, the vector of every macroblock: EPZS without
     /// its window (the frame-level search gives each block its
     /// neighbours' vectors into the same reference as candidates), the
     /// reference-0 field scaled by the frame distance as the temporal one.
     fn search_older(&self, cur: &Plane, older: &[Frame], s: SearchSettings) -> Vec<Vec<Mv>> {
-        let mut cfg = MeConfig::new(me::Method::Epzs, MB, s.range);
-        cfg.subpel = s.subpel;
-        cfg.metric = Metric::Satd;
-        cfg.lambda = lambda_for_qp(Metric::Satd, self.qp);
+        let cfg = self.search_config(SearchSettings {
+            method: me::Method::Epzs,
+            window: 0,
+            ..s
+        });
         older
             .iter()
             .zip(2..)

@@ -70,16 +70,22 @@ static LEVEL: AtomicU8 = AtomicU8::new(UNSET);
 #[inline]
 pub fn level() -> CpuLevel {
     match LEVEL.load(Ordering::Relaxed) {
-        UNSET => {
-            let from_env = std::env::var("MOCOMP_CPU")
-                .ok()
-                .and_then(|v| CpuLevel::from_name(&v));
-            let level = from_env.map_or(CpuLevel::detected(), |l| l.min(CpuLevel::detected()));
-            LEVEL.store(level as u8, Ordering::Relaxed);
-            level
-        }
+        UNSET => first_level(),
         v => CpuLevel::from_u8(v),
     }
+}
+
+/// The first call's work, apart so that [`level`] inlines into kernels'
+/// dispatch (it is asked millions of times a sequence).
+#[cold]
+#[inline(never)]
+fn first_level() -> CpuLevel {
+    let from_env = std::env::var("MOCOMP_CPU")
+        .ok()
+        .and_then(|v| CpuLevel::from_name(&v));
+    let level = from_env.map_or(CpuLevel::detected(), |l| l.min(CpuLevel::detected()));
+    LEVEL.store(level as u8, Ordering::Relaxed);
+    level
 }
 
 /// Whether kernels of `wanted` may run.

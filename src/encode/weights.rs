@@ -48,15 +48,21 @@ impl PlaneStats {
         let (w, h) = (p.width(), p.height());
         let cols = w.div_ceil(8);
         let mut block_sums = vec![0u32; cols * h.div_ceil(8)];
-        let mut sum = 0u64;
-        for y in 0..h {
-            let sums = &mut block_sums[(y / 8) * cols..][..cols];
-            for (chunk, s) in p.row(y).chunks(8).zip(sums.iter_mut()) {
-                let cs = chunk.iter().map(|&v| u32::from(v)).sum::<u32>();
-                *s += cs;
-                sum += u64::from(cs);
+        // Column sums over each band of 8 rows (at most 8 * 255: u16 lanes
+        // the compiler vectorises), then 8 columns to a block.
+        let mut column_sums = vec![0u16; w];
+        for (band, sums) in block_sums.chunks_exact_mut(cols).enumerate() {
+            column_sums.fill(0);
+            for y in band * 8..(band * 8 + 8).min(h) {
+                for (c, &v) in column_sums.iter_mut().zip(p.row(y)) {
+                    *c += u16::from(v);
+                }
+            }
+            for (s, chunk) in sums.iter_mut().zip(column_sums.chunks(8)) {
+                *s = chunk.iter().map(|&c| u32::from(c)).sum();
             }
         }
+        let sum = block_sums.iter().map(|&s| u64::from(s)).sum::<u64>();
         let n = (w * h) as f64;
         let mean = sum as f64 / n;
         // sum |v - mean| from the sum and count of the samples above the
@@ -65,14 +71,17 @@ impl PlaneStats {
         let cut = mean.floor().clamp(0.0, 255.0) as u8;
         let (mut above_sum, mut above_n) = (0u64, 0u64);
         for r in p.rows() {
-            let (mut s, mut c) = (0u32, 0u32);
-            for &v in r {
-                let above = u32::from(v > cut);
-                s += above * u32::from(v);
-                c += above;
+            // Runs of 64 samples, whose sums fit u16 lanes.
+            for run in r.chunks(64) {
+                let (mut s, mut c) = (0u16, 0u16);
+                for &v in run {
+                    let above = v > cut;
+                    s += if above { u16::from(v) } else { 0 };
+                    c += u16::from(above);
+                }
+                above_sum += u64::from(s);
+                above_n += u64::from(c);
             }
-            above_sum += u64::from(s);
-            above_n += u64::from(c);
         }
         let below_sum = (sum - above_sum) as f64;
         let below_n = (w * h) as f64 - above_n as f64;

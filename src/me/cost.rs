@@ -42,10 +42,16 @@ impl Metric {
     #[inline]
     #[allow(clippy::too_many_arguments)]
     pub fn cost(self, a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
+        (self.kernel())(a, sa, b, sb, w, h)
+    }
+
+    /// The kernel [`Metric::cost`] calls, chosen once for loops that call it
+    /// many times (a search's positions).
+    pub fn kernel(self) -> super::simd::CostFn {
         match self {
-            Metric::Sad => (super::simd::kernels().sad)(a, sa, b, sb, w, h),
-            Metric::Ssd => ssd(a, sa, b, sb, w, h),
-            Metric::Satd => (super::simd::kernels().satd)(a, sa, b, sb, w, h),
+            Metric::Sad => super::simd::kernels().sad,
+            Metric::Ssd => ssd,
+            Metric::Satd => super::simd::kernels().satd,
         }
     }
 }

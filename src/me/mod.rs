@@ -49,6 +49,7 @@ use crate::codec::mv::{mvd_bits, Mv};
 use crate::codec::syntax::predict_in_grid;
 use crate::codec::Plane;
 pub use cost::Metric;
+use simd::CostFn;
 
 /// A search method, named as in ffmpeg's `mestimate` filter.
 ///
@@ -357,24 +358,64 @@ pub(crate) struct SearchContext<'a> {
     halfpel: Option<&'a halfpel::HalfPel>,
     /// The full-pel centre of the window: zero, or a seed's.
     origin: (i32, i32),
+    /// What a block's many positions share, found once: the full-pel
+    /// metric's kernel, the block's samples and the offsets
+    /// `[min dx, max dx, min dy, max dy]` at which the reference's border
+    /// holds the whole block.
+    full_pel_kernel: CostFn,
+    block: &'a [u8],
+    in_place: [i32; 4],
 }
 
-impl SearchContext<'_> {
+impl<'a> SearchContext<'a> {
+    /// The search of the block at `(x, y)`: no predicted vector, no rate
+    /// term, no half-pel planes, the window centred on zero.
+    fn new(
+        cur: &'a Plane,
+        reference: &'a Plane,
+        (x, y): (usize, usize),
+        cfg: &'a MeConfig,
+    ) -> SearchContext<'a> {
+        let (x, y) = (x as isize, y as isize);
+        let (pad, b) = (reference.pad() as isize, cfg.block as isize);
+        let span = |at: isize, side: usize| [-pad - at, side as isize + pad - b - at].map(|d| d as i32);
+        let ([x0, x1], [y0, y1]) = (span(x, reference.width()), span(y, reference.height()));
+        SearchContext {
+            cur,
+            reference,
+            x,
+            y,
+            cfg,
+            mvp: Mv::ZERO,
+            lambda_q8: 0,
+            halfpel: None,
+            origin: (0, 0),
+            full_pel_kernel: cfg.full_pel_metric().kernel(),
+            block: &cur.data()[cur.index(x, y)..],
+            in_place: [x0, x1, y0, y1],
+        }
+    }
+
     /// Distortion of the block against the reference at full-pel offset
     /// (dx, dy): read in place when the reference's border holds the block
     /// there, else through the codec's (clamping) prediction.
+    #[inline]
     fn distortion(&self, dx: i32, dy: i32) -> u32 {
-        let b = self.cfg.block;
-        let a = &self.cur.data()[self.cur.index(self.x, self.y)..];
-        let (rx, ry) = (self.x + dx as isize, self.y + dy as isize);
-        let last = b as isize - 1;
-        if self.reference.in_padded(rx, ry) && self.reference.in_padded(rx + last, ry + last) {
-            let r = &self.reference.data()[self.reference.index(rx, ry)..];
-            return self
-                .cfg
-                .full_pel_metric()
-                .cost(a, self.cur.stride(), r, self.reference.stride(), b, b);
+        let [x0, x1, y0, y1] = self.in_place;
+        if (x0..=x1).contains(&dx) && (y0..=y1).contains(&dy) {
+            let at = self.reference.index(self.x + dx as isize, self.y + dy as isize);
+            let (b, r) = (self.cfg.block, &self.reference.data()[at..]);
+            return (self.full_pel_kernel)(self.block, self.cur.stride(), r, self.reference.stride(), b, b);
         }
+        self.distortion_clamped(dx, dy)
+    }
+
+    /// [`SearchContext::distortion`] where the block reaches past the
+    /// reference's border.
+    #[cold]
+    #[inline(never)]
+    fn distortion_clamped(&self, dx: i32, dy: i32) -> u32 {
+        let b = self.cfg.block;
         let mut scratch = [0u8; 32 * 32];
         predict_luma(
             self.reference,
@@ -387,9 +428,7 @@ impl SearchContext<'_> {
             &mut scratch,
             b,
         );
-        self.cfg
-            .full_pel_metric()
-            .cost(a, self.cur.stride(), &scratch, b, b, b)
+        (self.full_pel_kernel)(self.block, self.cur.stride(), &scratch, b, b, b)
     }
 
     /// Rate term of a quarter-pel vector, in cost units.
@@ -415,6 +454,7 @@ impl SearchContext<'_> {
     }
 
     /// Full cost of full-pel (dx, dy).
+    #[inline]
     fn full_pel_cost(&self, dx: i32, dy: i32) -> u64 {
         u64::from(self.distortion(dx, dy)) + self.rate(Mv::full_pel(dx, dy))
     }
@@ -430,8 +470,11 @@ impl SearchContext<'_> {
         if !done {
             predict_luma(self.reference, self.x, self.y, mv.x, mv.y, b, b, scratch, b);
         }
-        let a = &self.cur.data()[self.cur.index(self.x, self.y)..];
-        u64::from(self.cfg.metric.cost(a, self.cur.stride(), scratch, b, b, b)) + self.rate(mv)
+        u64::from(
+            self.cfg
+                .metric
+                .cost(self.block, self.cur.stride(), scratch, b, b, b),
+        ) + self.rate(mv)
     }
 }
 
@@ -530,11 +573,6 @@ pub(crate) fn estimate_with_planes(
     };
     let search_one = |field: &MotionField, col: usize, row: usize| -> Candidate {
         let s = SearchContext {
-            cur,
-            reference,
-            x: (col * cfg.block) as isize,
-            y: (row * cfg.block) as isize,
-            cfg,
             mvp: if lambda_q8 > 0 || cfg.method.uses_neighbours() {
                 field.predictor(col, row)
             } else {
@@ -542,7 +580,7 @@ pub(crate) fn estimate_with_planes(
             },
             lambda_q8,
             halfpel,
-            origin: (0, 0),
+            ..SearchContext::new(cur, reference, (col * cfg.block, row * cfg.block), cfg)
         };
         let neighbours = search::Neighbours::of(field, prior, col, row);
         let best = search::full_pel(&s, &neighbours);
@@ -609,15 +647,10 @@ pub fn search_around(
         )));
     }
     let s = SearchContext {
-        cur,
-        reference,
-        x: x as isize,
-        y: y as isize,
-        cfg,
         mvp,
         lambda_q8: (cfg.lambda * 256.0).round() as u64,
-        halfpel: None,
         origin: ((seed.x + 2) >> 2, (seed.y + 2) >> 2),
+        ..SearchContext::new(cur, reference, (x, y), cfg)
     };
     let mut scratch = [0u8; 32 * 32];
     let at_seed = Candidate {

@@ -118,19 +118,26 @@ impl<'s, 'p> Walk<'s, 'p> {
     }
 
     /// Evaluates (dx, dy) if inside the window and new; true if it became the best.
+    #[inline]
     fn try_at(&mut self, dx: i32, dy: i32) -> bool {
-        let (wx, wy) = (dx - self.origin.0, dy - self.origin.1);
-        if wx.abs() > self.range || wy.abs() > self.range {
+        // From the window's corner: one unsigned comparison per axis.
+        let (wx, wy) = (dx - self.origin.0 + self.range, dy - self.origin.1 + self.range);
+        let side = self.side as u32;
+        if wx as u32 >= side || wy as u32 >= side {
             return false;
         }
-        let i = (wy + self.range) as usize * self.side + (wx + self.range) as usize;
+        let i = wy as usize * self.side + wx as usize;
         let (word, bit) = (&mut self.seen.words()[i / 64], 1u64 << (i % 64));
         if *word & bit != 0 {
             return false;
         }
         *word |= bit;
+        let cost = self.s.full_pel_cost(dx, dy);
+        if cost > self.best.cost {
+            return false;
+        }
         let c = Candidate {
-            cost: self.s.full_pel_cost(dx, dy),
+            cost,
             mv: Mv::full_pel(dx, dy),
         };
         let better = c.beats(&self.best);

@@ -70,6 +70,35 @@ fn every_paired_4x4_satd_equals_scalar() {
 }
 
 #[test]
+fn every_capped_16x16_satd_equals_scalar_and_keeps_its_promise() {
+    let (long_a, long_b) = (bytes(21, 40 * 16 * 60), bytes(22, 40 * 16 * 61));
+    for seed in 0..60 {
+        let (a, b) = (&long_a[640 * seed..], &long_b[640 * seed + 3..]);
+        let satd = cost::satd(a, 40, b, 40, 16, 16);
+        for cap in [0, satd / 4, satd / 2, satd - 1, satd, u32::MAX] {
+            let want = mocomp::me::simd::satd_16x16_capped(a, 40, b, 40, cap);
+            // The whole SATD up to the cap, a value above it past it.
+            if satd <= cap {
+                assert_eq!(want, satd, "seed {seed} cap {cap}");
+            } else {
+                assert!(
+                    want > cap && want <= satd,
+                    "seed {seed} cap {cap}: {want} of {satd}"
+                );
+            }
+            for k in available() {
+                assert_eq!(
+                    (k.satd_16x16_capped)(a, 40, b, 40, cap),
+                    want,
+                    "{} seed {seed} cap {cap}",
+                    k.isa
+                );
+            }
+        }
+    }
+}
+
+#[test]
 fn blocks_at_picture_edges_read_only_their_slice() {
     // The last block of a padded plane ends exactly at the buffer's end.
     let p = Plane::from_fn(48, 32, |x, y| (x * 5 + y * 11) as u8).unwrap();

@@ -49,7 +49,7 @@ use crate::codec::mv::{mvd_bits, Mv};
 use crate::codec::syntax::predict_in_grid;
 use crate::codec::Plane;
 pub use cost::Metric;
-use simd::CostFn;
+use simd::{CappedFn, CostFn};
 
 /// A search method, named as in ffmpeg's `mestimate` filter.
 ///
@@ -365,6 +365,8 @@ pub(crate) struct SearchContext<'a> {
     full_pel_kernel: CostFn,
     block: &'a [u8],
     in_place: [i32; 4],
+    /// The capped kernel where the full-pel metric is SATD on 16x16 blocks.
+    capped: Option<CappedFn>,
 }
 
 impl<'a> SearchContext<'a> {
@@ -393,19 +395,29 @@ impl<'a> SearchContext<'a> {
             full_pel_kernel: cfg.full_pel_metric().kernel(),
             block: &cur.data()[cur.index(x, y)..],
             in_place: [x0, x1, y0, y1],
+            capped: (cfg.block == 16 && cfg.full_pel_metric() == Metric::Satd)
+                .then(|| simd::kernels().satd_16x16_capped),
         }
     }
 
     /// Distortion of the block against the reference at full-pel offset
     /// (dx, dy): read in place when the reference's border holds the block
-    /// there, else through the codec's (clamping) prediction.
+    /// there, else through the codec's (clamping) prediction. Above `cap`,
+    /// it may be any value above `cap` (the capped kernel's half).
     #[inline]
-    fn distortion(&self, dx: i32, dy: i32) -> u32 {
+    fn distortion(&self, dx: i32, dy: i32, cap: u32) -> u32 {
         let [x0, x1, y0, y1] = self.in_place;
         if (x0..=x1).contains(&dx) && (y0..=y1).contains(&dy) {
             let at = self.reference.index(self.x + dx as isize, self.y + dy as isize);
-            let (b, r) = (self.cfg.block, &self.reference.data()[at..]);
-            return (self.full_pel_kernel)(self.block, self.cur.stride(), r, self.reference.stride(), b, b);
+            let (b, r, stride) = (
+                self.cfg.block,
+                &self.reference.data()[at..],
+                self.reference.stride(),
+            );
+            return match self.capped {
+                Some(capped) => capped(self.block, self.cur.stride(), r, stride, cap),
+                None => (self.full_pel_kernel)(self.block, self.cur.stride(), r, stride, b, b),
+            };
         }
         self.distortion_clamped(dx, dy)
     }
@@ -453,10 +465,13 @@ impl<'a> SearchContext<'a> {
         }
     }
 
-    /// Full cost of full-pel (dx, dy).
+    /// Full cost of full-pel (dx, dy) or, when it exceeds `bound`, a cost
+    /// that does (positions that cannot beat `bound` may stop early).
     #[inline]
-    fn full_pel_cost(&self, dx: i32, dy: i32) -> u64 {
-        u64::from(self.distortion(dx, dy)) + self.rate(Mv::full_pel(dx, dy))
+    fn full_pel_cost(&self, dx: i32, dy: i32, bound: u64) -> u64 {
+        let rate = self.rate(Mv::full_pel(dx, dy));
+        let cap = bound.saturating_sub(rate).min(u64::from(u32::MAX)) as u32;
+        u64::from(self.distortion(dx, dy, cap)) + rate
     }
 
     /// Full cost of a quarter-pel vector: on the reference's half-pel

@@ -132,7 +132,7 @@ impl<'s, 'p> Walk<'s, 'p> {
             return false;
         }
         *word |= bit;
-        let cost = self.s.full_pel_cost(dx, dy);
+        let cost = self.s.full_pel_cost(dx, dy, self.best.cost);
         if cost > self.best.cost {
             return false;
         }

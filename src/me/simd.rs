@@ -25,6 +25,28 @@ pub type CostFn = fn(&[u8], usize, &[u8], usize, usize, usize) -> u32;
 /// [`cost::satd`] of that tile alone).
 pub type PairFn = fn(&[u8; 32], &[u8; 32]) -> [u32; 2];
 
+/// Signature of the capped 16x16 SATD: `(a, a_stride, b, b_stride, cap)`,
+/// the SATD of the two 16x16 blocks or, when the SATD of their top 16x8
+/// halves already exceeds `cap`, that one: a search's positions that
+/// cannot beat its best stop half way (SATD only grows with rows).
+pub type CappedFn = fn(&[u8], usize, &[u8], usize, u32) -> u32;
+
+/// The scalar capped 16x16 SATD.
+pub fn satd_16x16_capped(a: &[u8], sa: usize, b: &[u8], sb: usize, cap: u32) -> u32 {
+    capped_by_halves(cost::satd, a, sa, b, sb, cap)
+}
+
+/// [`CappedFn`] from a SATD kernel, one 16x8 half at a time (halves add up
+/// exactly: every 4x4 tile's coefficient sum is even).
+#[inline]
+fn capped_by_halves(satd: CostFn, a: &[u8], sa: usize, b: &[u8], sb: usize, cap: u32) -> u32 {
+    let top = satd(a, sa, b, sb, 16, 8);
+    if top > cap {
+        return top;
+    }
+    top + satd(&a[8 * sa..], sa, &b[8 * sb..], sb, 16, 8)
+}
+
 /// The scalar paired 4x4 SATD.
 pub fn satd_4x4_pair(a: &[u8; 32], b: &[u8; 32]) -> [u32; 2] {
     [0, 4].map(|o| cost::satd(&a[o..], 8, &b[o..], 8, 4, 4))
@@ -39,6 +61,8 @@ pub struct Kernels {
     pub satd: CostFn,
     /// SATD of two 4x4 tiles at once (4x4 intra mode search).
     pub satd_4x4_pair: PairFn,
+    /// 16x16 SATD that may stop half way above a cap (block search).
+    pub satd_16x16_capped: CappedFn,
     /// Name of the instruction set in use, for reports.
     pub isa: &'static str,
 }
@@ -54,6 +78,7 @@ pub const SCALAR: Kernels = Kernels {
     sad: cost::sad,
     satd: cost::satd,
     satd_4x4_pair,
+    satd_16x16_capped,
     isa: "scalar",
 };
 
@@ -94,18 +119,20 @@ fn check_bounds(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) {
 mod x86 {
     use std::arch::x86_64::*;
 
-    use super::{check_bounds, cost, Kernels};
+    use super::{capped_by_halves, check_bounds, cost, Kernels};
 
     pub const SSE2: Kernels = Kernels {
         sad: sad_sse2,
         satd: satd_sse2,
         satd_4x4_pair: satd_4x4_pair_sse2,
+        satd_16x16_capped: satd_16x16_capped_sse2,
         isa: "sse2",
     };
     pub const AVX2: Kernels = Kernels {
         sad: sad_avx2,
         satd: satd_avx2,
         satd_4x4_pair: satd_4x4_pair_sse2,
+        satd_16x16_capped: satd_16x16_capped_avx2,
         isa: "avx2",
     };
 
@@ -118,7 +145,7 @@ mod x86 {
         // chosen; every 16x4 region lies inside the checked block.
         if w == 16 && h == 16 {
             // The macroblock: its four strips in one call, one reduction.
-            return unsafe { satd_16x16_avx2(a.as_ptr(), sa, b.as_ptr(), sb) };
+            return unsafe { satd_16x16_avx2(a.as_ptr(), sa, b.as_ptr(), sb, u32::MAX) };
         }
         let mut acc = [0u32; 8];
         {
@@ -139,20 +166,45 @@ mod x86 {
         acc.iter().sum::<u32>().div_ceil(2)
     }
 
+    fn satd_16x16_capped_sse2(a: &[u8], sa: usize, b: &[u8], sb: usize, cap: u32) -> u32 {
+        capped_by_halves(satd_sse2, a, sa, b, sb, cap)
+    }
+
+    fn satd_16x16_capped_avx2(a: &[u8], sa: usize, b: &[u8], sb: usize, cap: u32) -> u32 {
+        check_bounds(a, sa, b, sb, 16, 16);
+        // SAFETY: AVX2 was detected before this set was chosen; the blocks
+        // lie inside the checked slices.
+        unsafe { satd_16x16_avx2(a.as_ptr(), sa, b.as_ptr(), sb, cap) }
+    }
+
     /// The SATD of a 16x16 block: [`hadamard_abs_16x4_avx2`] over its four
     /// strips with x264's shortcut for the last butterfly, |p + q| +
     /// |p - q| = 2 max(|p|, |q|), so that the halved sum is the sum of the
     /// maxima (at most 8 * 255 each, eight a lane: they add up in 16 bits).
+    /// Stops after the top half when its SATD exceeds `cap` ([`CappedFn`]).
     #[target_feature(enable = "avx2")]
-    unsafe fn satd_16x16_avx2(a: *const u8, sa: usize, b: *const u8, sb: usize) -> u32 {
+    unsafe fn satd_16x16_avx2(a: *const u8, sa: usize, b: *const u8, sb: usize, cap: u32) -> u32 {
         let mut sum16 = _mm256_setzero_si256();
         for ty in (0..16).step_by(4) {
+            if ty == 8 {
+                let top = sum_u16_lanes(sum16);
+                if top > cap {
+                    return top;
+                }
+            }
             let (pq0, pq1) = hadamard_16x4_last_pairs(a.add(ty * sa), sa, b.add(ty * sb), sb);
             for (p, q) in [pq0, pq1] {
                 sum16 = _mm256_add_epi16(sum16, _mm256_max_epi16(_mm256_abs_epi16(p), _mm256_abs_epi16(q)));
             }
         }
-        let v = _mm256_madd_epi16(sum16, _mm256_set1_epi16(1));
+        sum_u16_lanes(sum16)
+    }
+
+    /// The sum of the sixteen 16-bit lanes (each at most 2^15).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn sum_u16_lanes(v: __m256i) -> u32 {
+        let v = _mm256_madd_epi16(v, _mm256_set1_epi16(1));
         let s = _mm_add_epi32(_mm256_castsi256_si128(v), _mm256_extracti128_si256::<1>(v));
         let s = _mm_add_epi32(s, _mm_shuffle_epi32::<0b01_00_11_10>(s));
         let s = _mm_add_epi32(s, _mm_shuffle_epi32::<0b10_11_00_01>(s));

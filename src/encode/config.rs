@@ -31,7 +31,7 @@ impl Default for SearchSettings {
             range: 16,
             subpel: Subpel::Quarter,
             // The medium preset's.
-            window: 4,
+            window: 3,
         }
     }
 }
@@ -242,10 +242,11 @@ pub enum EncoderPreset {
     /// (as x264's faster presets drop trellis).
     Fast,
     /// As fast, with RDOQ, the full mode decision, macroblock partitions
-    /// and EPZS's exhaustive window of 4 pels. The default.
+    /// and EPZS's exhaustive window of 3 pels. The default.
     #[default]
     Medium,
-    /// As medium, with a search range of 32 and three references.
+    /// As medium, with a search range of 32, a window of 4 pels and three
+    /// references.
     Slow,
 }
 
@@ -517,7 +518,13 @@ impl EncoderConfig {
             } else {
                 SearchSettings::default().range
             };
-            search.window = if preset >= Medium { 4 } else { 0 };
+            // 3 pels in medium: 0.2 % more bits than 4 on the development
+            // set's mean, for 7 % fewer instructions (pan_cif).
+            search.window = match preset {
+                Ultrafast | Fast => 0,
+                Medium => 3,
+                Slow => 4,
+            };
         }
         self
     }
@@ -634,7 +641,7 @@ mod tests {
             assert_eq!(s.subpel == Subpel::Half, p == EncoderPreset::Ultrafast);
             assert_eq!(c.decision == ModeDecision::Full, p >= EncoderPreset::Medium);
             assert_eq!(s.range, if p == EncoderPreset::Slow { 32 } else { 16 });
-            assert_eq!(s.window, if p >= EncoderPreset::Medium { 4 } else { 0 });
+            assert_eq!(s.window, [0, 0, 3, 4][p as usize]);
         }
         // The default configuration is the medium preset's.
         assert_eq!(

@@ -81,12 +81,14 @@ pub struct MbResidual {
     pub luma8: Option<Box<[Block8; 4]>>,
 }
 
+// (An OR of every level rather than a search for the first non-zero one:
+// it vectorises, and most blocks asked about are all zero.)
 fn is_zero(b: &Block4) -> bool {
-    b.as_flattened().iter().all(|&v| v == 0)
+    b.as_flattened().iter().fold(0, |acc, &v| acc | v) == 0
 }
 
 fn is_zero8(b: &Block8) -> bool {
-    b.as_flattened().iter().all(|&v| v == 0)
+    b.as_flattened().iter().fold(0, |acc, &v| acc | v) == 0
 }
 
 /// Luma 4x4 block indices of 8x8 quadrant `q`.

@@ -8,6 +8,7 @@
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use mocomp::codec::deblock::{deblock_frame, MbEdgeInfo};
 use mocomp::codec::intra4x4::{self, Edges, Intra4x4Mode};
+use mocomp::codec::intra8x8;
 use mocomp::codec::mv::Mv;
 use mocomp::codec::partition::RefMv;
 use mocomp::codec::transform::{dequantize, forward_4x4, inverse_4x4, quantize, Block4};
@@ -144,6 +145,20 @@ fn kernels(c: &mut Criterion) {
             let mut out = [0u8; 16];
             for &m in &modes {
                 intra4x4::predict(m, black_box(&edges), &mut out);
+            }
+            out
+        })
+    });
+    let edges8 = intra8x8::Edges8 {
+        top: Some(std::array::from_fn(|x| 90 + (x * x / 4) as u8)),
+        left: Some([88, 86, 85, 85, 84, 82, 81, 81]),
+        top_left: Some(89),
+    };
+    c.bench_function("intra8x8_nine_modes_one_block", |b| {
+        b.iter(|| {
+            let mut out = [0u8; 64];
+            for &m in &modes {
+                intra8x8::predict(m, black_box(&edges8), &mut out);
             }
             out
         })

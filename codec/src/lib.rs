@@ -16,6 +16,7 @@ pub mod entropy;
 pub mod interp;
 pub mod intra;
 pub mod intra4x4;
+pub mod intra8x8;
 pub mod modes;
 pub mod mv;
 pub mod obmc;

@@ -141,16 +141,7 @@ pub fn neighbours(k: usize, mb_x: usize, mb_y: usize, mb_cols: usize) -> (bool, 
 /// 16x16 row-major).
 pub fn edges(recon: &Plane, own: &[u8; 256], mb_x: usize, mb_y: usize, k: usize) -> Edges {
     let (above, left, above_right) = neighbours(k, mb_x, mb_y, recon.width() / MB);
-    let (mx, my) = ((mb_x * MB) as isize, (mb_y * MB) as isize);
-    // Sample (x, y) relative to the macroblock: its own inside it, the
-    // picture's outside (-1 is left of or above it).
-    let at = |x: isize, y: isize| -> u8 {
-        if x >= 0 && y >= 0 && x < MB as isize {
-            own[y as usize * MB + x as usize]
-        } else {
-            recon.get((mx + x) as usize, (my + y) as usize)
-        }
-    };
+    let at = mb_sampler(recon, own, mb_x, mb_y);
     let (bx, by) = (4 * (k % 4) as isize, 4 * (k / 4) as isize);
     let top = above.then(|| {
         let mut t = [0u8; 8];
@@ -170,6 +161,25 @@ pub fn edges(recon: &Plane, own: &[u8; 256], mb_x: usize, mb_y: usize, k: usize)
         top,
         left: left_col,
         top_left,
+    }
+}
+
+/// Sample (x, y) relative to macroblock (mb_x, mb_y) (-1 is left of or
+/// above it) as intra prediction reads it: the macroblock's `own` samples
+/// (16x16 row-major) inside it, `recon`'s outside.
+pub(crate) fn mb_sampler<'a>(
+    recon: &'a Plane,
+    own: &'a [u8; 256],
+    mb_x: usize,
+    mb_y: usize,
+) -> impl Fn(isize, isize) -> u8 + 'a {
+    let (mx, my) = ((mb_x * MB) as isize, (mb_y * MB) as isize);
+    move |x, y| {
+        if x >= 0 && y >= 0 && x < MB as isize {
+            own[y as usize * MB + x as usize]
+        } else {
+            recon.get((mx + x) as usize, (my + y) as usize)
+        }
     }
 }
 

@@ -23,7 +23,7 @@
 //! assert_eq!(out, [70; 64]);
 //! ```
 
-use crate::intra4x4::Intra4x4Mode;
+use crate::intra4x4::{mb_sampler, Intra4x4Mode};
 use crate::picture::Plane;
 use crate::syntax::MB;
 
@@ -62,14 +62,7 @@ pub fn neighbours(q: usize, mb_x: usize, mb_y: usize, mb_cols: usize) -> (bool, 
 /// row-major).
 pub fn edges(recon: &Plane, own: &[u8; 256], mb_x: usize, mb_y: usize, q: usize) -> Edges8 {
     let (above, left, above_right) = neighbours(q, mb_x, mb_y, recon.width() / MB);
-    let (mx, my) = ((mb_x * MB) as isize, (mb_y * MB) as isize);
-    let at = |x: isize, y: isize| -> u8 {
-        if x >= 0 && y >= 0 && x < MB as isize {
-            own[y as usize * MB + x as usize]
-        } else {
-            recon.get((mx + x) as usize, (my + y) as usize)
-        }
-    };
+    let at = mb_sampler(recon, own, mb_x, mb_y);
     let (bx, by) = (8 * (q % 2) as isize, 8 * (q / 2) as isize);
     let top = above.then(|| {
         std::array::from_fn(|c| {

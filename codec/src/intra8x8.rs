@@ -108,7 +108,6 @@ pub fn filtered(e: &Edges8) -> Edges8 {
 /// unfiltered edges `e`. The mode must be available with these edges
 /// ([`Intra4x4Mode::is_available`]); panics otherwise.
 pub fn predict(mode: Intra4x4Mode, e: &Edges8, out: &mut [u8; 64]) {
-    use Intra4x4Mode::*;
     let (needs_top, needs_left) = mode.needs();
     assert!(
         (e.top.is_some() || !needs_top)
@@ -116,11 +115,20 @@ pub fn predict(mode: Intra4x4Mode, e: &Edges8, out: &mut [u8; 64]) {
             && (e.top_left.is_some() || !(needs_top && needs_left)),
         "8x8 intra mode {mode:?} without its neighbours"
     );
-    let e = filtered(e);
-    if mode == Dc {
-        out.fill(dc(&e));
-        return;
+    predict_filtered(mode, &filtered(e), out);
+}
+
+/// Fills `out` with `g(x, y)` (one loop per mode, each inlined).
+#[inline(always)]
+fn fill(out: &mut [u8; 64], g: impl Fn(i32, i32) -> i32) {
+    for (i, o) in out.iter_mut().enumerate() {
+        *o = g((i % 8) as i32, (i / 8) as i32) as u8;
     }
+}
+
+/// [`predict`] from the filtered edges.
+fn predict_filtered(mode: Intra4x4Mode, e: &Edges8, out: &mut [u8; 64]) {
+    use Intra4x4Mode::*;
     // The edge as one line: left column bottom to top, the corner, then
     // the row above and above right. p(-1, y) = line[7 - y], p(x, -1) =
     // line[9 + x], the corner being both at index 8.
@@ -136,21 +144,6 @@ pub fn predict(mode: Intra4x4Mode, e: &Edges8, out: &mut [u8; 64]) {
             line[9 + x] = i32::from(v);
         }
     }
-    directional(mode, &line, out);
-}
-
-/// Fills `out` with `g(x, y)` (one loop per mode, each inlined).
-#[inline(always)]
-fn fill(out: &mut [u8; 64], g: impl Fn(i32, i32) -> i32) {
-    for (i, o) in out.iter_mut().enumerate() {
-        *o = g((i % 8) as i32, (i / 8) as i32) as u8;
-    }
-}
-
-/// A directional mode from the filtered edge `line` (laid out as in
-/// [`predict`]).
-fn directional(mode: Intra4x4Mode, line: &[i32; 25], out: &mut [u8; 64]) {
-    use Intra4x4Mode::*;
     let t = |x: i32| line[(9 + x) as usize];
     let l = |y: i32| line[(7 - y) as usize];
     let f3 = |a: i32, b: i32, c: i32| (a + 2 * b + c + 2) >> 2;
@@ -189,7 +182,7 @@ fn directional(mode: Intra4x4Mode, line: &[i32; 25], out: &mut [u8; 64]) {
             13 => (l(6) + 3 * l(7) + 2) >> 2,
             _ => l(7),
         }),
-        Dc => unreachable!("DC is predicted whole"),
+        Dc => out.fill(dc(e)),
     }
 }
 

@@ -14,7 +14,8 @@ use std::io::Read;
 use serde::Serialize;
 
 use crate::codec::decoder::{DecodeError, Decoder};
-use crate::codec::intra4x4::LumaIntra;
+use crate::codec::intra::IntraMode;
+use crate::codec::intra4x4::{Intra4x4Mode, LumaIntra};
 use crate::codec::partition::{MbVectors, Split};
 use crate::codec::syntax::{
     BitCounts, CodedMb, EntropyState, FrameSyntax, FrameType, FrameWriter, MbKind, MotionTool, SequenceHeader,
@@ -47,8 +48,8 @@ pub struct MbRecord {
     pub refs: [Option<u8>; 4],
     /// The frame's QP (the format has no per-macroblock QP).
     pub qp: u8,
-    /// The luma's transform size, 4 or 8 (intra and inter macroblocks
-    /// without luma levels: 4).
+    /// The luma's transform size, 4 or 8 (8 for intra in 8x8 blocks; 4 for
+    /// inter macroblocks without luma levels).
     pub transform: u8,
     /// Luma 4x4 blocks with levels (0..=16; with the 8x8 transform, four
     /// for each 8x8 block with levels).
@@ -217,14 +218,8 @@ fn record(
         ),
         MbKind::Intra { luma, chroma } => match luma {
             LumaIntra::Whole(m) => ("intra", "16x16", format!("{m:?},{chroma:?}").to_lowercase()),
-            LumaIntra::Blocks(modes) => {
-                let luma: Vec<String> = modes.iter().map(|m| format!("{m:?}").to_lowercase()).collect();
-                (
-                    "intra",
-                    "4x4",
-                    format!("{},{}", luma.join("/"), format!("{chroma:?}").to_lowercase()),
-                )
-            }
+            LumaIntra::Blocks(modes) => ("intra", "4x4", block_modes(modes, *chroma)),
+            LumaIntra::Blocks8(modes) => ("intra", "8x8", block_modes(modes, *chroma)),
         },
     };
     let r = mb.residual();
@@ -238,7 +233,7 @@ fn record(
         vectors: vectors.map(|v| v.map(|v| (v.mv.x, v.mv.y))),
         refs: vectors.map(|v| v.map(|v| v.ref_idx)),
         qp,
-        transform: if r.transform_8x8() { 8 } else { 4 },
+        transform: if mb.kind.luma_transform_8x8(r) { 8 } else { 4 },
         coded_luma_blocks: r.luma_coded().iter().filter(|&&c| c).count() as u8,
         coded_chroma_blocks: r.chroma.iter().flatten().filter(coded).count() as u8,
         bits_header: bits[0],
@@ -280,4 +275,11 @@ pub fn csv_row(frame: &FrameAnalysis, m: &MbRecord) -> String {
         m.bits_motion,
         m.bits_residual
     )
+}
+
+/// Block intra modes as the records list them: the luma modes in raster
+/// order, joined by '/', then the chroma mode.
+fn block_modes(modes: &[Intra4x4Mode], chroma: IntraMode) -> String {
+    let luma: Vec<String> = modes.iter().map(|m| format!("{m:?}").to_lowercase()).collect();
+    format!("{},{}", luma.join("/"), format!("{chroma:?}").to_lowercase())
 }

@@ -85,13 +85,26 @@ fn partitions_intra_modes_and_vectors_are_reported_as_coded() {
         .iter()
         .flat_map(|f| f.mbs.iter().map(move |m| (f, m)))
         .collect();
-    // I frame: intra only, 16x16 or 4x4 with as many modes as blocks.
+    // I frame: intra only, 16x16, 8x8 or 4x4 with as many modes as
+    // blocks; 8x8 blocks in the 8x8 transform.
     for m in &analysed[0].mbs {
         assert_eq!(m.kind, "intra");
         let luma = m.intra_modes.split(',').next().unwrap();
-        let want = if m.partition == "4x4" { 16 } else { 1 };
+        let want = match m.partition {
+            "4x4" => 16,
+            "8x8" => 4,
+            _ => 1,
+        };
         assert_eq!(luma.split('/').count(), want, "{m:?}");
         assert_eq!(m.vectors, [None; 4]);
+        assert_eq!(m.transform == 8, m.partition == "8x8", "{m:?}");
+    }
+    // Every intra size is chosen somewhere in the I frame.
+    for size in ["16x16", "8x8", "4x4"] {
+        assert!(
+            analysed[0].mbs.iter().any(|m| m.partition == size),
+            "no intra {size}"
+        );
     }
     // P frames: split macroblocks carry partition vectors consistent with
     // their shape; whole ones one vector four times.
@@ -118,14 +131,15 @@ fn partitions_intra_modes_and_vectors_are_reported_as_coded() {
                 (0, 0, 0.0)
             );
         }
-        // The 8x8 transform: inter only, with luma levels in whole 8x8
-        // blocks (four 4x4 blocks each).
+        // The 8x8 transform: inter with luma levels, or intra in 8x8
+        // blocks; levels in whole 8x8 blocks (four 4x4 blocks each).
         assert!(m.transform == 4 || m.transform == 8, "{m:?}");
         if m.transform == 8 {
-            assert!(
-                m.kind == "inter" && m.coded_luma_blocks % 4 == 0 && m.coded_luma_blocks > 0,
-                "{m:?}"
-            );
+            assert_eq!(m.coded_luma_blocks % 4, 0, "{m:?}");
+            match m.kind {
+                "inter" => assert!(m.coded_luma_blocks > 0, "{m:?}"),
+                _ => assert_eq!((m.kind, m.partition), ("intra", "8x8"), "{m:?}"),
+            }
         }
     }
     assert!(

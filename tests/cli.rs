@@ -1091,11 +1091,16 @@ fn presets_differ_options_override_them_and_every_stream_decodes() {
         encode("o.mcv", &[&["--preset", "fast"][..], &as_ultrafast].concat()),
         streams[0]
     );
-    // x264's partition names: medium without 4x4 intra differs, and is
-    // medium with p8x8 alone.
-    let p8x8 = encode("p8.mcv", &["--partitions", "p8x8"]);
-    assert_ne!(p8x8, streams[2]);
-    assert_eq!(encode("p8b.mcv", &["--partitions", "p8x8,i4x4"]), streams[2]);
+    // x264's partition names: medium is all of them; without 4x4 or 8x8
+    // intra it differs; as x264's i8x8, 8x8 intra needs the 8x8 transform.
+    assert_eq!(encode("all.mcv", &["--partitions", "p8x8,i8x8,i4x4"]), streams[2]);
+    for fewer in ["p8x8", "p8x8,i4x4", "p8x8,i8x8"] {
+        assert_ne!(encode("p8.mcv", &["--partitions", fewer]), streams[2], "{fewer}");
+    }
+    assert_eq!(
+        encode("no8.mcv", &["--no-8x8dct"]),
+        encode("no8i.mcv", &["--no-8x8dct", "--partitions", "p8x8,i4x4"])
+    );
     mocomp()
         .args([
             "encode",

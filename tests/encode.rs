@@ -421,13 +421,15 @@ fn bad_configurations_and_frames_are_errors() {
     assert!(e.encode(&Frame::new(17, 16).unwrap()).is_err());
 }
 
-/// A picture whose 16x16 areas each hold a different oriented pattern, so
-/// that one 16x16 intra mode fits none of them: 4x4 intra fits each.
-fn oriented_patches(w: usize, h: usize) -> Frame {
+/// A picture whose `size x size` areas each hold stripes along one of four
+/// directions (area (i, j) the `(i + 3 j) % 4`-th: constant along the
+/// anti-diagonal, the diagonal, y, x): with areas of 8, one 16x16 intra
+/// mode fits no macroblock, and 4x4 intra fits each area; with areas of
+/// 16, the diagonals fit no 16x16 mode, and 8x8 intra fits them.
+fn oriented_patches(w: usize, h: usize, size: usize) -> Frame {
     let y = mocomp::codec::Plane::from_fn(w, h, |x, y| {
         let (xf, yf) = (x as f64, y as f64);
-        // Per 8x8 area: stripes along one of four directions.
-        let phase = match ((x / 8) + 3 * (y / 8)) % 4 {
+        let phase = match ((x / size) + 3 * (y / size)) % 4 {
             0 => xf + yf,
             1 => xf - yf,
             2 => xf,
@@ -445,12 +447,16 @@ fn oriented_patches(w: usize, h: usize) -> Frame {
 fn intra_4x4_follows_the_directions_of_a_picture_and_saves_bits() {
     use mocomp::codec::intra4x4::{Intra4x4Mode, LumaIntra};
     use mocomp::codec::syntax::MbKind;
-    let frames = vec![oriented_patches(96, 64)];
-    let (stream, recon, stats) = encode(&frames, EncoderConfig::new().qp(26));
+    let frames = vec![oriented_patches(96, 64, 8)];
+    let blocks4 = Partitions {
+        i8x8: false,
+        ..Partitions::ALL
+    };
+    let (stream, recon, stats) = encode(&frames, EncoderConfig::new().qp(26).partitions(blocks4));
     assert_eq!(decoder::decode(&stream).unwrap().1, recon);
     let only_p8x8 = Partitions {
         i4x4: false,
-        ..Partitions::ALL
+        ..blocks4
     };
     let (whole, _, whole_stats) = encode(&frames, EncoderConfig::new().qp(26).partitions(only_p8x8));
     // Fewer bytes at no lower quality (measured: 9 % fewer, 0.16 dB more).
@@ -507,6 +513,69 @@ fn intra_4x4_follows_the_directions_of_a_picture_and_saves_bits() {
         syntax.mbs.len()
     );
     assert!(checked >= 20 && right * 10 >= checked * 9, "{right} of {checked}");
+}
+
+#[test]
+fn intra_8x8_follows_the_directions_of_a_picture_and_saves_bits() {
+    use mocomp::codec::intra4x4::{Intra4x4Mode, LumaIntra};
+    use mocomp::codec::syntax::MbKind;
+    use Intra4x4Mode::*;
+    let frames = vec![oriented_patches(96, 64, 16)];
+    let blocks8 = Partitions {
+        i4x4: false,
+        ..Partitions::ALL
+    };
+    let (stream, recon, stats) = encode(&frames, EncoderConfig::new().qp(26).partitions(blocks8));
+    assert_eq!(decoder::decode(&stream).unwrap().1, recon);
+    let only_p8x8 = Partitions {
+        i8x8: false,
+        ..blocks8
+    };
+    let (whole, _, whole_stats) = encode(&frames, EncoderConfig::new().qp(26).partitions(only_p8x8));
+    assert!(
+        stream.len() * 10 < whole.len() * 9,
+        "{} against {} bytes",
+        stream.len(),
+        whole.len()
+    );
+    assert!(
+        stats[0].psnr_y + 0.1 > whole_stats[0].psnr_y,
+        "{} against {} dB",
+        stats[0].psnr_y,
+        whole_stats[0].psnr_y
+    );
+    // Each macroblock is one area: the 8x8 blocks whose edges lie in it
+    // take the mode along its stripes (block 2 reads block 0 above it,
+    // block 3 blocks 1 and 2, block 1 block 0 to its left).
+    let seq = seq_header(96, 64);
+    let syntax = &frames_of(&seq, &stream)[0];
+    let (mut checked, mut right, mut blocks) = (0, 0, 0);
+    for (i, mb) in syntax.mbs.iter().enumerate() {
+        let MbKind::Intra {
+            luma: LumaIntra::Blocks8(modes),
+            ..
+        } = mb.kind
+        else {
+            continue;
+        };
+        blocks += 1;
+        let (want, which): (Intra4x4Mode, &[usize]) = match (i % 6 + 3 * (i / 6)) % 4 {
+            0 => (DiagonalDownLeft, &[2]),
+            1 => (DiagonalDownRight, &[3]),
+            2 => (Vertical, &[2, 3]),
+            _ => (Horizontal, &[1, 3]),
+        };
+        for &q in which {
+            checked += 1;
+            right += usize::from(modes[q] == want);
+        }
+    }
+    assert!(
+        blocks * 4 > syntax.mbs.len() * 3,
+        "{blocks} of {} macroblocks in 8x8 blocks",
+        syntax.mbs.len()
+    );
+    assert!(checked >= 30 && right * 10 >= checked * 9, "{right} of {checked}");
 }
 
 /// A still textured picture under a smooth light that swells and moves

@@ -80,7 +80,7 @@ impl MbEdgeInfo {
                 mvs
             },
             coded,
-            transform_8x8: residual.transform_8x8(),
+            transform_8x8: kind.luma_transform_8x8(residual),
         }
     }
 
@@ -342,6 +342,34 @@ mod tests {
             };
             assert_eq!(strength(&[t4], 1, p, q), 2, "{p:?} {q:?}");
         }
+    }
+
+    #[test]
+    fn intra_in_8x8_blocks_has_no_edges_inside_them_even_without_levels() {
+        use crate::intra::IntraMode;
+        use crate::intra4x4::{Intra4x4Mode, LumaIntra};
+        use crate::residual::MbResidual;
+        let kind = |luma| MbKind::Intra {
+            luma,
+            chroma: IntraMode::Dc,
+        };
+        let none = MbResidual::default();
+        let in8 = MbEdgeInfo::of(
+            &kind(LumaIntra::Blocks8([Intra4x4Mode::Dc; 4])),
+            &none,
+            MotionTool::Block,
+            [None; 4],
+        );
+        let in4 = MbEdgeInfo::of(
+            &kind(LumaIntra::Blocks([Intra4x4Mode::Dc; 16])),
+            &none,
+            MotionTool::Block,
+            [None; 4],
+        );
+        // x = 4 inside 8x8 block 0; x = 8 between blocks 0 and 1.
+        assert_eq!(strength(&[in8], 1, (0, 0), (1, 0)), 0);
+        assert_eq!(strength(&[in8], 1, (1, 0), (2, 0)), 3);
+        assert_eq!(strength(&[in4], 1, (0, 0), (1, 0)), 3);
     }
 
     #[test]

@@ -52,6 +52,28 @@ pub enum LumaIntra {
     Whole(IntraMode),
     /// In 4x4 blocks, with these modes (raster order of the blocks).
     Blocks([Intra4x4Mode; 16]),
+    /// In 8x8 blocks (section 9.2), with these modes (raster order of the
+    /// blocks), the residual in the 8x8 transform.
+    Blocks8([Intra4x4Mode; 4]),
+}
+
+impl LumaIntra {
+    /// The mode of each 4x4 block (raster order) as the blocks of the
+    /// macroblocks after it see them: its own in 4x4 blocks, its 8x8
+    /// block's in 8x8 blocks, `None` for a 16x16 mode (which they count as
+    /// DC).
+    pub fn modes4(&self) -> Option<[Intra4x4Mode; 16]> {
+        match self {
+            LumaIntra::Whole(_) => None,
+            LumaIntra::Blocks(modes) => Some(*modes),
+            LumaIntra::Blocks8(modes) => Some(spread8(modes)),
+        }
+    }
+}
+
+/// Each 8x8 block's mode on its four 4x4 blocks (raster order).
+pub fn spread8(modes: &[Intra4x4Mode; 4]) -> [Intra4x4Mode; 16] {
+    std::array::from_fn(|k| modes[(k / 8) * 2 + (k % 4) / 2])
 }
 
 /// Raster index (block k covers luma `(4 (k % 4), 4 (k / 4))` onwards) of

@@ -7,9 +7,9 @@
 //! above right), the eight to its left and the corner. Samples above right
 //! that are not decoded yet repeat the last one above, as in H.264.
 //!
-//! Not yet part of the stream (FORMAT.md will give it its syntax with the
-//! macroblock kind that uses it); the prediction is written and tested here
-//! first so that the syntax, the decoder and the encoder's search share it.
+//! A macroblock coded in 8x8 blocks (FORMAT.md section 9.2) predicts its
+//! four blocks in raster order, each from the reconstruction of those
+//! before it, and codes their residuals in the 8x8 transform.
 //!
 //! ```
 //! use mocomp_codec::intra4x4::Intra4x4Mode;
@@ -23,7 +23,7 @@
 //! assert_eq!(out, [70; 64]);
 //! ```
 
-use crate::intra4x4::{mb_sampler, Intra4x4Mode};
+use crate::intra4x4::{mb_sampler, neighbour_modes, spread8, Intra4x4Mode};
 use crate::picture::Plane;
 use crate::syntax::MB;
 
@@ -54,6 +54,20 @@ pub fn neighbours(q: usize, mb_x: usize, mb_y: usize, mb_cols: usize) -> (bool, 
         _ => false,
     };
     (above, left, above_right)
+}
+
+/// The modes of the 4x4 blocks left of and above 8x8 block `q`'s top-left
+/// 4x4 block, which predict its mode (FORMAT.md section 3.2): in this
+/// macroblock (`own`, the 8x8 modes before `q` decided) or in the
+/// neighbour macroblocks (as [`neighbour_modes`] takes them).
+pub fn neighbour_modes8(
+    q: usize,
+    own: &[Intra4x4Mode; 4],
+    left_mb: Option<&[Intra4x4Mode; 16]>,
+    above_mb: Option<&[Intra4x4Mode; 16]>,
+) -> (Option<Intra4x4Mode>, Option<Intra4x4Mode>) {
+    const TOP_LEFT4: [usize; 4] = [0, 2, 8, 10];
+    neighbour_modes(TOP_LEFT4[q], &spread8(own), left_mb, above_mb)
 }
 
 /// The edges of 8x8 block `q` of macroblock (mb_x, mb_y): samples outside
@@ -118,6 +132,40 @@ pub fn predict(mode: Intra4x4Mode, e: &Edges8, out: &mut [u8; 64]) {
     predict_filtered(mode, &filtered(e), out);
 }
 
+/// The luma prediction of a macroblock coded in 8x8 blocks: each block, in
+/// raster order, predicted in its mode from the reconstruction before it:
+/// `recon` (the picture so far) outside the macroblock, inside it the
+/// blocks before, each its prediction plus its levels (`add` adds block
+/// `q`'s levels to a 16x16 buffer, as reconstruction does). The
+/// macroblock's reconstruction is this prediction plus the same levels.
+/// The modes must have their neighbours ([`neighbours`]); panics otherwise.
+pub fn predict_mb(
+    recon: &Plane,
+    (mb_x, mb_y): (usize, usize),
+    modes: &[Intra4x4Mode; 4],
+    mut add: impl FnMut(usize, &mut [u8; 256]),
+) -> [u8; 256] {
+    let mut own = [0u8; 256];
+    let mut pred = [0u8; 256];
+    for (q, &mode) in modes.iter().enumerate() {
+        let mut block = [0u8; 64];
+        predict(mode, &edges(recon, &own, mb_x, mb_y, q), &mut block);
+        place(&block, q, &mut own);
+        place(&block, q, &mut pred);
+        add(q, &mut own);
+    }
+    pred
+}
+
+/// Copies an 8x8 block into quadrant `q` of a 16x16 one.
+pub fn place(block: &[u8; 64], q: usize, out: &mut [u8; 256]) {
+    let (bx, by) = (8 * (q % 2), 8 * (q / 2));
+    for (r, row) in block.chunks_exact(8).enumerate() {
+        let i = (by + r) * MB + bx;
+        out[i..i + 8].copy_from_slice(row);
+    }
+}
+
 /// Fills `out` with `g(x, y)` (one loop per mode, each inlined).
 #[inline(always)]
 fn fill(out: &mut [u8; 64], g: impl Fn(i32, i32) -> i32) {
@@ -126,8 +174,9 @@ fn fill(out: &mut [u8; 64], g: impl Fn(i32, i32) -> i32) {
     }
 }
 
-/// [`predict`] from the filtered edges.
-fn predict_filtered(mode: Intra4x4Mode, e: &Edges8, out: &mut [u8; 64]) {
+/// [`predict`] from edges already [`filtered`] (the mode's neighbours
+/// present, as [`predict`] asks; missing ones read as 0).
+pub fn predict_filtered(mode: Intra4x4Mode, e: &Edges8, out: &mut [u8; 64]) {
     use Intra4x4Mode::*;
     // The edge as one line: left column bottom to top, the corner, then
     // the row above and above right. p(-1, y) = line[7 - y], p(x, -1) =

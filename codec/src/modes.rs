@@ -15,6 +15,7 @@ use crate::entropy::{
 };
 use crate::intra::IntraMode;
 use crate::intra4x4::{most_probable, neighbour_modes, Intra4x4Mode, LumaIntra, CODING_ORDER};
+use crate::intra8x8::neighbour_modes8;
 use crate::mv::Mv;
 use crate::partition::{Part, Split, WHOLE};
 
@@ -38,7 +39,9 @@ const REMAINING: usize = MOST_PROBABLE + 1;
 /// Reference index: the first bin (3: neighbours with an index above 0),
 /// the second (1), the rest (1).
 const REF: usize = REMAINING + 1;
-const CONTEXTS: usize = REF + 5;
+/// Luma coded in 8x8 rather than 4x4 blocks (3: such neighbours).
+const BLOCKS8: usize = REF + 5;
+const CONTEXTS: usize = BLOCKS8 + 3;
 
 /// The most references a P frame can predict from.
 pub const MAX_REFS: u8 = 8;
@@ -96,8 +99,11 @@ struct MbState {
     mvd_abs: [[u32; 2]; 4],
     /// Per 8x8 block, the reference index (0 unless inter).
     refs: [u8; 4],
-    /// The 4x4 intra modes, when coded in 4x4 blocks.
+    /// The 4x4 intra modes, when coded in 4x4 or 8x8 blocks (an 8x8
+    /// block's mode on each of its 4x4 blocks).
     modes4: Option<[Intra4x4Mode; 16]>,
+    /// Coded in 8x8 intra blocks.
+    blocks8: bool,
 }
 
 impl MbState {
@@ -110,7 +116,7 @@ impl MbState {
     }
 
     /// The 4x4 modes a block of the next macroblocks sees here: none
-    /// outside the picture, DC unless coded in 4x4 blocks.
+    /// outside the picture, DC unless coded in 4x4 or 8x8 blocks.
     fn modes4_seen(&self) -> Option<[Intra4x4Mode; 16]> {
         self.inside.then(|| self.modes4.unwrap_or([Intra4x4Mode::Dc; 16]))
     }
@@ -252,53 +258,82 @@ fn read_intra_mode(dec: &mut RangeDecoder<'_>, c: &mut [Context], base: usize) -
     }
 }
 
-/// The luma modes of an intra macroblock: whether in 4x4 blocks, then
-/// either each block's mode against its most probable one (a flag, else
-/// the 3 bits of its rank among the other eight, least significant
-/// first), or the 16x16 mode.
+/// The luma modes of an intra macroblock: whether in blocks, whether
+/// those are 8x8, then either each block's mode against its most probable
+/// one ([`code_block_modes`]), or the 16x16 mode.
 fn code_luma_intra<B: Bins>(b: &mut B, n: &[MbState; 2], luma: &LumaIntra) {
-    let blocks4 = n.iter().filter(|s| s.modes4.is_some()).count();
-    b.bin(BLOCKS4 + blocks4, matches!(luma, LumaIntra::Blocks(_)));
+    let in_blocks = n.iter().filter(|s| s.modes4.is_some()).count();
+    b.bin(BLOCKS4 + in_blocks, !matches!(luma, LumaIntra::Whole(_)));
+    let around = [n[0].modes4_seen(), n[1].modes4_seen()];
     match luma {
         LumaIntra::Whole(mode) => code_intra_mode(b, LUMA_MODE, *mode),
         LumaIntra::Blocks(modes) => {
-            let around = [n[0].modes4_seen(), n[1].modes4_seen()];
+            b.bin(BLOCKS8 + blocks8_around(n), false);
             for k in CODING_ORDER {
                 let (l, a) = neighbour_modes(k, modes, around[0].as_ref(), around[1].as_ref());
-                let (mode, predicted) = (modes[k] as u32, most_probable(l, a) as u32);
-                b.bin(MOST_PROBABLE, mode == predicted);
-                if mode != predicted {
-                    let rank = mode - u32::from(mode > predicted);
-                    for bit in 0..3 {
-                        b.bin(REMAINING, (rank >> bit) & 1 == 1);
-                    }
-                }
+                code_block_mode(b, modes[k], most_probable(l, a));
+            }
+        }
+        LumaIntra::Blocks8(modes) => {
+            b.bin(BLOCKS8 + blocks8_around(n), true);
+            for (q, &mode) in modes.iter().enumerate() {
+                let (l, a) = neighbour_modes8(q, modes, around[0].as_ref(), around[1].as_ref());
+                code_block_mode(b, mode, most_probable(l, a));
             }
         }
     }
 }
 
+/// How many of the neighbours are coded in 8x8 intra blocks.
+fn blocks8_around(n: &[MbState; 2]) -> usize {
+    n.iter().filter(|s| s.blocks8).count()
+}
+
+/// A block's mode against its most probable one: a flag, else the 3 bits
+/// of its rank among the other eight, least significant first.
+fn code_block_mode<B: Bins>(b: &mut B, mode: Intra4x4Mode, predicted: Intra4x4Mode) {
+    let (mode, predicted) = (mode as u32, predicted as u32);
+    b.bin(MOST_PROBABLE, mode == predicted);
+    if mode != predicted {
+        let rank = mode - u32::from(mode > predicted);
+        for bit in 0..3 {
+            b.bin(REMAINING, (rank >> bit) & 1 == 1);
+        }
+    }
+}
+
+/// Reads what [`code_block_mode`] codes.
+fn read_block_mode(dec: &mut RangeDecoder<'_>, c: &mut [Context], predicted: Intra4x4Mode) -> Intra4x4Mode {
+    if dec.decode(&mut c[MOST_PROBABLE]) {
+        return predicted;
+    }
+    let mut rank = 0;
+    for bit in 0..3 {
+        rank |= u32::from(dec.decode(&mut c[REMAINING])) << bit;
+    }
+    let code = rank + u32::from(rank >= predicted as u32);
+    Intra4x4Mode::from_code(code).unwrap_or(Intra4x4Mode::Dc)
+}
+
 /// Reads what [`code_luma_intra`] codes.
 fn read_luma_intra(dec: &mut RangeDecoder<'_>, c: &mut [Context], n: &[MbState; 2]) -> LumaIntra {
-    let blocks4 = n.iter().filter(|s| s.modes4.is_some()).count();
-    if !dec.decode(&mut c[BLOCKS4 + blocks4]) {
+    let in_blocks = n.iter().filter(|s| s.modes4.is_some()).count();
+    if !dec.decode(&mut c[BLOCKS4 + in_blocks]) {
         return LumaIntra::Whole(read_intra_mode(dec, c, LUMA_MODE));
     }
     let around = [n[0].modes4_seen(), n[1].modes4_seen()];
+    if dec.decode(&mut c[BLOCKS8 + blocks8_around(n)]) {
+        let mut modes = [Intra4x4Mode::Dc; 4];
+        for q in 0..4 {
+            let (l, a) = neighbour_modes8(q, &modes, around[0].as_ref(), around[1].as_ref());
+            modes[q] = read_block_mode(dec, c, most_probable(l, a));
+        }
+        return LumaIntra::Blocks8(modes);
+    }
     let mut modes = [Intra4x4Mode::Dc; 16];
     for k in CODING_ORDER {
         let (l, a) = neighbour_modes(k, &modes, around[0].as_ref(), around[1].as_ref());
-        let predicted = most_probable(l, a);
-        modes[k] = if dec.decode(&mut c[MOST_PROBABLE]) {
-            predicted
-        } else {
-            let mut rank = 0;
-            for bit in 0..3 {
-                rank |= u32::from(dec.decode(&mut c[REMAINING])) << bit;
-            }
-            let code = rank + u32::from(rank >= predicted as u32);
-            Intra4x4Mode::from_code(code).unwrap_or(Intra4x4Mode::Dc)
-        };
+        modes[k] = read_block_mode(dec, c, most_probable(l, a));
     }
     LumaIntra::Blocks(modes)
 }
@@ -482,10 +517,8 @@ fn state_of(mode: &MbMode) -> MbState {
         }
         MbMode::Intra { luma, .. } => MbState {
             intra: true,
-            modes4: match luma {
-                LumaIntra::Blocks(m) => Some(m),
-                LumaIntra::Whole(_) => None,
-            },
+            modes4: luma.modes4(),
+            blocks8: matches!(luma, LumaIntra::Blocks8(_)),
             ..MbState::default()
         },
     };
@@ -755,6 +788,16 @@ mod tests {
                     chroma: IntraMode::from_code(c).unwrap_or(IntraMode::Dc),
                 }
             }),
+            (proptest::collection::vec(0u32..9, 4), 0u32..4).prop_map(|(l, c)| {
+                let mut modes = [Intra4x4Mode::Dc; 4];
+                for (m, &code) in modes.iter_mut().zip(&l) {
+                    *m = Intra4x4Mode::from_code(code).unwrap_or(Intra4x4Mode::Dc);
+                }
+                MbMode::Intra {
+                    luma: LumaIntra::Blocks8(modes),
+                    chroma: IntraMode::from_code(c).unwrap_or(IntraMode::Dc),
+                }
+            }),
         ]
     }
 
@@ -818,6 +861,50 @@ mod tests {
                 let _ = r.read(&mut dec, i % 3, i / 3, i % 2 == 0, VectorSyntax::PerPartition { refs });
             }
         }
+    }
+
+    /// The bits of a lone intra macroblock at (1, 0) of a 2 x 1 picture
+    /// whose left neighbour is `left`.
+    fn bits_after(left: LumaIntra, mb: LumaIntra) -> u32 {
+        let mut c = ModeCoder::new(2, 1);
+        let intra = |luma| MbMode::Intra {
+            luma,
+            chroma: IntraMode::Dc,
+        };
+        c.commit(0, 0, false, VectorSyntax::None, &intra(left));
+        // Every bin at even odds: a bin costs one bit.
+        c.contexts = [Context::new(); CONTEXTS];
+        c.cost(1, 0, false, VectorSyntax::None, &intra(mb))
+    }
+
+    #[test]
+    fn block_modes_are_predicted_across_4x4_and_8x8_macroblocks() {
+        use Intra4x4Mode::*;
+        // In the top row, 8x8 blocks 0 and 1 have nothing above: DC is
+        // their most probable mode. Left of 8x8 block 2 lies 4x4 block 11
+        // of the left macroblock (Horizontal), above it block 0 (DC): the
+        // lower, Horizontal. Block 3 has block 2 left, block 1 above.
+        let mut left4 = [VerticalLeft; 16];
+        left4[11] = Horizontal;
+        let left8 = [VerticalLeft, VerticalLeft, VerticalLeft, Horizontal];
+        let probable = LumaIntra::Blocks8([Dc, Dc, Horizontal, Horizontal]);
+        let one_other = LumaIntra::Blocks8([Dc, Dc, Vertical, Vertical]);
+        for left in [LumaIntra::Blocks(left4), LumaIntra::Blocks8(left8)] {
+            // Two flags (in blocks, 8x8), the chroma mode's two bins, a
+            // flag per block; a mode other than the most probable one adds
+            // its rank's three bins.
+            assert_eq!(bits_after(left, probable), 8 * 256, "{left:?}");
+            assert_eq!(bits_after(left, one_other), 11 * 256, "{left:?}");
+        }
+        // A 4x4 macroblock after an 8x8 one sees the 8x8 modes on its
+        // blocks: with the top row DC and the rest Horizontal, every block
+        // has its most probable mode after the 8x8 macroblock; after a
+        // 16x16 one, block 4 does not (left DC, above DC).
+        let blocks = std::array::from_fn(|k| if k < 4 { Dc } else { Horizontal });
+        let left8 = [VerticalLeft, Horizontal, VerticalLeft, Horizontal];
+        let after8 = bits_after(LumaIntra::Blocks8(left8), LumaIntra::Blocks(blocks));
+        let after16 = bits_after(LumaIntra::Whole(IntraMode::Dc), LumaIntra::Blocks(blocks));
+        assert_eq!((after8, after16), (20 * 256, 23 * 256));
     }
 
     #[test]

@@ -10,6 +10,7 @@ use crate::deblock::{deblock_frame, MbEdgeInfo};
 use crate::interp::{predict_chroma, predict_luma};
 use crate::intra::{self, Neighbours};
 use crate::intra4x4::{self, Intra4x4Mode, LumaIntra};
+use crate::intra8x8;
 use crate::mv::Mv;
 use crate::obmc::{self, Neighbourhood};
 use crate::partition::{MbVectors, RefMv};
@@ -102,6 +103,31 @@ pub fn predict_intra4x4(
         &residual.luma,
         |levels, own, at| add_block(levels, qp, own, MB, at),
     );
+    let mut pred = MbSamples {
+        luma,
+        ..MbSamples::default()
+    };
+    predict_intra_plane(recon, 1, mb_x, mb_y, chroma, &mut pred.chroma[0]);
+    predict_intra_plane(recon, 2, mb_x, mb_y, chroma, &mut pred.chroma[1]);
+    pred
+}
+
+/// The prediction of an intra macroblock whose luma is coded in 8x8
+/// blocks (each predicted from the reconstruction of those before it, so
+/// the macroblock's `residual` at `qp` takes part), chroma in `chroma`.
+pub fn predict_intra8x8(
+    recon: &Frame,
+    (mb_x, mb_y): (usize, usize),
+    modes: &[Intra4x4Mode; 4],
+    chroma: intra::IntraMode,
+    residual: &MbResidual,
+    qp: u8,
+) -> MbSamples {
+    let luma = intra8x8::predict_mb(recon.y(), (mb_x, mb_y), modes, |q, own| {
+        if let Some(b8) = &residual.luma8 {
+            add_block8(&b8[q], qp, own, ((q % 2) * 8, (q / 2) * 8));
+        }
+    });
     let mut pred = MbSamples {
         luma,
         ..MbSamples::default()
@@ -471,6 +497,13 @@ pub fn reconstruct_frame(
                 },
                 _,
             ) => predict_intra4x4(&recon, (mb_x, mb_y), &modes, chroma, mb.residual(), header.qp),
+            (
+                MbKind::Intra {
+                    luma: LumaIntra::Blocks8(modes),
+                    chroma,
+                },
+                _,
+            ) => predict_intra8x8(&recon, (mb_x, mb_y), &modes, chroma, mb.residual(), header.qp),
             (_, Some(_)) => {
                 let ctx = InterContext {
                     references: &list,

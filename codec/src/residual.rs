@@ -184,6 +184,34 @@ impl BlockClass {
     }
 }
 
+/// What a macroblock's kind says of its residual's syntax (FORMAT.md
+/// section 3.3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ResidualSyntax {
+    /// Inter: luma in 4x4 transforms, or in 8x8 ones by a flag.
+    Inter,
+    /// Intra 16x16 or in 4x4 blocks: luma in 4x4 transforms.
+    Intra,
+    /// Intra in 8x8 blocks: luma in 8x8 transforms, no flag.
+    Intra8x8,
+}
+
+impl ResidualSyntax {
+    /// Intra (`true`) or inter, as the block classes' contexts are chosen.
+    pub fn intra(self) -> bool {
+        self != ResidualSyntax::Inter
+    }
+
+    /// [`ResidualSyntax::Intra`] or [`ResidualSyntax::Inter`].
+    pub fn of_4x4(intra: bool) -> ResidualSyntax {
+        if intra {
+            ResidualSyntax::Intra
+        } else {
+            ResidualSyntax::Inter
+        }
+    }
+}
+
 /// Coded flags of the 4x4 blocks across a macroblock's left and top edges
 /// (false outside the picture and for macroblocks without residual).
 #[derive(Debug, Clone, Copy, Default)]
@@ -306,7 +334,8 @@ fn class8_base(intra: bool) -> usize {
     CLASS8 + usize::from(intra) * CLASS8_CONTEXTS
 }
 
-fn code_mb<B: Bins>(b: &mut B, e: &Edges, intra: bool, res: &MbResidual) {
+fn code_mb<B: Bins>(b: &mut B, e: &Edges, syntax: ResidualSyntax, res: &MbResidual) {
+    let intra = syntax.intra();
     let luma_flags = res.luma_coded();
     let chroma_flags = [coded_flags(&res.chroma[0]), coded_flags(&res.chroma[1])];
     let cbp = cbp_of(&luma_flags, &chroma_flags);
@@ -314,7 +343,7 @@ fn code_mb<B: Bins>(b: &mut B, e: &Edges, intra: bool, res: &MbResidual) {
     for q in 0..4 {
         b.bin(base + luma_cbp_ctx(e, cbp, q), cbp & (1 << q) != 0);
     }
-    if !intra && cbp & 15 != 0 {
+    if syntax == ResidualSyntax::Inter && cbp & 15 != 0 {
         b.bin(t8_ctx(e), res.transform_8x8());
     }
     let cb = cbp & 16 != 0;
@@ -510,19 +539,19 @@ impl Bins for TablePricer<'_> {
 ///
 /// ```
 /// use mocomp_codec::entropy::{RangeDecoder, RangeEncoder};
-/// use mocomp_codec::residual::{MbResidual, ResidualCoder};
+/// use mocomp_codec::residual::{MbResidual, ResidualCoder, ResidualSyntax};
 /// let mut res = MbResidual::default();
 /// res.luma[5][0][1] = -3;
 /// res.chroma[1][0][0][0] = 1;
 /// let mut coder = ResidualCoder::new(2, 1);
 /// let mut enc = RangeEncoder::new();
-/// coder.write(&mut enc, 0, 0, false, &res);
-/// coder.write(&mut enc, 1, 0, true, &res);
+/// coder.write(&mut enc, 0, 0, ResidualSyntax::Inter, &res);
+/// coder.write(&mut enc, 1, 0, ResidualSyntax::Intra, &res);
 /// let bytes = enc.finish();
 /// let mut coder = ResidualCoder::new(2, 1);
 /// let mut dec = RangeDecoder::new(&bytes);
-/// assert_eq!(coder.read(&mut dec, 0, 0, false), Ok(res.clone()));
-/// assert_eq!(coder.read(&mut dec, 1, 0, true), Ok(res));
+/// assert_eq!(coder.read(&mut dec, 0, 0, ResidualSyntax::Inter), Ok(res.clone()));
+/// assert_eq!(coder.read(&mut dec, 1, 0, ResidualSyntax::Intra), Ok(res));
 /// ```
 #[derive(Debug, Clone)]
 pub struct ResidualCoder {
@@ -593,12 +622,12 @@ impl ResidualCoder {
         e
     }
 
-    fn record(&mut self, mb_x: usize, mb_y: usize, res: &MbResidual) {
+    fn record(&mut self, mb_x: usize, mb_y: usize, syntax: ResidualSyntax, res: &MbResidual) {
         let lw = 4 * self.mb_cols;
         for (k, coded) in res.luma_coded().into_iter().enumerate() {
             self.luma[(4 * mb_y + k / 4) * lw + 4 * mb_x + k % 4] = coded;
         }
-        self.t8[mb_y * self.mb_cols + mb_x] = res.transform_8x8();
+        self.t8[mb_y * self.mb_cols + mb_x] = syntax == ResidualSyntax::Intra8x8 || res.transform_8x8();
         let cw = 2 * self.mb_cols;
         for p in 0..2 {
             for (k, b) in res.chroma[p].iter().enumerate() {
@@ -610,9 +639,9 @@ impl ResidualCoder {
     /// The rate estimate, in 1/256 bit, of coding `res` as macroblock
     /// (mb_x, mb_y) now: the contexts' present state, not adapted within
     /// the macroblock. Not normative (the encoder's rate term).
-    pub fn cost(&self, mb_x: usize, mb_y: usize, intra: bool, res: &MbResidual) -> u32 {
+    pub fn cost(&self, mb_x: usize, mb_y: usize, syntax: ResidualSyntax, res: &MbResidual) -> u32 {
         let mut p = Pricer::new(&self.contexts[..], 0);
-        code_mb(&mut p, &self.edges(mb_x, mb_y), intra, res);
+        code_mb(&mut p, &self.edges(mb_x, mb_y), syntax, res);
         p.cost
     }
 
@@ -660,14 +689,14 @@ impl ResidualCoder {
 
     /// Adapts the contexts and records the coded flags as
     /// [`ResidualCoder::write`] does, without writing.
-    pub fn commit(&mut self, mb_x: usize, mb_y: usize, intra: bool, res: &MbResidual) {
+    pub fn commit(&mut self, mb_x: usize, mb_y: usize, syntax: ResidualSyntax, res: &MbResidual) {
         let e = self.edges(mb_x, mb_y);
-        code_mb(&mut Adapter(&mut self.contexts[..]), &e, intra, res);
-        self.record(mb_x, mb_y, res);
+        code_mb(&mut Adapter(&mut self.contexts[..]), &e, syntax, res);
+        self.record(mb_x, mb_y, syntax, res);
     }
 
-    /// Writes macroblock (mb_x, mb_y)'s levels (`intra`: whether it is
-    /// intra-coded) and returns their cost in 1/256 bit as the bins were
+    /// Writes macroblock (mb_x, mb_y)'s levels (in the `syntax` its kind
+    /// says) and returns their cost in 1/256 bit as the bins were
     /// coded. Macroblocks without residual syntax (skipped) are not
     /// written. Levels above [`MAX_LEVEL`] are an encoder bug: they would
     /// not decode.
@@ -676,7 +705,7 @@ impl ResidualCoder {
         enc: &mut RangeEncoder,
         mb_x: usize,
         mb_y: usize,
-        intra: bool,
+        syntax: ResidualSyntax,
         res: &MbResidual,
     ) -> u32 {
         debug_assert!(res
@@ -690,14 +719,18 @@ impl ResidualCoder {
         debug_assert!(
             res.luma8
                 .as_deref()
-                .is_none_or(|b| !intra && b.iter().any(|b| !is_zero8(b))),
-            "the 8x8 transform is for inter macroblocks with luma levels"
+                .is_none_or(|b| syntax != ResidualSyntax::Intra && b.iter().any(|b| !is_zero8(b))),
+            "8x8 transform blocks are for inter or 8x8 intra luma, with levels"
+        );
+        debug_assert!(
+            syntax != ResidualSyntax::Intra8x8 || res.luma.iter().all(is_zero),
+            "8x8 intra luma is in 8x8 transform blocks"
         );
         let e = self.edges(mb_x, mb_y);
         let mut w = Writer::new(enc, &mut self.contexts[..]);
-        code_mb(&mut w, &e, intra, res);
+        code_mb(&mut w, &e, syntax, res);
         let cost = w.cost;
-        self.record(mb_x, mb_y, res);
+        self.record(mb_x, mb_y, syntax, res);
         cost
     }
 
@@ -707,8 +740,9 @@ impl ResidualCoder {
         dec: &mut RangeDecoder<'_>,
         mb_x: usize,
         mb_y: usize,
-        intra: bool,
+        syntax: ResidualSyntax,
     ) -> Result<MbResidual, ResidualError> {
+        let intra = syntax.intra();
         let e = self.edges(mb_x, mb_y);
         let c = &mut self.contexts;
         let base = cbp_base(intra);
@@ -718,7 +752,12 @@ impl ResidualCoder {
                 cbp |= 1 << q;
             }
         }
-        let t8 = !intra && cbp != 0 && dec.decode(&mut c[t8_ctx(&e)]);
+        let t8 = cbp != 0
+            && match syntax {
+                ResidualSyntax::Inter => dec.decode(&mut c[t8_ctx(&e)]),
+                ResidualSyntax::Intra => false,
+                ResidualSyntax::Intra8x8 => true,
+            };
         let cb = dec.decode(&mut c[base + 4 + chroma_cbp_ctx(&e, 0, false)]);
         let cr = dec.decode(&mut c[base + 4 + chroma_cbp_ctx(&e, 1, cb)]);
         cbp |= u32::from(cb) << 4 | u32::from(cr) << 5;
@@ -762,7 +801,7 @@ impl ResidualCoder {
                 )?;
             }
         }
-        self.record(mb_x, mb_y, &out);
+        self.record(mb_x, mb_y, syntax, &out);
         Ok(out)
     }
 }
@@ -934,7 +973,12 @@ mod tests {
                 }
             }
             // Adapt, so that later rounds price other states.
-            coder.commit((round % 4) as usize, (round / 4 % 4) as usize, intra, &res);
+            coder.commit(
+                (round % 4) as usize,
+                (round / 4 % 4) as usize,
+                ResidualSyntax::of_4x4(intra),
+                &res,
+            );
         }
     }
 
@@ -969,7 +1013,7 @@ mod tests {
             p.bin(t8_ctx(&e), true);
             p.bin(cbp_base(false) + 4, false);
             p.bin(cbp_base(false) + 4 + 3, false);
-            assert_eq!(coder.cost(0, 0, false, &res), p.cost + blocks);
+            assert_eq!(coder.cost(0, 0, ResidualSyntax::Inter, &res), p.cost + blocks);
         }
     }
 
@@ -996,7 +1040,7 @@ mod tests {
         let mut enc = RangeEncoder::new();
         let mut contexts = Box::new([Context::new(); CONTEXTS]);
         let mut w = Writer::new(&mut enc, &mut contexts[..]);
-        code_mb(&mut w, &Edges::default(), false, res);
+        code_mb(&mut w, &Edges::default(), ResidualSyntax::Inter, res);
         enc.finish()
     }
 
@@ -1006,7 +1050,7 @@ mod tests {
         // Within the Exp-Golomb prefix limit, one above the level limit.
         res.luma[0][0][0] = MAX_LEVEL as i32 + 1;
         let bytes = write_unchecked(&res);
-        let got = ResidualCoder::new(1, 1).read(&mut RangeDecoder::new(&bytes), 0, 0, false);
+        let got = ResidualCoder::new(1, 1).read(&mut RangeDecoder::new(&bytes), 0, 0, ResidualSyntax::Inter);
         assert!(
             matches!(got, Err(ResidualError::Range { what: "level", .. })),
             "{got:?}"
@@ -1014,7 +1058,7 @@ mod tests {
         // A prefix beyond the limit.
         res.luma[0][0][0] = 1 << 20;
         let bytes = write_unchecked(&res);
-        let got = ResidualCoder::new(1, 1).read(&mut RangeDecoder::new(&bytes), 0, 0, false);
+        let got = ResidualCoder::new(1, 1).read(&mut RangeDecoder::new(&bytes), 0, 0, ResidualSyntax::Inter);
         assert!(
             matches!(
                 got,
@@ -1029,7 +1073,7 @@ mod tests {
         res.luma[0][0][0] = -(MAX_LEVEL as i32);
         let bytes = write_unchecked(&res);
         assert_eq!(
-            ResidualCoder::new(1, 1).read(&mut RangeDecoder::new(&bytes), 0, 0, false),
+            ResidualCoder::new(1, 1).read(&mut RangeDecoder::new(&bytes), 0, 0, ResidualSyntax::Inter),
             Ok(res)
         );
     }
@@ -1054,7 +1098,7 @@ mod tests {
                     .cost(false)
             })
             .sum();
-        let pattern = coder.cost(0, 0, false, &MbResidual::default());
+        let pattern = coder.cost(0, 0, ResidualSyntax::Inter, &MbResidual::default());
         let mut p = Pricer::new(&coder.contexts[..], 0);
         code_block(&mut p, cls, &one.luma[5]);
         // The pattern's first bin differs (quadrant 0 coded): price it apart.
@@ -1062,8 +1106,13 @@ mod tests {
         let pattern_one = pattern - coder.contexts[base].cost(false) + coder.contexts[base].cost(true);
         // An inter macroblock with luma levels says which transform it uses.
         let t4 = coder.contexts[T8_FLAG].cost(false);
-        assert_eq!(coder.cost(0, 0, false, &one), pattern_one + t4 + flags + p.cost);
-        assert!(coder.cost(0, 0, false, &two) > coder.cost(0, 0, false, &one));
+        assert_eq!(
+            coder.cost(0, 0, ResidualSyntax::Inter, &one),
+            pattern_one + t4 + flags + p.cost
+        );
+        assert!(
+            coder.cost(0, 0, ResidualSyntax::Inter, &two) > coder.cost(0, 0, ResidualSyntax::Inter, &one)
+        );
     }
 
     fn block_strategy() -> impl Strategy<Value = Block4> {
@@ -1081,14 +1130,19 @@ mod tests {
         })
     }
 
-    fn mb_strategy() -> impl Strategy<Value = (MbResidual, bool)> {
+    fn mb_strategy() -> impl Strategy<Value = (MbResidual, ResidualSyntax)> {
+        let syntax = prop_oneof![
+            Just(ResidualSyntax::Inter),
+            Just(ResidualSyntax::Intra),
+            Just(ResidualSyntax::Intra8x8)
+        ];
         (
             proptest::collection::vec(block_strategy(), 24),
             any::<u32>(),
-            any::<bool>(),
+            syntax,
             any::<bool>(),
         )
-            .prop_map(|(blocks, empty_mask, intra, t8)| {
+            .prop_map(|(blocks, empty_mask, syntax, t8)| {
                 let mut res = MbResidual::default();
                 for (i, b) in blocks.into_iter().enumerate() {
                     if empty_mask & (1 << i) == 0 {
@@ -1099,8 +1153,14 @@ mod tests {
                     }
                 }
                 // Inter macroblocks with luma levels may take them as four
-                // 8x8 blocks (each quadrant's four 4x4 blocks side by side).
-                if t8 && !intra && res.luma_coded().iter().any(|&c| c) {
+                // 8x8 blocks (each quadrant's four 4x4 blocks side by side),
+                // 8x8 intra ones always do.
+                let t8 = match syntax {
+                    ResidualSyntax::Inter => t8,
+                    ResidualSyntax::Intra => false,
+                    ResidualSyntax::Intra8x8 => true,
+                };
+                if t8 && res.luma_coded().iter().any(|&c| c) {
                     let mut b8 = Box::new([[[0; 8]; 8]; 4]);
                     for (k, b) in res.luma.iter().enumerate() {
                         let (q, x, y) = ((k / 8) * 2 + (k % 4) / 2, (k % 2) * 4, ((k / 4) % 2) * 4);
@@ -1111,7 +1171,7 @@ mod tests {
                     res.luma = Default::default();
                     res.luma8 = Some(b8);
                 }
-                (res, intra)
+                (res, syntax)
             })
     }
 
@@ -1125,9 +1185,9 @@ mod tests {
             let mut shadow = ResidualCoder::new(3, 2);
             let mut enc = RangeEncoder::new();
             for (i, mb) in mbs.iter().enumerate() {
-                if let Some((res, intra)) = mb {
-                    writer.write(&mut enc, i % 3, i / 3, *intra, res);
-                    shadow.commit(i % 3, i / 3, *intra, res);
+                if let Some((res, syntax)) = mb {
+                    writer.write(&mut enc, i % 3, i / 3, *syntax, res);
+                    shadow.commit(i % 3, i / 3, *syntax, res);
                 }
             }
             // Committing adapts exactly as writing does.
@@ -1137,8 +1197,8 @@ mod tests {
             let mut reader = ResidualCoder::new(3, 2);
             let mut dec = RangeDecoder::new(&bytes);
             for (i, mb) in mbs.iter().enumerate() {
-                if let Some((res, intra)) = mb {
-                    prop_assert_eq!(&reader.read(&mut dec, i % 3, i / 3, *intra)?, res);
+                if let Some((res, syntax)) = mb {
+                    prop_assert_eq!(&reader.read(&mut dec, i % 3, i / 3, *syntax)?, res);
                 }
             }
             prop_assert!(dec.consumed_all());
@@ -1148,8 +1208,9 @@ mod tests {
         fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..64)) {
             let mut coder = ResidualCoder::new(2, 2);
             let mut dec = RangeDecoder::new(&bytes);
+            let syntaxes = [ResidualSyntax::Inter, ResidualSyntax::Intra, ResidualSyntax::Intra8x8];
             for i in 0..4 {
-                let _ = coder.read(&mut dec, i % 2, i / 2, i % 3 == 0);
+                let _ = coder.read(&mut dec, i % 2, i / 2, syntaxes[i % 3]);
             }
         }
     }
@@ -1176,8 +1237,8 @@ mod tests {
                     }
                 }
             }
-            priced += u64::from(coder.cost(i % 6, i / 6, false, &res));
-            coder.write(&mut enc, i % 6, i / 6, false, &res);
+            priced += u64::from(coder.cost(i % 6, i / 6, ResidualSyntax::Inter, &res));
+            coder.write(&mut enc, i % 6, i / 6, ResidualSyntax::Inter, &res);
         }
         let written = enc.finish().len() as f64 * 8.0;
         let priced = priced as f64 / 256.0;

@@ -10,11 +10,12 @@ use crate::bits::{BitError, BitReader, BitWriter};
 use crate::entropy::{RangeDecoder, RangeEncoder};
 use crate::intra::IntraMode;
 use crate::intra4x4::{self, LumaIntra};
+use crate::intra8x8;
 use crate::modes::{MbMode, ModeCoder, VectorSyntax, MAX_REFS};
 use crate::mv::{predict_mv, Mv, MV_LIMIT};
 use crate::partition::{MbVectors, RefMv, Split, VectorNeighbourhood, WHOLE};
 use crate::picture::{check_size, MAX_DIMENSION};
-use crate::residual::{MbResidual, ResidualCoder, ResidualError};
+use crate::residual::{MbResidual, ResidualCoder, ResidualError, ResidualSyntax};
 use crate::transform::MAX_QP;
 use crate::warp::{MotionGrid, SPACINGS};
 use crate::weight::Weights;
@@ -318,6 +319,27 @@ pub enum MbKind {
         /// Chroma 8x8 mode.
         chroma: IntraMode,
     },
+}
+
+impl MbKind {
+    /// The syntax of its residual (section 3.3).
+    pub fn residual_syntax(&self) -> ResidualSyntax {
+        match self {
+            MbKind::Intra {
+                luma: LumaIntra::Blocks8(_),
+                ..
+            } => ResidualSyntax::Intra8x8,
+            MbKind::Intra { .. } => ResidualSyntax::Intra,
+            _ => ResidualSyntax::Inter,
+        }
+    }
+
+    /// Whether the luma of a macroblock of this kind with these levels is
+    /// in the 8x8 transform (section 10.2): always for 8x8 intra, for inter
+    /// when it says so.
+    pub fn luma_transform_8x8(&self, residual: &MbResidual) -> bool {
+        self.residual_syntax() == ResidualSyntax::Intra8x8 || residual.transform_8x8()
+    }
 }
 
 /// One coded macroblock.
@@ -763,10 +785,10 @@ impl FrameWriter {
             assert!(mb.residual.is_none(), "skipped macroblocks have no residual");
             return;
         }
-        let intra = matches!(mb.kind, MbKind::Intra { .. });
+        let syntax = mb.kind.residual_syntax();
         self.estimates[2] += u64::from(
             self.residual
-                .write(&mut self.enc, mb_x, mb_y, intra, mb.residual()),
+                .write(&mut self.enc, mb_x, mb_y, syntax, mb.residual()),
         );
     }
 
@@ -899,6 +921,10 @@ pub fn luma_intra_allowed(luma: &LumaIntra, mb_x: usize, mb_y: usize, mb_cols: u
         LumaIntra::Whole(mode) => intra_mode_allowed(*mode, mb_x, mb_y),
         LumaIntra::Blocks(modes) => modes.iter().enumerate().all(|(k, m)| {
             let (above, left, _) = intra4x4::neighbours(k, mb_x, mb_y, mb_cols);
+            m.is_available(above, left)
+        }),
+        LumaIntra::Blocks8(modes) => modes.iter().enumerate().all(|(q, m)| {
+            let (above, left, _) = intra8x8::neighbours(q, mb_x, mb_y, mb_cols);
             m.is_available(above, left)
         }),
     }
@@ -1069,6 +1095,7 @@ impl PartitionReader<'_> {
                     let what = match luma {
                         LumaIntra::Whole(mode) => format!("luma intra mode {mode:?} needs"),
                         LumaIntra::Blocks(modes) => format!("luma 4x4 intra modes {modes:?} need"),
+                        LumaIntra::Blocks8(modes) => format!("luma 8x8 intra modes {modes:?} need"),
                     };
                     return Err(invalid(
                         format!("{what} neighbours outside the picture"),
@@ -1084,8 +1111,9 @@ impl PartitionReader<'_> {
                 MbKind::Intra { luma, chroma }
             }
         };
-        let intra = matches!(kind, MbKind::Intra { .. });
-        let levels = self.residual.read(&mut self.dec, mb_x, mb_y, intra);
+        let levels = self
+            .residual
+            .read(&mut self.dec, mb_x, mb_y, kind.residual_syntax());
         let levels = levels.map_err(|e| match e {
             ResidualError::Range { what, value, .. } => {
                 invalid(format!("{what} = {value} out of range"), self.at())

@@ -21,7 +21,7 @@ use mocomp_codec::syntax::{
     MbKind, MotionTool, SequenceHeader, SEQUENCE_HEADER_LEN,
 };
 use mocomp_codec::transform::{dequantize, forward_4x4, inverse_4x4, quantize};
-use mocomp_codec::transform8x8::{forward_8x8, quantize_8x8};
+use mocomp_codec::transform8x8::{dequantize_8x8, forward_8x8, inverse_8x8, quantize_8x8};
 use mocomp_codec::warp::{warp_frame, MotionGrid};
 use mocomp_codec::weight::{PlaneWeight, Weights};
 
@@ -95,6 +95,64 @@ fn code_intra4x4_luma(
                 let i = (by + r) * 16 + bx + col;
                 pred[i] = block[r * 4 + col];
                 own[i] = (i32::from(block[r * 4 + col]) + res[r][col]).clamp(0, 255) as u8;
+            }
+        }
+    }
+    pred
+}
+
+/// Macroblock (x, y) intra in 8x8 blocks: block q in mode `(q + seed) %
+/// 9` where it has that mode's neighbours, else DC.
+fn intra8x8(x: usize, y: usize, cols: usize, seed: usize) -> MbKind {
+    let modes = std::array::from_fn(|q| {
+        let (above, left, _) = mocomp_codec::intra8x8::neighbours(q, x, y, cols);
+        let want = Intra4x4Mode::ALL[(q + seed) % 9];
+        if want.is_available(above, left) {
+            want
+        } else {
+            Intra4x4Mode::Dc
+        }
+    });
+    MbKind::Intra {
+        luma: LumaIntra::Blocks8(modes),
+        chroma: IntraMode::Dc,
+    }
+}
+
+/// The luma prediction of a macroblock in 8x8 blocks as a writer makes it:
+/// each block predicted from the reconstruction so far, its levels the
+/// quantised difference to the source in the 8x8 transform, reconstructed
+/// before the next.
+fn code_intra8x8_luma(
+    source: &Plane,
+    recon: &Frame,
+    (mb_x, mb_y): (usize, usize),
+    modes: &[Intra4x4Mode; 4],
+    qp: u8,
+    levels: &mut [[[i32; 8]; 8]; 4],
+) -> [u8; 256] {
+    let (mut own, mut pred) = ([0u8; 256], [0u8; 256]);
+    for q in 0..4 {
+        let mut block = [0u8; 64];
+        let e = mocomp_codec::intra8x8::edges(recon.y(), &own, mb_x, mb_y, q);
+        mocomp_codec::intra8x8::predict(modes[q], &e, &mut block);
+        let (bx, by) = (8 * (q % 2), 8 * (q / 2));
+        let diff: [[i32; 8]; 8] = std::array::from_fn(|r| {
+            std::array::from_fn(|c| {
+                let s = source.get(mb_x * 16 + bx + c, mb_y * 16 + by + r);
+                i32::from(s) - i32::from(block[r * 8 + c])
+            })
+        });
+        let mut c = forward_8x8(&diff);
+        quantize_8x8(&mut c, qp, 1.0 / 3.0);
+        levels[q] = c;
+        dequantize_8x8(&mut c, qp);
+        let res = inverse_8x8(&c);
+        for r in 0..8 {
+            for col in 0..8 {
+                let i = (by + r) * 16 + bx + col;
+                pred[i] = block[r * 8 + col];
+                own[i] = (i32::from(block[r * 8 + col]) + res[r][col]).clamp(0, 255) as u8;
             }
         }
     }
@@ -358,6 +416,18 @@ fn code_frame(
                 pred.luma = code_intra4x4_luma(source.y(), &recon, at, &modes, header.qp, &mut residual.luma);
                 pred
             }
+            MbKind::Intra {
+                luma: LumaIntra::Blocks8(modes),
+                chroma,
+            } => {
+                let mut pred = predict_intra(&recon, mb_x, mb_y, IntraMode::Dc, chroma);
+                let mut b8 = Box::new([[[0i32; 8]; 8]; 4]);
+                pred.luma = code_intra8x8_luma(source.y(), &recon, (mb_x, mb_y), &modes, header.qp, &mut b8);
+                if b8.as_flattened().as_flattened().iter().any(|&v| v != 0) {
+                    residual.luma8 = Some(b8);
+                }
+                pred
+            }
             _ => {
                 let ctx = InterContext {
                     references: &list,
@@ -380,10 +450,10 @@ fn code_frame(
                 }
                 b
             };
-            let blocks4 = matches!(
+            let in_blocks = matches!(
                 kind,
                 MbKind::Intra {
-                    luma: LumaIntra::Blocks(_),
+                    luma: LumaIntra::Blocks(_) | LumaIntra::Blocks8(_),
                     ..
                 }
             );
@@ -406,7 +476,7 @@ fn code_frame(
                     residual.luma8 = Some(b8);
                 }
             }
-            for k in (0..16).filter(|_| !blocks4 && residual.luma8.is_none()) {
+            for k in (0..16).filter(|_| !in_blocks && residual.luma8.is_none()) {
                 let mut c = forward_4x4(&block(source.y(), &pred.luma, 16, k % 4, k / 4));
                 quantize(&mut c, header.qp, 1.0 / 3.0);
                 residual.luma[k] = c;
@@ -513,8 +583,10 @@ fn coded_stream(width: usize, height: usize, qp: u8) -> (Vec<u8>, Vec<Frame>) {
                     _ => true,
                 };
                 let m = if ok { mode(pick) } else { IntraMode::Dc };
-                if (x + y + t) % 3 == 1 {
-                    return intra4x4(x, y, cols, x + 3 * y);
+                match (x + y + t) % 5 {
+                    1 => return intra4x4(x, y, cols, x + 3 * y),
+                    3 => return intra8x8(x, y, cols, x + 2 * y),
+                    _ => {}
                 }
                 return MbKind::Intra {
                     luma: LumaIntra::Whole(m),
@@ -523,8 +595,11 @@ fn coded_stream(width: usize, height: usize, qp: u8) -> (Vec<u8>, Vec<Frame>) {
             }
             match (x + y + t) % 5 {
                 0 => MbKind::Skip,
-                1 if (x + t) % 2 == 0 => intra4x4(x, y, cols, x + y + t),
-                1 => intra_dc(),
+                1 => match (x + t) % 3 {
+                    0 => intra4x4(x, y, cols, x + y + t),
+                    1 => intra8x8(x, y, cols, x + y + t),
+                    _ => intra_dc(),
+                },
                 _ if matches!(tool, MotionTool::Grid(_)) => MbKind::Inter { mv: RefMv::default() },
                 // Block frames split some macroblocks, every way, each
                 // partition with its own vector and reference.
@@ -742,34 +817,51 @@ fn invalid_frame_syntax_is_located() {
     );
     let e = expect_err(&stream(&p_first));
     assert!(e.to_string().contains("no frame before it"), "{e}");
-    // Vertical intra on the top row: written by hand, since the writer
-    // would not produce it. Payload: type 0, qp 20, tool 0 and alignment
-    // (two bytes), then the range-coded modes of macroblock 0.
-    let mut w = mocomp_codec::bits::BitWriter::new();
-    w.put(0, 1);
-    w.put(20, 6);
-    w.put(0, 2);
-    w.align();
-    let mut payload = w.into_bytes();
-    let mut enc = RangeEncoder::new();
+    // Vertical intra on the top row, and an 8x8 block predicted from the
+    // left in the first column: written by hand, since the writer would
+    // not produce them. Payload: type 0, qp 20, tool 0 and alignment (two
+    // bytes), then the range-coded modes of macroblock 0.
+    let hand_written = |mode: &MbMode| {
+        let mut w = mocomp_codec::bits::BitWriter::new();
+        w.put(0, 1);
+        w.put(20, 6);
+        w.put(0, 2);
+        w.align();
+        let mut payload = w.into_bytes();
+        let mut enc = RangeEncoder::new();
+        ModeCoder::new(2, 1).write(&mut enc, 0, 0, false, VectorSyntax::None, mode);
+        payload.extend(enc.finish());
+        let mut b = s.to_bytes();
+        b.push(0xA5);
+        b.extend_from_slice(&(payload.len() as u32).to_be_bytes());
+        b.extend_from_slice(&payload);
+        b.push(0x5A);
+        b
+    };
     let vertical = MbMode::Intra {
         luma: LumaIntra::Whole(IntraMode::Vertical), // no row above
         chroma: IntraMode::Dc,
     };
-    ModeCoder::new(2, 1).write(&mut enc, 0, 0, false, VectorSyntax::None, &vertical);
-    payload.extend(enc.finish());
-    let mut b = s.to_bytes();
-    b.push(0xA5);
-    b.extend_from_slice(&(payload.len() as u32).to_be_bytes());
-    b.extend_from_slice(&payload);
-    b.push(0x5A);
-    let e = expect_err(&b);
-    // Located in the range-coded partition, which starts at byte 30.
-    assert!(
-        matches!(&e, DecodeError::Syntax { frame: 0, byte, .. } if *byte >= 30),
-        "{e:?}"
-    );
-    assert!(e.to_string().contains("Vertical needs neighbours"), "{e}");
+    use Intra4x4Mode::{Dc, HorizontalUp};
+    let left_in_first_column = MbMode::Intra {
+        luma: LumaIntra::Blocks8([Dc, Dc, HorizontalUp, Dc]), // block 2 has no left
+        chroma: IntraMode::Dc,
+    };
+    for (mode, what) in [
+        (vertical, "Vertical needs neighbours"),
+        (
+            left_in_first_column,
+            "8x8 intra modes [Dc, Dc, HorizontalUp, Dc] need neighbours",
+        ),
+    ] {
+        let e = expect_err(&hand_written(&mode));
+        // Located in the range-coded partition, which starts at byte 30.
+        assert!(
+            matches!(&e, DecodeError::Syntax { frame: 0, byte, .. } if *byte >= 30),
+            "{e:?}"
+        );
+        assert!(e.to_string().contains(what), "{e}");
+    }
     // Junk after the last macroblock (a few bytes could be read as more
     // levels; a hundred cannot), and non-zero bits aligning the header.
     let i = frame(i_header(20), vec![empty(intra_dc()), empty(intra_dc())]);

@@ -110,14 +110,15 @@ pub struct ToolArgs {
     /// (`block` only) [default: the preset's].
     #[arg(long, value_name = "N")]
     pub refs: Option<u8>,
-    /// No 8x8 transform (x264's --no-8x8dct): inter luma in 4x4
-    /// transforms only.
+    /// No 8x8 transform (x264's --no-8x8dct): luma in 4x4 transforms only
+    /// (no 8x8 intra either).
     #[arg(long = "no-8x8dct")]
     pub no_8x8dct: bool,
     /// Macroblock partitions, as x264's --partitions: all, none, or a list
-    /// of p8x8 (16x8, 8x16 and 8x8 inter partitions) and i4x4 (intra luma
-    /// in 4x4 blocks) [default: the preset's].
-    #[arg(long, value_name = "all|none|p8x8,i4x4")]
+    /// of p8x8 (16x8, 8x16 and 8x8 inter partitions), i8x8 (intra luma in
+    /// 8x8 blocks, with the 8x8 transform on) and i4x4 (intra luma in 4x4
+    /// blocks) [default: the preset's].
+    #[arg(long, value_name = "all|none|p8x8,i8x8,i4x4")]
     pub partitions: Option<Partitions>,
     /// Quality metrics to measure, comma-separated: psnr, ssim, ms-ssim,
     /// psnr-hvs, ciede2000, vmaf (through an ffmpeg built with libvmaf), or

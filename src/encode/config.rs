@@ -339,14 +339,15 @@ pub struct EncoderConfig {
 
 /// The macroblock partitions the mode decision tries, as x264's
 /// `--partitions`: written `all`, `none` or a comma-separated list of
-/// `p8x8` and `i4x4`.
+/// `p8x8`, `i8x8` and `i4x4`. As in x264, `i8x8` needs the 8x8 transform
+/// (`--8x8dct`): without it, it is not tried.
 ///
 /// ```
 /// use mocomp::encode::Partitions;
 /// let p: Partitions = "i4x4".parse().unwrap();
 /// assert!(p.i4x4 && !p.p8x8);
 /// assert_eq!("all".parse::<Partitions>().unwrap(), Partitions::ALL);
-/// assert_eq!(Partitions::ALL.to_string(), "p8x8,i4x4");
+/// assert_eq!(Partitions::ALL.to_string(), "p8x8,i8x8,i4x4");
 /// assert!("p4x4".parse::<Partitions>().is_err());
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -354,6 +355,9 @@ pub struct Partitions {
     /// Inter macroblocks of block frames split into 16x8, 8x16 or 8x8
     /// partitions, each with its own vector (FORMAT.md section 3.2).
     pub p8x8: bool,
+    /// Intra luma predicted in 8x8 blocks, its residual in the 8x8
+    /// transform (FORMAT.md section 9.2).
+    pub i8x8: bool,
     /// Intra luma predicted in 4x4 blocks (FORMAT.md section 9.1).
     pub i4x4: bool,
 }
@@ -362,11 +366,13 @@ impl Partitions {
     /// Every partition.
     pub const ALL: Partitions = Partitions {
         p8x8: true,
+        i8x8: true,
         i4x4: true,
     };
     /// 16x16 only.
     pub const NONE: Partitions = Partitions {
         p8x8: false,
+        i8x8: false,
         i4x4: false,
     };
 }
@@ -384,10 +390,11 @@ impl std::str::FromStr for Partitions {
         for name in s.split(',').map(str::trim) {
             match name {
                 "p8x8" => p.p8x8 = true,
+                "i8x8" => p.i8x8 = true,
                 "i4x4" => p.i4x4 = true,
                 _ => {
                     return Err(format!(
-                        "unknown partition '{name}': expected all, none, or a list of p8x8 and i4x4"
+                        "unknown partition '{name}': expected all, none, or a list of p8x8, i8x8 and i4x4"
                     ))
                 }
             }
@@ -398,7 +405,7 @@ impl std::str::FromStr for Partitions {
 
 impl std::fmt::Display for Partitions {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let names: Vec<&str> = [(self.p8x8, "p8x8"), (self.i4x4, "i4x4")]
+        let names: Vec<&str> = [(self.p8x8, "p8x8"), (self.i8x8, "i8x8"), (self.i4x4, "i4x4")]
             .into_iter()
             .filter_map(|(on, name)| on.then_some(name))
             .collect();
@@ -498,6 +505,7 @@ impl EncoderConfig {
         // x264_simple takes).
         self.partitions = Partitions {
             p8x8: preset >= Medium,
+            i8x8: preset >= Medium,
             i4x4: !ultrafast,
         };
         // Not in fast: there it cost 13 % of the time (pan_cif) for 0.9 %
@@ -527,6 +535,13 @@ impl EncoderConfig {
             };
         }
         self
+    }
+
+    /// Whether intra luma is tried in 8x8 blocks: `i8x8` among the
+    /// partitions, with the 8x8 transform on (as x264 ties it to
+    /// `--8x8dct`).
+    pub fn intra8x8(&self) -> bool {
+        self.partitions.i8x8 && self.transform_8x8
     }
 
     /// The macroblock partitions to try.
@@ -638,6 +653,7 @@ mod tests {
             assert_eq!(c.weightp, p != EncoderPreset::Ultrafast);
             assert_eq!(c.partitions.p8x8, p >= EncoderPreset::Medium);
             assert_eq!(c.partitions.i4x4, p > EncoderPreset::Ultrafast);
+            assert_eq!(c.intra8x8(), p >= EncoderPreset::Medium);
             assert_eq!(s.subpel == Subpel::Half, p == EncoderPreset::Ultrafast);
             assert_eq!(c.decision == ModeDecision::Full, p >= EncoderPreset::Medium);
             assert_eq!(s.range, if p == EncoderPreset::Slow { 32 } else { 16 });

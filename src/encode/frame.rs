@@ -4,8 +4,8 @@
 use std::cell::RefCell;
 
 use super::config::ModeDecision;
-use super::intra4x4::{self, Intra4x4Search};
-use super::macroblock::{MbCoder, MbSource};
+use super::intra4x4::{self, IntraBlockSearch};
+use super::macroblock::{Coded, MbCoder, MbSource};
 use super::motion::{BlockMotion, FrameMotion};
 use super::partition::{PartitionSearch, SatdCache};
 use crate::codec::deblock::{deblock_frame, MbEdgeInfo};
@@ -18,7 +18,7 @@ use crate::codec::recon::{
     frame_vectors, predict_inter, predict_inter_blocks, predict_intra, predict_intra_plane, write_mb,
     InterContext, MbSamples,
 };
-use crate::codec::residual::{MbResidual, ResidualCoder};
+use crate::codec::residual::{MbResidual, ResidualCoder, ResidualSyntax};
 use crate::codec::syntax::{
     mb_mode, mb_vectors, mv_prediction, mv_prediction_into, vector_syntax, walk_partitions, write_frame,
     BitCounts, CodedMb, EntropyState, FrameHeader, FrameSyntax, FrameType, FrameWriter, MbKind, MotionTool,
@@ -129,8 +129,7 @@ impl MbSink {
                 let mode = mb_mode(&mb.kind, done, (mb_x, mb_y, cols), syntax);
                 modes.commit(mb_x, mb_y, true, syntax, &mode);
                 if mb.kind != MbKind::Skip {
-                    let intra = matches!(mb.kind, MbKind::Intra { .. });
-                    residual_coder.commit(mb_x, mb_y, intra, mb.residual());
+                    residual_coder.commit(mb_x, mb_y, mb.kind.residual_syntax(), mb.residual());
                 }
             }
         }
@@ -204,13 +203,13 @@ pub(crate) fn code_intra(
     Ok(frame)
 }
 
-/// The better intra choice of macroblock `at` by SSD + lambda * bits: the
-/// 16x16 luma mode of least SATD, and the 4x4 modes of
-/// [`Intra4x4Search`], each with the chroma mode of least SAD.
+/// The best intra choice of macroblock `at` by SSD + lambda * bits: the
+/// 16x16 luma mode of least SATD, and the 8x8 and 4x4 modes of
+/// [`IntraBlockSearch`], each with the chroma mode of least SAD.
 /// `coders` are the frame's as they stand before the macroblock. With
 /// `bound` (an inter estimate, SATD + sqrt(lambda) * bits), each luma
 /// candidate is coded only when its estimate is below it; `None` when
-/// neither is.
+/// none is.
 fn best_intra(
     coder: &MbCoder,
     s: &MbSource,
@@ -222,34 +221,39 @@ fn best_intra(
     let mut pred = MbSamples::default();
     let (luma, satd) = coder.best_intra_luma(s, recon, at, &mut pred);
     let whole = bound.is_none_or(|(inter_satd, _)| satd < inter_satd);
-    // In P frames, where inter mostly wins, 4x4 blocks are searched only
-    // when 16x16 intra is within 1.25 times inter's SATD (as x264's
-    // fast-intra threshold; its 2 times at medium measured 0.1 % better
-    // on the development set's mean against x264 medium, for 15 % more
-    // time; 1 time, 0.8 % worse).
+    // In P frames, where inter mostly wins, blocks are searched only when
+    // 16x16 intra is within 1.25 times inter's SATD (as x264's fast-intra
+    // threshold; its 2 times at medium measured 0.1 % better on the
+    // development set's mean against x264 medium, for 15 % more time; 1
+    // time, 0.8 % worse).
     let hopeless = bound.is_some_and(|(inter_satd, _)| 4 * u64::from(satd) > 5 * u64::from(inter_satd));
-    let blocks = (coder.intra4x4 && !hopeless)
-        .then(|| {
-            let (around, mode_bits) = intra4x4::pricing(modes, at);
-            let search = Intra4x4Search {
-                coder,
-                recon,
-                at,
-                around,
-                mode_bits,
-                residual: residual_coder,
-            };
-            search.run(s, None, bound.map_or(f64::INFINITY, |b| b.1))
-        })
-        .flatten();
-    if !whole && blocks.is_none() {
+    let search = (!hopeless).then(|| {
+        let (around, mode_bits) = intra4x4::pricing(modes, at);
+        IntraBlockSearch {
+            coder,
+            recon,
+            at,
+            around,
+            mode_bits,
+            residual: residual_coder,
+        }
+    });
+    let estimate_bound = bound.map_or(f64::INFINITY, |b| b.1);
+    let blocks8 = search
+        .as_ref()
+        .filter(|_| coder.intra8x8)
+        .and_then(|search| search.run8(s, None, estimate_bound));
+    let blocks4 = search
+        .as_ref()
+        .filter(|_| coder.intra4x4)
+        .and_then(|search| search.run(s, None, estimate_bound));
+    if !whole && blocks8.is_none() && blocks4.is_none() {
         return None;
     }
     let chroma = coder.best_intra_chroma(s, recon, at, &mut pred);
     let inter_frame = bound.is_some();
-    let coded = |luma: LumaIntra, pred: MbSamples| {
+    let choice = |luma: LumaIntra, pred: MbSamples, c: Coded| {
         let mode = MbMode::Intra { luma, chroma };
-        let c = coder.code(s, &pred, true, residual_coder, at.0, at.1);
         let mode_bits = f64::from(modes.cost(at.0, at.1, inter_frame, VectorSyntax::None, &mode)) / 256.0;
         Choice {
             cost: coder.cost(c.ssd, c.bits + mode_bits),
@@ -260,16 +264,25 @@ fn best_intra(
             samples: c.samples,
         }
     };
-    let mut best = whole.then(|| coded(LumaIntra::Whole(luma), pred.clone()));
-    if let Some(b) = blocks {
-        let mut pred4 = pred;
-        pred4.luma = b.pred;
-        let choice = coded(LumaIntra::Blocks(b.modes), pred4);
-        if best.as_ref().is_none_or(|c| choice.cost < c.cost) {
-            best = Some(choice);
-        }
+    let code4 = |pred: &MbSamples| coder.code(s, pred, true, residual_coder, at.0, at.1);
+    let mut candidates = Vec::with_capacity(3);
+    if whole {
+        candidates.push(choice(LumaIntra::Whole(luma), pred.clone(), code4(&pred)));
     }
-    best
+    if let Some(b) = blocks8 {
+        let pred8 = MbSamples {
+            luma: b.pred,
+            ..pred.clone()
+        };
+        let coded = coder.code_intra8x8(s, &pred8, b.levels, residual_coder, at);
+        candidates.push(choice(LumaIntra::Blocks8(b.modes), pred8, coded));
+    }
+    if let Some(b) = blocks4 {
+        let pred4 = MbSamples { luma: b.pred, ..pred };
+        let coded = code4(&pred4);
+        candidates.push(choice(LumaIntra::Blocks(b.modes), pred4, coded));
+    }
+    candidates.into_iter().min_by(|a, b| a.cost.total_cmp(&b.cost))
 }
 
 impl CodedFrame {
@@ -870,50 +883,59 @@ fn recode(
     for (i, mb) in frame.syntax.mbs.iter_mut().enumerate() {
         let (mb_x, mb_y) = (i % cols, i / cols);
         let s = MbSource::load(src, mb_x, mb_y);
-        let (pred, intra) = match mb.kind {
+        // Block intra modes are kept, each block predicted from the new
+        // reconstruction of those before it.
+        let search = IntraBlockSearch {
+            coder,
+            recon: &recon,
+            at: (mb_x, mb_y),
+            around: [None, None],
+            mode_bits: (0, 0),
+            residual: &residual_coder,
+        };
+        let mut pred = MbSamples::default();
+        let mut luma8 = None;
+        match mb.kind {
             MbKind::Intra {
                 luma: LumaIntra::Whole(luma),
                 chroma,
-            } => (predict_intra(&recon, mb_x, mb_y, luma, chroma), true),
+            } => pred = predict_intra(&recon, mb_x, mb_y, luma, chroma),
             MbKind::Intra {
                 luma: LumaIntra::Blocks(modes),
-                chroma,
+                ..
             } => {
-                // The modes kept, each block predicted from the new
-                // reconstruction of those before it.
-                let search = Intra4x4Search {
-                    coder,
-                    recon: &recon,
-                    at: (mb_x, mb_y),
-                    around: [None, None],
-                    mode_bits: (0, 0),
-                    residual: &residual_coder,
-                };
-                let mut pred = MbSamples::default();
                 if let Some(b) = search.run(&s, Some(&modes), f64::INFINITY) {
                     pred.luma = b.pred;
                 }
-                for p in 0..2 {
-                    predict_intra_plane(&recon, p + 1, mb_x, mb_y, chroma, &mut pred.chroma[p]);
-                }
-                (pred, true)
             }
-            _ => (
-                predict_inter_blocks(&ctx, mb_x, mb_y, &vectors[i].map(Option::unwrap_or_default)),
-                false,
-            ),
-        };
+            MbKind::Intra {
+                luma: LumaIntra::Blocks8(modes),
+                ..
+            } => {
+                if let Some(b) = search.run8(&s, Some(&modes), f64::INFINITY) {
+                    (pred.luma, luma8) = (b.pred, b.levels);
+                }
+            }
+            _ => pred = predict_inter_blocks(&ctx, mb_x, mb_y, &vectors[i].map(Option::unwrap_or_default)),
+        }
+        if let MbKind::Intra { chroma, .. } = mb.kind {
+            for p in 0..2 {
+                predict_intra_plane(&recon, p + 1, mb_x, mb_y, chroma, &mut pred.chroma[p]);
+            }
+        }
         frame.prediction_sse += visible_luma_sse(&s, &pred, mb_x, mb_y, seq);
         if mb.kind == MbKind::Skip {
             write_mb(&pred, &mut recon, mb_x, mb_y);
         } else {
-            let coded = if intra {
-                coder.code(&s, &pred, true, &residual_coder, mb_x, mb_y)
-            } else {
-                coder.code_inter(&s, &pred, &residual_coder, mb_x, mb_y)
+            let coded = match mb.kind.residual_syntax() {
+                ResidualSyntax::Intra => coder.code(&s, &pred, true, &residual_coder, mb_x, mb_y),
+                ResidualSyntax::Intra8x8 => {
+                    coder.code_intra8x8(&s, &pred, luma8, &residual_coder, (mb_x, mb_y))
+                }
+                ResidualSyntax::Inter => coder.code_inter(&s, &pred, &residual_coder, mb_x, mb_y),
             };
             write_mb(&coded.samples, &mut recon, mb_x, mb_y);
-            residual_coder.commit(mb_x, mb_y, intra, &coded.residual);
+            residual_coder.commit(mb_x, mb_y, mb.kind.residual_syntax(), &coded.residual);
             *mb = CodedMb::with_levels(mb.kind, coded.residual);
         }
     }

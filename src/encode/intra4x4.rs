@@ -25,21 +25,21 @@ pub(crate) struct Intra4x4Luma {
 }
 
 /// What the search of one macroblock reads.
-pub(crate) struct Intra4x4Search<'a> {
+pub(crate) struct IntraBlockSearch<'a> {
     pub coder: &'a MbCoder,
     /// The picture reconstructed so far.
     pub recon: &'a Frame,
     pub at: (usize, usize),
     /// The 4x4 modes left of and above the macroblock, and the prices of
     /// a most probable mode and of another (1/256 bit), as the mode coder
-    /// before it has them ([`Intra4x4Search::pricing`]).
+    /// before it has them ([`IntraBlockSearch::pricing`]).
     pub around: [Option<[Intra4x4Mode; 16]>; 2],
     pub mode_bits: (u32, u32),
     /// The residual coder before this macroblock (RDOQ's prices).
     pub residual: &'a ResidualCoder,
 }
 
-/// What [`Intra4x4Search`] needs of the mode coder before macroblock
+/// What [`IntraBlockSearch`] needs of the mode coder before macroblock
 /// (mb_x, mb_y).
 pub(crate) fn pricing(
     modes: &ModeCoder,
@@ -48,7 +48,7 @@ pub(crate) fn pricing(
     (modes.modes4_around(mb_x, mb_y), modes.mode4_costs())
 }
 
-impl Intra4x4Search<'_> {
+impl IntraBlockSearch<'_> {
     /// The modes (`fixed`, or each block's best), their prediction and
     /// estimate; `None` as soon as the estimate reaches `bound`.
     pub fn run(

@@ -7,11 +7,12 @@ use super::transform8x8::inter_luma8;
 use crate::codec::bits::ue_len;
 use crate::codec::intra::IntraMode;
 use crate::codec::recon::{add_luma8, chroma_qp, reconstruct_samples, IntraEdges, MbSamples};
-use crate::codec::residual::{BlockClass, BlockPricer, MbResidual, ResidualCoder, ZIGZAG};
+use crate::codec::residual::{BlockClass, BlockPricer, MbResidual, ResidualCoder, ResidualSyntax, ZIGZAG};
 use crate::codec::syntax::{intra_mode_allowed, MB};
 use crate::codec::transform::{
     dequantize, dequantize_level, forward_4x4, inverse_4x4, inverse_4x4_unrounded, quantize, Block4,
 };
+use crate::codec::transform8x8::Block8;
 use crate::codec::Frame;
 use crate::me::Metric;
 use crate::metrics::squared_difference_sum;
@@ -77,11 +78,11 @@ impl Coded {
         src: &MbSource,
         residual: Box<MbResidual>,
         samples: MbSamples,
-        (residual_coder, intra): (&ResidualCoder, bool),
+        (residual_coder, syntax): (&ResidualCoder, ResidualSyntax),
         (mb_x, mb_y): (usize, usize),
     ) -> Coded {
         Coded {
-            bits: f64::from(residual_coder.cost(mb_x, mb_y, intra, &residual)) / 256.0,
+            bits: f64::from(residual_coder.cost(mb_x, mb_y, syntax, &residual)) / 256.0,
             ssd: src.ssd(&samples),
             residual,
             samples,
@@ -99,6 +100,8 @@ pub(crate) struct MbCoder {
     pub rdoq: bool,
     /// Intra luma may be coded in 4x4 blocks.
     pub intra4x4: bool,
+    /// Intra luma may be coded in 8x8 blocks.
+    pub intra8x8: bool,
     /// Inter luma may be coded in the 8x8 transform.
     pub transform_8x8: bool,
 }
@@ -299,6 +302,7 @@ impl MbCoder {
             lambda: lambda_scale * crate::me::lambda_for_qp(Metric::Ssd, qp),
             rdoq,
             intra4x4: true,
+            intra8x8: true,
             transform_8x8: true,
         }
     }
@@ -306,6 +310,11 @@ impl MbCoder {
     /// This coder with 4x4 intra on or off.
     pub fn intra4x4(self, on: bool) -> MbCoder {
         MbCoder { intra4x4: on, ..self }
+    }
+
+    /// This coder with 8x8 intra on or off.
+    pub fn intra8x8(self, on: bool) -> MbCoder {
+        MbCoder { intra8x8: on, ..self }
     }
 
     /// This coder with the inter 8x8 transform on or off.
@@ -432,6 +441,29 @@ impl MbCoder {
                 drop_costly_small_luma(&mut residual.luma);
             }
         }
+        self.code_chroma(src, pred, intra, residual_coder, &mut residual);
+        let samples = reconstruct_samples(pred, &residual, self.qp);
+        Coded::priced(
+            src,
+            residual,
+            samples,
+            (residual_coder, ResidualSyntax::of_4x4(intra)),
+            (mb_x, mb_y),
+        )
+    }
+
+    /// The chroma levels of `src - pred` into `residual`, as
+    /// [`MbCoder::code`] quantises them.
+    #[inline(always)]
+    fn code_chroma(
+        &self,
+        src: &MbSource,
+        pred: &MbSamples,
+        intra: bool,
+        residual_coder: &ResidualCoder,
+        residual: &mut MbResidual,
+    ) {
+        let coded = |blocks: &[Block4]| blocks.iter().any(|b| b.as_flattened().iter().any(|&v| v != 0));
         let cqp = chroma_qp(self.qp);
         let mut chroma_rate = None;
         for p in 0..2 {
@@ -456,8 +488,33 @@ impl MbCoder {
                 }
             }
         }
+    }
+
+    /// An intra macroblock coded in 8x8 blocks: `pred` (each luma block
+    /// predicted from the reconstruction of those before it with `luma8`,
+    /// the levels the search chose), the chroma coded as [`MbCoder::code`]
+    /// codes it.
+    pub fn code_intra8x8(
+        &self,
+        src: &MbSource,
+        pred: &MbSamples,
+        luma8: Option<Box<[Block8; 4]>>,
+        residual_coder: &ResidualCoder,
+        at: (usize, usize),
+    ) -> Coded {
+        let mut residual = Box::new(MbResidual {
+            luma8,
+            ..MbResidual::default()
+        });
+        self.code_chroma(src, pred, true, residual_coder, &mut residual);
         let samples = reconstruct_samples(pred, &residual, self.qp);
-        Coded::priced(src, residual, samples, (residual_coder, intra), (mb_x, mb_y))
+        Coded::priced(
+            src,
+            residual,
+            samples,
+            (residual_coder, ResidualSyntax::Intra8x8),
+            at,
+        )
     }
 
     /// An inter macroblock's `residual` and reconstructed `samples` (as
@@ -528,7 +585,13 @@ impl MbCoder {
         let mut residual = Box::new(residual.clone());
         residual.luma = Default::default();
         residual.luma8 = Some(luma8);
-        Some(Coded::priced(src, residual, samples, (residual_coder, false), at))
+        Some(Coded::priced(
+            src,
+            residual,
+            samples,
+            (residual_coder, ResidualSyntax::Inter),
+            at,
+        ))
     }
 
     /// [`MbCoder::code`] of an inter macroblock, then the cheaper of it and
@@ -704,7 +767,7 @@ mod tests {
             assert_eq!((a.bits, a.ssd), (b.bits, b.ssd), "case {case}");
             assert_eq!(a.samples, b.samples, "case {case}");
             // Later cases price with adapted contexts.
-            residual_coder.commit(case % 2, 0, intra, &a.residual);
+            residual_coder.commit(case % 2, 0, ResidualSyntax::of_4x4(intra), &a.residual);
         }
     }
 

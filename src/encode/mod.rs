@@ -29,6 +29,7 @@
 mod config;
 mod frame;
 mod intra4x4;
+mod intra8x8;
 mod macroblock;
 mod motion;
 mod partition;
@@ -150,9 +151,11 @@ impl Encoder {
             config,
             coder: MbCoder::new(config.qp, config.lambda_scale, config.rdoq)
                 .intra4x4(config.partitions.i4x4)
+                .intra8x8(config.intra8x8())
                 .transform_8x8(config.transform_8x8),
             intra_coder: MbCoder::new(config.intra_qp(), config.lambda_scale, config.rdoq)
-                .intra4x4(config.partitions.i4x4),
+                .intra4x4(config.partitions.i4x4)
+                .intra8x8(config.intra8x8()),
             analyser: MotionAnalyser::new(config.predictor, config.qp, config.partitions.p8x8),
             references: Vec::new(),
             prev_source: None,

@@ -1,7 +1,8 @@
-//! The luma of an inter macroblock in the 8x8 transform (FORMAT.md section
-//! 10.2): its levels, the small-level zeroing and rate-distortion optimised
-//! quantisation, for the macroblock coder to weigh against four 4x4
-//! transforms per quadrant.
+//! Luma in the 8x8 transform (FORMAT.md section 10.2): the levels of an
+//! inter macroblock, with the small-level zeroing and rate-distortion
+//! optimised quantisation, for the macroblock coder to weigh against four
+//! 4x4 transforms per quadrant; and those of one block of an 8x8 intra
+//! macroblock, for its search.
 
 use crate::codec::residual::Block8Pricer;
 use crate::codec::syntax::MB;
@@ -10,8 +11,9 @@ use crate::codec::transform8x8::{
     ZIGZAG8,
 };
 
-/// Quantiser rounding of inter residuals (as the 4x4 blocks').
+/// Quantiser rounding of inter and intra residuals (as the 4x4 blocks').
 const ROUND_INTER: f64 = 1.0 / 6.0;
+const ROUND_INTRA: f64 = 1.0 / 3.0;
 
 /// Zeroing cost of a lone ±1 after a run of `r` zeros in scan order: the
 /// 4x4 rule's (3 right after another level, nothing after 6 zeros) with
@@ -158,6 +160,28 @@ pub(crate) fn inter_luma8(
     }
     let any = blocks.as_flattened().as_flattened().iter().any(|&v| v != 0);
     any.then_some(blocks)
+}
+
+/// The levels of 8x8 block `q` of an intra macroblock's `src - pred`
+/// (16x16 luma, block `q` of `pred` predicted), RDOQ priced by `rate` when
+/// given. Intra levels are not zeroed for their cost, as 4x4 ones are not:
+/// their errors would carry into the blocks predicted from them.
+pub(crate) fn intra_block8(
+    src: &[u8; 256],
+    pred: &[u8; 256],
+    q: usize,
+    (qp, lambda): (u8, f64),
+    rate: Option<&Block8Pricer>,
+) -> Block8 {
+    let w = forward_8x8(&quadrant_residual(src, pred, q));
+    let mut levels = w;
+    quantize_8x8(&mut levels, qp, ROUND_INTRA);
+    if let Some(rate) = rate {
+        let source: [f64; 64] =
+            std::array::from_fn(|k| f64::from(w[k / 8][k % 8]) * orthonormal_scale(k / 8, k % 8));
+        lower_levels8(&source, &mut levels, qp, lambda, rate);
+    }
+    levels
 }
 
 #[cfg(test)]

@@ -166,73 +166,118 @@ pub fn place(block: &[u8; 64], q: usize, out: &mut [u8; 256]) {
     }
 }
 
-/// Fills `out` with `g(x, y)` (one loop per mode, each inlined).
-#[inline(always)]
-fn fill(out: &mut [u8; 64], g: impl Fn(i32, i32) -> i32) {
-    for (i, o) in out.iter_mut().enumerate() {
-        *o = g((i % 8) as i32, (i / 8) as i32) as u8;
+/// What every mode's samples are drawn from, computed once per block from
+/// its filtered edges: the edge as one line (left column bottom to top,
+/// the corner, the row above and above right: `p(-1, y)` at `7 - y`,
+/// `p(x, -1)` at `9 + x`), its [1 2 1] averages centred on each position,
+/// its [1 1] averages of each position and the next, and three values of
+/// their own. Each mode is then a fixed gather ([`MODE_INDEX`]), which is
+/// how an encoder trying the nine modes shares the arithmetic.
+#[derive(Debug, Clone)]
+pub struct ModeSource([u8; SOURCE_LEN]);
+
+const LINE: usize = 0; // 25 samples
+const F3: usize = 25; // 25: (a + 2b + c + 2) >> 2 centred on line[i], i = 1..=23
+const F2: usize = 50; // 24: (a + b + 1) >> 1 of line[i], line[i + 1]
+const DDL_CORNER: usize = 74; // diagonal down-left at (7, 7)
+const HU_END: usize = 75; // horizontal-up where x + 2y = 13
+const DC_VALUE: usize = 76;
+const SOURCE_LEN: usize = 77;
+
+impl ModeSource {
+    /// The source of a block whose filtered edges are `e`.
+    pub fn new(e: &Edges8) -> ModeSource {
+        let mut line = [0u16; 25];
+        if let Some(l) = e.left {
+            for (y, &v) in l.iter().enumerate() {
+                line[7 - y] = u16::from(v);
+            }
+        }
+        line[8] = u16::from(e.top_left.unwrap_or(0));
+        if let Some(t) = e.top {
+            for (x, &v) in t.iter().enumerate() {
+                line[9 + x] = u16::from(v);
+            }
+        }
+        let mut v = [0u8; SOURCE_LEN];
+        for i in 0..25 {
+            v[LINE + i] = line[i] as u8;
+        }
+        for i in 1..24 {
+            v[F3 + i] = ((line[i - 1] + 2 * line[i] + line[i + 1] + 2) >> 2) as u8;
+        }
+        for i in 0..24 {
+            v[F2 + i] = ((line[i] + line[i + 1] + 1) >> 1) as u8;
+        }
+        v[DDL_CORNER] = ((line[23] + 3 * line[24] + 2) >> 2) as u8;
+        v[HU_END] = ((line[1] + 3 * line[0] + 2) >> 2) as u8;
+        v[DC_VALUE] = dc(e);
+        ModeSource(v)
+    }
+
+    /// The prediction in `mode` into `out` (row-major).
+    #[inline]
+    pub fn predict(&self, mode: Intra4x4Mode, out: &mut [u8; 64]) {
+        for (o, &i) in out.iter_mut().zip(&MODE_INDEX[mode as usize]) {
+            *o = self.0[usize::from(i)];
+        }
+    }
+}
+
+/// Where sample (x, y) of each mode comes from in a [`ModeSource`]
+/// (FORMAT.md section 9.2's formulas, each an average at one place of the
+/// edge line).
+const MODE_INDEX: [[u8; 64]; 9] = {
+    let mut table = [[0u8; 64]; 9];
+    let mut m = 0;
+    while m < 9 {
+        let mut i = 0;
+        while i < 64 {
+            table[m][i] = mode_index(m, (i % 8) as isize, (i / 8) as isize) as u8;
+            i += 1;
+        }
+        m += 1;
+    }
+    table
+};
+
+/// [`MODE_INDEX`] of mode `m` at (x, y).
+const fn mode_index(m: usize, x: isize, y: isize) -> isize {
+    let (f3, f2, line) = (F3 as isize, F2 as isize, LINE as isize);
+    match m {
+        0 => line + 9 + x,
+        1 => line + 7 - y,
+        2 => DC_VALUE as isize,
+        3 if x == 7 && y == 7 => DDL_CORNER as isize,
+        3 => f3 + 10 + x + y,
+        4 => f3 + 8 + x - y,
+        5 => match 2 * x - y {
+            z if z >= 0 && z % 2 == 0 => f2 + 8 + x - (y >> 1),
+            z if z > 0 => f3 + 8 + x - (y >> 1),
+            -1 => f3 + 8,
+            _ => f3 + 9 + 2 * x - y,
+        },
+        6 => match 2 * y - x {
+            z if z >= 0 && z % 2 == 0 => f2 + 7 - y + (x >> 1),
+            z if z > 0 => f3 + 8 - y + (x >> 1),
+            -1 => f3 + 8,
+            _ => f3 + 7 + x - 2 * y,
+        },
+        7 if y % 2 == 0 => f2 + 9 + x + (y >> 1),
+        7 => f3 + 10 + x + (y >> 1),
+        _ => match x + 2 * y {
+            z if z < 13 && z % 2 == 0 => f2 + 6 - y - (x >> 1),
+            z if z < 13 => f3 + 6 - y - (x >> 1),
+            13 => HU_END as isize,
+            _ => line,
+        },
     }
 }
 
 /// [`predict`] from edges already [`filtered`] (the mode's neighbours
 /// present, as [`predict`] asks; missing ones read as 0).
 pub fn predict_filtered(mode: Intra4x4Mode, e: &Edges8, out: &mut [u8; 64]) {
-    use Intra4x4Mode::*;
-    // The edge as one line: left column bottom to top, the corner, then
-    // the row above and above right. p(-1, y) = line[7 - y], p(x, -1) =
-    // line[9 + x], the corner being both at index 8.
-    let mut line = [0i32; 25];
-    if let Some(l) = e.left {
-        for (y, &v) in l.iter().enumerate() {
-            line[7 - y] = i32::from(v);
-        }
-    }
-    line[8] = i32::from(e.top_left.unwrap_or(0));
-    if let Some(t) = e.top {
-        for (x, &v) in t.iter().enumerate() {
-            line[9 + x] = i32::from(v);
-        }
-    }
-    let t = |x: i32| line[(9 + x) as usize];
-    let l = |y: i32| line[(7 - y) as usize];
-    let f3 = |a: i32, b: i32, c: i32| (a + 2 * b + c + 2) >> 2;
-    let f2 = |a: i32, b: i32| (a + b + 1) >> 1;
-    match mode {
-        Vertical => fill(out, |x, _| t(x)),
-        Horizontal => fill(out, |_, y| l(y)),
-        DiagonalDownLeft => fill(out, |x, y| match (x, y) {
-            (7, 7) => (t(14) + 3 * t(15) + 2) >> 2,
-            _ => f3(t(x + y), t(x + y + 1), t(x + y + 2)),
-        }),
-        DiagonalDownRight => fill(out, |x, y| match x - y {
-            d if d > 0 => f3(t(d - 2), t(d - 1), t(d)),
-            d if d < 0 => f3(l(-d - 2), l(-d - 1), l(-d)),
-            _ => f3(t(0), t(-1), l(0)),
-        }),
-        VerticalRight => fill(out, |x, y| match 2 * x - y {
-            z if z >= 0 && z % 2 == 0 => f2(t(x - (y >> 1) - 1), t(x - (y >> 1))),
-            z if z > 0 => f3(t(x - (y >> 1) - 2), t(x - (y >> 1) - 1), t(x - (y >> 1))),
-            -1 => f3(l(0), l(-1), t(0)),
-            _ => f3(l(y - 2 * x - 1), l(y - 2 * x - 2), l(y - 2 * x - 3)),
-        }),
-        HorizontalDown => fill(out, |x, y| match 2 * y - x {
-            z if z >= 0 && z % 2 == 0 => f2(l(y - (x >> 1) - 1), l(y - (x >> 1))),
-            z if z > 0 => f3(l(y - (x >> 1) - 2), l(y - (x >> 1) - 1), l(y - (x >> 1))),
-            -1 => f3(l(0), l(-1), t(0)),
-            _ => f3(t(x - 2 * y - 1), t(x - 2 * y - 2), t(x - 2 * y - 3)),
-        }),
-        VerticalLeft => fill(out, |x, y| match y % 2 {
-            0 => f2(t(x + (y >> 1)), t(x + (y >> 1) + 1)),
-            _ => f3(t(x + (y >> 1)), t(x + (y >> 1) + 1), t(x + (y >> 1) + 2)),
-        }),
-        HorizontalUp => fill(out, |x, y| match x + 2 * y {
-            z if z < 13 && z % 2 == 0 => f2(l(y + (x >> 1)), l(y + (x >> 1) + 1)),
-            z if z < 13 => f3(l(y + (x >> 1)), l(y + (x >> 1) + 1), l(y + (x >> 1) + 2)),
-            13 => (l(6) + 3 * l(7) + 2) >> 2,
-            _ => l(7),
-        }),
-        Dc => out.fill(dc(e)),
-    }
+    ModeSource::new(e).predict(mode, out);
 }
 
 /// DC of an 8x8 block: the rounded mean of the (filtered) edges it has,
@@ -252,6 +297,107 @@ fn dc(e: &Edges8) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The modes written sample by sample, as FORMAT.md section 9.2 gives
+    /// them: what the gather tables must equal.
+    fn by_formula(mode: Intra4x4Mode, e: &Edges8) -> [u8; 64] {
+        use Intra4x4Mode::*;
+        let mut line = [0i32; 25];
+        if let Some(l) = e.left {
+            for (y, &v) in l.iter().enumerate() {
+                line[7 - y] = i32::from(v);
+            }
+        }
+        line[8] = i32::from(e.top_left.unwrap_or(0));
+        if let Some(t) = e.top {
+            for (x, &v) in t.iter().enumerate() {
+                line[9 + x] = i32::from(v);
+            }
+        }
+        let t = |x: i32| line[(9 + x) as usize];
+        let l = |y: i32| line[(7 - y) as usize];
+        let f3 = |a: i32, b: i32, c: i32| (a + 2 * b + c + 2) >> 2;
+        let f2 = |a: i32, b: i32| (a + b + 1) >> 1;
+        std::array::from_fn(|i| {
+            let (x, y) = ((i % 8) as i32, (i / 8) as i32);
+            let v = match mode {
+                Vertical => t(x),
+                Horizontal => l(y),
+                Dc => i32::from(dc(e)),
+                DiagonalDownLeft => match (x, y) {
+                    (7, 7) => (t(14) + 3 * t(15) + 2) >> 2,
+                    _ => f3(t(x + y), t(x + y + 1), t(x + y + 2)),
+                },
+                DiagonalDownRight => match x - y {
+                    d if d > 0 => f3(t(d - 2), t(d - 1), t(d)),
+                    d if d < 0 => f3(l(-d - 2), l(-d - 1), l(-d)),
+                    _ => f3(t(0), t(-1), l(0)),
+                },
+                VerticalRight => match 2 * x - y {
+                    z if z >= 0 && z % 2 == 0 => f2(t(x - (y >> 1) - 1), t(x - (y >> 1))),
+                    z if z > 0 => f3(t(x - (y >> 1) - 2), t(x - (y >> 1) - 1), t(x - (y >> 1))),
+                    -1 => f3(l(0), l(-1), t(0)),
+                    _ => f3(l(y - 2 * x - 1), l(y - 2 * x - 2), l(y - 2 * x - 3)),
+                },
+                HorizontalDown => match 2 * y - x {
+                    z if z >= 0 && z % 2 == 0 => f2(l(y - (x >> 1) - 1), l(y - (x >> 1))),
+                    z if z > 0 => f3(l(y - (x >> 1) - 2), l(y - (x >> 1) - 1), l(y - (x >> 1))),
+                    -1 => f3(l(0), l(-1), t(0)),
+                    _ => f3(t(x - 2 * y - 1), t(x - 2 * y - 2), t(x - 2 * y - 3)),
+                },
+                VerticalLeft => match y % 2 {
+                    0 => f2(t(x + (y >> 1)), t(x + (y >> 1) + 1)),
+                    _ => f3(t(x + (y >> 1)), t(x + (y >> 1) + 1), t(x + (y >> 1) + 2)),
+                },
+                HorizontalUp => match x + 2 * y {
+                    z if z < 13 && z % 2 == 0 => f2(l(y + (x >> 1)), l(y + (x >> 1) + 1)),
+                    z if z < 13 => f3(l(y + (x >> 1)), l(y + (x >> 1) + 1), l(y + (x >> 1) + 2)),
+                    13 => (l(6) + 3 * l(7) + 2) >> 2,
+                    _ => l(7),
+                },
+            };
+            v as u8
+        })
+    }
+
+    #[test]
+    fn the_gather_tables_equal_the_formulas() {
+        let mut seed = 5u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
+            (seed >> 16) as u8
+        };
+        for round in 0..200 {
+            let e = Edges8 {
+                top: Some(std::array::from_fn(|_| next())),
+                left: Some(std::array::from_fn(|_| next())),
+                top_left: Some(next()),
+            };
+            // Some rounds without an edge, as at the picture's borders.
+            let e = match round % 4 {
+                1 => Edges8 {
+                    left: None,
+                    top_left: None,
+                    ..e
+                },
+                2 => Edges8 {
+                    top: None,
+                    top_left: None,
+                    ..e
+                },
+                _ => e,
+            };
+            let (above, left) = (e.top.is_some(), e.left.is_some());
+            for mode in Intra4x4Mode::ALL
+                .into_iter()
+                .filter(|m| m.is_available(above, left))
+            {
+                let mut out = [0u8; 64];
+                predict(mode, &e, &mut out);
+                assert_eq!(out, by_formula(mode, &filtered(&e)), "{mode:?} round {round}");
+            }
+        }
+    }
 
     /// The edges of the 8x8 block at (8, 8) of the picture `f` (all
     /// neighbours decoded).

@@ -8,7 +8,7 @@ use super::intra4x4::IntraBlockSearch;
 use super::macroblock::MbSource;
 use super::transform8x8::intra_block8;
 use crate::codec::intra4x4::{most_probable, Intra4x4Mode};
-use crate::codec::intra8x8::{self, place};
+use crate::codec::intra8x8::{self, place, ModeSource};
 use crate::codec::recon::add_block8;
 use crate::codec::syntax::MB;
 use crate::codec::transform8x8::Block8;
@@ -52,6 +52,7 @@ impl IntraBlockSearch<'_> {
         let mut own = [0u8; 256];
         for q in 0..4 {
             let edges = intra8x8::filtered(&intra8x8::edges(self.recon.y(), &own, mb_x, mb_y, q));
+            let modes = ModeSource::new(&edges);
             let (l, a) =
                 intra8x8::neighbour_modes8(q, &out.modes, self.around[0].as_ref(), self.around[1].as_ref());
             let probable = most_probable(l, a);
@@ -63,7 +64,7 @@ impl IntraBlockSearch<'_> {
                 if fixed.is_some_and(|f| f[q] != m) || !m.is_available(above, left) {
                     continue;
                 }
-                intra8x8::predict_filtered(m, &edges, &mut block);
+                modes.predict(m, &mut block);
                 let satd = Metric::Satd.cost(source, MB, &block, 8, 8, 8);
                 let cost = f64::from(satd) + mode_cost(m == probable);
                 if cost < best.0 {

@@ -213,12 +213,43 @@ fn filter_line(d: &mut [u8], at: usize, step: usize, e: Edge, luma: bool) {
     }
 }
 
+/// The boundary strength of every luma 4x4 block edge of a frame, found
+/// once for its three planes: `vertical[by * cols + bx]` of the edge left
+/// of block (bx, by), `horizontal` of the edge above it (0 on the
+/// picture's border, which is not an edge).
+struct Strengths {
+    cols: usize,
+    vertical: Vec<u8>,
+    horizontal: Vec<u8>,
+}
+
+impl Strengths {
+    fn of(info: &[MbEdgeInfo], mb_cols: usize, (cols, rows): (usize, usize)) -> Strengths {
+        let mut s = Strengths {
+            cols,
+            vertical: vec![0; cols * rows],
+            horizontal: vec![0; cols * rows],
+        };
+        for by in 0..rows {
+            for bx in 0..cols {
+                if bx > 0 {
+                    s.vertical[by * cols + bx] = strength(info, mb_cols, (bx - 1, by), (bx, by));
+                }
+                if by > 0 {
+                    s.horizontal[by * cols + bx] = strength(info, mb_cols, (bx, by - 1), (bx, by));
+                }
+            }
+        }
+        s
+    }
+}
+
 /// Filters one plane: `sub` is 1 for luma and 2 for chroma (a chroma
 /// sample covers 2x2 luma samples; chroma edges lie on every other luma
 /// edge, each chroma row taking the strength of the luma row it covers).
-/// The strength is found once per piece of edge along a 4x4 luma block
-/// (4 luma lines, 2 chroma ones).
-fn filter_plane(plane: &mut Plane, info: &[MbEdgeInfo], mb_cols: usize, qp: u8, sub: usize) {
+/// The strength is one per piece of edge along a 4x4 luma block (4 luma
+/// lines, 2 chroma ones).
+fn filter_plane(plane: &mut Plane, strengths: &Strengths, qp: u8, sub: usize) {
     if ALPHA[usize::from(qp)] == 0 {
         return;
     }
@@ -226,12 +257,12 @@ fn filter_plane(plane: &mut Plane, info: &[MbEdgeInfo], mb_cols: usize, qp: u8, 
     let origin = plane.index(0, 0);
     let (luma, piece) = (sub == 1, 4 / sub);
     let data = plane.data_mut();
+    let cols = strengths.cols;
     // Vertical edges, left to right: each line runs along x.
     for x in (4..w).step_by(4) {
         let bx = x * sub / 4;
         for y0 in (0..h).step_by(piece) {
-            let by = y0 * sub / 4;
-            let bs = strength(info, mb_cols, (bx - 1, by), (bx, by));
+            let bs = strengths.vertical[(y0 * sub / 4) * cols + bx];
             if bs > 0 {
                 let edge = Edge::new(bs, qp);
                 for y in y0..(y0 + piece).min(h) {
@@ -242,10 +273,9 @@ fn filter_plane(plane: &mut Plane, info: &[MbEdgeInfo], mb_cols: usize, qp: u8, 
     }
     // Horizontal edges, top to bottom: each line runs along y.
     for y in (4..h).step_by(4) {
-        let by = y * sub / 4;
+        let row = (y * sub / 4) * cols;
         for x0 in (0..w).step_by(piece) {
-            let bx = x0 * sub / 4;
-            let bs = strength(info, mb_cols, (bx, by - 1), (bx, by));
+            let bs = strengths.horizontal[row + x0 * sub / 4];
             if bs > 0 {
                 let edge = Edge::new(bs, qp);
                 for x in x0..(x0 + piece).min(w) {
@@ -266,10 +296,11 @@ pub fn deblock_frame(frame: &mut Frame, info: &[MbEdgeInfo], qp: u8) {
         "one record per macroblock"
     );
     let qpc = chroma_qp(qp);
+    let strengths = Strengths::of(info, mb_cols, (frame.width() / 4, frame.height() / 4));
     let [y, u, v] = frame.planes_mut();
-    filter_plane(y, info, mb_cols, qp, 1);
-    filter_plane(u, info, mb_cols, qpc, 2);
-    filter_plane(v, info, mb_cols, qpc, 2);
+    filter_plane(y, &strengths, qp, 1);
+    filter_plane(u, &strengths, qpc, 2);
+    filter_plane(v, &strengths, qpc, 2);
 }
 
 #[cfg(test)]

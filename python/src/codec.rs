@@ -84,7 +84,7 @@ struct Tools<'a> {
 }
 
 /// `partitions=`: True (all), False (none), or x264's names ("all",
-/// "none", "p8x8,i4x4", ...).
+/// "none", "p8x8,i8x8,i4x4", ...).
 #[derive(FromPyObject, Clone)]
 pub enum PartitionsArg {
     Flag(bool),
@@ -210,8 +210,9 @@ fn encode_all(frames: &[Frame], fps: (u32, u32), config: EncoderConfig, keep: bo
 ///     `mocomp encode --preset`; decision ("fast" or "full"), rdoq,
 ///     weightp (weighted prediction) and partitions (True, False, or x264's
 ///     names: "all", "none", "p8x8" for 16x8, 8x16 and 8x8 inter
-///     partitions, "i4x4" for intra in 4x4 blocks, "p8x8,i4x4") and dct8x8
-///     (the adaptive 8x8 transform of inter luma, x264's 8x8dct) and refs
+///     partitions, "i8x8" for intra in 8x8 blocks (with dct8x8), "i4x4"
+///     for intra in 4x4 blocks, "p8x8,i8x8,i4x4") and dct8x8 (the 8x8
+///     transform, x264's 8x8dct: inter luma by choice, 8x8 intra) and refs
 ///     (1..8 references P frames may predict from, x264's --ref; `block`
 ///     only) override it when given.
 /// ipratio: quantiser step of P frames over I frames (x264's --ipratio).

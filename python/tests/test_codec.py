@@ -26,7 +26,8 @@ def test_coding_tools_by_keyword(synth_frames):
     source = synth_frames[:3]
     _, stats = mocomp.encode(source, qp=30, ipratio=2.0)
     assert [s["qp"] for s in stats] == [24, 30, 30]
-    tools_off = ({"deblock": False}, {"weightp": False}, {"partitions": False}, {"partitions": "i4x4"}, {"ipratio": 1.0},
+    tools_off = ({"deblock": False}, {"weightp": False}, {"partitions": False}, {"partitions": "i4x4"}, {"partitions": "i8x8"},
+                 {"ipratio": 1.0},
                  {"dct8x8": False})
     for tools in tools_off:
         stream, stats, recon = mocomp.encode(source, qp=30, reconstruction=True, **tools)
@@ -37,7 +38,8 @@ def test_coding_tools_by_keyword(synth_frames):
     with pytest.raises(ValueError):
         mocomp.encode(source, ipratio=0.5)
     # Partitions by x264's names or as a flag: True is "all".
-    assert mocomp.encode(source, qp=30, partitions="p8x8,i4x4")[0] == on
+    assert mocomp.encode(source, qp=30, partitions="p8x8,i8x8,i4x4")[0] == on
+    assert mocomp.encode(source, qp=30, partitions="p8x8,i4x4")[0] != on
     assert mocomp.encode(source, qp=30, partitions=True)[0] == on
     assert mocomp.encode(source, qp=30, partitions="none")[0] == mocomp.encode(source, qp=30, partitions=False)[0]
     with pytest.raises(ValueError):

@@ -239,9 +239,14 @@ fn best_intra(
         }
     });
     let estimate_bound = bound.map_or(f64::INFINITY, |b| b.1);
+    // 8x8 blocks, where inter mostly wins, only where 16x16 intra is no
+    // worse than inter by SATD: within 1.25 times, as 4x4 blocks, bought
+    // 0.4 % more on the development set's mean for 5 % more of medium's
+    // instructions on pan_cif.
+    let blocks8_worth = bound.is_none_or(|(inter_satd, _)| satd <= inter_satd);
     let blocks8 = search
         .as_ref()
-        .filter(|_| coder.intra8x8)
+        .filter(|_| coder.intra8x8 && blocks8_worth)
         .and_then(|search| search.run8(s, None, estimate_bound));
     let blocks4 = search
         .as_ref()

@@ -223,6 +223,23 @@ fn the_command_writes_csv_json_and_overlays_of_the_right_size() {
     assert_eq!(rows.len(), 3 * 99);
     let columns = CSV_HEADER.split(',').count();
     assert!(rows.iter().all(|r| r.split(',').count() == columns));
+    // The table's last two columns count each frame's intra macroblocks in
+    // 8x8 and in 4x4 blocks, as the per-macroblock rows say.
+    let header: Vec<&str> = table.lines().next().unwrap().split_whitespace().collect();
+    assert_eq!(header[header.len() - 2..], ["i8x8", "i4x4"]);
+    for (i, line) in table.lines().skip(1).enumerate() {
+        let t: Vec<&str> = line.split_whitespace().collect();
+        for (column, size) in [(t.len() - 2, "8x8"), (t.len() - 1, "4x4")] {
+            let counted = rows
+                .iter()
+                .filter(|r| {
+                    let c: Vec<&str> = r.split(',').collect();
+                    c[0] == i.to_string() && c[4] == "intra" && c[5] == size
+                })
+                .count();
+            assert_eq!(t[column], counted.to_string(), "frame {i} intra {size}");
+        }
+    }
     for i in 0..3 {
         let img = image::open(p(&format!("ov/frame_{i:04}.png"))).unwrap();
         assert_eq!((img.width(), img.height()), (176, 144));

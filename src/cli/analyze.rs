@@ -85,7 +85,7 @@ pub fn run(args: &Args) -> Result<()> {
 
 fn table_header() -> String {
     format!(
-        "{:>5} {:>4} {:>3} {:>7} {:>8} {:>8} {:>8} {:>5} {:>5} {:>5} {:>5} {:>5}",
+        "{:>5} {:>4} {:>3} {:>7} {:>8} {:>8} {:>8} {:>5} {:>5} {:>5} {:>5} {:>5} {:>5}",
         "frame",
         "type",
         "qp",
@@ -97,6 +97,7 @@ fn table_header() -> String {
         "inter",
         "intra",
         "split",
+        "i8x8",
         "i4x4"
     )
 }
@@ -108,9 +109,14 @@ fn table_row(f: &FrameAnalysis) -> String {
         .iter()
         .filter(|m| m.kind == "inter" && m.partition != "16x16")
         .count();
-    let i4 = f.mbs.iter().filter(|m| m.partition == "4x4").count();
+    let intra_in = |size: &str| {
+        f.mbs
+            .iter()
+            .filter(|m| m.kind == "intra" && m.partition == size)
+            .count()
+    };
     format!(
-        "{:>5} {:>4} {:>3} {:>7} {:>8} {:>8} {:>8} {:>5} {:>5} {:>5} {:>5} {:>5}",
+        "{:>5} {:>4} {:>3} {:>7} {:>8} {:>8} {:>8} {:>5} {:>5} {:>5} {:>5} {:>5} {:>5}",
         f.index,
         f.frame_type,
         f.qp,
@@ -122,7 +128,8 @@ fn table_row(f: &FrameAnalysis) -> String {
         inter,
         intra,
         split,
-        i4
+        intra_in("8x8"),
+        intra_in("4x4")
     )
 }
 

@@ -208,12 +208,13 @@ pub fn flow_to_rgb(flow: &Flow, max_radius: Option<f32>) -> Rgb {
 }
 
 /// Mode colours of the stream overlay, as ffmpeg's `codecview` and
-/// analysers use them: skip green, inter blue, intra 16x16 red, intra 4x4
-/// orange.
+/// analysers use them: skip green, inter blue, intra 16x16 red, intra 8x8
+/// magenta, intra 4x4 orange.
 fn mode_colour(kind: &str, partition: &str) -> [u8; 3] {
     match (kind, partition) {
         ("skip", _) => [40, 200, 60],
         ("intra", "4x4") => [255, 150, 0],
+        ("intra", "8x8") => [220, 40, 200],
         ("intra", _) => [230, 30, 30],
         _ => [40, 110, 255],
     }

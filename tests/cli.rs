@@ -1113,6 +1113,25 @@ fn presets_differ_options_override_them_and_every_stream_decodes() {
         .assert()
         .failure()
         .stderr(predicates::str::contains("unknown partition 'p4x4'"));
+    // Sub-pel RD is slow's: off there, or on in medium, the stream changes;
+    // only on and off are values.
+    assert_ne!(
+        encode("so.mcv", &["--preset", "slow", "--subpel-rd", "off"]),
+        streams[3]
+    );
+    assert_ne!(encode("mo.mcv", &["--subpel-rd", "on"]), streams[2]);
+    mocomp()
+        .args([
+            "encode",
+            input.to_str().unwrap(),
+            "-o",
+            &p("bad.mcv"),
+            "--subpel-rd",
+            "yes",
+        ])
+        .assert()
+        .failure()
+        .stderr(predicates::str::contains("expected on or off"));
     // Partitions are medium's: turned off there they change the stream,
     // and fast with them is not fast.
     assert_ne!(encode("np.mcv", &["--partitions", "none"]), streams[2]);

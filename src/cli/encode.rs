@@ -110,6 +110,10 @@ pub struct ToolArgs {
     /// (`block` only) [default: the preset's].
     #[arg(long, value_name = "N")]
     pub refs: Option<u8>,
+    /// Sub-pel RD refinement on or off, as x264's --subme 8 (`block`
+    /// only; the slow preset has it on) [default: the preset's].
+    #[arg(long, value_name = "on|off", value_parser = on_off)]
+    pub subpel_rd: Option<bool>,
     /// No 8x8 transform (x264's --no-8x8dct): luma in 4x4 transforms only
     /// (no 8x8 intra either).
     #[arg(long = "no-8x8dct")]
@@ -157,7 +161,19 @@ impl ToolArgs {
         if let Some(n) = self.refs {
             config = config.refs(n);
         }
+        if let Some(on) = self.subpel_rd {
+            config = config.subpel_rd(on);
+        }
         config
+    }
+}
+
+/// `on` or `off`.
+fn on_off(s: &str) -> Result<bool, String> {
+    match s {
+        "on" => Ok(true),
+        "off" => Ok(false),
+        _ => Err(format!("'{s}': expected on or off")),
     }
 }
 

@@ -30,6 +30,18 @@ use crate::codec::{Frame, PictureError};
 use crate::me::halfpel::HalfPel;
 use crate::metrics::squared_difference_sum;
 
+/// The quarter-pel steps around a vector that sub-pel RD refinement tries.
+const SUBPEL_NEIGHBOURS: [(i32, i32); 8] = [
+    (-1, -1),
+    (0, -1),
+    (1, -1),
+    (-1, 0),
+    (1, 0),
+    (-1, 1),
+    (0, 1),
+    (1, 1),
+];
+
 /// With the full decision, an inter candidate is coded only when its
 /// SATD + rate estimate is within this factor of the best's (x264's 5/4).
 const RD_MARGIN: f64 = 1.25;
@@ -332,6 +344,8 @@ pub(crate) struct InterInputs<'a> {
     pub weights: Weights,
     /// Inter macroblocks may be split (block frames).
     pub partitions: bool,
+    /// Sub-pel RD refinement of 16x16 inter vectors (block frames).
+    pub subpel_rd: bool,
 }
 
 /// One macroblock under analysis: its source, its predicted vector and the
@@ -377,6 +391,8 @@ struct InterFrameCoder<'a> {
     searched: Vec<Mv>,
     /// Whether inter macroblocks may be split (block frames).
     partitions: bool,
+    /// Sub-pel RD refinement of 16x16 inter vectors (block frames).
+    subpel_rd: bool,
     /// A vector per 8x8 block, when motion analysis has one (flows).
     blocks: Option<Vec<Mv>>,
     /// Motion analysis' vectors per macroblock into each older reference.
@@ -460,6 +476,7 @@ impl<'a> InterFrameCoder<'a> {
             context: searched.iter().map(|&v| [Some(RefMv::previous(v)); 4]).collect(),
             searched,
             partitions: inputs.partitions && inputs.tool == MotionTool::Block,
+            subpel_rd: inputs.subpel_rd,
             halfpel,
             blocks,
             satd8: RefCell::default(),
@@ -505,9 +522,46 @@ impl<'a> InterFrameCoder<'a> {
             self.analyse_inter(&mut mb);
             self.analyse_split(&mut mb);
             self.analyse_intra(&mut mb);
+            self.analyse_subpel_rd(&mut mb);
             self.analyse_transform(&mut mb);
         }
         mb
+    }
+
+    /// Sub-pel RD refinement (x264's `--subme 8`): when a 16x16 inter
+    /// vector won, its eight quarter-pel neighbours are estimated (SATD +
+    /// sqrt(lambda) * vector bits), and the two of lowest estimate within
+    /// [`RD_MARGIN`] of the winner's are coded and weighed by RD.
+    fn analyse_subpel_rd(&self, mb: &mut MbAnalysis) {
+        let MbKind::Inter { mv } = mb.best.kind else {
+            return;
+        };
+        if !self.subpel_rd || self.tool != MotionTool::Block {
+            return;
+        }
+        let at = (mb.mb_x, mb.mb_y, self.seq.mb_cols());
+        let mvp = mv_prediction_into(&self.decided, at, mv.ref_idx);
+        let winner = self.inter_candidate(mb, mv, mvp, mb.best.pred.clone()).estimate;
+        let mut candidates: Vec<InterCandidate> = SUBPEL_NEIGHBOURS
+            .iter()
+            .map(|&(dx, dy)| Mv::new(mv.mv.x + dx, mv.mv.y + dy))
+            .filter(|m| m.in_range())
+            .map(|m| {
+                let m = RefMv::new(m, mv.ref_idx);
+                let pred = predict_inter(&self.inter_context(), mb.mb_x, mb.mb_y, m);
+                self.inter_candidate(mb, m, mvp, pred)
+            })
+            .filter(|c| c.estimate <= RD_MARGIN * winner)
+            .collect();
+        candidates.sort_by(|a, b| a.estimate.total_cmp(&b.estimate));
+        for c in candidates.into_iter().take(2) {
+            let mode = MbMode::Inter {
+                mvd: c.mv.mv - c.mvp,
+                ref_idx: c.mv.ref_idx,
+            };
+            let choice = self.coded_choice(mb, MbKind::Inter { mv: c.mv }, &mode, c.pred);
+            mb.consider(choice);
+        }
     }
 
     /// An inter choice's luma in the 8x8 transform, kept when it costs

@@ -252,6 +252,7 @@ impl Encoder {
                     deblock: self.config.deblock,
                     weights,
                     partitions: self.config.partitions.p8x8,
+                    subpel_rd: self.config.subpel_rd,
                 };
                 frame::code_inter(&self.seq, &self.coder, &src, inputs, &mut self.entropy, recon)?
             }

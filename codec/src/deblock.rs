@@ -103,12 +103,25 @@ impl MbEdgeInfo {
 /// The boundary strength of the edge between luma 4x4 blocks `p` (left or
 /// above) and `q`, in block units, on a picture `mb_cols` macroblocks wide.
 fn strength(info: &[MbEdgeInfo], mb_cols: usize, p: (usize, usize), q: (usize, usize)) -> u8 {
-    let mb = |(bx, by): (usize, usize)| (&info[(by / 4) * mb_cols + bx / 4], bx % 4, by % 4);
-    let ((mp, px, py), (mq, qx, qy)) = (mb(p), mb(q));
+    let mb = |(bx, by): (usize, usize)| &info[(by / 4) * mb_cols + bx / 4];
     let mb_edge = (p.0 / 4, p.1 / 4) != (q.0 / 4, q.1 / 4);
+    let inner = |(x, y): (usize, usize)| (x % 4, y % 4);
+    strength_between((mb(p), inner(p)), (mb(q), inner(q)), mb_edge, p.1 == q.1)
+}
+
+/// [`strength`] of blocks `p` and `q` given by their macroblocks and their
+/// positions in them (`mb_edge`: in different macroblocks; `vertical`: the
+/// edge between them is vertical).
+#[inline(always)]
+fn strength_between(
+    (mp, (px, py)): (&MbEdgeInfo, (usize, usize)),
+    (mq, (qx, qy)): (&MbEdgeInfo, (usize, usize)),
+    mb_edge: bool,
+    vertical: bool,
+) -> u8 {
     // Inside a macroblock, an edge before an odd block column (vertical
-    // edges, p and q on one row) or row (horizontal) cuts an 8x8 block.
-    let inside_8x8 = if p.1 == q.1 { qx % 2 == 1 } else { qy % 2 == 1 };
+    // edges) or row (horizontal) cuts an 8x8 block.
+    let inside_8x8 = if vertical { qx % 2 == 1 } else { qy % 2 == 1 };
     if !mb_edge && mq.transform_8x8 && inside_8x8 {
         return 0;
     }
@@ -230,13 +243,25 @@ impl Strengths {
             vertical: vec![0; cols * rows],
             horizontal: vec![0; cols * rows],
         };
-        for by in 0..rows {
-            for bx in 0..cols {
-                if bx > 0 {
-                    s.vertical[by * cols + bx] = strength(info, mb_cols, (bx - 1, by), (bx, by));
-                }
-                if by > 0 {
-                    s.horizontal[by * cols + bx] = strength(info, mb_cols, (bx, by - 1), (bx, by));
+        for (i, m) in info.iter().enumerate() {
+            let (mx, my) = (i % mb_cols, i / mb_cols);
+            // An inter macroblock without levels whose blocks share one
+            // motion has no edge inside it (most of a P frame's).
+            let plain = !m.intra && m.coded == 0 && m.mvs.iter().all(|v| *v == m.mvs[0]);
+            for y in 0..4 {
+                for x in 0..4 {
+                    let (bx, by) = (4 * mx + x, 4 * my + y);
+                    let at = by * cols + bx;
+                    if x == 0 && mx > 0 {
+                        s.vertical[at] = strength(info, mb_cols, (bx - 1, by), (bx, by));
+                    } else if x > 0 && !plain {
+                        s.vertical[at] = strength_between((m, (x - 1, y)), (m, (x, y)), false, true);
+                    }
+                    if y == 0 && my > 0 {
+                        s.horizontal[at] = strength(info, mb_cols, (bx, by - 1), (bx, by));
+                    } else if y > 0 && !plain {
+                        s.horizontal[at] = strength_between((m, (x, y - 1)), (m, (x, y)), false, false);
+                    }
                 }
             }
         }

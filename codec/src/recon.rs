@@ -103,6 +103,16 @@ pub fn predict_intra4x4(
         &residual.luma,
         |levels, own, at| add_block(levels, qp, own, MB, at),
     );
+    with_intra_chroma(recon, (mb_x, mb_y), luma, chroma)
+}
+
+/// A macroblock's prediction: `luma`, and chroma predicted in `chroma`.
+fn with_intra_chroma(
+    recon: &Frame,
+    (mb_x, mb_y): (usize, usize),
+    luma: [u8; 256],
+    chroma: intra::IntraMode,
+) -> MbSamples {
     let mut pred = MbSamples {
         luma,
         ..MbSamples::default()
@@ -128,13 +138,7 @@ pub fn predict_intra8x8(
             add_block8(&b8[q], qp, own, ((q % 2) * 8, (q / 2) * 8));
         }
     });
-    let mut pred = MbSamples {
-        luma,
-        ..MbSamples::default()
-    };
-    predict_intra_plane(recon, 1, mb_x, mb_y, chroma, &mut pred.chroma[0]);
-    predict_intra_plane(recon, 2, mb_x, mb_y, chroma, &mut pred.chroma[1]);
-    pred
+    with_intra_chroma(recon, (mb_x, mb_y), luma, chroma)
 }
 
 /// One plane of [`predict_intra`] (0 luma, 16x16; 1 and 2 chroma, 8x8),

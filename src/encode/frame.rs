@@ -28,19 +28,8 @@ use crate::codec::warp::warp_frame;
 use crate::codec::weight::Weights;
 use crate::codec::{Frame, PictureError};
 use crate::me::halfpel::HalfPel;
+use crate::me::SQUARE;
 use crate::metrics::squared_difference_sum;
-
-/// The quarter-pel steps around a vector that sub-pel RD refinement tries.
-const SUBPEL_NEIGHBOURS: [(i32, i32); 8] = [
-    (-1, -1),
-    (0, -1),
-    (1, -1),
-    (-1, 0),
-    (1, 0),
-    (-1, 1),
-    (0, 1),
-    (1, 1),
-];
 
 /// With the full decision, an inter candidate is coded only when its
 /// SATD + rate estimate is within this factor of the best's (x264's 5/4).
@@ -542,7 +531,8 @@ impl<'a> InterFrameCoder<'a> {
         let at = (mb.mb_x, mb.mb_y, self.seq.mb_cols());
         let mvp = mv_prediction_into(&self.decided, at, mv.ref_idx);
         let winner = self.inter_candidate(mb, mv, mvp, mb.best.pred.clone()).estimate;
-        let mut candidates: Vec<InterCandidate> = SUBPEL_NEIGHBOURS
+        // The eight quarter-pel steps around it.
+        let mut candidates: Vec<InterCandidate> = SQUARE
             .iter()
             .map(|&(dx, dy)| Mv::new(mv.mv.x + dx, mv.mv.y + dy))
             .filter(|m| m.in_range())

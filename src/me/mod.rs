@@ -37,6 +37,7 @@
 pub mod cost;
 pub(crate) mod halfpel;
 mod search;
+pub(crate) use search::SQUARE;
 pub mod simd;
 
 use std::fmt;

@@ -169,7 +169,8 @@ impl<'s, 'p> Walk<'s, 'p> {
     }
 }
 
-const SQUARE: [(i32, i32); 8] = [
+/// The eight steps around a position.
+pub(crate) const SQUARE: [(i32, i32); 8] = [
     (-1, -1),
     (0, -1),
     (1, -1),

@@ -163,6 +163,18 @@ fn kernels(c: &mut Criterion) {
             out
         })
     });
+    // As the encoder's search does it: the edges smoothed and the mode
+    // table made once, then nine gathers.
+    c.bench_function("intra8x8_nine_modes_one_source", |b| {
+        b.iter(|| {
+            let source = intra8x8::ModeSource::new(&intra8x8::filtered(black_box(&edges8)));
+            let mut out = [0u8; 64];
+            for &m in &modes {
+                source.predict(m, &mut out);
+            }
+            out
+        })
+    });
 }
 
 criterion_group!(benches, tools, kernels);

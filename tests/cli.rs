@@ -1101,18 +1101,22 @@ fn presets_differ_options_override_them_and_every_stream_decodes() {
         encode("no8.mcv", &["--no-8x8dct"]),
         encode("no8i.mcv", &["--no-8x8dct", "--partitions", "p8x8,i4x4"])
     );
-    mocomp()
-        .args([
-            "encode",
-            input.to_str().unwrap(),
-            "-o",
-            &p("bad.mcv"),
-            "--partitions",
-            "p4x4",
-        ])
-        .assert()
-        .failure()
-        .stderr(predicates::str::contains("unknown partition 'p4x4'"));
+    // A bad value is an error that names it.
+    let rejects = |option: &str, value: &str, message: &str| {
+        mocomp()
+            .args([
+                "encode",
+                input.to_str().unwrap(),
+                "-o",
+                &p("bad.mcv"),
+                option,
+                value,
+            ])
+            .assert()
+            .failure()
+            .stderr(predicates::str::contains(message));
+    };
+    rejects("--partitions", "p4x4", "unknown partition 'p4x4'");
     // Sub-pel RD is slow's: off there, or on in medium, the stream changes;
     // only on and off are values.
     assert_ne!(
@@ -1120,18 +1124,7 @@ fn presets_differ_options_override_them_and_every_stream_decodes() {
         streams[3]
     );
     assert_ne!(encode("mo.mcv", &["--subpel-rd", "on"]), streams[2]);
-    mocomp()
-        .args([
-            "encode",
-            input.to_str().unwrap(),
-            "-o",
-            &p("bad.mcv"),
-            "--subpel-rd",
-            "yes",
-        ])
-        .assert()
-        .failure()
-        .stderr(predicates::str::contains("expected on or off"));
+    rejects("--subpel-rd", "yes", "expected on or off");
     // Partitions are medium's: turned off there they change the stream,
     // and fast with them is not fast.
     assert_ne!(encode("np.mcv", &["--partitions", "none"]), streams[2]);

@@ -475,35 +475,45 @@ fn oriented_patches(w: usize, h: usize, size: usize) -> Frame {
     Frame::from_planes(y, c(), c()).unwrap()
 }
 
+/// The stream of `frames` coded at QP 26 with partitions `with`, after
+/// checking that its decoding is the encoder's reconstruction, that it
+/// takes less than `ratio` times the bytes of `without` and that its
+/// quality is no lower (within 0.1 dB).
+fn intra_partition_saves_bits(
+    frames: &[Frame],
+    with: Partitions,
+    without: Partitions,
+    ratio: f64,
+) -> Vec<u8> {
+    let (stream, recon, stats) = encode(frames, EncoderConfig::new().qp(26).partitions(with));
+    assert_eq!(decoder::decode(&stream).unwrap().1, recon);
+    let (other, _, other_stats) = encode(frames, EncoderConfig::new().qp(26).partitions(without));
+    assert!(
+        (stream.len() as f64) < ratio * other.len() as f64,
+        "{} against {} bytes",
+        stream.len(),
+        other.len()
+    );
+    let (a, b) = (stats[0].psnr_y, other_stats[0].psnr_y);
+    assert!(a + 0.1 > b, "{a} against {b} dB");
+    stream
+}
+
 #[test]
 fn intra_4x4_follows_the_directions_of_a_picture_and_saves_bits() {
     use mocomp::codec::intra4x4::{Intra4x4Mode, LumaIntra};
     use mocomp::codec::syntax::MbKind;
     let frames = vec![oriented_patches(96, 64, 8)];
+    // Fewer bytes at no lower quality (measured: 9 % fewer, 0.16 dB more).
     let blocks4 = Partitions {
         i8x8: false,
         ..Partitions::ALL
     };
-    let (stream, recon, stats) = encode(&frames, EncoderConfig::new().qp(26).partitions(blocks4));
-    assert_eq!(decoder::decode(&stream).unwrap().1, recon);
     let only_p8x8 = Partitions {
         i4x4: false,
         ..blocks4
     };
-    let (whole, _, whole_stats) = encode(&frames, EncoderConfig::new().qp(26).partitions(only_p8x8));
-    // Fewer bytes at no lower quality (measured: 9 % fewer, 0.16 dB more).
-    assert!(
-        stream.len() * 20 < whole.len() * 19,
-        "{} against {} bytes",
-        stream.len(),
-        whole.len()
-    );
-    assert!(
-        stats[0].psnr_y + 0.1 > whole_stats[0].psnr_y,
-        "{} against {} dB",
-        stats[0].psnr_y,
-        whole_stats[0].psnr_y
-    );
+    let stream = intra_partition_saves_bits(&frames, blocks4, only_p8x8, 0.95);
     // Blocks of the inner macroblocks take the mode of their stripes:
     // vertical stripes (constant along y) the vertical mode, horizontal
     // the horizontal one (the diagonals may go to any of their neighbours).
@@ -553,29 +563,16 @@ fn intra_8x8_follows_the_directions_of_a_picture_and_saves_bits() {
     use mocomp::codec::syntax::MbKind;
     use Intra4x4Mode::*;
     let frames = vec![oriented_patches(96, 64, 16)];
+    // Measured: 27 % fewer bytes, 1.6 dB more.
     let blocks8 = Partitions {
         i4x4: false,
         ..Partitions::ALL
     };
-    let (stream, recon, stats) = encode(&frames, EncoderConfig::new().qp(26).partitions(blocks8));
-    assert_eq!(decoder::decode(&stream).unwrap().1, recon);
     let only_p8x8 = Partitions {
         i8x8: false,
         ..blocks8
     };
-    let (whole, _, whole_stats) = encode(&frames, EncoderConfig::new().qp(26).partitions(only_p8x8));
-    assert!(
-        stream.len() * 10 < whole.len() * 9,
-        "{} against {} bytes",
-        stream.len(),
-        whole.len()
-    );
-    assert!(
-        stats[0].psnr_y + 0.1 > whole_stats[0].psnr_y,
-        "{} against {} dB",
-        stats[0].psnr_y,
-        whole_stats[0].psnr_y
-    );
+    let stream = intra_partition_saves_bits(&frames, blocks8, only_p8x8, 0.9);
     // Each macroblock is one area: the 8x8 blocks whose edges lie in it
     // take the mode along its stripes (block 2 reads block 0 above it,
     // block 3 blocks 1 and 2, block 1 block 0 to its left).

@@ -49,6 +49,12 @@ pub(crate) fn pricing(
 }
 
 impl IntraBlockSearch<'_> {
+    /// sqrt(lambda) * the bits of a block's mode, most probable or not.
+    pub fn mode_cost(&self, probable: bool) -> f64 {
+        let (probable_bits, other_bits) = self.mode_bits;
+        self.coder.lambda.sqrt() * f64::from(if probable { probable_bits } else { other_bits }) / 256.0
+    }
+
     /// The modes (`fixed`, or each block's best), their prediction and
     /// estimate; `None` as soon as the estimate reaches `bound`.
     pub fn run(
@@ -59,11 +65,6 @@ impl IntraBlockSearch<'_> {
     ) -> Option<Intra4x4Luma> {
         let (mb_x, mb_y) = self.at;
         let cols = self.recon.width() / MB;
-        let sad_lambda = self.coder.lambda.sqrt();
-        let (probable_bits, other_bits) = self.mode_bits;
-        let mode_cost = |probable: bool| {
-            sad_lambda * f64::from(if probable { probable_bits } else { other_bits }) / 256.0
-        };
         let around = &self.around;
         let rate = self
             .coder
@@ -96,7 +97,7 @@ impl IntraBlockSearch<'_> {
             let satds = block_satds(&src.luma, (bx, by), &preds[..n]);
             let mut best = (f64::INFINITY, Intra4x4Mode::Dc, [0u8; 16]);
             for i in 0..n {
-                let cost = f64::from(satds[i]) + mode_cost(candidates[i] == probable);
+                let cost = f64::from(satds[i]) + self.mode_cost(candidates[i] == probable);
                 if cost < best.0 {
                     best = (cost, candidates[i], preds[i]);
                 }

@@ -36,11 +36,6 @@ impl IntraBlockSearch<'_> {
     ) -> Option<Intra8x8Luma> {
         let (mb_x, mb_y) = self.at;
         let cols = self.recon.width() / MB;
-        let sad_lambda = self.coder.lambda.sqrt();
-        let mode_cost = |probable: bool| {
-            let (probable_bits, other_bits) = self.mode_bits;
-            sad_lambda * f64::from(if probable { probable_bits } else { other_bits }) / 256.0
-        };
         let rate = self.coder.rdoq.then(|| self.residual.block8_pricer(true));
         let mut out = Intra8x8Luma {
             modes: [Intra4x4Mode::Dc; 4],
@@ -66,7 +61,7 @@ impl IntraBlockSearch<'_> {
                 }
                 modes.predict(m, &mut block);
                 let satd = Metric::Satd.cost(source, MB, &block, 8, 8, 8);
-                let cost = f64::from(satd) + mode_cost(m == probable);
+                let cost = f64::from(satd) + self.mode_cost(m == probable);
                 if cost < best.0 {
                     best = (cost, m, block);
                 }

@@ -2,9 +2,10 @@
 //! method on a CIF and a 720p frame at range 7 and 16 (one thread).
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use mocomp::codec::cpu;
 use mocomp::codec::Plane;
 use mocomp::me::cost::ssd;
-use mocomp::me::simd::available;
+use mocomp::me::dsp::PIXEL;
 use mocomp::me::{estimate, MeConfig, Method};
 use mocomp::synth::{Motion, SceneSpec, Synth};
 
@@ -26,9 +27,10 @@ fn kernels(c: &mut Criterion) {
     for size in [4usize, 8, 16, 32] {
         let mut g = c.benchmark_group(format!("cost_{size}x{size}"));
         g.throughput(Throughput::Elements((size * size) as u64));
-        for k in available() {
+        for level in cpu::available() {
+            let k = PIXEL.at(level);
             for (name, kernel) in [("sad", k.sad), ("satd", k.satd)] {
-                g.bench_function(BenchmarkId::new(name, k.isa), |bench| {
+                g.bench_function(BenchmarkId::new(name, level.name()), |bench| {
                     bench.iter(|| {
                         kernel(
                             std::hint::black_box(&a[1..]),

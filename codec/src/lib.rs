@@ -12,6 +12,7 @@ pub mod bits;
 pub mod cpu;
 pub mod deblock;
 pub mod decoder;
+pub mod dsp;
 pub mod entropy;
 pub mod interp;
 pub mod intra;

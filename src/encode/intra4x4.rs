@@ -13,7 +13,7 @@ use crate::codec::residual::{BlockClass, ResidualCoder};
 use crate::codec::syntax::MB;
 use crate::codec::transform::Block4;
 use crate::codec::Frame;
-use crate::me::simd::kernels;
+use crate::me::dsp::pixel;
 
 /// The luma of a macroblock coded in 4x4 blocks.
 pub(crate) struct Intra4x4Luma {
@@ -125,7 +125,7 @@ impl IntraBlockSearch<'_> {
 /// The SATD against the source's 4x4 block at (bx, by) of each
 /// prediction, two at a time.
 fn block_satds(src: &[u8; 256], (bx, by): (usize, usize), preds: &[[u8; 16]]) -> [u32; 9] {
-    let pair = kernels().satd_4x4_pair;
+    let pair = pixel().satd_4x4_pair;
     // The source block twice side by side, predictions likewise.
     let mut source = [0u8; 32];
     for r in 0..4 {

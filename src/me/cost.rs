@@ -2,7 +2,7 @@
 //!
 //! Each kernel compares a `w x h` block of `a` (row stride `sa`) with one of
 //! `b` (row stride `sb`). These are the scalar reference versions; the SIMD
-//! kernels of [`super::simd`] must return exactly the same values, and
+//! kernels of [`super::dsp`] must return exactly the same values, and
 //! [`Metric::cost`] goes through them.
 //!
 //! SATD is the sum of absolute values of the 4x4 Hadamard transform of the
@@ -47,11 +47,11 @@ impl Metric {
 
     /// The kernel [`Metric::cost`] calls, chosen once for loops that call it
     /// many times (a search's positions).
-    pub fn kernel(self) -> super::simd::CostFn {
+    pub fn kernel(self) -> super::dsp::CostFn {
         match self {
-            Metric::Sad => super::simd::kernels().sad,
+            Metric::Sad => super::dsp::pixel().sad,
             Metric::Ssd => ssd,
-            Metric::Satd => super::simd::kernels().satd,
+            Metric::Satd => super::dsp::pixel().satd,
         }
     }
 }
@@ -72,18 +72,7 @@ impl FromStr for Metric {
     }
 }
 
-/// Sum of absolute differences.
-pub fn sad(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
-    (0..h)
-        .map(|r| {
-            let (ra, rb) = (&a[r * sa..r * sa + w], &b[r * sb..r * sb + w]);
-            ra.iter()
-                .zip(rb)
-                .map(|(&x, &y)| u32::from(x.abs_diff(y)))
-                .sum::<u32>()
-        })
-        .sum()
-}
+pub use super::dsp::{sad, satd};
 
 /// Sum of squared differences (row by row with the metrics' kernel).
 pub fn ssd(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
@@ -91,50 +80,6 @@ pub fn ssd(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 
         .map(|r| crate::metrics::squared_difference_sum(&a[r * sa..r * sa + w], &b[r * sb..r * sb + w]));
     // A block of at most 64x64 samples: under 2^28.
     rows.sum::<u64>() as u32
-}
-
-/// `sum |H D H^T|` of one 4x4 tile, with H the 4x4 Hadamard matrix (not
-/// halved).
-fn hadamard_abs_4x4(a: &[u8], sa: usize, b: &[u8], sb: usize) -> u32 {
-    let mut d = [[0i32; 4]; 4];
-    for (r, row) in d.iter_mut().enumerate() {
-        for (c, v) in row.iter_mut().enumerate() {
-            *v = i32::from(a[r * sa + c]) - i32::from(b[r * sb + c]);
-        }
-    }
-    let mut t = [[0i32; 4]; 4];
-    for r in 0..4 {
-        let (s01, d01) = (d[r][0] + d[r][1], d[r][0] - d[r][1]);
-        let (s23, d23) = (d[r][2] + d[r][3], d[r][2] - d[r][3]);
-        t[r] = [s01 + s23, s01 - s23, d01 - d23, d01 + d23];
-    }
-    let column = |c: usize| [t[0][c], t[1][c], t[2][c], t[3][c]];
-    let sum: u32 = (0..4)
-        .map(column)
-        .map(|[a, b, c, d]| {
-            let (s01, d01, s23, d23) = (a + b, a - b, c + d, c - d);
-            (s01 + s23).unsigned_abs()
-                + (s01 - s23).unsigned_abs()
-                + (d01 - d23).unsigned_abs()
-                + (d01 + d23).unsigned_abs()
-        })
-        .sum();
-    sum
-}
-
-/// SATD over 4x4 tiles (`w` and `h` multiples of 4).
-pub fn satd(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
-    debug_assert!(
-        w % 4 == 0 && h % 4 == 0,
-        "SATD needs sides that are multiples of 4"
-    );
-    let mut sum = 0u32;
-    for ty in (0..h).step_by(4) {
-        for tx in (0..w).step_by(4) {
-            sum += hadamard_abs_4x4(&a[ty * sa + tx..], sa, &b[ty * sb + tx..], sb);
-        }
-    }
-    sum.div_ceil(2)
 }
 
 #[cfg(test)]

@@ -35,10 +35,10 @@
 //! ```
 
 pub mod cost;
+pub mod dsp;
 pub(crate) mod halfpel;
 mod search;
 pub(crate) use search::SQUARE;
-pub mod simd;
 
 use std::fmt;
 use std::str::FromStr;
@@ -50,7 +50,7 @@ use crate::codec::mv::{mvd_bits, Mv};
 use crate::codec::syntax::predict_in_grid;
 use crate::codec::Plane;
 pub use cost::Metric;
-use simd::{CappedFn, CostFn};
+use dsp::{CappedFn, CostFn};
 
 /// A search method, named as in ffmpeg's `mestimate` filter.
 ///
@@ -397,7 +397,7 @@ impl<'a> SearchContext<'a> {
             block: &cur.data()[cur.index(x, y)..],
             in_place: [x0, x1, y0, y1],
             capped: (cfg.block == 16 && cfg.full_pel_metric() == Metric::Satd)
-                .then(|| simd::kernels().satd_16x16_capped),
+                .then(|| dsp::pixel().satd_16x16_capped),
         }
     }
 

@@ -1,10 +1,13 @@
-//! SIMD cost kernels behind one dispatch point, each with the scalar twin in
-//! [`super::cost`] that tests hold it equal to.
+//! The pixel kernels of motion search, one table per CPU level
+//! ([`crate::codec::dsp`]): block distortions (SAD, SATD, the paired 4x4
+//! SATD of the intra search, the capped 16x16 SATD of the block search)
+//! and the half-pel planes with the copies and averages that rank sub-pel
+//! candidates on them. The scalar kernels here are the reference the
+//! others must equal (`tests/checkasm.rs`).
 //!
-//! On x86-64 the SAD kernels use `psadbw`: SSE2 (always present) for rows of
-//! 8 and 16 samples, AVX2 (detected at run time) for rows of 16 two at a
-//! time and rows of 32. Other widths, and other architectures, use the
-//! scalar kernel. The choice is made once, by [`kernels`].
+//! On x86-64 the SAD kernels use `psadbw`: SSE2 for rows of 8 and 16
+//! samples, AVX2 for rows of 16 two at a time and rows of 32; other widths
+//! use the scalar kernel.
 //!
 //! Measured, for 16x16: one call at a time (`cargo bench --bench me --
 //! cost_16x16`, latency) SSE2 is a little faster (25 against 22 Gelem/s),
@@ -13,16 +16,22 @@
 //! 8.2-9.3 ms per pass, 5 runs each, alternated), so AVX2 keeps it. For
 //! 32x32 AVX2 is 1.8 times SSE2 in both.
 
-use crate::codec::cpu::{self, CpuLevel};
+use std::cell::RefCell;
 
-use super::cost;
+use crate::codec::dsp::PerLevel;
+use crate::codec::Plane;
+
+thread_local! {
+    /// The horizontal pass the half-pel planes are filled from, reused.
+    static HPASS: RefCell<Vec<i16>> = const { RefCell::new(Vec::new()) };
+}
 
 /// Signature of a block cost kernel: `(a, a_stride, b, b_stride, w, h)`.
 pub type CostFn = fn(&[u8], usize, &[u8], usize, usize, usize) -> u32;
 
 /// Signature of the paired 4x4 SATD: two 4x4 tiles side by side in 8x4
 /// blocks (rows of 8 bytes), each tile's SATD (halved, rounded up, as
-/// [`cost::satd`] of that tile alone).
+/// [`satd`] of that tile alone).
 pub type PairFn = fn(&[u8; 32], &[u8; 32]) -> [u32; 2];
 
 /// Signature of the capped 16x16 SATD: `(a, a_stride, b, b_stride, cap)`,
@@ -31,9 +40,139 @@ pub type PairFn = fn(&[u8; 32], &[u8; 32]) -> [u32; 2];
 /// cannot beat its best stop half way (SATD only grows with rows).
 pub type CappedFn = fn(&[u8], usize, &[u8], usize, u32) -> u32;
 
+/// Signature of the half-pel planes: `(reference, margin, planes)` writes
+/// the horizontal, vertical and diagonal half-pel phases of `reference`
+/// into the three `planes` (its size) over the picture and `margin`
+/// pixels around it, with the codec's filter and rounding.
+pub type HalfpelFn = fn(&Plane, usize, &mut [Plane]);
+
+/// Signature of a 16x16 block copy: `(a, a_stride, out)`, `out` in rows
+/// of 16.
+pub type CopyFn = fn(&[u8], usize, &mut [u8]);
+
+/// Signature of a block average: `((a, a_stride), (c, c_stride), out)`,
+/// `(u + v + 1) >> 1` of the two blocks, `out` in rows of the block's
+/// width.
+pub type AverageFn = fn((&[u8], usize), (&[u8], usize), &mut [u8]);
+
+/// The pixel kernels of one CPU level.
+#[derive(Clone, Copy)]
+pub struct PixelDsp {
+    /// Sum of absolute differences.
+    pub sad: CostFn,
+    /// Sum of absolute 4x4 Hadamard coefficients, halved.
+    pub satd: CostFn,
+    /// SATD of two 4x4 tiles at once (4x4 intra mode search).
+    pub satd_4x4_pair: PairFn,
+    /// 16x16 SATD that may stop half way above a cap (block search).
+    pub satd_16x16_capped: CappedFn,
+    /// The half-pel planes of a reference.
+    pub halfpel_planes: HalfpelFn,
+    /// 16x16 copy (a half-pel candidate).
+    pub copy_16x16: CopyFn,
+    /// 16x16 average (a quarter-pel candidate).
+    pub average_16x16: AverageFn,
+    /// 8x8 average (a partition's quarter-pel candidate).
+    pub average_8x8: AverageFn,
+}
+
+impl std::fmt::Debug for PixelDsp {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PixelDsp").finish_non_exhaustive()
+    }
+}
+
+/// The scalar kernels (the reference every other table must equal).
+const SCALAR: PixelDsp = PixelDsp {
+    sad,
+    satd,
+    satd_4x4_pair,
+    satd_16x16_capped,
+    halfpel_planes: halfpel_planes_scalar,
+    copy_16x16: |a, sa, out| copy_rows(16, a, sa, out),
+    average_16x16: |a, c, out| average_rows(16, a, c, out),
+    average_8x8: |a, c, out| average_rows(8, a, c, out),
+};
+
+/// The tables, lowest level first.
+pub static PIXEL: PerLevel<PixelDsp> = PerLevel([
+    SCALAR,
+    #[cfg(target_arch = "x86_64")]
+    x86::SSE2,
+    #[cfg(target_arch = "x86_64")]
+    x86::AVX2,
+    #[cfg(not(target_arch = "x86_64"))]
+    SCALAR,
+    #[cfg(not(target_arch = "x86_64"))]
+    SCALAR,
+]);
+
+/// The kernels of the CPU level in force.
+#[inline]
+pub fn pixel() -> &'static PixelDsp {
+    PIXEL.get()
+}
+
+/// Sum of absolute differences.
+pub fn sad(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
+    (0..h)
+        .map(|r| {
+            let (ra, rb) = (&a[r * sa..r * sa + w], &b[r * sb..r * sb + w]);
+            ra.iter()
+                .zip(rb)
+                .map(|(&x, &y)| u32::from(x.abs_diff(y)))
+                .sum::<u32>()
+        })
+        .sum()
+}
+
+/// `sum |H D H^T|` of one 4x4 tile, with H the 4x4 Hadamard matrix (not
+/// halved).
+fn hadamard_abs_4x4(a: &[u8], sa: usize, b: &[u8], sb: usize) -> u32 {
+    let mut d = [[0i32; 4]; 4];
+    for (r, row) in d.iter_mut().enumerate() {
+        for (c, v) in row.iter_mut().enumerate() {
+            *v = i32::from(a[r * sa + c]) - i32::from(b[r * sb + c]);
+        }
+    }
+    let mut t = [[0i32; 4]; 4];
+    for r in 0..4 {
+        let (s01, d01) = (d[r][0] + d[r][1], d[r][0] - d[r][1]);
+        let (s23, d23) = (d[r][2] + d[r][3], d[r][2] - d[r][3]);
+        t[r] = [s01 + s23, s01 - s23, d01 - d23, d01 + d23];
+    }
+    let column = |c: usize| [t[0][c], t[1][c], t[2][c], t[3][c]];
+    let sum: u32 = (0..4)
+        .map(column)
+        .map(|[a, b, c, d]| {
+            let (s01, d01, s23, d23) = (a + b, a - b, c + d, c - d);
+            (s01 + s23).unsigned_abs()
+                + (s01 - s23).unsigned_abs()
+                + (d01 - d23).unsigned_abs()
+                + (d01 + d23).unsigned_abs()
+        })
+        .sum();
+    sum
+}
+
+/// SATD over 4x4 tiles (`w` and `h` multiples of 4).
+pub fn satd(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
+    debug_assert!(
+        w % 4 == 0 && h % 4 == 0,
+        "SATD needs sides that are multiples of 4"
+    );
+    let mut sum = 0u32;
+    for ty in (0..h).step_by(4) {
+        for tx in (0..w).step_by(4) {
+            sum += hadamard_abs_4x4(&a[ty * sa + tx..], sa, &b[ty * sb + tx..], sb);
+        }
+    }
+    sum.div_ceil(2)
+}
+
 /// The scalar capped 16x16 SATD.
 pub fn satd_16x16_capped(a: &[u8], sa: usize, b: &[u8], sb: usize, cap: u32) -> u32 {
-    capped_by_halves(cost::satd, a, sa, b, sb, cap)
+    capped_by_halves(satd, a, sa, b, sb, cap)
 }
 
 /// [`CappedFn`] from a SATD kernel, one 16x8 half at a time (halves add up
@@ -49,60 +188,7 @@ fn capped_by_halves(satd: CostFn, a: &[u8], sa: usize, b: &[u8], sb: usize, cap:
 
 /// The scalar paired 4x4 SATD.
 pub fn satd_4x4_pair(a: &[u8; 32], b: &[u8; 32]) -> [u32; 2] {
-    [0, 4].map(|o| cost::satd(&a[o..], 8, &b[o..], 8, 4, 4))
-}
-
-/// The kernels selected for this machine.
-#[derive(Clone, Copy)]
-pub struct Kernels {
-    /// Sum of absolute differences.
-    pub sad: CostFn,
-    /// Sum of absolute 4x4 Hadamard coefficients, halved.
-    pub satd: CostFn,
-    /// SATD of two 4x4 tiles at once (4x4 intra mode search).
-    pub satd_4x4_pair: PairFn,
-    /// 16x16 SATD that may stop half way above a cap (block search).
-    pub satd_16x16_capped: CappedFn,
-    /// Name of the instruction set in use, for reports.
-    pub isa: &'static str,
-}
-
-impl std::fmt::Debug for Kernels {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Kernels").field("isa", &self.isa).finish()
-    }
-}
-
-/// The scalar kernels (the reference every other set must equal).
-pub const SCALAR: Kernels = Kernels {
-    sad: cost::sad,
-    satd: cost::satd,
-    satd_4x4_pair,
-    satd_16x16_capped,
-    isa: "scalar",
-};
-
-/// The kernel set of a CPU level.
-pub fn kernels_for(level: CpuLevel) -> &'static Kernels {
-    match level {
-        CpuLevel::Scalar => &SCALAR,
-        #[cfg(target_arch = "x86_64")]
-        CpuLevel::Sse2 => &x86::SSE2,
-        #[cfg(target_arch = "x86_64")]
-        CpuLevel::Avx2 => &x86::AVX2,
-        #[cfg(not(target_arch = "x86_64"))]
-        _ => &SCALAR,
-    }
-}
-
-/// The kernels of the CPU level in force ([`crate::codec::cpu`]).
-pub fn kernels() -> &'static Kernels {
-    kernels_for(cpu::level())
-}
-
-/// Every kernel set this CPU can run, scalar first (for tests and benches).
-pub fn available() -> Vec<Kernels> {
-    cpu::available().into_iter().map(|l| *kernels_for(l)).collect()
+    [0, 4].map(|o| satd(&a[o..], 8, &b[o..], 8, 4, 4))
 }
 
 /// Panics unless both blocks lie inside their slices: the SIMD kernels read
@@ -115,25 +201,148 @@ fn check_bounds(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) {
     );
 }
 
+/// `out` (rows of `n`) = the rounded average of `n x n` blocks `a` and `c`
+/// (each a slice from its first sample and a stride).
+#[inline(always)]
+pub(crate) fn average_rows(n: usize, (a, sa): (&[u8], usize), (c, sc): (&[u8], usize), out: &mut [u8]) {
+    for (r, o) in out.chunks_exact_mut(n).take(n).enumerate() {
+        for ((o, &u), &v) in o
+            .iter_mut()
+            .zip(&a[r * sa..r * sa + n])
+            .zip(&c[r * sc..r * sc + n])
+        {
+            *o = ((u16::from(u) + u16::from(v) + 1) >> 1) as u8;
+        }
+    }
+}
+
+/// `out` (rows of `n`) = the `n x n` block `a` (stride `sa`).
+#[inline(always)]
+pub(crate) fn copy_rows(n: usize, a: &[u8], sa: usize, out: &mut [u8]) {
+    for (r, o) in out.chunks_exact_mut(n).take(n).enumerate() {
+        o.copy_from_slice(&a[r * sa..r * sa + n]);
+    }
+}
+
+/// The half-pel filter: the codec's 8-tap luma filter at phase 1/2, in
+/// 16 bits for the kernels.
+pub(crate) const HALF: [i16; 8] = {
+    let taps = crate::codec::interp::LUMA_TAPS[2];
+    let mut half = [0i16; 8];
+    let mut k = 0;
+    while k < 8 {
+        half[k] = taps[k] as i16;
+        k += 1;
+    }
+    half
+};
+
+fn halfpel_planes_scalar(reference: &Plane, margin: usize, planes: &mut [Plane]) {
+    // SAFETY: AVX2 off.
+    unsafe { halfpel_planes_body::<false>(reference, margin, planes) }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use crate::codec::Plane;
+    crate::codec::compiled_for! { "avx2":
+        fn halfpel_planes(reference: &Plane, margin: usize, planes: &mut [Plane])
+            => super::halfpel_planes_body::<true>;
+    }
+}
+
+/// The planes, for any instruction set; `AVX2` takes the diagonal phase's
+/// vertical pass to AVX2 intrinsics.
+///
+/// # Safety
+/// `AVX2` is true only where the CPU has AVX2.
+#[inline(always)]
+unsafe fn halfpel_planes_body<const AVX2: bool>(reference: &Plane, margin: usize, planes: &mut [Plane]) {
+    let (w, h, m) = (reference.width(), reference.height(), margin as isize);
+    let span = w + 2 * margin;
+    let clip = |v: i32| v.clamp(0, 255) as u8;
+    // Unrounded horizontal pass (within i16: -6120..=22440) of the rows
+    // the vertical filters read: -m - 3 .. h + m + 4.
+    let rows = h + 2 * margin + 7;
+    let mut hpass = HPASS.with(|b| std::mem::take(&mut *b.borrow_mut()));
+    // Every entry is assigned by the first tap below: no need to clear
+    // what a previous picture left.
+    hpass.resize(rows * span, 0);
+    for (r, out) in hpass[..rows * span].chunks_exact_mut(span).enumerate() {
+        let src = &reference.data()[reference.index(-m - 3, r as isize - m - 3)..];
+        for (o, &v) in out.iter_mut().zip(&src[..span]) {
+            *o = HALF[0] * i16::from(v);
+        }
+        for (k, &t) in HALF.iter().enumerate().skip(1) {
+            for (o, &v) in out.iter_mut().zip(&src[k..k + span]) {
+                *o += t * i16::from(v);
+            }
+        }
+    }
+    let hrow = |y: usize| &hpass[y * span..(y + 1) * span];
+    let mut acc16 = vec![0i16; span];
+    let mut acc32 = vec![0i32; span];
+    for y in 0..h + 2 * margin {
+        let at = planes[0].index(-m, y as isize - m);
+        for (o, &v) in planes[0].data_mut()[at..at + span].iter_mut().zip(hrow(y + 3)) {
+            *o = clip((i32::from(v) + 32) >> 6);
+        }
+        acc16.fill(0);
+        for (k, &t) in HALF.iter().enumerate() {
+            let at = reference.index(-m, y as isize - m - 3 + k as isize);
+            for (a, &v) in acc16.iter_mut().zip(&reference.data()[at..at + span]) {
+                *a += t * i16::from(v);
+            }
+        }
+        let at = planes[1].index(-m, y as isize - m);
+        for (o, &v) in planes[1].data_mut()[at..at + span].iter_mut().zip(&acc16) {
+            *o = clip((i32::from(v) + 32) >> 6);
+        }
+        let at = planes[2].index(-m, y as isize - m);
+        let out = &mut planes[2].data_mut()[at..at + span];
+        let rows: [&[i16]; 8] = std::array::from_fn(|k| hrow(y + k));
+        #[cfg(target_arch = "x86_64")]
+        if AVX2 {
+            // SAFETY: the caller's contract: AVX2 only where the CPU has it.
+            unsafe { x86_halfpel::diagonal_row_avx2(&rows, out) };
+            continue;
+        }
+        acc32.fill(0);
+        for (&t, row) in HALF.iter().zip(rows) {
+            for (a, &v) in acc32.iter_mut().zip(row) {
+                *a += i32::from(t) * i32::from(v);
+            }
+        }
+        for (o, &v) in out.iter_mut().zip(&acc32) {
+            *o = clip(((v >> 6) + 32) >> 6);
+        }
+    }
+    HPASS.with(|b| *b.borrow_mut() = hpass);
+}
+
 #[cfg(target_arch = "x86_64")]
 mod x86 {
     use std::arch::x86_64::*;
 
-    use super::{capped_by_halves, check_bounds, cost, Kernels};
+    use super::{capped_by_halves, check_bounds, PixelDsp};
 
-    pub const SSE2: Kernels = Kernels {
+    pub const SSE2: PixelDsp = PixelDsp {
         sad: sad_sse2,
         satd: satd_sse2,
         satd_4x4_pair: satd_4x4_pair_sse2,
         satd_16x16_capped: satd_16x16_capped_sse2,
-        isa: "sse2",
+        halfpel_planes: super::halfpel_planes_scalar,
+        copy_16x16: super::x86_halfpel::copy_16x16,
+        average_16x16: super::x86_halfpel::average_16x16,
+        average_8x8: super::x86_halfpel::average_8x8,
     };
-    pub const AVX2: Kernels = Kernels {
+    pub const AVX2: PixelDsp = PixelDsp {
         sad: sad_avx2,
         satd: satd_avx2,
         satd_4x4_pair: satd_4x4_pair_sse2,
         satd_16x16_capped: satd_16x16_capped_avx2,
-        isa: "avx2",
+        halfpel_planes: super::avx2::halfpel_planes,
+        ..SSE2
     };
 
     fn satd_avx2(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
@@ -274,7 +483,7 @@ mod x86 {
     fn satd_sse2(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
         check_bounds(a, sa, b, sb, w, h);
         if w % 8 != 0 || h % 4 != 0 {
-            return cost::satd(a, sa, b, sb, w, h);
+            return super::satd(a, sa, b, sb, w, h);
         }
         let mut sum = 0u32;
         for ty in (0..h).step_by(4) {
@@ -355,7 +564,7 @@ mod x86 {
                 _ if w % 16 == 0 => (0..w / 16)
                     .map(|k| sad_w16_sse2(a.as_ptr().add(16 * k), sa, b.as_ptr().add(16 * k), sb, h))
                     .sum(),
-                _ => cost::sad(a, sa, b, sb, w, h),
+                _ => super::sad(a, sa, b, sb, w, h),
             }
         }
     }
@@ -441,5 +650,116 @@ mod x86 {
             acc = _mm256_add_epi64(acc, _mm256_sad_epu8(x, y));
         }
         hsum_sad256(acc)
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod x86_halfpel {
+    use std::arch::x86_64::*;
+
+    use super::HALF;
+
+    /// Panics unless a `16 x 16` block at stride `stride` fits in `len`.
+    fn check_16x16(len: usize, stride: usize) {
+        assert!(
+            stride >= 16 && len >= 15 * stride + 16,
+            "16x16 block past its slice"
+        );
+    }
+
+    /// [`super::copy_rows`] at 16 in SSE2 moves (bounds checked once).
+    pub(super) fn copy_16x16(a: &[u8], sa: usize, out: &mut [u8]) {
+        check_16x16(a.len(), sa);
+        check_16x16(out.len(), 16);
+        for r in 0..16 {
+            // SAFETY: rows 0..16 of both blocks lie inside their slices
+            // (checked above); SSE2 is part of x86-64.
+            unsafe {
+                let v = _mm_loadu_si128(a.as_ptr().add(r * sa) as *const __m128i);
+                _mm_storeu_si128(out.as_mut_ptr().add(r * 16) as *mut __m128i, v);
+            }
+        }
+    }
+
+    /// [`super::average_rows`] at 16: `pavgb` is exactly
+    /// `(u + v + 1) >> 1` (bounds checked once).
+    pub(super) fn average_16x16((a, sa): (&[u8], usize), (c, sc): (&[u8], usize), out: &mut [u8]) {
+        check_16x16(a.len(), sa);
+        check_16x16(c.len(), sc);
+        check_16x16(out.len(), 16);
+        for r in 0..16 {
+            // SAFETY: as in copy_16x16.
+            unsafe {
+                let x = _mm_loadu_si128(a.as_ptr().add(r * sa) as *const __m128i);
+                let y = _mm_loadu_si128(c.as_ptr().add(r * sc) as *const __m128i);
+                _mm_storeu_si128(out.as_mut_ptr().add(r * 16) as *mut __m128i, _mm_avg_epu8(x, y));
+            }
+        }
+    }
+
+    /// [`super::average_rows`] at 8 (the partitions' blocks), as
+    /// [`average_16x16`] with 8-byte loads.
+    pub(super) fn average_8x8((a, sa): (&[u8], usize), (c, sc): (&[u8], usize), out: &mut [u8]) {
+        let fits = |len: usize, stride: usize| stride >= 8 && len >= 7 * stride + 8;
+        assert!(
+            fits(a.len(), sa) && fits(c.len(), sc) && fits(out.len(), 8),
+            "8x8 block past its slice"
+        );
+        for r in 0..8 {
+            // SAFETY: rows 0..8 of the three blocks lie inside their
+            // slices (checked above); SSE2 is part of x86-64.
+            unsafe {
+                let x = _mm_loadl_epi64(a.as_ptr().add(r * sa) as *const __m128i);
+                let y = _mm_loadl_epi64(c.as_ptr().add(r * sc) as *const __m128i);
+                _mm_storel_epi64(out.as_mut_ptr().add(r * 8) as *mut __m128i, _mm_avg_epu8(x, y));
+            }
+        }
+    }
+
+    /// One row of the diagonal phase: the half-pel filter down the eight
+    /// rows of the unrounded horizontal pass, taps in pairs, each pair one
+    /// `pmaddwd` of two interleaved rows (exact 32-bit sums, as the scalar
+    /// pass), then `((v >> 6) + 32) >> 6` saturated to 8 bits; the columns
+    /// past the last multiple of 16 in scalar code.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn diagonal_row_avx2(rows: &[&[i16]; 8], out: &mut [u8]) {
+        let n = out.len();
+        let pair =
+            |k: usize| _mm256_set1_epi32((i32::from(HALF[k + 1]) << 16) | (i32::from(HALF[k]) & 0xffff));
+        let coef = [pair(0), pair(2), pair(4), pair(6)];
+        let round = _mm256_set1_epi32(32);
+        let finish = |v: __m256i| _mm256_srai_epi32::<6>(_mm256_add_epi32(_mm256_srai_epi32::<6>(v), round));
+        let mut x = 0;
+        while x + 16 <= n {
+            let (mut lo, mut hi) = (_mm256_setzero_si256(), _mm256_setzero_si256());
+            for (p, c) in coef.iter().enumerate() {
+                let (ra, rb) = (&rows[2 * p][x..x + 16], &rows[2 * p + 1][x..x + 16]);
+                // SAFETY: both slices are 16 i16 = 32 bytes.
+                let (a, b) = unsafe {
+                    (
+                        _mm256_loadu_si256(ra.as_ptr() as *const __m256i),
+                        _mm256_loadu_si256(rb.as_ptr() as *const __m256i),
+                    )
+                };
+                lo = _mm256_add_epi32(lo, _mm256_madd_epi16(_mm256_unpacklo_epi16(a, b), *c));
+                hi = _mm256_add_epi32(hi, _mm256_madd_epi16(_mm256_unpackhi_epi16(a, b), *c));
+            }
+            // Per 128-bit lane lo holds columns 0-3 and hi 4-7 (then 8-11,
+            // 12-15): the packs restore column order within each lane.
+            let words = _mm256_packs_epi32(finish(lo), finish(hi));
+            let bytes = _mm256_permute4x64_epi64::<0b00_00_10_00>(_mm256_packus_epi16(words, words));
+            let o = &mut out[x..x + 16];
+            // SAFETY: `o` is 16 bytes.
+            unsafe { _mm_storeu_si128(o.as_mut_ptr() as *mut __m128i, _mm256_castsi256_si128(bytes)) };
+            x += 16;
+        }
+        for (c, o) in out.iter_mut().enumerate().skip(x) {
+            let v: i32 = HALF
+                .iter()
+                .zip(rows)
+                .map(|(&t, r)| i32::from(t) * i32::from(r[c]))
+                .sum();
+            *o = (((v >> 6) + 32) >> 6).clamp(0, 255) as u8;
+        }
     }
 }

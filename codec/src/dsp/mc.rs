@@ -1,0 +1,398 @@
+//! Motion compensation kernels (normative: FORMAT.md section 10): the
+//! quarter-pel 8-tap luma filter and the eighth-pel bilinear chroma
+//! filter over a block whose samples are all in the slice given (the
+//! callers in [`crate::interp`] find them in the reference's border).
+
+use super::PerLevel;
+
+/// Luma filter taps for phases 0, 1/4, 1/2, 3/4; each sums to 64. Tap `k`
+/// applies to the sample at offset `k - 3`.
+pub const LUMA_TAPS: [[i32; 8]; 4] = [
+    [0, 0, 0, 64, 0, 0, 0, 0],
+    [-1, 4, -10, 58, 17, -5, 1, 0],
+    [-1, 4, -11, 40, 40, -11, 4, -1],
+    [0, 1, -5, 17, 58, -10, 4, -1],
+];
+
+/// Largest block the kernels accept, per side.
+pub const MAX_BLOCK: usize = 64;
+
+/// Samples the 8-tap filter reads before the block (and 4 after).
+pub const TAPS_BEFORE: usize = 3;
+
+/// A luma prediction: `(src, stride, (fx, fy), (w, h), out, out_stride)`,
+/// the `w x h` block at quarter-pel phase (fx, fy) whose samples start
+/// [`TAPS_BEFORE`] rows above and columns left of `src[0]`'s block corner
+/// (the slice holds the block and the filter's reach: h + 7 rows of w + 7).
+pub type LumaFn = fn(&[u8], usize, (usize, usize), (usize, usize), &mut [u8], usize);
+
+/// A chroma prediction: `(src, stride, (fx, fy), (w, h), out, out_stride)`,
+/// the `w x h` block at eighth-pel phase (fx, fy) whose top-left integer
+/// sample is `src[0]` (the slice holds h + 1 rows of w + 1).
+pub type ChromaFn = fn(&[u8], usize, (usize, usize), (usize, usize), &mut [u8], usize);
+
+/// The motion compensation kernels of one CPU level.
+#[derive(Debug, Clone, Copy)]
+pub struct McDsp {
+    /// Luma quarter-pel prediction.
+    pub luma: LumaFn,
+    /// Chroma eighth-pel prediction.
+    pub chroma: ChromaFn,
+}
+
+/// The scalar kernels.
+const SCALAR: McDsp = McDsp {
+    luma: luma_scalar,
+    chroma: chroma_body,
+};
+
+/// The tables, lowest level first.
+pub static MC: PerLevel<McDsp> = PerLevel([
+    SCALAR,
+    SCALAR,
+    #[cfg(target_arch = "x86_64")]
+    McDsp {
+        luma: avx2::luma,
+        chroma: avx2::chroma,
+    },
+    #[cfg(not(target_arch = "x86_64"))]
+    SCALAR,
+]);
+
+/// The kernels of the CPU level in force.
+#[inline]
+pub fn mc() -> &'static McDsp {
+    MC.get()
+}
+
+fn luma_scalar(
+    src: &[u8],
+    stride: usize,
+    phase: (usize, usize),
+    size: (usize, usize),
+    out: &mut [u8],
+    os: usize,
+) {
+    // SAFETY: AVX2 off.
+    unsafe { luma_body::<false>(src, stride, phase, size, out, os) }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    crate::compiled_for! { "avx2":
+        fn luma(src: &[u8], stride: usize, phase: (usize, usize), size: (usize, usize), out: &mut [u8], os: usize)
+            => super::luma_body::<true>;
+        fn chroma(src: &[u8], stride: usize, phase: (usize, usize), size: (usize, usize), out: &mut [u8], os: usize)
+            => super::chroma_body;
+    }
+}
+
+/// The luma predictor, for any instruction set; `AVX2` takes the 16x16
+/// vertical pass to AVX2 intrinsics.
+///
+/// # Safety
+/// `AVX2` is true only where the CPU has AVX2.
+#[inline(always)]
+unsafe fn luma_body<const AVX2: bool>(
+    data: &[u8],
+    stride: usize,
+    (fx, fy): (usize, usize),
+    (w, h): (usize, usize),
+    out: &mut [u8],
+    out_stride: usize,
+) {
+    const B: usize = TAPS_BEFORE;
+    if w == 16 && h == 16 && (fx, fy) != (0, 0) {
+        // The macroblock case, with sizes the compiler knows.
+        let mut block = [0u8; 256];
+        // SAFETY: this function's contract passes on.
+        luma_16x16::<AVX2>(data, stride, fx, fy, &mut block);
+        for (r, row) in block.chunks_exact(16).enumerate() {
+            out[r * out_stride..r * out_stride + 16].copy_from_slice(row);
+        }
+        return;
+    }
+    match (fx, fy) {
+        (0, 0) => {
+            for r in 0..h {
+                let src = (r + B) * stride + B;
+                out[r * out_stride..r * out_stride + w].copy_from_slice(&data[src..src + w]);
+            }
+        }
+        (_, 0) => {
+            let taps = &LUMA_TAPS[fx];
+            let mut acc = [0i32; MAX_BLOCK];
+            for r in 0..h {
+                let src = (r + B) * stride;
+                filter_row(taps, |k| &data[src + k..src + k + w], &mut acc[..w]);
+                round_into(&acc[..w], 6, &mut out[r * out_stride..r * out_stride + w]);
+            }
+        }
+        (0, _) => {
+            let taps = &LUMA_TAPS[fy];
+            let mut acc = [0i32; MAX_BLOCK];
+            for r in 0..h {
+                let src = r * stride + B;
+                filter_row(
+                    taps,
+                    |k| &data[src + k * stride..src + k * stride + w],
+                    &mut acc[..w],
+                );
+                round_into(&acc[..w], 6, &mut out[r * out_stride..r * out_stride + w]);
+            }
+        }
+        _ => luma_2d(data, stride, (fx, fy), (w, h), out, out_stride),
+    }
+}
+
+/// A two-dimensional luma phase of a `w x h` block whose taps start at
+/// `data[0]`: a horizontal pass over h + 7 rows at full precision (it fits
+/// 16 bits: -6120..=22440), then vertical. Inlined into both of
+/// [`luma_body`]'s instances.
+#[inline(always)]
+fn luma_2d(
+    data: &[u8],
+    stride: usize,
+    (fx, fy): (usize, usize),
+    (w, h): (usize, usize),
+    out: &mut [u8],
+    out_stride: usize,
+) {
+    // Small blocks, the common case, use a small buffer.
+    let rows = h + 7;
+    let mut small = [0i16; 16 * 23];
+    let mut large = Vec::new();
+    let tmp: &mut [i16] = if w * rows <= small.len() {
+        &mut small[..w * rows]
+    } else {
+        large.resize(w * rows, 0);
+        &mut large
+    };
+    let (th, tv) = (&LUMA_TAPS[fx], &LUMA_TAPS[fy]);
+    let mut acc = [0i32; MAX_BLOCK];
+    for r in 0..rows {
+        let src = r * stride;
+        filter_row(th, |k| &data[src + k..src + k + w], &mut acc[..w]);
+        for (t, &a) in tmp[r * w..(r + 1) * w].iter_mut().zip(&acc[..w]) {
+            *t = a as i16;
+        }
+    }
+    let mut acc = [0i32; MAX_BLOCK];
+    for r in 0..h {
+        let acc = &mut acc[..w];
+        acc.fill(0);
+        for (k, &t) in tv.iter().enumerate() {
+            if t != 0 {
+                for (a, &v) in acc.iter_mut().zip(&tmp[(r + k) * w..(r + k + 1) * w]) {
+                    *a += t * i32::from(v);
+                }
+            }
+        }
+        for a in acc.iter_mut() {
+            *a >>= 6;
+        }
+        round_into(acc, 6, &mut out[r * out_stride..r * out_stride + w]);
+    }
+}
+
+const N16: usize = 16;
+
+/// Row `r` of a 16x16 block's neighbourhood: 16 + 7 samples.
+#[inline(always)]
+fn row23(data: &[u8], stride: usize, r: usize) -> &[u8; N16 + 7] {
+    let s = &data[r * stride..r * stride + N16 + 7];
+    s.try_into().unwrap_or(&[0; N16 + 7])
+}
+
+/// The horizontal 8-tap filter of 16 samples, full precision, in 16-bit
+/// lanes (twice as many a vector as 32-bit ones): every product and
+/// partial sum of 8-bit samples with these taps lies within -4080..=20400.
+#[inline(always)]
+fn hpass16(r: &[u8; N16 + 7], taps: &[i32; 8]) -> [i16; N16] {
+    let mut acc = [0i16; N16];
+    for (k, &t) in taps.iter().enumerate() {
+        let s = &r[k..k + N16];
+        let t = t as i16;
+        for (a, &v) in acc.iter_mut().zip(s) {
+            *a += t * i16::from(v);
+        }
+    }
+    acc
+}
+
+/// `clip((acc + 32) >> 6)` of 16 values.
+#[inline(always)]
+fn round16<T: Copy + Into<i32>>(acc: &[T; N16], o: &mut [u8]) {
+    for (o, &a) in o.iter_mut().zip(acc) {
+        *o = ((a.into() + 32) >> 6).clamp(0, 255) as u8;
+    }
+}
+
+/// A 16x16 luma prediction at phase (fx, fy), not both 0, from `data`
+/// starting 3 rows above and 3 columns left of the block. (Functions, not
+/// closures: closures do not inherit the caller's target features.)
+#[inline(always)]
+unsafe fn luma_16x16<const AVX2: bool>(
+    data: &[u8],
+    stride: usize,
+    fx: usize,
+    fy: usize,
+    out: &mut [u8; 256],
+) {
+    const N: usize = N16;
+    const B: usize = TAPS_BEFORE;
+    if fy == 0 {
+        for r in 0..N {
+            let acc = hpass16(row23(data, stride, r + B), &LUMA_TAPS[fx]);
+            round16(&acc, &mut out[r * N..(r + 1) * N]);
+        }
+        return;
+    }
+    let mut tmp = [[0i16; N]; N + 7];
+    for (r, t) in tmp.iter_mut().enumerate() {
+        let src = row23(data, stride, r);
+        if fx == 0 {
+            // Scaled by 64 (at most 16320: still 16 bits) so that one
+            // vertical pass serves both cases; its >> 6 below is then
+            // exact, as the direct vertical filter's single rounding needs.
+            for (t, &v) in t.iter_mut().zip(&src[B..B + N]) {
+                *t = i16::from(v) << 6;
+            }
+        } else {
+            *t = hpass16(src, &LUMA_TAPS[fx]);
+        }
+    }
+    let tv = &LUMA_TAPS[fy];
+    #[cfg(target_arch = "x86_64")]
+    if AVX2 {
+        // SAFETY: the caller's contract: AVX2 only where the CPU has it.
+        unsafe { x86::vpass16_avx2(&tmp, tv, out) };
+        return;
+    }
+    for (r, window) in tmp.windows(8).enumerate() {
+        let mut acc = [0i32; N];
+        for (&t, row) in tv.iter().zip(window) {
+            for (a, &v) in acc.iter_mut().zip(row) {
+                *a += t * i32::from(v);
+            }
+        }
+        for a in acc.iter_mut() {
+            *a >>= 6;
+        }
+        round16(&acc, &mut out[r * N..(r + 1) * N]);
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod x86 {
+    use std::arch::x86_64::*;
+
+    use super::N16;
+
+    /// The vertical 8-tap pass of a 16x16 prediction from its 23 rows of
+    /// 16-bit first-pass values: taps in pairs, each pair one `pmaddwd` of
+    /// two interleaved rows (exact 32-bit sums, as the scalar pass), then
+    /// `>> 6`, `(v + 32) >> 6` and saturation to 8 bits.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn vpass16_avx2(tmp: &[[i16; N16]; N16 + 7], taps: &[i32; 8], out: &mut [u8; 256]) {
+        let pair = |k: usize| _mm256_set1_epi32((taps[k + 1] << 16) | (taps[k] & 0xffff));
+        let coef = [pair(0), pair(2), pair(4), pair(6)];
+        let rows: [__m256i; N16 + 7] = std::array::from_fn(|r| {
+            // SAFETY: a row is 16 i16 = 32 bytes; unaligned load.
+            unsafe { _mm256_loadu_si256(tmp[r].as_ptr() as *const __m256i) }
+        });
+        let round = _mm256_set1_epi32(32);
+        for (r, o) in out.chunks_exact_mut(N16).enumerate() {
+            let (mut lo, mut hi) = (_mm256_setzero_si256(), _mm256_setzero_si256());
+            for (p, c) in coef.iter().enumerate() {
+                let (a, b) = (rows[r + 2 * p], rows[r + 2 * p + 1]);
+                lo = _mm256_add_epi32(lo, _mm256_madd_epi16(_mm256_unpacklo_epi16(a, b), *c));
+                hi = _mm256_add_epi32(hi, _mm256_madd_epi16(_mm256_unpackhi_epi16(a, b), *c));
+            }
+            let finish =
+                |v: __m256i| _mm256_srai_epi32::<6>(_mm256_add_epi32(_mm256_srai_epi32::<6>(v), round));
+            // Within each 128-bit lane: lo holds columns 0-3 (8-11), hi 4-7
+            // (12-15), so the packs restore column order per lane.
+            let words = _mm256_packs_epi32(finish(lo), finish(hi));
+            let bytes = _mm256_packus_epi16(words, words);
+            let row = _mm256_permute4x64_epi64::<0b00_00_10_00>(bytes);
+            // SAFETY: `o` is 16 bytes.
+            unsafe { _mm_storeu_si128(o.as_mut_ptr() as *mut __m128i, _mm256_castsi256_si128(row)) };
+        }
+    }
+}
+
+/// `acc[c] = sum_k taps[k] * row(k)[c]` over the 8 taps (zero taps
+
+/// skipped); written tap-outer so that the compiler vectorises it.
+#[inline(always)]
+fn filter_row<'a>(taps: &[i32; 8], row: impl Fn(usize) -> &'a [u8], acc: &mut [i32]) {
+    acc.fill(0);
+    for (k, &t) in taps.iter().enumerate() {
+        if t != 0 {
+            for (a, &v) in acc.iter_mut().zip(row(k)) {
+                *a += t * i32::from(v);
+            }
+        }
+    }
+}
+
+/// `out = clip((acc + 2^(shift-1)) >> shift)`.
+#[inline(always)]
+fn round_into(acc: &[i32], shift: u32, out: &mut [u8]) {
+    let half = 1 << (shift - 1);
+    for (o, &a) in out.iter_mut().zip(acc) {
+        *o = ((a + half) >> shift).clamp(0, 255) as u8;
+    }
+}
+
+/// Chroma prediction of the `w x h` block at chroma position (x, y)
+
+/// The chroma predictor, for any instruction set.
+#[inline(always)]
+fn chroma_body(
+    data: &[u8],
+    stride: usize,
+    (fx, fy): (usize, usize),
+    (w, h): (usize, usize),
+    out: &mut [u8],
+    out_stride: usize,
+) {
+    // Weights at most 64 and a sum at most 64 * 255: 16 bits suffice.
+    let (wa, wb, wc, wd) = (
+        ((8 - fx) * (8 - fy)) as u16,
+        (fx * (8 - fy)) as u16,
+        ((8 - fx) * fy) as u16,
+        (fx * fy) as u16,
+    );
+    if w == 8 {
+        // The macroblock case, with a width the compiler knows: one vector
+        // of eight 16-bit lanes a row.
+        for r in 0..h {
+            let src = r * stride;
+            let row = |at: usize| -> [u16; 9] {
+                let s = &data[at..at + 9];
+                std::array::from_fn(|i| u16::from(s[i]))
+            };
+            let (top, below) = (row(src), row(src + stride));
+            let o = &mut out[r * out_stride..r * out_stride + 8];
+            for c in 0..8 {
+                let s = wa * top[c] + wb * top[c + 1] + wc * below[c] + wd * below[c + 1];
+                o[c] = ((s + 32) >> 6) as u8;
+            }
+        }
+        return;
+    }
+    for r in 0..h {
+        let src = r * stride;
+        let (top, below) = (&data[src..src + w + 1], &data[src + stride..src + stride + w + 1]);
+        let o = &mut out[r * out_stride..r * out_stride + w];
+        for (c, o) in o.iter_mut().enumerate() {
+            let s = wa * u16::from(top[c])
+                + wb * u16::from(top[c + 1])
+                + wc * u16::from(below[c])
+                + wd * u16::from(below[c + 1]);
+            *o = ((s + 32) >> 6) as u8;
+        }
+    }
+}

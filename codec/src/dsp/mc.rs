@@ -323,7 +323,6 @@ mod x86 {
 }
 
 /// `acc[c] = sum_k taps[k] * row(k)[c]` over the 8 taps (zero taps
-
 /// skipped); written tap-outer so that the compiler vectorises it.
 #[inline(always)]
 fn filter_row<'a>(taps: &[i32; 8], row: impl Fn(usize) -> &'a [u8], acc: &mut [i32]) {
@@ -345,8 +344,6 @@ fn round_into(acc: &[i32], shift: u32, out: &mut [u8]) {
         *o = ((a + half) >> shift).clamp(0, 255) as u8;
     }
 }
-
-/// Chroma prediction of the `w x h` block at chroma position (x, y)
 
 /// The chroma predictor, for any instruction set.
 #[inline(always)]

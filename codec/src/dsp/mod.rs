@@ -62,11 +62,12 @@ macro_rules! compiled_for {
                 #[target_feature(enable = $feature)]
                 #[allow(clippy::too_many_arguments)]
                 unsafe fn wide($($arg: $ty),*) $(-> $ret)? {
+                    let body = $body;
                     // (Some bodies are `unsafe fn`s whose contract is
                     // this feature.)
                     #[allow(unused_unsafe)]
                     unsafe {
-                        $body($($arg),*)
+                        body($($arg),*)
                     }
                 }
                 // SAFETY: this function is placed only in the tables of

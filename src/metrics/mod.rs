@@ -3,6 +3,7 @@
 //! ground truth, and per-sequence summaries.
 
 mod ciede2000;
+pub mod dsp;
 mod flow_error;
 mod ms_ssim;
 mod psnr;

@@ -14,12 +14,10 @@
 
 use rayon::prelude::*;
 
+use super::dsp::{metrics, ssim_from_stats, BandScratch, WIN};
 use crate::codec::Plane;
 
-const WIN: usize = 11;
 const SIGMA: f64 = 1.5;
-const C1: f64 = (0.01 * 255.0) * (0.01 * 255.0);
-const C2: f64 = (0.03 * 255.0) * (0.03 * 255.0);
 
 /// Output rows per parallel task: each task filters its own 10-row halo, so
 /// the result does not depend on the number of threads.
@@ -34,12 +32,6 @@ fn gaussian_window() -> [f64; WIN] {
     }
     let sum: f64 = g.iter().sum();
     g.map(|w| w / sum)
-}
-
-#[inline(always)]
-fn ssim_from_stats(mx: f64, my: f64, xx: f64, yy: f64, xy: f64) -> f64 {
-    let (vx, vy, cov) = (xx - mx * mx, yy - my * my, xy - mx * my);
-    ((2.0 * mx * my + C1) * (2.0 * cov + C2)) / ((mx * mx + my * my + C1) * (vx + vy + C2))
 }
 
 /// Mean SSIM of `b` against `a` (luma planes, same size). 1.0 for identical
@@ -64,6 +56,7 @@ pub fn ssim(a: &Plane, b: &Plane) -> f64 {
     let g = gaussian_window();
     let (ow, oh) = (w - WIN + 1, h - WIN + 1);
     let tasks: Vec<usize> = (0..oh).step_by(ROWS_PER_TASK).collect();
+    let band_sum = metrics().ssim_band;
     let partial: Vec<f64> = tasks
         .par_iter()
         .map_init(BandScratch::default, |scratch, &y0| {
@@ -71,115 +64,6 @@ pub fn ssim(a: &Plane, b: &Plane) -> f64 {
         })
         .collect();
     partial.iter().sum::<f64>() / (ow * oh) as f64
-}
-
-/// Buffers of one band, kept between the bands a worker computes (fresh
-/// ones cost more in page faults than the filtering).
-#[derive(Default)]
-struct BandScratch {
-    /// Horizontally filtered statistics.
-    hf: [Vec<f64>; 5],
-    /// One input row's x, y, x^2, y^2, xy.
-    products: [Vec<f64>; 5],
-    /// One output row's statistics.
-    stats: [Vec<f64>; 5],
-}
-
-/// The sum of the SSIM map over output rows y0 .. y0 + rows.
-fn band_sum(
-    scratch: &mut BandScratch,
-    a: &Plane,
-    b: &Plane,
-    g: &[f64; WIN],
-    y0: usize,
-    rows: usize,
-    ow: usize,
-) -> f64 {
-    #[cfg(target_arch = "x86_64")]
-    {
-        // std caches the answer after the first call.
-        if crate::codec::cpu::at_least(crate::codec::cpu::CpuLevel::Avx2) {
-            // SAFETY: the CPU has AVX2; the function is the safe code below
-            // compiled with AVX2 (no FMA, so every sum rounds as in the
-            // baseline build).
-            return unsafe { band_sum_avx2(scratch, a, b, g, y0, rows, ow) };
-        }
-    }
-    band_sum_body(scratch, a, b, g, y0, rows, ow)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn band_sum_avx2(
-    scratch: &mut BandScratch,
-    a: &Plane,
-    b: &Plane,
-    g: &[f64; WIN],
-    y0: usize,
-    rows: usize,
-    ow: usize,
-) -> f64 {
-    band_sum_body(scratch, a, b, g, y0, rows, ow)
-}
-
-/// Separable Gaussian statistics, one array per statistic (x, y, x^2, y^2,
-/// xy) so that the tap-outer loops vectorise.
-#[inline(always)]
-#[allow(clippy::needless_range_loop)] // five statistics indexed in step
-fn band_sum_body(
-    scratch: &mut BandScratch,
-    a: &Plane,
-    b: &Plane,
-    g: &[f64; WIN],
-    y0: usize,
-    rows: usize,
-    ow: usize,
-) -> f64 {
-    let w = a.width();
-    let in_rows = rows + WIN - 1;
-    let BandScratch { hf, products, stats } = scratch;
-    for v in hf.iter_mut() {
-        v.clear();
-        v.resize(in_rows * ow, 0.0);
-    }
-    for v in products.iter_mut().chain(stats.iter_mut()) {
-        v.resize(w.max(ow), 0.0);
-    }
-    for r in 0..in_rows {
-        let (ra, rb) = (a.row(y0 + r), b.row(y0 + r));
-        for x in 0..w {
-            let (p, q) = (f64::from(ra[x]), f64::from(rb[x]));
-            products[0][x] = p;
-            products[1][x] = q;
-            products[2][x] = p * p;
-            products[3][x] = q * q;
-            products[4][x] = p * q;
-        }
-        for (out, src) in hf.iter_mut().zip(products.iter()) {
-            let out = &mut out[r * ow..(r + 1) * ow];
-            for (k, &gk) in g.iter().enumerate() {
-                for (o, &v) in out.iter_mut().zip(&src[k..k + ow]) {
-                    *o += gk * v;
-                }
-            }
-        }
-    }
-    let mut sum = 0.0;
-    for r in 0..rows {
-        for (out, src) in stats.iter_mut().zip(hf.iter()) {
-            let out = &mut out[..ow];
-            out.fill(0.0);
-            for (k, &gk) in g.iter().enumerate() {
-                for (o, &v) in out.iter_mut().zip(&src[(r + k) * ow..(r + k + 1) * ow]) {
-                    *o += gk * v;
-                }
-            }
-        }
-        for x in 0..ow {
-            sum += ssim_from_stats(stats[0][x], stats[1][x], stats[2][x], stats[3][x], stats[4][x]);
-        }
-    }
-    sum
 }
 
 fn ssim_whole_picture(a: &Plane, b: &Plane) -> f64 {
@@ -202,6 +86,7 @@ fn ssim_whole_picture(a: &Plane, b: &Plane) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::metrics::dsp::C1;
 
     #[test]
     fn window_is_normalised_and_symmetric() {
@@ -224,18 +109,6 @@ mod tests {
         let a = Plane::filled(3, 2, 100).unwrap();
         let b = Plane::filled(3, 2, 120).unwrap();
         assert!((ssim(&a, &b) - want).abs() < 1e-12);
-    }
-
-    #[test]
-    fn the_dispatched_band_equals_its_scalar_twin() {
-        let a = Plane::from_fn(70, 40, |x, y| ((x * 37 + y * 11) % 251) as u8).unwrap();
-        let b = Plane::from_fn(70, 40, |x, y| ((x * 31 + y * 17) % 241) as u8).unwrap();
-        let g = gaussian_window();
-        let (ow, oh) = (70 - WIN + 1, 40 - WIN + 1);
-        assert_eq!(
-            band_sum(&mut BandScratch::default(), &a, &b, &g, 3, oh - 3, ow),
-            band_sum_body(&mut BandScratch::default(), &a, &b, &g, 3, oh - 3, ow)
-        );
     }
 
     #[test]

@@ -12,10 +12,8 @@
 //! Pictures less than 8 pixels wide or high have no window: one window
 //! covering the whole picture stands in.
 
+use super::dsp::{metrics, ColumnSums};
 use crate::codec::Plane;
-
-/// Per 4x4 block: sum of a, sum of b, sum of a^2 + b^2, sum of a * b.
-type BlockSums = [u32; 4];
 
 /// Wang's constants are `(0.01 * 255)^2` and `(0.03 * 255)^2`; x264 (and
 /// ffmpeg after it) scale the first by the window's 64 samples where the
@@ -33,69 +31,6 @@ fn window_ssim(n: f64, s: [f64; 4]) -> f64 {
     let vars = (ss - (s1 * s1 + s2 * s2) / n) / (n - 1.0);
     let covar = (s12 - s1 * s2 / n) / (n - 1.0);
     ((2.0 * ma * mb + C1) * (2.0 * covar + C2)) / ((ma * ma + mb * mb + C1) * (vars + C2))
-}
-
-/// Per-column sums of a row of blocks, one array per statistic (so that
-/// the column loop vectorises).
-#[derive(Default)]
-struct ColumnSums {
-    s: [Vec<u32>; 4],
-}
-
-/// The 4x4 block sums of one row of blocks (rows y0 .. y0 + 4), into `out`
-/// (one entry per whole block).
-fn block_row_sums(a: &Plane, b: &Plane, y0: usize, cols: &mut ColumnSums, out: &mut [BlockSums]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        // std caches the answer after the first call.
-        if crate::codec::cpu::at_least(crate::codec::cpu::CpuLevel::Avx2) {
-            // SAFETY: the CPU has AVX2; the function is the safe code below
-            // compiled with AVX2 (integer arithmetic: the same sums).
-            unsafe { block_row_sums_avx2(a, b, y0, cols, out) };
-            return;
-        }
-    }
-    block_row_sums_body(a, b, y0, cols, out);
-}
-
-/// [`block_row_sums_body`] compiled for AVX2: the baseline build has no
-/// 32-bit vector multiply for the squares and products.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn block_row_sums_avx2(a: &Plane, b: &Plane, y0: usize, cols: &mut ColumnSums, out: &mut [BlockSums]) {
-    block_row_sums_body(a, b, y0, cols, out);
-}
-
-#[inline(always)]
-fn block_row_sums_body(a: &Plane, b: &Plane, y0: usize, cols: &mut ColumnSums, out: &mut [BlockSums]) {
-    let w = out.len() * 4;
-    let [s1, s2, ss, s12] = &mut cols.s;
-    for v in [&mut *s1, &mut *s2, &mut *ss, &mut *s12] {
-        v.clear();
-        v.resize(w, 0);
-    }
-    for r in y0..y0 + 4 {
-        let (ra, rb) = (&a.row(r)[..w], &b.row(r)[..w]);
-        for (((((c1, c2), css), c12), &p), &q) in s1
-            .iter_mut()
-            .zip(s2.iter_mut())
-            .zip(ss.iter_mut())
-            .zip(s12.iter_mut())
-            .zip(ra)
-            .zip(rb)
-        {
-            let (p, q) = (u32::from(p), u32::from(q));
-            *c1 += p;
-            *c2 += q;
-            *css += p * p + q * q;
-            *c12 += p * q;
-        }
-    }
-    for (x, o) in out.iter_mut().enumerate() {
-        for (k, v) in cols.s.iter().enumerate() {
-            o[k] = v[4 * x..4 * x + 4].iter().sum();
-        }
-    }
 }
 
 /// Mean SSIM of `b` against `a` (same size) over 8x8 windows at 4-pixel
@@ -119,6 +54,7 @@ pub fn ssim_8x8(a: &Plane, b: &Plane) -> f64 {
     if w4 < 2 || h4 < 2 {
         return whole_picture(a, b);
     }
+    let block_row_sums = metrics().ssim_8x8_row_sums;
     let mut cols = ColumnSums::default();
     let mut above = vec![[0u32; 4]; w4];
     let mut below = vec![[0u32; 4]; w4];
@@ -190,27 +126,6 @@ mod tests {
             }
         }
         sum / (nx * ny) as f64
-    }
-
-    #[test]
-    fn the_dispatched_block_sums_equal_their_baseline_twin() {
-        // Extremes included: 255 squared and multiplied add up fastest.
-        let a = Plane::from_fn(68, 12, |x, y| {
-            if (x + y) % 5 == 0 {
-                255
-            } else {
-                ((x * 37 + y * 11) % 256) as u8
-            }
-        })
-        .unwrap();
-        let b = Plane::from_fn(68, 12, |x, y| ((x * 13 + y * 29) % 256) as u8).unwrap();
-        let (mut c1, mut c2) = (ColumnSums::default(), ColumnSums::default());
-        let (mut o1, mut o2) = (vec![[0u32; 4]; 17], vec![[0u32; 4]; 17]);
-        for y0 in [0, 4, 8] {
-            block_row_sums(&a, &b, y0, &mut c1, &mut o1);
-            block_row_sums_body(&a, &b, y0, &mut c2, &mut o2);
-            assert_eq!(o1, o2, "rows from {y0}");
-        }
     }
 
     #[test]

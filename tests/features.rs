@@ -5,8 +5,9 @@
 mod common;
 
 use common::translated;
-use mocomp::features::{match_pictures, matches_to_flow, Match, MatchParams};
+use mocomp::features::{match_pictures, Match, MatchParams};
 use mocomp::flow::dis::{Dis, DisParams, DisPreset};
+use mocomp::flow::matches_to_flow;
 use mocomp::flow::Flow;
 use mocomp::metrics::flow_errors;
 use ndarray::Array2;

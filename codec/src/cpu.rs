@@ -16,7 +16,7 @@ pub enum CpuLevel {
     Scalar = 0,
     /// x86-64's baseline SIMD.
     Sse2 = 1,
-    /// x86-64 with AVX2.
+    /// x86-64 with AVX2 (and POPCNT, which every AVX2 CPU has).
     Avx2 = 2,
 }
 
@@ -44,7 +44,7 @@ impl CpuLevel {
     pub fn detected() -> CpuLevel {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx2") {
+            if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("popcnt") {
                 return CpuLevel::Avx2;
             }
             CpuLevel::Sse2

@@ -5,7 +5,7 @@
 
 use ndarray::Array2;
 
-use crate::flow::pyramid::{gaussian_kernel, gradients, separable};
+use crate::imgproc::corners::min_eigen;
 
 /// A keypoint: position in full-size pixels, the pyramid level it was
 /// found on, its orientation (radians) and corner strength.
@@ -29,22 +29,6 @@ pub(super) const BORDER: usize = 20;
 
 /// Radius of the disc whose intensity centroid orients a keypoint.
 const ORIENTATION_RADIUS: isize = 12;
-
-/// The smaller eigenvalue of the structure tensor, smoothed over a
-/// Gaussian window of sigma 1.5.
-pub(crate) fn min_eigen(img: &Array2<f32>) -> Array2<f32> {
-    let (gx, gy) = gradients(img);
-    let k = gaussian_kernel(1.5);
-    let (a, b, c) = (
-        separable(&(&gx * &gx), &k),
-        separable(&(&gx * &gy), &k),
-        separable(&(&gy * &gy), &k),
-    );
-    ndarray::Zip::from(&a)
-        .and(&b)
-        .and(&c)
-        .map_collect(|&a, &b, &c| 0.5 * (a + c) - (0.25 * (a - c) * (a - c) + b * b).sqrt())
-}
 
 /// The strongest local maximum (3x3) of `lambda` in each `cell x cell`
 /// square, if above `threshold`, away from the border: (x, y, response).

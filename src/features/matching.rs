@@ -6,48 +6,15 @@
 
 use rayon::prelude::*;
 
-use super::describe::{hamming, Descriptor};
+use super::describe::Descriptor;
 use super::Match;
 use super::{Keypoint, MatchParams};
 
 /// For each descriptor of `a`, its nearest and second-nearest distances in
 /// `b` and the index of the nearest.
 fn nearest(a: &[Descriptor], b: &[Descriptor]) -> Vec<(usize, u32, u32)> {
+    let nearest_one = super::dsp::features().nearest;
     a.par_iter().map(|da| nearest_one(da, b)).collect()
-}
-
-fn nearest_one(da: &Descriptor, b: &[Descriptor]) -> (usize, u32, u32) {
-    #[cfg(target_arch = "x86_64")]
-    if crate::codec::cpu::at_least(crate::codec::cpu::CpuLevel::Sse2)
-        && std::arch::is_x86_feature_detected!("popcnt")
-    {
-        // SAFETY: the popcnt instruction is present, checked above (and
-        // not used at the scalar level).
-        return unsafe { nearest_popcnt(da, b) };
-    }
-    nearest_body(da, b)
-}
-
-/// [`nearest_body`] with the popcnt instruction (the baseline build counts
-/// bits with a dozen instructions a word); the same result.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "popcnt")]
-unsafe fn nearest_popcnt(da: &Descriptor, b: &[Descriptor]) -> (usize, u32, u32) {
-    nearest_body(da, b)
-}
-
-#[inline(always)]
-fn nearest_body(da: &Descriptor, b: &[Descriptor]) -> (usize, u32, u32) {
-    let (mut best, mut second, mut at) = (u32::MAX, u32::MAX, 0);
-    for (j, db) in b.iter().enumerate() {
-        let d = hamming(da, db);
-        if d < best {
-            (second, best, at) = (best, d, j);
-        } else if d < second {
-            second = d;
-        }
-    }
-    (at, best, second)
 }
 
 /// Matches passing the distance bound, the ratio test and the mutual check.

@@ -21,9 +21,9 @@
 
 use ndarray::Array2;
 
-use super::pyramid::{gradients, pyramid, upsample2};
 use super::warp::sample_bicubic;
 use super::Flow;
+use crate::imgproc::pyramid::{gradients, pyramid, upsample2};
 
 /// Settings of Horn-Schunck.
 #[derive(Debug, Clone, Copy, PartialEq)]

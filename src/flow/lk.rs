@@ -23,12 +23,12 @@
 use ndarray::Array2;
 use rayon::prelude::*;
 
-use super::pyramid::{
+use super::warp::{cubic_weights, sample_bicubic};
+use super::Flow;
+use crate::imgproc::pyramid::{
     filter_cols_slice, filter_rows_slice, full_depth, gaussian_kernel, normalize_levels, parallel_worth,
     rows_per_task, separable_slice, upsample2, Pyramid, DERIVATIVE,
 };
-use super::warp::{cubic_weights, sample_bicubic};
-use super::Flow;
 
 /// Settings of dense Lucas-Kanade.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -50,7 +50,7 @@ pub struct LkParams {
     /// level is upsampled to full size. 1 costs a quarter of the work.
     pub finest: usize,
     /// Match locally contrast-normalised pictures
-    /// ([`super::pyramid::normalize_contrast`]) instead of grey levels: robust to gain,
+    /// ([`crate::imgproc::pyramid::normalize_contrast`]) instead of grey levels: robust to gain,
     /// offset and ramps of the lighting, which coarse levels otherwise
     /// mistake for motion. Off by default (the encoder's flow and the
     /// small-motion tests were measured without it; on a small noise-free

@@ -7,12 +7,16 @@
 
 pub mod consistency;
 pub mod dis;
+pub(crate) mod dsp;
 mod estimator;
 mod field;
 pub mod hs;
 pub mod lk;
-pub mod pyramid;
+/// The image filters and pyramids flow is built on (they live in
+/// [`crate::imgproc`], below flow and features).
+pub use crate::imgproc::pyramid;
 pub mod refine;
+mod seed;
 pub mod track;
 pub mod tvl1;
 pub mod warp;
@@ -22,3 +26,4 @@ pub use estimator::{
     Preset,
 };
 pub use field::Flow;
+pub use seed::matches_to_flow;

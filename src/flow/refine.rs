@@ -532,27 +532,9 @@ impl Refiner {
         if p.iterations == 0 {
             return;
         }
-        #[cfg(target_arch = "x86_64")]
-        if super::pyramid::has_avx2() {
-            // SAFETY: AVX2 is present, checked above.
-            return unsafe { self.refine_avx2(i1, i2, u, v, p) };
-        }
-        self.refine_body(i1, i2, u, v, p)
-    }
-
-    /// [`Refiner::refine`] compiled for AVX2 (no FMA: the same bits as the
-    /// baseline build, which a test holds).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn refine_avx2(
-        &mut self,
-        i1: &Array2<f32>,
-        i2: &Array2<f32>,
-        u: &mut Array2<f32>,
-        v: &mut Array2<f32>,
-        p: &RefineParams,
-    ) {
-        self.refine_body(i1, i2, u, v, p)
+        // The flow kernels of the CPU level in force (the AVX2 build is
+        // this source compiled for AVX2, without FMA: the same bits).
+        (super::dsp::flow().refine)(self, i1, i2, u, v, p)
     }
 
     /// Sizes the buffers for a `w x h` picture; the increments start at 0.
@@ -585,7 +567,7 @@ impl Refiner {
     }
 
     #[inline(always)]
-    fn refine_body(
+    pub(crate) fn refine_body(
         &mut self,
         i1: &Array2<f32>,
         i2: &Array2<f32>,
@@ -641,28 +623,36 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_avx2_build_gives_the_same_bits() {
-        #[cfg(target_arch = "x86_64")]
-        if crate::flow::pyramid::has_avx2() {
+    fn every_level_refines_as_the_scalar_build() {
+        for level in crate::codec::cpu::available() {
             let f = |x: f32, y: f32| {
                 128.0 + 60.0 * (x / 5.0).sin() * (y / 7.0).cos() + 20.0 * ((x + y) / 3.0).cos()
             };
             let i1 = Array2::from_shape_fn((37, 53), |(y, x)| f(x as f32, y as f32));
             let i2 = Array2::from_shape_fn((37, 53), |(y, x)| 0.9 * f(x as f32 - 1.3, y as f32 + 0.6) + 7.0);
             let start = Array2::from_shape_fn((37, 53), |(y, x)| 0.02 * (x as f32 - y as f32));
-            let run = |avx2: bool| {
+            let run = |scalar: bool| {
                 let (mut u, mut v) = (start.clone(), start.mapv(|x| -0.5 * x));
                 let mut r = Refiner::default();
-                if avx2 {
-                    // SAFETY: AVX2 is present, checked above.
-                    unsafe { r.refine_avx2(&i1, &i2, &mut u, &mut v, &RefineParams::default()) }
-                } else {
+                if scalar {
                     r.refine_body(&i1, &i2, &mut u, &mut v, &RefineParams::default())
+                } else {
+                    (super::super::dsp::FLOW.at(level).refine)(
+                        &mut r,
+                        &i1,
+                        &i2,
+                        &mut u,
+                        &mut v,
+                        &RefineParams::default(),
+                    )
                 }
                 (u, v)
             };
-            let (a, b) = (run(false), run(true));
-            assert!(a.0 == b.0 && a.1 == b.1, "AVX2 and baseline refinements differ");
+            let (a, b) = (run(true), run(false));
+            assert!(
+                a.0 == b.0 && a.1 == b.1,
+                "{level:?} and scalar refinements differ"
+            );
             assert!(
                 a.0.iter().any(|&x| x > 0.5),
                 "the refinement should move the flow"

@@ -16,8 +16,8 @@
 use ndarray::Array2;
 use rayon::prelude::*;
 
-use super::pyramid::{gradients, pyramid};
 use super::warp::sample_bilinear;
+use crate::imgproc::pyramid::{gradients, pyramid};
 
 /// A tracked point.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -76,7 +76,7 @@ impl Default for TrackParams {
 /// ```
 pub fn good_features(img: &Array2<f32>, max: usize, quality: f32, min_distance: f32) -> Vec<(f32, f32)> {
     let (h, w) = img.dim();
-    let lambda = crate::features::min_eigen(img);
+    let lambda = crate::imgproc::corners::min_eigen(img);
     let best = lambda.iter().copied().fold(0f32, f32::max);
     if best <= 0.0 {
         return Vec::new();

@@ -18,9 +18,9 @@
 use ndarray::Array2;
 use rayon::prelude::*;
 
-use super::pyramid::{blur, gradients, parallel_worth, pyramid, upsample2};
 use super::warp::{sample_bicubic, sample_bilinear};
 use super::Flow;
+use crate::imgproc::pyramid::{blur, gradients, parallel_worth, pyramid, upsample2};
 
 /// Settings of TV-L1.
 #[derive(Debug, Clone, Copy, PartialEq)]

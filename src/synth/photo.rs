@@ -19,9 +19,9 @@ use ndarray::Array2;
 
 use super::texture::{gaussian, hash3};
 use super::Affine;
-use crate::flow::pyramid::blur;
 use crate::flow::warp::sample_bicubic;
 use crate::flow::Flow;
+use crate::imgproc::pyramid::blur;
 
 /// Where a layer is in a frame: the point of its source picture at
 /// `centre` (source coordinates) appears at `at` (picture coordinates),

@@ -24,13 +24,13 @@
 //! (`min_side`).
 
 mod densify;
-mod search;
+pub(crate) mod search;
 
 use ndarray::Array2;
 
-use super::pyramid::{upsample2, upsample_levels, Pyramid};
 use super::refine::{RefineParams, Refiner};
 use super::Flow;
+use crate::imgproc::pyramid::{upsample2, upsample_levels, Pyramid};
 
 /// Settings of dense inverse search.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -292,7 +292,7 @@ impl Dis {
             None if p.seed_matches => {
                 let matches =
                     crate::features::match_pictures(i1, i2, &crate::features::MatchParams::default());
-                crate::features::matches_to_flow(&matches, w0, h0)
+                crate::flow::matches_to_flow(&matches, w0, h0)
             }
             _ => None,
         };
@@ -341,8 +341,8 @@ fn hint_pyramid(flow: &Flow, levels: &[Array2<f32>], finest: usize) -> Vec<(Arra
     let (mut u, mut v) = (flow.u().clone(), flow.v().clone());
     for (level, img) in levels.iter().enumerate() {
         if level > 0 {
-            u = super::pyramid::downsample(&u) * 0.5;
-            v = super::pyramid::downsample(&v) * 0.5;
+            u = crate::imgproc::pyramid::downsample(&u) * 0.5;
+            v = crate::imgproc::pyramid::downsample(&v) * 0.5;
             debug_assert_eq!(u.dim(), img.dim());
         }
         if level >= finest {

@@ -14,7 +14,7 @@ use ndarray::Array2;
 use rayon::prelude::*;
 
 use super::DisParams;
-use crate::flow::pyramid::parallel_worth;
+use crate::imgproc::pyramid::parallel_worth;
 
 /// Stripes of patch rows searched independently (fixed: the result must
 /// not depend on the number of threads).
@@ -22,7 +22,7 @@ const STRIPES: usize = 8;
 
 /// Vectors on the patch grid of one level.
 #[derive(Debug, Clone)]
-pub(super) struct SparseFlow {
+pub(crate) struct SparseFlow {
     /// Patch side at this level.
     pub patch: usize,
     /// Left edges of the patch columns.
@@ -77,7 +77,7 @@ fn sobel(img: &[f32], w: usize, h: usize) -> (Vec<f32>, Vec<f32>) {
 /// A picture with a replicated border of `pad` pixels on every side, so
 /// that a patch displaced up to `pad` pixels out of the picture is read
 /// without bounds checks.
-pub(super) struct Padded {
+pub(crate) struct Padded {
     data: Vec<f32>,
     stride: usize,
     pad: usize,
@@ -335,7 +335,7 @@ struct Level<'a> {
 /// dense flow from the coarser level (at this level's size), an optional
 /// extra candidate field, the settings, and whether this is the coarsest
 /// level's global search.
-pub(super) struct LevelSearch<'a> {
+pub(crate) struct LevelSearch<'a> {
     pub a1: &'a Array2<f32>,
     /// The second picture, padded by at least the patch size + 2.
     pub a2: &'a Padded,
@@ -348,27 +348,17 @@ pub(super) struct LevelSearch<'a> {
     pub damping: f32,
 }
 
-/// Searches every patch of the level with patches of side `patch`.
+/// Searches every patch of the level with patches of side `patch`, by the
+/// flow kernels of the CPU level in force (the AVX2 build is this source
+/// compiled for AVX2, without FMA: the same bits; a row of an 8-pixel
+/// patch is one register).
 pub(super) fn search_level(input: &LevelSearch, patch: usize) -> SparseFlow {
-    #[cfg(target_arch = "x86_64")]
-    if crate::flow::pyramid::has_avx2() {
-        // SAFETY: AVX2 is present, checked above.
-        return unsafe { search_level_avx2(input, patch) };
-    }
-    search_level_body(input, patch)
+    (crate::flow::dsp::flow().dis_search_level)(input, patch)
 }
 
-/// [`search_level`] compiled for AVX2 (no FMA: the same bits as the
-/// baseline build, which a test holds): a row of an 8-pixel patch is one
-/// register.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn search_level_avx2(input: &LevelSearch, patch: usize) -> SparseFlow {
-    search_level_body(input, patch)
-}
-
+/// [`search_level`] for any instruction set.
 #[inline(always)]
-fn search_level_body(input: &LevelSearch, patch: usize) -> SparseFlow {
+pub(crate) fn search_level_body(input: &LevelSearch, patch: usize) -> SparseFlow {
     match patch {
         16 => search_sized::<16>(input),
         12 => search_sized::<12>(input),
@@ -621,9 +611,8 @@ mod tests {
     }
 
     #[test]
-    fn the_avx2_build_gives_the_same_bits() {
-        #[cfg(target_arch = "x86_64")]
-        if crate::flow::pyramid::has_avx2() {
+    fn every_level_searches_as_the_scalar_build() {
+        {
             let f = |x: f32, y: f32| {
                 128.0 + 60.0 * (x / 5.0).sin() * (y / 7.0).cos() + 25.0 * ((x - y) / 3.0).cos()
             };
@@ -650,12 +639,13 @@ mod tests {
                     damping: params.damping,
                 };
                 let plain = search_level_body(&input, patch);
-                // SAFETY: AVX2 is present, checked above.
-                let wide = unsafe { search_level_avx2(&input, patch) };
-                assert!(
-                    plain.u == wide.u && plain.v == wide.v,
-                    "patch {patch}: builds differ"
-                );
+                for level in crate::codec::cpu::available() {
+                    let wide = (crate::flow::dsp::FLOW.at(level).dis_search_level)(&input, patch);
+                    assert!(
+                        plain.u == wide.u && plain.v == wide.v,
+                        "patch {patch}: {level:?} and scalar builds differ"
+                    );
+                }
                 // The start is 0.8 px off; the search takes a third of that at most.
                 let centre = plain.u.len() / 2;
                 assert!(

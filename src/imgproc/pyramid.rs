@@ -1,9 +1,11 @@
-//! Float picture operations for flow: separable filtering, Gaussian
-//! pyramids, image gradients. Borders repeat the edge samples. Everything
-//! works on contiguous row-major `Array2<f32>` (`[[y, x]]`).
+//! Float picture operations for flow and features: separable filtering,
+//! Gaussian pyramids, image gradients. Borders repeat the edge samples.
+//! Everything works on contiguous row-major `Array2<f32>` (`[[y, x]]`).
 
 use ndarray::Array2;
 use rayon::prelude::*;
+
+use super::dsp::imgproc;
 
 /// A normalised 1-D Gaussian of standard deviation `sigma`, truncated at
 /// `ceil(3 sigma)` on each side (at least one tap each side).
@@ -18,117 +20,6 @@ pub fn gaussian_kernel(sigma: f32) -> Vec<f32> {
     let sum: f32 = k.iter().sum();
     k.iter_mut().for_each(|v| *v /= sum);
     k
-}
-
-/// Outputs accumulated together in registers by the filters.
-const CHUNK: usize = 16;
-
-/// `dst[x] = sum_k kernel[k] * src[x + k]` for `dst.len()` outputs (`src` is
-/// `kernel.len() - 1` longer): [`combine_rows`] over the shifted copies
-/// `src[k..]`, so both passes share one accumulation loop.
-#[inline(always)]
-fn correlate_row(src: &[f32], kernel: &[f32], dst: &mut [f32]) {
-    let n = dst.len();
-    let shifted: Vec<&[f32]> = (0..kernel.len()).map(|k| &src[k..k + n]).collect();
-    combine_rows(&shifted, kernel, dst);
-}
-
-/// `dst[x] = sum_k kernel[k] * rows[k][x]`, chunk by chunk: all taps of a
-/// chunk of outputs accumulate in registers before one store. Each output
-/// adds its terms in tap order, so every instruction set gives the same bits.
-#[inline(always)]
-fn combine_rows(rows: &[&[f32]], kernel: &[f32], dst: &mut [f32]) {
-    let n = dst.len();
-    let mut x = 0;
-    while x + CHUNK <= n {
-        let mut acc = [0f32; CHUNK];
-        for (row, &kv) in rows.iter().zip(kernel) {
-            let s = &row[x..x + CHUNK];
-            for i in 0..CHUNK {
-                acc[i] += kv * s[i];
-            }
-        }
-        dst[x..x + CHUNK].copy_from_slice(&acc);
-        x += CHUNK;
-    }
-    for (i, d) in dst[x..].iter_mut().enumerate() {
-        *d = rows
-            .iter()
-            .zip(kernel)
-            .map(|(row, &kv)| kv * row[x + i])
-            .fold(0.0, |a, b| a + b);
-    }
-}
-
-/// The horizontal pass over a band of whole rows (`src` and `out` hold the
-/// same rows), one padded copy of each row at a time.
-#[inline(always)]
-fn rows_band(src: &[f32], w: usize, kernel: &[f32], out: &mut [f32]) {
-    let r = kernel.len() / 2;
-    let mut padded = vec![0f32; w + 2 * r];
-    for (row, dst) in src.chunks_exact(w).zip(out.chunks_exact_mut(w)) {
-        padded[..r].fill(row[0]);
-        padded[r..r + w].copy_from_slice(row);
-        padded[r + w..].fill(row[w - 1]);
-        correlate_row(&padded, kernel, dst);
-    }
-}
-
-/// The vertical pass for output rows `y0..` (as many as `out` holds) of
-/// the `h x w` picture `src`.
-#[inline(always)]
-fn cols_band(src: &[f32], h: usize, w: usize, y0: usize, kernel: &[f32], out: &mut [f32]) {
-    let r = kernel.len() as isize / 2;
-    let mut rows: Vec<&[f32]> = Vec::with_capacity(kernel.len());
-    for (k, dst) in out.chunks_exact_mut(w).enumerate() {
-        let y = y0 + k;
-        rows.clear();
-        for t in 0..kernel.len() as isize {
-            let sy = (y as isize + t - r).clamp(0, h as isize - 1) as usize;
-            rows.push(&src[sy * w..(sy + 1) * w]);
-        }
-        combine_rows(&rows, kernel, dst);
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-mod wide {
-    // The same code compiled for AVX2 (no FMA, so the results are the same
-    // bits as the baseline build's).
-    #[target_feature(enable = "avx2")]
-    pub unsafe fn rows_band(src: &[f32], w: usize, kernel: &[f32], out: &mut [f32]) {
-        super::rows_band(src, w, kernel, out)
-    }
-
-    #[target_feature(enable = "avx2")]
-    pub unsafe fn cols_band(src: &[f32], h: usize, w: usize, y0: usize, kernel: &[f32], out: &mut [f32]) {
-        super::cols_band(src, h, w, y0, kernel, out)
-    }
-}
-
-/// Whether the AVX2 builds of the flow kernels may run
-/// ([`crate::codec::cpu`]).
-#[cfg(target_arch = "x86_64")]
-pub(crate) fn has_avx2() -> bool {
-    crate::codec::cpu::at_least(crate::codec::cpu::CpuLevel::Avx2)
-}
-
-fn rows_band_dispatch(src: &[f32], w: usize, kernel: &[f32], out: &mut [f32]) {
-    #[cfg(target_arch = "x86_64")]
-    if has_avx2() {
-        // SAFETY: AVX2 is present, checked above.
-        return unsafe { wide::rows_band(src, w, kernel, out) };
-    }
-    rows_band(src, w, kernel, out)
-}
-
-fn cols_band_dispatch(src: &[f32], h: usize, w: usize, y0: usize, kernel: &[f32], out: &mut [f32]) {
-    #[cfg(target_arch = "x86_64")]
-    if has_avx2() {
-        // SAFETY: AVX2 is present, checked above.
-        return unsafe { wide::cols_band(src, h, w, y0, kernel, out) };
-    }
-    cols_band(src, h, w, y0, kernel, out)
 }
 
 /// Rows per parallel task: about 4096 samples, so that small pyramid levels
@@ -151,13 +42,14 @@ pub(crate) fn parallel_worth(n: usize) -> bool {
 pub fn filter_rows_slice(src: &[f32], h: usize, w: usize, kernel: &[f32], out: &mut [f32]) {
     assert!(src.len() >= h * w && out.len() >= h * w && kernel.len() % 2 == 1);
     let (src, out) = (&src[..h * w], &mut out[..h * w]);
+    let rows_band = imgproc().filter_rows;
     if parallel_worth(h * w) {
         let band = rows_per_task(w) * w;
         out.par_chunks_mut(band)
             .zip(src.par_chunks(band))
-            .for_each(|(o, s)| rows_band_dispatch(s, w, kernel, o));
+            .for_each(|(o, s)| rows_band(s, w, kernel, o));
     } else {
-        rows_band_dispatch(src, w, kernel, out);
+        rows_band(src, w, kernel, out);
     }
 }
 
@@ -167,13 +59,14 @@ pub fn filter_rows_slice(src: &[f32], h: usize, w: usize, kernel: &[f32], out: &
 pub fn filter_cols_slice(src: &[f32], h: usize, w: usize, kernel: &[f32], out: &mut [f32]) {
     assert!(src.len() >= h * w && out.len() >= h * w && kernel.len() % 2 == 1);
     let (src, out) = (&src[..h * w], &mut out[..h * w]);
+    let cols_band = imgproc().filter_cols;
     if parallel_worth(h * w) {
         let rows = rows_per_task(w);
         out.par_chunks_mut(rows * w)
             .enumerate()
-            .for_each(|(t, o)| cols_band_dispatch(src, h, w, t * rows, kernel, o));
+            .for_each(|(t, o)| cols_band(src, h, w, t * rows, kernel, o));
     } else {
-        cols_band_dispatch(src, h, w, 0, kernel, out);
+        cols_band(src, h, w, 0, kernel, out);
     }
 }
 

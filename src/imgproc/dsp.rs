@@ -1,0 +1,127 @@
+//! The image filters' kernels, one table per CPU level
+//! ([`crate::codec::dsp`]): the horizontal and vertical passes of a
+//! separable filter over a band of rows. The AVX2 builds are the scalar
+//! source compiled for AVX2, without FMA, so that every output adds its
+//! terms in the same order and rounds the same way: the same bits.
+
+use crate::codec::dsp::PerLevel;
+
+/// The horizontal pass over a band of whole rows: `(src, w, kernel, out)`,
+/// `src` and `out` holding the same rows of width `w`, edges repeated.
+pub type RowsFn = fn(&[f32], usize, &[f32], &mut [f32]);
+
+/// The vertical pass: `(src, h, w, y0, kernel, out)`, output rows `y0..`
+/// (as many as `out` holds) of the `h x w` picture `src`, edges repeated.
+pub type ColsFn = fn(&[f32], usize, usize, usize, &[f32], &mut [f32]);
+
+/// The image filters' kernels of one CPU level.
+#[derive(Debug, Clone, Copy)]
+pub struct ImgprocDsp {
+    /// Horizontal separable pass.
+    pub filter_rows: RowsFn,
+    /// Vertical separable pass.
+    pub filter_cols: ColsFn,
+}
+
+const SCALAR: ImgprocDsp = ImgprocDsp {
+    filter_rows: rows_band,
+    filter_cols: cols_band,
+};
+
+/// The tables, lowest level first.
+pub static IMGPROC: PerLevel<ImgprocDsp> = PerLevel([
+    SCALAR,
+    SCALAR,
+    #[cfg(target_arch = "x86_64")]
+    ImgprocDsp {
+        filter_rows: avx2::rows_band,
+        filter_cols: avx2::cols_band,
+    },
+    #[cfg(not(target_arch = "x86_64"))]
+    SCALAR,
+]);
+
+/// The kernels of the CPU level in force.
+#[inline]
+pub fn imgproc() -> &'static ImgprocDsp {
+    IMGPROC.get()
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    crate::codec::compiled_for! { "avx2":
+        fn rows_band(src: &[f32], w: usize, kernel: &[f32], out: &mut [f32]) => super::rows_band;
+        fn cols_band(src: &[f32], h: usize, w: usize, y0: usize, kernel: &[f32], out: &mut [f32]) => super::cols_band;
+    }
+}
+
+/// Outputs accumulated together in registers by the filters.
+const CHUNK: usize = 16;
+
+/// `dst[x] = sum_k kernel[k] * src[x + k]` for `dst.len()` outputs (`src` is
+/// `kernel.len() - 1` longer): [`combine_rows`] over the shifted copies
+/// `src[k..]`, so both passes share one accumulation loop.
+#[inline(always)]
+fn correlate_row(src: &[f32], kernel: &[f32], dst: &mut [f32]) {
+    let n = dst.len();
+    let shifted: Vec<&[f32]> = (0..kernel.len()).map(|k| &src[k..k + n]).collect();
+    combine_rows(&shifted, kernel, dst);
+}
+
+/// `dst[x] = sum_k kernel[k] * rows[k][x]`, chunk by chunk: all taps of a
+/// chunk of outputs accumulate in registers before one store. Each output
+/// adds its terms in tap order, so every instruction set gives the same bits.
+#[inline(always)]
+fn combine_rows(rows: &[&[f32]], kernel: &[f32], dst: &mut [f32]) {
+    let n = dst.len();
+    let mut x = 0;
+    while x + CHUNK <= n {
+        let mut acc = [0f32; CHUNK];
+        for (row, &kv) in rows.iter().zip(kernel) {
+            let s = &row[x..x + CHUNK];
+            for i in 0..CHUNK {
+                acc[i] += kv * s[i];
+            }
+        }
+        dst[x..x + CHUNK].copy_from_slice(&acc);
+        x += CHUNK;
+    }
+    for (i, d) in dst[x..].iter_mut().enumerate() {
+        *d = rows
+            .iter()
+            .zip(kernel)
+            .map(|(row, &kv)| kv * row[x + i])
+            .fold(0.0, |a, b| a + b);
+    }
+}
+
+/// The horizontal pass over a band of whole rows (`src` and `out` hold the
+/// same rows), one padded copy of each row at a time.
+#[inline(always)]
+fn rows_band(src: &[f32], w: usize, kernel: &[f32], out: &mut [f32]) {
+    let r = kernel.len() / 2;
+    let mut padded = vec![0f32; w + 2 * r];
+    for (row, dst) in src.chunks_exact(w).zip(out.chunks_exact_mut(w)) {
+        padded[..r].fill(row[0]);
+        padded[r..r + w].copy_from_slice(row);
+        padded[r + w..].fill(row[w - 1]);
+        correlate_row(&padded, kernel, dst);
+    }
+}
+
+/// The vertical pass for output rows `y0..` (as many as `out` holds) of
+/// the `h x w` picture `src`.
+#[inline(always)]
+fn cols_band(src: &[f32], h: usize, w: usize, y0: usize, kernel: &[f32], out: &mut [f32]) {
+    let r = kernel.len() as isize / 2;
+    let mut rows: Vec<&[f32]> = Vec::with_capacity(kernel.len());
+    for (k, dst) in out.chunks_exact_mut(w).enumerate() {
+        let y = y0 + k;
+        rows.clear();
+        for t in 0..kernel.len() as isize {
+            let sy = (y as isize + t - r).clamp(0, h as isize - 1) as usize;
+            rows.push(&src[sy * w..(sy + 1) * w]);
+        }
+        combine_rows(&rows, kernel, dst);
+    }
+}

@@ -6,7 +6,6 @@
 
 use super::intra4x4::IntraBlockSearch;
 use super::macroblock::MbSource;
-use super::transform8x8::intra_block8;
 use crate::codec::intra4x4::{most_probable, Intra4x4Mode};
 use crate::codec::intra8x8::{self, place, ModeSource};
 use crate::codec::recon::add_block8;
@@ -75,7 +74,7 @@ impl IntraBlockSearch<'_> {
             place(&block, q, &mut out.pred);
             place(&block, q, &mut own);
             let qp_lambda = (self.coder.qp, self.coder.lambda);
-            levels[q] = intra_block8(&src.luma, &out.pred, q, qp_lambda, rate.as_ref());
+            levels[q] = (self.coder.dsp.intra_block8)(&src.luma, &out.pred, q, qp_lambda, rate.as_ref());
             add_block8(&levels[q], self.coder.qp, &mut own, ((q % 2) * 8, (q / 2) * 8));
         }
         let any = levels.as_flattened().as_flattened().iter().any(|&v| v != 0);

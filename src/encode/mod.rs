@@ -27,6 +27,7 @@
 //! ```
 
 mod config;
+pub mod dsp;
 mod frame;
 mod intra4x4;
 mod intra8x8;

@@ -166,6 +166,7 @@ pub(crate) fn inter_luma8(
 /// (16x16 luma, block `q` of `pred` predicted), RDOQ priced by `rate` when
 /// given. Intra levels are not zeroed for their cost, as 4x4 ones are not:
 /// their errors would carry into the blocks predicted from them.
+#[inline(always)]
 pub(crate) fn intra_block8(
     src: &[u8; 256],
     pred: &[u8; 256],

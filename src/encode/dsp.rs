@@ -1,0 +1,466 @@
+//! The macroblock coder's kernels, one table per CPU level
+//! ([`crate::codec::dsp`]): a 4x4 block's residual, forward transform and
+//! quantisation; the greedy rate-distortion optimised quantisation of a
+//! 4x4 block; and the luma of a macroblock in the 8x8 transform (inter:
+//! zeroing and RDOQ; intra: one block). The AVX2 builds are the scalar
+//! source compiled for AVX2 (the baseline x86-64 build has no 32-bit
+//! vector multiply, so the quantiser and RDOQ's error updates would run a
+//! coefficient at a time); integer arithmetic and the same floating-point
+//! operations without FMA: the same levels.
+
+use super::transform8x8::{inter_luma8, intra_block8};
+use crate::codec::dsp::PerLevel;
+use crate::codec::residual::{Block8Pricer, BlockPricer, ZIGZAG};
+use crate::codec::transform::{
+    dequantize, dequantize_level, forward_4x4, inverse_4x4, inverse_4x4_unrounded, quantize, Block4,
+};
+use crate::codec::transform8x8::Block8;
+
+/// One 4x4 block of `s - p`: `(s, p, size, (bx, by), qp, rounding)`, the
+/// block at column `bx`, row `by` (in blocks) of `size`-sample rows; its
+/// residual and its levels, quantised with the rounding offset `rounding`
+/// (a fraction of a step) and no RDOQ.
+pub type QuantizeFn = fn(&[u8], &[u8], usize, (usize, usize), u8, f64) -> (Block4, Block4);
+
+/// Every 4x4 block of `s - p` (`size x size` samples, blocks in raster
+/// order): `(s, p, size, qp, rounding, residuals, levels)`, as
+/// [`QuantizeFn`] block by block.
+pub type QuantizeBlocksFn = fn(&[u8], &[u8], usize, u8, f64, &mut [Block4], &mut [Block4]);
+
+/// RDOQ of a 4x4 block: `(residual, levels, qp, lambda, rate)` lowers
+/// `levels` where squared error + lambda * bits falls ([`rdoq_4x4`]).
+pub type RdoqFn = fn(&Block4, &mut Block4, u8, f64, &BlockPricer);
+
+/// Inter luma in the 8x8 transform: `(src, pred, qp, lambda, rate)`, the
+/// four blocks' levels (zeroed where they cost little, RDOQ when `rate`
+/// is given), `None` when none is left.
+pub type InterLuma8Fn =
+    fn(&[u8; 256], &[u8; 256], u8, f64, Option<&Block8Pricer>) -> Option<Box<[Block8; 4]>>;
+
+/// One intra 8x8 block's levels: `(src, pred, quadrant, (qp, lambda), rate)`.
+pub type IntraBlock8Fn = fn(&[u8; 256], &[u8; 256], usize, (u8, f64), Option<&Block8Pricer>) -> Block8;
+
+/// Inter luma's zeroing of costly lone levels ([`decimate_luma`]).
+pub type DecimateLumaFn = fn(&mut [Block4; 16]);
+
+/// The summed zeroing cost of blocks' levels ([`coefficient_cost`], as
+/// x264's `decimate_score`).
+pub type DecimateScoreFn = fn(&[Block4]) -> u32;
+
+/// The macroblock coder's kernels of one CPU level.
+#[derive(Debug, Clone, Copy)]
+pub struct CoderDsp {
+    /// Residual, transform and quantisation of a 4x4 block.
+    pub quantize_4x4: QuantizeFn,
+    /// The same over a plane's blocks.
+    pub quantize_blocks: QuantizeBlocksFn,
+    /// RDOQ of a 4x4 block.
+    pub rdoq_4x4: RdoqFn,
+    /// Inter luma's zeroing.
+    pub decimate_luma: DecimateLumaFn,
+    /// Blocks' zeroing cost.
+    pub decimate_score: DecimateScoreFn,
+    /// Inter luma in the 8x8 transform.
+    pub inter_luma8: InterLuma8Fn,
+    /// An intra 8x8 block's levels.
+    pub intra_block8: IntraBlock8Fn,
+}
+
+const SCALAR: CoderDsp = CoderDsp {
+    quantize_4x4,
+    quantize_blocks,
+    rdoq_4x4,
+    decimate_luma,
+    decimate_score,
+    inter_luma8,
+    intra_block8,
+};
+
+/// The tables, lowest level first.
+pub static CODER: PerLevel<CoderDsp> = PerLevel([
+    SCALAR,
+    SCALAR,
+    #[cfg(target_arch = "x86_64")]
+    CoderDsp {
+        quantize_4x4: avx2::quantize_4x4,
+        quantize_blocks: avx2::quantize_blocks,
+        rdoq_4x4: avx2::rdoq_4x4,
+        decimate_luma: avx2::decimate_luma,
+        decimate_score: avx2::decimate_score,
+        inter_luma8: avx2::inter_luma8,
+        intra_block8: avx2::intra_block8,
+    },
+    #[cfg(not(target_arch = "x86_64"))]
+    SCALAR,
+]);
+
+/// The kernels of the CPU level in force.
+#[inline]
+pub fn coder() -> &'static CoderDsp {
+    CODER.get()
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use crate::codec::residual::{Block8Pricer, BlockPricer};
+    use crate::codec::transform::Block4;
+    use crate::codec::transform8x8::Block8;
+    crate::codec::compiled_for! { "avx2":
+        fn quantize_4x4(s: &[u8], p: &[u8], size: usize, at: (usize, usize), qp: u8, rounding: f64) -> (Block4, Block4)
+            => super::quantize_4x4;
+        fn quantize_blocks(s: &[u8], p: &[u8], size: usize, qp: u8, rounding: f64, residuals: &mut [Block4], levels: &mut [Block4])
+            => super::quantize_blocks;
+        fn rdoq_4x4(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rate: &BlockPricer)
+            => super::rdoq_4x4;
+        fn decimate_luma(luma: &mut [Block4; 16]) => super::decimate_luma;
+        fn decimate_score(blocks: &[Block4]) -> u32 => super::decimate_score;
+        fn inter_luma8(src: &[u8; 256], pred: &[u8; 256], qp: u8, lambda: f64, rate: Option<&Block8Pricer>) -> Option<Box<[Block8; 4]>>
+            => super::inter_luma8;
+        fn intra_block8(src: &[u8; 256], pred: &[u8; 256], q: usize, qp_lambda: (u8, f64), rate: Option<&Block8Pricer>) -> Block8
+            => super::intra_block8;
+    }
+}
+
+/// H.264 reference-encoder cost of a 4x4 block's levels for the zeroing
+/// decision: a level above 1 makes it worth keeping; a lone ±1 costs by
+/// how few zeros precede it.
+#[inline(always)]
+pub(crate) fn coefficient_cost(b: &Block4) -> u32 {
+    const COST: [u32; 16] = [3, 2, 2, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0];
+    let flat = b.as_flattened();
+    // Which raster positions hold a level (a compare and a bit gather the
+    // compiler vectorises), and whether any exceeds 1.
+    let (mut raster, mut big) = (0usize, false);
+    for (k, &v) in flat.iter().enumerate() {
+        raster |= usize::from(v != 0) << k;
+        big |= v.unsigned_abs() > 1;
+    }
+    if big {
+        return 999;
+    }
+    // The same bits in scan order.
+    let mut mask = u32::from(TO_SCAN[0][raster & 0xff] | TO_SCAN[1][raster >> 8]);
+    // Each level costs by the run of zeros since the previous one.
+    let (mut cost, mut next) = (0, 0);
+    while mask != 0 {
+        let k = mask.trailing_zeros();
+        cost += COST[(k - next) as usize];
+        next = k + 1;
+        mask &= mask - 1;
+    }
+    cost
+}
+
+/// `TO_SCAN[h][m]`: the zig-zag-order bit mask of the raster bits `m` of
+/// the block's first (`h` 0) or second (`h` 1) eight positions.
+const TO_SCAN: [[u16; 256]; 2] = {
+    let mut t = [[0u16; 256]; 2];
+    let mut h = 0;
+    while h < 2 {
+        let mut m = 0;
+        while m < 256 {
+            let mut k = 0;
+            while k < 16 {
+                let raster = ZIGZAG[k];
+                if raster / 8 == h && (m >> (raster % 8)) & 1 == 1 {
+                    t[h][m] |= 1 << k;
+                }
+                k += 1;
+            }
+            m += 1;
+        }
+        h += 1;
+    }
+    t
+};
+
+/// [`coefficient_cost`] summed over blocks.
+#[inline(always)]
+fn blocks_cost<'a>(blocks: impl IntoIterator<Item = &'a Block4>) -> u32 {
+    let mut total = 0;
+    for b in blocks {
+        total += coefficient_cost(b);
+    }
+    total
+}
+
+/// Lone small levels cost more bits than they save distortion: drops an
+/// 8x8 quadrant of inter luma whose levels cost < 4, and all of it when
+/// the macroblock's total is < 6 (JM's thresholds).
+#[inline(always)]
+pub fn decimate_luma(luma: &mut [Block4; 16]) {
+    let mut total = 0;
+    for q in 0..4 {
+        let blocks = [0, 1, 4, 5].map(|o| (q % 2) * 2 + (q / 2) * 8 + o);
+        let cost = blocks_cost(blocks.iter().map(|&k| &luma[k]));
+        if cost < 4 {
+            for k in blocks {
+                luma[k] = [[0; 4]; 4];
+            }
+        } else {
+            total += cost;
+        }
+    }
+    if total < 6 {
+        *luma = [[[0; 4]; 4]; 16];
+    }
+}
+
+/// The scalar [`DecimateScoreFn`].
+#[inline(always)]
+pub fn decimate_score(blocks: &[Block4]) -> u32 {
+    blocks_cost(blocks)
+}
+
+/// The scalar [`QuantizeBlocksFn`].
+#[inline(always)]
+pub fn quantize_blocks(
+    s: &[u8],
+    p: &[u8],
+    size: usize,
+    qp: u8,
+    rounding: f64,
+    residuals: &mut [Block4],
+    levels: &mut [Block4],
+) {
+    // The macroblock's luma and chroma with their sizes known to the
+    // compiler (no division per block, no bounds check per sample).
+    match size {
+        16 => quantize_sized::<16>(s, p, qp, rounding, residuals, levels),
+        8 => quantize_sized::<8>(s, p, qp, rounding, residuals, levels),
+        _ => quantize_any(s, p, size, qp, rounding, residuals, levels),
+    }
+}
+
+#[inline(always)]
+fn quantize_sized<const N: usize>(
+    s: &[u8],
+    p: &[u8],
+    qp: u8,
+    rounding: f64,
+    residuals: &mut [Block4],
+    levels: &mut [Block4],
+) {
+    let blocks = (N / 4) * (N / 4);
+    let (residuals, levels) = (&mut residuals[..blocks], &mut levels[..blocks]);
+    quantize_any(&s[..N * N], &p[..N * N], N, qp, rounding, residuals, levels)
+}
+
+#[inline(always)]
+fn quantize_any(
+    s: &[u8],
+    p: &[u8],
+    size: usize,
+    qp: u8,
+    rounding: f64,
+    residuals: &mut [Block4],
+    levels: &mut [Block4],
+) {
+    let cols = size / 4;
+    for (k, (d, l)) in residuals.iter_mut().zip(levels.iter_mut()).enumerate() {
+        (*d, *l) = quantize_4x4(s, p, size, (k % cols, k / cols), qp, rounding);
+    }
+}
+
+/// The scalar [`QuantizeFn`].
+#[inline(always)]
+pub fn quantize_4x4(
+    s: &[u8],
+    p: &[u8],
+    size: usize,
+    (bx, by): (usize, usize),
+    qp: u8,
+    rounding: f64,
+) -> (Block4, Block4) {
+    let mut b = [[0i32; 4]; 4];
+    for (r, row) in b.iter_mut().enumerate() {
+        let i = (by * 4 + r) * size + bx * 4;
+        for (c, v) in row.iter_mut().enumerate() {
+            *v = i32::from(s[i + c]) - i32::from(p[i + c]);
+        }
+    }
+    let mut c = forward_4x4(&b);
+    quantize(&mut c, qp, rounding);
+    (b, c)
+}
+
+/// Squared error between a residual and what `levels` reconstruct to.
+#[inline(always)]
+fn block_error(residual: &Block4, levels: &Block4, qp: u8) -> i64 {
+    let mut d = *levels;
+    dequantize(&mut d, qp);
+    let r = inverse_4x4(&d);
+    let mut e = 0i64;
+    for (a, b) in residual.as_flattened().iter().zip(r.as_flattened()) {
+        let x = i64::from(a - b);
+        e += x * x;
+    }
+    e
+}
+
+/// Bits `levels` add over an empty block, priced for its class (chroma or
+/// luma, intra or inter) in the frame's residual coder as it stands.
+#[inline(always)]
+fn block_bits(rate: &BlockPricer, levels: &Block4) -> f64 {
+    f64::from(rate.block_cost(levels)) / 256.0
+}
+
+/// The inverse transform's basis doubled: row `k` is twice the weight of
+/// coefficient `k` on each of the four samples in one butterfly pass.
+const INVERSE_BASIS_X2: [[i32; 4]; 4] = [[2, 2, 2, 2], [2, 1, -1, -2], [2, -2, -2, 2], [1, -2, 2, -1]];
+
+/// Squared error between a residual and the reconstruction whose inverse
+/// transform before the final rounding is `unrounded`.
+#[inline(always)]
+fn rounded_error(residual: &Block4, unrounded: &Block4) -> i64 {
+    let mut e = 0i64;
+    for (a, u) in residual.as_flattened().iter().zip(unrounded.as_flattened()) {
+        let x = i64::from(a - ((u + 32) >> 6));
+        e += x * x;
+    }
+    e
+}
+
+/// The scalar [`RdoqFn`]: rate-distortion optimised quantisation, greedy: from the last level in
+/// scan order to the first, each level moves one step toward zero when
+/// that lowers squared error + lambda * bits (the residual coder's price
+/// of the block; the error measured after the inverse transform, so the
+/// transform's unequal gains are accounted for).
+///
+/// The error of a step is exact and cheap: when the dequantised
+/// coefficient changes by a multiple of 4 (every step from QP 12 up), the
+/// butterflies' halvings stay exact, so the inverse transform before its
+/// final rounding moves by `d/4` times the coefficient's (doubled) basis
+/// block. Other steps go through the whole inverse transform.
+#[inline(always)]
+pub fn rdoq_4x4(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rate: &BlockPricer) {
+    if levels.as_flattened().iter().all(|&v| v == 0) {
+        return;
+    }
+    let mut coeffs = *levels;
+    dequantize(&mut coeffs, qp);
+    let mut unrounded = inverse_4x4_unrounded(&coeffs);
+    let mut error = rounded_error(residual, &unrounded);
+    let mut bits = block_bits(rate, levels);
+    for &k in ZIGZAG.iter().rev() {
+        let (r, c) = (k / 4, k % 4);
+        let v = levels[r][c];
+        if v == 0 {
+            continue;
+        }
+        let mut trial = *levels;
+        trial[r][c] = v - v.signum();
+        let coeff = dequantize_level(trial[r][c], qp, r, c);
+        let delta = coeff - coeffs[r][c];
+        let moved = if delta % 4 == 0 {
+            let mut u = unrounded;
+            for (rr, row) in u.iter_mut().enumerate() {
+                for (cc, x) in row.iter_mut().enumerate() {
+                    *x += delta / 4 * INVERSE_BASIS_X2[r][rr] * INVERSE_BASIS_X2[c][cc];
+                }
+            }
+            u
+        } else {
+            let mut d = coeffs;
+            d[r][c] = coeff;
+            inverse_4x4_unrounded(&d)
+        };
+        let e = rounded_error(residual, &moved);
+        // Fewer bits than none cannot pay for more error than this.
+        if (e - error) as f64 >= lambda * bits {
+            continue;
+        }
+        let b = block_bits(rate, &trial);
+        if (e - error) as f64 + lambda * (b - bits) < 0.0 {
+            *levels = trial;
+            coeffs[r][c] = coeff;
+            unrounded = moved;
+            error = e;
+            bits = b;
+        }
+    }
+    // Last, the whole block against none of it.
+    if bits > 0.0 {
+        let zero = [[0; 4]; 4];
+        if (block_error(residual, &zero, qp) - error) as f64 <= lambda * bits {
+            *levels = zero;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::codec::residual::{BlockClass, ResidualCoder};
+
+    #[test]
+    fn rdoq_only_moves_levels_toward_zero_and_never_raises_the_cost() {
+        let qp = 28;
+        let lambda = 1.4 * crate::me::lambda_for_qp(crate::me::Metric::Ssd, qp);
+        let mut seed = 12345u32;
+        for _ in 0..500 {
+            let mut residual = [[0i32; 4]; 4];
+            for v in residual.iter_mut().flatten() {
+                seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
+                *v = ((seed >> 16) % 61) as i32 - 30;
+            }
+            let mut levels = forward_4x4(&residual);
+            quantize(&mut levels, qp, 1.0 / 6.0);
+            let before = levels;
+            let rate = ResidualCoder::new(1, 1).block_pricer(BlockClass::luma(false));
+            rdoq_4x4(&residual, &mut levels, qp, lambda, &rate);
+            let cost = |l: &Block4| block_error(&residual, l, qp) as f64 + lambda * block_bits(&rate, l);
+            assert!(cost(&levels) <= cost(&before) + 1e-9);
+            for (a, b) in levels.iter().flatten().zip(before.iter().flatten()) {
+                assert!(a.abs() <= b.abs() && a * b >= 0, "{a} from {b}");
+            }
+        }
+    }
+
+    #[test]
+    fn coefficient_cost_equals_the_scan_walk() {
+        // The reference encoder's definition, walked in scan order.
+        fn walk(b: &Block4) -> u32 {
+            const COST: [u32; 16] = [3, 2, 2, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0];
+            let (mut cost, mut run) = (0, 0);
+            for &k in &ZIGZAG {
+                let v = b[k / 4][k % 4];
+                if v == 0 {
+                    run += 1;
+                } else if v.abs() > 1 {
+                    return 999;
+                } else {
+                    cost += COST[run];
+                    run = 0;
+                }
+            }
+            cost
+        }
+        let mut seed = 3u32;
+        for _ in 0..20_000 {
+            let mut b = [[0i32; 4]; 4];
+            for v in b.as_flattened_mut() {
+                seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
+                *v = match (seed >> 16) % 12 {
+                    0 => 1,
+                    1 => -1,
+                    2 if seed % 7 == 0 => 2,
+                    _ => 0,
+                };
+            }
+            assert_eq!(coefficient_cost(&b), walk(&b), "{b:?}");
+        }
+    }
+
+    #[test]
+    fn coefficient_cost_keeps_large_levels_and_prices_lone_ones() {
+        let mut b = [[0; 4]; 4];
+        assert_eq!(coefficient_cost(&b), 0);
+        b[0][0] = 1; // first in scan order, no zeros before it
+        assert_eq!(coefficient_cost(&b), 3);
+        b[3][3] = -1; // last, after 14 zeros
+        assert_eq!(coefficient_cost(&b), 3);
+        b[1][1] = 2;
+        assert_eq!(coefficient_cost(&b), 999);
+    }
+}

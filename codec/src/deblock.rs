@@ -11,9 +11,9 @@
 
 use crate::partition::MbVectors;
 use crate::picture::{Frame, Plane};
-use crate::recon::chroma_qp;
 use crate::residual::MbResidual;
 use crate::syntax::{FrameSyntax, MbKind, MotionTool};
+use crate::transform::chroma_qp;
 
 /// alpha of an edge by QP (H.264 table 8-16, indexA): the largest step
 /// across the edge that is still taken for a blocking artefact.

@@ -16,9 +16,9 @@
 //! assert_eq!(&out[12..], &[10, 20, 30, 40]);
 //! ```
 
+use crate::consts::MB;
 use crate::intra::IntraMode;
 use crate::picture::Plane;
-use crate::syntax::MB;
 use crate::transform::Block4;
 
 /// A 4x4 intra prediction mode; the value is its code (H.264's numbering).

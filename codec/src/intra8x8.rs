@@ -23,9 +23,9 @@
 //! assert_eq!(out, [70; 64]);
 //! ```
 
+use crate::consts::MB;
 use crate::intra4x4::{mb_sampler, neighbour_modes, spread8, Intra4x4Mode};
 use crate::picture::Plane;
-use crate::syntax::MB;
 
 /// The reconstructed samples around an 8x8 block.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]

@@ -9,6 +9,7 @@
 #![warn(missing_docs)]
 
 pub mod bits;
+pub mod consts;
 pub mod cpu;
 pub mod deblock;
 pub mod decoder;
@@ -20,6 +21,7 @@ pub mod intra4x4;
 pub mod intra8x8;
 pub mod modes;
 pub mod mv;
+pub mod mvpred;
 pub mod obmc;
 pub mod partition;
 pub mod picture;

@@ -43,8 +43,7 @@ const REF: usize = REMAINING + 1;
 const BLOCKS8: usize = REF + 5;
 const CONTEXTS: usize = BLOCKS8 + 3;
 
-/// The most references a P frame can predict from.
-pub const MAX_REFS: u8 = 8;
+pub use crate::consts::MAX_REFS;
 
 /// Unary bins of |d| - 1 before the Exp-Golomb suffix.
 const UNARY_MAX: u32 = 8;

@@ -14,10 +14,8 @@
 //!    one counting as zero.
 
 use crate::bits::se_len;
-use crate::partition::{predict_with_references, RefMv};
 
-/// Largest coded vector component magnitude, quarter-pel: 4096 pixels.
-pub const MV_LIMIT: i32 = 1 << 14;
+pub use crate::consts::MV_LIMIT;
 
 /// A motion vector in quarter-pel luma units: the block at `p` is predicted
 /// from the reference at `p + (x, y) / 4`.
@@ -73,27 +71,6 @@ impl std::ops::Add for Mv {
     }
 }
 
-/// The median of three values.
-#[inline]
-pub(crate) fn median3(a: i32, b: i32, c: i32) -> i32 {
-    a.max(b).min(a.min(b).max(c))
-}
-
-/// The predicted vector of a block from its neighbours' vectors (`None`
-/// where unavailable); see the module documentation.
-///
-/// ```
-/// use mocomp_codec::mv::{predict_mv, Mv};
-/// let (a, b, c) = (Mv::new(4, -8), Mv::new(12, 0), Mv::new(-4, 2));
-/// assert_eq!(predict_mv(Some(a), Some(b), Some(c), None), Mv::new(4, 0));
-/// assert_eq!(predict_mv(Some(a), None, None, None), a);
-/// ```
-pub fn predict_mv(left: Option<Mv>, top: Option<Mv>, top_right: Option<Mv>, top_left: Option<Mv>) -> Mv {
-    // One reference: the rule of several with every neighbour on it.
-    let c = top_right.or(top_left);
-    predict_with_references([left, top, c].map(|m| m.map(RefMv::previous)), 0)
-}
-
 /// The rate estimate of the vector `mv` predicted by `mvp`: `se(dx) +
 /// se(dy)`, the Exp-Golomb length of the difference (the stream
 /// range-codes it, [`crate::modes`]). This is the `R(mv - mvp)` of
@@ -107,37 +84,6 @@ pub fn mvd_bits(mv: Mv, mvp: Mv) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn median_of_three() {
-        for (a, b, c, m) in [
-            (1, 2, 3, 2),
-            (3, 1, 2, 2),
-            (2, 3, 1, 2),
-            (5, 5, 1, 5),
-            (-4, 7, 0, 0),
-        ] {
-            assert_eq!(median3(a, b, c), m);
-        }
-    }
-
-    #[test]
-    fn prediction_rules() {
-        let (a, b, c, d) = (Mv::new(4, 4), Mv::new(8, -4), Mv::new(-12, 0), Mv::new(100, 100));
-        // All available: component-wise median.
-        assert_eq!(predict_mv(Some(a), Some(b), Some(c), Some(d)), Mv::new(4, 0));
-        // C unavailable: D takes its place.
-        assert_eq!(predict_mv(Some(a), Some(b), None, Some(d)), Mv::new(8, 4));
-        // Top row of the picture: only A.
-        assert_eq!(predict_mv(Some(a), None, None, None), a);
-        // Exactly one available: that one.
-        assert_eq!(predict_mv(None, Some(b), None, None), b);
-        assert_eq!(predict_mv(None, None, Some(c), None), c);
-        // Two available: median with a zero.
-        assert_eq!(predict_mv(None, Some(b), Some(c), None), Mv::new(0, 0));
-        // None available: zero.
-        assert_eq!(predict_mv(None, None, None, None), Mv::ZERO);
-    }
 
     #[test]
     fn vector_difference_costs_se_bits() {

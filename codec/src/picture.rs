@@ -13,8 +13,7 @@
 
 use std::fmt;
 
-/// Largest accepted width or height, in luma pixels.
-pub const MAX_DIMENSION: usize = 16384;
+pub use crate::consts::MAX_DIMENSION;
 
 /// Largest accepted border, in pixels.
 pub const MAX_PAD: usize = 1024;

@@ -21,17 +21,7 @@ use crate::transform::{dequantize, inverse_4x4, Block4};
 use crate::transform8x8::{dequantize_8x8, inverse_8x8, Block8};
 use crate::warp::warp_frame;
 
-/// Chroma QP from luma QP (H.264 Table 8-15).
-pub fn chroma_qp(qp: u8) -> u8 {
-    const ABOVE_29: [u8; 22] = [
-        29, 30, 31, 32, 32, 33, 34, 34, 35, 35, 36, 36, 37, 37, 37, 38, 38, 38, 39, 39, 39, 39,
-    ];
-    if qp < 30 {
-        qp
-    } else {
-        ABOVE_29[usize::from(qp.min(51)) - 30]
-    }
-}
+pub use crate::transform::chroma_qp;
 
 /// The samples of one macroblock, a prediction or a reconstruction: 16x16
 /// luma, two 8x8 chroma blocks.

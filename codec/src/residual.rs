@@ -39,9 +39,7 @@ use crate::transform8x8::{Block8, ZIGZAG8};
 /// (`row * 4 + col`) of the k-th coefficient.
 pub const ZIGZAG: [usize; 16] = [0, 1, 4, 8, 5, 2, 3, 6, 9, 12, 13, 10, 7, 11, 14, 15];
 
-/// Largest level magnitude the syntax allows (far above what 8-bit
-/// residuals quantise to at QP 0, about 1700).
-pub const MAX_LEVEL: u32 = 1 << 15;
+pub use crate::consts::MAX_LEVEL;
 
 /// Levels up to `2 + UNARY_MAX - 1` above 1 are coded in unary; beyond,
 /// an Exp-Golomb suffix follows.

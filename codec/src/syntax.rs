@@ -12,31 +12,16 @@ use crate::intra::IntraMode;
 use crate::intra4x4::{self, LumaIntra};
 use crate::intra8x8;
 use crate::modes::{MbMode, ModeCoder, VectorSyntax, MAX_REFS};
-use crate::mv::{predict_mv, Mv, MV_LIMIT};
-use crate::partition::{MbVectors, RefMv, Split, VectorNeighbourhood, WHOLE};
+use crate::mv::{Mv, MV_LIMIT};
+use crate::mvpred::{mv_prediction, mv_prediction_into, predict_in_grid, walk_partitions};
+use crate::partition::{MbVectors, RefMv, Split};
 use crate::picture::{check_size, MAX_DIMENSION};
 use crate::residual::{MbResidual, ResidualCoder, ResidualError, ResidualSyntax};
 use crate::transform::MAX_QP;
 use crate::warp::{MotionGrid, SPACINGS};
 use crate::weight::Weights;
 
-/// The first four bytes of every stream.
-pub const MAGIC: [u8; 4] = *b"MOCO";
-
-/// The format version this code writes and reads.
-pub const VERSION: u8 = 3;
-
-/// Bytes of the sequence header.
-pub const SEQUENCE_HEADER_LEN: usize = 30;
-
-/// Byte that starts a frame.
-pub const FRAME_START: u8 = 0xA5;
-
-/// Byte that ends the stream.
-pub const STREAM_END: u8 = 0x5A;
-
-/// Macroblock size in luma samples.
-pub const MB: usize = 16;
+pub use crate::consts::{FRAME_START, MAGIC, MB, SEQUENCE_HEADER_LEN, STREAM_END, VERSION};
 
 /// What the sequence header says.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -429,73 +414,6 @@ pub fn mb_vectors(kind: &MbKind, done: &[MbVectors], mb_x: usize, mb_y: usize, m
         MbKind::Split { split, mvs } => split.block_vectors(mvs).map(Some),
         MbKind::Intra { .. } => [None; 4],
     }
-}
-
-/// Walks the partitions of a split macroblock in coding order: `step(k,
-/// predict)` gives partition k's motion, `predict(ref_idx)` being its
-/// predicted vector into reference `ref_idx` (which reads the partitions
-/// before it), `None` to stop.
-pub fn walk_partitions(
-    split: Split,
-    done: &[MbVectors],
-    (mb_x, mb_y, mb_cols): (usize, usize, usize),
-    mut step: impl FnMut(usize, &dyn Fn(u8) -> Mv) -> Option<RefMv>,
-) -> Option<()> {
-    let mut current: MbVectors = [None; 4];
-    for (k, p) in split.parts().iter().enumerate() {
-        let n = VectorNeighbourhood {
-            done,
-            mb_cols,
-            mb: (mb_x, mb_y),
-            current: &current,
-        };
-        let mv = step(k, &|ref_idx| n.predict(p, ref_idx))?;
-        for b in p.blocks() {
-            current[b] = Some(mv);
-        }
-    }
-    Some(())
-}
-
-/// The predicted vector of the element at (col, row) of a grid `cols`
-/// wide, from the elements before it in raster order: `at(c, r)` is an
-/// element's vector, `None` when it has none (section 5 of FORMAT.md).
-pub fn predict_in_grid(cols: usize, col: usize, row: usize, at: impl Fn(usize, usize) -> Option<Mv>) -> Mv {
-    let left = if col > 0 { at(col - 1, row) } else { None };
-    let top = if row > 0 { at(col, row - 1) } else { None };
-    let top_right = if row > 0 && col + 1 < cols {
-        at(col + 1, row - 1)
-    } else {
-        None
-    };
-    let top_left = if row > 0 && col > 0 {
-        at(col - 1, row - 1)
-    } else {
-        None
-    };
-    predict_mv(left, top, top_right, top_left)
-}
-
-/// The predicted vector of macroblock (mb_x, mb_y) as one 16x16 block
-/// into reference 0 (skip's vector), from the vectors of the macroblocks
-/// before it in raster order.
-pub fn mv_prediction(done: &[MbVectors], mb_x: usize, mb_y: usize, mb_cols: usize) -> Mv {
-    mv_prediction_into(done, (mb_x, mb_y, mb_cols), 0)
-}
-
-/// [`mv_prediction`] into reference `ref_idx`.
-pub fn mv_prediction_into(
-    done: &[MbVectors],
-    (mb_x, mb_y, mb_cols): (usize, usize, usize),
-    ref_idx: u8,
-) -> Mv {
-    VectorNeighbourhood {
-        done,
-        mb_cols,
-        mb: (mb_x, mb_y),
-        current: &[None; 4],
-    }
-    .predict(&WHOLE, ref_idx)
 }
 
 /// The predicted vector of grid node (col, row) from the nodes before it.

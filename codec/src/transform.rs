@@ -28,8 +28,19 @@
 //! }
 //! ```
 
-/// Highest quantisation parameter.
-pub const MAX_QP: u8 = 51;
+pub use crate::consts::MAX_QP;
+
+/// Chroma QP from luma QP (H.264 Table 8-15).
+pub fn chroma_qp(qp: u8) -> u8 {
+    const ABOVE_29: [u8; 22] = [
+        29, 30, 31, 32, 32, 33, 34, 34, 35, 35, 36, 36, 37, 37, 37, 38, 38, 38, 39, 39, 39, 39,
+    ];
+    if qp < 30 {
+        qp
+    } else {
+        ABOVE_29[usize::from(qp.min(51)) - 30]
+    }
+}
 
 /// A 4x4 block of samples or coefficients, `[row][column]`.
 pub type Block4 = [[i32; 4]; 4];

@@ -32,8 +32,7 @@ use crate::interp::{predict_chroma, predict_luma, MAX_BLOCK};
 use crate::mv::Mv;
 use crate::picture::{check_size, Frame, PictureError, Plane};
 
-/// Grid spacings the format allows.
-pub const SPACINGS: [usize; 3] = [4, 8, 16];
+pub use crate::consts::SPACINGS;
 
 /// Quarter-pel vectors on a regular grid of nodes over a picture.
 #[derive(Debug, Clone, PartialEq, Eq)]

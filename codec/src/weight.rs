@@ -8,10 +8,7 @@
 use crate::bits::{BitError, BitReader, BitWriter};
 use crate::picture::{Frame, Plane};
 
-/// The denominator of a weight: a weight of 64 is a scale of 1.
-pub const WEIGHT_ONE: i32 = 64;
-/// The largest offset magnitude.
-pub const MAX_OFFSET: i32 = 255;
+pub use crate::consts::{MAX_OFFSET, WEIGHT_ONE};
 
 /// One plane's weight: `s' = Clip(((s * scale + 32) >> 6) + offset)`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -13,6 +13,7 @@ use crate::codec::intra4x4::LumaIntra;
 use crate::codec::modes::{MbMode, ModeCoder, VectorSyntax};
 use crate::codec::mv::mvd_bits;
 use crate::codec::mv::Mv;
+use crate::codec::mvpred::{mv_prediction, mv_prediction_into, walk_partitions};
 use crate::codec::partition::{MbVectors, Part, RefMv, Split};
 use crate::codec::recon::{
     frame_vectors, predict_inter, predict_inter_blocks, predict_intra, predict_intra_plane, write_mb,
@@ -20,9 +21,8 @@ use crate::codec::recon::{
 };
 use crate::codec::residual::{MbResidual, ResidualCoder, ResidualSyntax};
 use crate::codec::syntax::{
-    mb_mode, mb_vectors, mv_prediction, mv_prediction_into, vector_syntax, walk_partitions, write_frame,
-    BitCounts, CodedMb, EntropyState, FrameHeader, FrameSyntax, FrameType, FrameWriter, MbKind, MotionTool,
-    SequenceHeader,
+    mb_mode, mb_vectors, vector_syntax, write_frame, BitCounts, CodedMb, EntropyState, FrameHeader,
+    FrameSyntax, FrameType, FrameWriter, MbKind, MotionTool, SequenceHeader,
 };
 use crate::codec::warp::warp_frame;
 use crate::codec::weight::Weights;

@@ -5,8 +5,9 @@ use ndarray::Array2;
 
 use super::config::{FlowMethod, Predictor, SearchSettings};
 use crate::codec::mv::Mv;
+use crate::codec::mvpred::mv_prediction;
 use crate::codec::partition::{MbVectors, RefMv};
-use crate::codec::syntax::{mv_prediction, MB};
+use crate::codec::syntax::MB;
 use crate::codec::warp::MotionGrid;
 use crate::codec::{Frame, Plane};
 use crate::flow::dis::{Dis, DisParams, DisPreset};

@@ -47,7 +47,7 @@ use rayon::prelude::*;
 
 use crate::codec::interp::predict_luma;
 use crate::codec::mv::{mvd_bits, Mv};
-use crate::codec::syntax::predict_in_grid;
+use crate::codec::mvpred::predict_in_grid;
 use crate::codec::Plane;
 pub use cost::Metric;
 use dsp::{CappedFn, CostFn};

@@ -9,42 +9,12 @@
 //! the frame reads the samples before it, so encoder and decoder both
 //! filter the whole frame at the end.
 
+use crate::dsp::lf::{lf, Edge};
 use crate::partition::MbVectors;
 use crate::picture::{Frame, Plane};
 use crate::residual::MbResidual;
 use crate::syntax::{FrameSyntax, MbKind, MotionTool};
 use crate::transform::chroma_qp;
-
-/// alpha of an edge by QP (H.264 table 8-16, indexA): the largest step
-/// across the edge that is still taken for a blocking artefact.
-const ALPHA: [u8; 52] = [
-    0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 4, 4, 5, 6, 7, 8, 9, 10, 12, 13, 15, 17, 20, 22, 25, 28,
-    32, 36, 40, 45, 50, 56, 63, 71, 80, 90, 101, 113, 127, 144, 162, 182, 203, 226, 255, 255,
-];
-
-/// beta by QP (table 8-16, indexB): the largest step on either side of the
-/// edge for it to count as flat there.
-const BETA: [u8; 52] = [
-    0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 6, 6, 7, 7, 8, 8, 9, 9, 10,
-    10, 11, 11, 12, 12, 13, 13, 14, 14, 15, 15, 16, 16, 17, 17, 18, 18,
-];
-
-/// tc0 by boundary strength 1, 2, 3 (rows) and QP (table 8-17): how far
-/// a sample may move.
-const TC0: [[u8; 52]; 3] = [
-    [
-        0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 2,
-        2, 2, 2, 3, 3, 3, 4, 4, 4, 5, 6, 6, 7, 8, 9, 10, 11, 13,
-    ],
-    [
-        0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 2, 2, 2,
-        2, 3, 3, 3, 4, 4, 5, 5, 6, 7, 8, 8, 10, 11, 12, 13, 15, 17,
-    ],
-    [
-        0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 2, 2, 2, 2, 3, 3, 3,
-        4, 4, 4, 5, 6, 6, 7, 8, 9, 10, 11, 13, 14, 16, 18, 20, 23, 25,
-    ],
-];
 
 /// What the boundary strength needs of one macroblock.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -144,88 +114,6 @@ fn strength_between(
     }
 }
 
-/// The thresholds of one edge.
-#[derive(Debug, Clone, Copy)]
-struct Edge {
-    bs: u8,
-    alpha: i32,
-    beta: i32,
-    /// tc0 (bS 1 to 3).
-    tc0: i32,
-}
-
-impl Edge {
-    fn new(bs: u8, qp: u8) -> Edge {
-        let q = usize::from(qp);
-        Edge {
-            bs,
-            alpha: i32::from(ALPHA[q]),
-            beta: i32::from(BETA[q]),
-            tc0: if (1..4).contains(&bs) {
-                i32::from(TC0[usize::from(bs) - 1][q])
-            } else {
-                0
-            },
-        }
-    }
-}
-
-/// Filters the line of samples across an edge: `q0` at `d[at]`, `q1` at
-/// `d[at + step]`, `p0` at `d[at - step]`, and so on.
-fn filter_line(d: &mut [u8], at: usize, step: usize, e: Edge, luma: bool) {
-    let s = |k: isize| (at as isize + k * step as isize) as usize;
-    let v = |d: &[u8], k: isize| i32::from(d[s(k)]);
-    let (p0, p1, q0, q1) = (v(d, -1), v(d, -2), v(d, 0), v(d, 1));
-    if (p0 - q0).abs() >= e.alpha || (p1 - p0).abs() >= e.beta || (q1 - q0).abs() >= e.beta {
-        return;
-    }
-    let clip = |x: i32| x.clamp(0, 255) as u8;
-    if !luma {
-        if e.bs == 4 {
-            d[s(-1)] = ((2 * p1 + p0 + q1 + 2) >> 2) as u8;
-            d[s(0)] = ((2 * q1 + q0 + p1 + 2) >> 2) as u8;
-        } else {
-            let tc = e.tc0 + 1;
-            let delta = ((((q0 - p0) << 2) + (p1 - q1) + 4) >> 3).clamp(-tc, tc);
-            d[s(-1)] = clip(p0 + delta);
-            d[s(0)] = clip(q0 - delta);
-        }
-        return;
-    }
-    let (p2, q2) = (v(d, -3), v(d, 2));
-    let (ap, aq) = ((p2 - p0).abs() < e.beta, (q2 - q0).abs() < e.beta);
-    if e.bs == 4 {
-        let strong = (p0 - q0).abs() < (e.alpha >> 2) + 2;
-        let (p3, q3) = (v(d, -4), v(d, 3));
-        if ap && strong {
-            d[s(-1)] = ((p2 + 2 * p1 + 2 * p0 + 2 * q0 + q1 + 4) >> 3) as u8;
-            d[s(-2)] = ((p2 + p1 + p0 + q0 + 2) >> 2) as u8;
-            d[s(-3)] = ((2 * p3 + 3 * p2 + p1 + p0 + q0 + 4) >> 3) as u8;
-        } else {
-            d[s(-1)] = ((2 * p1 + p0 + q1 + 2) >> 2) as u8;
-        }
-        if aq && strong {
-            d[s(0)] = ((p1 + 2 * p0 + 2 * q0 + 2 * q1 + q2 + 4) >> 3) as u8;
-            d[s(1)] = ((p0 + q0 + q1 + q2 + 2) >> 2) as u8;
-            d[s(2)] = ((2 * q3 + 3 * q2 + q1 + q0 + p0 + 4) >> 3) as u8;
-        } else {
-            d[s(0)] = ((2 * q1 + q0 + p1 + 2) >> 2) as u8;
-        }
-        return;
-    }
-    let tc = e.tc0 + i32::from(ap) + i32::from(aq);
-    let delta = ((((q0 - p0) << 2) + (p1 - q1) + 4) >> 3).clamp(-tc, tc);
-    d[s(-1)] = clip(p0 + delta);
-    d[s(0)] = clip(q0 - delta);
-    let mid = (p0 + q0 + 1) >> 1;
-    if ap {
-        d[s(-2)] = (p1 + ((p2 + mid - (p1 << 1)) >> 1).clamp(-e.tc0, e.tc0)) as u8;
-    }
-    if aq {
-        d[s(1)] = (q1 + ((q2 + mid - (q1 << 1)) >> 1).clamp(-e.tc0, e.tc0)) as u8;
-    }
-}
-
 /// The boundary strength of every luma 4x4 block edge of a frame, found
 /// once for its three planes: `vertical[by * cols + bx]` of the edge left
 /// of block (bx, by), `horizontal` of the edge above it (0 on the
@@ -275,9 +163,10 @@ impl Strengths {
 /// The strength is one per piece of edge along a 4x4 luma block (4 luma
 /// lines, 2 chroma ones).
 fn filter_plane(plane: &mut Plane, strengths: &Strengths, qp: u8, sub: usize) {
-    if ALPHA[usize::from(qp)] == 0 {
+    if !Edge::filters_at(qp) {
         return;
     }
+    let lf = lf();
     let (w, h, stride) = (plane.width(), plane.height(), plane.stride());
     let origin = plane.index(0, 0);
     let (luma, piece) = (sub == 1, 4 / sub);
@@ -289,10 +178,14 @@ fn filter_plane(plane: &mut Plane, strengths: &Strengths, qp: u8, sub: usize) {
         for y0 in (0..h).step_by(piece) {
             let bs = strengths.vertical[(y0 * sub / 4) * cols + bx];
             if bs > 0 {
-                let edge = Edge::new(bs, qp);
-                for y in y0..(y0 + piece).min(h) {
-                    filter_line(data, origin + y * stride + x, 1, edge, luma);
-                }
+                let lines = (y0 + piece).min(h) - y0;
+                (lf.filter_edge)(
+                    data,
+                    (origin + y0 * stride + x, 1, stride),
+                    lines,
+                    Edge::new(bs, qp),
+                    luma,
+                );
             }
         }
     }
@@ -302,10 +195,14 @@ fn filter_plane(plane: &mut Plane, strengths: &Strengths, qp: u8, sub: usize) {
         for x0 in (0..w).step_by(piece) {
             let bs = strengths.horizontal[row + x0 * sub / 4];
             if bs > 0 {
-                let edge = Edge::new(bs, qp);
-                for x in x0..(x0 + piece).min(w) {
-                    filter_line(data, origin + y * stride + x, stride, edge, luma);
-                }
+                let lines = (x0 + piece).min(w) - x0;
+                (lf.filter_edge)(
+                    data,
+                    (origin + y * stride + x0, stride, 1),
+                    lines,
+                    Edge::new(bs, qp),
+                    luma,
+                );
             }
         }
     }
@@ -462,7 +359,13 @@ mod tests {
         let line = |p: u8, q: u8| [p, p, p, p, q, q, q, q];
         let run = |samples: [u8; 8], bs: u8, qp: u8| {
             let mut d = samples.to_vec();
-            filter_line(&mut d, 4, 1, Edge::new(bs, qp), true);
+            (crate::dsp::lf::LF.at(crate::cpu::CpuLevel::Scalar).filter_edge)(
+                &mut d,
+                (4, 1, 8),
+                1,
+                Edge::new(bs, qp),
+                true,
+            );
             d
         };
         // QP 36: alpha 63. A step of 10 is an artefact: smoothed into a

@@ -244,11 +244,17 @@ mod tests {
         }
         // 16x8 top at (0, 1): B (block 2 of the macroblock above) directly.
         let empty = [None; 4];
-        assert_eq!(above(&done, &empty).predict(&Split::Horizontal.parts()[0], 0), Mv::new(3, -3));
+        assert_eq!(
+            above(&done, &empty).predict(&Split::Horizontal.parts()[0], 0),
+            Mv::new(3, -3)
+        );
         // 16x8 bottom: A outside the picture, so the median rule over B =
         // its own top partition, C not decoded, D outside: only B.
         let top = [mv(9), mv(9), None, None];
-        assert_eq!(above(&done, &top).predict(&Split::Horizontal.parts()[1], 0), Mv::new(9, -9));
+        assert_eq!(
+            above(&done, &top).predict(&Split::Horizontal.parts()[1], 0),
+            Mv::new(9, -9)
+        );
         // 8x16 right: C = the above-right macroblock's block 2.
         let wide = VectorNeighbourhood {
             done: &[[mv(1); 4], [mv(2); 4], [mv(3); 4], [mv(4); 4]],

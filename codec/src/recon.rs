@@ -7,6 +7,7 @@
 //! macroblocks); [`crop`] gives the visible picture.
 
 use crate::deblock::{deblock_frame, MbEdgeInfo};
+use crate::dsp::itx::itx;
 use crate::interp::{predict_chroma, predict_luma};
 use crate::intra::{self, Neighbours};
 use crate::intra4x4::{self, Intra4x4Mode, LumaIntra};
@@ -17,8 +18,8 @@ use crate::partition::{MbVectors, RefMv};
 use crate::picture::{Frame, PictureError, Plane};
 use crate::residual::MbResidual;
 use crate::syntax::{mb_vectors, FrameSyntax, FrameType, MbKind, MotionTool, SequenceHeader, MB};
-use crate::transform::{dequantize, inverse_4x4, Block4};
-use crate::transform8x8::{dequantize_8x8, inverse_8x8, Block8};
+use crate::transform::Block4;
+use crate::transform8x8::Block8;
 use crate::warp::warp_frame;
 
 pub use crate::transform::chroma_qp;
@@ -333,37 +334,18 @@ pub fn predict_inter_blocks(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mv
 
 /// Adds one 4x4 block of levels, dequantised at `qp`, to the prediction
 /// held in `out` (a `stride`-wide block) at (bx, by), clipping; a block
-/// without levels leaves it as it is.
-#[inline(always)]
-pub fn add_block(levels: &Block4, qp: u8, out: &mut [u8], stride: usize, (bx, by): (usize, usize)) {
-    if levels.as_flattened().iter().all(|&v| v == 0) {
-        return;
-    }
-    let mut c = *levels;
-    dequantize(&mut c, qp);
-    let residual = inverse_4x4(&c);
-    for (r, res) in residual.iter().enumerate() {
-        let i = (by + r) * stride + bx;
-        for (o, &d) in out[i..i + 4].iter_mut().zip(res) {
-            *o = (i32::from(*o) + d).clamp(0, 255) as u8;
-        }
-    }
+/// without levels leaves it as it is. By the transform kernels of the CPU
+/// level in force ([`crate::dsp::itx`]).
+#[inline]
+pub fn add_block(levels: &Block4, qp: u8, out: &mut [u8], stride: usize, at: (usize, usize)) {
+    (itx().add_4x4)(levels, qp, out, stride, at)
 }
 
 /// Adds one 8x8 block of levels, dequantised at `qp`, to the macroblock's
 /// luma prediction `out` at sample (x, y), clipping.
-pub fn add_block8(levels: &Block8, qp: u8, out: &mut [u8; 256], (x, y): (usize, usize)) {
-    if levels.as_flattened().iter().all(|&v| v == 0) {
-        return;
-    }
-    let mut c = *levels;
-    dequantize_8x8(&mut c, qp);
-    for (r, res) in inverse_8x8(&c).iter().enumerate() {
-        let i = (y + r) * MB + x;
-        for (o, &d) in out[i..i + 8].iter_mut().zip(res) {
-            *o = (i32::from(*o) + d).clamp(0, 255) as u8;
-        }
-    }
+#[inline]
+pub fn add_block8(levels: &Block8, qp: u8, out: &mut [u8; 256], at: (usize, usize)) {
+    (itx().add_8x8)(levels, qp, out, at)
 }
 
 /// Adds a macroblock's four 8x8 luma blocks of levels (quadrant `qy * 2 +

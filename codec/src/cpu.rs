@@ -55,6 +55,7 @@ impl CpuLevel {
         }
     }
 
+    #[inline]
     fn from_u8(v: u8) -> CpuLevel {
         CpuLevel::ALL[usize::from(v).min(2)]
     }

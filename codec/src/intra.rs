@@ -25,55 +25,8 @@
 //! assert!(out.iter().all(|&v| v == 20));
 //! ```
 
-/// An intra prediction mode; the value is its code in the bitstream.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-#[repr(u8)]
-pub enum IntraMode {
-    /// Copy the row above.
-    Vertical = 0,
-    /// Copy the column to the left.
-    Horizontal = 1,
-    /// Mean of the neighbours.
-    Dc = 2,
-    /// A plane fitted to the neighbours.
-    Plane = 3,
-}
-
-impl IntraMode {
-    /// All modes, in code order.
-    pub const ALL: [IntraMode; 4] = [
-        IntraMode::Vertical,
-        IntraMode::Horizontal,
-        IntraMode::Dc,
-        IntraMode::Plane,
-    ];
-
-    /// The mode with this code, if any.
-    pub fn from_code(code: u32) -> Option<IntraMode> {
-        IntraMode::ALL.get(code as usize).copied()
-    }
-
-    /// Whether the neighbours this mode needs are available.
-    pub fn is_available(self, n: &Neighbours<'_>) -> bool {
-        match self {
-            IntraMode::Vertical => n.top.is_some(),
-            IntraMode::Horizontal => n.left.is_some(),
-            IntraMode::Dc => true,
-            IntraMode::Plane => n.top.is_some() && n.left.is_some() && n.top_left.is_some(),
-        }
-    }
-}
-
-/// The reconstructed samples around a block.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct Neighbours<'a> {
-    /// The row above, as wide as the block.
-    pub top: Option<&'a [u8]>,
-    /// The column to the left, as tall as the block.
-    pub left: Option<&'a [u8]>,
-    /// The sample above-left.
-    pub top_left: Option<u8>,
-}
+use crate::dsp::ipred::ipred;
+pub use crate::dsp::ipred::{IntraMode, Neighbours};
 
 /// Why a block cannot be predicted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
@@ -99,78 +52,13 @@ pub fn predict(
     }
     // Sizes the compiler knows: rows filled and copied by fixed-size
     // moves, not a memset or memcpy call a row.
+    let dsp = ipred();
     if size == 16 {
-        predict_sized::<16>(mode, n, out, stride);
+        (dsp.pred_16x16)(mode, n, out, stride);
     } else {
-        predict_sized::<8>(mode, n, out, stride);
+        (dsp.pred_8x8_chroma)(mode, n, out, stride);
     }
     Ok(())
-}
-
-/// [`predict`] of an available mode at size `N`.
-fn predict_sized<const N: usize>(mode: IntraMode, n: &Neighbours<'_>, out: &mut [u8], stride: usize) {
-    let size = N;
-    // Rows of a length the compiler knows: fills and copies become a few
-    // moves instead of a library call a row.
-    let rows = out.chunks_mut(stride).take(size).map(|r| &mut r[..N]);
-    match mode {
-        IntraMode::Vertical => {
-            let top = &n.top.unwrap_or_default()[..N];
-            rows.for_each(|r| r.copy_from_slice(top));
-        }
-        IntraMode::Horizontal => {
-            let left = n.left.unwrap_or_default();
-            rows.enumerate().for_each(|(y, r)| r.fill(left[y]));
-        }
-        IntraMode::Dc => {
-            let sum = |s: &[u8]| s[..size].iter().map(|&v| u32::from(v)).sum::<u32>();
-            let n_bits = size.trailing_zeros();
-            let dc = match (n.top, n.left) {
-                (Some(t), Some(l)) => (sum(t) + sum(l) + size as u32) >> (n_bits + 1),
-                (Some(t), None) => (sum(t) + size as u32 / 2) >> n_bits,
-                (None, Some(l)) => (sum(l) + size as u32 / 2) >> n_bits,
-                (None, None) => 128,
-            } as u8;
-            rows.for_each(|r| r.fill(dc));
-        }
-        IntraMode::Plane => {
-            let (top, left) = (n.top.unwrap_or_default(), n.left.unwrap_or_default());
-            let corner = i32::from(n.top_left.unwrap_or_default());
-            // p(k) along the top (k = -1 is the corner) and along the left.
-            let t = |k: isize| if k < 0 { corner } else { i32::from(top[k as usize]) };
-            let l = |k: isize| {
-                if k < 0 {
-                    corner
-                } else {
-                    i32::from(left[k as usize])
-                }
-            };
-            let half = size as isize / 2;
-            let (mut gh, mut gv) = (0i32, 0i32);
-            for k in 0..half {
-                gh += (k as i32 + 1) * (t(half + k) - t(half - 2 - k));
-                gv += (k as i32 + 1) * (l(half + k) - l(half - 2 - k));
-            }
-            // 16x16: b = (5 H + 32) >> 6; 8x8: b = (34 H + 32) >> 6.
-            let scale = if size == 16 { 5 } else { 34 };
-            let (b, c) = ((scale * gh + 32) >> 6, (scale * gv + 32) >> 6);
-            let a = 16 * (l(size as isize - 1) + t(size as isize - 1));
-            let centre = half as i32 - 1;
-            // a + b (x - centre) + c (y - centre) + 16, built from a row
-            // start and b x by additions (the same values; no per-sample
-            // multiply, so the loop vectorises).
-            let mut bx = [0i32; N];
-            for (x, v) in bx.iter_mut().enumerate() {
-                *v = b * x as i32;
-            }
-            for (y, r) in rows.enumerate() {
-                let start = a - b * centre + c * (y as i32 - centre) + 16;
-                for (o, &step) in r.iter_mut().zip(&bx) {
-                    *o = ((start + step) >> 5).clamp(0, 255) as u8;
-                }
-            }
-        }
-    }
 }
 
 #[cfg(test)]

@@ -21,29 +21,8 @@ use crate::intra::IntraMode;
 use crate::picture::Plane;
 use crate::transform::Block4;
 
-/// A 4x4 intra prediction mode; the value is its code (H.264's numbering).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-#[repr(u8)]
-pub enum Intra4x4Mode {
-    /// Copy the row above.
-    Vertical = 0,
-    /// Copy the column to the left.
-    Horizontal = 1,
-    /// Mean of the neighbours.
-    Dc = 2,
-    /// Along the 45-degree diagonal down and to the left (from above and above right).
-    DiagonalDownLeft = 3,
-    /// Along the diagonal down and to the right.
-    DiagonalDownRight = 4,
-    /// Steeply down and to the right.
-    VerticalRight = 5,
-    /// Shallowly down and to the right.
-    HorizontalDown = 6,
-    /// Steeply down and to the left.
-    VerticalLeft = 7,
-    /// Shallowly up and to the right (from the left column).
-    HorizontalUp = 8,
-}
+use crate::dsp::ipred::ipred;
+pub use crate::dsp::ipred::{Edges, Intra4x4Mode};
 
 /// How a macroblock's luma is intra-predicted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -91,56 +70,6 @@ const CODING_POSITION: [usize; 16] = {
     }
     p
 };
-
-impl Intra4x4Mode {
-    /// All modes, in code order.
-    pub const ALL: [Intra4x4Mode; 9] = [
-        Intra4x4Mode::Vertical,
-        Intra4x4Mode::Horizontal,
-        Intra4x4Mode::Dc,
-        Intra4x4Mode::DiagonalDownLeft,
-        Intra4x4Mode::DiagonalDownRight,
-        Intra4x4Mode::VerticalRight,
-        Intra4x4Mode::HorizontalDown,
-        Intra4x4Mode::VerticalLeft,
-        Intra4x4Mode::HorizontalUp,
-    ];
-
-    /// The mode with this code, if any.
-    pub fn from_code(code: u32) -> Option<Intra4x4Mode> {
-        Intra4x4Mode::ALL.get(code as usize).copied()
-    }
-
-    /// Which edges the mode reads: (above, left); the corner is read by
-    /// the modes needing both.
-    pub fn needs(self) -> (bool, bool) {
-        use Intra4x4Mode::*;
-        match self {
-            Vertical | DiagonalDownLeft | VerticalLeft => (true, false),
-            Horizontal | HorizontalUp => (false, true),
-            Dc => (false, false),
-            DiagonalDownRight | VerticalRight | HorizontalDown => (true, true),
-        }
-    }
-
-    /// Whether a block with these neighbours (above, left) can use it.
-    pub fn is_available(self, above: bool, left: bool) -> bool {
-        let (a, l) = self.needs();
-        (above || !a) && (left || !l)
-    }
-}
-
-/// The reconstructed samples around a 4x4 block.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct Edges {
-    /// The four samples above and the four above right (the last above
-    /// repeated where those are not decoded yet).
-    pub top: Option<[u8; 8]>,
-    /// The four samples to the left, top to bottom.
-    pub left: Option<[u8; 4]>,
-    /// The sample above-left (present when both others are).
-    pub top_left: Option<u8>,
-}
 
 /// Which neighbours raster block `k` of macroblock (mb_x, mb_y) has in a
 /// picture `mb_cols` macroblocks wide: (above, left, above right decoded).
@@ -209,7 +138,6 @@ pub(crate) fn mb_sampler<'a>(
 /// available with these edges ([`Intra4x4Mode::is_available`]); panics
 /// otherwise.
 pub fn predict(mode: Intra4x4Mode, e: &Edges, out: &mut [u8; 16]) {
-    use Intra4x4Mode::*;
     let (needs_top, needs_left) = mode.needs();
     assert!(
         (e.top.is_some() || !needs_top)
@@ -217,73 +145,7 @@ pub fn predict(mode: Intra4x4Mode, e: &Edges, out: &mut [u8; 16]) {
             && (e.top_left.is_some() || !(needs_top && needs_left)),
         "4x4 intra mode {mode:?} without its neighbours"
     );
-    // The edge as one line: left column bottom to top, the corner, then
-    // the row above and above right. p(-1, y) = line[3 - y], p(x, -1) =
-    // line[5 + x], the corner being both at index 4.
-    let mut line = [0i32; 13];
-    if let Some(l) = e.left {
-        for y in 0..4 {
-            line[3 - y] = i32::from(l[y]);
-        }
-    }
-    line[4] = i32::from(e.top_left.unwrap_or(0));
-    if let Some(t) = e.top {
-        for x in 0..8 {
-            line[5 + x] = i32::from(t[x]);
-        }
-    }
-    let t = |x: i32| line[(5 + x) as usize];
-    let l = |y: i32| line[(3 - y) as usize];
-    // Three-tap and two-tap filters along the edge.
-    let f3 = |a: i32, b: i32, c: i32| (a + 2 * b + c + 2) >> 2;
-    let f2 = |a: i32, b: i32| (a + b + 1) >> 1;
-    for y in 0..4i32 {
-        for x in 0..4i32 {
-            let v = match mode {
-                Vertical => t(x),
-                Horizontal => l(y),
-                Dc => dc(e),
-                DiagonalDownLeft if x == 3 && y == 3 => (t(6) + 3 * t(7) + 2) >> 2,
-                DiagonalDownLeft => f3(t(x + y), t(x + y + 1), t(x + y + 2)),
-                DiagonalDownRight if x > y => f3(t(x - y - 2), t(x - y - 1), t(x - y)),
-                DiagonalDownRight if x < y => f3(l(y - x - 2), l(y - x - 1), l(y - x)),
-                DiagonalDownRight => f3(t(0), t(-1), l(0)),
-                VerticalRight => match 2 * x - y {
-                    z @ 0..=6 if z % 2 == 0 => f2(t(x - (y >> 1) - 1), t(x - (y >> 1))),
-                    1 | 3 | 5 => f3(t(x - (y >> 1) - 2), t(x - (y >> 1) - 1), t(x - (y >> 1))),
-                    -1 => f3(l(0), l(-1), t(0)),
-                    _ => f3(l(y - 1), l(y - 2), l(y - 3)),
-                },
-                HorizontalDown => match 2 * y - x {
-                    z @ 0..=6 if z % 2 == 0 => f2(l(y - (x >> 1) - 1), l(y - (x >> 1))),
-                    1 | 3 | 5 => f3(l(y - (x >> 1) - 2), l(y - (x >> 1) - 1), l(y - (x >> 1))),
-                    -1 => f3(l(0), l(-1), t(0)),
-                    _ => f3(t(x - 1), t(x - 2), t(x - 3)),
-                },
-                VerticalLeft if y % 2 == 0 => f2(t(x + (y >> 1)), t(x + (y >> 1) + 1)),
-                VerticalLeft => f3(t(x + (y >> 1)), t(x + (y >> 1) + 1), t(x + (y >> 1) + 2)),
-                HorizontalUp => match x + 2 * y {
-                    0 | 2 | 4 => f2(l(y + (x >> 1)), l(y + (x >> 1) + 1)),
-                    1 | 3 => f3(l(y + (x >> 1)), l(y + (x >> 1) + 1), l(y + (x >> 1) + 2)),
-                    5 => (l(2) + 3 * l(3) + 2) >> 2,
-                    _ => l(3),
-                },
-            };
-            out[(y * 4 + x) as usize] = v as u8;
-        }
-    }
-}
-
-/// DC of a 4x4 block: the rounded mean of the edges it has, 128 with none.
-fn dc(e: &Edges) -> i32 {
-    let top: i32 = e.top.map_or(0, |t| t[..4].iter().map(|&v| i32::from(v)).sum());
-    let left: i32 = e.left.map_or(0, |l| l.iter().map(|&v| i32::from(v)).sum());
-    match (e.top.is_some(), e.left.is_some()) {
-        (true, true) => (top + left + 4) >> 3,
-        (true, false) => (top + 2) >> 2,
-        (false, true) => (left + 2) >> 2,
-        (false, false) => 128,
-    }
+    (ipred().pred_4x4)(mode, e, out);
 }
 
 /// The most probable mode of a block from the modes of the blocks left of

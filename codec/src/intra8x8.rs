@@ -27,17 +27,8 @@ use crate::consts::MB;
 use crate::intra4x4::{mb_sampler, neighbour_modes, spread8, Intra4x4Mode};
 use crate::picture::Plane;
 
-/// The reconstructed samples around an 8x8 block.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct Edges8 {
-    /// The eight samples above and the eight above right (the last above
-    /// repeated where those are not decoded yet).
-    pub top: Option<[u8; 16]>,
-    /// The eight samples to the left, top to bottom.
-    pub left: Option<[u8; 8]>,
-    /// The sample above-left (present when both others are).
-    pub top_left: Option<u8>,
-}
+use crate::dsp::ipred::ipred;
+pub use crate::dsp::ipred::{Edges8, ModeSource};
 
 /// Which neighbours 8x8 block `q` (raster order in its macroblock) of
 /// macroblock (mb_x, mb_y) has in a picture `mb_cols` macroblocks wide:
@@ -166,132 +157,11 @@ pub fn place(block: &[u8; 64], q: usize, out: &mut [u8; 256]) {
     }
 }
 
-/// What every mode's samples are drawn from, computed once per block from
-/// its filtered edges: the edge as one line (left column bottom to top,
-/// the corner, the row above and above right: `p(-1, y)` at `7 - y`,
-/// `p(x, -1)` at `9 + x`), its [1 2 1] averages centred on each position,
-/// its [1 1] averages of each position and the next, and three values of
-/// their own. Each mode is then a fixed gather ([`MODE_INDEX`]), which is
-/// how an encoder trying the nine modes shares the arithmetic.
-#[derive(Debug, Clone)]
-pub struct ModeSource([u8; SOURCE_LEN]);
-
-const LINE: usize = 0; // 25 samples
-const F3: usize = 25; // 25: (a + 2b + c + 2) >> 2 centred on line[i], i = 1..=23
-const F2: usize = 50; // 24: (a + b + 1) >> 1 of line[i], line[i + 1]
-const DDL_CORNER: usize = 74; // diagonal down-left at (7, 7)
-const HU_END: usize = 75; // horizontal-up where x + 2y = 13
-const DC_VALUE: usize = 76;
-const SOURCE_LEN: usize = 77;
-
-impl ModeSource {
-    /// The source of a block whose filtered edges are `e`.
-    pub fn new(e: &Edges8) -> ModeSource {
-        let mut line = [0u16; 25];
-        if let Some(l) = e.left {
-            for (y, &v) in l.iter().enumerate() {
-                line[7 - y] = u16::from(v);
-            }
-        }
-        line[8] = u16::from(e.top_left.unwrap_or(0));
-        if let Some(t) = e.top {
-            for (x, &v) in t.iter().enumerate() {
-                line[9 + x] = u16::from(v);
-            }
-        }
-        let mut v = [0u8; SOURCE_LEN];
-        for i in 0..25 {
-            v[LINE + i] = line[i] as u8;
-        }
-        for i in 1..24 {
-            v[F3 + i] = ((line[i - 1] + 2 * line[i] + line[i + 1] + 2) >> 2) as u8;
-        }
-        for i in 0..24 {
-            v[F2 + i] = ((line[i] + line[i + 1] + 1) >> 1) as u8;
-        }
-        v[DDL_CORNER] = ((line[23] + 3 * line[24] + 2) >> 2) as u8;
-        v[HU_END] = ((line[1] + 3 * line[0] + 2) >> 2) as u8;
-        v[DC_VALUE] = dc(e);
-        ModeSource(v)
-    }
-
-    /// The prediction in `mode` into `out` (row-major).
-    #[inline]
-    pub fn predict(&self, mode: Intra4x4Mode, out: &mut [u8; 64]) {
-        for (o, &i) in out.iter_mut().zip(&MODE_INDEX[mode as usize]) {
-            *o = self.0[usize::from(i)];
-        }
-    }
-}
-
-/// Where sample (x, y) of each mode comes from in a [`ModeSource`]
-/// (FORMAT.md section 9.2's formulas, each an average at one place of the
-/// edge line).
-const MODE_INDEX: [[u8; 64]; 9] = {
-    let mut table = [[0u8; 64]; 9];
-    let mut m = 0;
-    while m < 9 {
-        let mut i = 0;
-        while i < 64 {
-            table[m][i] = mode_index(m, (i % 8) as isize, (i / 8) as isize) as u8;
-            i += 1;
-        }
-        m += 1;
-    }
-    table
-};
-
-/// [`MODE_INDEX`] of mode `m` at (x, y).
-const fn mode_index(m: usize, x: isize, y: isize) -> isize {
-    let (f3, f2, line) = (F3 as isize, F2 as isize, LINE as isize);
-    match m {
-        0 => line + 9 + x,
-        1 => line + 7 - y,
-        2 => DC_VALUE as isize,
-        3 if x == 7 && y == 7 => DDL_CORNER as isize,
-        3 => f3 + 10 + x + y,
-        4 => f3 + 8 + x - y,
-        5 => match 2 * x - y {
-            z if z >= 0 && z % 2 == 0 => f2 + 8 + x - (y >> 1),
-            z if z > 0 => f3 + 8 + x - (y >> 1),
-            -1 => f3 + 8,
-            _ => f3 + 9 + 2 * x - y,
-        },
-        6 => match 2 * y - x {
-            z if z >= 0 && z % 2 == 0 => f2 + 7 - y + (x >> 1),
-            z if z > 0 => f3 + 8 - y + (x >> 1),
-            -1 => f3 + 8,
-            _ => f3 + 7 + x - 2 * y,
-        },
-        7 if y % 2 == 0 => f2 + 9 + x + (y >> 1),
-        7 => f3 + 10 + x + (y >> 1),
-        _ => match x + 2 * y {
-            z if z < 13 && z % 2 == 0 => f2 + 6 - y - (x >> 1),
-            z if z < 13 => f3 + 6 - y - (x >> 1),
-            13 => HU_END as isize,
-            _ => line,
-        },
-    }
-}
-
 /// [`predict`] from edges already [`filtered`] (the mode's neighbours
-/// present, as [`predict`] asks; missing ones read as 0).
+/// present, as [`predict`] asks; missing ones read as 0), by the intra
+/// kernels of the CPU level in force.
 pub fn predict_filtered(mode: Intra4x4Mode, e: &Edges8, out: &mut [u8; 64]) {
-    ModeSource::new(e).predict(mode, out);
-}
-
-/// DC of an 8x8 block: the rounded mean of the (filtered) edges it has,
-/// 128 with none.
-fn dc(e: &Edges8) -> u8 {
-    let sum = |v: &[u8]| v.iter().map(|&s| u32::from(s)).sum::<u32>();
-    let top = e.top.map(|t| sum(&t[..8]));
-    let left = e.left.map(|l| sum(&l));
-    let v = match (top, left) {
-        (Some(t), Some(l)) => (t + l + 8) >> 4,
-        (Some(s), None) | (None, Some(s)) => (s + 4) >> 3,
-        (None, None) => 128,
-    };
-    v as u8
+    (ipred().pred_8x8)(mode, e, out);
 }
 
 #[cfg(test)]
@@ -323,7 +193,7 @@ mod tests {
             let v = match mode {
                 Vertical => t(x),
                 Horizontal => l(y),
-                Dc => i32::from(dc(e)),
+                Dc => i32::from(crate::dsp::ipred::dc8(e)),
                 DiagonalDownLeft => match (x, y) {
                     (7, 7) => (t(14) + 3 * t(15) + 2) >> 2,
                     _ => f3(t(x + y), t(x + y + 1), t(x + y + 2)),

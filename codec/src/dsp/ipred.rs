@@ -1,1 +1,475 @@
-//! (table to come)
+//! The intra prediction kernels (normative: FORMAT.md section 9): the
+//! 16x16 and chroma modes, the nine 4x4 modes and the nine 8x8 modes
+//! (from edges already smoothed), with the mode and edge types they take.
+//! The AVX2 builds are the scalar source compiled for AVX2 (integer
+//! arithmetic: the same samples).
+
+use super::PerLevel;
+
+/// A 16x16 or chroma prediction: `(mode, neighbours, out, stride)`.
+pub type PredBlockFn = fn(IntraMode, &Neighbours<'_>, &mut [u8], usize);
+
+/// A 4x4 prediction: `(mode, edges, out)`, the mode's edges present.
+pub type Pred4x4Fn = fn(Intra4x4Mode, &Edges, &mut [u8; 16]);
+
+/// An 8x8 prediction from filtered edges: `(mode, edges, out)`.
+pub type Pred8x8Fn = fn(Intra4x4Mode, &Edges8, &mut [u8; 64]);
+
+/// The intra prediction kernels of one CPU level.
+#[derive(Debug, Clone, Copy)]
+pub struct IpredDsp {
+    /// 16x16 luma modes.
+    pub pred_16x16: PredBlockFn,
+    /// 8x8 chroma modes (the 16x16 modes' rules at size 8).
+    pub pred_8x8_chroma: PredBlockFn,
+    /// The nine 4x4 modes.
+    pub pred_4x4: Pred4x4Fn,
+    /// The nine 8x8 modes.
+    pub pred_8x8: Pred8x8Fn,
+}
+
+const SCALAR: IpredDsp = IpredDsp {
+    pred_16x16: predict_sized::<16>,
+    pred_8x8_chroma: predict_sized::<8>,
+    pred_4x4,
+    pred_8x8,
+};
+
+/// The tables, lowest level first.
+pub static IPRED: PerLevel<IpredDsp> = PerLevel([
+    SCALAR,
+    SCALAR,
+    #[cfg(target_arch = "x86_64")]
+    IpredDsp {
+        pred_16x16: avx2::pred_16x16,
+        pred_8x8_chroma: avx2::pred_8x8_chroma,
+        // Its AVX2 build ran 25 % more instructions (the modes' per-sample
+        // formulas do not vectorise): the scalar one at every level.
+        pred_4x4,
+        pred_8x8: avx2::pred_8x8,
+    },
+    #[cfg(not(target_arch = "x86_64"))]
+    SCALAR,
+]);
+
+/// The kernels of the CPU level in force.
+#[inline]
+pub fn ipred() -> &'static IpredDsp {
+    IPRED.get()
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::{Edges8, Intra4x4Mode, IntraMode, Neighbours};
+    crate::compiled_for! { "avx2":
+        fn pred_16x16(mode: IntraMode, n: &Neighbours<'_>, out: &mut [u8], stride: usize) => super::predict_sized::<16>;
+        fn pred_8x8_chroma(mode: IntraMode, n: &Neighbours<'_>, out: &mut [u8], stride: usize) => super::predict_sized::<8>;
+        fn pred_8x8(mode: Intra4x4Mode, e: &Edges8, out: &mut [u8; 64]) => super::pred_8x8;
+    }
+}
+
+/// An intra prediction mode; the value is its code in the bitstream.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[repr(u8)]
+pub enum IntraMode {
+    /// Copy the row above.
+    Vertical = 0,
+    /// Copy the column to the left.
+    Horizontal = 1,
+    /// Mean of the neighbours.
+    Dc = 2,
+    /// A plane fitted to the neighbours.
+    Plane = 3,
+}
+
+impl IntraMode {
+    /// All modes, in code order.
+    pub const ALL: [IntraMode; 4] = [
+        IntraMode::Vertical,
+        IntraMode::Horizontal,
+        IntraMode::Dc,
+        IntraMode::Plane,
+    ];
+
+    /// The mode with this code, if any.
+    pub fn from_code(code: u32) -> Option<IntraMode> {
+        IntraMode::ALL.get(code as usize).copied()
+    }
+
+    /// Whether the neighbours this mode needs are available.
+    pub fn is_available(self, n: &Neighbours<'_>) -> bool {
+        match self {
+            IntraMode::Vertical => n.top.is_some(),
+            IntraMode::Horizontal => n.left.is_some(),
+            IntraMode::Dc => true,
+            IntraMode::Plane => n.top.is_some() && n.left.is_some() && n.top_left.is_some(),
+        }
+    }
+}
+
+/// The reconstructed samples around a block.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Neighbours<'a> {
+    /// The row above, as wide as the block.
+    pub top: Option<&'a [u8]>,
+    /// The column to the left, as tall as the block.
+    pub left: Option<&'a [u8]>,
+    /// The sample above-left.
+    pub top_left: Option<u8>,
+}
+
+/// A 4x4 intra prediction mode; the value is its code (H.264's numbering).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[repr(u8)]
+pub enum Intra4x4Mode {
+    /// Copy the row above.
+    Vertical = 0,
+    /// Copy the column to the left.
+    Horizontal = 1,
+    /// Mean of the neighbours.
+    Dc = 2,
+    /// Along the 45-degree diagonal down and to the left (from above and above right).
+    DiagonalDownLeft = 3,
+    /// Along the diagonal down and to the right.
+    DiagonalDownRight = 4,
+    /// Steeply down and to the right.
+    VerticalRight = 5,
+    /// Shallowly down and to the right.
+    HorizontalDown = 6,
+    /// Steeply down and to the left.
+    VerticalLeft = 7,
+    /// Shallowly up and to the right (from the left column).
+    HorizontalUp = 8,
+}
+
+impl Intra4x4Mode {
+    /// All modes, in code order.
+    pub const ALL: [Intra4x4Mode; 9] = [
+        Intra4x4Mode::Vertical,
+        Intra4x4Mode::Horizontal,
+        Intra4x4Mode::Dc,
+        Intra4x4Mode::DiagonalDownLeft,
+        Intra4x4Mode::DiagonalDownRight,
+        Intra4x4Mode::VerticalRight,
+        Intra4x4Mode::HorizontalDown,
+        Intra4x4Mode::VerticalLeft,
+        Intra4x4Mode::HorizontalUp,
+    ];
+
+    /// The mode with this code, if any.
+    pub fn from_code(code: u32) -> Option<Intra4x4Mode> {
+        Intra4x4Mode::ALL.get(code as usize).copied()
+    }
+
+    /// Which edges the mode reads: (above, left); the corner is read by
+    /// the modes needing both.
+    pub fn needs(self) -> (bool, bool) {
+        use Intra4x4Mode::*;
+        match self {
+            Vertical | DiagonalDownLeft | VerticalLeft => (true, false),
+            Horizontal | HorizontalUp => (false, true),
+            Dc => (false, false),
+            DiagonalDownRight | VerticalRight | HorizontalDown => (true, true),
+        }
+    }
+
+    /// Whether a block with these neighbours (above, left) can use it.
+    pub fn is_available(self, above: bool, left: bool) -> bool {
+        let (a, l) = self.needs();
+        (above || !a) && (left || !l)
+    }
+}
+
+/// The reconstructed samples around a 4x4 block.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Edges {
+    /// The four samples above and the four above right (the last above
+    /// repeated where those are not decoded yet).
+    pub top: Option<[u8; 8]>,
+    /// The four samples to the left, top to bottom.
+    pub left: Option<[u8; 4]>,
+    /// The sample above-left (present when both others are).
+    pub top_left: Option<u8>,
+}
+
+/// An available 16x16 or chroma mode at size `N` (the intra module's
+/// `predict` checks the mode and the neighbours).
+#[inline(always)]
+fn predict_sized<const N: usize>(mode: IntraMode, n: &Neighbours<'_>, out: &mut [u8], stride: usize) {
+    let size = N;
+    // Rows of a length the compiler knows: fills and copies become a few
+    // moves instead of a library call a row.
+    let rows = out.chunks_mut(stride).take(size).map(|r| &mut r[..N]);
+    match mode {
+        IntraMode::Vertical => {
+            let top = &n.top.unwrap_or_default()[..N];
+            rows.for_each(|r| r.copy_from_slice(top));
+        }
+        IntraMode::Horizontal => {
+            let left = n.left.unwrap_or_default();
+            rows.enumerate().for_each(|(y, r)| r.fill(left[y]));
+        }
+        IntraMode::Dc => {
+            let sum = |s: &[u8]| s[..size].iter().map(|&v| u32::from(v)).sum::<u32>();
+            let n_bits = size.trailing_zeros();
+            let dc = match (n.top, n.left) {
+                (Some(t), Some(l)) => (sum(t) + sum(l) + size as u32) >> (n_bits + 1),
+                (Some(t), None) => (sum(t) + size as u32 / 2) >> n_bits,
+                (None, Some(l)) => (sum(l) + size as u32 / 2) >> n_bits,
+                (None, None) => 128,
+            } as u8;
+            rows.for_each(|r| r.fill(dc));
+        }
+        IntraMode::Plane => {
+            let (top, left) = (n.top.unwrap_or_default(), n.left.unwrap_or_default());
+            let corner = i32::from(n.top_left.unwrap_or_default());
+            // p(k) along the top (k = -1 is the corner) and along the left.
+            let t = |k: isize| if k < 0 { corner } else { i32::from(top[k as usize]) };
+            let l = |k: isize| {
+                if k < 0 {
+                    corner
+                } else {
+                    i32::from(left[k as usize])
+                }
+            };
+            let half = size as isize / 2;
+            let (mut gh, mut gv) = (0i32, 0i32);
+            for k in 0..half {
+                gh += (k as i32 + 1) * (t(half + k) - t(half - 2 - k));
+                gv += (k as i32 + 1) * (l(half + k) - l(half - 2 - k));
+            }
+            // 16x16: b = (5 H + 32) >> 6; 8x8: b = (34 H + 32) >> 6.
+            let scale = if size == 16 { 5 } else { 34 };
+            let (b, c) = ((scale * gh + 32) >> 6, (scale * gv + 32) >> 6);
+            let a = 16 * (l(size as isize - 1) + t(size as isize - 1));
+            let centre = half as i32 - 1;
+            // a + b (x - centre) + c (y - centre) + 16, built from a row
+            // start and b x by additions (the same values; no per-sample
+            // multiply, so the loop vectorises).
+            let mut bx = [0i32; N];
+            for (x, v) in bx.iter_mut().enumerate() {
+                *v = b * x as i32;
+            }
+            for (y, r) in rows.enumerate() {
+                let start = a - b * centre + c * (y as i32 - centre) + 16;
+                for (o, &step) in r.iter_mut().zip(&bx) {
+                    *o = ((start + step) >> 5).clamp(0, 255) as u8;
+                }
+            }
+        }
+    }
+}
+
+/// The nine 4x4 modes (the mode's edges present; missing ones read as 0).
+#[inline(always)]
+fn pred_4x4(mode: Intra4x4Mode, e: &Edges, out: &mut [u8; 16]) {
+    use Intra4x4Mode::*;
+    // The edge as one line: left column bottom to top, the corner, then
+    // the row above and above right. p(-1, y) = line[3 - y], p(x, -1) =
+    // line[5 + x], the corner being both at index 4.
+    let mut line = [0i32; 13];
+    if let Some(l) = e.left {
+        for y in 0..4 {
+            line[3 - y] = i32::from(l[y]);
+        }
+    }
+    line[4] = i32::from(e.top_left.unwrap_or(0));
+    if let Some(t) = e.top {
+        for x in 0..8 {
+            line[5 + x] = i32::from(t[x]);
+        }
+    }
+    let t = |x: i32| line[(5 + x) as usize];
+    let l = |y: i32| line[(3 - y) as usize];
+    // Three-tap and two-tap filters along the edge.
+    let f3 = |a: i32, b: i32, c: i32| (a + 2 * b + c + 2) >> 2;
+    let f2 = |a: i32, b: i32| (a + b + 1) >> 1;
+    for y in 0..4i32 {
+        for x in 0..4i32 {
+            let v = match mode {
+                Vertical => t(x),
+                Horizontal => l(y),
+                Dc => dc(e),
+                DiagonalDownLeft if x == 3 && y == 3 => (t(6) + 3 * t(7) + 2) >> 2,
+                DiagonalDownLeft => f3(t(x + y), t(x + y + 1), t(x + y + 2)),
+                DiagonalDownRight if x > y => f3(t(x - y - 2), t(x - y - 1), t(x - y)),
+                DiagonalDownRight if x < y => f3(l(y - x - 2), l(y - x - 1), l(y - x)),
+                DiagonalDownRight => f3(t(0), t(-1), l(0)),
+                VerticalRight => match 2 * x - y {
+                    z @ 0..=6 if z % 2 == 0 => f2(t(x - (y >> 1) - 1), t(x - (y >> 1))),
+                    1 | 3 | 5 => f3(t(x - (y >> 1) - 2), t(x - (y >> 1) - 1), t(x - (y >> 1))),
+                    -1 => f3(l(0), l(-1), t(0)),
+                    _ => f3(l(y - 1), l(y - 2), l(y - 3)),
+                },
+                HorizontalDown => match 2 * y - x {
+                    z @ 0..=6 if z % 2 == 0 => f2(l(y - (x >> 1) - 1), l(y - (x >> 1))),
+                    1 | 3 | 5 => f3(l(y - (x >> 1) - 2), l(y - (x >> 1) - 1), l(y - (x >> 1))),
+                    -1 => f3(l(0), l(-1), t(0)),
+                    _ => f3(t(x - 1), t(x - 2), t(x - 3)),
+                },
+                VerticalLeft if y % 2 == 0 => f2(t(x + (y >> 1)), t(x + (y >> 1) + 1)),
+                VerticalLeft => f3(t(x + (y >> 1)), t(x + (y >> 1) + 1), t(x + (y >> 1) + 2)),
+                HorizontalUp => match x + 2 * y {
+                    0 | 2 | 4 => f2(l(y + (x >> 1)), l(y + (x >> 1) + 1)),
+                    1 | 3 => f3(l(y + (x >> 1)), l(y + (x >> 1) + 1), l(y + (x >> 1) + 2)),
+                    5 => (l(2) + 3 * l(3) + 2) >> 2,
+                    _ => l(3),
+                },
+            };
+            out[(y * 4 + x) as usize] = v as u8;
+        }
+    }
+}
+
+/// DC of a 4x4 block: the rounded mean of the edges it has, 128 with none.
+fn dc(e: &Edges) -> i32 {
+    let top: i32 = e.top.map_or(0, |t| t[..4].iter().map(|&v| i32::from(v)).sum());
+    let left: i32 = e.left.map_or(0, |l| l.iter().map(|&v| i32::from(v)).sum());
+    match (e.top.is_some(), e.left.is_some()) {
+        (true, true) => (top + left + 4) >> 3,
+        (true, false) => (top + 2) >> 2,
+        (false, true) => (left + 2) >> 2,
+        (false, false) => 128,
+    }
+}
+
+/// The reconstructed samples around an 8x8 block.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Edges8 {
+    /// The eight samples above and the eight above right (the last above
+    /// repeated where those are not decoded yet).
+    pub top: Option<[u8; 16]>,
+    /// The eight samples to the left, top to bottom.
+    pub left: Option<[u8; 8]>,
+    /// The sample above-left (present when both others are).
+    pub top_left: Option<u8>,
+}
+
+/// What every mode's samples are drawn from, computed once per block from
+/// its filtered edges: the edge as one line (left column bottom to top,
+/// the corner, the row above and above right: `p(-1, y)` at `7 - y`,
+/// `p(x, -1)` at `9 + x`), its [1 2 1] averages centred on each position,
+/// its [1 1] averages of each position and the next, and three values of
+/// their own. Each mode is then a fixed gather ([`MODE_INDEX`]), which is
+/// how an encoder trying the nine modes shares the arithmetic.
+#[derive(Debug, Clone)]
+pub struct ModeSource([u8; SOURCE_LEN]);
+
+const LINE: usize = 0; // 25 samples
+const F3: usize = 25; // 25: (a + 2b + c + 2) >> 2 centred on line[i], i = 1..=23
+const F2: usize = 50; // 24: (a + b + 1) >> 1 of line[i], line[i + 1]
+const DDL_CORNER: usize = 74; // diagonal down-left at (7, 7)
+const HU_END: usize = 75; // horizontal-up where x + 2y = 13
+const DC_VALUE: usize = 76;
+const SOURCE_LEN: usize = 77;
+
+impl ModeSource {
+    /// The source of a block whose filtered edges are `e`.
+    pub fn new(e: &Edges8) -> ModeSource {
+        let mut line = [0u16; 25];
+        if let Some(l) = e.left {
+            for (y, &v) in l.iter().enumerate() {
+                line[7 - y] = u16::from(v);
+            }
+        }
+        line[8] = u16::from(e.top_left.unwrap_or(0));
+        if let Some(t) = e.top {
+            for (x, &v) in t.iter().enumerate() {
+                line[9 + x] = u16::from(v);
+            }
+        }
+        let mut v = [0u8; SOURCE_LEN];
+        for i in 0..25 {
+            v[LINE + i] = line[i] as u8;
+        }
+        for i in 1..24 {
+            v[F3 + i] = ((line[i - 1] + 2 * line[i] + line[i + 1] + 2) >> 2) as u8;
+        }
+        for i in 0..24 {
+            v[F2 + i] = ((line[i] + line[i + 1] + 1) >> 1) as u8;
+        }
+        v[DDL_CORNER] = ((line[23] + 3 * line[24] + 2) >> 2) as u8;
+        v[HU_END] = ((line[1] + 3 * line[0] + 2) >> 2) as u8;
+        v[DC_VALUE] = dc8(e);
+        ModeSource(v)
+    }
+
+    /// The prediction in `mode` into `out` (row-major).
+    #[inline]
+    pub fn predict(&self, mode: Intra4x4Mode, out: &mut [u8; 64]) {
+        for (o, &i) in out.iter_mut().zip(&MODE_INDEX[mode as usize]) {
+            *o = self.0[usize::from(i)];
+        }
+    }
+}
+
+/// Where sample (x, y) of each mode comes from in a [`ModeSource`]
+/// (FORMAT.md section 9.2's formulas, each an average at one place of the
+/// edge line).
+const MODE_INDEX: [[u8; 64]; 9] = {
+    let mut table = [[0u8; 64]; 9];
+    let mut m = 0;
+    while m < 9 {
+        let mut i = 0;
+        while i < 64 {
+            table[m][i] = mode_index(m, (i % 8) as isize, (i / 8) as isize) as u8;
+            i += 1;
+        }
+        m += 1;
+    }
+    table
+};
+
+/// [`MODE_INDEX`] of mode `m` at (x, y).
+const fn mode_index(m: usize, x: isize, y: isize) -> isize {
+    let (f3, f2, line) = (F3 as isize, F2 as isize, LINE as isize);
+    match m {
+        0 => line + 9 + x,
+        1 => line + 7 - y,
+        2 => DC_VALUE as isize,
+        3 if x == 7 && y == 7 => DDL_CORNER as isize,
+        3 => f3 + 10 + x + y,
+        4 => f3 + 8 + x - y,
+        5 => match 2 * x - y {
+            z if z >= 0 && z % 2 == 0 => f2 + 8 + x - (y >> 1),
+            z if z > 0 => f3 + 8 + x - (y >> 1),
+            -1 => f3 + 8,
+            _ => f3 + 9 + 2 * x - y,
+        },
+        6 => match 2 * y - x {
+            z if z >= 0 && z % 2 == 0 => f2 + 7 - y + (x >> 1),
+            z if z > 0 => f3 + 8 - y + (x >> 1),
+            -1 => f3 + 8,
+            _ => f3 + 7 + x - 2 * y,
+        },
+        7 if y % 2 == 0 => f2 + 9 + x + (y >> 1),
+        7 => f3 + 10 + x + (y >> 1),
+        _ => match x + 2 * y {
+            z if z < 13 && z % 2 == 0 => f2 + 6 - y - (x >> 1),
+            z if z < 13 => f3 + 6 - y - (x >> 1),
+            13 => HU_END as isize,
+            _ => line,
+        },
+    }
+}
+
+/// An 8x8 block from its filtered edges: the mode's gather from the
+/// block's [`ModeSource`].
+#[inline(always)]
+fn pred_8x8(mode: Intra4x4Mode, e: &Edges8, out: &mut [u8; 64]) {
+    ModeSource::new(e).predict(mode, out);
+}
+
+/// DC of an 8x8 block: the rounded mean of the (filtered) edges it has,
+/// 128 with none.
+pub(crate) fn dc8(e: &Edges8) -> u8 {
+    let sum = |v: &[u8]| v.iter().map(|&s| u32::from(s)).sum::<u32>();
+    let top = e.top.map(|t| sum(&t[..8]));
+    let left = e.left.map(|l| sum(&l));
+    let v = match (top, left) {
+        (Some(t), Some(l)) => (t + l + 8) >> 4,
+        (Some(s), None) | (None, Some(s)) => (s + 4) >> 3,
+        (None, None) => 128,
+    };
+    v as u8
+}

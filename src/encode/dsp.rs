@@ -82,7 +82,10 @@ pub static CODER: PerLevel<CoderDsp> = PerLevel([
     SCALAR,
     #[cfg(target_arch = "x86_64")]
     CoderDsp {
-        quantize_4x4: avx2::quantize_4x4,
+        // One block's AVX2 build ran slower (34 against 24 ns, `cargo
+        // bench --bench dsp -- dsp_coder`); a plane's, faster (138
+        // against 261 ns).
+        quantize_4x4,
         quantize_blocks: avx2::quantize_blocks,
         rdoq_4x4: avx2::rdoq_4x4,
         decimate_luma: avx2::decimate_luma,
@@ -106,8 +109,6 @@ mod avx2 {
     use crate::codec::transform::Block4;
     use crate::codec::transform8x8::Block8;
     crate::codec::compiled_for! { "avx2":
-        fn quantize_4x4(s: &[u8], p: &[u8], size: usize, at: (usize, usize), qp: u8, rounding: f64) -> (Block4, Block4)
-            => super::quantize_4x4;
         fn quantize_blocks(s: &[u8], p: &[u8], size: usize, qp: u8, rounding: f64, residuals: &mut [Block4], levels: &mut [Block4])
             => super::quantize_blocks;
         fn rdoq_4x4(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rate: &BlockPricer)

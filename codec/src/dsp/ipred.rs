@@ -41,7 +41,9 @@ pub static IPRED: PerLevel<IpredDsp> = PerLevel([
     SCALAR,
     #[cfg(target_arch = "x86_64")]
     IpredDsp {
-        pred_16x16: avx2::pred_16x16,
+        // The AVX2 build of the 16x16 modes ran slower (plane: 51 against
+        // 40 ns, `cargo bench --bench dsp -- dsp_ipred`): scalar.
+        pred_16x16: predict_sized::<16>,
         pred_8x8_chroma: avx2::pred_8x8_chroma,
         // Its AVX2 build ran 25 % more instructions (the modes' per-sample
         // formulas do not vectorise): the scalar one at every level.
@@ -62,7 +64,6 @@ pub fn ipred() -> &'static IpredDsp {
 mod avx2 {
     use super::{Edges8, Intra4x4Mode, IntraMode, Neighbours};
     crate::compiled_for! { "avx2":
-        fn pred_16x16(mode: IntraMode, n: &Neighbours<'_>, out: &mut [u8], stride: usize) => super::predict_sized::<16>;
         fn pred_8x8_chroma(mode: IntraMode, n: &Neighbours<'_>, out: &mut [u8], stride: usize) => super::predict_sized::<8>;
         fn pred_8x8(mode: Intra4x4Mode, e: &Edges8, out: &mut [u8; 64]) => super::pred_8x8;
     }

@@ -228,7 +228,8 @@ fn subpel_rd_refinement_saves_bytes_and_the_decoder_follows() {
         .unwrap()
         .read_all()
         .unwrap();
-    let psnr = |stats: &[FrameStats]| stats.iter().map(|s| s.psnr_y).sum::<f64>() / stats.len() as f64;
+    let psnr =
+        |stats: &[FrameStats]| stats.iter().map(|s| s.quality.psnr.y).sum::<f64>() / stats.len() as f64;
     for qp in [22u8, 27, 32] {
         let (off, _, off_stats) = encode(&frames, EncoderConfig::new().qp(qp));
         let (on, recon, on_stats) = encode(&frames, EncoderConfig::new().qp(qp).subpel_rd(true));
@@ -273,7 +274,7 @@ fn deblocking_lowers_the_error_at_high_qps_and_the_decoder_follows() {
     let run = |deblock: bool| {
         let (stream, recon, stats) = encode(&frames, EncoderConfig::new().qp(38).deblock(deblock));
         assert_eq!(decoder::decode(&stream).unwrap().1, recon, "deblock {deblock}");
-        let psnr = stats.iter().map(|s| s.psnr_y).sum::<f64>() / stats.len() as f64;
+        let psnr = stats.iter().map(|s| s.quality.psnr.y).sum::<f64>() / stats.len() as f64;
         (stream.len() as f64, psnr)
     };
     let ((bytes_on, psnr_on), (bytes_off, psnr_off)) = (run(true), run(false));
@@ -409,13 +410,13 @@ fn the_psnr_of_the_mean_mse_is_not_lifted_by_frames_coded_exactly() {
     frames.extend(scene(48, 32, 1, 0.0, 0.0));
     let s = mocomp::encode::encode_frames(&frames, (25, 1), EncoderConfig::new().qp(30)).unwrap();
     let (_, _, stats) = encode(&frames, EncoderConfig::new().qp(30));
-    assert!(stats[..3].iter().all(|f| f.psnr_y >= 99.0), "{stats:?}");
-    let last = stats[3].psnr_y;
+    assert!(stats[..3].iter().all(|f| f.quality.psnr.y >= 99.0), "{stats:?}");
+    let last = stats[3].quality.psnr.y;
     assert!(last < 60.0, "{last}");
     // Mean of frames: (3 x 100 + p) / 4; of the MSE: p + 10 log10(4).
-    assert!((s.psnr_y - (300.0 + last) / 4.0).abs() < 1e-6);
+    assert!((s.quality.psnr_y - (300.0 + last) / 4.0).abs() < 1e-6);
     assert!(
-        (s.psnr_y_mse - (last + 10.0 * 4f64.log10())).abs() < 0.01,
+        (s.quality.psnr_y_mse - (last + 10.0 * 4f64.log10())).abs() < 0.01,
         "{s:?}"
     );
 }
@@ -494,7 +495,7 @@ fn intra_partition_saves_bits(
         stream.len(),
         other.len()
     );
-    let (a, b) = (stats[0].psnr_y, other_stats[0].psnr_y);
+    let (a, b) = (stats[0].quality.psnr.y, other_stats[0].quality.psnr.y);
     assert!(a + 0.1 > b, "{a} against {b} dB");
     stream
 }
@@ -643,7 +644,7 @@ fn smooth_inter_residuals_take_the_8x8_transform_and_save_bits() {
         .count();
     assert!(t8 >= 6, "{t8} macroblocks in the 8x8 transform");
     let (without, _, without_stats) = encode(&frames, config.transform_8x8(false));
-    let psnr = |s: &[FrameStats]| s[1..].iter().map(|s| s.psnr_y).sum::<f64>() / 3.0;
+    let psnr = |s: &[FrameStats]| s[1..].iter().map(|s| s.quality.psnr.y).sum::<f64>() / 3.0;
     let p_bytes = |s: &[FrameStats]| s[1..].iter().map(|s| s.bytes).sum::<usize>();
     // Fewer P-frame bytes at no lower quality (measured: 34 macroblocks,
     // 187 bytes at 40.16 dB against 274 at 40.13).
@@ -688,7 +689,7 @@ fn what_reappears_is_predicted_from_the_older_reference() {
     // Measured: 209 bytes at 35.05 dB against 790 bytes at 34.64 dB.
     let (_, _, one) = encode(&frames, config.refs(1));
     let bytes = |s: &[FrameStats]| s[2..].iter().map(|s| s.bytes).sum::<usize>();
-    let psnr = |s: &[FrameStats]| s[2..].iter().map(|s| s.psnr_y).sum::<f64>() / 4.0;
+    let psnr = |s: &[FrameStats]| s[2..].iter().map(|s| s.quality.psnr.y).sum::<f64>() / 4.0;
     assert!(
         bytes(&stats) * 3 < bytes(&one) && psnr(&stats) > psnr(&one) - 0.5,
         "{} bytes {:.2} dB with two references, {} bytes {:.2} dB with one",

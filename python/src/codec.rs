@@ -7,12 +7,13 @@ use mocomp::encode::{
     Encoder, EncoderConfig, EncoderPreset, FrameStats, ModeDecision, Partitions, Predictor, DEFAULT_IPRATIO,
 };
 use mocomp::io::y4m::Y4mReader;
-use mocomp::rd::{sweep, RdPoint, Sequence};
+use mocomp::rd::{sweep, Sequence};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict, PyList, PyTuple};
+use pyo3::types::{PyBytes, PyList, PyTuple};
 
 use crate::arrays::{frame_from_py, frame_to_py, value_error, with_threads};
+use crate::record::to_dict;
 
 /// Frames as a list of (Y, U, V) tuples of arrays.
 fn frames_to_py<'py>(py: Python<'py>, frames: &[Frame]) -> PyResult<Bound<'py, PyList>> {
@@ -135,29 +136,6 @@ fn config(qp: u8, predictor: &str, gop: usize, tools: &Tools<'_>) -> PyResult<En
     Ok(c)
 }
 
-/// One frame's statistics as a dict.
-fn stats_dict<'py>(py: Python<'py>, s: &FrameStats) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("frame", s.index)?;
-    d.set_item("type", s.frame_type.to_string())?;
-    d.set_item("qp", s.qp)?;
-    d.set_item("bytes", s.bytes)?;
-    d.set_item("bits_header", s.bits_header)?;
-    d.set_item("bits_motion", s.bits_motion)?;
-    d.set_item("bits_residual", s.bits_residual)?;
-    d.set_item("psnr_y", s.psnr_y)?;
-    d.set_item("psnr_u", s.psnr_u)?;
-    d.set_item("psnr_v", s.psnr_v)?;
-    d.set_item("ssim", s.ssim)?;
-    d.set_item("prediction_psnr_y", s.prediction_psnr_y)?;
-    d.set_item("skip_mbs", s.skip_mbs)?;
-    d.set_item("inter_mbs", s.inter_mbs)?;
-    d.set_item("intra_mbs", s.intra_mbs)?;
-    d.set_item("me_ms", s.me_ms)?;
-    d.set_item("total_ms", s.total_ms)?;
-    Ok(d)
-}
-
 /// What one encode gives back to Python.
 struct Encoded {
     stream: Vec<u8>,
@@ -269,7 +247,7 @@ pub fn encode<'py>(
     let encoded = py.detach(|| with_threads(threads, || encode_all(&input, fps, cfg, reconstruction)))??;
     let stats = PyList::empty(py);
     for s in &encoded.stats {
-        stats.append(stats_dict(py, s)?)?;
+        stats.append(to_dict(py, s)?)?;
     }
     let stream = PyBytes::new(py, &encoded.stream).into_any();
     if !reconstruction {
@@ -296,27 +274,6 @@ pub fn decode<'py>(py: Python<'py>, stream: &[u8]) -> PyResult<Bound<'py, PyList
         .detach(|| mocomp::codec::decoder::decode(stream))
         .map_err(|e| value_error(format!("stream: {e}")))?;
     frames_to_py(py, &frames)
-}
-
-fn point_dict<'py>(py: Python<'py>, p: &RdPoint) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("codec", &p.codec)?;
-    d.set_item("q", p.q)?;
-    d.set_item("bytes", p.bytes)?;
-    d.set_item("frames", p.frames)?;
-    d.set_item("kbps", p.kbps)?;
-    d.set_item("psnr_y", p.psnr_y)?;
-    d.set_item("psnr_y_mse", p.psnr_y_mse)?;
-    d.set_item("sequence", &p.sequence)?;
-    d.set_item("psnr_u", p.psnr_u)?;
-    d.set_item("psnr_v", p.psnr_v)?;
-    d.set_item("ssim", p.ssim)?;
-    d.set_item("bits_header", p.bits_header)?;
-    d.set_item("bits_motion", p.bits_motion)?;
-    d.set_item("bits_residual", p.bits_residual)?;
-    d.set_item("encode_ms", p.encode_ms)?;
-    d.set_item("me_ms", p.me_ms)?;
-    Ok(d)
 }
 
 /// A rate-distortion sweep: every source at every QP with every
@@ -352,7 +309,7 @@ pub fn rd<'py>(
         .map_err(|e| value_error(e.to_string()))?;
     let out = PyList::empty(py);
     for p in &points {
-        out.append(point_dict(py, p)?)?;
+        out.append(to_dict(py, p)?)?;
     }
     Ok(out)
 }

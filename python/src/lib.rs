@@ -8,6 +8,7 @@ mod codec;
 mod flow;
 mod metrics;
 mod motion;
+mod record;
 
 use std::path::Path;
 

@@ -115,20 +115,5 @@ pub fn quality<'py>(
         return Err(value_error("reference and test differ in size"));
     }
     let q = py.detach(|| FrameQuality::measure_with(&a, &b, which));
-    let d = pyo3::types::PyDict::new(py);
-    d.set_item("psnr_y", q.psnr.y)?;
-    d.set_item("psnr_u", q.psnr.u)?;
-    d.set_item("psnr_v", q.psnr.v)?;
-    for (m, key, v) in [
-        (Metric::Ssim, "ssim", q.ssim),
-        (Metric::MsSsim, "ms_ssim", q.ms_ssim),
-        (Metric::PsnrHvs, "psnr_hvs", q.psnr_hvs),
-        (Metric::PsnrHvs, "psnr_hvs_y", q.psnr_hvs_y),
-        (Metric::Ciede2000, "ciede2000", q.ciede2000),
-    ] {
-        if which.has(m) {
-            d.set_item(key, v)?;
-        }
-    }
-    Ok(d)
+    crate::record::to_dict(py, &q)
 }

@@ -50,7 +50,7 @@ def test_quality_metrics_rank_distortions(synth_frames):
     noisy = tuple(np.clip(p.astype(int) + (np.indices(p.shape).sum(0) % 7 - 3) * k, 0, 255).astype(np.uint8)
                   for p, k in zip(ref, (2, 1, 1)))
     q = mocomp.quality(ref, noisy, metrics="all")
-    assert set(q) == {"psnr_y", "psnr_u", "psnr_v", "ssim", "ms_ssim", "psnr_hvs", "psnr_hvs_y", "ciede2000"}
+    assert set(q) == {"psnr_y", "psnr_u", "psnr_v", "mse", "ssim", "ms_ssim", "psnr_hvs", "psnr_hvs_y", "ciede2000"}
     same = mocomp.quality(ref, ref, metrics="ms-ssim,ciede2000")
     assert same["ciede2000"] == 100.0 and abs(same["ms_ssim"] - 1.0) < 1e-12
     assert q["ms_ssim"] < 1.0 and q["ciede2000"] < 100.0

@@ -138,7 +138,6 @@ impl ToolArgs {
             .preset(self.preset)
             .lambda_scale(self.lambda_scale)
             .ipratio(self.ipratio)
-            .ssim(self.metrics.has(Metric::Ssim))
             .metrics(self.metrics);
         if let Some(d) = self.decision {
             config = config.decision(d);
@@ -273,7 +272,10 @@ pub fn run(args: &Args) -> Result<()> {
                 recons.push(coded.recon.clone());
             }
             bar.inc(1);
-            bar.set_message(format!("{:.2} dB  {} B", coded.stats.psnr_y, coded.stats.bytes));
+            bar.set_message(format!(
+                "{:.2} dB  {} B",
+                coded.stats.quality.psnr.y, coded.stats.bytes
+            ));
             Ok(())
         })
     });
@@ -286,9 +288,9 @@ pub fn run(args: &Args) -> Result<()> {
             .with_context(|| input.clone())?;
         let scores = vmaf::vmaf(&sources[..recons.len()], &recons)?;
         for (f, v) in frame_stats.iter_mut().zip(&scores) {
-            f.vmaf = *v;
+            f.quality.vmaf = *v;
         }
-        summary.vmaf = scores.iter().sum::<f64>() / scores.len().max(1) as f64;
+        summary.quality.vmaf = scores.iter().sum::<f64>() / scores.len().max(1) as f64;
     }
     out.commit().with_context(|| args.output.display().to_string())?;
     drop(recon);
@@ -326,7 +328,7 @@ fn print_summary(args: &Args, config: &EncoderConfig, s: &Summary) -> Result<()>
         stdout,
         "{}: {} frames, QP {}, {}",
         args.output.display(),
-        s.frames,
+        s.quality.frames,
         config.qp,
         config.predictor.describe()
     )?;
@@ -334,14 +336,15 @@ fn print_summary(args: &Args, config: &EncoderConfig, s: &Summary) -> Result<()>
     write!(
         stdout,
         "  PSNR Y {:.3} U {:.3} V {:.3} dB",
-        s.psnr_y, s.psnr_u, s.psnr_v
+        s.quality.psnr_y, s.quality.psnr_u, s.quality.psnr_v
     )?;
+    let q = &s.quality;
     for (name, v, unit) in [
-        ("SSIM", s.ssim, ""),
-        ("MS-SSIM", s.ms_ssim, ""),
-        ("PSNR-HVS", s.psnr_hvs, " dB"),
-        ("CIEDE2000", s.ciede2000, " dB"),
-        ("VMAF", s.vmaf, ""),
+        ("SSIM", q.ssim, ""),
+        ("MS-SSIM", q.ms_ssim, ""),
+        ("PSNR-HVS", q.psnr_hvs, " dB"),
+        ("CIEDE2000", q.ciede2000, " dB"),
+        ("VMAF", q.vmaf, ""),
     ] {
         if !v.is_nan() {
             write!(stdout, ", {name} {v:.5}{unit}")?;

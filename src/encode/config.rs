@@ -7,7 +7,7 @@ use crate::codec::modes::MAX_REFS;
 use crate::codec::transform::MAX_QP;
 pub use crate::flow::FlowMethod;
 use crate::me::{Method, Subpel, MAX_RANGE};
-use crate::metrics::Metrics;
+use crate::metrics::{Metric, Metrics, QualitySettings, SsimWindow};
 
 /// The settings of the block search of the `block` and `obmc` predictors
 /// (the search itself is [`crate::me`]).
@@ -309,13 +309,11 @@ pub struct EncoderConfig {
     pub rdoq: bool,
     /// How inter vectors are decided between.
     pub decision: ModeDecision,
-    /// Measure SSIM of every frame (x264's 8x8 windows: about 1 % of the
-    /// encoding time).
-    pub ssim: bool,
-    /// Further metrics to measure on every frame (MS-SSIM, PSNR-HVS,
-    /// CIEDE2000); VMAF, a whole-sequence measure, is measured by the
-    /// callers that see the decoded sequence (`mocomp encode`, sweeps).
-    /// They cost time, so none by default.
+    /// The metrics to measure on every frame: PSNR always, SSIM (x264's
+    /// 8x8 windows: about 1 % of the encoding time) by default, MS-SSIM,
+    /// PSNR-HVS and CIEDE2000 on request; VMAF, a whole-sequence measure,
+    /// is measured by the callers that see the decoded sequence (`mocomp
+    /// encode`, sweeps).
     pub metrics: Metrics,
     /// Quantiser step of P frames over that of I frames, as x264's
     /// `--ipratio`: I frames are coded at `qp - 6 log2(ipratio)` (rounded),
@@ -430,8 +428,7 @@ impl Default for EncoderConfig {
             lambda_scale: 1.4,
             rdoq: true,
             decision: ModeDecision::default(),
-            ssim: true,
-            metrics: Metrics::psnr_only(),
+            metrics: Metrics::default(),
             ipratio: DEFAULT_IPRATIO,
             deblock: true,
             weightp: true,
@@ -599,14 +596,23 @@ impl EncoderConfig {
 
     /// Turns SSIM measurement on or off.
     pub fn ssim(mut self, on: bool) -> EncoderConfig {
-        self.ssim = on;
+        self.metrics = self.metrics.with(Metric::Ssim, on);
         self
     }
 
-    /// The further metrics to measure (see [`EncoderConfig::metrics`]).
+    /// The metrics to measure (see [`EncoderConfig::metrics`]).
     pub fn metrics(mut self, metrics: Metrics) -> EncoderConfig {
         self.metrics = metrics;
         self
+    }
+
+    /// What the encoder's quality record measures: these metrics, SSIM
+    /// over x264's 8x8 windows.
+    pub fn quality(&self) -> QualitySettings {
+        QualitySettings {
+            metrics: self.metrics,
+            ssim: SsimWindow::Blocks8x8,
+        }
     }
 
     pub(crate) fn check(&self) -> Result<(), String> {

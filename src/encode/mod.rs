@@ -52,7 +52,7 @@ use crate::codec::syntax::{EntropyState, FrameType, MotionTool, SequenceHeader, 
 use crate::codec::weight::Weights;
 use crate::codec::{Frame, PictureError};
 use crate::io::y4m::{Y4mError, Y4mReader};
-use crate::metrics::{ciede2000, frame_psnr, ms_ssim, psnr_from_mse, psnr_hvs, ssim_8x8, Metric};
+use crate::metrics::{psnr_from_mse, FrameQuality};
 use macroblock::MbCoder;
 use motion::MotionAnalyser;
 
@@ -276,7 +276,7 @@ impl Encoder {
         // The quality measurements are not coding time: some cost more than
         // the coding.
         let coding_ms = start.elapsed().as_secs_f64() * 1e3;
-        let psnr = frame_psnr(source, &recon);
+        let quality = FrameQuality::measure_as(source, &recon, &self.config.quality());
         let stats = FrameStats {
             index: self.index,
             frame_type: if coded.syntax.header.frame_type == FrameType::Intra {
@@ -289,18 +289,7 @@ impl Encoder {
             bits_header: bits.header,
             bits_motion: bits.motion,
             bits_residual: bits.residual,
-            psnr_y: psnr.y,
-            psnr_u: psnr.u,
-            psnr_v: psnr.v,
-            ssim: if self.config.ssim {
-                ssim_8x8(source.y(), recon.y())
-            } else {
-                f64::NAN
-            },
-            ms_ssim: self.measured(Metric::MsSsim, || ms_ssim(source.y(), recon.y())),
-            psnr_hvs: self.measured(Metric::PsnrHvs, || psnr_hvs(source, &recon).total),
-            ciede2000: self.measured(Metric::Ciede2000, || ciede2000(source, &recon)),
-            vmaf: f64::NAN,
+            quality,
             prediction_psnr_y: psnr_from_mse(
                 coded.prediction_sse as f64 / (self.seq.width * self.seq.height) as f64,
             ),
@@ -320,17 +309,6 @@ impl Encoder {
         self.spare_source = self.prev_source.replace(src);
         self.index += 1;
         Ok(EncodedFrame { bytes, recon, stats })
-    }
-}
-
-impl Encoder {
-    /// `f()` when the configuration asks for metric `m`, else NaN.
-    fn measured(&self, m: Metric, f: impl FnOnce() -> f64) -> f64 {
-        if self.config.metrics.has(m) {
-            f()
-        } else {
-            f64::NAN
-        }
     }
 }
 

@@ -24,15 +24,41 @@ pub use ssim_8x8::ssim_8x8;
 
 use serde::Serialize;
 
-use crate::codec::Frame;
+use crate::codec::{Frame, Plane};
 
-/// The quality of one decoded or predicted frame against its source. A
-/// metric that was not asked for is NaN.
+/// Which SSIM a quality record holds: Wang et al.'s with an 11x11
+/// Gaussian window (scikit-image's, what `mocomp psnr` reports), or x264's
+/// over 8x8 windows at 4-pixel steps (what encoders and ffmpeg's `ssim`
+/// filter report, a twelfth of the cost: the encoder's).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+pub enum SsimWindow {
+    /// [`ssim`]: Gaussian 11x11, sigma 1.5.
+    #[default]
+    Gaussian,
+    /// [`ssim_8x8`]: x264's and ffmpeg's.
+    Blocks8x8,
+}
+
+/// What a quality record measures: the metrics (PSNR always) and which
+/// SSIM.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct QualitySettings {
+    /// The metrics to measure.
+    pub metrics: Metrics,
+    /// The SSIM's window.
+    pub ssim: SsimWindow,
+}
+
+/// The quality of one decoded or predicted frame against its source: the
+/// one record every report reads (the encoder's frame statistics, `mocomp
+/// psnr`, the RD sweep, Python). A metric that was not asked for is NaN.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct FrameQuality {
-    /// PSNR of each plane.
+    /// PSNR of each plane (`psnr_y`, `psnr_u`, `psnr_v` and `mse` when
+    /// serialised).
+    #[serde(flatten)]
     pub psnr: FramePsnr,
-    /// SSIM of the luma plane (Wang et al.'s, [`ssim`]).
+    /// SSIM of the luma plane (the window [`QualitySettings::ssim`] chose).
     pub ssim: f64,
     /// MS-SSIM of the luma plane ([`ms_ssim`]).
     pub ms_ssim: f64,
@@ -48,24 +74,55 @@ pub struct FrameQuality {
 }
 
 impl FrameQuality {
-    /// PSNR of every plane and luma SSIM of `test` against `reference`.
+    /// PSNR of every plane and luma SSIM (Gaussian) of `test` against
+    /// `reference`.
     pub fn measure(reference: &Frame, test: &Frame) -> FrameQuality {
         FrameQuality::measure_with(reference, test, Metrics::default())
     }
 
-    /// PSNR of every plane and the in-process metrics of `which` (VMAF is
-    /// left NaN).
+    /// PSNR of every plane and the in-process metrics of `which` (SSIM
+    /// Gaussian; VMAF is left NaN).
     pub fn measure_with(reference: &Frame, test: &Frame, which: Metrics) -> FrameQuality {
+        FrameQuality::measure_as(
+            reference,
+            test,
+            &QualitySettings {
+                metrics: which,
+                ssim: SsimWindow::Gaussian,
+            },
+        )
+    }
+
+    /// The record `settings` asks for: every quality figure of the
+    /// project is measured here.
+    pub fn measure_as(reference: &Frame, test: &Frame, settings: &QualitySettings) -> FrameQuality {
+        let which = settings.metrics;
         let when = |m: Metric, f: &dyn Fn() -> f64| if which.has(m) { f() } else { f64::NAN };
         let hvs = which.has(Metric::PsnrHvs).then(|| psnr_hvs(reference, test));
+        let ssim_of = |a: &Plane, b: &Plane| match settings.ssim {
+            SsimWindow::Gaussian => ssim(a, b),
+            SsimWindow::Blocks8x8 => ssim_8x8(a, b),
+        };
         FrameQuality {
             psnr: frame_psnr(reference, test),
-            ssim: when(Metric::Ssim, &|| ssim(reference.y(), test.y())),
+            ssim: when(Metric::Ssim, &|| ssim_of(reference.y(), test.y())),
             ms_ssim: when(Metric::MsSsim, &|| ms_ssim(reference.y(), test.y())),
             psnr_hvs: hvs.map_or(f64::NAN, |h| h.total),
             psnr_hvs_y: hvs.map_or(f64::NAN, |h| h.y),
             ciede2000: when(Metric::Ciede2000, &|| ciede2000(reference, test)),
             vmaf: f64::NAN,
+        }
+    }
+
+    /// The figure of `metric` (luma PSNR for [`Metric::Psnr`]).
+    pub fn value(&self, metric: Metric) -> f64 {
+        match metric {
+            Metric::Psnr => self.psnr.y,
+            Metric::Ssim => self.ssim,
+            Metric::MsSsim => self.ms_ssim,
+            Metric::PsnrHvs => self.psnr_hvs,
+            Metric::Ciede2000 => self.ciede2000,
+            Metric::Vmaf => self.vmaf,
         }
     }
 }
@@ -104,6 +161,41 @@ pub struct SequenceQuality {
     pub ciede2000: f64,
     /// Mean over frames of VMAF.
     pub vmaf: f64,
+}
+
+impl SequenceQuality {
+    /// The figure of `metric` (mean luma PSNR for [`Metric::Psnr`]).
+    pub fn value(&self, metric: Metric) -> f64 {
+        match metric {
+            Metric::Psnr => self.psnr_y,
+            Metric::Ssim => self.ssim,
+            Metric::MsSsim => self.ms_ssim,
+            Metric::PsnrHvs => self.psnr_hvs,
+            Metric::Ciede2000 => self.ciede2000,
+            Metric::Vmaf => self.vmaf,
+        }
+    }
+
+    /// A record of `frames` frames with every figure unknown (NaN): what
+    /// a peer's CSV row fills in as far as it has columns.
+    pub fn unknown(frames: usize) -> SequenceQuality {
+        SequenceQuality {
+            frames,
+            psnr_y: f64::NAN,
+            psnr_u: f64::NAN,
+            psnr_v: f64::NAN,
+            psnr_yuv: f64::NAN,
+            psnr_y_mse: f64::NAN,
+            psnr_u_mse: f64::NAN,
+            psnr_v_mse: f64::NAN,
+            ssim: f64::NAN,
+            ms_ssim: f64::NAN,
+            psnr_hvs: f64::NAN,
+            psnr_hvs_y: f64::NAN,
+            ciede2000: f64::NAN,
+            vmaf: f64::NAN,
+        }
+    }
 }
 
 /// Accumulates [`FrameQuality`] values into a [`SequenceQuality`].

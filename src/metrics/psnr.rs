@@ -73,16 +73,29 @@ pub fn psnr(a: &Plane, b: &Plane) -> f64 {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct FramePsnr {
     /// Luma PSNR (dB).
+    #[serde(rename = "psnr_y")]
     pub y: f64,
     /// Cb PSNR (dB).
+    #[serde(rename = "psnr_u")]
     pub u: f64,
     /// Cr PSNR (dB).
+    #[serde(rename = "psnr_v")]
     pub v: f64,
     /// MSE of Y, U, V.
     pub mse: [f64; 3],
 }
 
 impl FramePsnr {
+    /// The PSNRs of three planes' MSEs.
+    pub fn from_mse(mse: [f64; 3]) -> FramePsnr {
+        FramePsnr {
+            y: psnr_from_mse(mse[0]),
+            u: psnr_from_mse(mse[1]),
+            v: psnr_from_mse(mse[2]),
+            mse,
+        }
+    }
+
     /// The 6:1:1 weighted PSNR, `(6 Y + U + V) / 8`, as JCT-VC reports it.
     pub fn yuv(&self) -> f64 {
         (6.0 * self.y + self.u + self.v) / 8.0
@@ -92,11 +105,5 @@ impl FramePsnr {
 /// PSNR of every plane of `test` against `reference`. Panics if the sizes
 /// differ.
 pub fn frame_psnr(reference: &Frame, test: &Frame) -> FramePsnr {
-    let mse = [0, 1, 2].map(|i| mse(reference.plane(i), test.plane(i)));
-    FramePsnr {
-        y: psnr_from_mse(mse[0]),
-        u: psnr_from_mse(mse[1]),
-        v: psnr_from_mse(mse[2]),
-        mse,
-    }
+    FramePsnr::from_mse([0, 1, 2].map(|i| mse(reference.plane(i), test.plane(i))))
 }

@@ -11,7 +11,7 @@ use serde::Serialize;
 use super::bdrate::{bd_psnr, bd_rate, Fit};
 use crate::codec::Frame;
 use crate::encode::{encode_frames_keeping_stream, EncodeError, EncoderConfig, Predictor};
-use crate::metrics::{vmaf, Metric};
+use crate::metrics::{vmaf, Metric, SequenceQuality};
 
 /// One point of a rate-distortion curve.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -22,20 +22,15 @@ pub struct RdPoint {
     pub q: f64,
     /// Stream bytes.
     pub bytes: u64,
-    /// Frames.
-    pub frames: usize,
     /// kbit/s at the sequence's frame rate.
     pub kbps: f64,
-    /// Mean luma PSNR over frames, dB.
-    pub psnr_y: f64,
+    /// The sequence's quality (frames, PSNR means and of the mean MSE,
+    /// SSIM, the other metrics: the encoder's record; in peer CSVs what
+    /// their columns hold, NaN where they have none).
+    #[serde(flatten)]
+    pub quality: SequenceQuality,
     /// The sequence's name (empty in peer CSVs).
     pub sequence: String,
-    /// Mean Cb PSNR, dB.
-    pub psnr_u: f64,
-    /// Mean Cr PSNR, dB.
-    pub psnr_v: f64,
-    /// Mean luma SSIM.
-    pub ssim: f64,
     /// Header bits.
     pub bits_header: u64,
     /// Motion bits.
@@ -46,37 +41,19 @@ pub struct RdPoint {
     pub encode_ms: f64,
     /// Of which motion estimation or flow, ms.
     pub me_ms: f64,
-    /// Luma PSNR of the mean MSE over frames, dB (NaN when a CSV lacks it).
-    pub psnr_y_mse: f64,
     /// The [`Study::id`] of the sweep that made the point (empty in peer
     /// CSVs).
     pub study: String,
     /// Its job's number in the study and the study's number of jobs.
     pub job: Option<(usize, usize)>,
-    /// Decode time, ms (NaN when a CSV lacks it, as the metrics below
-    /// when not measured).
+    /// Decode time, ms (NaN when a CSV lacks it).
     pub decode_ms: f64,
-    /// Mean luma MS-SSIM.
-    pub ms_ssim: f64,
-    /// Mean PSNR-HVS (planes combined), dB.
-    pub psnr_hvs: f64,
-    /// Mean CIEDE2000, dB.
-    pub ciede2000: f64,
-    /// Mean VMAF.
-    pub vmaf: f64,
 }
 
 impl RdPoint {
     /// The sequence figure of `m` (mean luma PSNR for [`Metric::Psnr`]).
     pub fn metric(&self, m: Metric) -> f64 {
-        match m {
-            Metric::Psnr => self.psnr_y,
-            Metric::Ssim => self.ssim,
-            Metric::MsSsim => self.ms_ssim,
-            Metric::PsnrHvs => self.psnr_hvs,
-            Metric::Ciede2000 => self.ciede2000,
-            Metric::Vmaf => self.vmaf,
-        }
+        self.quality.value(m)
     }
 }
 
@@ -97,8 +74,8 @@ impl PsnrKind {
     /// That PSNR of `p`.
     pub fn of(self, p: &RdPoint) -> f64 {
         match self {
-            PsnrKind::Mean => p.psnr_y,
-            PsnrKind::Mse => p.psnr_y_mse,
+            PsnrKind::Mean => p.quality.psnr_y,
+            PsnrKind::Mse => p.quality.psnr_y_mse,
         }
     }
 }
@@ -292,26 +269,20 @@ impl Study<'_> {
                 codec: predictor.label(),
                 q: f64::from(qp),
                 bytes: s.bytes,
-                frames: s.frames,
                 kbps: s.kbps,
-                psnr_y: s.psnr_y,
+                quality: SequenceQuality {
+                    vmaf: decoded.vmaf,
+                    ..s.quality
+                },
                 sequence: seq.name.clone(),
-                psnr_u: s.psnr_u,
-                psnr_v: s.psnr_v,
-                ssim: s.ssim,
                 bits_header: s.bits_header,
                 bits_motion: s.bits_motion,
                 bits_residual: s.bits_residual,
                 encode_ms: s.encode_ms,
                 me_ms: s.me_ms,
-                psnr_y_mse: s.psnr_y_mse,
                 study: id.to_string(),
                 job: Some((index, total)),
                 decode_ms: decoded.ms,
-                ms_ssim: s.ms_ssim,
-                psnr_hvs: s.psnr_hvs,
-                ciede2000: s.ciede2000,
-                vmaf: decoded.vmaf,
             })
         })
     }
@@ -391,26 +362,26 @@ pub fn csv_record(p: &RdPoint) -> [String; 23] {
         p.codec.clone(),
         format!("{}", p.q),
         p.bytes.to_string(),
-        p.frames.to_string(),
+        p.quality.frames.to_string(),
         format!("{:.3}", p.kbps),
-        format!("{:.4}", p.psnr_y),
+        format!("{:.4}", p.quality.psnr_y),
         p.sequence.clone(),
-        format!("{:.4}", p.psnr_u),
-        format!("{:.4}", p.psnr_v),
-        format!("{:.6}", p.ssim),
+        format!("{:.4}", p.quality.psnr_u),
+        format!("{:.4}", p.quality.psnr_v),
+        format!("{:.6}", p.quality.ssim),
         p.bits_header.to_string(),
         p.bits_motion.to_string(),
         p.bits_residual.to_string(),
         format!("{:.1}", p.encode_ms),
         format!("{:.1}", p.me_ms),
-        format!("{:.4}", p.psnr_y_mse),
+        format!("{:.4}", p.quality.psnr_y_mse),
         p.study.clone(),
         p.job.map_or(String::new(), |(i, n)| format!("{i}/{n}")),
         cell(p.decode_ms, 1),
-        cell(p.ms_ssim, 6),
-        cell(p.psnr_hvs, 4),
-        cell(p.ciede2000, 4),
-        cell(p.vmaf, 4),
+        cell(p.quality.ms_ssim, 6),
+        cell(p.quality.psnr_hvs, 4),
+        cell(p.quality.ciede2000, 4),
+        cell(p.quality.vmaf, 4),
     ]
 }
 
@@ -489,28 +460,26 @@ pub fn read_csv(input: impl Read) -> Result<Vec<RdPoint>, CsvError> {
             codec: text("codec"),
             q: num("q")?,
             bytes: num("bytes")? as u64,
-            frames: num("frames")? as usize,
             kbps: num("kbps")?,
-            psnr_y: num("psnr_y")?,
+            quality: SequenceQuality {
+                psnr_y: num("psnr_y")?,
+                psnr_u: num("psnr_u")?,
+                psnr_v: num("psnr_v")?,
+                ssim: num("ssim")?,
+                psnr_y_mse: optional("psnr_y_mse")?,
+                ms_ssim: optional("ms_ssim")?,
+                psnr_hvs: optional("psnr_hvs")?,
+                ciede2000: optional("ciede2000")?,
+                vmaf: optional("vmaf")?,
+                ..SequenceQuality::unknown(num("frames")? as usize)
+            },
             sequence: text("sequence"),
-            psnr_u: num("psnr_u")?,
-            psnr_v: num("psnr_v")?,
-            ssim: num("ssim")?,
             bits_header: num("bits_header")? as u64,
             bits_motion: num("bits_motion")? as u64,
             bits_residual: num("bits_residual")? as u64,
             encode_ms: num("encode_ms")?,
             me_ms: num("me_ms")?,
-            psnr_y_mse: if col("psnr_y_mse").is_some() {
-                num("psnr_y_mse")?
-            } else {
-                f64::NAN
-            },
             decode_ms: optional("decode_ms")?,
-            ms_ssim: optional("ms_ssim")?,
-            psnr_hvs: optional("psnr_hvs")?,
-            ciede2000: optional("ciede2000")?,
-            vmaf: optional("vmaf")?,
             study: text("study"),
             job: match text("job") {
                 t if t.is_empty() => None,
@@ -608,7 +577,7 @@ pub fn compare(
                 .iter()
                 .map(|p| p.bits_header + p.bits_motion + p.bits_residual)
                 .sum();
-            let frames: usize = mine.iter().map(|p| p.frames).sum();
+            let frames: usize = mine.iter().map(|p| p.quality.frames).sum();
             out.push(Comparison {
                 sequence: seq.to_string(),
                 codec: codec.to_string(),

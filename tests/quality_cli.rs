@@ -186,14 +186,20 @@ fn rd_compares_on_any_metric_and_bdrate_reads_it_back() {
         .args(extra);
         c.output().unwrap()
     };
-    // Without the metric measured, a BD table on it is refused.
+    // A BD table on a metric measures it, without --metrics naming it.
     let out = run(&["--bd-metric", "ms-ssim"]);
-    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let table = String::from_utf8(out.stdout).unwrap();
+    assert!(table.contains("BD-MS-SSIM cubic"), "{table}");
+    let (header, rows) = csv_rows(Path::new(&p("rd.csv")));
+    let ms_ssim = column(&header, &rows, "ms_ssim");
     assert!(
-        !out.status.success() && err.contains("add --metrics ms-ssim"),
-        "{err}"
+        ms_ssim
+            .iter()
+            .all(|c| c.parse::<f64>().is_ok_and(|v| v > 0.5 && v < 1.0)),
+        "{ms_ssim:?}"
     );
-    assert!(!Path::new(&p("rd.csv")).exists(), "refused before sweeping");
+    std::fs::remove_file(p("rd.csv")).unwrap();
     let out = run(&["--metrics", "ms-ssim,psnr-hvs", "--bd-metric", "ms-ssim"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let table = String::from_utf8(out.stdout).unwrap();

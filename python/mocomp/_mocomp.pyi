@@ -76,21 +76,32 @@ def encode(
     qp: int = 28,
     predictor: str = "block",
     *,
-    gop: int = 0,
     preset: Literal["ultrafast", "fast", "medium", "slow"] = "medium",
-    decision: Optional[Literal["fast", "full"]] = None,
-    rdoq: Optional[bool] = None,
-    weightp: Optional[bool] = None,
-    partitions: Optional[Union[bool, str]] = None,
-    dct8x8: Optional[bool] = None,
-    deblock: bool = True,
-    lambda_scale: float = 1.4,
-    ipratio: float = 1.4,
     frames: Optional[int] = None,
     fps: Tuple[int, int] = (25, 1),
     threads: Optional[int] = None,
     reconstruction: bool = False,
+    gop: Optional[int] = None,
+    me: Optional[str] = None,
+    range: Optional[int] = None,
+    subpel: Optional[Literal["none", "half", "quarter"]] = None,
+    flow: Optional[str] = None,
+    refine: Optional[int] = None,
+    grid: Optional[int] = None,
+    lambda_scale: Optional[float] = None,
+    rdoq: Optional[bool] = None,
+    decision: Optional[Literal["fast", "full"]] = None,
+    ipratio: Optional[float] = None,
+    deblock: Optional[bool] = None,
+    weightp: Optional[bool] = None,
+    refs: Optional[int] = None,
+    subpel_rd: Optional[bool] = None,
+    dct8x8: Optional[bool] = None,
+    partitions: Optional[Union[bool, str]] = None,
+    metrics: Optional[str] = None,
+    ssim: Optional[bool] = None,
 ) -> Union[Tuple[bytes, list[dict[str, Any]]], Tuple[bytes, list[dict[str, Any]], list[Yuv]]]: ...
+def encoder_options() -> list[Tuple[str, str]]: ...
 def read_y4m(path: PathLike, frames: Optional[int] = None) -> list[Yuv]: ...
 def decode(stream: bytes) -> list[Yuv]: ...
 def analyze(stream: bytes) -> list[dict[str, Any]]: ...
@@ -101,6 +112,9 @@ def rd(
     predictors: Sequence[str] = ("block:esa", "block"),
     frames: Optional[int] = None,
     threads: Optional[int] = None,
+    *,
+    preset: Literal["ultrafast", "fast", "medium", "slow"] = "medium",
+    **options: Any,
 ) -> list[dict[str, Any]]: ...
 def psnr(a: npt.NDArray[np.uint8], b: npt.NDArray[np.uint8]) -> float: ...
 def ssim(a: Picture, b: Picture) -> float: ...

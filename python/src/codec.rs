@@ -3,14 +3,12 @@
 use std::path::PathBuf;
 
 use mocomp::codec::Frame;
-use mocomp::encode::{
-    Encoder, EncoderConfig, EncoderPreset, FrameStats, ModeDecision, Partitions, Predictor, DEFAULT_IPRATIO,
-};
+use mocomp::encode::{Encoder, EncoderConfig, FrameStats, Predictor};
 use mocomp::io::y4m::Y4mReader;
 use mocomp::rd::{sweep, Sequence};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyList, PyTuple};
+use pyo3::types::{PyBytes, PyDict, PyList, PyTuple};
 
 use crate::arrays::{frame_from_py, frame_to_py, value_error, with_threads};
 use crate::record::to_dict;
@@ -69,71 +67,45 @@ fn read_source(
     Ok((String::new(), frames, fps))
 }
 
-/// The coding tools' keyword arguments: a preset, and options that
-/// override it where given.
-struct Tools<'a> {
-    preset: &'a str,
-    decision: Option<&'a str>,
-    rdoq: Option<bool>,
-    weightp: Option<bool>,
-    partitions: Option<PartitionsArg>,
-    dct8x8: Option<bool>,
-    refs: Option<u8>,
-    deblock: bool,
-    lambda_scale: f64,
-    ipratio: f64,
-}
-
-/// `partitions=`: True (all), False (none), or x264's names ("all",
-/// "none", "p8x8,i8x8,i4x4", ...).
-#[derive(FromPyObject, Clone)]
-pub enum PartitionsArg {
-    Flag(bool),
-    Names(String),
-}
-
-impl PartitionsArg {
-    fn parse(&self) -> PyResult<Partitions> {
-        match self {
-            PartitionsArg::Flag(true) => Ok(Partitions::ALL),
-            PartitionsArg::Flag(false) => Ok(Partitions::NONE),
-            PartitionsArg::Names(s) => s.parse::<Partitions>().map_err(value_error),
+/// The encoder's configuration: `preset`, then `qp` and `predictor`, then
+/// every other keyword argument as an option by name
+/// (`EncoderConfig::set`, as `mocomp encode`'s options: the same checks
+/// and messages; `_` for `-`; None leaves an option to the preset).
+fn config(
+    preset: &str,
+    first: &[(&str, String)],
+    options: Option<&Bound<'_, PyDict>>,
+) -> PyResult<EncoderConfig> {
+    let mut c = EncoderConfig::from_preset(preset).map_err(value_error)?;
+    for (name, value) in first {
+        c.set(name, value).map_err(value_error)?;
+    }
+    for (key, value) in options.into_iter().flat_map(|d| d.iter()) {
+        let name: String = key.extract()?;
+        if let Some(text) = option_text(&name, &value)? {
+            c.set(&name, &text).map_err(value_error)?;
         }
     }
+    Ok(c)
 }
 
-/// The encoder settings from the keyword arguments.
-fn config(qp: u8, predictor: &str, gop: usize, tools: &Tools<'_>) -> PyResult<EncoderConfig> {
-    if qp > 51 {
-        return Err(value_error(format!("qp {qp} is not in 0..=51")));
+/// A keyword argument's value as an option's text: booleans on/off (for
+/// partitions all/none), numbers and strings as they print; None: not
+/// given.
+fn option_text(name: &str, value: &Bound<'_, PyAny>) -> PyResult<Option<String>> {
+    if value.is_none() {
+        return Ok(None);
     }
-    let mut c = EncoderConfig::new()
-        .qp(qp)
-        .predictor(predictor.parse::<Predictor>().map_err(value_error)?)
-        .gop(gop)
-        .preset(tools.preset.parse::<EncoderPreset>().map_err(value_error)?)
-        .lambda_scale(tools.lambda_scale)
-        .ipratio(tools.ipratio)
-        .deblock(tools.deblock);
-    if let Some(d) = tools.decision {
-        c = c.decision(d.parse::<ModeDecision>().map_err(value_error)?);
+    if let Ok(b) = value.extract::<bool>() {
+        let text = match (name, b) {
+            ("partitions", true) => "all",
+            ("partitions", false) => "none",
+            (_, true) => "on",
+            (_, false) => "off",
+        };
+        return Ok(Some(text.to_string()));
     }
-    if let Some(on) = tools.rdoq {
-        c = c.rdoq(on);
-    }
-    if let Some(on) = tools.weightp {
-        c = c.weightp(on);
-    }
-    if let Some(p) = &tools.partitions {
-        c = c.partitions(p.parse()?);
-    }
-    if let Some(on) = tools.dct8x8 {
-        c = c.transform_8x8(on);
-    }
-    if let Some(n) = tools.refs {
-        c = c.refs(n);
-    }
-    Ok(c)
+    Ok(Some(value.str()?.to_string()))
 }
 
 /// What one encode gives back to Python.
@@ -183,61 +155,38 @@ fn encode_all(frames: &[Frame], fps: (u32, u32), config: EncoderConfig, keep: bo
 ///     chroma half the luma size, rounded up) at `fps`.
 /// qp: 0..51. predictor: "zero", "block[:method]", "flow-block[:lk|hs|dis|tvl1]",
 ///     "dense-lk" / "dense-hs" / "dense-dis" / "dense-tvl1", "obmc" (as `mocomp encode`).
-/// gop: I-frame period (0: only the first).
 /// preset: "ultrafast", "fast", "medium" (default) or "slow", as
-///     `mocomp encode --preset`; decision ("fast" or "full"), rdoq,
-///     weightp (weighted prediction) and partitions (True, False, or x264's
-///     names: "all", "none", "p8x8" for 16x8, 8x16 and 8x8 inter
-///     partitions, "i8x8" for intra in 8x8 blocks (with dct8x8), "i4x4"
-///     for intra in 4x4 blocks, "p8x8,i8x8,i4x4") and dct8x8 (the 8x8
-///     transform, x264's 8x8dct: inter luma by choice, 8x8 intra) and refs
-///     (1..8 references P frames may predict from, x264's --ref; `block`
-///     only) override it when given.
-/// ipratio: quantiser step of P frames over I frames (x264's --ipratio).
-/// deblock: the in-loop deblocking filter.
+///     `mocomp encode --preset`; every other keyword argument is one of
+///     the encoder's options by name, overriding the preset where given,
+///     as `mocomp encode`'s: gop, me, range, subpel, flow, refine, grid,
+///     lambda_scale, rdoq, decision ("fast" or "full"), ipratio, deblock,
+///     weightp, refs, subpel_rd, dct8x8 (or 8x8dct), partitions (True,
+///     False, or x264's names: "p8x8,i8x8,i4x4"), metrics ("psnr,ssim",
+///     "all", ...), ssim (`mocomp.encoder_options()` lists them).
 /// frames: code at most this many frames.
 ///
-/// Returns (stream bytes, per-frame statistics as dicts); with
+/// Returns (stream bytes, per-frame statistics as dicts: every field of
+/// the library's frame record, metrics not measured left out); with
 /// reconstruction=True, (stream, stats, reconstructed (Y, U, V) frames),
 /// which `decode(stream)` reproduces exactly.
 #[pyfunction]
-#[pyo3(signature = (source, qp=28, predictor="block", *, gop=0, preset="medium", decision=None, rdoq=None,
-    weightp=None, partitions=None, dct8x8=None, refs=None, deblock=true, lambda_scale=1.4, ipratio=DEFAULT_IPRATIO, frames=None, fps=(25, 1), threads=None, reconstruction=false))]
+#[pyo3(signature = (source, qp=28, predictor="block", *, preset="medium", frames=None, fps=(25, 1),
+    threads=None, reconstruction=false, **options))]
 #[allow(clippy::too_many_arguments)]
 pub fn encode<'py>(
     py: Python<'py>,
     source: &Bound<'py, PyAny>,
-    qp: u8,
+    qp: i64,
     predictor: &str,
-    gop: usize,
     preset: &str,
-    decision: Option<&str>,
-    rdoq: Option<bool>,
-    weightp: Option<bool>,
-    partitions: Option<PartitionsArg>,
-    dct8x8: Option<bool>,
-    refs: Option<u8>,
-    deblock: bool,
-    lambda_scale: f64,
-    ipratio: f64,
     frames: Option<usize>,
     fps: (u32, u32),
     threads: Option<usize>,
     reconstruction: bool,
+    options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyTuple>> {
-    let tools = Tools {
-        preset,
-        decision,
-        rdoq,
-        weightp,
-        partitions,
-        dct8x8,
-        refs,
-        deblock,
-        lambda_scale,
-        ipratio,
-    };
-    let cfg = config(qp, predictor, gop, &tools)?;
+    let first = [("qp", qp.to_string()), ("predictor", predictor.to_string())];
+    let cfg = config(preset, &first, options)?;
     if fps.0 == 0 || fps.1 == 0 {
         return Err(value_error(
             "fps must be two positive integers (numerator, denominator)",
@@ -255,6 +204,13 @@ pub fn encode<'py>(
     }
     let recons = frames_to_py(py, &encoded.recons)?;
     PyTuple::new(py, [stream, stats.into_any(), recons.into_any()])
+}
+
+/// The encoder's options by name, with what each takes (what `encode` and
+/// `rd` accept as keyword arguments beside `preset`).
+#[pyfunction]
+pub fn encoder_options() -> Vec<(&'static str, &'static str)> {
+    mocomp::encode::OPTIONS.to_vec()
 }
 
 /// Reads a Y4M file (8-bit 4:2:0, every variant ffmpeg writes) into a
@@ -282,7 +238,8 @@ pub fn decode<'py>(py: Python<'py>, stream: &[u8]) -> PyResult<Bound<'py, PyList
 /// source's frame rate).
 #[pyfunction]
 #[pyo3(signature = (sources, qps=vec![22, 27, 32, 37], predictors=vec!["block:esa".to_string(), "block".to_string()],
-    frames=None, threads=None))]
+    frames=None, threads=None, *, preset="medium", **options))]
+#[allow(clippy::too_many_arguments)]
 pub fn rd<'py>(
     py: Python<'py>,
     sources: Vec<PathBuf>,
@@ -290,9 +247,12 @@ pub fn rd<'py>(
     predictors: Vec<String>,
     frames: Option<usize>,
     threads: Option<usize>,
+    preset: &str,
+    options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyList>> {
-    if let Some(q) = qps.iter().find(|&&q| q > 51) {
-        return Err(value_error(format!("qp {q} is not in 0..=51")));
+    let base = config(preset, &[], options)?;
+    for &q in &qps {
+        base.clone().set("qp", &q.to_string()).map_err(value_error)?;
     }
     let predictors: Vec<Predictor> = predictors
         .iter()
@@ -305,7 +265,7 @@ pub fn rd<'py>(
         sequences.push(Sequence { name, frames, fps });
     }
     let points = py
-        .detach(|| with_threads(threads, || sweep(&sequences, &qps, &predictors, &|c| c, || {})))?
+        .detach(|| with_threads(threads, || sweep(&sequences, &qps, &predictors, base, || {})))?
         .map_err(|e| value_error(e.to_string()))?;
     let out = PyList::empty(py);
     for p in &points {

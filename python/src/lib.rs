@@ -55,6 +55,7 @@ fn _mocomp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(motion::good_features, m)?)?;
     m.add_function(wrap_pyfunction!(motion::track, m)?)?;
     m.add_function(wrap_pyfunction!(codec::encode, m)?)?;
+    m.add_function(wrap_pyfunction!(codec::encoder_options, m)?)?;
     m.add_function(wrap_pyfunction!(codec::decode, m)?)?;
     m.add_function(wrap_pyfunction!(codec::rd, m)?)?;
     m.add_function(wrap_pyfunction!(codec::read_y4m, m)?)?;

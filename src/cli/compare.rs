@@ -2,6 +2,7 @@
 //! predictor at four QPs on the bundled sample: the BD table against
 //! `block:esa`, the CSV and the plots in `./mocomp-out/`.
 
+use crate::encode::EncoderConfig;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -52,7 +53,7 @@ pub fn run(args: &Args) -> Result<()> {
         qps: &args.qp,
         predictors: &predictors,
         frames: None,
-        tools: &|c| c,
+        base: EncoderConfig::new(),
         output: &csv,
         json_path: None,
         plot_path: Some(&args.out.join("rd.svg")),

@@ -8,8 +8,8 @@ use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::encode::{
-    encode_y4m, EncoderConfig, EncoderPreset, FlowMethod, FrameStats, ModeDecision, Partitions, Predictor,
-    Summary, DEFAULT_IPRATIO,
+    encode_y4m, EncoderConfig, EncoderPreset, FlowMethod, FrameStats, ModeDecision, Partitions, Summary,
+    DEFAULT_IPRATIO,
 };
 use crate::io::y4m::{Y4mReader, Y4mWriter};
 use crate::io::OutputFile;
@@ -132,38 +132,37 @@ pub struct ToolArgs {
 }
 
 impl ToolArgs {
-    /// `config` with the preset, then these tools.
-    pub fn apply(&self, config: EncoderConfig) -> EncoderConfig {
-        let mut config = config
-            .preset(self.preset)
-            .lambda_scale(self.lambda_scale)
-            .ipratio(self.ipratio)
-            .metrics(self.metrics);
-        if let Some(d) = self.decision {
-            config = config.decision(d);
+    /// The options given, by the names [`EncoderConfig::set`] takes, in
+    /// the order they apply (after the preset).
+    fn options(&self) -> Vec<(&'static str, String)> {
+        let on = |b: bool| if b { "on" } else { "off" }.to_string();
+        let mut o = vec![
+            ("lambda-scale", self.lambda_scale.to_string()),
+            ("ipratio", self.ipratio.to_string()),
+            ("metrics", self.metrics.to_string()),
+        ];
+        o.extend(self.decision.map(|d| ("decision", d.name().to_string())));
+        o.extend(self.no_rdoq.then(|| ("rdoq", on(false))));
+        o.extend(self.no_deblock.then(|| ("deblock", on(false))));
+        o.extend(self.no_weightp.then(|| ("weightp", on(false))));
+        o.extend(self.no_8x8dct.then(|| ("8x8dct", on(false))));
+        o.extend(self.partitions.map(|p| ("partitions", p.to_string())));
+        o.extend(self.refs.map(|n| ("refs", n.to_string())));
+        o.extend(self.subpel_rd.map(|b| ("subpel-rd", on(b))));
+        o
+    }
+
+    /// The preset, then `first` (options by name), then these tools, as
+    /// x264's `param_default_preset` and `param_parse` (what Python does
+    /// with its keyword arguments).
+    pub fn configure(&self, first: &[(&str, String)]) -> Result<EncoderConfig> {
+        let mut config = EncoderConfig::from_preset(self.preset.name()).map_err(anyhow::Error::msg)?;
+        for (name, value) in first.iter().cloned().chain(self.options()) {
+            config
+                .set(name, &value)
+                .map_err(|e| anyhow::anyhow!("--{name}: {e}"))?;
         }
-        if self.no_rdoq {
-            config = config.rdoq(false);
-        }
-        if self.no_deblock {
-            config = config.deblock(false);
-        }
-        if self.no_weightp {
-            config = config.weightp(false);
-        }
-        if self.no_8x8dct {
-            config = config.transform_8x8(false);
-        }
-        if let Some(p) = self.partitions {
-            config = config.partitions(p);
-        }
-        if let Some(n) = self.refs {
-            config = config.refs(n);
-        }
-        if let Some(on) = self.subpel_rd {
-            config = config.subpel_rd(on);
-        }
-        config
+        Ok(config)
     }
 }
 
@@ -178,53 +177,19 @@ fn on_off(s: &str) -> Result<bool, String> {
 
 /// The configuration the options describe.
 pub fn config(args: &Args) -> Result<EncoderConfig> {
-    let mut predictor: Predictor = args.predictor.parse().map_err(anyhow::Error::msg)?;
-    let only = |what: &str, ok: bool| -> Result<()> {
-        anyhow::ensure!(ok, "{what} does not apply to predictor '{}'", args.predictor);
-        Ok(())
-    };
-    if predictor.search_mut().is_none() {
-        only(
-            "--me/--range/--subpel",
-            args.me.is_none() && args.range.is_none() && args.subpel.is_none(),
-        )?;
-    }
-    match &mut predictor {
-        Predictor::FlowBlock { flow, refine } => {
-            *flow = args.flow.unwrap_or(*flow);
-            *refine = args.refine.unwrap_or(*refine);
-            only("--grid", args.grid.is_none())?;
-        }
-        Predictor::Dense { flow, grid } => {
-            *flow = args.flow.unwrap_or(*flow);
-            *grid = args.grid.unwrap_or(*grid);
-            only("--refine", args.refine.is_none())?;
-        }
-        _ => only(
-            "--flow/--refine/--grid",
-            args.flow.is_none() && args.refine.is_none() && args.grid.is_none(),
-        )?,
-    }
-    // The preset first, then the options given.
-    let mut config = args.tools.apply(
-        EncoderConfig::new()
-            .qp(args.qp)
-            .gop(args.gop)
-            .predictor(predictor),
-    );
-    if let Some(s) = config.predictor.search_mut() {
-        if let Some(m) = args.me {
-            s.method = m;
-        }
-        if let Some(r) = args.range {
-            s.range = r;
-        }
-        if let Some(p) = args.subpel {
-            s.subpel = p;
-        }
-    }
-    config.check().map_err(anyhow::Error::msg)?;
-    Ok(config)
+    // The predictor first: the options of its search and flow follow it.
+    let mut first = vec![
+        ("qp", args.qp.to_string()),
+        ("gop", args.gop.to_string()),
+        ("predictor", args.predictor.clone()),
+    ];
+    first.extend(args.me.map(|m| ("me", m.name().to_string())));
+    first.extend(args.range.map(|r| ("range", r.to_string())));
+    first.extend(args.subpel.map(|s| ("subpel", s.name().to_string())));
+    first.extend(args.flow.map(|f| ("flow", f.name().to_string())));
+    first.extend(args.refine.map(|r| ("refine", r.to_string())));
+    first.extend(args.grid.map(|g| ("grid", g.to_string())));
+    args.tools.configure(&first)
 }
 
 pub fn run(args: &Args) -> Result<()> {

@@ -137,8 +137,9 @@ pub struct SweepRequest<'a> {
     pub qps: &'a [u8],
     pub predictors: &'a [String],
     pub frames: Option<usize>,
-    /// The preset and tools every job's configuration goes through.
-    pub tools: &'a (dyn Fn(EncoderConfig) -> EncoderConfig + Sync),
+    /// Every job's configuration but its QP and predictor (a preset and
+    /// options).
+    pub base: EncoderConfig,
     pub output: &'a Path,
     pub json_path: Option<&'a Path>,
     pub plot_path: Option<&'a Path>,
@@ -226,7 +227,7 @@ pub fn run_sweep(request: &SweepRequest<'_>) -> Result<Option<SweepReport>> {
         sequences: &sequences,
         qps: r.qps,
         predictors: &predictors,
-        configure: r.tools,
+        base: r.base,
     };
     let points = run_jobs(&study, r)?;
     let Some(anchor) = anchor else {
@@ -339,10 +340,11 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(RdCommand::Merge(m)) = &args.command {
         return run_merge(m);
     }
+    // A BD table on a metric measures it (x264's --ssim is implied by
+    // --tune ssim in the same way).
     let metric = args.report.bd_metric;
-    if !args.tools.metrics.has(metric) && args.report.anchor_csv.is_none() {
-        bail!("--bd-metric {metric} needs the sweep to measure it: add --metrics {metric}");
-    }
+    let mut base = args.tools.configure(&[])?;
+    base.metrics = base.metrics.with(metric, true);
     if metric == Metric::Vmaf && crate::metrics::vmaf::ffmpeg_with_libvmaf().is_none() {
         bail!(crate::metrics::vmaf::VmafError::NoLibvmaf);
     }
@@ -351,7 +353,7 @@ pub fn run(args: &Args) -> Result<()> {
         qps: &args.qp,
         predictors: &args.predictors,
         frames: args.frames,
-        tools: &|c| args.tools.apply(c),
+        base,
         output: &args.output,
         json_path: args.report.json.as_deref(),
         plot_path: args.report.plot.as_deref(),
@@ -447,7 +449,8 @@ pub struct ReportArgs {
     pub psnr: PsnrKind,
     /// The quality metric of the BD tables and plots: psnr, ssim, ms-ssim,
     /// psnr-hvs, ciede2000, vmaf (SSIM and MS-SSIM in dB,
-    /// -10 log10(1 - x), as AWCY); the sweep must measure it (--metrics).
+    /// -10 log10(1 - x), as AWCY); the sweep measures it (no need to add
+    /// it to --metrics).
     #[arg(long, default_value = "psnr", value_name = "METRIC")]
     pub bd_metric: Metric,
 }
@@ -482,7 +485,7 @@ fn run_merge(m: &MergeArgs) -> Result<()> {
         qps: &[],
         predictors: &[],
         frames: None,
-        tools: &|c| c,
+        base: EncoderConfig::new(),
         output: &m.output,
         json_path: m.report.json.as_deref(),
         plot_path: m.report.plot.as_deref(),

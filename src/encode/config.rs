@@ -549,6 +549,20 @@ impl EncoderConfig {
         self.partitions.i8x8 && self.transform_8x8
     }
 
+    /// The predictor `p` in this configuration: a search predictor keeps
+    /// the search settings the preset gave (sub-pel, range, window) and
+    /// takes its own pattern; other predictors come as they are.
+    pub fn with_predictor(mut self, mut p: Predictor) -> EncoderConfig {
+        if let (Some(old), Some(new)) = (self.predictor.search_mut().copied(), p.search_mut()) {
+            *new = SearchSettings {
+                method: new.method,
+                ..old
+            };
+        }
+        self.predictor = p;
+        self
+    }
+
     /// The macroblock partitions to try.
     pub fn partitions(mut self, p: Partitions) -> EncoderConfig {
         self.partitions = p;

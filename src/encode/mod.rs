@@ -33,6 +33,7 @@ mod intra4x4;
 mod intra8x8;
 mod macroblock;
 mod motion;
+mod params;
 mod partition;
 mod stats;
 mod transform8x8;
@@ -45,6 +46,7 @@ pub use config::{
     EncoderConfig, EncoderPreset, FlowMethod, ModeDecision, Partitions, Predictor, SearchSettings,
     DEFAULT_GRID, DEFAULT_IPRATIO, DEFAULT_REFINE,
 };
+pub use params::OPTIONS;
 pub use stats::{FrameStats, Summary, SummaryBuilder};
 
 use crate::codec::recon::crop_reusing;

@@ -153,6 +153,17 @@ pub enum Subpel {
     Quarter,
 }
 
+impl Subpel {
+    /// `none`, `half` or `quarter`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Subpel::None => "none",
+            Subpel::Half => "half",
+            Subpel::Quarter => "quarter",
+        }
+    }
+}
+
 impl FromStr for Subpel {
     type Err = String;
     fn from_str(s: &str) -> Result<Subpel, String> {

@@ -179,9 +179,9 @@ pub struct Sequence {
 }
 
 /// A sweep: every sequence at every QP with every predictor, each job's
-/// configuration `EncoderConfig::new().qp(qp).predictor(p)` passed
-/// through `configure` (a preset and tools, which may change the
-/// predictor's search settings). Jobs are numbered in (sequence,
+/// configuration the study's `base` (a preset and options) with its QP
+/// and predictor ([`EncoderConfig::with_predictor`]: a search predictor
+/// keeps the preset's search settings). Jobs are numbered in (sequence,
 /// predictor, QP) order, the same on every machine, so that a study can be
 /// split into shards and its rows merged back.
 pub struct Study<'a> {
@@ -191,8 +191,8 @@ pub struct Study<'a> {
     pub qps: &'a [u8],
     /// The predictors, in order.
     pub predictors: &'a [Predictor],
-    /// What every job's configuration goes through.
-    pub configure: &'a (dyn Fn(EncoderConfig) -> EncoderConfig + Sync),
+    /// Every job's configuration but its QP and predictor.
+    pub base: EncoderConfig,
 }
 
 impl Study<'_> {
@@ -242,7 +242,10 @@ impl Study<'_> {
             let _ = write!(
                 text,
                 "{:?};",
-                (self.configure)(EncoderConfig::new().predictor(*p))
+                EncoderConfig {
+                    qp: EncoderConfig::new().qp,
+                    ..self.base.with_predictor(*p)
+                }
             );
         }
         format!("{:016x}", fnv1a(0xcbf2_9ce4_8422_2325, text.as_bytes()))
@@ -262,7 +265,7 @@ impl Study<'_> {
         let total = self.len();
         indices.par_iter().try_for_each(|&index| {
             let (seq, predictor, qp) = self.job(index);
-            let config = (self.configure)(EncoderConfig::new().qp(qp).predictor(predictor));
+            let config = self.base.with_predictor(predictor).qp(qp);
             let (s, stream) = encode_frames_keeping_stream(&seq.frames, seq.fps, config)?;
             let decoded = DecodedJob::of(&stream, &seq.frames, config.metrics.has(Metric::Vmaf))?;
             done(RdPoint {
@@ -326,14 +329,14 @@ pub fn sweep(
     sequences: &[Sequence],
     qps: &[u8],
     predictors: &[Predictor],
-    configure: &(dyn Fn(EncoderConfig) -> EncoderConfig + Sync),
+    base: EncoderConfig,
     done: impl Fn() + Sync,
 ) -> Result<Vec<RdPoint>, EncodeError> {
     let study = Study {
         sequences,
         qps,
         predictors,
-        configure,
+        base,
     };
     let all: Vec<usize> = (0..study.len()).collect();
     let points = std::sync::Mutex::new(Vec::with_capacity(all.len()));

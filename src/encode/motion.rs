@@ -10,11 +10,7 @@ use crate::codec::partition::{MbVectors, RefMv};
 use crate::codec::syntax::MB;
 use crate::codec::warp::MotionGrid;
 use crate::codec::{Frame, Plane};
-use crate::flow::dis::{Dis, DisParams, DisPreset};
-use crate::flow::hs::{horn_schunck, HsParams};
-use crate::flow::lk::{Lk, LkParams};
-use crate::flow::tvl1::{tvl1, Tvl1Params};
-use crate::flow::Flow;
+use crate::flow::{Flow, FlowEstimator};
 use crate::me::halfpel::HalfPel;
 use crate::me::{self, lambda_for_qp, MeConfig, Metric, MotionField};
 use crate::raster::plane_to_array;
@@ -54,8 +50,8 @@ pub(crate) struct MotionAnalyser {
     /// Whether partitions are analysed: flows give 8x8 blocks' vectors
     /// too, and the reference's half-pel planes are kept.
     blocks: bool,
-    lk: Option<Lk>,
-    dis: Option<Dis>,
+    /// The flow predictors' estimator.
+    flow: Option<FlowEstimator>,
 }
 
 impl MotionAnalyser {
@@ -66,8 +62,7 @@ impl MotionAnalyser {
             qp,
             prior: None,
             blocks: partitions,
-            lk: None,
-            dis: None,
+            flow: None,
         }
     }
 
@@ -221,20 +216,11 @@ impl MotionAnalyser {
     /// codec's vector convention.
     fn flow(&mut self, method: FlowMethod, cur: &Plane, prev: &Plane) -> Flow {
         let (a, b) = (plane_to_array(cur), plane_to_array(prev));
-        match method {
-            FlowMethod::Lk => {
-                self.lk
-                    .get_or_insert_with(|| Lk::new(LkParams::default()))
-                    .compute(&a, &b)
-                    .flow
-            }
-            FlowMethod::Hs => horn_schunck(&a, &b, &HsParams::default()).0,
-            FlowMethod::Dis => self
-                .dis
-                .get_or_insert_with(|| Dis::new(DisParams::preset(DisPreset::Medium)))
-                .compute(&a, &b),
-            FlowMethod::Tvl1 => tvl1(&a, &b, &Tvl1Params::default()),
-        }
+        // One method per encoder: its estimator is made once, its buffers
+        // kept between frames.
+        self.flow
+            .get_or_insert_with(|| FlowEstimator::with_defaults(method))
+            .compute(&a, &b)
     }
 }
 

@@ -336,6 +336,18 @@ impl FlowEstimator {
         })
     }
 
+    /// The method with its own default settings (`LkParams::default()`,
+    /// `HsParams::default()`, DIS medium, `Tvl1Params::default()`): what
+    /// the encoder's flow predictors use.
+    pub fn with_defaults(method: FlowMethod) -> FlowEstimator {
+        match method {
+            FlowMethod::Lk => FlowEstimator::Lk(Box::new(Lk::new(LkParams::default()))),
+            FlowMethod::Hs => FlowEstimator::Hs(HsParams::default()),
+            FlowMethod::Dis => FlowEstimator::Dis(Box::new(Dis::new(DisParams::preset(DisPreset::Medium)))),
+            FlowMethod::Tvl1 => FlowEstimator::Tvl1(Tvl1Params::default()),
+        }
+    }
+
     /// Its method.
     pub fn method(&self) -> FlowMethod {
         match self {

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use mocomp::codec::Frame;
-use mocomp::encode::{Encoder, EncoderConfig, FrameStats, Predictor};
+use mocomp::encode::{encode_sequence, EncoderConfig, FrameStats, Predictor, SequenceInfo};
 use mocomp::io::y4m::Y4mReader;
 use mocomp::rd::{sweep, Sequence};
 use pyo3::exceptions::PyTypeError;
@@ -119,33 +119,25 @@ fn encode_all(frames: &[Frame], fps: (u32, u32), config: EncoderConfig, keep: bo
     let first = frames
         .first()
         .ok_or_else(|| value_error("source holds no frames"))?;
-    let mut encoder =
-        Encoder::new(first.width(), first.height(), fps, config).map_err(|e| value_error(e.to_string()))?;
+    let info = SequenceInfo {
+        width: first.width(),
+        height: first.height(),
+        fps,
+        vui: Default::default(),
+    };
     let mut out = Encoded {
-        stream: encoder.header(),
+        stream: Vec::new(),
         stats: Vec::with_capacity(frames.len()),
         recons: Vec::new(),
     };
-    for (i, f) in frames.iter().enumerate() {
-        if (f.width(), f.height()) != (first.width(), first.height()) {
-            return Err(value_error(format!(
-                "frame {i} is {}x{}, frame 0 {}x{}",
-                f.width(),
-                f.height(),
-                first.width(),
-                first.height()
-            )));
-        }
-        let coded = encoder.encode(f).map_err(|e| value_error(e.to_string()))?;
-        out.stream.extend_from_slice(&coded.bytes);
+    encode_sequence(&mut frames.iter(), info, config, None, &mut out.stream, |coded| {
         out.stats.push(coded.stats);
         if keep {
-            out.recons.push(coded.recon);
-        } else {
-            encoder.recycle(coded.recon);
+            out.recons.push(coded.recon.clone());
         }
-    }
-    out.stream.extend_from_slice(&Encoder::trailer());
+        Ok(())
+    })
+    .map_err(|e| value_error(e.to_string()))?;
     Ok(out)
 }
 

@@ -8,8 +8,8 @@ use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::encode::{
-    encode_y4m, EncoderConfig, EncoderPreset, FlowMethod, FrameStats, ModeDecision, Partitions, Summary,
-    DEFAULT_IPRATIO,
+    encode_sequence, EncodeError, EncoderConfig, EncoderPreset, FlowMethod, FrameSource, FrameStats,
+    ModeDecision, Partitions, SequenceInfo, Summary, DEFAULT_IPRATIO,
 };
 use crate::io::y4m::{Y4mReader, Y4mWriter};
 use crate::io::OutputFile;
@@ -192,6 +192,22 @@ pub fn config(args: &Args) -> Result<EncoderConfig> {
     args.tools.configure(&first)
 }
 
+/// A Y4M reader as the encoder's frame source.
+struct Y4mSource<'a, R: std::io::Read>(&'a mut Y4mReader<R>);
+
+impl<R: std::io::Read> FrameSource for Y4mSource<'_, R> {
+    fn next_frame(&mut self, frame: &mut crate::codec::Frame) -> Result<bool, EncodeError> {
+        self.0
+            .read_frame_into(frame)
+            .map_err(|e| EncodeError::Input(Box::new(e)))
+    }
+}
+
+/// A frame rate's numerator or denominator as the stream stores it.
+fn fps_part(v: u64) -> Result<u32, EncodeError> {
+    u32::try_from(v).map_err(|_| EncodeError::Config(format!("frame rate term {v} is too large")))
+}
+
 pub fn run(args: &Args) -> Result<()> {
     let config = config(args)?;
     let pool = super::thread_pool(args.threads)?;
@@ -228,21 +244,35 @@ pub fn run(args: &Args) -> Result<()> {
         b
     };
     let summary = pool.install(|| {
-        encode_y4m(&mut reader, &mut out, config, args.frames, |coded| {
-            if let Some(w) = recon.as_mut() {
-                w.write_frame(&coded.recon)?;
-            }
-            frame_stats.push(coded.stats);
-            if with_vmaf {
-                recons.push(coded.recon.clone());
-            }
-            bar.inc(1);
-            bar.set_message(format!(
-                "{:.2} dB  {} B",
-                coded.stats.quality.psnr.y, coded.stats.bytes
-            ));
-            Ok(())
-        })
+        let sequence = SequenceInfo {
+            width: info.width,
+            height: info.height,
+            fps: (fps_part(info.fps.0)?, fps_part(info.fps.1)?),
+            vui: info.vui(),
+        };
+        encode_sequence(
+            &mut Y4mSource(&mut reader),
+            sequence,
+            config,
+            args.frames,
+            &mut out,
+            |coded| {
+                if let Some(w) = recon.as_mut() {
+                    w.write_frame(&coded.recon)
+                        .map_err(|e| EncodeError::Output(std::io::Error::other(e)))?;
+                }
+                frame_stats.push(coded.stats);
+                if with_vmaf {
+                    recons.push(coded.recon.clone());
+                }
+                bar.inc(1);
+                bar.set_message(format!(
+                    "{:.2} dB  {} B",
+                    coded.stats.quality.psnr.y, coded.stats.bytes
+                ));
+                Ok(())
+            },
+        )
     });
     bar.finish_and_clear();
     let mut summary = summary.with_context(|| input.clone())?;

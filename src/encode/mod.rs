@@ -39,7 +39,7 @@ mod stats;
 mod transform8x8;
 mod weights;
 
-use std::io::{Read, Write};
+use std::io::Write;
 use std::time::Instant;
 
 pub use config::{
@@ -53,7 +53,6 @@ use crate::codec::recon::crop_reusing;
 use crate::codec::syntax::{EntropyState, FrameType, MotionTool, SequenceHeader, Vui, STREAM_END};
 use crate::codec::weight::Weights;
 use crate::codec::{Frame, PictureError};
-use crate::io::y4m::{Y4mError, Y4mReader};
 use crate::metrics::{psnr_from_mse, FrameQuality};
 use macroblock::MbCoder;
 use motion::MotionAnalyser;
@@ -79,9 +78,9 @@ pub enum EncodeError {
         /// Sequence height.
         height: usize,
     },
-    /// Reading the input.
-    #[error(transparent)]
-    Input(#[from] Y4mError),
+    /// Reading the input (the source's own error, as it says it).
+    #[error("{0}")]
+    Input(Box<dyn std::error::Error + Send + Sync>),
     /// Writing the stream.
     #[error("writing the stream: {0}")]
     Output(#[from] std::io::Error),
@@ -343,30 +342,67 @@ fn pad_to_coded(
     Ok(out)
 }
 
-/// Encodes a whole Y4M into `out` (sequence header, frames, end marker):
-/// at most `max_frames` frames, calling `on_frame` after each. Returns the
-/// summary.
-pub fn encode_y4m<R: Read, W: Write>(
-    reader: &mut Y4mReader<R>,
-    mut out: W,
+/// Where an encode's frames come from (a Y4M reader, frames in memory,
+/// arrays from Python): the one encode loop, [`encode_sequence`], reads
+/// them through this.
+pub trait FrameSource {
+    /// The next frame into `frame` (the sequence's size); `false` at the
+    /// end.
+    fn next_frame(&mut self, frame: &mut Frame) -> Result<bool, EncodeError>;
+}
+
+impl FrameSource for std::slice::Iter<'_, Frame> {
+    fn next_frame(&mut self, frame: &mut Frame) -> Result<bool, EncodeError> {
+        let Some(f) = self.next() else {
+            return Ok(false);
+        };
+        if (f.width(), f.height()) != (frame.width(), frame.height()) {
+            return Err(EncodeError::FrameSize {
+                got_w: f.width(),
+                got_h: f.height(),
+                width: frame.width(),
+                height: frame.height(),
+            });
+        }
+        frame.clone_from(f);
+        Ok(true)
+    }
+}
+
+/// What a sequence is: its size, frame rate and how its samples are to be
+/// shown.
+#[derive(Debug, Clone, Copy)]
+pub struct SequenceInfo {
+    /// Width, luma samples.
+    pub width: usize,
+    /// Height, luma samples.
+    pub height: usize,
+    /// Frame rate, numerator and denominator.
+    pub fps: (u32, u32),
+    /// Aspect ratio, range, chroma siting.
+    pub vui: Vui,
+}
+
+/// The one encode loop (the command line, RD sweeps and Python run it):
+/// at most `max_frames` frames of `source` coded into `out` (sequence
+/// header, frames, end marker), `on_frame` called after each. Returns the
+/// summary; a source with no frame is an error.
+pub fn encode_sequence<W: Write>(
+    source: &mut dyn FrameSource,
+    info: SequenceInfo,
     config: EncoderConfig,
     max_frames: Option<usize>,
+    mut out: W,
     mut on_frame: impl FnMut(&EncodedFrame) -> Result<(), EncodeError>,
 ) -> Result<Summary, EncodeError> {
-    let info = reader.info().clone();
-    let fps = (
-        u32::try_from(info.fps.0)
-            .map_err(|_| EncodeError::Config("frame rate numerator too large".into()))?,
-        u32::try_from(info.fps.1)
-            .map_err(|_| EncodeError::Config("frame rate denominator too large".into()))?,
-    );
-    let mut encoder = Encoder::new(info.width, info.height, fps, config)?;
-    encoder.set_vui(info.vui());
+    let mut encoder = Encoder::new(info.width, info.height, info.fps, config)?;
+    encoder.set_vui(info.vui);
     let header = encoder.header();
     out.write_all(&header)?;
-    let mut summary = SummaryBuilder::new(info.fps_f64(), header.len() + 1);
+    let rate = f64::from(info.fps.0) / f64::from(info.fps.1);
+    let mut summary = SummaryBuilder::new(rate, header.len() + 1);
     let mut frame = Frame::new(info.width, info.height)?;
-    while max_frames.is_none_or(|n| summary.frames() < n) && reader.read_frame_into(&mut frame)? {
+    while max_frames.is_none_or(|n| summary.frames() < n) && source.next_frame(&mut frame)? {
         let coded = encoder.encode(&frame)?;
         out.write_all(&coded.bytes)?;
         summary.push(&coded.stats);
@@ -401,15 +437,13 @@ pub fn encode_frames_keeping_stream(
     let first = frames
         .first()
         .ok_or_else(|| EncodeError::Config("no frames to encode".into()))?;
-    let mut encoder = Encoder::new(first.width(), first.height(), fps, config)?;
-    let mut stream = encoder.header();
-    let mut summary = SummaryBuilder::new(f64::from(fps.0) / f64::from(fps.1), stream.len() + 1);
-    for f in frames {
-        let coded = encoder.encode(f)?;
-        stream.extend_from_slice(&coded.bytes);
-        summary.push(&coded.stats);
-        encoder.recycle(coded.recon);
-    }
-    stream.extend_from_slice(&Encoder::trailer());
-    Ok((summary.finish(), stream))
+    let info = SequenceInfo {
+        width: first.width(),
+        height: first.height(),
+        fps,
+        vui: Vui::default(),
+    };
+    let mut stream = Vec::new();
+    let summary = encode_sequence(&mut frames.iter(), info, config, None, &mut stream, |_| Ok(()))?;
+    Ok((summary, stream))
 }

@@ -143,9 +143,23 @@ impl<R: Read> Decoder<R> {
 
     /// The next frame's syntax, or `None` at the end marker.
     pub fn next_syntax(&mut self) -> Result<Option<FrameSyntax>, DecodeError> {
-        if self.finished {
+        if self.finished || !self.frame_starts()? {
             return Ok(None);
         }
+        let (payload, payload_start) = self.frame_payload()?;
+        let syntax = read_frame(&self.seq, &payload, &mut self.entropy).map_err(|e| DecodeError::Syntax {
+            frame: self.frames,
+            byte: payload_start + (e.bit / 8) as u64,
+            bit: (e.bit % 8) as u8,
+            what: e.what,
+        })?;
+        self.check_references(&syntax, payload_start)?;
+        Ok(Some(syntax))
+    }
+
+    /// Reads the next start code: `true` for a frame, `false` at the end
+    /// marker (after checking the frame count and that nothing follows).
+    fn frame_starts(&mut self) -> Result<bool, DecodeError> {
         let start = self.offset;
         let mut code = [0u8; 1];
         if read_up_to(&mut self.reader, &mut code)? == 0 {
@@ -155,10 +169,10 @@ impl<R: Read> Decoder<R> {
             });
         }
         self.offset += 1;
+        let expected = self.seq.frame_count;
         match code[0] {
             STREAM_END => {
                 self.finished = true;
-                let expected = self.seq.frame_count;
                 if expected != 0 && expected as usize != self.frames {
                     return Err(DecodeError::FrameCount {
                         expected,
@@ -168,18 +182,24 @@ impl<R: Read> Decoder<R> {
                 if read_up_to(&mut self.reader, &mut code)? != 0 {
                     return Err(DecodeError::TrailingData { byte: self.offset });
                 }
-                return Ok(None);
+                Ok(false)
             }
-            FRAME_START => {}
-            found => return Err(DecodeError::StartCode { byte: start, found }),
+            FRAME_START if expected != 0 && self.frames >= expected as usize => {
+                Err(DecodeError::FrameCount {
+                    expected,
+                    found: self.frames + 1,
+                })
+            }
+            FRAME_START => Ok(true),
+            found => Err(DecodeError::StartCode { byte: start, found }),
         }
-        let expected = self.seq.frame_count;
-        if expected != 0 && self.frames >= expected as usize {
-            return Err(DecodeError::FrameCount {
-                expected,
-                found: self.frames + 1,
-            });
-        }
+    }
+
+    /// The frame's length and payload (the length checked against the
+    /// sequence's largest frame before any byte is read), with the
+    /// payload's offset in the stream.
+    fn frame_payload(&mut self) -> Result<(Vec<u8>, u64), DecodeError> {
+        let start = self.offset - 1;
         let mut len = [0u8; 4];
         if read_up_to(&mut self.reader, &mut len)? < 4 {
             return Err(DecodeError::Truncated {
@@ -209,42 +229,37 @@ impl<R: Read> Decoder<R> {
                 byte: self.offset,
             });
         }
-        let syntax = read_frame(&self.seq, &payload, &mut self.entropy).map_err(|e| DecodeError::Syntax {
-            frame: self.frames,
-            byte: payload_start + (e.bit / 8) as u64,
-            bit: (e.bit % 8) as u8,
-            what: e.what,
-        })?;
+        Ok((payload, payload_start))
+    }
+
+    /// A P frame's references: no more than the sequence allows, nor than
+    /// the frames decoded since the last I frame.
+    fn check_references(&self, syntax: &FrameSyntax, payload_start: u64) -> Result<(), DecodeError> {
         let h = &syntax.header;
-        if h.refs > self.seq.max_refs {
-            return Err(DecodeError::Syntax {
-                frame: self.frames,
-                byte: payload_start,
-                bit: 0,
-                what: format!(
-                    "a P frame predicting from {} references, more than the sequence's {}",
-                    h.refs, self.seq.max_refs
-                ),
-            });
-        }
         let available = self.references.len();
-        if h.frame_type == FrameType::Inter && usize::from(h.refs) > available {
-            let what = if available == 0 {
+        let what = if h.refs > self.seq.max_refs {
+            format!(
+                "a P frame predicting from {} references, more than the sequence's {}",
+                h.refs, self.seq.max_refs
+            )
+        } else if h.frame_type == FrameType::Inter && usize::from(h.refs) > available {
+            if available == 0 {
                 "a P frame with no frame before it to predict from".into()
             } else {
                 format!(
                     "a P frame predicting from {} references, with {available} decoded since the last I frame",
                     h.refs
                 )
-            };
-            return Err(DecodeError::Syntax {
-                frame: self.frames,
-                byte: payload_start,
-                bit: 0,
-                what,
-            });
-        }
-        Ok(Some(syntax))
+            }
+        } else {
+            return Ok(());
+        };
+        Err(DecodeError::Syntax {
+            frame: self.frames,
+            byte: payload_start,
+            bit: 0,
+            what,
+        })
     }
 
     /// Reconstructs `syntax` and keeps it as the latest reference.

@@ -4,15 +4,13 @@
 //! cost J = SSD + lambda * bits of each way to code it.
 
 use super::dsp::{coder, CoderDsp};
-use crate::codec::bits::ue_len;
-use crate::codec::intra::IntraMode;
-use crate::codec::recon::{add_luma8, chroma_qp, reconstruct_samples, IntraEdges, MbSamples};
+use super::rdo;
+use crate::codec::recon::{add_luma8, chroma_qp, reconstruct_samples, MbSamples};
 use crate::codec::residual::{BlockClass, BlockPricer, MbResidual, ResidualCoder, ResidualSyntax};
-use crate::codec::syntax::{intra_mode_allowed, MB};
+use crate::codec::syntax::MB;
 use crate::codec::transform::Block4;
 use crate::codec::transform8x8::Block8;
 use crate::codec::Frame;
-use crate::me::Metric;
 use crate::metrics::squared_difference_sum;
 
 /// Quantiser rounding offsets (fractions of a step), as in the H.264
@@ -80,7 +78,7 @@ impl Coded {
         (mb_x, mb_y): (usize, usize),
     ) -> Coded {
         Coded {
-            bits: f64::from(residual_coder.cost(mb_x, mb_y, syntax, &residual)) / 256.0,
+            bits: rdo::bits(residual_coder.cost(mb_x, mb_y, syntax, &residual)),
             ssd: src.ssd(&samples),
             residual,
             samples,
@@ -110,7 +108,7 @@ impl MbCoder {
     pub fn new(qp: u8, lambda_scale: f64, rdoq: bool) -> MbCoder {
         MbCoder {
             qp,
-            lambda: lambda_scale * crate::me::lambda_for_qp(Metric::Ssd, qp),
+            lambda: rdo::lambda(qp, lambda_scale),
             rdoq,
             intra4x4: true,
             intra8x8: true,
@@ -345,76 +343,13 @@ impl MbCoder {
         let coded = self.code(src, pred, false, residual_coder, mb_x, mb_y);
         let coded4 = (&*coded.residual, &coded.samples);
         match self.luma8_alternative(src, pred, coded4, residual_coder, (mb_x, mb_y)) {
-            Some(c8) if self.cost(c8.ssd, c8.bits) < self.cost(coded.ssd, coded.bits) => c8,
+            Some(c8)
+                if rdo::cost(self.lambda, c8.ssd, c8.bits)
+                    < rdo::cost(self.lambda, coded.ssd, coded.bits) =>
+            {
+                c8
+            }
             _ => coded,
         }
     }
-
-    /// J = SSD + lambda * bits.
-    pub fn cost(&self, ssd: u64, bits: f64) -> f64 {
-        ssd as f64 + self.lambda * bits
-    }
-
-    /// The luma intra mode allowed at (mb_x, mb_y) with the smallest SATD
-    /// plus the mode's bits, its prediction (into `pred.luma`) and SATD.
-    /// (Luma and chroma modes are independent: each plane's is chosen on
-    /// its own.)
-    pub fn best_intra_luma(
-        &self,
-        src: &MbSource,
-        recon: &Frame,
-        (mb_x, mb_y): (usize, usize),
-        pred: &mut MbSamples,
-    ) -> (IntraMode, u32) {
-        let sad_lambda = self.lambda.sqrt();
-        let mut trial = [0u8; 256];
-        let (mut luma, mut best_cost, mut satd) = (IntraMode::Dc, f64::INFINITY, 0);
-        let edges = IntraEdges::of(recon, 0, mb_x, mb_y);
-        for m in allowed_intra_modes(mb_x, mb_y) {
-            edges.predict(m, &mut trial);
-            let d = Metric::Satd.cost(&src.luma, MB, &trial, MB, MB, MB);
-            let c = f64::from(d) + sad_lambda * f64::from(ue_len(m as u32));
-            if c < best_cost {
-                (luma, best_cost, satd) = (m, c, d);
-                pred.luma = trial;
-            }
-        }
-        (luma, satd)
-    }
-
-    /// The chroma intra mode allowed at (mb_x, mb_y) with the smallest SAD
-    /// (both planes) plus the mode's bits, and its prediction (into
-    /// `pred.chroma`).
-    pub fn best_intra_chroma(
-        &self,
-        src: &MbSource,
-        recon: &Frame,
-        (mb_x, mb_y): (usize, usize),
-        pred: &mut MbSamples,
-    ) -> IntraMode {
-        let sad_lambda = self.lambda.sqrt();
-        let mut chroma = IntraMode::Dc;
-        let mut best_c = f64::INFINITY;
-        let mut trial = [[0u8; 64]; 2];
-        let edges = [1, 2].map(|p| IntraEdges::of(recon, p, mb_x, mb_y));
-        for m in allowed_intra_modes(mb_x, mb_y) {
-            let mut c = sad_lambda * f64::from(ue_len(m as u32));
-            for (k, t) in trial.iter_mut().enumerate() {
-                edges[k].predict(m, t);
-                c += f64::from(Metric::Sad.cost(&src.chroma[k], 8, t, 8, 8, 8));
-            }
-            if c < best_c {
-                (chroma, best_c) = (m, c);
-                pred.chroma = trial;
-            }
-        }
-        chroma
-    }
-}
-
-/// The intra modes macroblock (mb_x, mb_y) has the neighbours for.
-fn allowed_intra_modes(mb_x: usize, mb_y: usize) -> impl Iterator<Item = IntraMode> {
-    IntraMode::ALL
-        .into_iter()
-        .filter(move |&m| intra_mode_allowed(m, mb_x, mb_y))
 }

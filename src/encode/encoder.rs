@@ -1,0 +1,284 @@
+//! The encoder's frame loop (x264's `encoder.c`): the sequence header,
+//! and per frame the choice of I or P, the references and their weights,
+//! motion analysis, the frame's macroblocks ([`super::slice`]), the
+//! statistics, and the reconstructions kept as references.
+
+use std::time::Instant;
+
+use super::config::{EncoderConfig, Predictor};
+use super::macroblock::MbCoder;
+use super::motion::MotionAnalyser;
+use super::slice::{self, CodedFrame};
+use super::stats::FrameStats;
+use super::weights;
+use super::{EncodeError, EncodedFrame};
+use crate::codec::recon::crop_reusing;
+use crate::codec::syntax::{EntropyState, FrameType, MotionTool, SequenceHeader, Vui, STREAM_END};
+use crate::codec::weight::Weights;
+use crate::codec::{Frame, PictureError};
+use crate::metrics::{psnr_from_mse, FrameQuality};
+
+/// Encodes a sequence frame by frame. See the [module](self) example.
+pub struct Encoder {
+    seq: SequenceHeader,
+    config: EncoderConfig,
+    /// P frames' quantiser and lambda.
+    coder: MbCoder,
+    /// I frames' (at [`EncoderConfig::intra_qp`]).
+    intra_coder: MbCoder,
+    analyser: MotionAnalyser,
+    /// The reconstructions since the last I frame, the latest first, at
+    /// most the configuration's references (coded size, borders extended).
+    references: Vec<Frame>,
+    /// The previous source, coded size (flow predictors read it).
+    prev_source: Option<Frame>,
+    /// Coded-size frames to reuse (the reference and source before the
+    /// previous ones): fresh ones cost page faults every frame.
+    spare_recon: Option<Frame>,
+    /// A returned reconstruction given back ([`Encoder::recycle`]).
+    spare_output: Option<Frame>,
+    spare_source: Option<Frame>,
+    /// Contexts carried from frame to frame, as the decoder carries them.
+    entropy: EntropyState,
+    index: usize,
+}
+
+impl Encoder {
+    /// An encoder for `width x height` pictures at `fps` (numerator,
+    /// denominator).
+    pub fn new(
+        width: usize,
+        height: usize,
+        fps: (u32, u32),
+        config: EncoderConfig,
+    ) -> Result<Encoder, EncodeError> {
+        config.check().map_err(EncodeError::Config)?;
+        crate::codec::picture::check_size(width, height)?;
+        if fps.0 == 0 || fps.1 == 0 {
+            return Err(EncodeError::Config(format!(
+                "frame rate {}/{} is not positive",
+                fps.0, fps.1
+            )));
+        }
+        let seq = SequenceHeader {
+            width,
+            height,
+            fps_num: fps.0,
+            fps_den: fps.1,
+            frame_count: 0,
+            vui: Vui::default(),
+            max_refs: config.effective_refs(),
+        };
+        Ok(Encoder {
+            seq,
+            config,
+            coder: MbCoder::new(config.qp, config.lambda_scale, config.rdoq)
+                .intra4x4(config.partitions.i4x4)
+                .intra8x8(config.intra8x8())
+                .transform_8x8(config.transform_8x8),
+            intra_coder: MbCoder::new(config.intra_qp(), config.lambda_scale, config.rdoq)
+                .intra4x4(config.partitions.i4x4)
+                .intra8x8(config.intra8x8()),
+            analyser: MotionAnalyser::new(config.predictor, config.qp, config.partitions.p8x8),
+            references: Vec::new(),
+            prev_source: None,
+            spare_recon: None,
+            spare_output: None,
+            spare_source: None,
+            entropy: EntropyState::new(),
+            index: 0,
+        })
+    }
+
+    /// Sets what the sequence header says about the samples (aspect ratio,
+    /// range, chroma siting) for the decoder's output; call it before
+    /// [`Encoder::header`].
+    pub fn set_vui(&mut self, vui: Vui) {
+        self.seq.vui = vui;
+    }
+
+    /// The sequence header that starts the stream (frame count 0: not
+    /// known in advance).
+    pub fn header(&self) -> Vec<u8> {
+        self.seq.to_bytes()
+    }
+
+    /// The byte that ends the stream.
+    pub fn trailer() -> [u8; 1] {
+        [STREAM_END]
+    }
+
+    /// The sequence header.
+    pub fn sequence(&self) -> &SequenceHeader {
+        &self.seq
+    }
+
+    /// Gives back a reconstruction [`Encoder::encode`] returned, once the
+    /// caller is done with it: the next one is written into it instead of
+    /// a fresh frame (optional; it saves an allocation a frame).
+    pub fn recycle(&mut self, recon: Frame) {
+        self.spare_output = Some(recon);
+    }
+
+    /// Codes the next frame.
+    pub fn encode(&mut self, source: &Frame) -> Result<EncodedFrame, EncodeError> {
+        if (source.width(), source.height()) != (self.seq.width, self.seq.height) {
+            return Err(EncodeError::FrameSize {
+                got_w: source.width(),
+                got_h: source.height(),
+                width: self.seq.width,
+                height: self.seq.height,
+            });
+        }
+        let start = Instant::now();
+        let (cw, ch) = (self.seq.coded_width(), self.seq.coded_height());
+        let src = pad_to_coded(source, self.spare_source.take(), cw, ch)?;
+        let recon = match self.spare_recon.take() {
+            Some(f) => f,
+            None => Frame::new(cw, ch)?,
+        };
+        let intra = self.config.gop > 0 && self.index % self.config.gop == 0;
+        let (coded, me_ms) = match (self.references.first(), &self.prev_source, intra) {
+            (Some(_), Some(_), false) => self.code_p_frame(&src, recon)?,
+            _ => {
+                let i = slice::code_intra(
+                    &self.seq,
+                    &self.intra_coder,
+                    &src,
+                    self.config.deblock,
+                    &mut self.entropy,
+                    recon,
+                )?;
+                (i, 0.0)
+            }
+        };
+        let recon = crop_reusing(
+            &coded.recon,
+            self.seq.width,
+            self.seq.height,
+            self.spare_output.take(),
+        )?;
+        // The quality measurements are not coding time: some cost more than
+        // the coding.
+        let coding_ms = start.elapsed().as_secs_f64() * 1e3;
+        let stats = self.frame_stats(source, &recon, &coded, (me_ms, coding_ms));
+        if intra {
+            self.references.clear();
+        }
+        if self.references.len() == usize::from(self.seq.max_refs) {
+            self.spare_recon = self.references.pop();
+        }
+        let bytes = coded.bytes;
+        self.references.insert(0, coded.recon);
+        self.spare_source = self.prev_source.replace(src);
+        self.index += 1;
+        Ok(EncodedFrame { bytes, recon, stats })
+    }
+
+    /// A P frame: the reference weighted, motion analysed, the
+    /// macroblocks decided and coded; with the motion analysis' time, ms.
+    fn code_p_frame(&mut self, src: &Frame, recon: Frame) -> Result<(CodedFrame, f64), EncodeError> {
+        let (Some(unweighted), Some(prev)) = (self.references.first(), &self.prev_source) else {
+            return Err(EncodeError::Config("a P frame without a reference".into()));
+        };
+        let weights = if self.config.weightp {
+            weights::estimate(src, unweighted)
+        } else {
+            Weights::NONE
+        };
+        let weighted = weights.any().then(|| {
+            let mut out = unweighted.clone();
+            weights.apply_into(unweighted, &mut out);
+            out
+        });
+        let reference = weighted.as_ref().unwrap_or(unweighted);
+        let t = Instant::now();
+        // Older references: `block` only (the list holds one frame for the
+        // other predictors).
+        let motion = self.analyser.analyse(src, prev, reference, &self.references[1..]);
+        let me_ms = t.elapsed().as_secs_f64() * 1e3;
+        let tool = match self.config.predictor {
+            Predictor::Obmc(_) => MotionTool::Obmc,
+            Predictor::Dense { grid, .. } => MotionTool::Grid(grid),
+            _ => MotionTool::Block,
+        };
+        // Weights apply to reference 0 alone (FORMAT.md section 12).
+        let mut references = vec![reference];
+        references.extend(&self.references[1..]);
+        let inputs = slice::InterInputs {
+            references,
+            motion,
+            tool,
+            decision: self.config.decision,
+            deblock: self.config.deblock,
+            weights,
+            partitions: self.config.partitions.p8x8,
+            subpel_rd: self.config.subpel_rd,
+        };
+        let coded = slice::code_inter(&self.seq, &self.coder, src, inputs, &mut self.entropy, recon)?;
+        Ok((coded, me_ms))
+    }
+
+    /// The statistics of a coded frame: its rate, its reconstruction's
+    /// quality (one record), the macroblocks' kinds and the times.
+    fn frame_stats(
+        &self,
+        source: &Frame,
+        recon: &Frame,
+        coded: &CodedFrame,
+        (me_ms, total_ms): (f64, f64),
+    ) -> FrameStats {
+        let header = &coded.syntax.header;
+        FrameStats {
+            index: self.index,
+            frame_type: if header.frame_type == FrameType::Intra {
+                'I'
+            } else {
+                'P'
+            },
+            qp: header.qp,
+            bytes: coded.bytes.len(),
+            bits_header: coded.bits.header,
+            bits_motion: coded.bits.motion,
+            bits_residual: coded.bits.residual,
+            quality: FrameQuality::measure_as(source, recon, &self.config.quality()),
+            prediction_psnr_y: psnr_from_mse(
+                coded.prediction_sse as f64 / (self.seq.width * self.seq.height) as f64,
+            ),
+            skip_mbs: coded.kinds[0],
+            inter_mbs: coded.kinds[1],
+            intra_mbs: coded.kinds[2],
+            me_ms,
+            total_ms,
+        }
+    }
+}
+
+/// `frame` at the coded size: the right column and bottom row repeated
+/// into the macroblocks' padding (which costs few bits and no distortion
+/// that anyone sees), borders extended; written into `reuse` when given.
+fn pad_to_coded(
+    frame: &Frame,
+    reuse: Option<Frame>,
+    width: usize,
+    height: usize,
+) -> Result<Frame, PictureError> {
+    let mut out = match reuse {
+        Some(f) => f,
+        None => Frame::new(width, height)?,
+    };
+    for p in 0..3 {
+        let src = frame.plane(p);
+        let dst = out.plane_mut(p);
+        let (sw, sh) = (src.width(), src.height());
+        for y in 0..dst.height() {
+            let row = src.row(y.min(sh - 1));
+            let d = dst.row_mut(y);
+            d[..sw].copy_from_slice(row);
+            let last = row[sw - 1];
+            d[sw..].fill(last);
+        }
+    }
+    out.extend_borders();
+    Ok(out)
+}

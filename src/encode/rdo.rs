@@ -1,0 +1,64 @@
+//! Rate-distortion pricing of the mode decision (x264's `rdo.c` and the
+//! lambda of `analyse.c`): the weight of a bit against squared error, the
+//! J = SSD + lambda * bits of a coded candidate, the SATD + sqrt(lambda) *
+//! bits estimate that ranks candidates before any is coded, and the rate
+//! estimates of vectors and reference indices.
+
+use crate::me::{lambda_for_qp, Metric};
+
+/// With the full decision, an inter candidate is coded only when its
+/// SATD + rate estimate is within this factor of the best's (x264's 5/4).
+pub(super) const RD_MARGIN: f64 = 1.25;
+
+/// The mode decision's lambda at `qp`: the H.264 reference encoder's
+/// `0.85 * 2^((qp - 12) / 3)` times `scale` (the configuration's
+/// `lambda_scale`).
+pub(super) fn lambda(qp: u8, scale: f64) -> f64 {
+    scale * lambda_for_qp(Metric::Ssd, qp)
+}
+
+/// J = SSD + lambda * bits.
+#[inline]
+pub(super) fn cost(lambda: f64, ssd: u64, bits: f64) -> f64 {
+    ssd as f64 + lambda * bits
+}
+
+/// A candidate's estimate before coding: SATD + sqrt(lambda) * bits.
+#[inline]
+pub(super) fn estimate(lambda: f64, satd: u32, bits: u32) -> f64 {
+    f64::from(satd) + lambda.sqrt() * f64::from(bits)
+}
+
+/// Bits from the entropy coders' prices (1/256 bit units).
+#[inline]
+pub(super) fn bits(price: u32) -> f64 {
+    f64::from(price) / 256.0
+}
+
+/// The length of reference index `ref_idx`'s truncated unary code among
+/// `refs` references (the rate estimate of the motion search).
+pub(super) fn reference_bits(ref_idx: u8, refs: u8) -> u32 {
+    u32::from(if ref_idx + 1 < refs { ref_idx + 1 } else { ref_idx })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reference_indices_cost_their_truncated_unary_code() {
+        // One reference: nothing coded. Three: 1, 2, 2 bits.
+        assert_eq!(reference_bits(0, 1), 0);
+        assert_eq!([0, 1, 2].map(|r| reference_bits(r, 3)), [1, 2, 2]);
+    }
+
+    #[test]
+    fn the_lambda_doubles_every_three_qp_and_prices_bits_against_ssd() {
+        let l = lambda(30, 1.0);
+        assert!((lambda(33, 1.0) / l - 2.0).abs() < 1e-12);
+        assert!((lambda(30, 1.4) / l - 1.4).abs() < 1e-12);
+        assert_eq!(cost(10.0, 100, 3.0), 130.0);
+        assert_eq!(estimate(16.0, 100, 3), 112.0);
+        assert_eq!(bits(512), 2.0);
+    }
+}

@@ -1,0 +1,507 @@
+//! One frame's macroblocks in raster order (x264's `slice_write`): the I
+//! frame's loop, and the P frame's, each macroblock analysed
+//! ([`super::analyse`]), reconstructed through the codec's functions and
+//! written through a [`FrameWriter`] as it is decided, so that the next is
+//! priced from the writer's coders as they stand; OBMC's second pass; the
+//! frame deblocked at the end as the decoder does it.
+
+use std::cell::RefCell;
+
+use super::analyse::{best_intra, Choice, MbAnalysis};
+
+use super::config::ModeDecision;
+use super::intra4x4::IntraBlockSearch;
+use super::macroblock::{MbCoder, MbSource};
+use super::motion::{BlockMotion, FrameMotion};
+use super::partition::SatdCache;
+use crate::codec::deblock::{deblock_frame, MbEdgeInfo};
+use crate::codec::intra4x4::LumaIntra;
+use crate::codec::modes::{MbMode, ModeCoder, VectorSyntax};
+use crate::codec::mv::Mv;
+use crate::codec::partition::{MbVectors, RefMv};
+use crate::codec::recon::{
+    frame_vectors, predict_inter_blocks, predict_intra, predict_intra_plane, write_mb, InterContext,
+    MbSamples,
+};
+use crate::codec::residual::{ResidualCoder, ResidualSyntax};
+use crate::codec::syntax::{
+    mb_mode, mb_vectors, vector_syntax, write_frame, BitCounts, CodedMb, EntropyState, FrameHeader,
+    FrameSyntax, FrameType, FrameWriter, MbKind, MotionTool, SequenceHeader,
+};
+use crate::codec::warp::warp_frame;
+use crate::codec::weight::Weights;
+use crate::codec::{Frame, PictureError};
+use crate::me::halfpel::HalfPel;
+use crate::metrics::squared_difference_sum;
+
+/// A coded frame.
+pub(crate) struct CodedFrame {
+    pub syntax: FrameSyntax,
+    /// Its bytes in the stream and their bits per category.
+    pub bytes: Vec<u8>,
+    pub bits: BitCounts,
+    /// The reconstruction at the coded size, borders extended.
+    pub recon: Frame,
+    /// Squared error of the prediction (before the residual) over the
+    /// visible luma.
+    pub prediction_sse: u64,
+    /// Macroblocks coded as skip, inter, intra.
+    pub kinds: [usize; 3],
+}
+
+/// The squared luma error of `pred` against `src` over the visible part of
+/// macroblock (mb_x, mb_y).
+pub(super) fn visible_luma_sse(
+    src: &MbSource,
+    pred: &MbSamples,
+    mb_x: usize,
+    mb_y: usize,
+    seq: &SequenceHeader,
+) -> u64 {
+    let w = (seq.width - mb_x * 16).min(16);
+    let h = (seq.height - mb_y * 16).min(16);
+    (0..h)
+        .map(|r| squared_difference_sum(&src.luma[r * 16..r * 16 + w], &pred.luma[r * 16..r * 16 + w]))
+        .sum()
+}
+
+pub(super) fn kind_index(kind: &MbKind) -> usize {
+    match kind {
+        MbKind::Skip => 0,
+        MbKind::Inter { .. } | MbKind::Split { .. } => 1,
+        MbKind::Intra { .. } => 2,
+    }
+}
+
+/// Where decided macroblocks go: written at once, the coders they are
+/// priced with being the writer's (the writing adapts them), or only
+/// adapted (OBMC, whose residuals are coded again once every vector is
+/// decided, and written after that).
+pub(super) enum MbSink {
+    Write(Box<FrameWriter>),
+    Adapt(Box<(ModeCoder, ResidualCoder)>),
+}
+
+impl MbSink {
+    pub(super) fn modes(&self) -> &ModeCoder {
+        match self {
+            MbSink::Write(w) => w.modes(),
+            MbSink::Adapt(c) => &c.0,
+        }
+    }
+
+    pub(super) fn residual(&self) -> &ResidualCoder {
+        match self {
+            MbSink::Write(w) => w.residual(),
+            MbSink::Adapt(c) => &c.1,
+        }
+    }
+
+    /// Macroblock (mb_x, mb_y) of a frame `cols` macroblocks wide,
+    /// decided (`done`: the vectors of the macroblocks before it).
+    pub(super) fn push(
+        &mut self,
+        mb: &CodedMb,
+        (mb_x, mb_y, cols): (usize, usize, usize),
+        done: &[MbVectors],
+        syntax: VectorSyntax,
+    ) {
+        match self {
+            MbSink::Write(w) => w.push(mb),
+            MbSink::Adapt(c) => {
+                let (modes, residual_coder) = &mut **c;
+                let mode = mb_mode(&mb.kind, done, (mb_x, mb_y, cols), syntax);
+                modes.commit(mb_x, mb_y, true, syntax, &mode);
+                if mb.kind != MbKind::Skip {
+                    residual_coder.commit(mb_x, mb_y, mb.kind.residual_syntax(), mb.residual());
+                }
+            }
+        }
+    }
+}
+
+/// An I frame: every macroblock intra, modes by SATD; reconstructed into
+/// `recon` (coded size, contents all overwritten) and written, `state`
+/// updated.
+pub(crate) fn code_intra(
+    seq: &SequenceHeader,
+    coder: &MbCoder,
+    src: &Frame,
+    deblock: bool,
+    state: &mut EntropyState,
+    mut recon: Frame,
+) -> Result<CodedFrame, PictureError> {
+    let cols = seq.mb_cols();
+    let header = FrameHeader {
+        frame_type: FrameType::Intra,
+        qp: coder.qp,
+        tool: MotionTool::Block,
+        refs: 1,
+        deblock,
+        weights: Weights::NONE,
+    };
+    let mut writer = FrameWriter::new(seq, &header, None, state);
+    let mut mbs = Vec::with_capacity(cols * seq.mb_rows());
+    let mut prediction_sse = 0;
+    for i in 0..cols * seq.mb_rows() {
+        let (mb_x, mb_y) = (i % cols, i / cols);
+        let s = MbSource::load(src, mb_x, mb_y);
+        let best = best_intra(
+            coder,
+            &s,
+            &recon,
+            (mb_x, mb_y),
+            (writer.modes(), writer.residual()),
+            None,
+        );
+        let Some(Choice {
+            kind,
+            pred,
+            residual: Some(residual),
+            samples,
+            ..
+        }) = best
+        else {
+            unreachable!("without a bound, intra always has a choice");
+        };
+        write_mb(&samples, &mut recon, mb_x, mb_y);
+        prediction_sse += visible_luma_sse(&s, &pred, mb_x, mb_y, seq);
+        let mb = CodedMb::with_levels(kind, residual);
+        writer.push(&mb);
+        mbs.push(mb);
+    }
+    let (bytes, bits) = writer.finish(state);
+    let mut frame = CodedFrame {
+        syntax: FrameSyntax {
+            header,
+            grid: None,
+            mbs,
+        },
+        bytes,
+        bits,
+        recon,
+        prediction_sse,
+        kinds: [0, 0, cols * seq.mb_rows()],
+    };
+    frame.finish_recon(seq);
+    Ok(frame)
+}
+
+impl CodedFrame {
+    /// The reconstruction as the decoder's: deblocked when the header says
+    /// so (after every macroblock, whose intra prediction read the samples
+    /// before it), borders extended.
+    fn finish_recon(&mut self, seq: &SequenceHeader) {
+        let header = &self.syntax.header;
+        if header.deblock {
+            let vectors = frame_vectors(seq, &self.syntax);
+            let info = MbEdgeInfo::of_frame(&self.syntax, &vectors);
+            deblock_frame(&mut self.recon, &info, header.qp);
+        }
+        self.recon.extend_borders();
+    }
+}
+
+/// What a P frame is predicted from and how.
+pub(crate) struct InterInputs<'a> {
+    /// The references (coded size): the previous reconstruction (weighted)
+    /// first, then older ones (block frames).
+    pub references: Vec<&'a Frame>,
+    pub motion: FrameMotion,
+    pub tool: MotionTool,
+    pub decision: ModeDecision,
+    /// Whether the frame is deblocked.
+    pub deblock: bool,
+    /// The weights `reference` was weighted with (already applied).
+    pub weights: Weights,
+    /// Inter macroblocks may be split (block frames).
+    pub partitions: bool,
+    /// Sub-pel RD refinement of 16x16 inter vectors (block frames).
+    pub subpel_rd: bool,
+}
+
+/// A P frame's mode decision: one analysis context over the frame, one
+/// method per kind of candidate, macroblocks in raster order.
+pub(super) struct InterFrameCoder<'a> {
+    pub(super) seq: &'a SequenceHeader,
+    pub(super) coder: &'a MbCoder,
+    pub(super) src: &'a Frame,
+    /// The frame's references, the previous reconstruction first.
+    pub(super) references: Vec<&'a Frame>,
+    pub(super) tool: MotionTool,
+    pub(super) decision: ModeDecision,
+    /// Motion analysis' vector per macroblock (zero for grid frames).
+    pub(super) searched: Vec<Mv>,
+    /// Whether inter macroblocks may be split (block frames).
+    pub(super) partitions: bool,
+    /// Sub-pel RD refinement of 16x16 inter vectors (block frames).
+    pub(super) subpel_rd: bool,
+    /// A vector per 8x8 block, when motion analysis has one (flows).
+    pub(super) blocks: Option<Vec<Mv>>,
+    /// Motion analysis' vectors per macroblock into each older reference.
+    pub(super) older: Vec<Vec<Mv>>,
+    /// The reference's half-pel planes, for the partitions' search.
+    pub(super) halfpel: Option<HalfPel>,
+    /// The partition search's cache (kept: emptied, not reallocated).
+    pub(super) satd8: RefCell<SatdCache>,
+    /// The reference warped by the grid, for grid frames.
+    pub(super) warped: Option<Frame>,
+    /// Which vectors the frame codes.
+    pub(super) syntax: VectorSyntax,
+    /// The vectors OBMC predicts with: decided ones, searched ones for the
+    /// macroblocks not decided yet.
+    pub(super) context: Vec<MbVectors>,
+    /// The decided vectors, for the vector prediction.
+    pub(super) decided: Vec<MbVectors>,
+    pub(super) sink: MbSink,
+    /// OBMC's second pass prices residuals from the frame's start again.
+    pub(super) residual_coder_at_start: Option<ResidualCoder>,
+    /// The frame so far: its macroblocks and reconstruction.
+    pub(super) frame: CodedFrame,
+}
+
+impl<'a> InterFrameCoder<'a> {
+    pub(super) fn new(
+        seq: &'a SequenceHeader,
+        coder: &'a MbCoder,
+        src: &'a Frame,
+        inputs: InterInputs<'a>,
+        state: &EntropyState,
+        recon: Frame,
+    ) -> Result<InterFrameCoder<'a>, PictureError> {
+        let n = seq.mb_cols() * seq.mb_rows();
+        let (
+            BlockMotion {
+                mb: searched,
+                blocks,
+                halfpel,
+                older,
+            },
+            grid,
+            warped,
+        ) = match inputs.motion {
+            FrameMotion::Vectors(v) => (v, None, None),
+            FrameMotion::Grid(g) => {
+                let mut out = Frame::new(seq.coded_width(), seq.coded_height())?;
+                warp_frame(inputs.references[0], &g, &mut out);
+                let none = BlockMotion {
+                    mb: vec![Mv::ZERO; n],
+                    blocks: None,
+                    halfpel: None,
+                    older: Vec::new(),
+                };
+                (none, Some(g), Some(out))
+            }
+        };
+        let header = FrameHeader {
+            frame_type: FrameType::Inter,
+            qp: coder.qp,
+            tool: inputs.tool,
+            refs: inputs.references.len() as u8,
+            deblock: inputs.deblock,
+            weights: inputs.weights,
+        };
+        let obmc = inputs.tool == MotionTool::Obmc;
+        let sink = if obmc {
+            MbSink::Adapt(Box::new(state.coders(seq, FrameType::Inter)))
+        } else {
+            MbSink::Write(Box::new(FrameWriter::new(seq, &header, grid.as_ref(), state)))
+        };
+        Ok(InterFrameCoder {
+            seq,
+            coder,
+            src,
+            references: inputs.references,
+            older,
+            tool: inputs.tool,
+            decision: inputs.decision,
+            syntax: vector_syntax(&header),
+            context: searched.iter().map(|&v| [Some(RefMv::previous(v)); 4]).collect(),
+            searched,
+            partitions: inputs.partitions && inputs.tool == MotionTool::Block,
+            subpel_rd: inputs.subpel_rd,
+            halfpel,
+            blocks,
+            satd8: RefCell::default(),
+            warped,
+            decided: Vec::with_capacity(n),
+            residual_coder_at_start: obmc.then(|| sink.residual().clone()),
+            sink,
+            frame: CodedFrame {
+                syntax: FrameSyntax {
+                    header,
+                    grid,
+                    mbs: Vec::with_capacity(n),
+                },
+                bytes: Vec::new(),
+                bits: BitCounts::default(),
+                recon,
+                prediction_sse: 0,
+                kinds: [0; 3],
+            },
+        })
+    }
+
+    pub(super) fn inter_context(&self) -> InterContext<'_> {
+        InterContext {
+            references: &self.references,
+            tool: self.tool,
+            vectors: &self.context,
+            warped: self.warped.as_ref(),
+            mb_cols: self.seq.mb_cols(),
+        }
+    }
+
+    /// Bits of a mode as the frame's mode coder prices it now.
+    pub(super) fn mode_bits(&self, mb: &MbAnalysis, mode: &MbMode) -> f64 {
+        f64::from(self.sink.modes().cost(mb.mb_x, mb.mb_y, true, self.syntax, mode)) / 256.0
+    }
+
+    /// Reconstructs and records the decided macroblock.
+    fn commit(&mut self, mb: MbAnalysis) {
+        let (mb_x, mb_y) = (mb.mb_x, mb.mb_y);
+        let best = mb.best;
+        write_mb(&best.samples, &mut self.frame.recon, mb_x, mb_y);
+        self.frame.prediction_sse += visible_luma_sse(&mb.source, &best.pred, mb_x, mb_y, self.seq);
+        let cols = self.seq.mb_cols();
+        let v = mb_vectors(&best.kind, &self.decided, mb_x, mb_y, cols);
+        self.frame.kinds[kind_index(&best.kind)] += 1;
+        let coded = match best.residual {
+            Some(levels) => CodedMb::with_levels(best.kind, levels),
+            None => CodedMb::without_residual(best.kind),
+        };
+        self.sink
+            .push(&coded, (mb_x, mb_y, cols), &self.decided, self.syntax);
+        self.decided.push(v);
+        self.context[mb.index] = v;
+        self.frame.syntax.mbs.push(coded);
+    }
+
+    /// The coded frame, written; `state` updated.
+    fn finish(self, state: &mut EntropyState) -> Result<CodedFrame, PictureError> {
+        let mut frame = self.frame;
+        match self.sink {
+            MbSink::Write(writer) => (frame.bytes, frame.bits) = writer.finish(state),
+            MbSink::Adapt(_) => {
+                // Decisions saw neighbours' searched vectors; code the
+                // residuals again against the final prediction, which uses
+                // the decided ones, then write the frame.
+                if let Some(residual_coder) = self.residual_coder_at_start {
+                    recode(
+                        self.seq,
+                        self.coder,
+                        self.src,
+                        self.references[0],
+                        residual_coder,
+                        &mut frame,
+                    )?;
+                }
+                (frame.bytes, frame.bits) = write_frame(self.seq, &frame.syntax, state);
+            }
+        }
+        frame.finish_recon(self.seq);
+        Ok(frame)
+    }
+}
+
+/// A P frame predicted as `inputs` say, reconstructed into `recon` (coded
+/// size, contents all overwritten) and written, `state` updated.
+pub(crate) fn code_inter(
+    seq: &SequenceHeader,
+    coder: &MbCoder,
+    src: &Frame,
+    inputs: InterInputs<'_>,
+    state: &mut EntropyState,
+    recon: Frame,
+) -> Result<CodedFrame, PictureError> {
+    let mut frame_coder = InterFrameCoder::new(seq, coder, src, inputs, state, recon)?;
+    for index in 0..seq.mb_cols() * seq.mb_rows() {
+        let mb = frame_coder.analyse(index);
+        frame_coder.commit(mb);
+    }
+    frame_coder.finish(state)
+}
+
+/// Codes every macroblock's residual again, keeping the decisions, against
+/// the prediction the decoder will form.
+fn recode(
+    seq: &SequenceHeader,
+    coder: &MbCoder,
+    src: &Frame,
+    reference: &Frame,
+    mut residual_coder: ResidualCoder,
+    frame: &mut CodedFrame,
+) -> Result<(), PictureError> {
+    let cols = seq.mb_cols();
+    let vectors = crate::codec::recon::frame_vectors(seq, &frame.syntax);
+    let mut recon = Frame::new(seq.coded_width(), seq.coded_height())?;
+    frame.prediction_sse = 0;
+    let ctx = InterContext {
+        references: &[reference],
+        tool: frame.syntax.header.tool,
+        vectors: &vectors,
+        warped: None,
+        mb_cols: cols,
+    };
+    for (i, mb) in frame.syntax.mbs.iter_mut().enumerate() {
+        let (mb_x, mb_y) = (i % cols, i / cols);
+        let s = MbSource::load(src, mb_x, mb_y);
+        // Block intra modes are kept, each block predicted from the new
+        // reconstruction of those before it.
+        let search = IntraBlockSearch {
+            coder,
+            recon: &recon,
+            at: (mb_x, mb_y),
+            around: [None, None],
+            mode_bits: (0, 0),
+            residual: &residual_coder,
+        };
+        let mut pred = MbSamples::default();
+        let mut luma8 = None;
+        match mb.kind {
+            MbKind::Intra {
+                luma: LumaIntra::Whole(luma),
+                chroma,
+            } => pred = predict_intra(&recon, mb_x, mb_y, luma, chroma),
+            MbKind::Intra {
+                luma: LumaIntra::Blocks(modes),
+                ..
+            } => {
+                if let Some(b) = search.run(&s, Some(&modes), f64::INFINITY) {
+                    pred.luma = b.pred;
+                }
+            }
+            MbKind::Intra {
+                luma: LumaIntra::Blocks8(modes),
+                ..
+            } => {
+                if let Some(b) = search.run8(&s, Some(&modes), f64::INFINITY) {
+                    (pred.luma, luma8) = (b.pred, b.levels);
+                }
+            }
+            _ => pred = predict_inter_blocks(&ctx, mb_x, mb_y, &vectors[i].map(Option::unwrap_or_default)),
+        }
+        if let MbKind::Intra { chroma, .. } = mb.kind {
+            for p in 0..2 {
+                predict_intra_plane(&recon, p + 1, mb_x, mb_y, chroma, &mut pred.chroma[p]);
+            }
+        }
+        frame.prediction_sse += visible_luma_sse(&s, &pred, mb_x, mb_y, seq);
+        if mb.kind == MbKind::Skip {
+            write_mb(&pred, &mut recon, mb_x, mb_y);
+        } else {
+            let coded = match mb.kind.residual_syntax() {
+                ResidualSyntax::Intra => coder.code(&s, &pred, true, &residual_coder, mb_x, mb_y),
+                ResidualSyntax::Intra8x8 => {
+                    coder.code_intra8x8(&s, &pred, luma8, &residual_coder, (mb_x, mb_y))
+                }
+                ResidualSyntax::Inter => coder.code_inter(&s, &pred, &residual_coder, mb_x, mb_y),
+            };
+            write_mb(&coded.samples, &mut recon, mb_x, mb_y);
+            residual_coder.commit(mb_x, mb_y, mb.kind.residual_syntax(), &coded.residual);
+            *mb = CodedMb::with_levels(mb.kind, coded.residual);
+        }
+    }
+    frame.recon = recon;
+    Ok(())
+}

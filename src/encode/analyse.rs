@@ -600,3 +600,157 @@ fn allowed_intra_modes(mb_x: usize, mb_y: usize) -> impl Iterator<Item = IntraMo
         .into_iter()
         .filter(move |&m| intra_mode_allowed(m, mb_x, mb_y))
 }
+
+#[cfg(test)]
+mod tests {
+    //! The decisions on small crafted frames whose right answer is known:
+    //! what a P frame of 48x48 (9 macroblocks) codes each macroblock as.
+
+    use super::*;
+    use crate::codec::partition::MbVectors;
+    use crate::codec::recon::frame_vectors;
+    use crate::codec::syntax::{EntropyState, SequenceHeader, Vui};
+    use crate::codec::weight::Weights;
+    use crate::encode::config::ModeDecision;
+    use crate::encode::motion::{BlockMotion, FrameMotion, PARTITION_MARGIN};
+    use crate::encode::slice::{code_inter, InterInputs};
+    use crate::me::halfpel::HalfPel;
+
+    const SIZE: usize = 48;
+
+    /// A texture with detail at every scale (no two blocks alike).
+    fn texture(x: isize, y: isize) -> u8 {
+        let (x, y) = (x as f64, y as f64);
+        (128.0 + 50.0 * (x * 0.37).sin() * (y * 0.29).cos() + 30.0 * ((x * 1.7 + y * 0.6).sin())) as u8
+    }
+
+    fn frame(f: impl Fn(isize, isize) -> u8) -> Frame {
+        let mut out = Frame::filled(SIZE, SIZE, 0, 128, 128).unwrap();
+        let y = out.plane_mut(0);
+        for r in 0..SIZE {
+            for (c, v) in y.row_mut(r).iter_mut().enumerate() {
+                *v = f(c as isize, r as isize);
+            }
+        }
+        out.extend_borders();
+        out
+    }
+
+    /// The P frame `src` coded against `reference` with motion analysis'
+    /// vectors `mb` (one per macroblock, quarter-pel): each macroblock's
+    /// kind and its 8x8 blocks' vectors.
+    fn decide(src: &Frame, reference: &Frame, mb: Vec<Mv>, partitions: bool) -> Vec<(MbKind, MbVectors)> {
+        let seq = SequenceHeader {
+            width: SIZE,
+            height: SIZE,
+            fps_num: 25,
+            fps_den: 1,
+            frame_count: 0,
+            vui: Vui::default(),
+            max_refs: 1,
+        };
+        let coder = MbCoder::new(28, 1.4, true);
+        let halfpel = partitions
+            .then(|| HalfPel::new(reference.y(), PARTITION_MARGIN))
+            .flatten();
+        let inputs = InterInputs {
+            references: vec![reference],
+            motion: FrameMotion::Vectors(BlockMotion {
+                mb,
+                blocks: None,
+                halfpel,
+                older: Vec::new(),
+            }),
+            tool: MotionTool::Block,
+            decision: ModeDecision::Full,
+            deblock: true,
+            weights: Weights::NONE,
+            partitions,
+            subpel_rd: false,
+        };
+        // The state after an I frame: P frames' contexts start from it.
+        let mut state = EntropyState::new();
+        let recon = Frame::new(SIZE, SIZE).unwrap();
+        let coded = code_inter(&seq, &coder, src, inputs, &mut state, recon).unwrap();
+        let vectors = frame_vectors(&seq, &coded.syntax);
+        coded.syntax.mbs.iter().map(|m| m.kind).zip(vectors).collect()
+    }
+
+    #[test]
+    fn a_picture_the_reference_predicts_exactly_is_all_skipped() {
+        let reference = frame(texture);
+        let decided = decide(&reference.clone(), &reference, vec![Mv::ZERO; 9], true);
+        assert!(decided.iter().all(|(k, _)| *k == MbKind::Skip), "{decided:?}");
+    }
+
+    #[test]
+    fn a_shifted_picture_takes_the_shift_once_and_skips_along_it() {
+        // The source is the reference moved 3 px left and 2 px up: each
+        // block matches the reference at its position + (3, 2).
+        let reference = frame(texture);
+        let src = frame(|x, y| texture(x + 3, y + 2));
+        let shift = Mv::full_pel(3, 2);
+        let decided = decide(&src, &reference, vec![shift; 9], false);
+        // The first macroblock codes the vector (its prediction is zero);
+        // its neighbours predict it, and any that skip move along it.
+        assert!(
+            matches!(decided[0].0, MbKind::Inter { mv } if mv.mv == shift),
+            "{:?}",
+            decided[0]
+        );
+        for (i, (kind, vectors)) in decided.iter().enumerate() {
+            assert!(!matches!(kind, MbKind::Intra { .. }), "macroblock {i}: {kind:?}");
+            assert!(
+                vectors.iter().all(|v| v.map(|v| v.mv) == Some(shift)),
+                "macroblock {i}: {vectors:?}"
+            );
+        }
+        // Those whose moved block stays inside the picture (the others read
+        // the replicated border, which the texture does not continue)
+        // predict it exactly: skipped.
+        for i in [1, 3, 4] {
+            assert_eq!(decided[i].0, MbKind::Skip, "macroblock {i}");
+        }
+    }
+
+    #[test]
+    fn what_the_reference_does_not_hold_and_the_row_above_predicts_is_intra() {
+        // Vertical stripes over a flat reference: inter has nothing to
+        // copy, while the intra vertical mode continues the row above.
+        let reference = frame(|_, _| 128);
+        let src = frame(|x, _| if (x / 3) % 2 == 0 { 40 } else { 220 });
+        let decided = decide(&src, &reference, vec![Mv::ZERO; 9], true);
+        for (i, (kind, _)) in decided.iter().enumerate().skip(3) {
+            assert!(matches!(kind, MbKind::Intra { .. }), "macroblock {i}: {kind:?}");
+        }
+    }
+
+    #[test]
+    fn two_motions_in_one_macroblock_split_it() {
+        // Each macroblock's left half moves one way, its right half
+        // another: analysis offers both vectors (neighbours alternate), and
+        // a 16x16 vector fits neither half.
+        let reference = frame(texture);
+        let src = frame(|x, y| {
+            if x % 16 < 8 {
+                texture(x + 4, y)
+            } else {
+                texture(x - 4, y + 1)
+            }
+        });
+        let (left, right) = (Mv::full_pel(4, 0), Mv::full_pel(-4, 1));
+        let mb: Vec<Mv> = (0..9).map(|i| if i % 2 == 0 { left } else { right }).collect();
+        let decided = decide(&src, &reference, mb.clone(), true);
+        let split = decided
+            .iter()
+            .filter(|(k, _)| matches!(k, MbKind::Split { .. }))
+            .count();
+        assert!(split >= 5, "{decided:?}");
+        // Without partitions nothing can be split.
+        let whole = decide(&src, &reference, mb, false);
+        assert!(
+            whole.iter().all(|(k, _)| !matches!(k, MbKind::Split { .. })),
+            "{whole:?}"
+        );
+    }
+}

@@ -94,31 +94,45 @@ def without_tests(text):
         text = text[:m.start()] + re.sub(r"[^\n]", " ", text[m.start():end + 1]) + text[end + 1:]
 
 
-def crate_paths(text):
-    """The first segment of every `crate::...` path, `crate::{a, b}` groups expanded."""
-    heads = []
-    for m in re.finditer(r"\bcrate\s*::\s*", text):
-        rest = text[m.end():]
+def paths_from(text, anchor):
+    """Every path written after `anchor` (`crate::`, `super::`), as a list
+    of its segments, `{a, b::c}` groups expanded."""
+    out = []
+
+    def expand(prefix, rest):
+        rest = rest.lstrip()
         if rest.startswith("{"):
-            group = rest[1:matching_brace(rest, 0)]
+            end = matching_brace(rest, 0)
             depth, item = 0, ""
-            for ch in group + ",":
+            for ch in rest[1:end] + ",":
                 if ch == "{":
                     depth += 1
                 elif ch == "}":
                     depth -= 1
                 if ch == "," and depth == 0:
-                    h = re.match(r"\s*(\w+)", item)
-                    if h:
-                        heads.append(h.group(1))
+                    if item.strip():
+                        expand(prefix, item)
                     item = ""
                 else:
                     item += ch
+            return
+        m = re.match(r"((?:\w+\s*::\s*)*)(\w+|\{)", rest)
+        if not m:
+            return
+        segs = [x for x in re.split(r"\s*::\s*", m.group(1)) if x]
+        if m.group(2) == "{":
+            expand(prefix + segs, rest[m.end() - 1:])
         else:
-            h = re.match(r"(\w+)", rest)
-            if h:
-                heads.append(h.group(1))
-    return heads
+            out.append(prefix + segs + [m.group(2)])
+
+    for m in re.finditer(r"\b" + anchor + r"\s*::\s*", text):
+        expand([], text[m.end():])
+    return out
+
+
+def crate_paths(text):
+    """The first segment of every `crate::...` path (kept for the module level)."""
+    return [p[0] for p in paths_from(text, "crate") if p]
 
 
 def reexports(lib_text):
@@ -150,15 +164,32 @@ def edges(top, file_level, skip):
     for f in rust_files(top):
         m = module_of(f, top, file_level)
         if m not in skip:
-            modules.add(m.split("::")[0] if not file_level else m)
+            modules.add(m if file_level else m.split("::")[0])
     graph = {}
     for f in rust_files(top):
         me = module_of(f, top, file_level)
         if me in skip:
             continue
         text = without_tests(strip_comments_and_strings(open(f).read()))
-        for head in crate_paths(text):
-            target = head if head in modules else alias.get(head)
+        found = [p for p in paths_from(text, "crate")]
+        if file_level:
+            # `super::x` from a/b.rs (module a::b) is a::x; from a/mod.rs (a), the crate's x.
+            parent = me.split("::")[:-1] if not f.endswith("mod.rs") else me.split("::")[:-1]
+            found += [parent + p for p in paths_from(text, "super")]
+        for path in found:
+            if not path:
+                continue
+            target = None
+            if file_level:
+                for n in range(len(path), 0, -1):
+                    cand = "::".join(path[:n])
+                    if cand in modules:
+                        target = cand
+                        break
+                if target is None:
+                    target = alias.get(path[0])
+            else:
+                target = path[0] if path[0] in modules else alias.get(path[0])
             if target and target != me and target in modules and target not in skip:
                 graph.setdefault(me, set()).add(target)
     return graph

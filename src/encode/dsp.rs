@@ -43,7 +43,7 @@ pub type IntraBlock8Fn = fn(&[u8; 256], &[u8; 256], usize, (u8, f64), Option<&Bl
 /// Inter luma's zeroing of costly lone levels ([`decimate_luma`]).
 pub type DecimateLumaFn = fn(&mut [Block4; 16]);
 
-/// The summed zeroing cost of blocks' levels ([`coefficient_cost`], as
+/// The summed zeroing cost of blocks' levels (H.264's reference encoder's, as
 /// x264's `decimate_score`).
 pub type DecimateScoreFn = fn(&[Block4]) -> u32;
 

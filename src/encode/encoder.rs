@@ -18,7 +18,7 @@ use crate::codec::weight::Weights;
 use crate::codec::{Frame, PictureError};
 use crate::metrics::{psnr_from_mse, FrameQuality};
 
-/// Encodes a sequence frame by frame. See the [module](self) example.
+/// Encodes a sequence frame by frame. See the [module](super) example.
 pub struct Encoder {
     seq: SequenceHeader,
     config: EncoderConfig,

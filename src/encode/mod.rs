@@ -1,6 +1,16 @@
-//! The encoder: IPPP coding at a fixed QP, one reference (the previous
-//! reconstruction), per-macroblock rate-distortion mode decision over skip,
-//! inter and intra, and a choice of P-frame predictors ([`Predictor`]).
+//! The encoder: IPPP coding at a fixed QP (I frames at the ipratio's
+//! lower QP), P frames predicting from up to eight references (the
+//! reconstructions since the last I frame, the latest weighted), the
+//! per-macroblock rate-distortion mode decision over skip, inter (whole or
+//! in partitions) and intra (16x16, 8x8 or 4x4 blocks), the transform size,
+//! and a choice of P-frame predictors ([`Predictor`]).
+//!
+//! Laid out as x264's encoder is: [`encoder`](Encoder) the frame loop,
+//! `slice.rs` one frame's macroblocks, `analyse.rs` every decision,
+//! `macroblock.rs` coding a decided macroblock, `rdo.rs` the RD pricing,
+//! `motion.rs` the predictors' motion analysis, [`dsp`] the coder's
+//! kernels; [`EncoderConfig::from_preset`] and [`EncoderConfig::set`] the
+//! options by name, [`encode_sequence`] the one encode loop.
 //!
 //! Everything here is encoder choice; what a frame decodes to is fixed by
 //! the codec crate, whose functions do all reconstruction, so the

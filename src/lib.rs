@@ -28,6 +28,7 @@ pub mod cli;
 pub mod encode;
 pub mod features;
 pub mod flow;
+pub mod fuzzing;
 pub mod imgproc;
 pub mod io;
 pub mod me;

@@ -215,8 +215,8 @@ fn coder_table(c: &mut Criterion) {
     let (src, pred): ([u8; 256], [u8; 256]) = (src.try_into().unwrap(), pred.try_into().unwrap());
     let coder = ResidualCoder::new(1, 1);
     let (rate4, rate8) = (
-        coder.block_pricer(BlockClass::luma(false)),
-        coder.block8_pricer(false),
+        mocomp::encode::rate::block_pricer(&coder, BlockClass::luma(false)),
+        mocomp::encode::rate::block8_pricer(&coder, false),
     );
     let lambda = 0.85 * 2f64.powf(16.0 / 3.0);
     let (mut residuals, mut blocks) = ([[[0i32; 4]; 4]; 16], [[[0i32; 4]; 4]; 16]);

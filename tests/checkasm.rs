@@ -426,7 +426,7 @@ fn macroblock_coder() {
                         (src[..].try_into().unwrap(), pred.clone().try_into().unwrap());
                     let lambda = 0.85 * 2f64.powf((f64::from(qp) - 12.0) / 3.0);
                     for intra in [true, false] {
-                        let rate = coder.block8_pricer(intra);
+                        let rate = mocomp::encode::rate::block8_pricer(&coder, intra);
                         for rate in [None, Some(&rate)] {
                             if !intra {
                                 assert_eq!(
@@ -456,7 +456,7 @@ fn macroblock_coder() {
                     BlockClass::luma(false),
                     BlockClass::chroma(false),
                 ] {
-                    let rate = coder.block_pricer(class);
+                    let rate = mocomp::encode::rate::block_pricer(&coder, class);
                     let (mut a, mut b) = (levels, levels);
                     rdoq_4x4(&residual, &mut a, qp, lambda, &rate);
                     (s.rdoq_4x4)(&residual, &mut b, qp, lambda, &rate);

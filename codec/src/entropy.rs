@@ -263,7 +263,8 @@ impl<'a> RangeDecoder<'a> {
 }
 
 /// Cost in 1/256 bit of coding a bin whose probability is `p` (in units of
-/// 2^-15): the encoder's rate estimate. Not normative.
+/// 2^-15): what the writer's bit statistics and an encoder's rate estimates
+/// add up. Not normative (no decoded sample depends on it).
 pub fn cost(p: u32) -> u32 {
     cost_table()[cost_index(p)]
 }
@@ -275,7 +276,7 @@ fn cost_index(p: u32) -> usize {
 }
 
 /// [`cost`] tabulated, for pricers that look it up per bin.
-pub(crate) fn cost_table() -> &'static [u32; COST_ENTRIES] {
+pub fn cost_table() -> &'static [u32; COST_ENTRIES] {
     COST.get_or_init(|| {
         std::array::from_fn(|i| {
             let p = (i as f64 + 0.5) / COST_ENTRIES as f64;
@@ -285,7 +286,8 @@ pub(crate) fn cost_table() -> &'static [u32; COST_ENTRIES] {
 }
 
 const COST_ENTRIES_LOG2: u32 = 10;
-pub(crate) const COST_ENTRIES: usize = 1 << COST_ENTRIES_LOG2;
+/// Entries of [`cost_table`].
+pub const COST_ENTRIES: usize = 1 << COST_ENTRIES_LOG2;
 static COST: std::sync::OnceLock<[u32; COST_ENTRIES]> = std::sync::OnceLock::new();
 
 impl Context {
@@ -297,7 +299,7 @@ impl Context {
     /// The costs of a 0 and of a 1 in this context's present state, for
     /// every context of a class at once (`table` from [`cost_table`]).
     #[inline]
-    pub(crate) fn costs_in(&self, table: &[u32; COST_ENTRIES]) -> [u32; 2] {
+    pub fn costs_in(&self, table: &[u32; COST_ENTRIES]) -> [u32; 2] {
         [self.cost_in(table, false), self.cost_in(table, true)]
     }
 
@@ -314,10 +316,13 @@ pub const BYPASS_COST: u32 = 256;
 
 /// Where the syntax's bins go: written, only adapted, or only priced. The
 /// binarisations in `residual.rs` and `modes.rs` are written once over
-/// this, so the encoder's rate term and the adaptation follow the writer
-/// exactly. `ctx` indexes the coder's own context array.
-pub(crate) trait Bins {
+/// this (their `replay` methods run them into any sink), so an encoder's
+/// rate estimates and the adaptation follow the writer exactly. `ctx`
+/// indexes the coder's own context array (its `contexts()`).
+pub trait Bins {
+    /// A context-coded bin.
     fn bin(&mut self, ctx: usize, bit: bool);
+    /// A bypass bin (probability one half).
     fn bypass(&mut self, bit: bool);
 }
 
@@ -367,9 +372,12 @@ impl Bins for Adapter<'_> {
 
 /// Prices bins in the contexts' present state (1/256 bit) without adapting
 /// them: exact for a context's first bin, an estimate for the next ones.
-pub(crate) struct Pricer<'a> {
+/// Not normative: the sum a writer's bit statistics and an encoder's rate
+/// estimates are made of.
+pub struct Pricer<'a> {
     contexts: &'a [Context],
     table: &'static [u32; COST_ENTRIES],
+    /// The bins' cost so far, 1/256 bit.
     pub cost: u32,
 }
 

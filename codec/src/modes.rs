@@ -11,7 +11,7 @@
 //! neighbours' state; one binarisation writes, reads, adapts and prices.
 
 use crate::entropy::{
-    get_exp_golomb, put_exp_golomb, Adapter, Bins, Context, Pricer, RangeDecoder, RangeEncoder, Writer,
+    get_exp_golomb, put_exp_golomb, Adapter, Bins, Context, RangeDecoder, RangeEncoder, Writer,
 };
 use crate::intra::IntraMode;
 use crate::intra4x4::{most_probable, neighbour_modes, Intra4x4Mode, LumaIntra, CODING_ORDER};
@@ -588,28 +588,33 @@ impl ModeCoder {
         neighbours(&self.states, self.mb_cols, mb_x, mb_y)
     }
 
-    /// The rate estimate, in 1/256 bit, of coding macroblock (mb_x, mb_y)
-    /// as `mode` now (`inter_frame`: a P frame; `vectors`: which vectors the
-    /// frame codes). Not normative.
-    pub fn cost(
+    /// Runs the binarisation of `mode` as macroblock (mb_x, mb_y) in the
+    /// present state into `bins` (`inter_frame`: a P frame; `vectors`:
+    /// which vectors the frame codes), adapting nothing: what an encoder
+    /// prices its choices with ([`crate::entropy::Pricer`]).
+    pub fn replay<B: Bins>(
         &self,
-        mb_x: usize,
-        mb_y: usize,
+        bins: &mut B,
+        (mb_x, mb_y): (usize, usize),
         inter_frame: bool,
         vectors: VectorSyntax,
         mode: &MbMode,
-    ) -> u32 {
-        let mut p = Pricer::new(&self.contexts[..], 0);
-        code_mb(&mut p, &self.neighbours(mb_x, mb_y), inter_frame, mode, vectors);
-        p.cost
+    ) {
+        code_mb(bins, &self.neighbours(mb_x, mb_y), inter_frame, mode, vectors);
     }
 
-    /// The rate estimate, in 1/256 bit, of the flag saying macroblock
-    /// (mb_x, mb_y) of a P frame is not skipped: what every choice but skip
-    /// spends at least. Not normative.
-    pub fn not_skipped_cost(&self, mb_x: usize, mb_y: usize) -> u32 {
-        let skipped = self.neighbours(mb_x, mb_y).iter().filter(|s| s.skip).count();
-        self.contexts[SKIP + skipped].cost(false)
+    /// The context of macroblock (mb_x, mb_y)'s skip flag (in a P frame).
+    pub fn skip_context(&self, mb_x: usize, mb_y: usize) -> usize {
+        SKIP + self.neighbours(mb_x, mb_y).iter().filter(|s| s.skip).count()
+    }
+
+    /// The contexts of a 4x4 or 8x8 intra mode: the most-probable flag,
+    /// and the remaining mode's three bins.
+    pub const MODE4_CONTEXTS: (usize, usize) = (MOST_PROBABLE, REMAINING);
+
+    /// The contexts in their present state.
+    pub fn contexts(&self) -> &[Context] {
+        &self.contexts
     }
 
     /// The 4x4 intra modes the blocks of macroblock (mb_x, mb_y) see in
@@ -618,18 +623,6 @@ impl ModeCoder {
     /// predict modes while choosing them.
     pub fn modes4_around(&self, mb_x: usize, mb_y: usize) -> [Option<[Intra4x4Mode; 16]>; 2] {
         self.neighbours(mb_x, mb_y).map(|s| s.modes4_seen())
-    }
-
-    /// The rate estimates, in 1/256 bit, of a 4x4 intra mode that is the
-    /// most probable one and of one that is not (its three bins taken at
-    /// their mean price). Not normative.
-    pub fn mode4_costs(&self) -> (u32, u32) {
-        let flag = &self.contexts[MOST_PROBABLE];
-        let rest = &self.contexts[REMAINING];
-        (
-            flag.cost(true),
-            flag.cost(false) + 3 * (rest.cost(false) + rest.cost(true)) / 2,
-        )
     }
 
     /// Adapts and records as [`ModeCoder::write`] does, without writing.
@@ -751,6 +744,21 @@ impl ModeCoder {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::entropy::Pricer;
+
+    /// The bits of `mode` at (x, y), priced as an encoder prices it.
+    fn cost(
+        c: &ModeCoder,
+        x: usize,
+        y: usize,
+        inter_frame: bool,
+        vectors: VectorSyntax,
+        mode: &MbMode,
+    ) -> u32 {
+        let mut p = Pricer::new(c.contexts(), 0);
+        c.replay(&mut p, (x, y), inter_frame, vectors, mode);
+        p.cost
+    }
     use proptest::prelude::*;
 
     fn mode_strategy() -> impl Strategy<Value = MbMode> {
@@ -873,7 +881,7 @@ mod tests {
         c.commit(0, 0, false, VectorSyntax::None, &intra(left));
         // Every bin at even odds: a bin costs one bit.
         c.contexts = [Context::new(); CONTEXTS];
-        c.cost(1, 0, false, VectorSyntax::None, &intra(mb))
+        cost(&c, 1, 0, false, VectorSyntax::None, &intra(mb))
     }
 
     #[test]
@@ -909,11 +917,11 @@ mod tests {
     #[test]
     fn a_run_of_skips_gets_cheap() {
         let mut c = ModeCoder::new(40, 1);
-        let first = c.cost(0, 0, true, VectorSyntax::ONE_REFERENCE, &MbMode::Skip);
+        let first = cost(&c, 0, 0, true, VectorSyntax::ONE_REFERENCE, &MbMode::Skip);
         for x in 0..39 {
             c.commit(x, 0, true, VectorSyntax::ONE_REFERENCE, &MbMode::Skip);
         }
-        let later = c.cost(39, 0, true, VectorSyntax::ONE_REFERENCE, &MbMode::Skip);
+        let later = cost(&c, 39, 0, true, VectorSyntax::ONE_REFERENCE, &MbMode::Skip);
         assert_eq!(first, 256);
         assert!(later < 64, "{later}"); // under a quarter of a bit
     }
@@ -925,20 +933,20 @@ mod tests {
             mvd: Mv::new(4, 0),
             ref_idx,
         };
-        let one = c.cost(0, 0, true, VectorSyntax::ONE_REFERENCE, &inter(0));
+        let one = cost(&c, 0, 0, true, VectorSyntax::ONE_REFERENCE, &inter(0));
         // A first bin at even odds costs one bit.
         let three = VectorSyntax::PerPartition { refs: 3 };
-        assert_eq!(c.cost(0, 0, true, three, &inter(0)), one + 256);
-        assert_eq!(c.cost(0, 0, true, three, &inter(1)), one + 512);
+        assert_eq!(cost(&c, 0, 0, true, three, &inter(0)), one + 256);
+        assert_eq!(cost(&c, 0, 0, true, three, &inter(1)), one + 512);
         // The last index needs no terminating bin.
-        assert_eq!(c.cost(0, 0, true, three, &inter(2)), one + 512);
+        assert_eq!(cost(&c, 0, 0, true, three, &inter(2)), one + 512);
         // A neighbour on reference 2 moves the first bin to another context.
         let mut c = ModeCoder::new(2, 1);
         for _ in 0..20 {
             c.commit(0, 0, true, three, &inter(0));
         }
-        let after_zeros = c.cost(1, 0, true, three, &inter(0));
+        let after_zeros = cost(&c, 1, 0, true, three, &inter(0));
         c.commit(0, 0, true, three, &inter(2));
-        assert!(c.cost(1, 0, true, three, &inter(0)) > after_zeros);
+        assert!(cost(&c, 1, 0, true, three, &inter(0)) > after_zeros);
     }
 }

@@ -29,8 +29,7 @@
 //! exactly as it adapts.
 
 use crate::entropy::{
-    cost_table, get_exp_golomb, put_exp_golomb, Adapter, Bins, Context, Pricer, RangeDecoder, RangeEncoder,
-    Writer,
+    get_exp_golomb, put_exp_golomb, Adapter, Bins, Context, RangeDecoder, RangeEncoder, Writer,
 };
 use crate::transform::Block4;
 use crate::transform8x8::{Block8, ZIGZAG8};
@@ -138,7 +137,8 @@ const SIG: usize = 3; // 15: scan position
 const LAST: usize = SIG + 15; // 15: scan position
 const GT1: usize = LAST + 15; // 5
 const ABS: usize = GT1 + 5; // 5
-const CLASS_CONTEXTS: usize = ABS + 5;
+/// Contexts of one 4x4 block class.
+pub const CLASS_CONTEXTS: usize = ABS + 5;
 const CBP: usize = 4 * CLASS_CONTEXTS;
 /// Per kind: 4 luma (left + 2 above), 3 Cb (left + above), 6 Cr (left +
 /// above + 3 Cb).
@@ -150,7 +150,8 @@ const SIG8: usize = 0;
 const LAST8: usize = SIG8 + 15;
 const GT1_8: usize = LAST8 + 8;
 const ABS8: usize = GT1_8 + 5;
-const CLASS8_CONTEXTS: usize = ABS8 + 5;
+/// Contexts of one 8x8 block class.
+pub const CLASS8_CONTEXTS: usize = ABS8 + 5;
 const CLASS8: usize = CBP + 2 * CBP_CONTEXTS;
 /// The transform-size flag of inter macroblocks: neighbours left and
 /// above that use the 8x8 transform.
@@ -166,6 +167,12 @@ pub struct BlockClass {
 }
 
 impl BlockClass {
+    /// The context of the class's coded flag with `coded` (0..=2) coded
+    /// neighbours.
+    pub fn coded_flag_context(self, coded: usize) -> usize {
+        self.first_context() + CBF + coded.min(2)
+    }
+
     /// Luma blocks of an intra (`true`) or inter macroblock.
     pub fn luma(intra: bool) -> BlockClass {
         BlockClass { chroma: false, intra }
@@ -176,8 +183,9 @@ impl BlockClass {
         BlockClass { chroma: true, intra }
     }
 
-    /// The class's first context.
-    fn first_context(self) -> usize {
+    /// The class's first context (of [`CLASS_CONTEXTS`], in the coder's
+    /// [`ResidualCoder::contexts`]).
+    pub fn first_context(self) -> usize {
         (usize::from(self.chroma) * 2 + usize::from(self.intra)) * CLASS_CONTEXTS
     }
 }
@@ -328,7 +336,9 @@ fn t8_ctx(e: &Edges) -> usize {
     T8_FLAG + usize::from(e.t8_left) + usize::from(e.t8_above)
 }
 
-fn class8_base(intra: bool) -> usize {
+/// The first context of the 8x8 luma blocks of intra (`true`) or inter
+/// macroblocks.
+pub fn class8_base(intra: bool) -> usize {
     CLASS8 + usize::from(intra) * CLASS8_CONTEXTS
 }
 
@@ -387,7 +397,9 @@ fn code_mb<B: Bins>(b: &mut B, e: &Edges, syntax: ResidualSyntax, res: &MbResidu
 }
 
 /// One block with at least one non-zero level.
-fn code_block<B: Bins>(b: &mut B, cls: usize, block: &Block4) {
+/// The bins of a 4x4 block's levels in the class whose first context is
+/// `cls`, its coded flag excepted (the macroblock's syntax codes it).
+pub fn code_block<B: Bins>(b: &mut B, cls: usize, block: &Block4) {
     let flat = block.as_flattened();
     let scan: [i32; 16] = std::array::from_fn(|k| flat[ZIGZAG[k]]);
     let last = scan.iter().rposition(|&v| v != 0).unwrap_or(0);
@@ -417,7 +429,9 @@ const DIAGONAL8: [usize; 64] = {
 
 /// One 8x8 block with at least one non-zero level, in the class whose
 /// first context is `cls`.
-fn code_block8<B: Bins>(b: &mut B, cls: usize, block: &Block8) {
+/// The bins of an 8x8 block's levels in the class whose first context is
+/// `cls` ([`class8_base`]).
+pub fn code_block8<B: Bins>(b: &mut B, cls: usize, block: &Block8) {
     let flat = block.as_flattened();
     let scan: [i32; 64] = std::array::from_fn(|k| flat[ZIGZAG8[k]]);
     let last = scan.iter().rposition(|&v| v != 0).unwrap_or(0);
@@ -458,77 +472,6 @@ fn code_levels<B: Bins>(b: &mut B, gt1_ctx: usize, abs_ctx: usize, scan: &[i32])
             eq1 += 1;
         }
         b.bypass(v < 0);
-    }
-}
-
-/// The bin costs of one block class in a [`ResidualCoder`]'s state, for
-/// pricing blocks ([`ResidualCoder::block_pricer`]).
-#[derive(Debug, Clone)]
-pub struct BlockPricer {
-    /// Cost (1/256 bit) of a 0 and of a 1 in each of the class's contexts.
-    costs: [[u32; 2]; CLASS_CONTEXTS],
-    cls: usize,
-    /// The coded flag's costs (0, 1) with one coded neighbour.
-    flag: (u32, u32),
-}
-
-impl BlockPricer {
-    /// What [`ResidualCoder::block_cost`] returns for `block` in the state
-    /// the pricer was made from.
-    pub fn block_cost(&self, block: &Block4) -> u32 {
-        if is_zero(block) {
-            return 0;
-        }
-        let mut p = TablePricer {
-            costs: &self.costs,
-            first: self.cls,
-            cost: self.flag.1,
-        };
-        code_block(&mut p, self.cls, block);
-        p.cost.saturating_sub(self.flag.0)
-    }
-}
-
-/// The bin costs of the 8x8 blocks of intra or inter luma in a
-/// [`ResidualCoder`]'s state ([`ResidualCoder::block8_pricer`]).
-#[derive(Debug, Clone)]
-pub struct Block8Pricer {
-    costs: [[u32; 2]; CLASS8_CONTEXTS],
-    cls: usize,
-}
-
-impl Block8Pricer {
-    /// The cost in 1/256 bit of `block`'s levels (0 for an all-zero block;
-    /// its pattern bit is the caller's).
-    pub fn block_cost(&self, block: &Block8) -> u32 {
-        if is_zero8(block) {
-            return 0;
-        }
-        let mut p = TablePricer {
-            costs: &self.costs,
-            first: self.cls,
-            cost: 0,
-        };
-        code_block8(&mut p, self.cls, block);
-        p.cost
-    }
-}
-
-/// Prices bins from a table of one class's bin costs (`first`: the
-/// class's first context).
-struct TablePricer<'a> {
-    costs: &'a [[u32; 2]],
-    first: usize,
-    cost: u32,
-}
-
-impl Bins for TablePricer<'_> {
-    #[inline]
-    fn bin(&mut self, ctx: usize, bit: bool) {
-        self.cost += self.costs[ctx - self.first][usize::from(bit)];
-    }
-    fn bypass(&mut self, _: bool) {
-        self.cost += crate::entropy::BYPASS_COST;
     }
 }
 
@@ -634,55 +577,26 @@ impl ResidualCoder {
         }
     }
 
-    /// The rate estimate, in 1/256 bit, of coding `res` as macroblock
-    /// (mb_x, mb_y) now: the contexts' present state, not adapted within
-    /// the macroblock. Not normative (the encoder's rate term).
-    pub fn cost(&self, mb_x: usize, mb_y: usize, syntax: ResidualSyntax, res: &MbResidual) -> u32 {
-        let mut p = Pricer::new(&self.contexts[..], 0);
-        code_mb(&mut p, &self.edges(mb_x, mb_y), syntax, res);
-        p.cost
+    /// Runs the binarisation of `res` as macroblock (mb_x, mb_y) in the
+    /// present state into `bins` (the contexts indexed as [`contexts`]
+    /// gives them), adapting nothing: what an encoder prices its choices
+    /// with ([`crate::entropy::Pricer`]).
+    ///
+    /// [`contexts`]: ResidualCoder::contexts
+    pub fn replay<B: Bins>(
+        &self,
+        bins: &mut B,
+        mb_x: usize,
+        mb_y: usize,
+        syntax: ResidualSyntax,
+        res: &MbResidual,
+    ) {
+        code_mb(bins, &self.edges(mb_x, mb_y), syntax, res);
     }
 
-    /// What coding `block` adds, in 1/256 bit, over an all-zero block in
-    /// its place (0 for an all-zero block): its levels and the change of
-    /// its coded flag, priced with one coded neighbour. Not normative (for
-    /// per-block rate-distortion decisions).
-    pub fn block_cost(&self, class: BlockClass, block: &Block4) -> u32 {
-        if is_zero(block) {
-            return 0;
-        }
-        let cls = class.first_context();
-        let flag = &self.contexts[cls + CBF + 1];
-        let mut p = Pricer::new(&self.contexts[..], flag.cost(true));
-        code_block(&mut p, cls, block);
-        p.cost.saturating_sub(flag.cost(false))
-    }
-
-    /// [`ResidualCoder::block_cost`] for one block class with the costs of
-    /// its contexts' bins looked up once: what an encoder pricing many
-    /// trial blocks against the same state needs.
-    pub fn block_pricer(&self, class: BlockClass) -> BlockPricer {
-        let cls = class.first_context();
-        let table = cost_table();
-        let costs: [[u32; 2]; CLASS_CONTEXTS] =
-            std::array::from_fn(|k| self.contexts[cls + k].costs_in(table));
-        let [flag0, flag1] = costs[CBF + 1];
-        BlockPricer {
-            costs,
-            cls,
-            flag: (flag0, flag1),
-        }
-    }
-
-    /// The pricer of 8x8 luma blocks of intra (`true`) or inter
-    /// macroblocks in the present state.
-    pub fn block8_pricer(&self, intra: bool) -> Block8Pricer {
-        let cls = class8_base(intra);
-        let table = cost_table();
-        Block8Pricer {
-            costs: std::array::from_fn(|k| self.contexts[cls + k].costs_in(table)),
-            cls,
-        }
+    /// The contexts in their present state.
+    pub fn contexts(&self) -> &[Context] {
+        &self.contexts[..]
     }
 
     /// Adapts the contexts and records the coded flags as
@@ -934,51 +848,27 @@ fn read_levels(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use proptest::prelude::*;
+    use crate::entropy::Pricer;
 
-    #[test]
-    fn the_block_pricer_prices_as_block_cost() {
-        let mut seed = 5u32;
-        let mut next = |n: u32| {
-            seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
-            ((seed >> 16) % n) as i32
-        };
-        let mut coder = ResidualCoder::new(4, 4);
-        for round in 0..200 {
-            // Sparse blocks with small levels, some large ones past the
-            // unary part.
-            let mut res = MbResidual::default();
-            for b in res.luma.iter_mut().chain(res.chroma.iter_mut().flatten()) {
-                for v in b.as_flattened_mut() {
-                    *v = match next(10) {
-                        0 => next(5) - 2,
-                        1 => next(61) - 30,
-                        _ => 0,
-                    };
-                }
-            }
-            let intra = round % 3 == 0;
-            for chroma in [false, true] {
-                let class = BlockClass { chroma, intra };
-                let pricer = coder.block_pricer(class);
-                let blocks: Vec<&Block4> = if chroma {
-                    res.chroma.iter().flatten().collect()
-                } else {
-                    res.luma.iter().collect()
-                };
-                for b in blocks {
-                    assert_eq!(pricer.block_cost(b), coder.block_cost(class, b));
-                }
-            }
-            // Adapt, so that later rounds price other states.
-            coder.commit(
-                (round % 4) as usize,
-                (round / 4 % 4) as usize,
-                ResidualSyntax::of_4x4(intra),
-                &res,
-            );
-        }
+    /// The bits of `res` at (x, y), priced as an encoder prices them.
+    fn cost(coder: &ResidualCoder, x: usize, y: usize, syntax: ResidualSyntax, res: &MbResidual) -> u32 {
+        let mut p = Pricer::new(coder.contexts(), 0);
+        coder.replay(&mut p, x, y, syntax, res);
+        p.cost
     }
+
+    /// What `block` adds over an all-zero block, its flag priced with one
+    /// coded neighbour.
+    fn block_cost(coder: &ResidualCoder, class: BlockClass, block: &Block4) -> u32 {
+        if is_zero(block) {
+            return 0;
+        }
+        let flag = &coder.contexts()[class.coded_flag_context(1)];
+        let mut p = Pricer::new(coder.contexts(), flag.cost(true));
+        code_block(&mut p, class.first_context(), block);
+        p.cost.saturating_sub(flag.cost(false))
+    }
+    use proptest::prelude::*;
 
     #[test]
     fn the_8x8_pricer_prices_what_the_blocks_add() {
@@ -988,7 +878,6 @@ mod tests {
             ((seed >> 16) % n) as i32
         };
         let coder = ResidualCoder::new(1, 1);
-        let pricer = coder.block8_pricer(false);
         for _ in 0..50 {
             let mut b8 = Box::new([[[0; 8]; 8]; 4]);
             for v in b8.as_flattened_mut().as_flattened_mut() {
@@ -1001,7 +890,18 @@ mod tests {
             };
             // The macroblock's price is its pattern's and flag's bins
             // (priced here one by one) plus the blocks' prices.
-            let blocks: u32 = b8.iter().map(|b| pricer.block_cost(b)).sum();
+            let blocks: u32 = b8
+                .iter()
+                .map(|b| {
+                    let mut p = Pricer::new(coder.contexts(), 0);
+                    code_block8(&mut p, class8_base(false), b);
+                    if is_zero8(b) {
+                        0
+                    } else {
+                        p.cost
+                    }
+                })
+                .sum();
             let mut p = Pricer::new(&coder.contexts[..], 0);
             let e = Edges::default();
             let cbp = res.cbp();
@@ -1011,7 +911,7 @@ mod tests {
             p.bin(t8_ctx(&e), true);
             p.bin(cbp_base(false) + 4, false);
             p.bin(cbp_base(false) + 4 + 3, false);
-            assert_eq!(coder.cost(0, 0, ResidualSyntax::Inter, &res), p.cost + blocks);
+            assert_eq!(cost(&coder, 0, 0, ResidualSyntax::Inter, &res), p.cost + blocks);
         }
     }
 
@@ -1085,7 +985,7 @@ mod tests {
         two.luma[4][0][0] = 1;
         let coder = ResidualCoder::new(1, 1);
         let cls = BlockClass::luma(false).first_context();
-        let block_bits = coder.block_cost(BlockClass::luma(false), &one.luma[5]);
+        let block_bits = block_cost(&coder, BlockClass::luma(false), &one.luma[5]);
         assert!(block_bits > 0);
         // Pricing follows the coder: with the flag implied, coding block 5
         // costs the flags of 0, 1, 4 (all 0) and no flag of its own.
@@ -1096,7 +996,7 @@ mod tests {
                     .cost(false)
             })
             .sum();
-        let pattern = coder.cost(0, 0, ResidualSyntax::Inter, &MbResidual::default());
+        let pattern = cost(&coder, 0, 0, ResidualSyntax::Inter, &MbResidual::default());
         let mut p = Pricer::new(&coder.contexts[..], 0);
         code_block(&mut p, cls, &one.luma[5]);
         // The pattern's first bin differs (quadrant 0 coded): price it apart.
@@ -1105,11 +1005,11 @@ mod tests {
         // An inter macroblock with luma levels says which transform it uses.
         let t4 = coder.contexts[T8_FLAG].cost(false);
         assert_eq!(
-            coder.cost(0, 0, ResidualSyntax::Inter, &one),
+            cost(&coder, 0, 0, ResidualSyntax::Inter, &one),
             pattern_one + t4 + flags + p.cost
         );
         assert!(
-            coder.cost(0, 0, ResidualSyntax::Inter, &two) > coder.cost(0, 0, ResidualSyntax::Inter, &one)
+            cost(&coder, 0, 0, ResidualSyntax::Inter, &two) > cost(&coder, 0, 0, ResidualSyntax::Inter, &one)
         );
     }
 
@@ -1235,7 +1135,7 @@ mod tests {
                     }
                 }
             }
-            priced += u64::from(coder.cost(i % 6, i / 6, ResidualSyntax::Inter, &res));
+            priced += u64::from(cost(&coder, i % 6, i / 6, ResidualSyntax::Inter, &res));
             coder.write(&mut enc, i % 6, i / 6, ResidualSyntax::Inter, &res);
         }
         let written = enc.finish().len() as f64 * 8.0;

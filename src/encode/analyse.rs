@@ -5,6 +5,7 @@
 //! J = SSD + lambda * bits kept in the macroblock's [`MbAnalysis`]. The
 //! I frame's choice is [`best_intra`] without an inter bound.
 
+use super::rate;
 use super::rdo::{self, reference_bits, RD_MARGIN};
 use super::slice::InterFrameCoder;
 use crate::codec::bits::ue_len;
@@ -102,7 +103,7 @@ pub(super) fn best_intra(
     let inter_frame = bound.is_some();
     let choice = |luma: LumaIntra, pred: MbSamples, c: Coded| {
         let mode = MbMode::Intra { luma, chroma };
-        let mode_bits = rdo::bits(modes.cost(at.0, at.1, inter_frame, VectorSyntax::None, &mode));
+        let mode_bits = rdo::bits(rate::mode_cost(modes, at, inter_frame, VectorSyntax::None, &mode));
         Choice {
             cost: rdo::cost(coder.lambda, c.ssd, c.bits + mode_bits),
             residual_cost: rdo::cost(coder.lambda, c.ssd, c.bits),
@@ -292,7 +293,7 @@ impl InterFrameCoder<'_> {
         );
         // Every other choice spends at least the flag saying it is not
         // skipped: when skip costs no more, nothing can beat it.
-        let not_skipped = rdo::bits(self.sink.modes().not_skipped_cost(mb_x, mb_y));
+        let not_skipped = rdo::bits(rate::not_skipped_cost(self.sink.modes(), (mb_x, mb_y)));
         mb.exhaustive = mb.best.cost > rdo::cost(lambda, 0, not_skipped);
         mb
     }

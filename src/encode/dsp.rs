@@ -8,9 +8,10 @@
 //! coefficient at a time); integer arithmetic and the same floating-point
 //! operations without FMA: the same levels.
 
+use super::rate::{Block8Pricer, BlockPricer};
 use super::transform8x8::{inter_luma8, intra_block8};
 use crate::codec::dsp::PerLevel;
-use crate::codec::residual::{Block8Pricer, BlockPricer, ZIGZAG};
+use crate::codec::residual::ZIGZAG;
 use crate::codec::transform::{
     dequantize, dequantize_level, forward_4x4, inverse_4x4, inverse_4x4_unrounded, quantize, Block4,
 };
@@ -105,9 +106,9 @@ pub fn coder() -> &'static CoderDsp {
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    use crate::codec::residual::{Block8Pricer, BlockPricer};
     use crate::codec::transform::Block4;
     use crate::codec::transform8x8::Block8;
+    use crate::encode::rate::{Block8Pricer, BlockPricer};
     crate::codec::compiled_for! { "avx2":
         fn quantize_blocks(s: &[u8], p: &[u8], size: usize, qp: u8, rounding: f64, residuals: &mut [Block4], levels: &mut [Block4])
             => super::quantize_blocks;
@@ -408,7 +409,7 @@ mod tests {
             let mut levels = forward_4x4(&residual);
             quantize(&mut levels, qp, 1.0 / 6.0);
             let before = levels;
-            let rate = ResidualCoder::new(1, 1).block_pricer(BlockClass::luma(false));
+            let rate = crate::encode::rate::block_pricer(&ResidualCoder::new(1, 1), BlockClass::luma(false));
             rdoq_4x4(&residual, &mut levels, qp, lambda, &rate);
             let cost = |l: &Block4| block_error(&residual, l, qp) as f64 + lambda * block_bits(&rate, l);
             assert!(cost(&levels) <= cost(&before) + 1e-9);

@@ -45,7 +45,7 @@ pub(crate) fn pricing(
     modes: &ModeCoder,
     (mb_x, mb_y): (usize, usize),
 ) -> ([Option<[Intra4x4Mode; 16]>; 2], (u32, u32)) {
-    (modes.modes4_around(mb_x, mb_y), modes.mode4_costs())
+    (modes.modes4_around(mb_x, mb_y), super::rate::mode4_costs(modes))
 }
 
 impl IntraBlockSearch<'_> {
@@ -69,7 +69,7 @@ impl IntraBlockSearch<'_> {
         let rate = self
             .coder
             .rdoq
-            .then(|| self.residual.block_pricer(BlockClass::luma(true)));
+            .then(|| super::rate::block_pricer(self.residual, BlockClass::luma(true)));
         let mut out = Intra4x4Luma {
             modes: [Intra4x4Mode::Dc; 16],
             pred: [0; 256],

@@ -35,7 +35,10 @@ impl IntraBlockSearch<'_> {
     ) -> Option<Intra8x8Luma> {
         let (mb_x, mb_y) = self.at;
         let cols = self.recon.width() / MB;
-        let rate = self.coder.rdoq.then(|| self.residual.block8_pricer(true));
+        let rate = self
+            .coder
+            .rdoq
+            .then(|| super::rate::block8_pricer(self.residual, true));
         let mut out = Intra8x8Luma {
             modes: [Intra4x4Mode::Dc; 4],
             pred: [0; 256],

@@ -4,9 +4,10 @@
 //! cost J = SSD + lambda * bits of each way to code it.
 
 use super::dsp::{coder, CoderDsp};
+use super::rate::{self, BlockPricer};
 use super::rdo;
 use crate::codec::recon::{add_luma8, chroma_qp, reconstruct_samples, MbSamples};
-use crate::codec::residual::{BlockClass, BlockPricer, MbResidual, ResidualCoder, ResidualSyntax};
+use crate::codec::residual::{BlockClass, MbResidual, ResidualCoder, ResidualSyntax};
 use crate::codec::syntax::MB;
 use crate::codec::transform::Block4;
 use crate::codec::transform8x8::Block8;
@@ -78,7 +79,12 @@ impl Coded {
         (mb_x, mb_y): (usize, usize),
     ) -> Coded {
         Coded {
-            bits: rdo::bits(residual_coder.cost(mb_x, mb_y, syntax, &residual)),
+            bits: rdo::bits(rate::residual_cost(
+                residual_coder,
+                (mb_x, mb_y),
+                syntax,
+                &residual,
+            )),
             ssd: src.ssd(&samples),
             residual,
             samples,
@@ -199,7 +205,7 @@ impl MbCoder {
         // (Pricers are made only for levels left to lower.)
         let coded = |blocks: &[Block4]| blocks.iter().any(|b| b.as_flattened().iter().any(|&v| v != 0));
         if self.rdoq && coded(&residual.luma) {
-            let rate = residual_coder.block_pricer(BlockClass::luma(intra));
+            let rate = rate::block_pricer(residual_coder, BlockClass::luma(intra));
             for (block, diff) in residual.luma.iter_mut().zip(&luma_residual) {
                 (self.dsp.rdoq_4x4)(diff, block, self.qp, self.lambda, &rate);
             }
@@ -250,8 +256,8 @@ impl MbCoder {
                 continue;
             }
             if self.rdoq && coded(&residual.chroma[p]) {
-                let rate =
-                    chroma_rate.get_or_insert_with(|| residual_coder.block_pricer(BlockClass::chroma(intra)));
+                let rate = chroma_rate
+                    .get_or_insert_with(|| rate::block_pricer(residual_coder, BlockClass::chroma(intra)));
                 for (block, diff) in residual.chroma[p].iter_mut().zip(&diffs) {
                     (self.dsp.rdoq_4x4)(diff, block, cqp, self.lambda, rate);
                 }
@@ -312,7 +318,7 @@ impl MbCoder {
         if !self.transform_8x8 || residual.cbp() & 15 == 0 {
             return None;
         }
-        let rate = self.rdoq.then(|| residual_coder.block8_pricer(false));
+        let rate = self.rdoq.then(|| rate::block8_pricer(residual_coder, false));
         let luma8 = (self.dsp.inter_luma8)(&src.luma, &pred.luma, self.qp, self.lambda, rate.as_ref())?;
         // The chroma as coded already: only the luma is reconstructed.
         let mut samples = samples.clone();

@@ -46,6 +46,7 @@ mod macroblock;
 mod motion;
 mod params;
 mod partition;
+pub mod rate;
 mod rdo;
 mod slice;
 mod stats;

@@ -14,6 +14,7 @@ use super::intra4x4::IntraBlockSearch;
 use super::macroblock::{MbCoder, MbSource};
 use super::motion::{BlockMotion, FrameMotion};
 use super::partition::SatdCache;
+use super::{rate, rdo};
 use crate::codec::deblock::{deblock_frame, MbEdgeInfo};
 use crate::codec::intra4x4::LumaIntra;
 use crate::codec::modes::{MbMode, ModeCoder, VectorSyntax};
@@ -354,7 +355,13 @@ impl<'a> InterFrameCoder<'a> {
 
     /// Bits of a mode as the frame's mode coder prices it now.
     pub(super) fn mode_bits(&self, mb: &MbAnalysis, mode: &MbMode) -> f64 {
-        f64::from(self.sink.modes().cost(mb.mb_x, mb.mb_y, true, self.syntax, mode)) / 256.0
+        rdo::bits(rate::mode_cost(
+            self.sink.modes(),
+            (mb.mb_x, mb.mb_y),
+            true,
+            self.syntax,
+            mode,
+        ))
     }
 
     /// Reconstructs and records the decided macroblock.

@@ -4,7 +4,7 @@
 //! 4x4 transforms per quadrant; and those of one block of an 8x8 intra
 //! macroblock, for its search.
 
-use crate::codec::residual::Block8Pricer;
+use super::rate::Block8Pricer;
 use crate::codec::syntax::MB;
 use crate::codec::transform8x8::{
     dequantize_level_8x8, dequantized_orthonormal, forward_8x8, orthonormal_scale, quantize_8x8, Block8,
@@ -227,7 +227,7 @@ mod tests {
     #[test]
     fn rdoq_lowers_levels_and_keeps_the_cost_within_the_transforms_rounding() {
         let coder = ResidualCoder::new(1, 1);
-        let rate = coder.block8_pricer(false);
+        let rate = crate::encode::rate::block8_pricer(&coder, false);
         let mut seed = 3u32;
         let mut noise = || {
             seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);

@@ -258,5 +258,44 @@ fn coder_table(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, codec_tables, pixel_table, analysis_tables, coder_table);
+/// The flow table's entries take the DIS search's own types: benched
+/// through their callers, the level set for the process (DIS medium's
+/// patch search over a CIF pair, one variational refinement).
+fn flow_table(c: &mut Criterion) {
+    use mocomp::flow::dis::{Dis, DisParams, DisPreset};
+    use mocomp::flow::refine::{refine, RefineParams};
+    use ndarray::Array2;
+    let f = |x: f32, y: f32| 128.0 + 60.0 * (x / 5.0).sin() * (y / 7.0).cos() + 20.0 * ((x + y) / 3.0).cos();
+    let a = Array2::from_shape_fn((288, 352), |(y, x)| f(x as f32, y as f32));
+    let b = Array2::from_shape_fn((288, 352), |(y, x)| f(x as f32 - 3.25, y as f32 + 1.5));
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    let mut g = c.benchmark_group("dsp_flow");
+    g.sample_size(10);
+    for level in cpu::available() {
+        let mut dis = Dis::new(DisParams::preset(DisPreset::Medium));
+        g.bench_function(BenchmarkId::new("dis_medium_cif", level.name()), |bench| {
+            cpu::set_level(level);
+            bench.iter(|| pool.install(|| dis.compute(&a, &b)))
+        });
+        g.bench_function(BenchmarkId::new("refine_cif", level.name()), |bench| {
+            cpu::set_level(level);
+            bench.iter(|| {
+                let (mut u, mut v) = (Array2::from_elem(a.dim(), 3.0f32), Array2::zeros(a.dim()));
+                pool.install(|| refine(&a, &b, &mut u, &mut v, &RefineParams::default()));
+                (u, v)
+            })
+        });
+    }
+    cpu::set_level(cpu::CpuLevel::detected());
+    g.finish();
+}
+
+criterion_group!(
+    benches,
+    codec_tables,
+    pixel_table,
+    analysis_tables,
+    coder_table,
+    flow_table
+);
 criterion_main!(benches);

@@ -1176,10 +1176,11 @@ fn presets_differ_options_override_them_and_every_stream_decodes() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("placebo"));
 }
 
-/// A CSV's rows without the timing columns (encode_ms, me_ms).
+/// A CSV's rows without what differs between runs of a job: the timing
+/// columns (encode_ms, me_ms, decode_ms) and the shard that ran it.
 fn rows_without_timing(path: &Path) -> Vec<Vec<String>> {
     let (header, rows) = read_csv(path);
-    let timing: Vec<usize> = ["encode_ms", "me_ms", "decode_ms"]
+    let timing: Vec<usize> = ["encode_ms", "me_ms", "decode_ms", "shard"]
         .iter()
         .map(|c| header.iter().position(|h| h == c).unwrap())
         .collect();
@@ -1315,6 +1316,92 @@ fn shards_merge_into_the_unsharded_rows_and_a_killed_shard_resumes() {
     );
     // A shard out of range is a usage error.
     sweep("x.csv", &["--shard", "4/3"]).assert().code(2);
+}
+
+#[test]
+fn a_part_is_resumed_only_by_its_shard_and_parts_that_disagree_are_not_merged() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_owned();
+    let input = sample("tree_qcif.y4m");
+    let sweep = |out: &str, shard: &str| {
+        let mut c = mocomp();
+        c.args([
+            "rd",
+            input.to_str().unwrap(),
+            "--predictors",
+            "zero,block:tss",
+            "--frames",
+            "2",
+        ])
+        .args([
+            "--qp",
+            "27,37",
+            "--threads",
+            "1",
+            "--quiet",
+            "-o",
+            &p(out),
+            "--shard",
+            shard,
+        ]);
+        c
+    };
+    for i in 1..=3 {
+        sweep(&format!("part{i}.csv"), &format!("{i}/3"))
+            .assert()
+            .success();
+    }
+    // The rows say which shard wrote them.
+    let (header, rows) = read_csv(Path::new(&p("part2.csv")));
+    let shard = header.iter().position(|h| h == "shard").unwrap();
+    assert!(rows.iter().all(|r| r[shard] == "2/3"), "{rows:?}");
+    // Resuming part 2 as another shard (as a rerun whose shard count was
+    // read from a one-task array: 1/1) is refused, naming both shards.
+    for other in ["1/1", "1/3", "2/4"] {
+        let err = sweep("part2.csv", other)
+            .assert()
+            .failure()
+            .get_output()
+            .stderr
+            .clone();
+        let err = String::from_utf8_lossy(&err);
+        assert!(
+            err.contains("holds rows of shard 2/3") && err.contains(&format!("not of shard {other}")),
+            "{err}"
+        );
+    }
+    // A task run again gives the same rows: merging both copies is fine.
+    std::fs::copy(p("part2.csv"), p("again.csv")).unwrap();
+    let merge = |parts: &[&str]| {
+        let mut c = mocomp();
+        c.args(["rd", "merge"])
+            .args(parts.iter().map(|n| p(n)))
+            .args(["-o", &p("merged.csv"), "--quiet"]);
+        c
+    };
+    merge(&["part1.csv", "part2.csv", "again.csv", "part3.csv"])
+        .assert()
+        .success();
+    // Two parts with one job's results differing: refused, naming the job
+    // and the column.
+    let text = std::fs::read_to_string(p("part2.csv")).unwrap();
+    let bytes = header.iter().position(|h| h == "bytes").unwrap();
+    let job = header.iter().position(|h| h == "job").unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let mut cells: Vec<String> = lines[1].split(',').map(String::from).collect();
+    cells[bytes] = "1".into();
+    let job_no = cells[job].split('/').next().unwrap().to_string();
+    lines[1] = cells.join(",");
+    std::fs::write(p("bad.csv"), lines.join("\n") + "\n").unwrap();
+    let out = merge(&["part1.csv", "part2.csv", "bad.csv", "part3.csv"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains(&format!("job {job_no} is in")) && err.contains("column bytes"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -253,7 +253,7 @@ enum Anchor {
 fn run_jobs(study: &Study<'_>, r: &SweepRequest<'_>) -> Result<Vec<RdPoint>> {
     let (shard, shards) = r.shard;
     let id = study.id();
-    let (part, mut points) = PartFile::open(r.output, &id)?;
+    let (part, mut points) = PartFile::open(r.output, &id, (shard, shards))?;
     let done: std::collections::HashSet<usize> = points.iter().filter_map(|p| p.job.map(|j| j.0)).collect();
     let mine: Vec<usize> = (0..study.len()).filter(|j| j % shards == shard - 1).collect();
     let todo: Vec<usize> = mine.iter().copied().filter(|j| !done.contains(j)).collect();
@@ -284,7 +284,8 @@ fn run_jobs(study: &Study<'_>, r: &SweepRequest<'_>) -> Result<Vec<RdPoint>> {
     let new = std::sync::Mutex::new(Vec::with_capacity(todo.len()));
     let pool = super::thread_pool(r.threads)?;
     pool.install(|| {
-        study.run(&id, &todo, |p| -> Result<()> {
+        study.run(&id, &todo, |mut p| -> Result<()> {
+            p.shard = Some((shard, shards));
             part.append(&p)?;
             new.lock().unwrap_or_else(|e| e.into_inner()).push(p);
             bar.inc(1);

@@ -42,6 +42,39 @@ pub enum PartError {
         /// This study.
         expected: String,
     },
+    /// The file holds rows another shard of the study wrote.
+    #[error(
+        "{path} holds rows of shard {}/{}, not of shard {}/{}: a task's part is resumed only by the same shard \
+         (rerun task I of N as --shard I/N; with rd_array.sh, the same SHARDS and sbatch --array=I)",
+        found.0, found.1, expected.0, expected.1
+    )]
+    OtherShard {
+        /// The file.
+        path: PathBuf,
+        /// The shard its rows are of.
+        found: (usize, usize),
+        /// This run's shard.
+        expected: (usize, usize),
+    },
+    /// One job in two parts with different results.
+    #[error(
+        "job {job} is in {a} and in {b} with different rows (column {column}: {va} and {vb}): the parts are of \
+         different runs; remove the wrong one"
+    )]
+    Conflict {
+        /// The job.
+        job: usize,
+        /// One part.
+        a: PathBuf,
+        /// Another.
+        b: PathBuf,
+        /// The first column they differ in.
+        column: &'static str,
+        /// Its value in `a`.
+        va: String,
+        /// Its value in `b`.
+        vb: String,
+    },
     /// Parts of different studies were given to merge.
     #[error("{a} and {b} are parts of different studies ({sa} and {sb})")]
     Mixed {
@@ -85,11 +118,15 @@ pub struct PartFile {
 }
 
 impl PartFile {
-    /// Opens `path` for study `study`: creates it with the header when it
-    /// does not exist; else reads the rows already there (a last line cut
-    /// short by a kill is dropped), which must be of this study, and
-    /// returns them.
-    pub fn open(path: &Path, study: &str) -> Result<(PartFile, Vec<RdPoint>), PartError> {
+    /// Opens `path` for shard `shard` (I, N) of study `study`: creates it
+    /// with the header when it does not exist; else reads the rows already
+    /// there (a last line cut short by a kill is dropped), which must be of
+    /// this study and this shard, and returns them.
+    pub fn open(
+        path: &Path,
+        study: &str,
+        shard: (usize, usize),
+    ) -> Result<(PartFile, Vec<RdPoint>), PartError> {
         let io = |source| PartError::Io {
             path: path.to_path_buf(),
             source,
@@ -135,6 +172,13 @@ impl PartFile {
                 expected: study.to_string(),
             });
         }
+        if let Some(found) = rows.iter().filter_map(|p| p.shard).find(|&s| s != shard) {
+            return Err(PartError::OtherShard {
+                path: path.to_path_buf(),
+                found,
+                expected: shard,
+            });
+        }
         let part = PartFile {
             path: path.to_path_buf(),
             file: Mutex::new(file),
@@ -174,10 +218,25 @@ fn parse(path: &Path, text: &[u8]) -> Result<Vec<RdPoint>, PartError> {
     })
 }
 
+/// The columns two runs of one job may differ in: times and the shard.
+const RUN_COLUMNS: [&str; 4] = ["encode_ms", "me_ms", "decode_ms", "shard"];
+
+/// The first column in which two rows of one job differ beyond their
+/// times and shard, with both values.
+fn differing(a: &RdPoint, b: &RdPoint) -> Option<(&'static str, String, String)> {
+    let (ra, rb) = (csv_record(a), csv_record(b));
+    CSV_COLUMNS
+        .iter()
+        .zip(ra.into_iter().zip(rb))
+        .find(|(c, (x, y))| !RUN_COLUMNS.contains(c) && x != y)
+        .map(|(c, (x, y))| (*c, x, y))
+}
+
 /// Reads the parts of one study and returns its rows in job order: the
-/// parts must be of the same study and hold every job between them.
+/// parts must be of the same study and hold every job between them; a job
+/// found twice (a task run again) must have the same results in both.
 pub fn merge(parts: &[PathBuf]) -> Result<Vec<RdPoint>, PartError> {
-    let mut jobs: BTreeMap<usize, RdPoint> = BTreeMap::new();
+    let mut jobs: BTreeMap<usize, (RdPoint, PathBuf)> = BTreeMap::new();
     let mut first: Option<(PathBuf, String, usize)> = None;
     for path in parts {
         let text = std::fs::read(path).map_err(|source| PartError::Io {
@@ -203,7 +262,23 @@ pub fn merge(parts: &[PathBuf]) -> Result<Vec<RdPoint>, PartError> {
                 }
                 Some(_) => {}
             }
-            jobs.entry(job).or_insert(p);
+            match jobs.get(&job) {
+                None => {
+                    jobs.insert(job, (p, path.clone()));
+                }
+                Some((q, qpath)) => {
+                    if let Some((column, va, vb)) = differing(q, &p) {
+                        return Err(PartError::Conflict {
+                            job,
+                            a: qpath.clone(),
+                            b: path.clone(),
+                            column,
+                            va,
+                            vb,
+                        });
+                    }
+                }
+            }
         }
     }
     let Some((_, _, total)) = first else {
@@ -216,5 +291,5 @@ pub fn merge(parts: &[PathBuf]) -> Result<Vec<RdPoint>, PartError> {
     if !missing.is_empty() {
         return Err(PartError::Missing { missing, total });
     }
-    Ok(jobs.into_values().collect())
+    Ok(jobs.into_values().map(|(p, _)| p).collect())
 }

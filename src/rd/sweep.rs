@@ -46,6 +46,9 @@ pub struct RdPoint {
     pub study: String,
     /// Its job's number in the study and the study's number of jobs.
     pub job: Option<(usize, usize)>,
+    /// The shard `I/N` of the study that ran the job (`None` in peer CSVs
+    /// and sweeps run whole in one process).
+    pub shard: Option<(usize, usize)>,
     /// Decode time, ms (NaN when a CSV lacks it).
     pub decode_ms: f64,
 }
@@ -141,7 +144,7 @@ impl QualityAxis {
 }
 
 /// The CSV columns: `../shared/peers/rd_ffmpeg.sh`'s, then ours.
-pub const CSV_COLUMNS: [&str; 23] = [
+pub const CSV_COLUMNS: [&str; 24] = [
     "codec",
     "q",
     "bytes",
@@ -165,6 +168,7 @@ pub const CSV_COLUMNS: [&str; 23] = [
     "psnr_hvs",
     "ciede2000",
     "vmaf",
+    "shard",
 ];
 
 /// A sequence to sweep.
@@ -285,6 +289,7 @@ impl Study<'_> {
                 me_ms: s.me_ms,
                 study: id.to_string(),
                 job: Some((index, total)),
+                shard: None,
                 decode_ms: decoded.ms,
             })
         })
@@ -360,7 +365,7 @@ fn cell(v: f64, decimals: usize) -> String {
 }
 
 /// The CSV cells of `p`, in [`CSV_COLUMNS`] order.
-pub fn csv_record(p: &RdPoint) -> [String; 23] {
+pub fn csv_record(p: &RdPoint) -> [String; 24] {
     [
         p.codec.clone(),
         format!("{}", p.q),
@@ -385,6 +390,7 @@ pub fn csv_record(p: &RdPoint) -> [String; 23] {
         cell(p.quality.psnr_hvs, 4),
         cell(p.quality.ciede2000, 4),
         cell(p.quality.vmaf, 4),
+        p.shard.map_or(String::new(), |(i, n)| format!("{i}/{n}")),
     ]
 }
 
@@ -492,9 +498,24 @@ pub fn read_csv(input: impl Read) -> Result<Vec<RdPoint>, CsvError> {
                     text: t,
                 })?),
             },
+            shard: match text("shard") {
+                t if t.is_empty() => None,
+                t => Some(parse_shard(&t).ok_or(CsvError::NotANumber {
+                    row: line + 2,
+                    column: "shard",
+                    text: t,
+                })?),
+            },
         });
     }
     Ok(out)
+}
+
+/// `I/N` with 1 <= I <= N.
+fn parse_shard(t: &str) -> Option<(usize, usize)> {
+    let (i, n) = t.split_once('/')?;
+    let (i, n) = (i.parse().ok()?, n.parse().ok()?);
+    (1..=n).contains(&i).then_some((i, n))
 }
 
 /// `I/N` with I < N.

@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # fuzz/run.sh SECONDS [TARGET ...]: every fuzz target (or those named) for
-# SECONDS each, on all cores (libFuzzer's -fork), from its corpus
+# SECONDS each, on all cores (libFuzzer's -fork; JOBS=N for N), from its corpus
 # (fuzz/corpus/TARGET, kept between runs, not committed) and its seeds
 # (fuzz/seeds/TARGET). Builds the targets with libFuzzer's coverage
 # instrumentation on the stable toolchain, as `cargo fuzz build -O -s
-# none` does, so cargo-fuzz need not be installed. A crash, a mismatch
+# none -a` does (debug assertions and overflow checks on), so cargo-fuzz
+# need not be installed. A crash, a mismatch
 # (the encoder target) or a non-finite field (the motion target) stops the
 # run with libFuzzer's report and a non-zero exit; the input is saved in
 # fuzz/artifacts/TARGET/. Each target's last lines (executions, coverage)
@@ -21,7 +22,7 @@ export RUSTFLAGS="-Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4
 -Cllvm-args=-sanitizer-coverage-trace-compares --cfg fuzzing -Cllvm-args=-simplifycfg-branch-fold-threshold=0 \
 -Cllvm-args=-sanitizer-coverage-stack-depth -Cdebug-assertions -Ccodegen-units=1"
 cargo build --release --target "$triple" --bins --config 'profile.release.debug="line-tables-only"'
-jobs=$(nproc)
+jobs=${JOBS:-$(nproc)}
 declare -A max_len=([decoder]=8192 [y4m]=4096 [flo]=4096 [encoder]=512 [motion]=256)
 for t in "${targets[@]}"; do
   mkdir -p "corpus/$t" "artifacts/$t" logs

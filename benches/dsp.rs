@@ -138,6 +138,8 @@ fn pixel_table(c: &mut Criterion) {
     let mut planes: Vec<Plane> = (0..3).map(|_| Plane::new(352, 288).unwrap()).collect();
     let pair: [u8; 32] = a[..32].try_into().unwrap();
     let mut out = [0u8; 256];
+    let mut sums = vec![0u16; reference.data().len()];
+    let mut bounds = [0u32; 33];
     levels(c, "pixel", &PIXEL, |g, t, l| {
         for size in [8, 16, 32] {
             bench(g, &format!("sad_{size}x{size}"), l, || {
@@ -155,6 +157,19 @@ fn pixel_table(c: &mut Criterion) {
         });
         bench(g, "halfpel_planes_cif", l, || {
             (t.halfpel_planes)(black_box(&reference), 32, &mut planes)
+        });
+        let (stride, rows) = (reference.stride(), reference.data().len() / reference.stride());
+        bench(g, "box_sums_cif_8", l, || {
+            (t.box_sums)(black_box(reference.data()), stride, rows, 8, &mut sums)
+        });
+        let quadrants = [
+            &sums[..],
+            &sums[8..],
+            &sums[8 * stride..],
+            &sums[8 * stride + 8..],
+        ];
+        bench(g, "ads_33", l, || {
+            (t.ads)(black_box(quadrants), [1000, 2000, 3000, 4000], &mut bounds)
         });
         bench(g, "copy_16x16", l, || (t.copy_16x16)(black_box(&a), 64, &mut out));
         bench(g, "average_16x16", l, || {

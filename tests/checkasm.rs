@@ -223,6 +223,8 @@ fn pixel_kernels() {
             copy_16x16,
             average_16x16,
             average_8x8,
+            box_sums,
+            ads,
         } = *t;
         let sets = sample_sets(100 * 70, 5);
         for a in &sets {
@@ -282,6 +284,29 @@ fn pixel_kernels() {
                 average_8x8((&a[7..], 100), (&b[2..], 33), &mut x[..64]);
                 (s.average_8x8)((&a[7..], 100), (&b[2..], 33), &mut y[..64]);
                 assert_eq!(x, y, "{isa} average 8x8");
+            }
+        }
+        // Box sums of every side successive elimination uses, on buffers
+        // narrower and wider than a vector, white and saturated (the u16
+        // sums' largest values).
+        for (stride, rows) in [(7, 5), (37, 21), (100, 70), (64, 40)] {
+            for data in [sets[3][..stride * rows].to_vec(), vec![255u8; stride * rows]] {
+                for side in [2, 4, 8, 16] {
+                    let (mut x, mut y) = (vec![0u16; stride * rows], vec![0u16; stride * rows]);
+                    box_sums(&data, stride, rows, side, &mut x);
+                    (s.box_sums)(&data, stride, rows, side, &mut y);
+                    assert_eq!(x, y, "{isa} box sums {stride}x{rows} side {side}");
+                }
+            }
+        }
+        let sums: Vec<u16> = sets[3].iter().map(|&v| u16::from(v) * 200).collect();
+        for n in [1, 15, 16, 17, 33, 129] {
+            let rows = [&sums[..], &sums[3..], &sums[170..], &sums[1001..]];
+            for current in [[0, 0, 0, 0], [65535, 1, 30000, 40000], [12345, 54321, 0, 255]] {
+                let (mut x, mut y) = (vec![0u32; n], vec![0u32; n]);
+                ads(rows, current, &mut x);
+                (s.ads)(rows, current, &mut y);
+                assert_eq!(x, y, "{isa} ads of {n}");
             }
         }
         // Widths with and without a remainder past the 16-column steps.

@@ -336,3 +336,98 @@ fn epzs_window_never_loses_and_closes_on_exhaustive_search_for_flat_shapes() {
     // ... and takes most of the way to exhaustive search.
     assert!(w - e < (p - e) / 2, "plain {p}, windowed {w}, exhaustive {e}");
 }
+
+/// Pictures where successive elimination could go wrong: noise against
+/// unrelated noise (bounds weak, costs close), a shifted noisy copy (one
+/// sharp minimum), flat areas and stripes (many positions tie exactly, so
+/// the tie-break decides), and the cartoon (flat shapes on a ramp).
+fn elimination_cases() -> Vec<(&'static str, Plane, Plane)> {
+    let noise = |seed: u64, w: usize, h: usize| {
+        let mut s = seed;
+        let v: Vec<u8> = (0..w * h)
+            .map(|_| {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (s >> 56) as u8
+            })
+            .collect();
+        Plane::from_fn(w, h, |x, y| v[y * w + x]).unwrap()
+    };
+    let (w, h) = (80, 64);
+    let base = noise(3, w + 16, h + 16);
+    let shifted = |dx: usize, dy: usize, grain: u8| {
+        let n = noise(9, w, h);
+        Plane::from_fn(w, h, |x, y| {
+            base.get(x + dx, y + dy)
+                .saturating_add(n.get(x, y) % grain.max(1))
+        })
+        .unwrap()
+    };
+    let flat = |x: usize, y: usize| {
+        if (20..36).contains(&x) && (16..30).contains(&y) {
+            180
+        } else {
+            90
+        }
+    };
+    vec![
+        ("unrelated noise", noise(1, w, h), noise(2, w, h)),
+        ("shifted noisy copy", shifted(5, 3, 6), shifted(0, 0, 1)),
+        (
+            "flat with a patch",
+            Plane::from_fn(w, h, |x, y| flat(x + 2, y)).unwrap(),
+            Plane::from_fn(w, h, flat).unwrap(),
+        ),
+        (
+            "stripes",
+            Plane::from_fn(w, h, |x, _| if x % 4 < 2 { 200 } else { 30 }).unwrap(),
+            Plane::from_fn(w, h, |x, _| if (x + 1) % 4 < 2 { 200 } else { 30 }).unwrap(),
+        ),
+        ("cartoon", cartoon(true), cartoon(false)),
+    ]
+}
+
+#[test]
+fn successive_elimination_gives_exactly_the_vectors_of_plain_exhaustive_search() {
+    // Every block size, metric (full-pel SAD or not), rate term and sub-pel
+    // step, in exhaustive search and EPZS's window: the same vector and cost
+    // for every block as evaluating every position, ties included.
+    let mut compared = 0;
+    for (name, cur, reference) in elimination_cases() {
+        for block in [4, 8, 16, 32] {
+            for metric in Metric::ALL {
+                for (full_pel_sad, lambda, subpel) in [
+                    (false, 0.0, Subpel::None),
+                    (true, lambda_for_qp(metric, 30), Subpel::Quarter),
+                    (false, lambda_for_qp(metric, 22), Subpel::Half),
+                ] {
+                    // Windows where elimination runs for every metric.
+                    for (method, window) in [(Method::Esa, 0), (Method::Epzs, 7)] {
+                        let mut cfg = MeConfig::new(method, block, 9);
+                        (cfg.metric, cfg.full_pel_sad, cfg.lambda, cfg.subpel, cfg.window) =
+                            (metric, full_pel_sad, lambda, subpel, window);
+                        let fast = estimate(&cur, &reference, &cfg).unwrap();
+                        cfg.successive_elimination = false;
+                        let plain = estimate(&cur, &reference, &cfg).unwrap();
+                        let what = format!(
+                            "{name}: {method} {block}x{block} {metric:?} sad {full_pel_sad} lambda {lambda}"
+                        );
+                        let differ = (0..fast.vectors().len()).find(|&i| {
+                            (fast.vectors()[i], fast.costs()[i]) != (plain.vectors()[i], plain.costs()[i])
+                        });
+                        if let Some(i) = differ {
+                            let (f, p) = (
+                                (fast.vectors()[i], fast.costs()[i]),
+                                (plain.vectors()[i], plain.costs()[i]),
+                            );
+                            panic!("{what}, block {i}: {f:?} against plain {p:?}");
+                        }
+                        compared += fast.vectors().len();
+                    }
+                }
+            }
+        }
+    }
+    assert!(compared > 5000, "{compared} blocks compared");
+}

@@ -36,6 +36,11 @@ pub struct Args {
     /// Add the rate term of the codec's vector code at this QP (H.264's lambda).
     #[arg(long)]
     pub qp: Option<u8>,
+    /// Evaluate every position of an exhaustive window instead of skipping
+    /// those successive elimination rules out (the same vectors, slower:
+    /// for comparison).
+    #[arg(long)]
+    pub no_elimination: bool,
     /// Frames A:B (inclusive, from 0): frames A+1..=B are searched against their predecessors.
     #[arg(long, value_name = "A:B")]
     pub frames: Option<String>,
@@ -131,6 +136,7 @@ fn search_config(args: &Args) -> Result<MeConfig> {
     let mut cfg = MeConfig::new(args.method, args.block, args.range);
     cfg.subpel = args.subpel;
     cfg.metric = args.metric;
+    cfg.successive_elimination = !args.no_elimination;
     if let Some(qp) = args.qp {
         if qp > 51 {
             bail!("--qp {qp} is above 51");

@@ -55,6 +55,14 @@ pub type CopyFn = fn(&[u8], usize, &mut [u8]);
 /// width.
 pub type AverageFn = fn((&[u8], usize), (&[u8], usize), &mut [u8]);
 
+/// Box sums of a buffer: `(data, stride, rows, side, out)`, `out[p]` the
+/// sum of the `side x side` block at `data[p]` ([`super::sea`]).
+pub type BoxSumsFn = fn(&[u8], usize, usize, usize, &mut [u16]);
+
+/// The quadrants' absolute differences of sums along a row of positions:
+/// `(rows, current, out)` ([`super::sea::ads`], x264's `ads4`).
+pub type AdsFn = fn([&[u16]; 4], [u16; 4], &mut [u32]);
+
 /// The pixel kernels of one CPU level.
 #[derive(Clone, Copy)]
 pub struct PixelDsp {
@@ -74,6 +82,10 @@ pub struct PixelDsp {
     pub average_16x16: AverageFn,
     /// 8x8 average (a partition's quarter-pel candidate).
     pub average_8x8: AverageFn,
+    /// Box sums of a reference (successive elimination).
+    pub box_sums: BoxSumsFn,
+    /// The bounds of a row of positions (successive elimination).
+    pub ads: AdsFn,
 }
 
 impl std::fmt::Debug for PixelDsp {
@@ -92,6 +104,8 @@ const SCALAR: PixelDsp = PixelDsp {
     copy_16x16: |a, sa, out| copy_rows(16, a, sa, out),
     average_16x16: |a, c, out| average_rows(16, a, c, out),
     average_8x8: |a, c, out| average_rows(8, a, c, out),
+    box_sums: super::sea::box_sums,
+    ads: super::sea::ads,
 };
 
 /// The tables, lowest level first.
@@ -248,6 +262,9 @@ mod avx2 {
     crate::codec::compiled_for! { "avx2":
         fn halfpel_planes(reference: &Plane, margin: usize, planes: &mut [Plane])
             => super::halfpel_planes_body::<true>;
+        fn box_sums(data: &[u8], stride: usize, rows: usize, side: usize, out: &mut [u16])
+            => crate::me::sea::box_sums;
+        fn ads(rows: [&[u16]; 4], current: [u16; 4], out: &mut [u32]) => crate::me::sea::ads;
     }
 }
 
@@ -335,6 +352,8 @@ mod x86 {
         copy_16x16: super::x86_halfpel::copy_16x16,
         average_16x16: super::x86_halfpel::average_16x16,
         average_8x8: super::x86_halfpel::average_8x8,
+        box_sums: crate::me::sea::box_sums,
+        ads: crate::me::sea::ads,
     };
     pub const AVX2: PixelDsp = PixelDsp {
         sad: sad_avx2,
@@ -342,6 +361,8 @@ mod x86 {
         satd_4x4_pair: satd_4x4_pair_sse2,
         satd_16x16_capped: satd_16x16_capped_avx2,
         halfpel_planes: super::avx2::halfpel_planes,
+        box_sums: super::avx2::box_sums,
+        ads: super::avx2::ads,
         ..SSE2
     };
 

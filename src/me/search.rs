@@ -202,13 +202,7 @@ pub(crate) fn full_pel(s: &SearchContext<'_>, neighbours: &Neighbours) -> Candid
     // of the logarithmic searches.
     let half = (r + 1) / 2;
     match s.cfg.method {
-        Method::Esa => {
-            for dy in -r..=r {
-                for dx in -r..=r {
-                    w.try_at(ox + dx, oy + dy);
-                }
-            }
-        }
+        Method::Esa => exhaustive(&mut w, (ox, oy), r),
         Method::Tss => {
             let mut step = half;
             while step > 0 {
@@ -269,17 +263,131 @@ pub(crate) fn full_pel(s: &SearchContext<'_>, neighbours: &Neighbours) -> Candid
             // over smooth backgrounds leave the descent in a local minimum.
             let r = w.s.cfg.window;
             if r > 0 {
-                let (cx, cy) = w.centre();
-                for dy in -r..=r {
-                    for dx in -r..=r {
-                        w.try_at(cx + dx, cy + dy);
-                    }
-                }
+                let centre = w.centre();
+                exhaustive(&mut w, centre, r);
                 while w.pattern(&CROSS, 1) {}
             }
         }
     }
     w.best
+}
+
+thread_local! {
+    /// The quadrant bounds of an exhaustive window, reused from block to
+    /// block.
+    static BOUNDS: std::cell::RefCell<Vec<u32>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// Every position within `r` of `centre` (inside the walk's window): all of
+/// them, or with the reference's quadrant sums (successive elimination,
+/// [`super::sea`]) only those whose lower bound does not exceed the best
+/// cost so far. The same minimum either way: a position skipped costs more
+/// than one evaluated, and the tie-break is an order of its own.
+fn exhaustive(w: &mut Walk<'_, '_>, (cx, cy): (i32, i32), r: i32) {
+    // The window, clipped to the walk's.
+    let (ox, oy, range) = (w.origin.0, w.origin.1, w.range);
+    let (xs, ys) = (
+        (cx - r).max(ox - range)..=(cx + r).min(ox + range),
+        (cy - r).max(oy - range)..=(cy + r).min(oy + range),
+    );
+    let sums =
+        w.s.sums
+            .filter(|_| super::sea::pays(w.s.cfg.full_pel_metric(), r));
+    let Some(sums) = sums else {
+        for dy in ys {
+            for dx in xs.clone() {
+                w.try_at(dx, dy);
+            }
+        }
+        return;
+    };
+    // Bounds where the block lies inside the reference's buffer; elsewhere
+    // (a window past the border) every position is evaluated.
+    let [x0, x1, y0, y1] = w.s.in_place;
+    let (bx, by) = (
+        (*xs.start()).max(x0)..=(*xs.end()).min(x1),
+        (*ys.start()).max(y0)..=(*ys.end()).min(y1),
+    );
+    if bx != xs || by != ys {
+        for dy in ys {
+            for dx in xs.clone() {
+                if !(bx.contains(&dx) && by.contains(&dy)) {
+                    w.try_at(dx, dy);
+                }
+            }
+        }
+    }
+    if bx.is_empty() || by.is_empty() {
+        return;
+    }
+    BOUNDS.with(|cell| {
+        let mut bounds = std::mem::take(&mut *cell.borrow_mut());
+        eliminate(w, sums, (bx, by), &mut bounds);
+        *cell.borrow_mut() = bounds;
+    });
+}
+
+/// Successive elimination over the positions `xs` x `ys`, all with the
+/// block inside the reference's buffer: their quadrant bounds, the least
+/// bound's position first (it sets a best that rules out most), then every
+/// position whose bound does not exceed the best so far, in raster order.
+fn eliminate(
+    w: &mut Walk<'_, '_>,
+    sums: &super::sea::QuadrantSums,
+    (xs, ys): (std::ops::RangeInclusive<i32>, std::ops::RangeInclusive<i32>),
+    bounds: &mut Vec<u32>,
+) {
+    use super::sea::{current_sums, max_diff, RowBounds};
+    let s = w.s;
+    let b = s.cfg.block;
+    let (metric, samples) = (s.cfg.full_pel_metric(), (b * b / 4) as u32);
+    let rows = RowBounds {
+        sums,
+        current: current_sums(s.block, s.cur.stride(), b),
+        ads: super::dsp::pixel().ads,
+    };
+    let (x_lo, y_lo) = (*xs.start(), *ys.start());
+    let width = (xs.end() - x_lo + 1) as usize;
+    bounds.clear();
+    bounds.resize(width * ys.clone().count(), 0);
+    for (dy, row) in ys.clone().zip(bounds.chunks_exact_mut(width)) {
+        rows.row(
+            s.reference.index(s.x + x_lo as isize, s.y + dy as isize),
+            width,
+            row,
+        );
+    }
+    let at = |i: usize| (x_lo + (i % width) as i32, y_lo + (i / width) as i32);
+    // Scanned in chunks whose minimum (a vector operation) is compared
+    // first: most chunks hold no position to evaluate.
+    const CHUNK: usize = 16;
+    let chunk_min = |c: &[u32]| c.iter().fold(u32::MAX, |m, &d| m.min(d));
+    let min = chunk_min(bounds);
+    let least = bounds.iter().position(|&d| d == min).unwrap_or(0);
+    let (dx, dy) = at(least);
+    w.try_at(dx, dy);
+    let mut best = w.best.cost;
+    let mut limit = max_diff(metric, best, samples).min(u64::from(u32::MAX)) as u32;
+    for (k, chunk) in bounds.chunks(CHUNK).enumerate() {
+        if chunk_min(chunk) > limit {
+            continue;
+        }
+        for (j, &d) in chunk.iter().enumerate() {
+            if d > limit {
+                continue;
+            }
+            let (dx, dy) = at(k * CHUNK + j);
+            // The rate term only where the distortion's bound leaves room.
+            if super::sea::bound_for(metric, d, samples) + s.rate(Mv::full_pel(dx, dy)) > best {
+                continue;
+            }
+            w.try_at(dx, dy);
+            if w.best.cost != best {
+                best = w.best.cost;
+                limit = max_diff(metric, best, samples).min(u64::from(u32::MAX)) as u32;
+            }
+        }
+    }
 }
 
 /// Half-pel, then quarter-pel refinement around the full-pel best, on the

@@ -174,6 +174,9 @@ pub fn horn_schunck(i1: &Array2<f32>, i2: &Array2<f32>, p: &HsParams) -> (Flow, 
                                 n += 1.0;
                             }
                         }
+                        // A pixel with no neighbour (a 1x1 picture) and no
+                        // gradient has no equation: 0 rather than 0/0.
+                        let n = if w * h == 1 { f32::MIN_POSITIVE } else { n };
                         let (a11, a12, a22) = (normal.a11[i], normal.a12[i], normal.a22[i]);
                         let (b1, b2) = (normal.b1[i], normal.b2[i]);
                         let gu =

@@ -1,5 +1,6 @@
 //! Block matching: the cost kernels per block size and kernel set, and each
-//! method on a CIF and a 720p frame at range 7 and 16 (one thread).
+//! method on a CIF and a 720p frame at range 7 and 16 (one thread), and
+//! esa without successive elimination.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use mocomp::codec::cpu;
@@ -75,6 +76,16 @@ fn methods(c: &mut Criterion) {
                     bench.iter(|| pool.install(|| estimate(&cur, &reference, &cfg).unwrap()))
                 });
             }
+        }
+        // What successive elimination saves: esa evaluating every position.
+        for range in [7, 16] {
+            let cfg = MeConfig {
+                successive_elimination: false,
+                ..MeConfig::new(Method::Esa, 16, range)
+            };
+            g.bench_function(BenchmarkId::new("esa_every_position", range), |bench| {
+                bench.iter(|| pool.install(|| estimate(&cur, &reference, &cfg).unwrap()))
+            });
         }
         g.finish();
     }

@@ -12,7 +12,9 @@
 //!   reconstructions byte for byte.
 //! - [`MotionCase`]: two planes of any size and content, a block search
 //!   or a dense flow method with its parameters. [`MotionCase::check`]:
-//!   an error or a result of the right shape with finite values.
+//!   an error or a result of the right shape with finite values, and a
+//!   block search's field the same with successive elimination as
+//!   without.
 
 use ndarray::Array2;
 
@@ -393,7 +395,17 @@ impl MotionCase {
                 {
                     return Err(format!("a vector beyond the range {}", cfg.range));
                 }
-                Ok(())
+                // Successive elimination skips only what cannot win: the
+                // same field as evaluating every position.
+                let plain = MeConfig {
+                    successive_elimination: false,
+                    ..*cfg
+                };
+                match estimate(&self.current, &self.reference, &plain) {
+                    Ok(p) if p.vectors() == field.vectors() && p.costs() == field.costs() => Ok(()),
+                    Ok(_) => Err("successive elimination changed the field".into()),
+                    Err(e) => Err(format!("only the search without elimination failed: {e}")),
+                }
             }
             MotionTask::Flow(options) => {
                 let Ok(mut estimator) = FlowEstimator::new(options) else {

@@ -7,7 +7,8 @@ Times are medians over RUNS calls (default 9) of the flow alone: for the
 CLI, `mocomp flow --threads 1 --runs RUNS --json` (its own median);
 CLI and Python alternate over 3 rounds and each reports the median of its
 rounds (a 2-core virtual machine drifts by several percent between runs);
-for Python, the call to mocomp.flow (conversion of the arrays included);
+for Python, the call to mocomp.flow and to a mocomp.DenseFlow object's
+calc, made once (conversion of the arrays included);
 for OpenCV, DISOpticalFlow.calc on the same luma (cv2.setNumThreads(1)).
 """
 
@@ -46,8 +47,8 @@ def median_ms(f):
 
 
 print(f"{src.name} {a.shape[1]}x{a.shape[0]}, one thread, median of {runs}")
-print("| preset | CLI ms | Python ms | Python / CLI | OpenCV DIS ms |")
-print("|---|---:|---:|---:|---:|")
+print("| preset | CLI ms | mocomp.flow ms | flow / CLI | DenseFlow.calc ms | DenseFlow / CLI | OpenCV DIS ms |")
+print("|---|---:|---:|---:|---:|---:|---:|")
 def cli_ms(preset):
     cli = subprocess.run(
         [binary, "flow", str(src), "--frames", "0:1", "--preset", preset, "--threads", "1",
@@ -58,14 +59,18 @@ def cli_ms(preset):
 
 
 for preset in ("ultrafast", "fast", "medium"):
+    estimator = mocomp.DenseFlow(preset=preset, threads=1)
     rounds = [
-        (cli_ms(preset), median_ms(lambda: mocomp.flow(a, b, preset=preset, threads=1)))
+        (
+            cli_ms(preset),
+            median_ms(lambda: mocomp.flow(a, b, preset=preset, threads=1)),
+            median_ms(lambda: estimator.calc(a, b)),
+        )
         for _ in range(3)
     ]
-    cli = statistics.median(r[0] for r in rounds)
-    py = statistics.median(r[1] for r in rounds)
+    cli, py, obj = (statistics.median(r[k] for r in rounds) for k in range(3))
     cv_ms = float("nan")
     if preset in cv_presets:
         dis = cv2.DISOpticalFlow_create(cv_presets[preset])
         cv_ms = median_ms(lambda: dis.calc(a, b, None))
-    print(f"| {preset} | {cli:.2f} | {py:.2f} | {py / cli:.3f} | {cv_ms:.2f} |")
+    print(f"| {preset} | {cli:.2f} | {py:.2f} | {py / cli:.3f} | {obj:.2f} | {obj / cli:.3f} | {cv_ms:.2f} |")

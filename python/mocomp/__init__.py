@@ -13,6 +13,7 @@ or TypeError for arrays of the wrong shape or dtype.
 """
 
 from ._mocomp import (
+    DenseFlow,
     __version__,
     analyze,
     bd_rate,
@@ -36,6 +37,7 @@ from ._mocomp import (
 )
 
 __all__ = [
+    "DenseFlow",
     "analyze",
     "bd_rate",
     "block_match",

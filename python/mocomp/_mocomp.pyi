@@ -31,6 +31,33 @@ def flow(
     global_search: bool = False,
     matches: bool = False,
 ) -> Flow: ...
+class DenseFlow:
+    """A dense flow estimator made once and called per frame pair."""
+
+    def __init__(
+        self,
+        method: Optional[Literal["dis", "lk", "hs", "tvl1"]] = None,
+        preset: Literal["ultrafast", "fast", "medium", "accurate"] = "medium",
+        threads: Optional[int] = None,
+        *,
+        levels: Optional[int] = None,
+        sigma: Optional[float] = None,
+        iterations: Optional[int] = None,
+        alpha: Optional[float] = None,
+        gamma: Optional[float] = None,
+        texture: Optional[float] = None,
+        warps: Optional[int] = None,
+        finest: Optional[int] = None,
+        global_search: bool = False,
+        matches: bool = False,
+    ) -> None: ...
+    def calc(self, img1: Picture, img2: Picture) -> Flow: ...
+    def __call__(self, img1: Picture, img2: Picture) -> Flow: ...
+    @property
+    def method(self) -> str: ...
+    @property
+    def preset(self) -> str: ...
+
 def warp(img: Picture, flow: Flow) -> Picture: ...
 def flow_to_color(flow: Flow, max_flow: Optional[float] = None) -> npt.NDArray[np.uint8]: ...
 def read_flo(path: PathLike) -> Flow: ...

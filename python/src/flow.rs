@@ -48,29 +48,82 @@ pub fn flow<'py>(
     global_search: bool,
     matches: bool,
 ) -> PyResult<Bound<'py, PyArray3<f32>>> {
-    let options = FlowOptions {
+    let options = flow_options(
+        method,
+        preset,
+        FlowOptions {
+            levels,
+            sigma,
+            iterations,
+            alpha,
+            gamma,
+            texture,
+            warps,
+            finest,
+            global_search,
+            matches,
+            ..FlowOptions::default()
+        },
+    )?;
+    // The estimator (and its buffers) is kept for the next call with the
+    // same options, as a DenseFlow object would be.
+    LAST_FLOW.with(|last| -> PyResult<_> {
+        let mut last = last.borrow_mut();
+        if last.as_ref().is_none_or(|r| r.options != options) {
+            *last = Some(FlowRunner::new(options)?);
+        }
+        let Some(runner) = last.as_mut() else {
+            unreachable!("set above")
+        };
+        runner.calc(py, img1, img2, threads)
+    })
+}
+
+/// `options` with the method and preset parsed from their names.
+fn flow_options(method: Option<&str>, preset: &str, options: FlowOptions) -> PyResult<FlowOptions> {
+    Ok(FlowOptions {
         method: method
             .map_or(Ok(FlowMethod::Dis), str::parse)
             .map_err(value_error)?,
         preset: preset.parse::<Preset>().map_err(value_error)?,
-        levels,
-        sigma,
-        iterations,
-        alpha,
-        gamma,
-        texture,
-        warps,
-        finest,
-        global_search,
-        matches,
-    };
-    FLOW_STATE.with(|state| -> PyResult<_> {
-        let mut state = state.borrow_mut();
-        let FlowState {
-            last,
+        ..options
+    })
+}
+
+/// An estimator with the options it was made with and the pictures' float
+/// buffers, reused from call to call.
+struct FlowRunner {
+    options: FlowOptions,
+    estimator: FlowEstimator,
+    img1: Array2<f32>,
+    img2: Array2<f32>,
+}
+
+impl FlowRunner {
+    fn new(options: FlowOptions) -> PyResult<FlowRunner> {
+        let estimator = FlowEstimator::new(&options).map_err(|e| value_error(e.to_string()))?;
+        Ok(FlowRunner {
+            options,
+            estimator,
+            img1: Array2::zeros((0, 0)),
+            img2: Array2::zeros((0, 0)),
+        })
+    }
+
+    /// The flow from `img1` to `img2`, the GIL released while it runs.
+    fn calc<'py>(
+        &mut self,
+        py: Python<'py>,
+        img1: &Bound<'py, PyAny>,
+        img2: &Bound<'py, PyAny>,
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyArray3<f32>>> {
+        let FlowRunner {
+            estimator,
             img1: a,
             img2: b,
-        } = &mut *state;
+            ..
+        } = self;
         luma_f32_into("img1", img1, a)?;
         luma_f32_into("img2", img2, b)?;
         if a.dim() != b.dim() {
@@ -80,34 +133,115 @@ pub fn flow<'py>(
                 b.dim()
             )));
         }
-        // The estimator (and its buffers) is kept for the next call with the
-        // same options, as OpenCV's DIS object is kept between pairs.
-        if last.as_ref().is_none_or(|(o, _)| *o != options) {
-            let estimator = FlowEstimator::new(&options).map_err(|e| value_error(e.to_string()))?;
-            *last = Some((options, estimator));
-        }
-        let Some((_, estimator)) = last.as_mut() else {
-            unreachable!("set above")
-        };
         let result = py.detach(|| with_threads(threads, || estimator.compute(a, b)))?;
         Ok(flow_to_py(py, &result))
-    })
-}
-
-/// What `flow` keeps between calls on one thread: the last estimator with
-/// the options it was made with, and the pictures' float buffers.
-struct FlowState {
-    last: Option<(FlowOptions, FlowEstimator)>,
-    img1: Array2<f32>,
-    img2: Array2<f32>,
+    }
 }
 
 thread_local! {
-    static FLOW_STATE: RefCell<FlowState> = RefCell::new(FlowState {
-        last: None,
-        img1: Array2::zeros((0, 0)),
-        img2: Array2::zeros((0, 0)),
-    });
+    /// What `flow` keeps between calls on one thread.
+    static LAST_FLOW: RefCell<Option<FlowRunner>> = const { RefCell::new(None) };
+}
+
+/// A dense flow estimator made once and called per frame pair, as OpenCV's
+/// `cv2.DISOpticalFlow_create(preset)` and its `calc`: the settings are
+/// checked once and the buffers kept between calls.
+///
+/// DenseFlow(method="dis", preset="medium", threads=None, **options), the
+/// options as `flow` takes them; `calc(img1, img2)` (or calling the object)
+/// returns the flow from img1 to img2 as `flow` does.
+#[pyclass(name = "DenseFlow", module = "mocomp")]
+pub struct DenseFlow {
+    runner: FlowRunner,
+    threads: Option<usize>,
+}
+
+#[pymethods]
+impl DenseFlow {
+    #[new]
+    #[pyo3(signature = (method=None, preset="medium", threads=None, *, levels=None, sigma=None,
+        iterations=None, alpha=None, gamma=None, texture=None, warps=None, finest=None,
+        global_search=false, matches=false))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        method: Option<&str>,
+        preset: &str,
+        threads: Option<usize>,
+        levels: Option<usize>,
+        sigma: Option<f32>,
+        iterations: Option<usize>,
+        alpha: Option<f32>,
+        gamma: Option<f32>,
+        texture: Option<f32>,
+        warps: Option<usize>,
+        finest: Option<usize>,
+        global_search: bool,
+        matches: bool,
+    ) -> PyResult<DenseFlow> {
+        if threads == Some(0) {
+            return Err(value_error("threads must be at least 1"));
+        }
+        let options = flow_options(
+            method,
+            preset,
+            FlowOptions {
+                levels,
+                sigma,
+                iterations,
+                alpha,
+                gamma,
+                texture,
+                warps,
+                finest,
+                global_search,
+                matches,
+                ..FlowOptions::default()
+            },
+        )?;
+        Ok(DenseFlow {
+            runner: FlowRunner::new(options)?,
+            threads,
+        })
+    }
+
+    /// The flow from `img1` to `img2`: float32 H x W x 2.
+    fn calc<'py>(
+        &mut self,
+        py: Python<'py>,
+        img1: &Bound<'py, PyAny>,
+        img2: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray3<f32>>> {
+        self.runner.calc(py, img1, img2, self.threads)
+    }
+
+    fn __call__<'py>(
+        &mut self,
+        py: Python<'py>,
+        img1: &Bound<'py, PyAny>,
+        img2: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray3<f32>>> {
+        self.calc(py, img1, img2)
+    }
+
+    /// The method's name: "dis", "lk", "hs" or "tvl1".
+    #[getter]
+    fn method(&self) -> &'static str {
+        self.runner.options.method.name()
+    }
+
+    /// The preset's name.
+    #[getter]
+    fn preset(&self) -> &'static str {
+        self.runner.options.preset.name()
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "DenseFlow(method={:?}, preset={:?})",
+            self.method(),
+            self.preset()
+        )
+    }
 }
 
 /// Warps `img` backward by `flow`: out(p) = img(p + flow(p)), bilinear,

@@ -46,6 +46,7 @@ fn y4m_error(path: &Path, e: mocomp::io::y4m::Y4mError) -> PyErr {
 #[pymodule]
 fn _mocomp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(flow::flow, m)?)?;
+    m.add_class::<flow::DenseFlow>()?;
     m.add_function(wrap_pyfunction!(flow::warp, m)?)?;
     m.add_function(wrap_pyfunction!(flow::flow_to_color, m)?)?;
     m.add_function(wrap_pyfunction!(flow::read_flo, m)?)?;

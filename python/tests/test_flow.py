@@ -73,6 +73,34 @@ def test_calls_that_change_size_options_or_thread_give_fresh_results(synth_frame
     assert np.array_equal(out["f"], first)
 
 
+def test_a_dense_flow_object_gives_what_flow_gives_call_after_call(synth_frames):
+    # Made once, as cv2.DISOpticalFlow_create: each call on a new pair (and
+    # on pairs of another size) equals the function's result with the same
+    # settings, and a known shift is found.
+    for method, preset in [("dis", "ultrafast"), ("dis", "medium"), ("lk", "fast"), ("hs", "fast")]:
+        estimator = mocomp.DenseFlow(method=method, preset=preset, threads=1)
+        assert (estimator.method, estimator.preset) == (method, preset)
+        assert method in repr(estimator)
+        for k in range(3):
+            a, b = synth_frames[k][0], synth_frames[k + 1][0]
+            assert np.array_equal(estimator.calc(a, b), mocomp.flow(a, b, method=method, preset=preset))
+        small = textured(40, 56)
+        assert np.array_equal(estimator(small, np.roll(small, 1, axis=1)),
+                              mocomp.flow(small, np.roll(small, 1, axis=1), method=method, preset=preset))
+    img = textured(96, 128)
+    f = mocomp.DenseFlow(preset="accurate", levels=4)(np.roll(img, (2, -3), axis=(0, 1)), img)
+    assert np.allclose(f[16:-16, 16:-16, 0], 3.0, atol=0.15)
+    assert np.allclose(f[16:-16, 16:-16, 1], -2.0, atol=0.15)
+    with pytest.raises(ValueError, match="method"):
+        mocomp.DenseFlow(method="farneback")
+    with pytest.raises(ValueError, match="alpha"):
+        mocomp.DenseFlow(method="hs", alpha=-1.0)
+    with pytest.raises(ValueError, match="threads"):
+        mocomp.DenseFlow(threads=0)
+    with pytest.raises(ValueError, match="differ in size"):
+        mocomp.DenseFlow().calc(img, img[:10])
+
+
 def test_flo_round_trip_keeps_values_and_unknowns(tmp_path):
     f = np.random.default_rng(3).normal(size=(7, 9, 2)).astype(np.float32)
     f[2, 3] = np.nan

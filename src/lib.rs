@@ -29,6 +29,7 @@ pub mod encode;
 pub mod features;
 pub mod flow;
 pub mod fuzzing;
+pub mod global;
 pub mod imgproc;
 pub mod io;
 pub mod me;

@@ -1461,3 +1461,70 @@ fn aspect_ratio_siting_and_range_survive_encode_and_decode() {
         );
     }
 }
+
+#[test]
+fn globalmotion_finds_the_bundled_scenes_camera_from_each_source() {
+    // The bundled scene's exact forward flows (objects and occlusions
+    // included) give the camera model each pair should have; every source's
+    // fit from the pictures alone lands within half a pixel of it at the
+    // corners (matches, about 50 keypoints at whole pixels on QCIF, within
+    // 1.5), and the CSV holds one row per pair.
+    use mocomp::global::{estimate, sources, GlobalParams, Model, Transform};
+    let dir = tempfile::tempdir().unwrap();
+    let input = sample("synth_qcif.y4m");
+    for (source, bound) in [("flow", 0.5), ("blocks", 0.5), ("matches", 1.5)] {
+        let csv = dir.path().join(format!("{source}.csv"));
+        mocomp()
+            .args([
+                "globalmotion",
+                input.to_str().unwrap(),
+                "--source",
+                source,
+                "--model",
+                "affine",
+            ])
+            .arg("--csv")
+            .arg(&csv)
+            .assert()
+            .success()
+            .stdout(predicate::str::contains("9 frame pairs"));
+        let text = std::fs::read_to_string(&csv).unwrap();
+        let rows: Vec<&str> = text.lines().skip(1).collect();
+        assert_eq!(rows.len(), 9, "{source}");
+        for (k, row) in rows.iter().enumerate() {
+            let f: Vec<&str> = row.split(',').collect();
+            assert_eq!(
+                (f[0], f[1]),
+                (format!("{}", k + 1).as_str(), "affine"),
+                "{source}"
+            );
+            let m: Vec<f64> = f[2..11].iter().map(|v| v.parse().unwrap()).collect();
+            let found = Transform(m.try_into().unwrap());
+            let gt =
+                mocomp::io::flo::read_flo(&sample("synth_qcif").join(format!("forward_{k:04}.flo"))).unwrap();
+            let truth = estimate(&sources::from_flow(&gt, 4), &GlobalParams::new(Model::Affine)).unwrap();
+            let e = [(0.0, 0.0), (176.0, 0.0), (0.0, 144.0), (176.0, 144.0)]
+                .iter()
+                .map(|&(x, y)| {
+                    let (p, q) = (found.apply(x, y).unwrap(), truth.transform.apply(x, y).unwrap());
+                    (p.0 - q.0).hypot(p.1 - q.1)
+                })
+                .fold(0.0, f64::max);
+            assert!(
+                e < bound,
+                "{source} pair {}: corners {e:.3} px from the truth's model",
+                k + 1
+            );
+        }
+    }
+    let json = json_stdout(mocomp().args([
+        "globalmotion",
+        input.to_str().unwrap(),
+        "--model",
+        "homography",
+        "--json",
+    ]));
+    assert_eq!(json["pairs"].as_array().unwrap().len(), 9);
+    assert_eq!(json["pairs"][0]["fit"]["model"], "homography");
+    fails_cleanly(&["globalmotion", input.to_str().unwrap(), "--threshold", "0"]);
+}

@@ -16,6 +16,7 @@ mod decode;
 mod encode;
 mod flow;
 mod flowbench;
+mod globalmotion;
 mod info;
 mod matches;
 mod me;
@@ -50,6 +51,10 @@ enum Command {
     Flow(flow::Args),
     /// Write the flow benchmark: photographs under exactly known motion.
     Flowbench(flowbench::Args),
+    /// The camera's motion between frames: one model (translation,
+    /// similarity, affine, homography) per pair, robustly fitted.
+    #[command(name = "globalmotion")]
+    Globalmotion(globalmotion::Args),
     /// Say what a Y4M, .flo or image file holds.
     Info(info::Args),
     /// Sparse feature matches between two pictures (large displacements).
@@ -94,6 +99,7 @@ pub fn main() -> ExitCode {
         Some(Command::Psnr(a)) => psnr::run(&a),
         Some(Command::Analyze(a)) => analyze::run(&a),
         Some(Command::Track(a)) => track::run(&a),
+        Some(Command::Globalmotion(a)) => globalmotion::run(&a),
         None => unreachable!("set to compare above"),
     };
     match result {

@@ -58,6 +58,21 @@ class DenseFlow:
     @property
     def preset(self) -> str: ...
 
+def estimate_global(
+    src: npt.NDArray[np.floating],
+    dst: npt.NDArray[np.floating],
+    model: Literal["translation", "similarity", "affine", "homography"] = "affine",
+    threshold: float = 1.0,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.bool_]]: ...
+def global_motion(
+    img1: Picture,
+    img2: Picture,
+    model: Literal["translation", "similarity", "affine", "homography"] = "affine",
+    source: Literal["flow", "blocks", "matches"] = "flow",
+    threshold: float = 1.0,
+    preset: Literal["ultrafast", "fast", "medium", "accurate"] = "fast",
+    threads: Optional[int] = None,
+) -> dict[str, Any]: ...
 def warp(img: Picture, flow: Flow) -> Picture: ...
 def flow_to_color(flow: Flow, max_flow: Optional[float] = None) -> npt.NDArray[np.uint8]: ...
 def read_flo(path: PathLike) -> Flow: ...

@@ -6,6 +6,7 @@ mod analyze;
 mod arrays;
 mod codec;
 mod flow;
+mod global;
 mod metrics;
 mod motion;
 mod record;
@@ -47,6 +48,8 @@ fn y4m_error(path: &Path, e: mocomp::io::y4m::Y4mError) -> PyErr {
 fn _mocomp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(flow::flow, m)?)?;
     m.add_class::<flow::DenseFlow>()?;
+    m.add_function(wrap_pyfunction!(global::estimate_global, m)?)?;
+    m.add_function(wrap_pyfunction!(global::global_motion, m)?)?;
     m.add_function(wrap_pyfunction!(flow::warp, m)?)?;
     m.add_function(wrap_pyfunction!(flow::flow_to_color, m)?)?;
     m.add_function(wrap_pyfunction!(flow::read_flo, m)?)?;

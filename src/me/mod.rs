@@ -183,6 +183,9 @@ pub const BLOCK_SIZES: [usize; 4] = [4, 8, 16, 32];
 /// Largest search range.
 pub const MAX_RANGE: i32 = 64;
 
+/// Fewest blocks of a wavefront given to one parallel job.
+const WAVE_JOB: usize = 8;
+
 /// How to search.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MeConfig {
@@ -640,8 +643,12 @@ pub(crate) fn estimate_with_planes(
             let blocks: Vec<(usize, usize)> = (0..rows)
                 .filter_map(|r| wave.checked_sub(2 * r).filter(|&c| c < cols).map(|c| (c, r)))
                 .collect();
+            // Blocks of a fast search take about a microsecond: a wave is
+            // split only into jobs of several, or the splitting costs more
+            // than it saves.
             let results: Vec<Candidate> = blocks
                 .par_iter()
+                .with_min_len(WAVE_JOB)
                 .map(|&(c, r)| search_one(&field, c, r))
                 .collect();
             for ((c, r), best) in blocks.into_iter().zip(results) {

@@ -1,16 +1,15 @@
 //! Global (camera) motion: a model fitted robustly to correspondences, or
 //! to the motion between two pictures.
 
-use mocomp::features::{match_pictures, MatchParams};
-use mocomp::flow::{FlowEstimator, FlowOptions, Preset};
-use mocomp::global::{estimate, sources, Correspondence, GlobalMotion, GlobalParams, Model};
-use mocomp::me::{self, MeConfig, Method, Subpel};
+use mocomp::flow::Preset;
+use mocomp::global::sources::{PairCorrespondences, Source};
+use mocomp::global::{estimate, Correspondence, GlobalMotion, GlobalParams, Model};
 use ndarray::{Array1, Array2};
 use numpy::{PyArray1, PyArray2, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
-use crate::arrays::{luma_f32, luma_plane, value_error, with_threads};
+use crate::arrays::{luma_plane, value_error, with_threads};
 
 /// Points as an (N, 2) float array (float64 or float32).
 fn points(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vec<(f64, f64)>> {
@@ -88,7 +87,7 @@ pub fn estimate_global<'py>(
 
 /// The camera's motion from `img1` to `img2`.
 ///
-/// img1, img2: uint8 H x W (or H x W x 3 RGB), or float32 luma; one size.
+/// img1, img2: uint8 H x W (or H x W x 3 RGB); one size.
 /// model: as estimate_global. source: "flow" (DIS at `preset`, sampled
 /// every 8 pixels), "blocks" (16x16 EPZS vectors, quarter-pel) or
 /// "matches" (feature matches). threshold: inlier distance, pixels.
@@ -109,45 +108,23 @@ pub fn global_motion<'py>(
     threads: Option<usize>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let p = params(model, threshold)?;
-    let (a, b) = (luma_f32("img1", img1)?, luma_f32("img2", img2)?);
-    if a.dim() != b.dim() {
+    let source = source.parse::<Source>().map_err(value_error)?;
+    let preset = preset.parse::<Preset>().map_err(value_error)?;
+    // Padded for the block search's range of 32.
+    let (first, second) = (luma_plane("img1", img1, 64)?, luma_plane("img2", img2, 64)?);
+    if (first.width(), first.height()) != (second.width(), second.height()) {
         return Err(value_error(format!(
-            "img1 and img2 differ in size: {:?} and {:?}",
-            a.dim(),
-            b.dim()
+            "img1 and img2 differ in size: {}x{} and {}x{}",
+            first.width(),
+            first.height(),
+            second.width(),
+            second.height()
         )));
     }
-    let pairs: Vec<Correspondence> = match source {
-        "flow" => {
-            let options = FlowOptions {
-                preset: preset.parse::<Preset>().map_err(value_error)?,
-                ..FlowOptions::default()
-            };
-            let mut estimator = FlowEstimator::new(&options).map_err(|e| value_error(e.to_string()))?;
-            let flow = py.detach(|| with_threads(threads, || estimator.compute(&a, &b)))?;
-            sources::from_flow(&flow, 8)
-        }
-        "blocks" => {
-            let (first, second) = (luma_plane("img1", img1, 64)?, luma_plane("img2", img2, 64)?);
-            let mut cfg = MeConfig::new(Method::Epzs, 16, 32);
-            cfg.subpel = Subpel::Quarter;
-            cfg.window = 2;
-            let field = py
-                .detach(|| with_threads(threads, || me::estimate(&second, &first, &cfg)))?
-                .map_err(|e| value_error(e.to_string()))?;
-            sources::from_vectors(&field)
-        }
-        "matches" => {
-            let matches =
-                py.detach(|| with_threads(threads, || match_pictures(&a, &b, &MatchParams::default())))?;
-            sources::from_matches(&matches)
-        }
-        other => {
-            return Err(value_error(format!(
-                "unknown source '{other}' (flow, blocks, matches)"
-            )))
-        }
-    };
+    let mut correspondences = PairCorrespondences::new(source, preset);
+    let pairs = py
+        .detach(|| with_threads(threads, || correspondences.between(&first, &second)))?
+        .map_err(|e| value_error(e.to_string()))?;
     let fit = py
         .detach(|| estimate(&pairs, &p))
         .map_err(|e| value_error(e.to_string()))?;

@@ -7,27 +7,13 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
-use ndarray::Array2;
 use serde_json::json;
 
 use crate::codec::Frame;
-use crate::features::{match_pictures, MatchParams};
-use crate::flow::{FlowEstimator, FlowOptions, Preset};
-use crate::global::{estimate, sources, Correspondence, GlobalMotion, GlobalParams, Model};
+use crate::flow::Preset;
+use crate::global::sources::{PairCorrespondences, Source};
+use crate::global::{estimate, GlobalMotion, GlobalParams, Model};
 use crate::io::{y4m::Y4mReader, OutputFile};
-use crate::me::{self, MeConfig, Method, Subpel};
-use crate::raster::plane_to_array;
-
-/// Where the correspondences come from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum Source {
-    /// Dense flow (DIS, the --preset given), sampled every 8 pixels.
-    Flow,
-    /// 16x16 block vectors (EPZS, quarter-pel), the worst tenth left out.
-    Blocks,
-    /// Feature matches (FAST corners, binary descriptors).
-    Matches,
-}
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -36,8 +22,10 @@ pub struct Args {
     /// Camera model: translation, similarity, affine, homography.
     #[arg(long, default_value = "affine")]
     pub model: Model,
-    /// What the model is fitted to.
-    #[arg(long, value_enum, default_value = "flow")]
+    /// What the model is fitted to: flow (DIS at --preset, every 8
+    /// pixels), blocks (16x16 EPZS vectors, quarter-pel, the worst tenth
+    /// left out) or matches (feature matches).
+    #[arg(long, default_value = "flow")]
     pub source: Source,
     /// Flow preset (with --source flow).
     #[arg(long, default_value = "fast")]
@@ -60,28 +48,6 @@ struct Pair {
     points: usize,
 }
 
-/// The correspondences from `prev` to `cur` by `source`.
-fn correspondences(
-    source: Source,
-    flow: &mut Option<FlowEstimator>,
-    (prev, cur): (&Frame, &Frame),
-    (a, b): (&Array2<f32>, &Array2<f32>),
-) -> Result<Vec<Correspondence>> {
-    Ok(match source {
-        Source::Flow => {
-            let estimator = flow.as_mut().expect("made for --source flow");
-            sources::from_flow(&estimator.compute(a, b), 8)
-        }
-        Source::Blocks => {
-            let mut cfg = MeConfig::new(Method::Epzs, 16, 32);
-            cfg.subpel = Subpel::Quarter;
-            cfg.window = 2;
-            sources::from_vectors(&me::estimate(cur.y(), prev.y(), &cfg)?)
-        }
-        Source::Matches => sources::from_matches(&match_pictures(a, b, &MatchParams::default())),
-    })
-}
-
 pub fn run(args: &Args) -> Result<()> {
     let params = GlobalParams {
         threshold: args.threshold,
@@ -92,31 +58,21 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let name = args.input.display().to_string();
     let mut reader = Y4mReader::open(&args.input).with_context(|| name.clone())?;
-    let mut flow = (args.source == Source::Flow)
-        .then(|| {
-            FlowEstimator::new(&FlowOptions {
-                preset: args.preset,
-                ..FlowOptions::default()
-            })
-        })
-        .transpose()?;
+    let mut source = PairCorrespondences::new(args.source, args.preset);
     let (w, h) = (reader.info().width, reader.info().height);
     let (mut prev, mut cur) = (Frame::new(w, h)?, Frame::new(w, h)?);
     if !reader.read_frame_into(&mut prev).with_context(|| name.clone())? {
         bail!("{name} has no frames");
     }
-    let mut a = plane_to_array(prev.y());
     let (mut pairs, start) = (Vec::new(), Instant::now());
     while reader.read_frame_into(&mut cur).with_context(|| name.clone())? {
-        let b = plane_to_array(cur.y());
-        let points = correspondences(args.source, &mut flow, (&prev, &cur), (&a, &b))?;
+        let points = source.between(prev.y(), cur.y())?;
         pairs.push(Pair {
             frame: pairs.len() + 1,
             fit: estimate(&points, &params).ok(),
             points: points.len(),
         });
         std::mem::swap(&mut prev, &mut cur);
-        a = b;
     }
     let ms = start.elapsed().as_secs_f64() * 1000.0 / pairs.len().max(1) as f64;
     if let Some(path) = &args.csv {

@@ -94,4 +94,7 @@ pub enum GlobalError {
     /// A setting out of range.
     #[error("{0}")]
     Params(String),
+    /// The motion the correspondences come from could not be estimated.
+    #[error("motion estimation: {0}")]
+    Motion(String),
 }

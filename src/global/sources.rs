@@ -2,10 +2,94 @@
 //! finds: a dense flow sampled on a grid, block vectors, feature matches.
 //! Each gives pairs from the first (earlier) picture to the second.
 
-use super::Correspondence;
-use crate::features::Match;
-use crate::flow::Flow;
-use crate::me::MotionField;
+use super::{Correspondence, GlobalError};
+use crate::codec::Plane;
+use crate::features::{match_pictures, Match, MatchParams};
+use crate::flow::{Flow, FlowEstimator, FlowOptions, Preset};
+use crate::me::{self, MeConfig, Method, MotionField, Subpel};
+use crate::raster::plane_to_array;
+
+/// Where a picture pair's correspondences come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Source {
+    /// Dense flow (DIS), sampled every 8 pixels ([`from_flow`]).
+    Flow,
+    /// 16x16 block vectors (EPZS, range 32, quarter-pel; [`from_vectors`]).
+    Blocks,
+    /// Feature matches ([`from_matches`]).
+    Matches,
+}
+
+impl Source {
+    /// Every source.
+    pub const ALL: [Source; 3] = [Source::Flow, Source::Blocks, Source::Matches];
+
+    /// `flow`, `blocks` or `matches`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Source::Flow => "flow",
+            Source::Blocks => "blocks",
+            Source::Matches => "matches",
+        }
+    }
+}
+
+impl std::str::FromStr for Source {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Source, String> {
+        Source::ALL
+            .into_iter()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| format!("unknown source '{s}' (flow, blocks, matches)"))
+    }
+}
+
+/// The correspondences of picture pairs by one source, its estimator made
+/// once and kept from pair to pair.
+pub struct PairCorrespondences {
+    source: Source,
+    flow: Option<FlowEstimator>,
+}
+
+impl PairCorrespondences {
+    /// `source`, with DIS at `preset` for [`Source::Flow`].
+    pub fn new(source: Source, preset: Preset) -> PairCorrespondences {
+        let options = FlowOptions {
+            preset,
+            ..FlowOptions::default()
+        };
+        PairCorrespondences {
+            source,
+            flow: (source == Source::Flow)
+                .then(|| FlowEstimator::new(&options).expect("a preset's own settings are valid")),
+        }
+    }
+
+    /// Pairs from `first` to `second` (the same size; for blocks, planes
+    /// padded by at least 56 pixels, as [`me::estimate`] needs for a range
+    /// of 32).
+    pub fn between(&mut self, first: &Plane, second: &Plane) -> Result<Vec<Correspondence>, GlobalError> {
+        Ok(match (self.source, self.flow.as_mut()) {
+            (Source::Flow, Some(estimator)) => from_flow(
+                &estimator.compute(&plane_to_array(first), &plane_to_array(second)),
+                8,
+            ),
+            (Source::Blocks, _) => {
+                let mut cfg = MeConfig::new(Method::Epzs, 16, 32);
+                cfg.subpel = Subpel::Quarter;
+                cfg.window = 2;
+                let field =
+                    me::estimate(second, first, &cfg).map_err(|e| GlobalError::Motion(e.to_string()))?;
+                from_vectors(&field)
+            }
+            _ => from_matches(&match_pictures(
+                &plane_to_array(first),
+                &plane_to_array(second),
+                &MatchParams::default(),
+            )),
+        })
+    }
+}
 
 /// The flow from the first picture to the second at every `step`-th pixel
 /// of each row and column (from `step / 2`), its invalid pixels left out.

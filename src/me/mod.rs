@@ -37,6 +37,7 @@
 pub mod cost;
 pub mod dsp;
 pub(crate) mod halfpel;
+mod pipeline;
 pub(crate) mod sea;
 mod search;
 pub(crate) use search::SQUARE;
@@ -182,9 +183,6 @@ pub const BLOCK_SIZES: [usize; 4] = [4, 8, 16, 32];
 
 /// Largest search range.
 pub const MAX_RANGE: i32 = 64;
-
-/// Fewest blocks of a wavefront given to one parallel job.
-const WAVE_JOB: usize = 8;
 
 /// How to search.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -620,10 +618,10 @@ pub(crate) fn estimate_with_planes(
     };
     let sums = (cfg.successive_elimination && sea::pays(cfg.full_pel_metric(), radius))
         .then(|| sea::QuadrantSums::new(reference, cfg.block, dsp::pixel()));
-    let search_one = |field: &MotionField, col: usize, row: usize| -> Candidate {
+    let search_one = |grid: &pipeline::SharedGrid, col: usize, row: usize| -> Candidate {
         let s = SearchContext {
             mvp: if lambda_q8 > 0 || cfg.method.uses_neighbours() {
-                field.predictor(col, row)
+                grid.predictor(col, row)
             } else {
                 Mv::ZERO
             },
@@ -632,34 +630,19 @@ pub(crate) fn estimate_with_planes(
             sums: sums.as_ref(),
             ..SearchContext::new(cur, reference, (col * cfg.block, row * cfg.block), cfg)
         };
-        let neighbours = search::Neighbours::of(field, prior, col, row);
+        let neighbours = search::Neighbours::of(grid, prior, col, row);
         let best = search::full_pel(&s, &neighbours);
         search::refine(&s, s.in_sub_pel_measure(best))
     };
     if lambda_q8 > 0 || cfg.method.uses_neighbours() {
-        // Wavefronts: block (c, r) reads (c-1, r), (c-1, r-1), (c, r-1) and
-        // (c+1, r-1), all on earlier diagonals c + 2r.
-        for wave in 0..cols + 2 * rows {
-            let blocks: Vec<(usize, usize)> = (0..rows)
-                .filter_map(|r| wave.checked_sub(2 * r).filter(|&c| c < cols).map(|c| (c, r)))
-                .collect();
-            // Blocks of a fast search take about a microsecond: a wave is
-            // split only into jobs of several, or the splitting costs more
-            // than it saves.
-            let results: Vec<Candidate> = blocks
-                .par_iter()
-                .with_min_len(WAVE_JOB)
-                .map(|&(c, r)| search_one(&field, c, r))
-                .collect();
-            for ((c, r), best) in blocks.into_iter().zip(results) {
-                field.vectors[r * cols + c] = best.mv;
-                field.costs[r * cols + c] = best.cost.min(u64::from(u32::MAX)) as u32;
-            }
-        }
+        // Each block reads its left, top and top-right neighbours' final
+        // vectors: rows in a pipeline.
+        (field.vectors, field.costs) = pipeline::search_rows(cols, rows, &search_one);
     } else {
+        let zero = pipeline::SharedGrid::new(cols, rows);
         let results: Vec<Vec<Candidate>> = (0..rows)
             .into_par_iter()
-            .map(|r| (0..cols).map(|c| search_one(&field, c, r)).collect())
+            .map(|r| (0..cols).map(|c| search_one(&zero, c, r)).collect())
             .collect();
         for (r, row) in results.into_iter().enumerate() {
             for (c, best) in row.into_iter().enumerate() {

@@ -1,5 +1,6 @@
 //! The search patterns: full-pel search per method, then sub-pel refinement.
 
+use super::pipeline::SharedGrid;
 use super::{Candidate, Method, MotionField, SearchContext, Subpel};
 use crate::codec::mv::Mv;
 
@@ -12,9 +13,9 @@ pub(crate) struct Neighbours {
 
 impl Neighbours {
     /// The left, top and top-right blocks of `field` (final when read: see
-    /// the wavefront in `estimate_with_prior`), the median predictor, and the
-    /// co-located, right and lower blocks of the previous field.
-    pub(crate) fn of(field: &MotionField, prior: Option<&MotionField>, col: usize, row: usize) -> Neighbours {
+    /// [`super::pipeline`]), the median predictor, and the co-located,
+    /// right and lower blocks of the previous field.
+    pub(crate) fn of(field: &SharedGrid, prior: Option<&MotionField>, col: usize, row: usize) -> Neighbours {
         let mut n = Neighbours {
             candidates: [Mv::ZERO; 7],
             len: 0,

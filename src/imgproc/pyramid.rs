@@ -339,16 +339,23 @@ pub struct Pyramid {
 impl Pyramid {
     /// Rebuilds the levels from `src`, as [`pyramid`] does.
     pub fn build(&mut self, src: &Array2<f32>, levels: usize, min_size: usize) {
-        self.build_with(src, levels, min_size, false)
+        self.build_with(src, levels, min_size, false, true)
     }
 
     /// Rebuilds the levels from `src` with the binomial filter
     /// ([`downsample_binomial_into`]) instead of the Gaussian.
     pub fn build_binomial(&mut self, src: &Array2<f32>, levels: usize, min_size: usize) {
-        self.build_with(src, levels, min_size, true)
+        self.build_with(src, levels, min_size, true, true)
     }
 
-    fn build_with(&mut self, src: &Array2<f32>, levels: usize, min_size: usize, binomial: bool) {
+    /// As [`Pyramid::build_binomial`] for a reader of the levels from 1 up
+    /// only: level 0 is sized but not filled (its copy of `src` is the one
+    /// full-size pass that reader does not need).
+    pub fn build_binomial_above_full_size(&mut self, src: &Array2<f32>, levels: usize, min_size: usize) {
+        self.build_with(src, levels, min_size, true, false)
+    }
+
+    fn build_with(&mut self, src: &Array2<f32>, levels: usize, min_size: usize, binomial: bool, full: bool) {
         let mut dims = vec![src.dim()];
         while dims.len() < levels.max(1) {
             let (h, w) = dims[dims.len() - 1];
@@ -365,16 +372,22 @@ impl Pyramid {
                 self.levels[i] = Array2::zeros(d);
             }
         }
-        match (self.levels[0].as_slice_mut(), src.as_slice()) {
-            (Some(dst), Some(s)) => dst.copy_from_slice(s),
-            _ => self.levels[0].assign(src),
+        // The level-1 pass reads rows of a standard layout: another layout
+        // goes through level 0's copy.
+        let full = full || src.as_slice().is_none();
+        if full {
+            match (self.levels[0].as_slice_mut(), src.as_slice()) {
+                (Some(dst), Some(s)) => dst.copy_from_slice(s),
+                _ => self.levels[0].assign(src),
+            }
         }
         for i in 1..dims.len() {
             let (lower, upper) = self.levels.split_at_mut(i);
+            let below = if i == 1 && !full { src } else { &lower[i - 1] };
             if binomial {
-                downsample_binomial_into(&lower[i - 1], &mut self.tmp, &mut upper[0]);
+                downsample_binomial_into(below, &mut self.tmp, &mut upper[0]);
             } else {
-                downsample_into(&lower[i - 1], &mut self.tmp, &mut upper[0]);
+                downsample_into(below, &mut self.tmp, &mut upper[0]);
             }
         }
     }

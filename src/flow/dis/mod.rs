@@ -280,8 +280,13 @@ impl Dis {
         let (h0, w0) = i1.dim();
         let coarsest = p.coarsest.unwrap_or_else(|| coarsest_level(w0, h0, p.patch));
         let finest = finest_level(w0, h0, &p).min(coarsest);
-        self.p1.build_binomial(i1, coarsest + 1, 1);
-        self.p2.build_binomial(i2, coarsest + 1, 1);
+        if finest == 0 {
+            self.p1.build_binomial(i1, coarsest + 1, 1);
+            self.p2.build_binomial(i2, coarsest + 1, 1);
+        } else {
+            self.p1.build_binomial_above_full_size(i1, coarsest + 1, 1);
+            self.p2.build_binomial_above_full_size(i2, coarsest + 1, 1);
+        }
         let top = self.p1.levels.len() - 1;
         self.refiners.resize_with(top + 1, Refiner::default);
         let (mut u, mut v) = (

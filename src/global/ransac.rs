@@ -72,7 +72,9 @@ fn sample_consensus(points: &[Correspondence], p: &GlobalParams) -> Option<Trans
     let mut best: Option<(f64, Transform)> = None;
     let mut samples_needed = p.max_samples;
     let mut drawn = 0;
-    let mut sample = Vec::with_capacity(s);
+    // Reused from sample to sample (at most 4 points, weights all 1).
+    let (mut sample, mut chosen) = (Vec::with_capacity(s), Vec::with_capacity(s));
+    let ones = [1.0; 4];
     while drawn < samples_needed.min(p.max_samples) {
         drawn += 1;
         sample.clear();
@@ -82,8 +84,9 @@ fn sample_consensus(points: &[Correspondence], p: &GlobalParams) -> Option<Trans
                 sample.push(i);
             }
         }
-        let chosen: Vec<Correspondence> = sample.iter().map(|&i| points[i]).collect();
-        let Some(t) = fit(p.model, &chosen, &vec![1.0; s]) else {
+        chosen.clear();
+        chosen.extend(sample.iter().map(|&i| points[i]));
+        let Some(t) = fit(p.model, &chosen, &ones[..s]) else {
             continue;
         };
         let c = cost(points, &t, p.threshold);

@@ -23,6 +23,7 @@ mod me;
 mod psnr;
 mod rd;
 mod samples;
+mod stabilize;
 mod track;
 
 use std::process::ExitCode;
@@ -74,6 +75,14 @@ enum Command {
     Psnr(psnr::Args),
     /// Follow corners through a sequence (sparse pyramidal LK).
     Track(track::Args),
+    /// Stabilise a video: the camera path smoothed (Gaussian or L1-optimal),
+    /// each frame warped onto it, cropped so no border shows.
+    Stabilize(stabilize::Args),
+    /// Add a known camera shake to a still-camera clip (test material).
+    Shake(stabilize::ShakeArgs),
+    /// Score a stabilised video against its input: cropping, distortion,
+    /// stability (Liu et al. 2013) and, with the shake's truth, jitter.
+    Stabscore(stabilize::ScoreArgs),
 }
 
 /// Parses the command line, runs it, and reports any error on one line of
@@ -100,6 +109,9 @@ pub fn main() -> ExitCode {
         Some(Command::Analyze(a)) => analyze::run(&a),
         Some(Command::Track(a)) => track::run(&a),
         Some(Command::Globalmotion(a)) => globalmotion::run(&a),
+        Some(Command::Stabilize(a)) => stabilize::run(&a),
+        Some(Command::Shake(a)) => stabilize::run_shake(&a),
+        Some(Command::Stabscore(a)) => stabilize::run_score(&a),
         None => unreachable!("set to compare above"),
     };
     match result {

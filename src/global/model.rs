@@ -150,8 +150,14 @@ impl Correspondence {
 
     /// Distance in pixels between where `t` takes `from` and `to`.
     pub fn residual(&self, t: &Transform) -> f64 {
+        self.residual_squared(t).sqrt()
+    }
+
+    /// [`Correspondence::residual`] squared (what the fits compare, without
+    /// a square root per point).
+    pub fn residual_squared(&self, t: &Transform) -> f64 {
         match t.apply(self.from.0, self.from.1) {
-            Some((x, y)) => (x - self.to.0).hypot(y - self.to.1),
+            Some((x, y)) => (x - self.to.0).powi(2) + (y - self.to.1).powi(2),
             None => f64::INFINITY,
         }
     }

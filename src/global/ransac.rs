@@ -52,7 +52,7 @@ fn cost(points: &[Correspondence], t: &Transform, threshold: f64) -> f64 {
     let t2 = threshold * threshold;
     points
         .iter()
-        .map(|c| (c.residual(t).powi(2)).min(t2) * c.weight)
+        .map(|c| c.residual_squared(t).min(t2) * c.weight)
         .sum()
 }
 
@@ -91,7 +91,8 @@ fn sample_consensus(points: &[Correspondence], p: &GlobalParams) -> Option<Trans
         };
         let c = cost(points, &t, p.threshold);
         if best.as_ref().is_none_or(|(b, _)| c < *b) {
-            let inliers = points.iter().filter(|q| q.residual(&t) <= p.threshold).count();
+            let t2 = p.threshold * p.threshold;
+            let inliers = points.iter().filter(|q| q.residual_squared(&t) <= t2).count();
             samples_needed = samples_for(inliers as f64 / n as f64, s);
             best = Some((c, t));
         }
@@ -179,7 +180,7 @@ fn summary(points: &[Correspondence], p: &GlobalParams, t: Transform) -> GlobalM
         .iter()
         .zip(&inliers)
         .filter(|(_, &i)| i)
-        .map(|(c, _)| c.residual(&t).powi(2))
+        .map(|(c, _)| c.residual_squared(&t))
         .sum();
     GlobalMotion {
         model: p.model,

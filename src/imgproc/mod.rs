@@ -6,3 +6,4 @@
 pub mod corners;
 pub mod dsp;
 pub mod pyramid;
+pub mod warp;

@@ -1528,3 +1528,93 @@ fn globalmotion_finds_the_bundled_scenes_camera_from_each_source() {
     assert_eq!(json["pairs"][0]["fit"]["model"], "homography");
     fails_cleanly(&["globalmotion", input.to_str().unwrap(), "--threshold", "0"]);
 }
+
+#[test]
+fn shake_then_stabilize_then_score() {
+    // A known shake on the bundled scene; the stabilised output keeps the
+    // size and frame count, and its residual jitter is a fraction of the
+    // shake's (the scene's own camera pans, so not zero).
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    let input = sample("synth_cif.y4m");
+    mocomp()
+        .args([
+            "shake",
+            input.to_str().unwrap(),
+            "-o",
+            &p("shaken.y4m"),
+            "--translation",
+            "8",
+        ])
+        .args(["--rotation", "1", "--seed", "3", "--truth", &p("truth.csv")])
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("shaken into"));
+    let truth = std::fs::read_to_string(p("truth.csv")).unwrap();
+    assert_eq!(truth.lines().count(), 1 + 10);
+    mocomp()
+        .args([
+            "stabilize",
+            &p("shaken.y4m"),
+            "-o",
+            &p("out.y4m"),
+            "--path",
+            &p("path.csv"),
+        ])
+        .args(["--report", "--shake", &p("truth.csv")])
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("residual jitter"));
+    let (a, b) = (
+        mocomp::io::y4m::Y4mReader::open(std::path::Path::new(&p("shaken.y4m")))
+            .unwrap()
+            .read_all()
+            .unwrap(),
+        mocomp::io::y4m::Y4mReader::open(std::path::Path::new(&p("out.y4m")))
+            .unwrap()
+            .read_all()
+            .unwrap(),
+    );
+    assert_eq!(
+        (a.len(), a[0].width(), a[0].height()),
+        (b.len(), b[0].width(), b[0].height())
+    );
+    assert_eq!(
+        std::fs::read_to_string(p("path.csv")).unwrap().lines().count(),
+        1 + 10
+    );
+    let score = json_stdout(mocomp().args([
+        "stabscore",
+        &p("shaken.y4m"),
+        &p("out.y4m"),
+        "--shake",
+        &p("truth.csv"),
+        "--json",
+    ]));
+    let (jitter, shake) = (
+        score["jitter"].as_f64().unwrap(),
+        score["input_jitter"].as_f64().unwrap(),
+    );
+    assert!(jitter < 0.5 * shake, "{score}");
+    assert!(
+        score["distortion"].as_f64().unwrap() > 0.95 && score["cropping"].as_f64().unwrap() > 0.8,
+        "{score}"
+    );
+    fails_cleanly(&[
+        "stabilize",
+        &p("shaken.y4m"),
+        "-o",
+        &p("bad.y4m"),
+        "--zoom",
+        "0.5",
+    ]);
+    fails_cleanly(&[
+        "stabilize",
+        &p("shaken.y4m"),
+        "-o",
+        &p("bad.y4m"),
+        "--model",
+        "affine",
+    ]);
+    assert!(!dir.path().join("bad.y4m").exists());
+}

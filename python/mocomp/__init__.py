@@ -33,8 +33,10 @@ from ._mocomp import (
     read_flo,
     read_y4m,
     ssim,
+    stabilize_path,
     track,
     warp,
+    warp_matrix,
     write_flo,
 )
 
@@ -58,7 +60,9 @@ __all__ = [
     "read_flo",
     "read_y4m",
     "ssim",
+    "stabilize_path",
     "track",
     "warp",
+    "warp_matrix",
     "write_flo",
 ]

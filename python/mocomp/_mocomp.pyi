@@ -74,6 +74,24 @@ def global_motion(
     threads: Optional[int] = None,
 ) -> dict[str, Any]: ...
 def warp(img: Picture, flow: Flow) -> Picture: ...
+def stabilize_path(
+    frames: list[Picture],
+    smoothing: int = 10,
+    l1: bool = False,
+    zoom: Union[Literal["auto", "adaptive"], float, None] = None,
+    coverage: float = 0.75,
+    max_zoom: float = 1.5,
+    model: Literal["translation", "similarity"] = "similarity",
+    source: Literal["flow", "blocks", "matches"] = "flow",
+    preset: Literal["ultrafast", "fast", "medium", "accurate"] = "ultrafast",
+    threads: Optional[int] = None,
+) -> dict[str, Any]: ...
+def warp_matrix(
+    image: Picture,
+    matrix: npt.NDArray[np.float64],
+    size: Optional[tuple[int, int]] = None,
+    border: Union[Literal["replicate"], int, None] = None,
+) -> npt.NDArray[np.uint8]: ...
 def flow_to_color(flow: Flow, max_flow: Optional[float] = None) -> npt.NDArray[np.uint8]: ...
 def read_flo(path: PathLike) -> Flow: ...
 def write_flo(path: PathLike, flow: Flow) -> None: ...

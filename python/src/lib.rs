@@ -10,6 +10,7 @@ mod global;
 mod metrics;
 mod motion;
 mod record;
+mod stabilize;
 
 use std::path::Path;
 
@@ -50,6 +51,8 @@ fn _mocomp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<flow::DenseFlow>()?;
     m.add_function(wrap_pyfunction!(global::estimate_global, m)?)?;
     m.add_function(wrap_pyfunction!(global::global_motion, m)?)?;
+    m.add_function(wrap_pyfunction!(stabilize::stabilize_path, m)?)?;
+    m.add_function(wrap_pyfunction!(stabilize::warp_matrix, m)?)?;
     m.add_function(wrap_pyfunction!(flow::warp, m)?)?;
     m.add_function(wrap_pyfunction!(flow::flow_to_color, m)?)?;
     m.add_function(wrap_pyfunction!(flow::read_flo, m)?)?;

@@ -177,12 +177,16 @@ fn warp_row_affine(
         if ix >= 0 && iy >= 0 && ix + 3 < w && iy + 3 < h {
             let (wx, wy) = (&table[(px & mask) as usize], &table[(py & mask) as usize]);
             let at = (origin + iy * stride + ix) as usize;
-            let mut acc = 0i32;
-            for (j, &k) in wy.iter().enumerate() {
-                let taps = &data[at + j * stride as usize..][..4];
-                let sum: i32 = taps.iter().zip(wx).map(|(&p, &c)| i32::from(p) * c).sum();
-                acc += sum * k;
-            }
+            // One slice over the 4x4 block: a single bounds check.
+            let block = &data[at..at + 3 * stride as usize + 4];
+            let tap_row = |j: usize| {
+                let r: &[u8; 4] = block[j * stride as usize..][..4].try_into().expect("four taps");
+                i32::from(r[0]) * wx[0]
+                    + i32::from(r[1]) * wx[1]
+                    + i32::from(r[2]) * wx[2]
+                    + i32::from(r[3]) * wx[3]
+            };
+            let acc = tap_row(0) * wy[0] + tap_row(1) * wy[1] + tap_row(2) * wy[2] + tap_row(3) * wy[3];
             *out = ((acc + round) >> (2 * WEIGHT_BITS)).clamp(0, 255) as u8;
         } else {
             let xf = x as f64;

@@ -146,11 +146,16 @@ impl MotionTrack {
 
     /// Adds the next frame's luma; from the second on, its motion to the
     /// one before (`None` where no model fits: a cut, a blank frame).
-    /// Pictures wider than [`MotionTrack::HALVE_ABOVE`] are halved first
-    /// (the camera's motion needs no finer flow), the model scaled back.
+    /// The picture is halved until it is at most
+    /// [`MotionTrack::MOTION_WIDTH`] wide (the camera's motion needs no
+    /// finer flow), the model scaled back.
     pub fn push(&mut self, luma: &Plane) -> Result<(), StabilizeError> {
-        let halve = luma.width() > Self::HALVE_ABOVE && luma.height() >= 64;
-        let small = if halve { halved(luma) } else { luma.clone() };
+        let mut small = luma.clone();
+        let mut scale = 1.0;
+        while small.width() > Self::MOTION_WIDTH && small.height() >= 64 {
+            small = halved(&small);
+            scale *= 2.0;
+        }
         if let Some(prev) = &self.previous {
             let points = self.source.between(&small, prev)?;
             // Few points following any one camera motion: a cut (or a
@@ -158,21 +163,15 @@ impl MotionTrack {
             let motion = estimate(&points, &self.params)
                 .ok()
                 .filter(|f| f.inlier_count as f64 >= Self::MIN_INLIER_SHARE * points.len() as f64)
-                .map(|f| {
-                    if halve {
-                        from_half(&f.transform)
-                    } else {
-                        f.transform
-                    }
-                });
+                .map(|f| to_full_size(&f.transform, scale));
             self.motions.push(motion);
         }
         self.previous = Some(small);
         Ok(())
     }
 
-    /// Width above which the motion is found at half size.
-    pub const HALVE_ABOVE: usize = 256;
+    /// The widest picture the motion is found on.
+    pub const MOTION_WIDTH: usize = 320;
     /// The least share of correspondences that must follow the fitted
     /// motion for it to count (a cut gives a few per cent).
     pub const MIN_INLIER_SHARE: f64 = 0.25;
@@ -197,12 +196,25 @@ fn halved(plane: &Plane) -> Plane {
     .expect("half of a valid size")
 }
 
-/// A motion found between halved pictures, in full-size pixels: half-size
-/// pixel `x` covers full-size pixels `2x` and `2x + 1`, centred at `2x + 0.5`.
-fn from_half(m: &Transform) -> Transform {
-    let to_full = Transform([2.0, 0.0, 0.5, 0.0, 2.0, 0.5, 0.0, 0.0, 1.0]);
-    let to_half = Transform([0.5, 0.0, -0.25, 0.0, 0.5, -0.25, 0.0, 0.0, 1.0]);
-    to_full.then_after(&m.then_after(&to_half))
+/// A motion found on pictures scaled down by `scale` (a power of two, by
+/// [`halved`]), in full-size pixels: small pixel `x` covers full-size
+/// pixels `scale x` to `scale x + scale - 1`, centred at
+/// `scale x + (scale - 1) / 2`.
+fn to_full_size(m: &Transform, scale: f64) -> Transform {
+    let o = (scale - 1.0) / 2.0;
+    let to_full = Transform([scale, 0.0, o, 0.0, scale, o, 0.0, 0.0, 1.0]);
+    let to_small = Transform([
+        1.0 / scale,
+        0.0,
+        -o / scale,
+        0.0,
+        1.0 / scale,
+        -o / scale,
+        0.0,
+        0.0,
+        1.0,
+    ]);
+    to_full.then_after(&m.then_after(&to_small))
 }
 
 fn check(p: &StabilizeParams) -> Result<(), StabilizeError> {

@@ -31,6 +31,7 @@ pub mod flow;
 pub mod fuzzing;
 pub mod global;
 pub mod imgproc;
+pub mod interpolate;
 pub mod io;
 pub mod me;
 pub mod metrics;

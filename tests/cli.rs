@@ -1618,3 +1618,41 @@ fn shake_then_stabilize_then_score() {
     ]);
     assert!(!dir.path().join("bad.y4m").exists());
 }
+
+#[test]
+fn interpolate_doubles_the_rate_and_evaluates_rebuilt_frames() {
+    // Input frame k is output frame 2k; --evaluate rebuilds frames 1, 3 ...
+    // of the bundled scene from their neighbours, far better than their
+    // average (the scene pans and objects move).
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    let input = sample("synth_qcif.y4m");
+    mocomp()
+        .args(["interpolate", input.to_str().unwrap(), "-o", &p("double.y4m")])
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("9 frames made"));
+    let read = |path: &str| mocomp::io::y4m::Y4mReader::open(std::path::Path::new(path)).unwrap();
+    let (orig, double) = (read(input.to_str().unwrap()), read(&p("double.y4m")));
+    assert_eq!(
+        double.info().fps.0 * orig.info().fps.1,
+        2 * orig.info().fps.0 * double.info().fps.1
+    );
+    let (orig, double) = (orig.read_all().unwrap(), double.read_all().unwrap());
+    assert_eq!(double.len(), 2 * orig.len() - 1);
+    for (k, f) in orig.iter().enumerate() {
+        assert!(double[2 * k] == *f, "output frame {} is input frame {k}", 2 * k);
+    }
+    let v = json_stdout(mocomp().args(["interpolate", input.to_str().unwrap(), "--evaluate", "--json"]));
+    assert_eq!(v["frames"], 4);
+    assert!(v["mean_psnr_y"].as_f64().unwrap() > 30.0, "{v}");
+    fails_cleanly(&[
+        "interpolate",
+        input.to_str().unwrap(),
+        "-o",
+        &p("bad.y4m"),
+        "--factor",
+        "1",
+    ]);
+    fails_cleanly(&["interpolate", input.to_str().unwrap()]);
+}

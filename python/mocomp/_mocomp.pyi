@@ -86,6 +86,12 @@ def stabilize_path(
     preset: Literal["ultrafast", "fast", "medium", "accurate"] = "ultrafast",
     threads: Optional[int] = None,
 ) -> dict[str, Any]: ...
+def interpolate(
+    frame0: Yuv,
+    frame1: Yuv,
+    times: Sequence[float] = (0.5,),
+    preset: Literal["ultrafast", "fast", "medium", "accurate"] = "fast",
+) -> list[Yuv]: ...
 def warp_matrix(
     image: Picture,
     matrix: npt.NDArray[np.float64],

@@ -7,6 +7,7 @@ mod arrays;
 mod codec;
 mod flow;
 mod global;
+mod interpolate;
 mod metrics;
 mod motion;
 mod record;
@@ -52,6 +53,7 @@ fn _mocomp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(global::estimate_global, m)?)?;
     m.add_function(wrap_pyfunction!(global::global_motion, m)?)?;
     m.add_function(wrap_pyfunction!(stabilize::stabilize_path, m)?)?;
+    m.add_function(wrap_pyfunction!(interpolate::interpolate, m)?)?;
     m.add_function(wrap_pyfunction!(stabilize::warp_matrix, m)?)?;
     m.add_function(wrap_pyfunction!(flow::warp, m)?)?;
     m.add_function(wrap_pyfunction!(flow::flow_to_color, m)?)?;

@@ -18,6 +18,7 @@ mod flow;
 mod flowbench;
 mod globalmotion;
 mod info;
+mod interpolate;
 mod matches;
 mod me;
 mod psnr;
@@ -58,6 +59,9 @@ enum Command {
     Globalmotion(globalmotion::Args),
     /// Say what a Y4M, .flo or image file holds.
     Info(info::Args),
+    /// New frames between each pair from dense flow both ways (slow
+    /// motion, frame-rate conversion); --evaluate rebuilds dropped frames.
+    Interpolate(interpolate::Args),
     /// Sparse feature matches between two pictures (large displacements).
     Match(matches::Args),
     /// Block motion estimation of each frame against the previous one.
@@ -101,6 +105,7 @@ pub fn main() -> ExitCode {
         Some(Command::Flow(a)) => flow::run(&a),
         Some(Command::Flowbench(a)) => flowbench::run(&a),
         Some(Command::Info(a)) => info::run(&a),
+        Some(Command::Interpolate(a)) => interpolate::run(&a),
         Some(Command::Match(a)) => matches::run(&a),
         Some(Command::Me(a)) => me::run(&a),
         Some(Command::Rd(a)) => rd::run(&a),

@@ -37,6 +37,7 @@ pub mod me;
 pub mod metrics;
 pub mod raster;
 pub mod rd;
+pub mod segment;
 pub mod stabilize;
 pub mod synth;
 pub mod viz;

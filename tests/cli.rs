@@ -1656,3 +1656,43 @@ fn interpolate_doubles_the_rate_and_evaluates_rebuilt_frames() {
     ]);
     fails_cleanly(&["interpolate", input.to_str().unwrap()]);
 }
+
+#[test]
+fn segment_writes_a_mask_per_frame_and_an_overlay() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    let input = sample("synth_qcif.y4m");
+    mocomp()
+        .args([
+            "segment",
+            input.to_str().unwrap(),
+            "--masks",
+            &p("masks"),
+            "--overlay",
+            &p("ov.y4m"),
+        ])
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("10 frames segmented"));
+    for t in 0..10 {
+        let mask =
+            mocomp::io::image::read_luma(&dir.path().join("masks").join(format!("{t:05}.png"))).unwrap();
+        assert_eq!((mask.width(), mask.height()), (176, 144));
+        assert!(mask.rows().all(|r| r.iter().all(|&v| v == 0 || v == 255)));
+    }
+    let ov = mocomp::io::y4m::Y4mReader::open(std::path::Path::new(&p("ov.y4m")))
+        .unwrap()
+        .read_all()
+        .unwrap();
+    assert_eq!(ov.len(), 10);
+    // Its own masks as the truth: IoU 1 in every frame.
+    let v = json_stdout(mocomp().args([
+        "segment",
+        input.to_str().unwrap(),
+        "--truth",
+        &p("masks"),
+        "--json",
+    ]));
+    assert_eq!(v["mean_iou"].as_f64().unwrap(), 1.0, "{v}");
+    fails_cleanly(&["segment", input.to_str().unwrap(), "--tolerance", "0"]);
+}

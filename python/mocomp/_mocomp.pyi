@@ -92,6 +92,12 @@ def interpolate(
     times: Sequence[float] = (0.5,),
     preset: Literal["ultrafast", "fast", "medium", "accurate"] = "fast",
 ) -> list[Yuv]: ...
+def motion_mask(
+    img: Picture,
+    neighbours: list[Picture],
+    preset: Literal["ultrafast", "fast", "medium", "accurate"] = "fast",
+    tolerance: float = 1.0,
+) -> npt.NDArray[np.uint8]: ...
 def warp_matrix(
     image: Picture,
     matrix: npt.NDArray[np.float64],

@@ -24,6 +24,7 @@ mod me;
 mod psnr;
 mod rd;
 mod samples;
+mod segment;
 mod stabilize;
 mod track;
 
@@ -79,6 +80,9 @@ enum Command {
     Psnr(psnr::Args),
     /// Follow corners through a sequence (sparse pyramidal LK).
     Track(track::Args),
+    /// What moves against the camera: one PNG mask per frame, from where
+    /// the flow departs from the camera's homography.
+    Segment(segment::Args),
     /// Stabilise a video: the camera path smoothed (Gaussian or L1-optimal),
     /// each frame warped onto it, cropped so no border shows.
     Stabilize(stabilize::Args),
@@ -114,6 +118,7 @@ pub fn main() -> ExitCode {
         Some(Command::Analyze(a)) => analyze::run(&a),
         Some(Command::Track(a)) => track::run(&a),
         Some(Command::Globalmotion(a)) => globalmotion::run(&a),
+        Some(Command::Segment(a)) => segment::run(&a),
         Some(Command::Stabilize(a)) => stabilize::run(&a),
         Some(Command::Shake(a)) => stabilize::run_shake(&a),
         Some(Command::Stabscore(a)) => stabilize::run_score(&a),

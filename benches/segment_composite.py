@@ -1,0 +1,81 @@
+"""segment_composite.py REAL.y4m OBJECT.y4m OUT.y4m MASKS_DIR [FRAMES]
+
+Test material for moving-object segmentation with known truth: REAL seen
+by a camera that pans (a window sliding 2 px right and 1 px down a frame
+over REAL's frames), with a disc cut from OBJECT's first frame pasted on
+top, moving 3 px left and 2 px down a frame across the view. The disc's
+mask is the truth: MASKS_DIR/00000.png ... (255 inside). 4:2:0 8-bit Y4M
+in and out; numpy only (PNGs written with zlib)."""
+import re
+import struct
+import sys
+import zlib
+from pathlib import Path
+
+import numpy as np
+
+
+def read_y4m(path, limit):
+    data = Path(path).read_bytes()
+    end = data.index(b"\n")
+    head = data[:end].decode()
+    w, h = (int(re.search(p, head).group(1)) for p in (r" W(\d+)", r" H(\d+)"))
+    cw, ch = (w + 1) // 2, (h + 1) // 2
+    frames, at = [], end + 1
+    while at < len(data) and len(frames) < limit:
+        start = data.index(b"\n", at) + 1
+        y = np.frombuffer(data[start : start + w * h], np.uint8).reshape(h, w)
+        u = np.frombuffer(data[start + w * h : start + w * h + cw * ch], np.uint8).reshape(ch, cw)
+        v = np.frombuffer(data[start + w * h + cw * ch : start + w * h + 2 * cw * ch], np.uint8).reshape(ch, cw)
+        frames.append((y, u, v))
+        at = start + w * h + 2 * cw * ch
+    return head, frames
+
+
+def write_png(path, mask):
+    h, w = mask.shape
+    raw = b"".join(b"\x00" + mask[r].tobytes() for r in range(h))
+    chunk = lambda kind, body: struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+    png = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 0, 0, 0, 0))
+    png += chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b"")
+    Path(path).write_bytes(png)
+
+
+def main():
+    real, obj, out, masks = sys.argv[1:5]
+    n = int(sys.argv[5]) if len(sys.argv) > 5 else 40
+    head, frames = read_y4m(real, n)
+    _, (donor, *_) = read_y4m(obj, 1)
+    H, W = frames[0][0].shape
+    w, h = (W - 2 * n - 8) & ~1, (H - n - 8) & ~1  # room for the pan
+    r = min(w, h) // 6 & ~1
+    dy_, dx_ = donor[0].shape
+    patch = [p[: 2 * r, : 2 * r] if i == 0 else p[:r, :r] for i, p in enumerate(donor)]
+    patch[0] = donor[0][(dy_ - 2 * r) // 2 : (dy_ + 2 * r) // 2, (dx_ - 2 * r) // 2 : (dx_ + 2 * r) // 2]
+    patch[1] = donor[1][(dy_ // 2 - r) // 2 : (dy_ // 2 + r) // 2, (dx_ // 2 - r) // 2 : (dx_ // 2 + r) // 2]
+    patch[2] = donor[2][(dy_ // 2 - r) // 2 : (dy_ // 2 + r) // 2, (dx_ // 2 - r) // 2 : (dx_ // 2 + r) // 2]
+    yy, xx = np.mgrid[0 : 2 * r, 0 : 2 * r]
+    disc = (yy - r + 0.5) ** 2 + (xx - r + 0.5) ** 2 <= r * r
+    cdisc = disc[::2, ::2]
+    Path(masks).mkdir(parents=True, exist_ok=True)
+    head = re.sub(r" W\d+", f" W{w}", re.sub(r" H\d+", f" H{h}", head))
+    with open(out, "wb") as f:
+        f.write(head.encode() + b"\n")
+        for t, (y, u, v) in enumerate(frames):
+            ox, oy = 4 + 2 * t, 4 + t  # the camera's window (even: chroma aligned)
+            ox -= ox % 2
+            oy -= oy % 2
+            planes = [y[oy : oy + h, ox : ox + w].copy(), u[oy // 2 : (oy + h) // 2, ox // 2 : (ox + w) // 2].copy(),
+                      v[oy // 2 : (oy + h) // 2, ox // 2 : (ox + w) // 2].copy()]
+            px, py = (w - 2 * r - 8 - 3 * t) & ~1, (h // 8 + 2 * t) & ~1  # the disc's corner, even
+            mask = np.zeros((h, w), np.uint8)
+            if 0 <= px and px + 2 * r <= w and 0 <= py and py + 2 * r <= h:
+                planes[0][py : py + 2 * r, px : px + 2 * r][disc] = patch[0][disc]
+                for k in (1, 2):
+                    planes[k][py // 2 : py // 2 + r, px // 2 : px // 2 + r][cdisc] = patch[k][cdisc]
+                mask[py : py + 2 * r, px : px + 2 * r][disc] = 255
+            f.write(b"FRAME\n" + b"".join(p.tobytes() for p in planes))
+            write_png(Path(masks) / f"{t:05d}.png", mask)
+
+
+main()

@@ -66,6 +66,10 @@ pub struct Args {
     /// Write the camera path and the smoothed one, one row per frame.
     #[arg(long, value_name = "CSV")]
     pub path: Option<PathBuf>,
+    /// Plot the camera's horizontal and vertical path and the smoothed
+    /// ones (PNG for a .png name, SVG otherwise).
+    #[arg(long, value_name = "FILE")]
+    pub plot: Option<PathBuf>,
 }
 
 fn params(args: &Args) -> Result<StabilizeParams> {
@@ -113,6 +117,9 @@ pub fn run(args: &Args) -> Result<()> {
     let total_s = start.elapsed().as_secs_f64();
     if let Some(path) = &args.path {
         write_path(path, &plan)?;
+    }
+    if let Some(file) = &args.plot {
+        plot_path(file, &plan, &name)?;
     }
     outln!(
         "{name}: {} frames, zoom {:.3}{}, motion {:.1} ms/frame, total {:.1} ms/frame",
@@ -175,6 +182,22 @@ fn write_path(path: &Path, plan: &Plan) -> Result<()> {
         )?;
     }
     out.commit().with_context(|| path.display().to_string())
+}
+
+/// The camera path's x and y and the smoothed ones against the frame.
+fn plot_path(file: &Path, plan: &Plan, name: &str) -> Result<()> {
+    let line = |f: &dyn Fn(&Pose) -> f64, poses: &[Pose]| -> Vec<(f64, f64)> {
+        poses.iter().enumerate().map(|(t, p)| (t as f64, f(p))).collect()
+    };
+    let series = vec![
+        ("camera x".to_string(), line(&|p| p.x, &plan.camera)),
+        ("smoothed x".to_string(), line(&|p| p.x, &plan.smoothed)),
+        ("camera y".to_string(), line(&|p| p.y, &plan.camera)),
+        ("smoothed y".to_string(), line(&|p| p.y, &plan.smoothed)),
+    ];
+    let short = Path::new(name).file_name().map_or(name.into(), |n| n.to_string_lossy());
+    let title = format!("{short}: camera path and the smoothed one");
+    crate::rd::plot::plot_lines(file, &title, ("frame", "pixels"), &series).with_context(|| file.display().to_string())
 }
 
 /// The quality figures of `output` as a stabilisation of `input`.

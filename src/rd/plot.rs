@@ -273,3 +273,49 @@ pub fn plot(points: &[RdPoint], path: &Path, subject: &str, axis: QualityAxis) -
     )?;
     Ok(files)
 }
+
+/// A line plot of named series of (x, y) points: PNG when `path` ends in
+/// .png, SVG otherwise. Used for camera paths and the like.
+pub fn plot_lines(path: &Path, title: &str, labels: (&str, &str), series: &[(String, Vec<(f64, f64)>)]) -> PlotResult<()> {
+    if series.iter().all(|s| s.1.is_empty()) {
+        return Err(PlotError::Empty);
+    }
+    register_fonts();
+    if path.extension().is_some_and(|e| e == "png") {
+        draw_lines(BitMapBackend::new(path, (960, 480)).into_drawing_area(), title, labels, series)
+    } else {
+        draw_lines(SVGBackend::new(path, (960, 480)).into_drawing_area(), title, labels, series)
+    }
+}
+
+fn draw_lines<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    title: &str,
+    labels: (&str, &str),
+    series: &[(String, Vec<(f64, f64)>)],
+) -> PlotResult<()> {
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for &(x, y) in series.iter().flat_map(|s| s.1.iter()) {
+        (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
+    }
+    let pad = ((y1 - y0) * 0.05).max(0.5);
+    root.fill(&WHITE).map_err(err)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 22))
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(55)
+        .build_cartesian_2d(x0..x1.max(x0 + 1.0), (y0 - pad)..(y1 + pad))
+        .map_err(err)?;
+    chart.configure_mesh().x_desc(labels.0).y_desc(labels.1).draw().map_err(err)?;
+    for (k, (name, pts)) in series.iter().enumerate() {
+        let colour = Palette99::pick(k).to_rgba();
+        chart
+            .draw_series(LineSeries::new(pts.iter().copied(), colour.stroke_width(2)))
+            .map_err(err)?
+            .label(name.as_str())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2)));
+    }
+    legend(&mut chart, SeriesLabelPosition::UpperRight)?;
+    root.present().map_err(err)
+}

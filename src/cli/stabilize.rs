@@ -195,9 +195,12 @@ fn plot_path(file: &Path, plan: &Plan, name: &str) -> Result<()> {
         ("camera y".to_string(), line(&|p| p.y, &plan.camera)),
         ("smoothed y".to_string(), line(&|p| p.y, &plan.smoothed)),
     ];
-    let short = Path::new(name).file_name().map_or(name.into(), |n| n.to_string_lossy());
+    let short = Path::new(name)
+        .file_name()
+        .map_or(name.into(), |n| n.to_string_lossy());
     let title = format!("{short}: camera path and the smoothed one");
-    crate::rd::plot::plot_lines(file, &title, ("frame", "pixels"), &series).with_context(|| file.display().to_string())
+    crate::rd::plot::plot_lines(file, &title, ("frame", "pixels"), &series)
+        .with_context(|| file.display().to_string())
 }
 
 /// The quality figures of `output` as a stabilisation of `input`.

@@ -276,15 +276,30 @@ pub fn plot(points: &[RdPoint], path: &Path, subject: &str, axis: QualityAxis) -
 
 /// A line plot of named series of (x, y) points: PNG when `path` ends in
 /// .png, SVG otherwise. Used for camera paths and the like.
-pub fn plot_lines(path: &Path, title: &str, labels: (&str, &str), series: &[(String, Vec<(f64, f64)>)]) -> PlotResult<()> {
+pub fn plot_lines(
+    path: &Path,
+    title: &str,
+    labels: (&str, &str),
+    series: &[(String, Vec<(f64, f64)>)],
+) -> PlotResult<()> {
     if series.iter().all(|s| s.1.is_empty()) {
         return Err(PlotError::Empty);
     }
     register_fonts();
     if path.extension().is_some_and(|e| e == "png") {
-        draw_lines(BitMapBackend::new(path, (960, 480)).into_drawing_area(), title, labels, series)
+        draw_lines(
+            BitMapBackend::new(path, (960, 480)).into_drawing_area(),
+            title,
+            labels,
+            series,
+        )
     } else {
-        draw_lines(SVGBackend::new(path, (960, 480)).into_drawing_area(), title, labels, series)
+        draw_lines(
+            SVGBackend::new(path, (960, 480)).into_drawing_area(),
+            title,
+            labels,
+            series,
+        )
     }
 }
 
@@ -307,7 +322,12 @@ fn draw_lines<DB: DrawingBackend>(
         .y_label_area_size(55)
         .build_cartesian_2d(x0..x1.max(x0 + 1.0), (y0 - pad)..(y1 + pad))
         .map_err(err)?;
-    chart.configure_mesh().x_desc(labels.0).y_desc(labels.1).draw().map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc(labels.0)
+        .y_desc(labels.1)
+        .draw()
+        .map_err(err)?;
     for (k, (name, pts)) in series.iter().enumerate() {
         let colour = Palette99::pick(k).to_rgba();
         chart

@@ -85,7 +85,7 @@ fn an_object_moving_against_a_panning_camera_is_found() {
             .sum();
         assert!(covered > 600, "the object covers {covered} pixels");
         let m = mean_iou(&frames, &masks);
-        assert!(m >= 0.8, "seed {seed}: mean IoU {m:.3}");
+        assert!(m >= 0.85, "seed {seed}: mean IoU {m:.3}");
     }
 }
 

@@ -88,22 +88,23 @@ impl Segmenter {
     }
 
     /// The motion score of `frame` against each neighbour given (the frame
-    /// before and/or after): above 1 means moving against the camera. Also
-    /// the camera-compensated difference: per pixel, the least over the
-    /// neighbours of the 3x3 mean absolute difference to the neighbour
-    /// warped by the camera (small where the background shows).
-    pub fn score(&mut self, frame: &Frame, neighbours: &[&Frame]) -> (Array2<f32>, Array2<f32>) {
+    /// before and/or after): above 1 means moving against the camera; and
+    /// each direction's flow and camera for the edge's relabelling.
+    fn evidence(&mut self, frame: &Frame, neighbours: &[&Frame]) -> Evidence {
         let me = plane_to_array(frame.y());
         let mut total = Array2::<f32>::zeros(me.dim());
-        let mut still = Array2::<f32>::from_elem(me.dim(), f32::INFINITY);
+        let mut directions = Vec::new();
         for other in neighbours {
             let other = plane_to_array(other.y());
             let [a, b] = &mut self.flows;
             let (forward, backward) = rayon::join(|| a.compute(&me, &other), || b.compute(&other, &me));
             let (score, camera) = direction_score(&forward, &inconsistent(&forward, &backward), &self.params);
             total += &score;
-            let diff = camera_difference(&me, &other, &camera);
-            still.zip_mut_with(&diff, |s, &d| *s = s.min(d));
+            directions.push(Direction {
+                other,
+                flow: forward,
+                camera,
+            });
         }
         if !neighbours.is_empty() {
             total /= neighbours.len() as f32;
@@ -111,66 +112,155 @@ impl Segmenter {
         if self.params.smoothing > 0.0 {
             total = blur(&total, self.params.smoothing);
         }
-        (total, still)
+        Evidence {
+            me,
+            score: total,
+            directions,
+        }
+    }
+
+    /// The motion score of `frame` (above 1: moving against the camera).
+    pub fn score(&mut self, frame: &Frame, neighbours: &[&Frame]) -> Array2<f32> {
+        self.evidence(frame, neighbours).score
     }
 
     /// The mask of `frame`: 255 where something moves against the camera.
     /// Near the mask's edge (within 4 pixels), where the flow blurs the
-    /// motion boundary, the camera-compensated difference decides where it
-    /// is clear: the background matches its neighbour under the camera's
-    /// motion, a moving textured surface does not.
+    /// motion boundary, each pixel is given to whichever motion matches
+    /// its 3x3 neighbourhood better in some neighbour frame: the camera's,
+    /// or the moving region's (the mean flow of the mask's interior within
+    /// 8 pixels); where neither is clearly better it stays.
     pub fn mask(&mut self, frame: &Frame, neighbours: &[&Frame]) -> Plane {
-        let (score, still) = self.score(frame, neighbours);
-        let raw = score.mapv(|s| s > 1.0);
+        let ev = self.evidence(frame, neighbours);
+        let raw = ev.score.mapv(|s| s > 1.0);
         let mut mask = close(&open(&raw));
         let (mut outer, mut inner) = (mask.clone(), mask.clone());
         for _ in 0..EDGE_BAND {
             outer = morph(&outer, true);
             inner = morph(&inner, false);
         }
-        for ((m, (&o, &i)), &d) in mask
-            .iter_mut()
-            .zip(outer.iter().zip(inner.iter()))
-            .zip(still.iter())
-        {
-            if o && !i {
-                if d < BACKGROUND_DIFFERENCE {
-                    *m = false;
-                } else if d > MOVING_DIFFERENCE {
-                    *m = true;
+        let interiors: Vec<InteriorFlow> = ev
+            .directions
+            .iter()
+            .map(|d| InteriorFlow::new(&inner, &d.flow))
+            .collect();
+        let (h, w) = mask.dim();
+        for y in 0..h {
+            for x in 0..w {
+                if !outer[[y, x]] || inner[[y, x]] {
+                    continue;
+                }
+                let (mut cam, mut obj) = (f32::INFINITY, f32::INFINITY);
+                for (d, interior) in ev.directions.iter().zip(&interiors) {
+                    let Some(motion) = interior.mean_near(x, y, INTERIOR_RADIUS) else {
+                        continue;
+                    };
+                    cam = cam.min(patch_difference(&ev.me, &d.other, x, y, |px, py| {
+                        d.camera
+                            .apply(px as f64, py as f64)
+                            .map(|(a, b)| (a as f32, b as f32))
+                    }));
+                    obj = obj.min(patch_difference(&ev.me, &d.other, x, y, |px, py| {
+                        Some((px as f32 + motion.0, py as f32 + motion.1))
+                    }));
+                }
+                if obj + DECISION_MARGIN < cam {
+                    mask[[y, x]] = true;
+                } else if cam + DECISION_MARGIN < obj {
+                    mask[[y, x]] = false;
                 }
             }
         }
         let mask = close(&open(&mask));
-        let (h, w) = mask.dim();
         Plane::from_fn(w, h, |x, y| if mask[[y, x]] { 255 } else { 0 }).expect("a frame's own size")
     }
 }
 
-/// Pixels either side of the mask's edge that the difference may relabel.
-const EDGE_BAND: usize = 4;
-/// Camera-compensated difference (grey levels, 3x3 mean) below which a
-/// pixel near the edge is background, and above which it moves.
-const BACKGROUND_DIFFERENCE: f32 = 6.0;
-const MOVING_DIFFERENCE: f32 = 16.0;
+/// What the mask is decided from.
+struct Evidence {
+    me: Array2<f32>,
+    score: Array2<f32>,
+    directions: Vec<Direction>,
+}
 
-/// |me(p) - other(camera(p))|, averaged over 3x3.
-fn camera_difference(me: &Array2<f32>, other: &Array2<f32>, camera: &Transform) -> Array2<f32> {
-    let (h, w) = me.dim();
-    let diff = Array2::from_shape_fn((h, w), |(y, x)| match camera.apply(x as f64, y as f64) {
-        Some((cx, cy)) => (me[[y, x]] - sample_bilinear(other, cx as f32, cy as f32)).abs(),
-        None => 255.0,
-    });
-    Array2::from_shape_fn((h, w), |(y, x)| {
-        let (mut sum, mut n) = (0.0, 0.0);
-        for yy in y.saturating_sub(1)..(y + 2).min(h) {
-            for xx in x.saturating_sub(1)..(x + 2).min(w) {
-                sum += diff[[yy, xx]];
-                n += 1.0;
+/// One neighbour: its luma, the flow to it, the camera's motion to it.
+struct Direction {
+    other: Array2<f32>,
+    flow: Flow,
+    camera: Transform,
+}
+
+/// Pixels either side of the mask's edge that are decided again.
+const EDGE_BAND: usize = 4;
+/// The window (half-size, pixels) whose interior flow is the moving
+/// region's motion near an edge pixel.
+const INTERIOR_RADIUS: usize = 8;
+/// How much better (grey levels, 3x3 mean) a motion must match to win.
+const DECISION_MARGIN: f32 = 1.0;
+
+/// Box sums of the flow over the interior (integral images).
+struct InteriorFlow {
+    width: usize,
+    height: usize,
+    sums: Vec<[f32; 3]>,
+}
+
+impl InteriorFlow {
+    fn new(inner: &Array2<bool>, flow: &Flow) -> InteriorFlow {
+        let (h, w) = inner.dim();
+        let mut sums = vec![[0.0f32; 3]; (w + 1) * (h + 1)];
+        for y in 0..h {
+            let mut row = [0.0f32; 3];
+            for x in 0..w {
+                if inner[[y, x]] {
+                    let (u, v) = flow.get(x, y);
+                    row[0] += 1.0;
+                    row[1] += u;
+                    row[2] += v;
+                }
+                let above = sums[y * (w + 1) + x + 1];
+                sums[(y + 1) * (w + 1) + x + 1] = [above[0] + row[0], above[1] + row[1], above[2] + row[2]];
             }
         }
-        sum / n
-    })
+        InteriorFlow {
+            width: w,
+            height: h,
+            sums,
+        }
+    }
+
+    /// The mean interior flow within `r` of (x, y), if any interior pixel is.
+    fn mean_near(&self, x: usize, y: usize, r: usize) -> Option<(f32, f32)> {
+        let (x0, y0) = (x.saturating_sub(r), y.saturating_sub(r));
+        let (x1, y1) = ((x + r + 1).min(self.width), (y + r + 1).min(self.height));
+        let at = |xx: usize, yy: usize| self.sums[yy * (self.width + 1) + xx];
+        let (a, b, c, d) = (at(x1, y1), at(x0, y1), at(x1, y0), at(x0, y0));
+        let total: [f32; 3] = std::array::from_fn(|k| a[k] - b[k] - c[k] + d[k]);
+        (total[0] >= 1.0).then(|| (total[1] / total[0], total[2] / total[0]))
+    }
+}
+
+/// The 3x3 mean absolute difference between `me` around (x, y) and
+/// `other` read where `to` maps each pixel (255 where it maps nowhere).
+fn patch_difference(
+    me: &Array2<f32>,
+    other: &Array2<f32>,
+    x: usize,
+    y: usize,
+    to: impl Fn(usize, usize) -> Option<(f32, f32)>,
+) -> f32 {
+    let (h, w) = me.dim();
+    let (mut sum, mut n) = (0.0, 0.0);
+    for yy in y.saturating_sub(1)..(y + 2).min(h) {
+        for xx in x.saturating_sub(1)..(x + 2).min(w) {
+            sum += match to(xx, yy) {
+                Some((tx, ty)) => (me[[yy, xx]] - sample_bilinear(other, tx, ty)).abs(),
+                None => 255.0,
+            };
+            n += 1.0;
+        }
+    }
+    sum / n
 }
 
 /// One direction's score: the residual against the camera's homography

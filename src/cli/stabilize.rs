@@ -224,6 +224,9 @@ fn score(input: &Path, output: &Path, truth: Option<&[Pose]>) -> Result<QualityR
         }
         meter.push(fa.y(), fb.y())?;
     }
+    if ra.frames_read() == 0 {
+        bail!("{a} has no frames to score");
+    }
     Ok(meter.finish(w, h, truth))
 }
 

@@ -112,16 +112,64 @@ fn add_crop(problem: &mut Problem, u: &Unknowns, centre: &Centre, ratio: f64) {
 /// `motions[t - 1]` is `M_t` in centred coordinates. `None` if no path
 /// keeps that window inside every frame, or the solver fails.
 pub fn solve(motions: &[Transform], centre: &Centre, ratio: f64, rotate: bool) -> Option<Vec<Transform>> {
+    if motions.len() < WINDOW {
+        return solve_window(motions, centre, ratio, rotate, &[]);
+    }
+    // The LP's cost grows with the square of its length: solve overlapping
+    // windows, each starting from the frames the one before settled.
+    let n = motions.len() + 1;
+    let mut crops: Vec<Transform> = Vec::with_capacity(n);
+    let mut start = 0;
+    loop {
+        let end = (start + WINDOW).min(n);
+        let fixed = &crops[start..crops.len()];
+        let window = solve_window(&motions[start..end - 1], centre, ratio, rotate, fixed)?;
+        let keep = if end == n { end } else { start + STEP + SETTLED };
+        crops.extend_from_slice(&window[crops.len() - start..keep - start]);
+        if end == n {
+            return Some(crops);
+        }
+        start += STEP;
+    }
+}
+
+/// Frames per LP window, how far each window moves on, and how many of
+/// its first frames the window before settled.
+const WINDOW: usize = 48;
+const STEP: usize = 32;
+const SETTLED: usize = 3;
+
+/// [`solve`] over one window whose first `fixed.len()` crop transforms
+/// are given.
+fn solve_window(
+    motions: &[Transform],
+    centre: &Centre,
+    ratio: f64,
+    rotate: bool,
+    fixed: &[Transform],
+) -> Option<Vec<Transform>> {
     let n = motions.len() + 1;
     let mut problem = Problem::new(OptimizationDirection::Minimize);
     let rot = if rotate { ROTATION_RANGE } else { 0.0 };
     let scale = if rotate { SCALE_RANGE } else { (1.0, 1.0) };
+    let free = (f64::NEG_INFINITY, f64::INFINITY);
     let unknowns: Vec<Unknowns> = (0..n)
-        .map(|_| Unknowns {
-            a: problem.add_var(0.0, scale),
-            b: problem.add_var(0.0, (-rot, rot)),
-            tx: problem.add_var(0.0, (f64::NEG_INFINITY, f64::INFINITY)),
-            ty: problem.add_var(0.0, (f64::NEG_INFINITY, f64::INFINITY)),
+        .map(|i| match fixed.get(i) {
+            Some(b) => {
+                let m = &b.0;
+                Unknowns {
+                    a: problem.add_var(0.0, (m[0], m[0])),
+                    b: problem.add_var(0.0, (m[3], m[3])),
+                    tx: problem.add_var(0.0, (m[2], m[2])),
+                    ty: problem.add_var(0.0, (m[5], m[5])),
+                }
+            }
+            None => Unknowns {
+                a: problem.add_var(0.0, scale),
+                b: problem.add_var(0.0, (-rot, rot)),
+                tx: problem.add_var(0.0, free),
+                ty: problem.add_var(0.0, free),
+            },
         })
         .collect();
     for u in &unknowns {
@@ -190,6 +238,22 @@ mod tests {
                 "{:?}",
                 crops[t]
             );
+        }
+    }
+
+    #[test]
+    fn a_long_still_shot_is_solved_in_windows_and_stays_still() {
+        // 150 frames of jitter: several windows, the same still path.
+        let centre = Centre::new(201, 151);
+        let offsets: Vec<f64> = (0..150).map(|t| [0.0, 4.0, -3.0, 2.0][t % 4]).collect();
+        let motions: Vec<Transform> = (1..150)
+            .map(|t| shift(offsets[t - 1] - offsets[t], 0.0))
+            .collect();
+        let crops = solve(&motions, &centre, 0.9, true).expect("feasible");
+        assert_eq!(crops.len(), 150);
+        for t in 1..150 {
+            let step = (crops[t].0[2] - offsets[t]) - (crops[t - 1].0[2] - offsets[t - 1]);
+            assert!(step.abs() < 1e-6, "frame {t}: {step}");
         }
     }
 

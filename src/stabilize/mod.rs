@@ -294,7 +294,7 @@ pub fn plan(
 
 /// The L1 path's crop transforms (crop window to input, centred) for a
 /// window of `1 / zoom` of the frame: the fixed zoom asked for, else the
-/// least that the Gaussian path (10 frames) needs. The Gaussian path
+/// least with which the Gaussian path (10 frames) shows no border. The Gaussian path
 /// where the LP finds none.
 fn l1_corrections(
     centred: &[Transform],
@@ -311,7 +311,10 @@ fn l1_corrections(
                 .iter()
                 .map(|b| least_zoom(b, centre, params.max_zoom))
                 .collect();
-            quantile(&least, params.coverage)
+            // The LP keeps its window inside every frame: a window sized
+            // for a share of them only would make the path follow the shake
+            // in the others.
+            quantile(&least, 1.0)
         }
     };
     let rotate = params.model == Model::Similarity;

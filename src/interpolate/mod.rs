@@ -143,9 +143,10 @@ impl Interpolator {
         };
         let mid = intermediate(&side(0), &side(1), t as f32);
         let half = halve(&mid);
-        let y = blend(f0.y(), f1.y(), &mid, t as f32);
-        let u = blend(f0.u(), f1.u(), &half, t as f32);
-        let v = blend(f0.v(), f1.v(), &half, t as f32);
+        // Luma as the flows saw it (converted once, in `pair`).
+        let y = blend(&motion.luma[0], &motion.luma[1], &mid, t as f32);
+        let chroma = |p: &Plane, q: &Plane| blend(&plane_to_array(p), &plane_to_array(q), &half, t as f32);
+        let (u, v) = (chroma(f0.u(), f1.u()), chroma(f0.v(), f1.v()));
         Frame::from_planes(y, u, v).expect("planes of one frame's sizes")
     }
 }
@@ -153,16 +154,15 @@ impl Interpolator {
 /// One plane at time `t`: both frames read along the intermediate flows
 /// (bicubic), weighted by nearness in time and by visibility; rows in
 /// parallel.
-fn blend(p0: &Plane, p1: &Plane, mid: &Intermediate, t: f32) -> Plane {
-    let (a, b) = (plane_to_array(p0), plane_to_array(p1));
-    let (w, h) = (p0.width(), p0.height());
+fn blend(a: &Array2<f32>, b: &Array2<f32>, mid: &Intermediate, t: f32) -> Plane {
+    let (h, w) = a.dim();
     let mut packed = vec![0u8; w * h];
     packed.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
         for (x, out) in row.iter_mut().enumerate() {
             let (fx, fy) = (x as f32, y as f32);
             let at = [y, x];
-            let s0 = sample_bicubic(&a, fx + mid.to0.0[at], fy + mid.to0.1[at]);
-            let s1 = sample_bicubic(&b, fx + mid.to1.0[at], fy + mid.to1.1[at]);
+            let s0 = sample_bicubic(a, fx + mid.to0.0[at], fy + mid.to0.1[at]);
+            let s1 = sample_bicubic(b, fx + mid.to1.0[at], fy + mid.to1.1[at]);
             let (w0, w1) = ((1.0 - t) * mid.seen0[at], t * mid.seen1[at]);
             let value = if w0 + w1 > 1e-6 {
                 (w0 * s0 + w1 * s1) / (w0 + w1)

@@ -10,7 +10,9 @@ use mocomp::codec::syntax::{
     SEQUENCE_HEADER_LEN,
 };
 use mocomp::codec::Frame;
-use mocomp::encode::{Encoder, EncoderConfig, FrameStats, ModeDecision, Partitions, Predictor};
+use mocomp::encode::{
+    Encoder, EncoderConfig, EncoderPreset, FrameStats, ModeDecision, Partitions, Predictor,
+};
 use mocomp::synth::{Motion, SceneSpec, Shape, Synth};
 
 /// A scene with a moving camera and an object moving against it.
@@ -153,6 +155,38 @@ fn frames_of(seq: &SequenceHeader, stream: &[u8]) -> Vec<FrameSyntax> {
         at += 5 + len;
     }
     out
+}
+
+#[test]
+fn streams_are_the_same_for_any_number_of_threads() {
+    // Rows on several workers at once (the wavefront) must decide as one
+    // worker does: every preset, intra and inter frames, the decoder
+    // following. 320x176: 20 x 11 macroblocks, rows enough for 8 workers.
+    let frames = scene(320, 176, 5, 2.25, -1.5);
+    for preset in EncoderPreset::ALL {
+        let config = EncoderConfig::new().qp(30).gop(3).preset(preset);
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| encode(&frames, config))
+        };
+        let (one, recon, _) = run(1);
+        for threads in [2, 8] {
+            assert!(
+                run(threads).0 == one,
+                "{} threads, preset {}: another stream than one thread's",
+                threads,
+                preset.name()
+            );
+        }
+        assert!(
+            decoder::decode(&one).unwrap().1 == recon,
+            "preset {}: the decoder differs",
+            preset.name()
+        );
+    }
 }
 
 #[test]

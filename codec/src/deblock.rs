@@ -208,21 +208,44 @@ fn filter_plane(plane: &mut Plane, strengths: &Strengths, qp: u8, sub: usize) {
     }
 }
 
+/// The deblocking of one frame, plane by plane: the planes are filtered
+/// independently of each other, so a caller may filter them at once on
+/// several threads.
+pub struct FrameDeblocker {
+    strengths: Strengths,
+    qp: u8,
+}
+
+impl FrameDeblocker {
+    /// The filter of a frame of coded size `width x height`, coded at `qp`
+    /// with macroblocks `info` in raster order.
+    pub fn new(info: &[MbEdgeInfo], (width, height): (usize, usize), qp: u8) -> FrameDeblocker {
+        let mb_cols = width / 16;
+        assert_eq!(info.len(), mb_cols * (height / 16), "one record per macroblock");
+        FrameDeblocker {
+            strengths: Strengths::of(info, mb_cols, (width / 4, height / 4)),
+            qp,
+        }
+    }
+
+    /// Deblocks plane `index` (0 luma, 1 and 2 chroma) of the frame in
+    /// place. Borders are not extended.
+    pub fn filter(&self, plane: &mut Plane, index: usize) {
+        if index == 0 {
+            filter_plane(plane, &self.strengths, self.qp, 1);
+        } else {
+            filter_plane(plane, &self.strengths, chroma_qp(self.qp), 2);
+        }
+    }
+}
+
 /// Deblocks `frame` (coded size), coded at `qp` with macroblocks `info`
 /// in raster order, in place. Borders are not extended.
 pub fn deblock_frame(frame: &mut Frame, info: &[MbEdgeInfo], qp: u8) {
-    let mb_cols = frame.width() / 16;
-    assert_eq!(
-        info.len(),
-        mb_cols * (frame.height() / 16),
-        "one record per macroblock"
-    );
-    let qpc = chroma_qp(qp);
-    let strengths = Strengths::of(info, mb_cols, (frame.width() / 4, frame.height() / 4));
-    let [y, u, v] = frame.planes_mut();
-    filter_plane(y, &strengths, qp, 1);
-    filter_plane(u, &strengths, qpc, 2);
-    filter_plane(v, &strengths, qpc, 2);
+    let deblocker = FrameDeblocker::new(info, (frame.width(), frame.height()), qp);
+    for (index, plane) in frame.planes_mut().iter_mut().enumerate() {
+        deblocker.filter(plane, index);
+    }
 }
 
 #[cfg(test)]

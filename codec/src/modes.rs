@@ -625,6 +625,19 @@ impl ModeCoder {
         self.neighbours(mb_x, mb_y).map(|s| s.modes4_seen())
     }
 
+    /// Takes `contexts` (another coder's [`ModeCoder::contexts`]) as its
+    /// own, keeping its record of the macroblocks: an encoder pricing a
+    /// row from the state the row above reached (wavefront).
+    pub fn set_contexts(&mut self, contexts: &[Context]) {
+        self.contexts.copy_from_slice(contexts);
+    }
+
+    /// Records macroblock (mb_x, mb_y)'s `mode` as a neighbour without
+    /// adapting anything: what another coder committed there.
+    pub fn record(&mut self, mb_x: usize, mb_y: usize, mode: &MbMode) {
+        self.states[mb_y * self.mb_cols + mb_x] = state_of(mode);
+    }
+
     /// Adapts and records as [`ModeCoder::write`] does, without writing.
     pub fn commit(
         &mut self,

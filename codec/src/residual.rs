@@ -563,7 +563,16 @@ impl ResidualCoder {
         e
     }
 
-    fn record(&mut self, mb_x: usize, mb_y: usize, syntax: ResidualSyntax, res: &MbResidual) {
+    /// Takes `contexts` (another coder's [`ResidualCoder::contexts`]) as
+    /// its own, keeping its record of coded blocks (see
+    /// [`crate::modes::ModeCoder::set_contexts`]).
+    pub fn set_contexts(&mut self, contexts: &[Context]) {
+        self.contexts.copy_from_slice(contexts);
+    }
+
+    /// Records macroblock (mb_x, mb_y)'s coded blocks as a neighbour
+    /// without adapting anything: what another coder committed there.
+    pub fn record(&mut self, mb_x: usize, mb_y: usize, syntax: ResidualSyntax, res: &MbResidual) {
         let lw = 4 * self.mb_cols;
         for (k, coded) in res.luma_coded().into_iter().enumerate() {
             self.luma[(4 * mb_y + k / 4) * lw + 4 * mb_x + k % 4] = coded;

@@ -18,18 +18,19 @@ use crate::me::Metric;
 use super::config::ModeDecision;
 use super::intra4x4::{self, IntraBlockSearch};
 use super::macroblock::{Coded, MbCoder, MbSource};
-use super::partition::PartitionSearch;
+use super::partition::{PartitionSearch, SatdCache};
 use crate::codec::intra4x4::LumaIntra;
 use crate::codec::modes::{MbMode, ModeCoder, VectorSyntax};
 use crate::codec::mv::mvd_bits;
 use crate::codec::mv::Mv;
 use crate::codec::mvpred::{mv_prediction, mv_prediction_into, walk_partitions};
-use crate::codec::partition::{Part, RefMv, Split};
+use crate::codec::partition::{MbVectors, Part, RefMv, Split};
 use crate::codec::recon::{predict_inter, predict_inter_blocks, MbSamples};
 use crate::codec::residual::{MbResidual, ResidualCoder};
 use crate::codec::syntax::{mb_mode, MbKind, MotionTool};
 use crate::codec::Frame;
 use crate::me::SQUARE;
+use std::cell::RefCell;
 
 /// A 16x16 inter candidate of the mode decision.
 pub(super) struct InterCandidate {
@@ -40,6 +41,22 @@ pub(super) struct InterCandidate {
     /// SATD + sqrt(lambda) * (vector and reference index bits).
     pub(super) estimate: f64,
     pub(super) pred: MbSamples,
+}
+
+/// What one macroblock's analysis reads besides the frame's inputs: the
+/// decisions before it and the coders that price it. In raster order these
+/// are the frame's own; on a wavefront each row's worker holds copies
+/// kept up to date for the neighbours it reads.
+pub(super) struct MbEnv<'e> {
+    /// The vectors of the macroblocks before this one in raster order (its
+    /// left, top-left, top and top-right neighbours current).
+    pub(super) decided: &'e [MbVectors],
+    pub(super) modes: &'e ModeCoder,
+    pub(super) residual: &'e ResidualCoder,
+    /// The reconstruction, current in the neighbours intra prediction reads.
+    pub(super) recon: &'e Frame,
+    /// The partition search's cache (emptied per macroblock).
+    pub(super) satd8: &'e RefCell<SatdCache>,
 }
 
 /// Luma SATD of a prediction.
@@ -179,14 +196,14 @@ impl MbAnalysis {
 impl InterFrameCoder<'_> {
     /// Macroblock `index`, decided: skip first, then inter and intra when
     /// they can win.
-    pub(super) fn analyse(&self, index: usize) -> MbAnalysis {
-        let mut mb = self.analyse_skip(index);
+    pub(super) fn analyse(&self, index: usize, env: &MbEnv<'_>) -> MbAnalysis {
+        let mut mb = self.analyse_skip(index, env);
         if mb.exhaustive {
-            self.analyse_inter(&mut mb);
-            self.analyse_split(&mut mb);
-            self.analyse_intra(&mut mb);
-            self.analyse_subpel_rd(&mut mb);
-            self.analyse_transform(&mut mb);
+            self.analyse_inter(&mut mb, env);
+            self.analyse_split(&mut mb, env);
+            self.analyse_intra(&mut mb, env);
+            self.analyse_subpel_rd(&mut mb, env);
+            self.analyse_transform(&mut mb, env);
         }
         mb
     }
@@ -195,7 +212,7 @@ impl InterFrameCoder<'_> {
     /// vector won, its eight quarter-pel neighbours are estimated (SATD +
     /// sqrt(lambda) * vector bits), and the two of lowest estimate within
     /// [`RD_MARGIN`] of the winner's are coded and weighed by RD.
-    pub(super) fn analyse_subpel_rd(&self, mb: &mut MbAnalysis) {
+    pub(super) fn analyse_subpel_rd(&self, mb: &mut MbAnalysis, env: &MbEnv<'_>) {
         let MbKind::Inter { mv } = mb.best.kind else {
             return;
         };
@@ -203,7 +220,7 @@ impl InterFrameCoder<'_> {
             return;
         }
         let at = (mb.mb_x, mb.mb_y, self.seq.mb_cols());
-        let mvp = mv_prediction_into(&self.decided, at, mv.ref_idx);
+        let mvp = mv_prediction_into(env.decided, at, mv.ref_idx);
         let winner = self.inter_candidate(mb, mv, mvp, mb.best.pred.clone()).estimate;
         // The eight quarter-pel steps around it.
         let mut candidates: Vec<InterCandidate> = SQUARE
@@ -223,14 +240,14 @@ impl InterFrameCoder<'_> {
                 mvd: c.mv.mv - c.mvp,
                 ref_idx: c.mv.ref_idx,
             };
-            let choice = self.coded_choice(mb, MbKind::Inter { mv: c.mv }, &mode, c.pred);
+            let choice = self.coded_choice(mb, MbKind::Inter { mv: c.mv }, &mode, c.pred, env);
             mb.consider(choice);
         }
     }
 
     /// An inter choice's luma in the 8x8 transform, kept when it costs
     /// less than in 4x4 ones.
-    pub(super) fn analyse_transform(&self, mb: &mut MbAnalysis) {
+    pub(super) fn analyse_transform(&self, mb: &mut MbAnalysis, env: &MbEnv<'_>) {
         let best = &mut mb.best;
         let (MbKind::Inter { .. } | MbKind::Split { .. }, Some(residual)) = (&best.kind, &best.residual)
         else {
@@ -241,7 +258,7 @@ impl InterFrameCoder<'_> {
             &mb.source,
             &best.pred,
             (residual, &best.samples),
-            self.sink.residual(),
+            env.residual,
             at,
         ) else {
             return;
@@ -256,12 +273,12 @@ impl InterFrameCoder<'_> {
     }
 
     /// The analysis context of macroblock `index` with skip as its best.
-    pub(super) fn analyse_skip(&self, index: usize) -> MbAnalysis {
+    pub(super) fn analyse_skip(&self, index: usize, env: &MbEnv<'_>) -> MbAnalysis {
         let cols = self.seq.mb_cols();
         let (mb_x, mb_y) = (index % cols, index / cols);
         let source = MbSource::load(self.src, mb_x, mb_y);
         let mvp = if self.syntax.any() {
-            mv_prediction(&self.decided, mb_x, mb_y, cols)
+            mv_prediction(env.decided, mb_x, mb_y, cols)
         } else {
             Mv::ZERO
         };
@@ -289,11 +306,11 @@ impl InterFrameCoder<'_> {
         mb.best.cost = rdo::cost(
             lambda,
             mb.source.ssd(&mb.skip_pred),
-            self.mode_bits(&mb, &MbMode::Skip),
+            self.mode_bits(env, &mb, &MbMode::Skip),
         );
         // Every other choice spends at least the flag saying it is not
         // skipped: when skip costs no more, nothing can beat it.
-        let not_skipped = rdo::bits(rate::not_skipped_cost(self.sink.modes(), (mb_x, mb_y)));
+        let not_skipped = rdo::bits(rate::not_skipped_cost(env.modes, (mb_x, mb_y)));
         mb.exhaustive = mb.best.cost > rdo::cost(lambda, 0, not_skipped);
         mb
     }
@@ -302,7 +319,7 @@ impl InterFrameCoder<'_> {
     /// with each older reference's searched vector (with
     /// [`ModeDecision::Fast`], only the one of lowest SATD + rate
     /// estimate; with the full decision, those within [`RD_MARGIN`] of it).
-    pub(super) fn analyse_inter(&self, mb: &mut MbAnalysis) {
+    pub(super) fn analyse_inter(&self, mb: &mut MbAnalysis, env: &MbEnv<'_>) {
         let searched = self.searched[mb.index];
         let searched_mv = (self.syntax.any() && searched != mb.mvp).then_some(searched);
         let mut candidates = Vec::with_capacity(1 + usize::from(self.syntax.refs()));
@@ -315,7 +332,7 @@ impl InterFrameCoder<'_> {
             candidates.push(self.inter_candidate(mb, RefMv::previous(mv), mb.mvp, pred));
         }
         for ref_idx in 1..self.syntax.refs() {
-            candidates.push(self.older_reference_candidate(mb, ref_idx));
+            candidates.push(self.older_reference_candidate(mb, ref_idx, env));
         }
         mb.inter_satd = candidates.iter().map(|c| c.satd).min().unwrap_or(u32::MAX);
         mb.inter_estimate = candidates
@@ -338,7 +355,7 @@ impl InterFrameCoder<'_> {
                 mvd: c.mv.mv - c.mvp,
                 ref_idx: c.mv.ref_idx,
             };
-            let choice = self.coded_choice(mb, MbKind::Inter { mv: c.mv }, &mode, c.pred);
+            let choice = self.coded_choice(mb, MbKind::Inter { mv: c.mv }, &mode, c.pred, env);
             mb.consider(choice);
         }
     }
@@ -365,9 +382,14 @@ impl InterFrameCoder<'_> {
 
     /// The 16x16 candidate into older reference `ref_idx`, with motion
     /// analysis' vector.
-    pub(super) fn older_reference_candidate(&self, mb: &MbAnalysis, ref_idx: u8) -> InterCandidate {
+    pub(super) fn older_reference_candidate(
+        &self,
+        mb: &MbAnalysis,
+        ref_idx: u8,
+        env: &MbEnv<'_>,
+    ) -> InterCandidate {
         let at = (mb.mb_x, mb.mb_y, self.seq.mb_cols());
-        let mvp = mv_prediction_into(&self.decided, at, ref_idx);
+        let mvp = mv_prediction_into(env.decided, at, ref_idx);
         let mv = RefMv::new(self.older[usize::from(ref_idx) - 1][mb.index], ref_idx);
         let pred = predict_inter(&self.inter_context(), mb.mb_x, mb.mb_y, mv);
         self.inter_candidate(mb, mv, mvp, pred)
@@ -377,7 +399,7 @@ impl InterFrameCoder<'_> {
     /// first, then, when it beats the 16x16 estimate, 16x8 and 8x16 seeded
     /// with its vectors (as x264); the best of them by SATD + lambda *
     /// bits is coded and considered.
-    pub(super) fn analyse_split(&self, mb: &mut MbAnalysis) {
+    pub(super) fn analyse_split(&self, mb: &mut MbAnalysis, env: &MbEnv<'_>) {
         if !self.partitions {
             return;
         }
@@ -387,23 +409,23 @@ impl InterFrameCoder<'_> {
             halfpel: self.halfpel.as_ref(),
             mb: (mb.mb_x, mb.mb_y),
             sad_lambda: self.coder.lambda.sqrt(),
-            satd8: &self.satd8,
+            satd8: env.satd8,
         };
-        self.satd8.borrow_mut().clear();
+        env.satd8.borrow_mut().clear();
         // The candidates alone first: when they do not beat the 16x16
         // estimate, the refinement (most of the work) is not done (a
         // margin of 10 % for what it could still find: 0.2 % better on the
         // development set's mean, 15 % slower).
-        let rough = self.search_split(mb, &search, Split::Quad, None, false);
+        let rough = self.search_split(mb, &search, Split::Quad, None, false, env);
         if rough.0 >= mb.inter_estimate {
             return;
         }
-        let quad = self.search_split(mb, &search, Split::Quad, None, true);
+        let quad = self.search_split(mb, &search, Split::Quad, None, true, env);
         if quad.0 >= mb.inter_estimate {
             return;
         }
         let best = [Split::Horizontal, Split::Vertical]
-            .map(|split| self.search_split(mb, &search, split, Some(&quad.2), true))
+            .map(|split| self.search_split(mb, &search, split, Some(&quad.2), true, env))
             .into_iter()
             .fold(quad, |a, b| if b.0 < a.0 { b } else { a });
         let (_, split, mvs) = best;
@@ -412,14 +434,14 @@ impl InterFrameCoder<'_> {
             mvs: mvs.map(RefMv::previous),
         };
         let at = (mb.mb_x, mb.mb_y, self.seq.mb_cols());
-        let mode = mb_mode(&kind, &self.decided, at, self.syntax);
+        let mode = mb_mode(&kind, env.decided, at, self.syntax);
         let pred = predict_inter_blocks(
             &self.inter_context(),
             mb.mb_x,
             mb.mb_y,
             &split.block_vectors(&mvs.map(RefMv::previous)),
         );
-        let choice = self.coded_choice(mb, kind, &mode, pred);
+        let choice = self.coded_choice(mb, kind, &mode, pred, env);
         mb.consider(choice);
     }
 
@@ -435,12 +457,13 @@ impl InterFrameCoder<'_> {
         split: Split,
         quad: Option<&[Mv; 4]>,
         refine: bool,
+        env: &MbEnv<'_>,
     ) -> (f64, Split, [Mv; 4]) {
         let (mut mvs, mut total) = ([Mv::ZERO; 4], 0.0);
         let mut candidates = Vec::with_capacity(16);
         walk_partitions(
             split,
-            &self.decided,
+            env.decided,
             (mb.mb_x, mb.mb_y, self.seq.mb_cols()),
             |k, predict| {
                 let mvp = predict(0);
@@ -454,6 +477,7 @@ impl InterFrameCoder<'_> {
         );
         // The split's own flags, over a 16x16 macroblock's.
         let flags = self.mode_bits(
+            env,
             mb,
             &MbMode::Split {
                 split,
@@ -461,6 +485,7 @@ impl InterFrameCoder<'_> {
                 refs: [0; 4],
             },
         ) - self.mode_bits(
+            env,
             mb,
             &MbMode::Inter {
                 mvd: Mv::ZERO,
@@ -506,11 +531,11 @@ impl InterFrameCoder<'_> {
     /// inter's (the 16x16 SATD below inter's SATD, as the H.264 reference
     /// encoder's fast modes; the 4x4 search's below inter's SATD + vector
     /// cost, where it stops early).
-    pub(super) fn analyse_intra(&self, mb: &mut MbAnalysis) {
+    pub(super) fn analyse_intra(&self, mb: &mut MbAnalysis, env: &MbEnv<'_>) {
         let bound = (mb.inter_satd, mb.inter_estimate);
-        let coders = (self.sink.modes(), self.sink.residual());
+        let coders = (env.modes, env.residual);
         let at = (mb.mb_x, mb.mb_y);
-        if let Some(choice) = best_intra(self.coder, &mb.source, &self.frame.recon, at, coders, Some(bound)) {
+        if let Some(choice) = best_intra(self.coder, &mb.source, env.recon, at, coders, Some(bound)) {
             mb.consider(choice);
         }
     }
@@ -522,12 +547,13 @@ impl InterFrameCoder<'_> {
         kind: MbKind,
         mode: &MbMode,
         pred: MbSamples,
+        env: &MbEnv<'_>,
     ) -> Choice {
         let intra = matches!(kind, MbKind::Intra { .. });
         let coded = self
             .coder
-            .code(&mb.source, &pred, intra, self.sink.residual(), mb.mb_x, mb.mb_y);
-        let bits = self.mode_bits(mb, mode) + coded.bits;
+            .code(&mb.source, &pred, intra, env.residual, mb.mb_x, mb.mb_y);
+        let bits = self.mode_bits(env, mb, mode) + coded.bits;
         Choice {
             cost: rdo::cost(self.coder.lambda, coded.ssd, bits),
             residual_cost: rdo::cost(self.coder.lambda, coded.ssd, coded.bits),

@@ -51,6 +51,7 @@ mod rdo;
 mod slice;
 mod stats;
 mod transform8x8;
+mod wavefront;
 mod weights;
 
 use std::io::Write;

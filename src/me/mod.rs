@@ -37,7 +37,7 @@
 pub mod cost;
 pub mod dsp;
 pub(crate) mod halfpel;
-mod pipeline;
+pub(crate) mod pipeline;
 pub(crate) mod sea;
 mod search;
 pub(crate) use search::SQUARE;

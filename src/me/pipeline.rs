@@ -56,44 +56,53 @@ impl SharedGrid {
 #[repr(align(64))]
 struct Progress(AtomicUsize);
 
-/// Every block of a `cols x rows` grid searched by `search` (which may read
-/// the grid's left, top and top-right neighbours of its block) on the
-/// current rayon pool's threads: its vectors and costs in raster order.
-pub(crate) fn search_rows(
+/// Runs `block(state, col, row)` for every block of a `cols x rows` grid
+/// on the current rayon pool's threads, each row following the one above
+/// two blocks behind (so that a block may read the results of its left,
+/// top-left, top and top-right neighbours, and nothing else of the rows
+/// being worked on); a row starts once the row above has done `start`
+/// blocks (at least 2). Each worker makes its `state` once with `new_state`.
+/// What a block computes must depend only on those neighbours (and on
+/// what `block` publishes itself): then it is the same for any number of
+/// threads. `block` must not wait on other rayon work (a worker spins
+/// while the row above catches up).
+pub(crate) fn wavefront<S>(
     cols: usize,
     rows: usize,
-    search: &(dyn Fn(&SharedGrid, usize, usize) -> Candidate + Sync),
-) -> (Vec<Mv>, Vec<u32>) {
-    let grid = SharedGrid::new(cols, rows);
-    let costs: Vec<AtomicU32> = (0..cols * rows).map(|_| AtomicU32::new(0)).collect();
+    start: usize,
+    new_state: &(dyn Fn() -> S + Sync),
+    block: &(dyn Fn(&mut S, usize, usize) + Sync),
+) {
     // Blocks done in each row; a row is claimed by one worker, in order.
     let done: Vec<Progress> = (0..rows).map(|_| Progress::default()).collect();
     let next_row = AtomicUsize::new(0);
-    let work = || loop {
-        let r = next_row.fetch_add(1, Ordering::Relaxed);
-        if r >= rows {
-            break;
-        }
-        for c in 0..cols {
-            if r > 0 {
-                // The row above must be past the top-right neighbour. The
-                // worker on it claimed it earlier and is running, so it
-                // gets there.
-                let need = (c + 2).min(cols);
-                let mut spins = 0u32;
-                while done[r - 1].0.load(Ordering::Acquire) < need {
-                    spins += 1;
-                    if spins < 64 {
-                        std::hint::spin_loop();
-                    } else {
-                        std::thread::yield_now();
+    let work = || {
+        let mut state = None;
+        loop {
+            let r = next_row.fetch_add(1, Ordering::Relaxed);
+            if r >= rows {
+                break;
+            }
+            let state = state.get_or_insert_with(new_state);
+            for c in 0..cols {
+                if r > 0 {
+                    // The row above must be past the top-right neighbour.
+                    // The worker on it claimed it earlier and is running,
+                    // so it gets there.
+                    let need = if c == 0 { start.max(2) } else { c + 2 }.min(cols);
+                    let mut spins = 0u32;
+                    while done[r - 1].0.load(Ordering::Acquire) < need {
+                        spins += 1;
+                        if spins < 64 {
+                            std::hint::spin_loop();
+                        } else {
+                            std::thread::yield_now();
+                        }
                     }
                 }
+                block(state, c, r);
+                done[r].0.store(c + 1, Ordering::Release);
             }
-            let best = search(&grid, c, r);
-            grid.set(c, r, best.mv);
-            costs[r * cols + c].store(best.cost.min(u64::from(u32::MAX)) as u32, Ordering::Relaxed);
-            done[r].0.store(c + 1, Ordering::Release);
         }
     };
     let workers = rayon::current_num_threads().min(rows).max(1);
@@ -105,6 +114,23 @@ pub(crate) fn search_rows(
             s.spawn(|_| work());
         }
         work();
+    });
+}
+
+/// Every block of a `cols x rows` grid searched by `search` (which may read
+/// the grid's left, top and top-right neighbours of its block) on the
+/// current rayon pool's threads: its vectors and costs in raster order.
+pub(crate) fn search_rows(
+    cols: usize,
+    rows: usize,
+    search: &(dyn Fn(&SharedGrid, usize, usize) -> Candidate + Sync),
+) -> (Vec<Mv>, Vec<u32>) {
+    let grid = SharedGrid::new(cols, rows);
+    let costs: Vec<AtomicU32> = (0..cols * rows).map(|_| AtomicU32::new(0)).collect();
+    wavefront(cols, rows, 2, &|| (), &|_, c, r| {
+        let best = search(&grid, c, r);
+        grid.set(c, r, best.mv);
+        costs[r * cols + c].store(best.cost.min(u64::from(u32::MAX)) as u32, Ordering::Relaxed);
     });
     let vectors = (0..cols * rows)
         .map(|i| grid.vector(i % cols, i / cols))

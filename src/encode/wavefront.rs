@@ -1,0 +1,220 @@
+//! A frame's macroblocks decided on a wavefront (x264's and HEVC's
+//! wavefront order): rows on several threads at once, each row two
+//! macroblocks behind the one above, so that every macroblock finds its
+//! left, top-left, top and top-right neighbours decided. The frame is then
+//! written in raster order by one range coder.
+//!
+//! Each worker holds a copy of what a macroblock's analysis reads (the
+//! decided vectors, the coders that price it, the reconstruction) and
+//! brings in each neighbour of the row above as it is published. The
+//! pricing coders of a row start from the contexts the row above had
+//! reached after its second macroblock (HEVC's wavefront rule), not from
+//! where the previous row ended: every decision then depends only on
+//! what came before it on the wavefront, so the stream is the same for
+//! any number of threads.
+
+use std::cell::RefCell;
+use std::sync::{Mutex, OnceLock};
+
+use super::analyse::{Choice, MbEnv};
+use super::partition::SatdCache;
+use super::slice::kind_index;
+use crate::codec::entropy::Context;
+use crate::codec::modes::{MbMode, ModeCoder, VectorSyntax};
+use crate::codec::partition::MbVectors;
+use crate::codec::recon::{write_mb, MbSamples};
+use crate::codec::residual::ResidualCoder;
+use crate::codec::syntax::{mb_mode, mb_vectors, CodedMb, MbKind, SequenceHeader};
+use crate::codec::{Frame, PictureError};
+use crate::me::pipeline::wavefront;
+
+/// A decided macroblock, as the rows below and the frame read it.
+pub(super) struct Decided {
+    pub(super) coded: CodedMb,
+    mode: MbMode,
+    pub(super) vectors: MbVectors,
+    samples: MbSamples,
+    /// The prediction's squared luma error (visible part).
+    prediction_sse: u64,
+}
+
+/// One macroblock's decision: the choice and its prediction's squared luma
+/// error.
+pub(super) type Decision = (Choice, u64);
+
+/// What the frame is decided with: its size and syntax, and the coders it
+/// starts with.
+pub(super) struct WavefrontFrame<'a> {
+    pub(super) seq: &'a SequenceHeader,
+    pub(super) modes: &'a ModeCoder,
+    pub(super) residual: &'a ResidualCoder,
+    pub(super) inter_frame: bool,
+    pub(super) syntax: VectorSyntax,
+    /// How many macroblocks of the row above a row's pricing contexts have
+    /// seen (at least 2).
+    pub(super) lead: usize,
+}
+
+/// The pricing contexts a row starts from.
+struct RowStart {
+    modes: Vec<Context>,
+    residual: Vec<Context>,
+}
+
+/// One worker's copy of the frame's state, current where its rows read it.
+struct Worker {
+    decided: Vec<MbVectors>,
+    modes: ModeCoder,
+    residual: ResidualCoder,
+    recon: Frame,
+    satd8: RefCell<SatdCache>,
+}
+
+impl WavefrontFrame<'_> {
+    /// Every macroblock decided by `decide(env, index)` on the current
+    /// rayon pool's threads, in raster order.
+    pub(super) fn decide(
+        &self,
+        decide: &(dyn Fn(&MbEnv<'_>, usize) -> Decision + Sync),
+    ) -> Result<Vec<Decided>, PictureError> {
+        let (cols, rows) = (self.seq.mb_cols(), self.seq.mb_rows());
+        let decided: Vec<OnceLock<Decided>> = (0..cols * rows).map(|_| OnceLock::new()).collect();
+        let starts: Vec<OnceLock<RowStart>> = (0..rows).map(|_| OnceLock::new()).collect();
+        let first = RowStart {
+            modes: self.modes.contexts().to_vec(),
+            residual: self.residual.contexts().to_vec(),
+        };
+        // The workers' reconstructions, made before the rows start (an
+        // allocation that fails is an error, not a panic on a worker).
+        let recons = (0..rayon::current_num_threads().min(rows).max(1))
+            .map(|_| Frame::new(self.seq.coded_width(), self.seq.coded_height()))
+            .collect::<Result<Vec<_>, _>>()?;
+        let recons = Mutex::new(recons);
+        let new_worker = || Worker {
+            decided: vec![[None; 4]; cols * rows],
+            modes: self.modes.clone(),
+            residual: self.residual.clone(),
+            recon: recons
+                .lock()
+                .ok()
+                .and_then(|mut r| r.pop())
+                .expect("a reconstruction per worker"),
+            satd8: RefCell::default(),
+        };
+        let lead = self.lead.clamp(2.min(cols), cols);
+        wavefront(cols, rows, lead, &new_worker, &|w: &mut Worker, c, r| {
+            if c == 0 {
+                let start = if r == 0 {
+                    &first
+                } else {
+                    starts[r - 1].get().expect("row above started")
+                };
+                w.modes.set_contexts(&start.modes);
+                w.residual.set_contexts(&start.residual);
+            }
+            if r > 0 {
+                // The neighbours of the row above this macroblock reads
+                // that the worker has not brought in yet.
+                for x in (if c == 0 { 0 } else { c + 1 })..(c + 2).min(cols) {
+                    let above = decided[(r - 1) * cols + x].get().expect("wavefront order");
+                    self.bring_in(w, above, x, r - 1);
+                }
+            }
+            let d = self.commit(w, decide, c, r);
+            if c + 1 == lead {
+                let start = RowStart {
+                    modes: w.modes.contexts().to_vec(),
+                    residual: w.residual.contexts().to_vec(),
+                };
+                let _ = starts[r].set(start);
+            }
+            let _ = decided[r * cols + c].set(d);
+        });
+        Ok(decided
+            .into_iter()
+            .map(|d| d.into_inner().expect("every macroblock decided"))
+            .collect())
+    }
+
+    /// Macroblock (c, r) decided from the worker's state, and committed to
+    /// it.
+    fn commit(
+        &self,
+        w: &mut Worker,
+        decide: &(dyn Fn(&MbEnv<'_>, usize) -> Decision + Sync),
+        c: usize,
+        r: usize,
+    ) -> Decided {
+        let cols = self.seq.mb_cols();
+        let index = r * cols + c;
+        let env = MbEnv {
+            decided: &w.decided[..index],
+            modes: &w.modes,
+            residual: &w.residual,
+            recon: &w.recon,
+            satd8: &w.satd8,
+        };
+        let (best, prediction_sse) = decide(&env, index);
+        let done = &w.decided[..index];
+        let vectors = mb_vectors(&best.kind, done, c, r, cols);
+        let mode = mb_mode(&best.kind, done, (c, r, cols), self.syntax);
+        let coded = match best.residual {
+            Some(levels) => CodedMb::with_levels(best.kind, levels),
+            None => CodedMb::without_residual(best.kind),
+        };
+        let d = Decided {
+            prediction_sse,
+            samples: best.samples,
+            coded,
+            mode,
+            vectors,
+        };
+        w.decided[index] = d.vectors;
+        write_mb(&d.samples, &mut w.recon, c, r);
+        w.modes.commit(c, r, self.inter_frame, self.syntax, &d.mode);
+        if d.coded.kind != MbKind::Skip {
+            w.residual
+                .commit(c, r, d.coded.kind.residual_syntax(), d.coded.residual());
+        }
+        d
+    }
+
+    /// Records macroblock (x, y), decided by another row, in the worker's
+    /// state as a neighbour (a worker's coders adapt only to its own row).
+    fn bring_in(&self, w: &mut Worker, d: &Decided, x: usize, y: usize) {
+        w.decided[y * self.seq.mb_cols() + x] = d.vectors;
+        write_mb(&d.samples, &mut w.recon, x, y);
+        w.modes.record(x, y, &d.mode);
+        if d.coded.kind != MbKind::Skip {
+            w.residual
+                .record(x, y, d.coded.kind.residual_syntax(), d.coded.residual());
+        }
+    }
+}
+
+/// What the decided macroblocks make of a frame: its reconstruction
+/// (before deblocking) is written, its prediction error and kinds counted.
+pub(super) struct FrameSummary {
+    pub(super) mbs: Vec<CodedMb>,
+    pub(super) vectors: Vec<MbVectors>,
+    pub(super) prediction_sse: u64,
+    pub(super) kinds: [usize; 3],
+}
+
+/// Writes `decided` (raster order) into `recon` and sums them up.
+pub(super) fn collect(decided: Vec<Decided>, recon: &mut Frame, cols: usize) -> FrameSummary {
+    let mut out = FrameSummary {
+        mbs: Vec::with_capacity(decided.len()),
+        vectors: Vec::with_capacity(decided.len()),
+        prediction_sse: 0,
+        kinds: [0; 3],
+    };
+    for (i, d) in decided.into_iter().enumerate() {
+        write_mb(&d.samples, recon, i % cols, i / cols);
+        out.prediction_sse += d.prediction_sse;
+        out.kinds[kind_index(&d.coded.kind)] += 1;
+        out.vectors.push(d.vectors);
+        out.mbs.push(d.coded);
+    }
+    out
+}

@@ -1,0 +1,310 @@
+#!/usr/bin/env python3
+"""The speed/compression front: mocomp's presets beside x264's.
+
+    python3 benches/front.py OUT_DIR SEQ.y4m [SEQ.y4m ...]
+
+Every sequence is encoded at QP 22/27/32/37 by every mocomp preset and by
+x264's own command line at every x264 preset from ultrafast to slower
+(`x264 --preset P --tune psnr --qp Q --bframes 0 --keyint infinite
+--scenecut 0 --threads 1`), IPPP, one thread, the first FRAMES
+frames (default 30). Each encode is timed as a whole process; encodes are
+interleaved per sequence and QP so that the machine's drift falls on all
+encoders alike. x264's settings SEI is not counted in its size; its PSNR
+is measured on its output decoded by ffmpeg (`mocomp quality`, the same
+per-frame luma PSNR as mocomp's own), outside the timed process.
+
+Per sequence: BD-rate (luma PSNR, mean over frames, cubic, `mocomp
+bdrate`) of every preset against x264 medium and x264 superfast. Over the
+set: the mean BD-rate and the mean time per encode, and the time as a
+ratio to x264 medium's (ratio of the sums: every encode of the set counts
+once). Written to OUT_DIR: points.csv (every encode), front.md (the
+table), front.json, front.svg (time per encode against BD-rate).
+
+Threads: with THREADS_PRESET (e.g. medium), every sequence of at least
+THREADS_MIN_WIDTH (1280) pixels across is also encoded by that preset at
+QP 27 on 1 and on 2 threads (x264 beside it: --threads 1 and 2), median
+of THREADS_RUNS (5) interleaved rounds; the table gives each time and the
+2-thread time as a share of the 1-thread one.
+
+Env: FRAMES (30), QPS ("22 27 32 37"), MOCOMP_PRESETS, X264_PRESETS,
+MOCOMP (a binary; default this tree's, built now), RUNS (timing rounds per
+encode, the median kept; default 1), MOCOMP_ARGS (added to every mocomp
+encode, e.g. "--refs 2"), THREADS_PRESET, THREADS_MIN_WIDTH, THREADS_RUNS.
+"""
+import csv
+import json
+import math
+import os
+import statistics
+import subprocess
+import sys
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+QPS = [int(q) for q in os.environ.get("QPS", "22 27 32 37").split()]
+FRAMES = int(os.environ.get("FRAMES", "30"))
+RUNS = int(os.environ.get("RUNS", "1"))
+MOCOMP_PRESETS = os.environ.get("MOCOMP_PRESETS", "ultrafast fast medium slow").split()
+X264_PRESETS = os.environ.get(
+    "X264_PRESETS", "ultrafast superfast veryfast faster fast medium slow slower"
+).split()
+MOCOMP_ARGS = os.environ.get("MOCOMP_ARGS", "").split()
+ANCHORS = ["x264:medium", "x264:superfast"]
+
+
+def mocomp_binary():
+    if os.environ.get("MOCOMP"):
+        return os.environ["MOCOMP"]
+    subprocess.run(
+        ["cargo", "build", "--release", "-q", "--manifest-path", os.path.join(ROOT, "Cargo.toml")],
+        check=True,
+    )
+    return os.path.join(ROOT, "target", "release", "mocomp")
+
+
+def y4m_fps(path):
+    with open(path, "rb") as f:
+        header = f.readline().decode("ascii", "replace").split()
+    for token in header:
+        if token.startswith("F"):
+            num, den = token[1:].split(":")
+            return int(num) / int(den)
+    raise SystemExit(f"{path}: no frame rate in the Y4M header")
+
+
+def timed(cmd):
+    """Runs cmd RUNS times; its stdout+stderr of the last run and the median wall time."""
+    times = []
+    for _ in range(RUNS):
+        start = time.perf_counter()
+        done = subprocess.run(cmd, capture_output=True, text=True)
+        times.append(time.perf_counter() - start)
+        if done.returncode != 0:
+            raise SystemExit(f"failed: {' '.join(cmd)}\n{done.stderr}")
+    return done.stdout + done.stderr, statistics.median(times)
+
+
+def annexb_bytes_without_sei(path):
+    """Bytes of an H.264 Annex-B stream less its SEI NAL units (x264's settings text)."""
+    data = open(path, "rb").read()
+    starts = []
+    i = data.find(b"\x00\x00\x01")
+    while i >= 0:
+        starts.append(i + 3)
+        i = data.find(b"\x00\x00\x01", i + 3)
+    sei = 0
+    for k, s in enumerate(starts):
+        end = starts[k + 1] - 3 if k + 1 < len(starts) else len(data)
+        if data[s] & 0x1F == 6:
+            sei += end - s + 3
+    return len(data) - sei
+
+
+def encode_x264(binary, seq, preset, qp, out, threads=1):
+    """Times x264 alone (no --psnr); the PSNR is measured after, on its decoded output."""
+    cmd = ["x264", "--preset", preset, "--tune", "psnr", "--qp", str(qp), "--bframes", "0",
+           "--keyint", "infinite", "--scenecut", "0", "--threads", str(threads),
+           "--frames", str(FRAMES), "-o", out, seq]
+    _, seconds = timed(cmd)
+    decoded = out + ".y4m"
+    subprocess.run(["ffmpeg", "-v", "error", "-y", "-nostdin", "-i", out, "-f", "yuv4mpegpipe",
+                    "-pix_fmt", "yuv420p", decoded], check=True)
+    done = subprocess.run([binary, "quality", seq, decoded, "--metrics", "psnr", "--json"],
+                          capture_output=True, text=True, check=True)
+    quality = json.loads(done.stdout)
+    os.remove(decoded)
+    return annexb_bytes_without_sei(out), quality["frames"], quality["psnr_y"], seconds
+
+
+def encode_mocomp(binary, seq, preset, qp, out, threads=1):
+    cmd = [binary, "encode", seq, "-o", out, "--preset", preset, "--qp", str(qp), "--threads", str(threads),
+           "--frames", str(FRAMES), "--metrics", "psnr", "--json", "--quiet"] + MOCOMP_ARGS
+    log, seconds = timed(cmd)
+    summary = json.loads(log.strip().splitlines()[-1])
+    return summary["bytes"], summary["frames"], summary["psnr_y"], seconds
+
+
+def bd_rate(binary, csv_path, anchor, test):
+    done = subprocess.run(
+        [binary, "bdrate", f"{csv_path}:{anchor}", f"{csv_path}:{test}", "--json"],
+        capture_output=True, text=True,
+    )
+    if done.returncode != 0:
+        return None
+    value = json.loads(done.stdout).get("bd_rate_cubic")
+    return None if value is None or not math.isfinite(value) else value
+
+
+def run_sequence(binary, seq, out_dir):
+    name = os.path.splitext(os.path.basename(seq))[0]
+    fps = y4m_fps(seq)
+    rows = []
+    for qp in QPS:
+        for family, preset in [("x264", p) for p in X264_PRESETS] + [("mocomp", p) for p in MOCOMP_PRESETS]:
+            if family == "x264":
+                stream = os.path.join(out_dir, "x264.264")
+                size, frames, psnr, secs = encode_x264(binary, seq, preset, qp, stream)
+            else:
+                stream = os.path.join(out_dir, "mocomp.mcv")
+                size, frames, psnr, secs = encode_mocomp(binary, seq, preset, qp, stream)
+            codec = f"{family}:{preset}"
+            kbps = size * 8 / (frames / fps) / 1000
+            rows.append(dict(sequence=name, codec=codec, q=qp, bytes=size, frames=frames,
+                             kbps=kbps, psnr_y=psnr, seconds=secs))
+    path = os.path.join(out_dir, f"points_{name}.csv")
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=["codec", "q", "bytes", "frames", "kbps", "psnr_y", "seconds"])
+        writer.writeheader()
+        for r in rows:
+            writer.writerow({k: r[k] for k in writer.fieldnames})
+    bd = {}
+    for codec in [f"x264:{p}" for p in X264_PRESETS] + [f"mocomp:{p}" for p in MOCOMP_PRESETS]:
+        bd[codec] = {a: (0.0 if a == codec else bd_rate(binary, path, a, codec)) for a in ANCHORS}
+    return rows, bd
+
+
+def mean(values):
+    values = [v for v in values if v is not None]
+    return sum(values) / len(values) if values else None
+
+
+def summarise(rows, bds, names):
+    codecs = [f"mocomp:{p}" for p in MOCOMP_PRESETS] + [f"x264:{p}" for p in X264_PRESETS]
+    seconds = {c: [r["seconds"] for r in rows if r["codec"] == c] for c in codecs}
+    ref_total = sum(seconds["x264:medium"])
+    out = []
+    for c in codecs:
+        per_seq = [bds[n][c] for n in names]
+        entry = dict(codec=c, time_per_encode=mean(seconds[c]), time_vs_x264_medium=sum(seconds[c]) / ref_total)
+        for a in ANCHORS:
+            values = [s[a] for s in per_seq]
+            entry[f"bd_vs_{a}"] = mean(values)
+            entry[f"missing_vs_{a}"] = sum(v is None for v in values)
+        out.append(entry)
+    return out
+
+
+def fmt(v, spec="+.1f", unit=" %"):
+    return "n/a" if v is None else f"{v:{spec}}{unit}"
+
+
+def markdown(summary, bds, names):
+    lines = [f"Speed/compression front, {len(names)} sequences, QP {'/'.join(map(str, QPS))}, "
+             f"first {FRAMES} frames, IPPP, one thread, time per encode of the whole process.", "",
+             "| encoder:preset | time per encode | time vs x264 medium | BD-rate vs x264 medium | BD-rate vs x264 superfast |",
+             "|---|---:|---:|---:|---:|"]
+    for e in summary:
+        lines.append(f"| {e['codec']} | {e['time_per_encode']:.3f} s | {e['time_vs_x264_medium']:.2f}x | "
+                     f"{fmt(e['bd_vs_x264:medium'])} | {fmt(e['bd_vs_x264:superfast'])} |")
+    lines += ["", "BD-rate against x264 medium per sequence:", "",
+              "| sequence | " + " | ".join(f"mocomp:{p}" for p in MOCOMP_PRESETS) + " |",
+              "|---|" + "---:|" * len(MOCOMP_PRESETS)]
+    for n in names:
+        lines.append(f"| {n} | " + " | ".join(fmt(bds[n][f'mocomp:{p}']['x264:medium']) for p in MOCOMP_PRESETS) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def svg_plot(summary):
+    """Time per encode (log axis) against BD-rate vs x264 medium, one point per preset."""
+    pts = [(e["time_per_encode"], e["bd_vs_x264:medium"], e["codec"]) for e in summary
+           if e["bd_vs_x264:medium"] is not None]
+    w, h, m = 720, 480, 70
+    t_lo, t_hi = min(p[0] for p in pts) / 1.3, max(p[0] for p in pts) * 1.3
+    b_lo, b_hi = min(min(p[1] for p in pts), 0) - 5, max(p[1] for p in pts) + 5
+    x = lambda t: m + (math.log(t) - math.log(t_lo)) / (math.log(t_hi) - math.log(t_lo)) * (w - 2 * m)
+    y = lambda b: h - m - (b - b_lo) / (b_hi - b_lo) * (h - 2 * m)
+    parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" font-family="sans-serif" font-size="12">',
+             f'<rect width="{w}" height="{h}" fill="white"/>',
+             f'<line x1="{m}" y1="{h - m}" x2="{w - m}" y2="{h - m}" stroke="black"/>',
+             f'<line x1="{m}" y1="{m}" x2="{m}" y2="{h - m}" stroke="black"/>',
+             f'<text x="{w / 2}" y="{h - 25}" text-anchor="middle">time per encode (s, log scale)</text>',
+             f'<text x="18" y="{h / 2}" transform="rotate(-90 18 {h / 2})" text-anchor="middle">BD-rate vs x264 medium (%)</text>']
+    tick = 10 ** math.floor(math.log10(t_lo))
+    while tick < t_hi:
+        for k in (1, 2, 5):
+            t = tick * k
+            if t_lo <= t <= t_hi:
+                parts.append(f'<line x1="{x(t):.1f}" y1="{h - m}" x2="{x(t):.1f}" y2="{h - m + 5}" stroke="black"/>'
+                             f'<text x="{x(t):.1f}" y="{h - m + 18}" text-anchor="middle">{t:g}</text>')
+        tick *= 10
+    step = 10 if b_hi - b_lo > 40 else 5
+    b = math.ceil(b_lo / step) * step
+    while b <= b_hi:
+        parts.append(f'<line x1="{m - 5}" y1="{y(b):.1f}" x2="{w - m}" y2="{y(b):.1f}" stroke="#ddd"/>'
+                     f'<text x="{m - 8}" y="{y(b) + 4:.1f}" text-anchor="end">{b:+g}</text>')
+        b += step
+    for family, colour in (("mocomp", "#c03020"), ("x264", "#2050b0")):
+        line = [(x(t), y(bd), c) for t, bd, c in sorted(pts) if c.startswith(family)]
+        parts.append('<polyline fill="none" stroke="%s" points="%s"/>'
+                     % (colour, " ".join(f"{px:.1f},{py:.1f}" for px, py, _ in line)))
+        for px, py, c in line:
+            parts.append(f'<circle cx="{px:.1f}" cy="{py:.1f}" r="4" fill="{colour}"/>'
+                         f'<text x="{px + 6:.1f}" y="{py - 6:.1f}" fill="{colour}">{c}</text>')
+    parts.append("</svg>")
+    return "\n".join(parts) + "\n"
+
+
+def y4m_width(path):
+    with open(path, "rb") as f:
+        header = f.readline().decode("ascii", "replace").split()
+    return next(int(t[1:]) for t in header if t.startswith("W"))
+
+
+def thread_scaling(binary, seqs, out_dir):
+    """1- and 2-thread times of THREADS_PRESET and of x264 at the same preset name."""
+    preset = os.environ.get("THREADS_PRESET")
+    if not preset:
+        return ""
+    min_width = int(os.environ.get("THREADS_MIN_WIDTH", "1280"))
+    runs = int(os.environ.get("THREADS_RUNS", "5"))
+    lines = [f"Threads: preset {preset}, QP 27, first {FRAMES} frames, median of {runs} interleaved rounds.", "",
+             "| sequence | mocomp 1 thread | 2 threads | 2 / 1 | x264 1 thread | 2 threads | 2 / 1 |",
+             "|---|---:|---:|---:|---:|---:|---:|"]
+    for seq in seqs:
+        if y4m_width(seq) < min_width:
+            continue
+        times = {k: [] for k in ("m1", "m2", "x1", "x2")}
+        for _ in range(runs):
+            for t in (1, 2):
+                times[f"m{t}"].append(encode_mocomp(binary, seq, preset, 27, os.path.join(out_dir, "t.mcv"), t)[3])
+                times[f"x{t}"].append(encode_x264(binary, seq, preset, 27, os.path.join(out_dir, "t.264"), t)[3])
+        m = {k: statistics.median(v) for k, v in times.items()}
+        name = os.path.splitext(os.path.basename(seq))[0]
+        lines.append(f"| {name} | {m['m1']:.3f} s | {m['m2']:.3f} s | {m['m2'] / m['m1']:.2f} | "
+                     f"{m['x1']:.3f} s | {m['x2']:.3f} s | {m['x2'] / m['x1']:.2f} |")
+    return "\n".join(lines) + "\n"
+
+
+def main():
+    if len(sys.argv) < 3:
+        raise SystemExit(__doc__)
+    out_dir, seqs = sys.argv[1], sys.argv[2:]
+    os.makedirs(out_dir, exist_ok=True)
+    binary = mocomp_binary()
+    # Warm the page cache with both binaries and the first sequence, so
+    # the first timed encode does not pay for loading them.
+    subprocess.run(["x264", "--version"], capture_output=True)
+    subprocess.run([binary, "--version"], capture_output=True)
+    rows, bds, names = [], {}, []
+    for seq in seqs:
+        name = os.path.splitext(os.path.basename(seq))[0]
+        print(f"{name} ...", file=sys.stderr, flush=True)
+        seq_rows, bd = run_sequence(binary, seq, out_dir)
+        rows += seq_rows
+        bds[name] = bd
+        names.append(name)
+    with open(os.path.join(out_dir, "points.csv"), "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
+        writer.writeheader()
+        writer.writerows(rows)
+    summary = summarise(rows, bds, names)
+    table = markdown(summary, bds, names)
+    table += "\n" + thread_scaling(binary, seqs, out_dir)
+    open(os.path.join(out_dir, "front.md"), "w").write(table)
+    json.dump(dict(summary=summary, per_sequence=bds), open(os.path.join(out_dir, "front.json"), "w"), indent=1)
+    open(os.path.join(out_dir, "front.svg"), "w").write(svg_plot(summary))
+    print(table)
+
+
+if __name__ == "__main__":
+    main()

@@ -44,7 +44,9 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 QPS = [int(q) for q in os.environ.get("QPS", "22 27 32 37").split()]
 FRAMES = int(os.environ.get("FRAMES", "30"))
 RUNS = int(os.environ.get("RUNS", "1"))
-MOCOMP_PRESETS = os.environ.get("MOCOMP_PRESETS", "ultrafast fast medium slow").split()
+MOCOMP_PRESETS = os.environ.get(
+    "MOCOMP_PRESETS", "ultrafast superfast veryfast faster fast medium slow slower"
+).split()
 X264_PRESETS = os.environ.get(
     "X264_PRESETS", "ultrafast superfast veryfast faster fast medium slow slower"
 ).split()
@@ -107,8 +109,10 @@ def encode_x264(binary, seq, preset, qp, out, threads=1):
            "--frames", str(FRAMES), "-o", out, seq]
     _, seconds = timed(cmd)
     decoded = out + ".y4m"
-    subprocess.run(["ffmpeg", "-v", "error", "-y", "-nostdin", "-i", out, "-f", "yuv4mpegpipe",
-                    "-pix_fmt", "yuv420p", decoded], check=True)
+    # Every frame as decoded, in its own range: no frame rate or pixel
+    # format conversion (a full-range source would otherwise be scaled).
+    subprocess.run(["ffmpeg", "-v", "error", "-y", "-nostdin", "-i", out, "-fps_mode", "passthrough",
+                    "-f", "yuv4mpegpipe", "-strict", "-1", decoded], check=True)
     done = subprocess.run([binary, "quality", seq, decoded, "--metrics", "psnr", "--json"],
                           capture_output=True, text=True, check=True)
     quality = json.loads(done.stdout)

@@ -172,7 +172,16 @@ impl EncoderCase {
         let mut b = Bytes(data);
         let (w, h) = (1 + b.below(72), 1 + b.below(56));
         let n = 1 + b.below(5);
-        let preset = b.pick(&["ultrafast", "fast", "medium", "slow"]);
+        let preset = b.pick(&[
+            "ultrafast",
+            "superfast",
+            "veryfast",
+            "faster",
+            "fast",
+            "medium",
+            "slow",
+            "slower",
+        ]);
         let predictor = b.pick(&PREDICTORS);
         let mut options = vec![
             ("qp", b.below(52).to_string()),

@@ -147,7 +147,8 @@ fn encode_all(frames: &[Frame], fps: (u32, u32), config: EncoderConfig, keep: bo
 ///     chroma half the luma size, rounded up) at `fps`.
 /// qp: 0..51. predictor: "zero", "block[:method]", "flow-block[:lk|hs|dis|tvl1]",
 ///     "dense-lk" / "dense-hs" / "dense-dis" / "dense-tvl1", "obmc" (as `mocomp encode`).
-/// preset: "ultrafast", "fast", "medium" (default) or "slow", as
+/// preset: "ultrafast", "superfast", "veryfast", "faster", "fast",
+///     "medium" (default), "slow" or "slower", as
 ///     `mocomp encode --preset`; every other keyword argument is one of
 ///     the encoder's options by name, overriding the preset where given,
 ///     as `mocomp encode`'s: gop, me, range, subpel, flow, refine, grid,

@@ -80,8 +80,9 @@ pub struct Args {
 /// encode` and `mocomp rd` share them).
 #[derive(Debug, Clone, clap::Args)]
 pub struct ToolArgs {
-    /// Speed against compression, as x264's: ultrafast, fast, medium,
-    /// slow (the options below override it).
+    /// Speed against compression, as x264's: ultrafast, superfast,
+    /// veryfast, faster, fast, medium, slow, slower, each the one before
+    /// with tools added (the options below override it).
     #[arg(long, default_value = "medium")]
     pub preset: EncoderPreset,
     /// Multiply the mode-decision lambda `0.85 * 2^((QP - 12) / 3)`.

@@ -229,43 +229,60 @@ impl FromStr for ModeDecision {
     }
 }
 
-/// A point of speed against compression, as x264's `--preset`: each sets
-/// the coding tools' options (the predictor's search pattern stays the
-/// predictor's own); options given after it override it.
+/// A point of speed against compression, as x264's `--preset` (its names,
+/// fastest first): each sets the coding tools' options (the predictor's
+/// search pattern stays the predictor's own); options given after it
+/// override it. Each adds tools to the one before; where each lands on
+/// the speed/compression front beside x264's is measured by
+/// `benches/front.py` (README).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Default)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum EncoderPreset {
-    /// Half-pel vectors, no RDOQ, no weighted prediction, the fast mode
-    /// decision.
+    /// Half-pel vectors, 16x16 intra only, no RDOQ, no weighted
+    /// prediction, the fast mode decision.
     Ultrafast,
-    /// Quarter-pel, weighted prediction, the fast mode decision, no RDOQ
-    /// (as x264's faster presets drop trellis).
+    /// Quarter-pel vectors and 4x4 intra.
+    Superfast,
+    /// Weighted prediction, the 8x8 transform and 8x8 intra.
+    Veryfast,
+    /// EPZS's exhaustive window of 3 pels.
+    Faster,
+    /// The full mode decision.
     Fast,
-    /// As fast, with RDOQ, the full mode decision, macroblock partitions
-    /// and EPZS's exhaustive window of 3 pels. The default.
+    /// RDOQ and the inter partitions. The default.
     #[default]
     Medium,
-    /// As medium, with a search range of 32, a window of 4 pels and three
-    /// references.
+    /// A search range of 32, a window of 4 pels, three references and
+    /// sub-pel RD refinement.
     Slow,
+    /// Five references.
+    Slower,
 }
 
 impl EncoderPreset {
     /// Every preset, fastest first.
-    pub const ALL: [EncoderPreset; 4] = [
+    pub const ALL: [EncoderPreset; 8] = [
         EncoderPreset::Ultrafast,
+        EncoderPreset::Superfast,
+        EncoderPreset::Veryfast,
+        EncoderPreset::Faster,
         EncoderPreset::Fast,
         EncoderPreset::Medium,
         EncoderPreset::Slow,
+        EncoderPreset::Slower,
     ];
 
-    /// `ultrafast`, `fast`, `medium` or `slow`.
+    /// Its name, as x264's.
     pub fn name(self) -> &'static str {
         match self {
             EncoderPreset::Ultrafast => "ultrafast",
+            EncoderPreset::Superfast => "superfast",
+            EncoderPreset::Veryfast => "veryfast",
+            EncoderPreset::Faster => "faster",
             EncoderPreset::Fast => "fast",
             EncoderPreset::Medium => "medium",
             EncoderPreset::Slow => "slow",
+            EncoderPreset::Slower => "slower",
         }
     }
 }
@@ -276,7 +293,10 @@ impl FromStr for EncoderPreset {
         EncoderPreset::ALL
             .into_iter()
             .find(|p| p.name() == s)
-            .ok_or_else(|| format!("unknown preset '{s}' (ultrafast, fast, medium or slow)"))
+            .ok_or_else(|| {
+                let names: Vec<&str> = EncoderPreset::ALL.iter().map(|p| p.name()).collect();
+                format!("unknown preset '{s}' ({})", names.join(", "))
+            })
     }
 }
 
@@ -497,36 +517,45 @@ impl EncoderConfig {
     }
 
     /// The options of `preset` (the predictor's search pattern kept).
+    /// Relative to medium on eleven sequences of the development set (30
+    /// frames, QP 22-37, BD-rate; time per encode): without RDOQ and the
+    /// inter partitions +6.8 % at 0.76x; and the fast decision +7.6 % at
+    /// 0.72x; quarter-pel and 4x4 intra alone +18 % at 0.55x; half-pel
+    /// without them +44 % at 0.42x; slow -3.8 % at 1.56x; five references
+    /// -4.1 % at 1.87x.
     pub fn preset(mut self, preset: EncoderPreset) -> EncoderConfig {
         use EncoderPreset::*;
-        let ultrafast = preset == Ultrafast;
         self.rdoq = preset >= Medium;
-        self.weightp = !ultrafast;
-        // As x264: none in ultrafast, 4x4 intra from the next preset up;
-        // inter partitions from medium (in fast they cost more time than
-        // x264_simple takes).
+        self.weightp = preset >= Veryfast;
+        // As x264: none in ultrafast, 4x4 intra from the next preset up,
+        // 8x8 with the 8x8 transform, inter partitions in medium (as
+        // x264's faster presets leave p8x8 out).
         self.partitions = Partitions {
             p8x8: preset >= Medium,
-            i8x8: preset >= Medium,
-            i4x4: !ultrafast,
+            i8x8: preset >= Veryfast,
+            i4x4: preset >= Superfast,
         };
-        // Not in fast: there it cost 13 % of the time (pan_cif) for 0.9 %
-        // (the set's mean), and fast must stay faster than x264_simple.
-        self.transform_8x8 = preset >= Medium;
-        // Three references (x264 medium's) bought 4.8 % on the set's mean
-        // for 40 % more time (pan_cif): in slow until the older
-        // references' search gets cheaper (medium is at x264 medium's time).
-        self.refs = if preset == Slow { 3 } else { 1 };
-        // Sub-pel RD bought 1.6 % on the set's mean for 23 % more of
-        // medium's instructions (pan_cif): in slow, as x264's subme 8.
-        self.subpel_rd = preset == Slow;
-        self.decision = match preset {
-            Ultrafast | Fast => ModeDecision::Fast,
-            Medium | Slow => ModeDecision::Full,
+        self.transform_8x8 = preset >= Veryfast;
+        self.refs = match preset {
+            Slower => 5,
+            Slow => 3,
+            _ => 1,
+        };
+        // Sub-pel RD: 1.6 % on the set's mean for 23 % more of medium's
+        // instructions (pan_cif): from slow, as x264's subme 8.
+        self.subpel_rd = preset >= Slow;
+        self.decision = if preset >= Fast {
+            ModeDecision::Full
+        } else {
+            ModeDecision::Fast
         };
         if let Some(search) = self.predictor.search_mut() {
-            search.subpel = if ultrafast { Subpel::Half } else { Subpel::Quarter };
-            search.range = if preset == Slow {
+            search.subpel = if preset == Ultrafast {
+                Subpel::Half
+            } else {
+                Subpel::Quarter
+            };
+            search.range = if preset >= Slow {
                 32
             } else {
                 SearchSettings::default().range
@@ -534,9 +563,9 @@ impl EncoderConfig {
             // 3 pels in medium: 0.2 % more bits than 4 on the development
             // set's mean, for 7 % fewer instructions (pan_cif).
             search.window = match preset {
-                Ultrafast | Fast => 0,
-                Medium => 3,
-                Slow => 4,
+                Ultrafast | Superfast | Veryfast => 0,
+                Faster | Fast | Medium => 3,
+                Slow | Slower => 4,
             };
         }
         self
@@ -677,21 +706,30 @@ mod tests {
         let esa: Predictor = "block:esa".parse().unwrap();
         let base = EncoderConfig::new().predictor(esa);
         for p in EncoderPreset::ALL {
+            use EncoderPreset::*;
             assert_eq!(p.name().parse::<EncoderPreset>(), Ok(p));
             let c = base.preset(p);
             let s = *c.predictor.clone().search_mut().unwrap();
             assert_eq!(s.method, Method::Esa, "{p:?}");
-            assert_eq!(c.rdoq, p >= EncoderPreset::Medium);
-            assert_eq!(c.transform_8x8, p >= EncoderPreset::Medium);
-            assert_eq!(c.refs, if p == EncoderPreset::Slow { 3 } else { 1 });
-            assert_eq!(c.weightp, p != EncoderPreset::Ultrafast);
-            assert_eq!(c.partitions.p8x8, p >= EncoderPreset::Medium);
-            assert_eq!(c.partitions.i4x4, p > EncoderPreset::Ultrafast);
-            assert_eq!(c.intra8x8(), p >= EncoderPreset::Medium);
-            assert_eq!(s.subpel == Subpel::Half, p == EncoderPreset::Ultrafast);
-            assert_eq!(c.decision == ModeDecision::Full, p >= EncoderPreset::Medium);
-            assert_eq!(s.range, if p == EncoderPreset::Slow { 32 } else { 16 });
-            assert_eq!(s.window, [0, 0, 3, 4][p as usize]);
+            assert_eq!(c.rdoq, p >= Medium);
+            assert_eq!(c.transform_8x8, p >= Veryfast);
+            assert_eq!(c.refs, [1, 1, 1, 1, 1, 1, 3, 5][p as usize]);
+            assert_eq!(c.weightp, p >= Veryfast);
+            assert_eq!(c.partitions.p8x8, p >= Medium);
+            assert_eq!(c.partitions.i4x4, p > Ultrafast);
+            assert_eq!(c.intra8x8(), p >= Veryfast);
+            assert_eq!(s.subpel == Subpel::Half, p == Ultrafast);
+            assert_eq!(c.decision == ModeDecision::Full, p >= Fast);
+            assert_eq!(s.range, if p >= Slow { 32 } else { 16 });
+            assert_eq!(s.window, [0, 0, 0, 3, 3, 3, 4, 4][p as usize]);
+            assert_eq!(c.subpel_rd, p >= Slow);
+        }
+        // Each preset is the one before with tools added: nothing is off
+        // that a faster one has on.
+        for w in EncoderPreset::ALL.windows(2) {
+            let (a, b) = (base.preset(w[0]), base.preset(w[1]));
+            assert!(b.rdoq >= a.rdoq && b.weightp >= a.weightp && b.transform_8x8 >= a.transform_8x8);
+            assert!(b.refs >= a.refs && b.subpel_rd >= a.subpel_rd);
         }
         // The default configuration is the medium preset's.
         assert_eq!(

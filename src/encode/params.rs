@@ -79,7 +79,7 @@ where
 }
 
 impl EncoderConfig {
-    /// The configuration of preset `name` (ultrafast, fast, medium, slow)
+    /// The configuration of preset `name` (ultrafast, superfast, veryfast, faster, fast, medium, slow, slower)
     /// for the default predictor, as x264's `param_default_preset`.
     pub fn from_preset(name: &str) -> Result<EncoderConfig, String> {
         Ok(EncoderConfig::new().preset(name.parse::<EncoderPreset>()?))

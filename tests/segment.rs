@@ -105,3 +105,31 @@ fn a_scene_moving_only_with_the_camera_has_empty_masks() {
         assert!(set < 192 * 144 / 100, "frame {t}: {set} pixels marked");
     }
 }
+
+#[test]
+fn flows_kept_from_the_frame_before_give_the_masks_of_fresh_ones() {
+    // Frame t's flows with t + 1 are frame t + 1's with t, kept from one
+    // call to the next: the masks must be those of a segmenter that
+    // computes every flow.
+    let (frames, _) = scene(
+        Motion::translation(1.5, -0.75),
+        Motion::translation(-2.0, 1.0),
+        Shape::Ellipse { rx: 22.0, ry: 16.0 },
+        3,
+    );
+    let near = |t: usize| -> Vec<&Frame> {
+        [t.checked_sub(1), Some(t + 1)]
+            .into_iter()
+            .flatten()
+            .filter_map(|k| frames.get(k))
+            .collect()
+    };
+    let mut kept = Segmenter::new(&SegmentParams::default()).unwrap();
+    for (t, frame) in frames.iter().enumerate() {
+        let mut fresh = Segmenter::new(&SegmentParams::default()).unwrap();
+        assert!(
+            kept.mask(frame, &near(t)) == fresh.mask(frame, &near(t)),
+            "frame {t}"
+        );
+    }
+}

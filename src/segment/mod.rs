@@ -61,6 +61,30 @@ pub enum SegmentError {
 pub struct Segmenter {
     params: SegmentParams,
     flows: [FlowEstimator; 2],
+    /// The last pair of frames whose flows were computed, with both flows:
+    /// frame t's pair with t + 1 is frame t + 1's pair with t.
+    last_pair: Option<PairFlows>,
+}
+
+/// Two lumas and the flow each way between them.
+struct PairFlows {
+    a: Array2<f32>,
+    b: Array2<f32>,
+    a_to_b: Flow,
+    b_to_a: Flow,
+}
+
+impl PairFlows {
+    /// The flows from `from` to `to` and back, when this pair holds them.
+    fn flows(&self, from: &Array2<f32>, to: &Array2<f32>) -> Option<(Flow, Flow)> {
+        if self.a == from && self.b == to {
+            Some((self.a_to_b.clone(), self.b_to_a.clone()))
+        } else if self.a == to && self.b == from {
+            Some((self.b_to_a.clone(), self.a_to_b.clone()))
+        } else {
+            None
+        }
+    }
 }
 
 impl Segmenter {
@@ -84,6 +108,7 @@ impl Segmenter {
         Ok(Segmenter {
             params: *params,
             flows: [make()?, make()?],
+            last_pair: None,
         })
     }
 
@@ -96,8 +121,7 @@ impl Segmenter {
         let mut directions = Vec::new();
         for other in neighbours {
             let other = plane_to_array(other.y());
-            let [a, b] = &mut self.flows;
-            let (forward, backward) = rayon::join(|| a.compute(&me, &other), || b.compute(&other, &me));
+            let (forward, backward) = self.pair_flows(&me, &other);
             let (score, camera) = direction_score(&forward, &inconsistent(&forward, &backward), &self.params);
             total += &score;
             directions.push(Direction {
@@ -117,6 +141,23 @@ impl Segmenter {
             score: total,
             directions,
         }
+    }
+
+    /// The flows from `me` to `other` and back: the last pair's again
+    /// when it was this one, else computed (both at once) and kept.
+    fn pair_flows(&mut self, me: &Array2<f32>, other: &Array2<f32>) -> (Flow, Flow) {
+        if let Some(flows) = self.last_pair.as_ref().and_then(|p| p.flows(me, other)) {
+            return flows;
+        }
+        let [a, b] = &mut self.flows;
+        let (forward, backward) = rayon::join(|| a.compute(me, other), || b.compute(other, me));
+        self.last_pair = Some(PairFlows {
+            a: me.clone(),
+            b: other.clone(),
+            a_to_b: forward.clone(),
+            b_to_a: backward.clone(),
+        });
+        (forward, backward)
     }
 
     /// The motion score of `frame` (above 1: moving against the camera).

@@ -1084,9 +1084,9 @@ fn presets_differ_options_override_them_and_every_stream_decodes() {
     assert_eq!(encode("default.mcv", &[]), streams[2]);
     assert_ne!(streams[0], streams[1]);
     assert_ne!(streams[1], streams[2]);
-    // Options given override the preset: superfast with half-pel vectors
-    // and without 4x4 intra is ultrafast.
-    let as_ultrafast = ["--subpel", "half", "--partitions", "none"];
+    // Options given override the preset: superfast with half-pel vectors,
+    // without weighted prediction and without 4x4 intra is ultrafast.
+    let as_ultrafast = ["--subpel", "half", "--no-weightp", "--partitions", "none"];
     assert_eq!(
         encode("o.mcv", &[&["--preset", "superfast"][..], &as_ultrafast].concat()),
         streams[0]

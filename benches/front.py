@@ -102,12 +102,15 @@ def annexb_bytes_without_sei(path):
     return len(data) - sei
 
 
-def encode_x264(binary, seq, preset, qp, out, threads=1):
-    """Times x264 alone (no --psnr); the PSNR is measured after, on its decoded output."""
+def encode_x264(binary, seq, preset, qp, out, threads=1, measure=True):
+    """Times x264 alone (no --psnr); the PSNR is measured after, on its
+    decoded output (not when `measure` is false: the time alone)."""
     cmd = ["x264", "--preset", preset, "--tune", "psnr", "--qp", str(qp), "--bframes", "0",
            "--keyint", "infinite", "--scenecut", "0", "--threads", str(threads),
            "--frames", str(FRAMES), "-o", out, seq]
     _, seconds = timed(cmd)
+    if not measure:
+        return None, None, None, seconds
     decoded = out + ".y4m"
     # Every frame as decoded, in its own range: no frame rate or pixel
     # format conversion (a full-range source would otherwise be scaled).
@@ -271,7 +274,9 @@ def thread_scaling(binary, seqs, out_dir):
         for _ in range(runs):
             for t in (1, 2):
                 times[f"m{t}"].append(encode_mocomp(binary, seq, preset, 27, os.path.join(out_dir, "t.mcv"), t)[3])
-                times[f"x{t}"].append(encode_x264(binary, seq, preset, 27, os.path.join(out_dir, "t.264"), t)[3])
+                times[f"x{t}"].append(
+                    encode_x264(binary, seq, preset, 27, os.path.join(out_dir, "t.264"), t, measure=False)[3]
+                )
         m = {k: statistics.median(v) for k, v in times.items()}
         name = os.path.splitext(os.path.basename(seq))[0]
         lines.append(f"| {name} | {m['m1']:.3f} s | {m['m2']:.3f} s | {m['m2'] / m['m1']:.2f} | "

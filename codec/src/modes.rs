@@ -627,7 +627,8 @@ impl ModeCoder {
 
     /// Takes `contexts` (another coder's [`ModeCoder::contexts`]) as its
     /// own, keeping its record of the macroblocks: an encoder pricing a
-    /// row from the state the row above reached (wavefront).
+    /// row from the state the row above reached (wavefront). Panics if
+    /// `contexts` is not another mode coder's (a different length).
     pub fn set_contexts(&mut self, contexts: &[Context]) {
         self.contexts.copy_from_slice(contexts);
     }

@@ -565,7 +565,8 @@ impl ResidualCoder {
 
     /// Takes `contexts` (another coder's [`ResidualCoder::contexts`]) as
     /// its own, keeping its record of coded blocks (see
-    /// [`crate::modes::ModeCoder::set_contexts`]).
+    /// [`crate::modes::ModeCoder::set_contexts`]). Panics if `contexts`
+    /// is not another residual coder's (a different length).
     pub fn set_contexts(&mut self, contexts: &[Context]) {
         self.contexts.copy_from_slice(contexts);
     }

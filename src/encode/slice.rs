@@ -402,7 +402,6 @@ impl<'a> InterFrameCoder<'a> {
         })?;
         let sum = wavefront::collect(decided, &mut self.frame.recon, cols);
         self.frame.syntax.mbs = sum.mbs;
-        self.decided = sum.vectors;
         self.frame.prediction_sse = sum.prediction_sse;
         self.frame.kinds = sum.kinds;
         Ok(())

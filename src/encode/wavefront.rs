@@ -32,7 +32,7 @@ use crate::me::pipeline::wavefront;
 pub(super) struct Decided {
     pub(super) coded: CodedMb,
     mode: MbMode,
-    pub(super) vectors: MbVectors,
+    vectors: MbVectors,
     samples: MbSamples,
     /// The prediction's squared luma error (visible part).
     prediction_sse: u64,
@@ -196,7 +196,6 @@ impl WavefrontFrame<'_> {
 /// (before deblocking) is written, its prediction error and kinds counted.
 pub(super) struct FrameSummary {
     pub(super) mbs: Vec<CodedMb>,
-    pub(super) vectors: Vec<MbVectors>,
     pub(super) prediction_sse: u64,
     pub(super) kinds: [usize; 3],
 }
@@ -205,7 +204,6 @@ pub(super) struct FrameSummary {
 pub(super) fn collect(decided: Vec<Decided>, recon: &mut Frame, cols: usize) -> FrameSummary {
     let mut out = FrameSummary {
         mbs: Vec::with_capacity(decided.len()),
-        vectors: Vec::with_capacity(decided.len()),
         prediction_sse: 0,
         kinds: [0; 3],
     };
@@ -213,7 +211,6 @@ pub(super) fn collect(decided: Vec<Decided>, recon: &mut Frame, cols: usize) -> 
         write_mb(&d.samples, recon, i % cols, i / cols);
         out.prediction_sse += d.prediction_sse;
         out.kinds[kind_index(&d.coded.kind)] += 1;
-        out.vectors.push(d.vectors);
         out.mbs.push(d.coded);
     }
     out

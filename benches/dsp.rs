@@ -10,7 +10,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkGroup, BenchmarkId, Cr
 use mocomp::codec::cpu;
 use mocomp::codec::dsp::ipred::{Edges, Edges8, Intra4x4Mode, IntraMode, Neighbours, IPRED};
 use mocomp::codec::dsp::itx::ITX;
-use mocomp::codec::dsp::lf::{Edge, LF};
+use mocomp::codec::dsp::lf::LF;
 use mocomp::codec::dsp::mc::MC;
 use mocomp::codec::dsp::PerLevel;
 use mocomp::codec::residual::{BlockClass, ResidualCoder};
@@ -109,25 +109,21 @@ fn codec_tables(c: &mut Criterion) {
             Intra4x4Mode::ALL.map(|m| (t.pred_8x8)(m, black_box(&e8), &mut o8))
         });
     });
-    let mut plane = noise(16 * 16, 3);
+    // Near-flat with a step across the edges: most lines are filtered.
+    let mut plane: Vec<u8> = noise(24 * 24, 3)
+        .iter()
+        .enumerate()
+        .map(|(i, v)| 100 + v % 4 + if (i % 24 >= 8) ^ (i / 24 >= 8) { 6 } else { 0 })
+        .collect();
     levels(c, "lf", &LF, |g, t, l| {
-        bench(g, "filter_edge_luma_bs2", l, || {
-            (t.filter_edge)(
-                black_box(&mut plane),
-                (4 * 16 + 8, 1, 16),
-                4,
-                Edge::new(2, 32),
-                true,
-            )
+        bench(g, "filter_mb_edge_luma_vertical_bs2", l, || {
+            (t.filter_mb_edge)(black_box(&mut plane), (8, 1, 24), [2; 4], 32, true)
         });
-        bench(g, "filter_edge_luma_bs4", l, || {
-            (t.filter_edge)(
-                black_box(&mut plane),
-                (8 * 16 + 4, 16, 1),
-                4,
-                Edge::new(4, 32),
-                true,
-            )
+        bench(g, "filter_mb_edge_luma_horizontal_bs4", l, || {
+            (t.filter_mb_edge)(black_box(&mut plane), (8 * 24, 24, 1), [4; 4], 32, true)
+        });
+        bench(g, "filter_mb_edge_chroma_vertical_bs1", l, || {
+            (t.filter_mb_edge)(black_box(&mut plane), (8, 1, 24), [1; 4], 32, false)
         });
     });
 }

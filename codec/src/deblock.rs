@@ -161,49 +161,37 @@ impl Strengths {
 /// sample covers 2x2 luma samples; chroma edges lie on every other luma
 /// edge, each chroma row taking the strength of the luma row it covers).
 /// The strength is one per piece of edge along a 4x4 luma block (4 luma
-/// lines, 2 chroma ones).
+/// lines, 2 chroma ones); the kernel takes a macroblock's length of edge,
+/// four pieces, at once.
+///
+/// A line across a vertical edge is filtered only by the vertical edges
+/// of its own row, so the picture's order (every vertical edge left to
+/// right, then every horizontal one top to bottom) is kept by going left
+/// to right within each macroblock row, and top to bottom within each
+/// macroblock column.
 fn filter_plane(plane: &mut Plane, strengths: &Strengths, qp: u8, sub: usize) {
     if !Edge::filters_at(qp) {
         return;
     }
-    let lf = lf();
+    let filter_mb_edge = lf().filter_mb_edge;
     let (w, h, stride) = (plane.width(), plane.height(), plane.stride());
     let origin = plane.index(0, 0);
     let (luma, piece) = (sub == 1, 4 / sub);
+    let mb = 16 / sub;
     let data = plane.data_mut();
     let cols = strengths.cols;
-    // Vertical edges, left to right: each line runs along x.
-    for x in (4..w).step_by(4) {
-        let bx = x * sub / 4;
-        for y0 in (0..h).step_by(piece) {
-            let bs = strengths.vertical[(y0 * sub / 4) * cols + bx];
-            if bs > 0 {
-                let lines = (y0 + piece).min(h) - y0;
-                (lf.filter_edge)(
-                    data,
-                    (origin + y0 * stride + x, 1, stride),
-                    lines,
-                    Edge::new(bs, qp),
-                    luma,
-                );
-            }
+    for y0 in (0..h).step_by(mb) {
+        for x in (4..w).step_by(4) {
+            let bx = x * sub / 4;
+            let bs = std::array::from_fn(|k| strengths.vertical[((y0 + k * piece) * sub / 4) * cols + bx]);
+            filter_mb_edge(data, (origin + y0 * stride + x, 1, stride), bs, qp, luma);
         }
     }
-    // Horizontal edges, top to bottom: each line runs along y.
-    for y in (4..h).step_by(4) {
-        let row = (y * sub / 4) * cols;
-        for x0 in (0..w).step_by(piece) {
-            let bs = strengths.horizontal[row + x0 * sub / 4];
-            if bs > 0 {
-                let lines = (x0 + piece).min(w) - x0;
-                (lf.filter_edge)(
-                    data,
-                    (origin + y * stride + x0, stride, 1),
-                    lines,
-                    Edge::new(bs, qp),
-                    luma,
-                );
-            }
+    for x0 in (0..w).step_by(mb) {
+        for y in (4..h).step_by(4) {
+            let row = (y * sub / 4) * cols;
+            let bs = std::array::from_fn(|k| strengths.horizontal[row + (x0 + k * piece) * sub / 4]);
+            filter_mb_edge(data, (origin + y * stride + x0, stride, 1), bs, qp, luma);
         }
     }
 }
@@ -381,15 +369,17 @@ mod tests {
         // One row across a vertical edge at x = 4 of an 8-wide picture.
         let line = |p: u8, q: u8| [p, p, p, p, q, q, q, q];
         let run = |samples: [u8; 8], bs: u8, qp: u8| {
-            let mut d = samples.to_vec();
-            (crate::dsp::lf::LF.at(crate::cpu::CpuLevel::Scalar).filter_edge)(
+            let mut d = samples.repeat(16);
+            (crate::dsp::lf::LF.at(crate::cpu::CpuLevel::Scalar).filter_mb_edge)(
                 &mut d,
                 (4, 1, 8),
-                1,
-                Edge::new(bs, qp),
+                [bs; 4],
+                qp,
                 true,
             );
-            d
+            let line = d[..8].to_vec();
+            assert!(d.chunks(8).all(|l| l == line), "every line alike");
+            line
         };
         // QP 36: alpha 63. A step of 10 is an artefact: smoothed into a
         // ramp that still rises, p0 and q0 moved by the same amount.

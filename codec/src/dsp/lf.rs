@@ -5,20 +5,22 @@
 
 use super::PerLevel;
 
-/// A piece of edge filtered: `(data, (first, step, line_step), lines,
-/// edge, luma)`, `lines` lines across the edge, the first with `q0` at
-/// `data[first]` and `p0` at `data[first - step]`, each next line
-/// `line_step` further on.
-pub type FilterEdgeFn = fn(&mut [u8], (usize, usize, usize), usize, Edge, bool);
+/// One macroblock's length of an edge: `(data, (first, step, line_step),
+/// strengths, qp, luma)`, 16 luma lines (8 chroma) across the edge in
+/// four pieces of 4 lines (2 chroma), piece `k` filtered with boundary
+/// strength `strengths[k]` (0: left as it is) at `qp`. The first line has
+/// `q0` at `data[first]` and `p0` at `data[first - step]`, each next line
+/// lies `line_step` further on. Every line reads 4 samples on each side.
+pub type FilterMbEdgeFn = fn(&mut [u8], (usize, usize, usize), [u8; 4], u8, bool);
 
 /// The deblocking kernels of one CPU level.
 #[derive(Debug, Clone, Copy)]
 pub struct LfDsp {
-    /// One piece of edge (4 luma lines, 2 chroma).
-    pub filter_edge: FilterEdgeFn,
+    /// One macroblock's length of an edge.
+    pub filter_mb_edge: FilterMbEdgeFn,
 }
 
-const SCALAR: LfDsp = LfDsp { filter_edge };
+const SCALAR: LfDsp = LfDsp { filter_mb_edge };
 
 /// The tables, lowest level first.
 pub static LF: PerLevel<LfDsp> = PerLevel([
@@ -26,7 +28,7 @@ pub static LF: PerLevel<LfDsp> = PerLevel([
     SCALAR,
     #[cfg(target_arch = "x86_64")]
     LfDsp {
-        filter_edge: avx2::filter_edge,
+        filter_mb_edge: x86::filter_mb_edge_avx2,
     },
     #[cfg(not(target_arch = "x86_64"))]
     SCALAR,
@@ -38,24 +40,378 @@ pub fn lf() -> &'static LfDsp {
     LF.get()
 }
 
-#[cfg(target_arch = "x86_64")]
-mod avx2 {
-    use super::Edge;
-    crate::compiled_for! { "avx2":
-        fn filter_edge(d: &mut [u8], at: (usize, usize, usize), lines: usize, e: Edge, luma: bool) => super::filter_edge;
+/// Lines of a macroblock's length of edge, and of each of its four pieces.
+fn mb_edge_lines(luma: bool) -> (usize, usize) {
+    if luma {
+        (16, 4)
+    } else {
+        (8, 2)
     }
 }
 
-#[inline(always)]
-fn filter_edge(
+/// [`FilterMbEdgeFn`], line by line.
+pub fn filter_mb_edge(
     d: &mut [u8],
     (first, step, line_step): (usize, usize, usize),
-    lines: usize,
-    e: Edge,
+    strengths: [u8; 4],
+    qp: u8,
     luma: bool,
 ) {
-    for k in 0..lines {
-        filter_line(d, first + k * line_step, step, e, luma);
+    let (_, piece) = mb_edge_lines(luma);
+    for (k, &bs) in strengths.iter().enumerate() {
+        if bs == 0 {
+            continue;
+        }
+        let e = Edge::new(bs, qp);
+        for line in k * piece..(k + 1) * piece {
+            filter_line(d, first + line * line_step, step, e, luma);
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod x86 {
+    //! The edge filter on sixteen lines at once, as x264's `deblock_v_luma`
+    //! and `deblock_h_luma`: each of eight vectors holds one distance from
+    //! the edge (p3 ... q3) of every line, in 16-bit lanes; a vertical
+    //! edge's lines are transposed into that form and back.
+
+    use std::arch::x86_64::*;
+
+    use super::{filter_mb_edge, mb_edge_lines, Edge, ALPHA, BETA, TC0};
+
+    /// [`super::FilterMbEdgeFn`] with AVX2 (the scalar twin where the
+    /// edge is neither along rows nor along columns, or reaches past the
+    /// slice).
+    pub(super) fn filter_mb_edge_avx2(
+        d: &mut [u8],
+        (first, step, line_step): (usize, usize, usize),
+        strengths: [u8; 4],
+        qp: u8,
+        luma: bool,
+    ) {
+        if strengths == [0; 4] || !Edge::filters_at(qp) {
+            return;
+        }
+        let (lines, _) = mb_edge_lines(luma);
+        let vertical = step == 1 && first >= 4 && first + (lines - 1) * line_step + 4 <= d.len();
+        let horizontal = line_step == 1 && first >= 4 * step && first + 3 * step + lines <= d.len();
+        // SAFETY: AVX2 is in force (this kernel sits only in the AVX2
+        // table, which is handed out only where the CPU has it), and every
+        // sample read or written lies in the ranges checked just above.
+        unsafe {
+            if vertical {
+                across_columns(d.as_mut_ptr().add(first - 4), line_step, strengths, qp, luma);
+            } else if horizontal {
+                across_rows(d.as_mut_ptr().add(first - 4 * step), step, strengths, qp, luma);
+            } else {
+                filter_mb_edge(d, (first, step, line_step), strengths, qp, luma);
+            }
+        }
+    }
+
+    /// Each lane's thresholds: alpha (0 in a lane not filtered), beta,
+    /// tc0, and whether its strength is 4.
+    struct Lanes {
+        alpha: __m256i,
+        beta: __m256i,
+        tc0: __m256i,
+        strong: __m256i,
+    }
+
+    impl Lanes {
+        #[target_feature(enable = "avx2")]
+        fn new(strengths: [u8; 4], qp: u8, luma: bool) -> Lanes {
+            let q = usize::from(qp);
+            let per_piece = |f: fn(u8, usize) -> i16| {
+                let v = strengths.map(|bs| i64::from(f(bs, q) as u16));
+                if luma {
+                    // Four lanes a piece.
+                    let four = |x: i64| x * 0x0001_0001_0001_0001;
+                    _mm256_set_epi64x(four(v[3]), four(v[2]), four(v[1]), four(v[0]))
+                } else {
+                    // Two lanes a piece, the upper eight lanes unused.
+                    let two = |x: i64| (x * 0x0001_0001) as i32;
+                    _mm256_set_epi32(0, 0, 0, 0, two(v[3]), two(v[2]), two(v[1]), two(v[0]))
+                }
+            };
+            Lanes {
+                alpha: per_piece(|bs, q| if bs > 0 { i16::from(ALPHA[q]) } else { 0 }),
+                beta: _mm256_set1_epi16(i16::from(BETA[q])),
+                tc0: per_piece(|bs, q| {
+                    if (1..4).contains(&bs) {
+                        i16::from(TC0[usize::from(bs) - 1][q])
+                    } else {
+                        0
+                    }
+                }),
+                strong: per_piece(|bs, _| if bs == 4 { -1 } else { 0 }),
+            }
+        }
+    }
+
+    /// A horizontal edge: lines run down the columns, the eight rows
+    /// p3 ... q3 from `base` on, `stride` apart.
+    #[target_feature(enable = "avx2")]
+    unsafe fn across_rows(base: *mut u8, stride: usize, strengths: [u8; 4], qp: u8, luma: bool) {
+        let mut v = [_mm256_setzero_si256(); 8];
+        for (r, x) in v.iter_mut().enumerate() {
+            let at = base.add(r * stride) as *const __m128i;
+            *x = _mm256_cvtepu8_epi16(if luma {
+                _mm_loadu_si128(at)
+            } else {
+                _mm_loadl_epi64(at)
+            });
+        }
+        filter(&mut v, &Lanes::new(strengths, qp, luma), luma);
+        let changed = if luma { 1..7 } else { 3..5 };
+        for r in changed {
+            let at = base.add(r * stride) as *mut __m128i;
+            if luma {
+                _mm_storeu_si128(at, narrow(v[r]));
+            } else {
+                _mm_storel_epi64(at, narrow(v[r]));
+            }
+        }
+    }
+
+    /// A vertical edge: lines run along the rows, each line's eight samples
+    /// p3 ... q3 from `base` on, the lines `stride` apart.
+    #[target_feature(enable = "avx2")]
+    unsafe fn across_columns(base: *mut u8, stride: usize, strengths: [u8; 4], qp: u8, luma: bool) {
+        let (lines, _) = mb_edge_lines(luma);
+        let mut rows = [_mm_setzero_si128(); 16];
+        for (k, r) in rows.iter_mut().enumerate().take(lines) {
+            *r = _mm_loadl_epi64(base.add(k * stride) as *const __m128i);
+        }
+        let columns = transpose_16x8(&rows);
+        let mut v = [_mm256_setzero_si256(); 8];
+        for (x, c) in v.iter_mut().zip(columns) {
+            *x = _mm256_cvtepu8_epi16(c);
+        }
+        filter(&mut v, &Lanes::new(strengths, qp, luma), luma);
+        let mut columns = [_mm_setzero_si128(); 8];
+        for (c, x) in columns.iter_mut().zip(v) {
+            *c = narrow(x);
+        }
+        let rows = transpose_8x16(&columns);
+        for (k, r) in rows.iter().enumerate().take(lines) {
+            _mm_storel_epi64(base.add(k * stride) as *mut __m128i, *r);
+        }
+    }
+
+    /// Sixteen 16-bit lanes saturated to bytes.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn narrow(v: __m256i) -> __m128i {
+        _mm_packus_epi16(_mm256_castsi256_si128(v), _mm256_extracti128_si256::<1>(v))
+    }
+
+    /// Sixteen rows of 8 bytes (each in the low half of its vector) as
+    /// eight columns of 16.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn transpose_16x8(r: &[__m128i; 16]) -> [__m128i; 8] {
+        let mut a = [_mm_setzero_si128(); 8];
+        for (i, x) in a.iter_mut().enumerate() {
+            *x = _mm_unpacklo_epi8(r[2 * i], r[2 * i + 1]);
+        }
+        // Columns 0-3 (lo) and 4-7 (hi) of rows 4j ... 4j + 3.
+        let (mut lo, mut hi) = ([_mm_setzero_si128(); 4], [_mm_setzero_si128(); 4]);
+        for j in 0..4 {
+            lo[j] = _mm_unpacklo_epi16(a[2 * j], a[2 * j + 1]);
+            hi[j] = _mm_unpackhi_epi16(a[2 * j], a[2 * j + 1]);
+        }
+        let mut columns = [_mm_setzero_si128(); 8];
+        for (half, quads) in [lo, hi].iter().enumerate() {
+            // Column pairs of rows 0-7 (top) and of rows 8-15 (bottom).
+            let top = [
+                _mm_unpacklo_epi32(quads[0], quads[1]),
+                _mm_unpackhi_epi32(quads[0], quads[1]),
+            ];
+            let bottom = [
+                _mm_unpacklo_epi32(quads[2], quads[3]),
+                _mm_unpackhi_epi32(quads[2], quads[3]),
+            ];
+            for p in 0..2 {
+                let c = half * 4 + p * 2;
+                columns[c] = _mm_unpacklo_epi64(top[p], bottom[p]);
+                columns[c + 1] = _mm_unpackhi_epi64(top[p], bottom[p]);
+            }
+        }
+        columns
+    }
+
+    /// Eight columns of 16 bytes as sixteen rows of 8 (each in the low
+    /// half of its vector): [`transpose_16x8`] undone.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn transpose_8x16(c: &[__m128i; 8]) -> [__m128i; 16] {
+        // Column pairs (2i, 2i + 1) of rows 0-7 (lo) and of rows 8-15 (hi).
+        let (mut lo, mut hi) = ([_mm_setzero_si128(); 4], [_mm_setzero_si128(); 4]);
+        for i in 0..4 {
+            lo[i] = _mm_unpacklo_epi8(c[2 * i], c[2 * i + 1]);
+            hi[i] = _mm_unpackhi_epi8(c[2 * i], c[2 * i + 1]);
+        }
+        let mut rows = [_mm_setzero_si128(); 16];
+        for (half, x) in [lo, hi].iter().enumerate() {
+            // Columns 0-3 and 4-7 of rows 0-3 and of rows 4-7.
+            let c03 = [_mm_unpacklo_epi16(x[0], x[1]), _mm_unpackhi_epi16(x[0], x[1])];
+            let c47 = [_mm_unpacklo_epi16(x[2], x[3]), _mm_unpackhi_epi16(x[2], x[3])];
+            for q in 0..2 {
+                let both = [
+                    _mm_unpacklo_epi32(c03[q], c47[q]),
+                    _mm_unpackhi_epi32(c03[q], c47[q]),
+                ];
+                for (k, v) in both.into_iter().enumerate() {
+                    let r = half * 8 + q * 4 + k * 2;
+                    rows[r] = v;
+                    rows[r + 1] = _mm_unpackhi_epi64(v, v);
+                }
+            }
+        }
+        rows
+    }
+
+    // Lane-wise helpers (functions rather than closures, so that they are
+    // compiled for AVX2 and inlined).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn add(a: __m256i, b: __m256i) -> __m256i {
+        _mm256_add_epi16(a, b)
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn sub(a: __m256i, b: __m256i) -> __m256i {
+        _mm256_sub_epi16(a, b)
+    }
+
+    /// |a - b|.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn dist(a: __m256i, b: __m256i) -> __m256i {
+        _mm256_abs_epi16(_mm256_sub_epi16(a, b))
+    }
+
+    /// a < b, as a mask.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn below(a: __m256i, b: __m256i) -> __m256i {
+        _mm256_cmpgt_epi16(b, a)
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn and(a: __m256i, b: __m256i) -> __m256i {
+        _mm256_and_si256(a, b)
+    }
+
+    /// `yes` where `mask` is set, `no` elsewhere.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn pick(mask: __m256i, no: __m256i, yes: __m256i) -> __m256i {
+        _mm256_blendv_epi8(no, yes, mask)
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn k(c: i16) -> __m256i {
+        _mm256_set1_epi16(c)
+    }
+
+    /// x within +-limit.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn within(x: __m256i, limit: __m256i) -> __m256i {
+        _mm256_max_epi16(sub(k(0), limit), _mm256_min_epi16(x, limit))
+    }
+
+    /// The sum of `terms` shifted right by `shift`.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn sum_shr<const SHIFT: i32>(terms: &[__m256i]) -> __m256i {
+        let mut acc = k(0);
+        for &t in terms {
+            acc = add(acc, t);
+        }
+        _mm256_srai_epi16::<SHIFT>(acc)
+    }
+
+    /// (2 x1 + x0 + y1 + 2) >> 2: p0 (q0) of strength 4 without the
+    /// strong filter, and of chroma.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn soft(x1: __m256i, x0: __m256i, y1: __m256i) -> __m256i {
+        sum_shr::<2>(&[x1, x1, x0, y1, k(2)])
+    }
+
+    /// The change of p0 (and minus that of q0) at strengths 1-3, within
+    /// +-tc.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn delta(p1: __m256i, p0: __m256i, q0: __m256i, q1: __m256i, tc: __m256i) -> __m256i {
+        let d = add(_mm256_slli_epi16::<2>(sub(q0, p0)), add(sub(p1, q1), k(4)));
+        within(_mm256_srai_epi16::<3>(d), tc)
+    }
+
+    /// [`super::filter_line`] on every lane of `v` (p3 ... q3).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn filter(v: &mut [__m256i; 8], l: &Lanes, luma: bool) {
+        let [p3, p2, p1, p0, q0, q1, q2, q3] = *v;
+        let filtered = and(
+            below(dist(p0, q0), l.alpha),
+            and(below(dist(p1, p0), l.beta), below(dist(q1, q0), l.beta)),
+        );
+        if !luma {
+            let dl = delta(p1, p0, q0, q1, add(l.tc0, k(1)));
+            v[3] = pick(filtered, p0, pick(l.strong, add(p0, dl), soft(p1, p0, q1)));
+            v[4] = pick(filtered, q0, pick(l.strong, sub(q0, dl), soft(q1, q0, p1)));
+            return;
+        }
+        let (ap, aq) = (below(dist(p2, p0), l.beta), below(dist(q2, q0), l.beta));
+        // Strengths 1-3 (ap and aq are -1 where set).
+        let dl = delta(p1, p0, q0, q1, sub(sub(l.tc0, ap), aq));
+        let mid = _mm256_srai_epi16::<1>(add(add(p0, q0), k(1)));
+        let p1n = add(
+            p1,
+            within(_mm256_srai_epi16::<1>(sub(add(p2, mid), add(p1, p1))), l.tc0),
+        );
+        let q1n = add(
+            q1,
+            within(_mm256_srai_epi16::<1>(sub(add(q2, mid), add(q1, q1))), l.tc0),
+        );
+        let normal = [
+            p2,
+            pick(ap, p1, p1n),
+            add(p0, dl),
+            sub(q0, dl),
+            pick(aq, q1, q1n),
+            q2,
+        ];
+        // Strength 4.
+        let steep = below(dist(p0, q0), add(_mm256_srai_epi16::<2>(l.alpha), k(2)));
+        let (sp, sq) = (and(ap, steep), and(aq, steep));
+        let strong = [
+            pick(sp, p2, sum_shr::<3>(&[p3, p3, p2, p2, p2, p1, p0, q0, k(4)])),
+            pick(sp, p1, sum_shr::<2>(&[p2, p1, p0, q0, k(2)])),
+            pick(
+                sp,
+                soft(p1, p0, q1),
+                sum_shr::<3>(&[p2, p1, p1, p0, p0, q0, q0, q1, k(4)]),
+            ),
+            pick(
+                sq,
+                soft(q1, q0, p1),
+                sum_shr::<3>(&[p1, p0, p0, q0, q0, q1, q1, q2, k(4)]),
+            ),
+            pick(sq, q1, sum_shr::<2>(&[p0, q0, q1, q2, k(2)])),
+            pick(sq, q2, sum_shr::<3>(&[q3, q3, q2, q2, q2, q1, q0, p0, k(4)])),
+        ];
+        for i in 0..6 {
+            v[i + 1] = pick(filtered, v[i + 1], pick(l.strong, normal[i], strong[i]));
+        }
     }
 }
 

@@ -367,8 +367,11 @@ fn metrics_kernels() {
             ssim_band,
             ssim_8x8_row_sums,
         } = *t;
-        // Lengths around the 16-sample step and past one 4096 block.
-        for len in [0, 1, 15, 16, 17, 31, 64, 100, 4095, 4096, 4097, 10_000] {
+        // Lengths around the 16- and 32-sample steps and past one 4096
+        // block.
+        for len in [
+            0, 1, 15, 16, 17, 31, 32, 33, 47, 64, 100, 4095, 4096, 4097, 10_000,
+        ] {
             for a in sample_sets(len, 6) {
                 for b in sample_sets(len, 7) {
                     assert_eq!(ssd(&a, &b), (s.ssd)(&a, &b), "{isa} ssd of {len}");

@@ -1051,6 +1051,21 @@ fn flow_with_matches_reaches_a_pan_beyond_the_pyramid() {
     );
 }
 
+/// tree_qcif's first two frames, then synth_qcif's first two: a cut.
+fn qcif_cut() -> Vec<u8> {
+    const FRAME: usize = 6 + 176 * 144 * 3 / 2;
+    let frames = |name: &str| {
+        let bytes = std::fs::read(sample(name)).unwrap();
+        let header = bytes.iter().position(|&b| b == b'\n').unwrap() + 1;
+        let frames = bytes[header..header + 2 * FRAME].to_vec();
+        assert!(frames.starts_with(b"FRAME\n") && frames[FRAME..].starts_with(b"FRAME\n"));
+        (bytes[..header].to_vec(), frames)
+    };
+    let (header, mut out) = frames("tree_qcif.y4m");
+    out.extend(frames("synth_qcif.y4m").1);
+    [header, out].concat()
+}
+
 #[test]
 fn presets_differ_options_override_them_and_every_stream_decodes() {
     let dir = tempfile::tempdir().unwrap();
@@ -1084,19 +1099,38 @@ fn presets_differ_options_override_them_and_every_stream_decodes() {
     assert_eq!(encode("default.mcv", &[]), streams[2]);
     assert_ne!(streams[0], streams[1]);
     assert_ne!(streams[1], streams[2]);
-    // Options given override the preset: superfast with half-pel vectors,
-    // without weighted prediction and without 4x4 intra is ultrafast.
-    let as_ultrafast = ["--subpel", "half", "--no-weightp", "--partitions", "none"];
+    // Options given override the preset: superfast without 4x4 intra in
+    // P frames is ultrafast.
+    let as_ultrafast = ["--partitions", "none"];
     assert_eq!(
         encode("o.mcv", &[&["--preset", "superfast"][..], &as_ultrafast].concat()),
         streams[0]
     );
-    // x264's partition names: medium is all of them; without 4x4 or 8x8
-    // intra it differs; as x264's i8x8, 8x8 intra needs the 8x8 transform.
+    // x264's partition names: medium is all of them; they are P frames'
+    // (over a cut, where P frames code intra, fewer differ; I frames try
+    // every intra block alike); as x264's i8x8, 8x8 intra needs the 8x8
+    // transform.
     assert_eq!(encode("all.mcv", &["--partitions", "p8x8,i8x8,i4x4"]), streams[2]);
+    let cut = dir.path().join("cut.y4m");
+    std::fs::write(&cut, qcif_cut()).unwrap();
+    let at_cut = |extra: &[&str]| {
+        let out = p("cut.mcv");
+        mocomp()
+            .args(["encode", cut.to_str().unwrap(), "-o", &out, "--quiet"])
+            .args(extra)
+            .assert()
+            .success();
+        std::fs::read(out).unwrap()
+    };
+    let all = at_cut(&[]);
     for fewer in ["p8x8", "p8x8,i4x4", "p8x8,i8x8"] {
-        assert_ne!(encode("p8.mcv", &["--partitions", fewer]), streams[2], "{fewer}");
+        assert_ne!(at_cut(&["--partitions", fewer]), all, "{fewer}");
     }
+    let only_i_frames = ["--frames", "1"];
+    assert_eq!(
+        at_cut(&only_i_frames),
+        at_cut(&[&only_i_frames[..], &["--partitions", "none"]].concat())
+    );
     assert_eq!(
         encode("no8.mcv", &["--no-8x8dct"]),
         encode("no8i.mcv", &["--no-8x8dct", "--partitions", "p8x8,i4x4"])

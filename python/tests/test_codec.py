@@ -22,7 +22,7 @@ def test_decode_equals_the_encoders_reconstruction(synth_frames, predictor):
     assert abs(mocomp.psnr(source[1][0], recon[1][0]) - stats[1]["psnr_y"]) < 1e-9
 
 
-def test_coding_tools_by_keyword(synth_frames):
+def test_coding_tools_by_keyword(synth_frames, samples):
     source = synth_frames[:3]
     _, stats = mocomp.encode(source, qp=30, ipratio=2.0)
     assert [s["qp"] for s in stats] == [24, 30, 30]
@@ -37,9 +37,12 @@ def test_coding_tools_by_keyword(synth_frames):
     assert on != off
     with pytest.raises(ValueError):
         mocomp.encode(source, ipratio=0.5)
-    # Partitions by x264's names or as a flag: True is "all".
+    # Partitions by x264's names or as a flag: True is "all". They are P
+    # frames' (as x264's): over a cut, where a P frame codes intra, fewer
+    # differ.
     assert mocomp.encode(source, qp=30, partitions="p8x8,i8x8,i4x4")[0] == on
-    assert mocomp.encode(source, qp=30, partitions="p8x8,i4x4")[0] != on
+    cut = list(source[:2]) + list(mocomp.read_y4m(samples / "tree_qcif.y4m")[:1])
+    assert mocomp.encode(cut, qp=30, partitions="p8x8,i4x4")[0] != mocomp.encode(cut, qp=30)[0]
     assert mocomp.encode(source, qp=30, partitions=True)[0] == on
     assert mocomp.encode(source, qp=30, partitions="none")[0] == mocomp.encode(source, qp=30, partitions=False)[0]
     with pytest.raises(ValueError):

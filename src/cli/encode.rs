@@ -119,10 +119,11 @@ pub struct ToolArgs {
     /// (no 8x8 intra either).
     #[arg(long = "no-8x8dct")]
     pub no_8x8dct: bool,
-    /// Macroblock partitions, as x264's --partitions: all, none, or a list
-    /// of p8x8 (16x8, 8x16 and 8x8 inter partitions), i8x8 (intra luma in
-    /// 8x8 blocks, with the 8x8 transform on) and i4x4 (intra luma in 4x4
-    /// blocks) [default: the preset's].
+    /// P frames' macroblock partitions, as x264's --partitions: all, none,
+    /// or a list of p8x8 (16x8, 8x16 and 8x8 inter partitions), i8x8
+    /// (intra luma in 8x8 blocks, with the 8x8 transform on) and i4x4
+    /// (intra luma in 4x4 blocks) [default: the preset's]. As in x264, I
+    /// frames try 4x4 and 8x8 intra whatever this says.
     #[arg(long, value_name = "all|none|p8x8,i8x8,i4x4")]
     pub partitions: Option<Partitions>,
     /// Quality metrics to measure, comma-separated: psnr, ssim, ms-ssim,

@@ -54,7 +54,10 @@ pub const OPTIONS: [(&str, &str); 21] = [
     ("refs", "references P frames may predict from, 1..=8 (block)"),
     ("subpel-rd", "sub-pel RD refinement (x264's subme 8), on|off"),
     ("8x8dct", "the 8x8 transform (and 8x8 intra), on|off"),
-    ("partitions", "all, none, or a list of p8x8, i8x8, i4x4"),
+    (
+        "partitions",
+        "P frames' partitions: all, none, or a list of p8x8, i8x8, i4x4",
+    ),
     (
         "metrics",
         "quality metrics measured per frame: psnr, ssim, ms-ssim, psnr-hvs, ciede2000, vmaf, all",

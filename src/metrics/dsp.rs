@@ -52,7 +52,7 @@ pub static METRICS: PerLevel<MetricsDsp> = PerLevel([
     },
     #[cfg(target_arch = "x86_64")]
     MetricsDsp {
-        ssd: x86::ssd_sse2,
+        ssd: x86::ssd_avx2,
         ssim_band: avx2::ssim_band,
         ssim_8x8_row_sums: avx2::block_row_sums,
     },
@@ -228,6 +228,47 @@ mod x86 {
         // SAFETY: SSE2 is part of x86-64; the kernel reads n bytes of each.
         let (head, done) = unsafe { ssd_head_sse2(&a[..n], &b[..n]) };
         head + super::squared_difference_sum_scalar(&a[done..n], &b[done..n])
+    }
+
+    /// The AVX2 squared differences: 32 samples a step, as
+    /// [`ssd_head_sse2`] (the same bound on a lane: the chunk of 4096
+    /// samples puts at most 512 squares in each).
+    pub(super) fn ssd_avx2(a: &[u8], b: &[u8]) -> u64 {
+        let n = a.len().min(b.len());
+        // SAFETY: this kernel sits only in the AVX2 table, handed out
+        // only where the CPU has AVX2; it reads n bytes of each.
+        let (head, done) = unsafe { ssd_head_avx2(&a[..n], &b[..n]) };
+        head + ssd_sse2(&a[done..n], &b[done..n])
+    }
+
+    #[target_feature(enable = "avx2")]
+    unsafe fn ssd_head_avx2(a: &[u8], b: &[u8]) -> (u64, usize) {
+        let n = a.len().min(b.len()) / 32 * 32;
+        let mut total = 0u64;
+        let mut i = 0;
+        while i < n {
+            let end = (i + 4096).min(n);
+            let mut acc = _mm256_setzero_si256();
+            while i < end {
+                for half in [i, i + 16] {
+                    // SAFETY: half + 16 <= n <= both lengths.
+                    let (x, y) = unsafe {
+                        (
+                            _mm_loadu_si128(a.as_ptr().add(half) as *const __m128i),
+                            _mm_loadu_si128(b.as_ptr().add(half) as *const __m128i),
+                        )
+                    };
+                    let d = _mm256_sub_epi16(_mm256_cvtepu8_epi16(x), _mm256_cvtepu8_epi16(y));
+                    acc = _mm256_add_epi32(acc, _mm256_madd_epi16(d, d));
+                }
+                i += 32;
+            }
+            let mut lanes = [0u32; 8];
+            // SAFETY: 32 bytes into a 32-byte array.
+            unsafe { _mm256_storeu_si256(lanes.as_mut_ptr() as *mut __m256i, acc) };
+            total += lanes.iter().map(|&v| u64::from(v)).sum::<u64>();
+        }
+        (total, n)
     }
 
     #[target_feature(enable = "sse2")]

@@ -92,13 +92,22 @@ impl PartitionSearch<'_> {
         let x = (self.mb.0 * MB + bx) as isize;
         let y = (self.mb.1 * MB + by) as isize;
         let mut pred = [0u8; 64];
-        let on_planes = self
+        let in_place = self
             .halfpel
-            .is_some_and(|h| h.predict(self.reference, x, y, mv.x, mv.y, 8, &mut pred));
-        if !on_planes {
-            predict_luma(self.reference, x, y, mv.x, mv.y, 8, 8, &mut pred, 8);
-        }
-        let satd = Metric::Satd.cost(&self.source[by * MB + bx..], MB, &pred, 8, 8, 8);
+            .and_then(|h| h.block_in_place(self.reference, (x, y), (mv.x, mv.y), 8));
+        let (samples, stride) = match in_place {
+            Some(found) => found,
+            None => {
+                let on_planes = self
+                    .halfpel
+                    .is_some_and(|h| h.predict(self.reference, x, y, mv.x, mv.y, 8, &mut pred));
+                if !on_planes {
+                    predict_luma(self.reference, x, y, mv.x, mv.y, 8, 8, &mut pred, 8);
+                }
+                (&pred[..], 8)
+            }
+        };
+        let satd = Metric::Satd.cost(&self.source[by * MB + bx..], MB, samples, stride, 8, 8);
         self.satd8.borrow_mut().insert(key, satd);
         satd
     }

@@ -72,6 +72,41 @@ impl HalfPel {
         self.margin as usize
     }
 
+    /// Whether the `b x b` block at (bx, by), and one sample around it,
+    /// lies inside `reference`'s filled margin.
+    fn reaches(&self, reference: &Plane, bx: isize, by: isize, b: usize) -> bool {
+        let (w, h) = (reference.width() as isize, reference.height() as isize);
+        bx - 1 >= -self.margin
+            && by - 1 >= -self.margin
+            && bx + b as isize + 1 <= w + self.margin
+            && by + b as isize + 1 <= h + self.margin
+    }
+
+    /// The `b x b` block at (x, y) displaced by the quarter-pel vector
+    /// (mvx, mvy) where it lies on the half-pel grid (both components
+    /// even): its samples where they are, in the reference or one of its
+    /// planes, and their stride, with no copy (as x264's `get_ref`);
+    /// `None` at a quarter-pel position or beyond the filled margin.
+    pub fn block_in_place<'a>(
+        &'a self,
+        reference: &'a Plane,
+        (x, y): (isize, isize),
+        (mvx, mvy): (i32, i32),
+        b: usize,
+    ) -> Option<(&'a [u8], usize)> {
+        let (bx, by) = (x + (mvx >> 2) as isize, y + (mvy >> 2) as isize);
+        if (mvx | mvy) & 1 != 0 || !self.reaches(reference, bx, by, b) {
+            return None;
+        }
+        let plane = match (mvx & 3, mvy & 3) {
+            (0, 0) => reference,
+            (2, 0) => &self.planes[0],
+            (0, 2) => &self.planes[1],
+            _ => &self.planes[2],
+        };
+        Some((&plane.data()[plane.index(bx, by)..], plane.stride()))
+    }
+
     /// The `b x b` block at (x, y) displaced by the quarter-pel vector
     /// (mvx, mvy), into `out`; `false` (nothing written) when it reaches
     /// beyond the filled margin.
@@ -87,13 +122,8 @@ impl HalfPel {
         out: &mut [u8],
     ) -> bool {
         let (bx, by) = (x + (mvx >> 2) as isize, y + (mvy >> 2) as isize);
-        let (w, h) = (reference.width() as isize, reference.height() as isize);
         // Samples read: one beyond the block on each side at most.
-        if bx - 1 < -self.margin
-            || by - 1 < -self.margin
-            || bx + b as isize + 1 > w + self.margin
-            || by + b as isize + 1 > h + self.margin
-        {
+        if !self.reaches(reference, bx, by, b) {
             return false;
         }
         let (fx, fy) = (mvx & 3, mvy & 3);
@@ -166,9 +196,16 @@ mod tests {
                 for (x, y) in [(0, 0), (16, 16), (48, 32)] {
                     assert!(hp.predict(&r, x, y, mvx, mvy, 16, &mut a));
                     predict_luma(&r, x, y, mvx, mvy, 16, 16, &mut b, 16);
+                    let in_place = hp.block_in_place(&r, (x, y), (mvx, mvy), 16);
                     if mvx % 2 == 0 && mvy % 2 == 0 {
                         assert_eq!(a, b, "half-pel ({mvx}, {mvy}) at ({x}, {y})");
+                        // The same samples where they lie.
+                        let (samples, stride) = in_place.expect("a half-pel block in place");
+                        for row in 0..16 {
+                            assert_eq!(samples[row * stride..][..16], a[row * 16..][..16]);
+                        }
                     } else {
+                        assert!(in_place.is_none());
                         // The average of neighbours against the 8-tap
                         // filter: close on a smooth texture.
                         let worst = a.iter().zip(&b).map(|(&u, &v)| u.abs_diff(v)).max().unwrap();
@@ -193,6 +230,7 @@ mod tests {
         let hp = HalfPel::new(&r, 32).unwrap();
         // Beyond the margin: refused, so that the caller uses the codec.
         assert!(!hp.predict(&r, 0, 0, -4 * 40, 0, 16, &mut a));
+        assert!(hp.block_in_place(&r, (0, 0), (-4 * 40, 0), 16).is_none());
     }
 
     #[test]

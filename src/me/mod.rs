@@ -502,16 +502,25 @@ impl<'a> SearchContext<'a> {
     /// the decoder's prediction.
     fn sub_pel_cost(&self, mv: Mv, scratch: &mut [u8]) -> u64 {
         let b = self.cfg.block;
-        let done = self
+        let in_place = self
             .halfpel
-            .is_some_and(|h| h.predict(self.reference, self.x, self.y, mv.x, mv.y, b, scratch));
-        if !done {
-            predict_luma(self.reference, self.x, self.y, mv.x, mv.y, b, b, scratch, b);
-        }
+            .and_then(|h| h.block_in_place(self.reference, (self.x, self.y), (mv.x, mv.y), b));
+        let (samples, stride) = match in_place {
+            Some(found) => found,
+            None => {
+                let done = self
+                    .halfpel
+                    .is_some_and(|h| h.predict(self.reference, self.x, self.y, mv.x, mv.y, b, scratch));
+                if !done {
+                    predict_luma(self.reference, self.x, self.y, mv.x, mv.y, b, b, scratch, b);
+                }
+                (&scratch[..], b)
+            }
+        };
         u64::from(
             self.cfg
                 .metric
-                .cost(self.block, self.cur.stride(), scratch, b, b, b),
+                .cost(self.block, self.cur.stride(), samples, stride, b, b),
         ) + self.rate(mv)
     }
 }

@@ -76,10 +76,8 @@ impl HalfPel {
     /// lies inside `reference`'s filled margin.
     fn reaches(&self, reference: &Plane, bx: isize, by: isize, b: usize) -> bool {
         let (w, h) = (reference.width() as isize, reference.height() as isize);
-        bx - 1 >= -self.margin
-            && by - 1 >= -self.margin
-            && bx + b as isize + 1 <= w + self.margin
-            && by + b as isize + 1 <= h + self.margin
+        let b = b as isize;
+        bx > -self.margin && by > -self.margin && bx + b < w + self.margin && by + b < h + self.margin
     }
 
     /// The `b x b` block at (x, y) displaced by the quarter-pel vector

@@ -1,7 +1,8 @@
 //! The in-loop deblocking filter's kernel (normative: FORMAT.md section
 //! 11, H.264 8.7.2): the thresholds of an edge and the filtering of a
-//! piece of edge, line by line. The AVX2 build is the scalar source
-//! compiled for AVX2 (integer arithmetic: the same samples).
+//! macroblock's length of edge, line by line in the scalar build, its
+//! sixteen lines at once in the AVX2 one (integer arithmetic: the same
+//! samples, held equal by `tests/checkasm.rs`).
 
 use super::PerLevel;
 
@@ -96,17 +97,16 @@ mod x86 {
         let (lines, _) = mb_edge_lines(luma);
         let vertical = step == 1 && first >= 4 && first + (lines - 1) * line_step + 4 <= d.len();
         let horizontal = line_step == 1 && first >= 4 * step && first + 3 * step + lines <= d.len();
-        // SAFETY: AVX2 is in force (this kernel sits only in the AVX2
-        // table, which is handed out only where the CPU has it), and every
-        // sample read or written lies in the ranges checked just above.
-        unsafe {
-            if vertical {
-                across_columns(d.as_mut_ptr().add(first - 4), line_step, strengths, qp, luma);
-            } else if horizontal {
-                across_rows(d.as_mut_ptr().add(first - 4 * step), step, strengths, qp, luma);
-            } else {
-                filter_mb_edge(d, (first, step, line_step), strengths, qp, luma);
-            }
+        // SAFETY (both calls): AVX2 is in force (this kernel sits only in
+        // the AVX2 table, which is handed out only where the CPU has it),
+        // and every sample read or written lies in the ranges checked just
+        // above.
+        if vertical {
+            unsafe { across_columns(d.as_mut_ptr().add(first - 4), line_step, strengths, qp, luma) };
+        } else if horizontal {
+            unsafe { across_rows(d.as_mut_ptr().add(first - 4 * step), step, strengths, qp, luma) };
+        } else {
+            filter_mb_edge(d, (first, step, line_step), strengths, qp, luma);
         }
     }
 

@@ -510,19 +510,19 @@ fn oriented_patches(w: usize, h: usize, size: usize) -> Frame {
     Frame::from_planes(y, c(), c()).unwrap()
 }
 
-/// The stream of `frames` coded at QP 26 with partitions `with`, after
-/// checking that its decoding is the encoder's reconstruction, that it
-/// takes less than `ratio` times the bytes of `without` and that its
-/// quality is no lower (within 0.1 dB).
+/// The stream of `frames` (I frames) coded at QP 26 with intra blocks
+/// `with`, after checking that its decoding is the encoder's
+/// reconstruction, that it takes less than `ratio` times the bytes of
+/// `without` and that its quality is no lower (within 0.1 dB).
 fn intra_partition_saves_bits(
     frames: &[Frame],
     with: Partitions,
     without: Partitions,
     ratio: f64,
 ) -> Vec<u8> {
-    let (stream, recon, stats) = encode(frames, EncoderConfig::new().qp(26).partitions(with));
+    let (stream, recon, stats) = encode(frames, EncoderConfig::new().qp(26).i_frame_partitions(with));
     assert_eq!(decoder::decode(&stream).unwrap().1, recon);
-    let (other, _, other_stats) = encode(frames, EncoderConfig::new().qp(26).partitions(without));
+    let (other, _, other_stats) = encode(frames, EncoderConfig::new().qp(26).i_frame_partitions(without));
     assert!(
         (stream.len() as f64) < ratio * other.len() as f64,
         "{} against {} bytes",

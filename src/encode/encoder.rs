@@ -77,7 +77,7 @@ impl Encoder {
                 .intra8x8(config.intra8x8())
                 .transform_8x8(config.transform_8x8),
             intra_coder: MbCoder::new(config.intra_qp(), config.lambda_scale, config.rdoq)
-                .intra4x4(config.i_frame_blocks)
+                .intra4x4(config.i_frame_partitions.i4x4)
                 .intra8x8(config.i_frame_intra8x8()),
             analyser: MotionAnalyser::new(config.predictor, config.qp, config.partitions.p8x8),
             references: Vec::new(),

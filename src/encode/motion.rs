@@ -183,6 +183,7 @@ impl MotionAnalyser {
         cfg.subpel = s.subpel;
         cfg.window = s.window;
         cfg.metric = Metric::Satd;
+        cfg.full_pel_sad = s.full_pel_sad;
         cfg.lambda = lambda_for_qp(Metric::Satd, self.qp);
         cfg
     }

@@ -124,14 +124,15 @@ mod x86 {
         fn new(strengths: [u8; 4], qp: u8, luma: bool) -> Lanes {
             let q = usize::from(qp);
             let per_piece = |f: fn(u8, usize) -> i16| {
-                let v = strengths.map(|bs| i64::from(f(bs, q) as u16));
+                // Each piece's 16 bits repeated (no carry: x < 2^16).
+                let v = strengths.map(|bs| u64::from(f(bs, q) as u16));
                 if luma {
                     // Four lanes a piece.
-                    let four = |x: i64| x * 0x0001_0001_0001_0001;
+                    let four = |x: u64| (x * 0x0001_0001_0001_0001) as i64;
                     _mm256_set_epi64x(four(v[3]), four(v[2]), four(v[1]), four(v[0]))
                 } else {
                     // Two lanes a piece, the upper eight lanes unused.
-                    let two = |x: i64| (x * 0x0001_0001) as i32;
+                    let two = |x: u64| (x * 0x0001_0001) as u32 as i32;
                     _mm256_set_epi32(0, 0, 0, 0, two(v[3]), two(v[2]), two(v[1]), two(v[0]))
                 }
             };

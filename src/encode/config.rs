@@ -530,22 +530,20 @@ impl EncoderConfig {
     }
 
     /// The options of `preset` (the predictor's search pattern kept).
-    /// Relative to medium on eleven sequences of the development set (30
-    /// frames, QP 22-37, BD-rate; time per encode): without RDOQ and the
-    /// inter partitions +6.8 % at 0.76x; and the fast decision +7.6 % at
-    /// 0.72x; quarter-pel and 4x4 intra alone +18 % at 0.55x; half-pel
-    /// without them +44 % at 0.42x; slow -3.8 % at 1.56x; five references
-    /// -4.1 % at 1.87x.
+    /// Where each lands, BD-rate and time per encode beside x264's
+    /// presets on the development set, is the README's front
+    /// (`benches/front.py`); the figures below are what each tool moved a
+    /// preset's BD-rate on that set's mean, in points.
     pub fn preset(mut self, preset: EncoderPreset) -> EncoderConfig {
         use EncoderPreset::*;
         self.rdoq = preset >= Medium;
         // In every preset (x264's from superfast): a flickering light
-        // (fish_1160) is half of the bits without it; in ultrafast, 4.4 %
-        // fewer bits on the development set's mean for about 2 % more
-        // time.
+        // (fish_1160) is half of the bits without it; in ultrafast -6.8
+        // (its statistics are about 2.6 % of ultrafast's profile).
         self.weightp = true;
         // I frames in blocks in every preset (x264's ultrafast has none):
-        // one frame in 30 and most of the bits of a still scene (talk_vga).
+        // one frame in 30 and most of the bits of a still scene (talk_vga);
+        // in ultrafast -8.9.
         self.i_frame_partitions = Partitions::ALL;
         // P frames' intra blocks from veryfast (x264's from superfast):
         // 4x4 intra in P frames alone took 46 % more of ultrafast's time
@@ -556,8 +554,8 @@ impl EncoderConfig {
             i8x8: preset >= Veryfast,
             i4x4: preset >= Veryfast,
         };
-        // The 8x8 transform from superfast: 4-5 % fewer bits than
-        // ultrafast on the development set's mean.
+        // The 8x8 transform from superfast: -5.4 against ultrafast, for
+        // 1.10x its time.
         self.transform_8x8 = preset >= Superfast;
         self.refs = match preset {
             Slower => 5,
@@ -573,9 +571,9 @@ impl EncoderConfig {
             ModeDecision::Fast
         };
         if let Some(search) = self.predictor.search_mut() {
-            // Quarter-pel in every preset: in ultrafast, 4.5 % fewer bits
-            // on the development set's mean for no time this machine
-            // could show (x264's ultrafast has full-pel only, subme 0).
+            // Quarter-pel in every preset: in ultrafast -4.5, for no time
+            // this machine could show (x264's ultrafast has full-pel only,
+            // subme 0).
             search.subpel = Subpel::Quarter;
             search.range = if preset >= Slow {
                 32
@@ -589,10 +587,9 @@ impl EncoderConfig {
                 Faster | Fast | Medium => 3,
                 Slow | Slower => 4,
             };
-            // SAD at full pel up to veryfast (x264's below subme 2): 1 %
-            // fewer bits than SATD on the development set's mean in
-            // ultrafast and in veryfast, the same in faster, 0.4 % more
-            // in medium.
+            // SAD at full pel up to veryfast (x264's below subme 2): -1.0
+            // against SATD in ultrafast and in veryfast, the same in
+            // faster, +0.4 in medium.
             search.full_pel_sad = preset <= Veryfast;
         }
         self

@@ -13,12 +13,11 @@ use std::cell::RefCell;
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
-use crate::codec::interp::predict_luma;
 use crate::codec::mv::{mvd_bits, Mv};
 use crate::codec::partition::Part;
 use crate::codec::syntax::MB;
 use crate::codec::Plane;
-use crate::me::halfpel::HalfPel;
+use crate::me::halfpel::{block_or_predicted, HalfPel};
 use crate::me::Metric;
 
 /// One macroblock's partition search.
@@ -92,21 +91,7 @@ impl PartitionSearch<'_> {
         let x = (self.mb.0 * MB + bx) as isize;
         let y = (self.mb.1 * MB + by) as isize;
         let mut pred = [0u8; 64];
-        let in_place = self
-            .halfpel
-            .and_then(|h| h.block_in_place(self.reference, (x, y), (mv.x, mv.y), 8));
-        let (samples, stride) = match in_place {
-            Some(found) => found,
-            None => {
-                let on_planes = self
-                    .halfpel
-                    .is_some_and(|h| h.predict(self.reference, x, y, mv.x, mv.y, 8, &mut pred));
-                if !on_planes {
-                    predict_luma(self.reference, x, y, mv.x, mv.y, 8, 8, &mut pred, 8);
-                }
-                (&pred[..], 8)
-            }
-        };
+        let (samples, stride) = block_or_predicted(self.halfpel, self.reference, (x, y), mv, 8, &mut pred);
         let satd = Metric::Satd.cost(&self.source[by * MB + bx..], MB, samples, stride, 8, 8);
         self.satd8.borrow_mut().insert(key, satd);
         satd

@@ -11,6 +11,8 @@
 use std::cell::RefCell;
 
 use super::dsp::{average_rows, copy_rows, pixel, PixelDsp};
+use crate::codec::interp::predict_luma;
+use crate::codec::mv::Mv;
 use crate::codec::Plane;
 
 thread_local! {
@@ -159,6 +161,28 @@ impl HalfPel {
     }
 }
 
+/// The `b x b` block of `reference` at (x, y) displaced by the
+/// quarter-pel vector `mv`, and its stride: where it lies on the half-pel
+/// grid, in place ([`HalfPel::block_in_place`]); else predicted into
+/// `scratch` (`b * b` samples), on `halfpel`'s planes where they reach
+/// ([`HalfPel::predict`]) or else by the codec's filter.
+pub fn block_or_predicted<'a>(
+    halfpel: Option<&'a HalfPel>,
+    reference: &'a Plane,
+    (x, y): (isize, isize),
+    mv: Mv,
+    b: usize,
+    scratch: &'a mut [u8],
+) -> (&'a [u8], usize) {
+    if let Some(found) = halfpel.and_then(|h| h.block_in_place(reference, (x, y), (mv.x, mv.y), b)) {
+        return found;
+    }
+    if !halfpel.is_some_and(|h| h.predict(reference, x, y, mv.x, mv.y, b, scratch)) {
+        predict_luma(reference, x, y, mv.x, mv.y, b, b, scratch, b);
+    }
+    (scratch, b)
+}
+
 impl Drop for HalfPel {
     fn drop(&mut self) {
         SPARE.with(|s| {
@@ -174,7 +198,6 @@ impl Drop for HalfPel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::codec::interp::predict_luma;
 
     fn textured(w: usize, h: usize) -> Plane {
         Plane::from_fn(w, h, |x, y| {

@@ -502,21 +502,8 @@ impl<'a> SearchContext<'a> {
     /// the decoder's prediction.
     fn sub_pel_cost(&self, mv: Mv, scratch: &mut [u8]) -> u64 {
         let b = self.cfg.block;
-        let in_place = self
-            .halfpel
-            .and_then(|h| h.block_in_place(self.reference, (self.x, self.y), (mv.x, mv.y), b));
-        let (samples, stride) = match in_place {
-            Some(found) => found,
-            None => {
-                let done = self
-                    .halfpel
-                    .is_some_and(|h| h.predict(self.reference, self.x, self.y, mv.x, mv.y, b, scratch));
-                if !done {
-                    predict_luma(self.reference, self.x, self.y, mv.x, mv.y, b, b, scratch, b);
-                }
-                (&scratch[..], b)
-            }
-        };
+        let (samples, stride) =
+            halfpel::block_or_predicted(self.halfpel, self.reference, (self.x, self.y), mv, b, scratch);
         u64::from(
             self.cfg
                 .metric

@@ -1159,6 +1159,12 @@ fn presets_differ_options_override_them_and_every_stream_decodes() {
     );
     assert_ne!(encode("mo.mcv", &["--subpel-rd", "on"]), streams[2]);
     rejects("--subpel-rd", "yes", "expected on or off");
+    // Fast P-skip is every preset's: without it the stream changes (at
+    // QP 34, where some macroblock skips early on this sample).
+    assert_ne!(
+        encode("fq.mcv", &["--qp", "34"]),
+        encode("nf.mcv", &["--qp", "34", "--no-fast-pskip"])
+    );
     // Partitions are medium's: turned off there they change the stream,
     // and fast with them is not fast.
     assert_ne!(encode("np.mcv", &["--partitions", "none"]), streams[2]);

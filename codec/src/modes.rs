@@ -605,7 +605,13 @@ impl ModeCoder {
 
     /// The context of macroblock (mb_x, mb_y)'s skip flag (in a P frame).
     pub fn skip_context(&self, mb_x: usize, mb_y: usize) -> usize {
-        SKIP + self.neighbours(mb_x, mb_y).iter().filter(|s| s.skip).count()
+        SKIP + self.skipped_neighbours(mb_x, mb_y)
+    }
+
+    /// How many of macroblock (mb_x, mb_y)'s neighbours (left, above) were
+    /// skipped.
+    pub fn skipped_neighbours(&self, mb_x: usize, mb_y: usize) -> usize {
+        self.neighbours(mb_x, mb_y).iter().filter(|s| s.skip).count()
     }
 
     /// The contexts of a 4x4 or 8x8 intra mode: the most-probable flag,

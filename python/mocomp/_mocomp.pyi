@@ -168,6 +168,7 @@ def encode(
     weightp: Optional[bool] = None,
     refs: Optional[int] = None,
     subpel_rd: Optional[bool] = None,
+    fast_pskip: Optional[bool] = None,
     dct8x8: Optional[bool] = None,
     partitions: Optional[Union[bool, str]] = None,
     metrics: Optional[str] = None,

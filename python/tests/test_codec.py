@@ -69,12 +69,14 @@ def test_coding_tools_by_keyword(synth_frames, samples):
 def test_every_encoder_option_by_keyword_as_the_command_line_names_it(synth_frames):
     source = synth_frames[:3]
     names = [name for name, _ in mocomp.encoder_options()]
-    assert {"subpel-rd", "refs", "metrics", "partitions", "8x8dct"} <= set(names)
+    assert {"subpel-rd", "fast-pskip", "refs", "metrics", "partitions", "8x8dct"} <= set(names)
     # Sub-pel RD (x264's subme 8): off in medium, on in slow; by keyword
     # it changes what medium codes.
     on, _ = mocomp.encode(source, qp=30)
     assert mocomp.encode(source, qp=30, subpel_rd=True)[0] != on
     assert mocomp.encode(source, qp=30, subpel_rd=False)[0] == on
+    # Fast P-skip is on in every preset; off, the stream changes.
+    assert mocomp.encode(source, qp=30, fast_pskip=False)[0] != on
     # Search options follow the predictor, as on the command line.
     assert mocomp.encode(source, qp=30, predictor="block:esa", range=8)[0] != on
     with pytest.raises(ValueError, match="does not apply to predictor 'zero'"):

@@ -115,6 +115,10 @@ pub struct ToolArgs {
     /// only; the slow preset has it on) [default: the preset's].
     #[arg(long, value_name = "on|off", value_parser = on_off)]
     pub subpel_rd: Option<bool>,
+    /// No fast P-skip (x264's --no-fast-pskip): every P-frame macroblock
+    /// tries its other modes even where skipping it would code no level.
+    #[arg(long)]
+    pub no_fast_pskip: bool,
     /// No 8x8 transform (x264's --no-8x8dct): luma in 4x4 transforms only
     /// (no 8x8 intra either).
     #[arg(long = "no-8x8dct")]
@@ -148,6 +152,7 @@ impl ToolArgs {
         o.extend(self.no_deblock.then(|| ("deblock", on(false))));
         o.extend(self.no_weightp.then(|| ("weightp", on(false))));
         o.extend(self.no_8x8dct.then(|| ("8x8dct", on(false))));
+        o.extend(self.no_fast_pskip.then(|| ("fast-pskip", on(false))));
         o.extend(self.partitions.map(|p| ("partitions", p.to_string())));
         o.extend(self.refs.map(|n| ("refs", n.to_string())));
         o.extend(self.subpel_rd.map(|b| ("subpel-rd", on(b))));

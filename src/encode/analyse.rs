@@ -198,7 +198,7 @@ impl InterFrameCoder<'_> {
     /// they can win.
     pub(super) fn analyse(&self, index: usize, env: &MbEnv<'_>) -> MbAnalysis {
         let mut mb = self.analyse_skip(index, env);
-        if mb.exhaustive {
+        if mb.exhaustive && !self.skips_early(&mb, env) {
             self.analyse_inter(&mut mb, env);
             self.analyse_split(&mut mb, env);
             self.analyse_intra(&mut mb, env);
@@ -206,6 +206,22 @@ impl InterFrameCoder<'_> {
             self.analyse_transform(&mut mb, env);
         }
         mb
+    }
+
+    /// x264's fast P-skip: skip is taken before any other mode is tried
+    /// when its prediction would code no level and motion analysis found
+    /// the predicted vector (x264's test after its 16x16 search) or, with
+    /// a neighbour skipped (x264's test before the search, below subme 3),
+    /// one within a quarter pel of it. On the development set's mean
+    /// (ultrafast; medium): +0.7 % bits for 7 % less time; +0.7 % for 13 %.
+    /// Any vector beside a skipped neighbour, as x264's rule: +4.7 % for 12
+    /// % (ultrafast); within a pel: +1.4 % for 9 %; the found vector alone
+    /// changed nothing.
+    fn skips_early(&self, mb: &MbAnalysis, env: &MbEnv<'_>) -> bool {
+        let searched = self.searched[mb.index];
+        let near = (searched.x - mb.mvp.x).abs() <= 1 && (searched.y - mb.mvp.y).abs() <= 1;
+        let likely = searched == mb.mvp || (near && env.modes.skipped_neighbours(mb.mb_x, mb.mb_y) > 0);
+        self.fast_pskip && likely && self.coder.codes_nothing(&mb.source, &mb.skip_pred)
     }
 
     /// Sub-pel RD refinement (x264's `--subme 8`): when a 16x16 inter
@@ -667,6 +683,16 @@ mod tests {
     /// vectors `mb` (one per macroblock, quarter-pel): each macroblock's
     /// kind and its 8x8 blocks' vectors.
     fn decide(src: &Frame, reference: &Frame, mb: Vec<Mv>, partitions: bool) -> Vec<(MbKind, MbVectors)> {
+        decide_with(src, reference, mb, (partitions, false))
+    }
+
+    /// [`decide`] with fast P-skip on or off.
+    fn decide_with(
+        src: &Frame,
+        reference: &Frame,
+        mb: Vec<Mv>,
+        (partitions, fast_pskip): (bool, bool),
+    ) -> Vec<(MbKind, MbVectors)> {
         let seq = SequenceHeader {
             width: SIZE,
             height: SIZE,
@@ -694,6 +720,7 @@ mod tests {
             weights: Weights::NONE,
             partitions,
             subpel_rd: false,
+            fast_pskip,
         };
         // The state after an I frame: P frames' contexts start from it.
         let mut state = EntropyState::new();
@@ -779,5 +806,31 @@ mod tests {
             whole.iter().all(|(k, _)| !matches!(k, MbKind::Split { .. })),
             "{whole:?}"
         );
+    }
+    #[test]
+    fn fast_pskip_skips_beside_a_skip_what_would_code_nothing() {
+        // A smooth picture moved a quarter pel right, but for its first
+        // macroblock: the others' skip prediction (the first's zero
+        // vector) misses by little, what quantisation leaves nothing of;
+        // their searched vector, a quarter pel away, predicts them better.
+        let smooth = |x: f64, y: f64| (128.0 + 40.0 * (0.3 * x + 0.13 * y).sin()) as u8;
+        let reference = frame(|x, y| smooth(x as f64, y as f64));
+        let src = frame(|x, y| {
+            let dx = if x < 16 && y < 16 { 0.0 } else { 0.25 };
+            smooth(x as f64 + dx, y as f64)
+        });
+        let mut mb = vec![Mv::new(1, 0); 9];
+        mb[0] = Mv::ZERO;
+        let full = decide_with(&src, &reference, mb.clone(), (false, false));
+        let fast = decide_with(&src, &reference, mb, (false, true));
+        assert_eq!(full[0].0, MbKind::Skip);
+        for i in [1, 3] {
+            assert!(
+                matches!(full[i].0, MbKind::Inter { mv } if mv.mv == Mv::new(1, 0)),
+                "{:?}",
+                full[i]
+            );
+        }
+        assert!(fast.iter().all(|(k, _)| *k == MbKind::Skip), "{fast:?}");
     }
 }

@@ -369,6 +369,11 @@ pub struct EncoderConfig {
     /// vector's quarter-pel neighbours of lowest estimate are coded and
     /// weighed by rate and distortion (`block` frames).
     pub subpel_rd: bool,
+    /// x264's fast P-skip (`--no-fast-pskip` turns it off): a P-frame
+    /// macroblock whose skip prediction would code no level is skipped
+    /// before its other modes are tried, when motion analysis found the
+    /// predicted vector or a neighbour (left or above) was skipped.
+    pub fast_pskip: bool,
 }
 
 /// The macroblock partitions the mode decision tries, as x264's
@@ -469,6 +474,7 @@ impl Default for EncoderConfig {
             transform_8x8: true,
             refs: 1,
             subpel_rd: false,
+            fast_pskip: true,
         }
     }
 }
@@ -643,6 +649,12 @@ impl EncoderConfig {
     /// How many references P frames may predict from (x264's `--ref`).
     pub fn refs(mut self, refs: u8) -> EncoderConfig {
         self.refs = refs;
+        self
+    }
+
+    /// Turns fast P-skip on or off.
+    pub fn fast_pskip(mut self, on: bool) -> EncoderConfig {
+        self.fast_pskip = on;
         self
     }
 

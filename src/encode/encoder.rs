@@ -214,6 +214,7 @@ impl Encoder {
             weights,
             partitions: self.config.partitions.p8x8,
             subpel_rd: self.config.subpel_rd,
+            fast_pskip: self.config.fast_pskip,
         };
         let coded = slice::code_inter(&self.seq, &self.coder, src, inputs, &mut self.entropy, recon)?;
         Ok((coded, me_ms))

@@ -157,6 +157,44 @@ impl MbCoder {
         self.code_body(src, pred, intra, residual_coder, mb_x, mb_y)
     }
 
+    /// Whether an inter macroblock predicted by `pred` would code no level:
+    /// its luma zero after quantisation and decimation, and each chroma
+    /// plane's levels cheap enough to be dropped, as [`MbCoder::code`]
+    /// leaves them before RDOQ (which only lowers levels). x264's
+    /// `macroblock_probe_pskip`: what skipping `pred` loses is then only
+    /// what the decimation drops.
+    pub fn codes_nothing(&self, src: &MbSource, pred: &MbSamples) -> bool {
+        let mut diffs = [[[0i32; 4]; 4]; 16];
+        let mut luma = [[[0i32; 4]; 4]; 16];
+        (self.dsp.quantize_blocks)(
+            &src.luma,
+            &pred.luma,
+            MB,
+            self.qp,
+            ROUND_INTER,
+            &mut diffs,
+            &mut luma,
+        );
+        (self.dsp.decimate_luma)(&mut luma);
+        if luma.iter().any(|b| b.as_flattened().iter().any(|&v| v != 0)) {
+            return false;
+        }
+        let cqp = chroma_qp(self.qp);
+        (0..2).all(|p| {
+            let (mut diffs, mut levels) = ([[[0i32; 4]; 4]; 4], [[[0i32; 4]; 4]; 4]);
+            (self.dsp.quantize_blocks)(
+                &src.chroma[p],
+                &pred.chroma[p],
+                8,
+                cqp,
+                ROUND_INTER,
+                &mut diffs,
+                &mut levels,
+            );
+            (self.dsp.decimate_score)(&levels) < 4
+        })
+    }
+
     /// The levels of intra luma block (bx, by) (in blocks) of `src -
     /// pred`, as [`MbCoder::code`] quantises them (RDOQ priced by `rate`
     /// when given): what a 4x4 intra search reconstructs each block from.
@@ -356,6 +394,85 @@ impl MbCoder {
                 c8
             }
             _ => coded,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// A textured macroblock.
+    fn source() -> MbSource {
+        let mut s = MbSource {
+            luma: [0; 256],
+            chroma: [[0; 64]; 2],
+        };
+        for (i, v) in s.luma.iter_mut().enumerate() {
+            *v = (100 + (i * 37) % 61) as u8;
+        }
+        for (p, plane) in s.chroma.iter_mut().enumerate() {
+            for (i, v) in plane.iter_mut().enumerate() {
+                *v = (120 + (i * (13 + p)) % 17) as u8;
+            }
+        }
+        s
+    }
+
+    /// `s` as a prediction, each sample moved by `noise` (cycled), luma
+    /// and chroma.
+    fn perturbed(s: &MbSource, noise: &[i8]) -> MbSamples {
+        let mv = |v: u8, k: usize| (i16::from(v) + i16::from(noise[k % noise.len()])).clamp(0, 255) as u8;
+        let mut p = MbSamples::default();
+        for (k, (o, &v)) in p.luma.iter_mut().zip(&s.luma).enumerate() {
+            *o = mv(v, k);
+        }
+        for c in 0..2 {
+            for (k, (o, &v)) in p.chroma[c].iter_mut().zip(&s.chroma[c]).enumerate() {
+                *o = mv(v, k + 256 + 64 * c);
+            }
+        }
+        p
+    }
+
+    #[test]
+    fn a_prediction_off_by_much_codes_something_and_an_exact_one_nothing() {
+        let coder = MbCoder::new(28, 1.4, true);
+        let s = source();
+        assert!(coder.codes_nothing(&s, &perturbed(&s, &[0])));
+        // One 4x4 luma block off by 30: levels the decimation keeps.
+        let mut off = perturbed(&s, &[0]);
+        for r in 0..4 {
+            for c in 0..4 {
+                off.luma[r * 16 + c] += 30;
+            }
+        }
+        assert!(!coder.codes_nothing(&s, &off));
+        // The chroma alone off.
+        let mut off = perturbed(&s, &[0]);
+        off.chroma[1].iter_mut().for_each(|v| *v += 30);
+        assert!(!coder.codes_nothing(&s, &off));
+    }
+
+    proptest! {
+        /// What the probe says codes nothing, the coder codes as the
+        /// prediction itself: skipping it loses nothing the inter
+        /// macroblock would have coded.
+        #[test]
+        fn what_codes_nothing_is_coded_as_its_prediction(
+            noise in prop::collection::vec(-6i8..=6, 1..40),
+            qp in 18u8..40,
+        ) {
+            let coder = MbCoder::new(qp, 1.4, true);
+            let s = source();
+            let pred = perturbed(&s, &noise);
+            if coder.codes_nothing(&s, &pred) {
+                let coded = coder.code(&s, &pred, false, &ResidualCoder::new(1, 1), 0, 0);
+                prop_assert!(coded.residual.is_empty());
+                prop_assert_eq!(coded.samples.luma, pred.luma);
+                prop_assert_eq!(coded.samples.chroma, pred.chroma);
+            }
         }
     }
 }

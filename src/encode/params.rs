@@ -23,7 +23,7 @@ use crate::metrics::{Metric, Metrics};
 
 /// Every option [`EncoderConfig::set`] takes, with what its value is
 /// (names as `mocomp encode` spells them; `_` may stand for `-`).
-pub const OPTIONS: [(&str, &str); 21] = [
+pub const OPTIONS: [(&str, &str); 22] = [
     ("qp", "quantisation parameter, 0..=51"),
     ("gop", "I-frame period (0: only the first frame)"),
     (
@@ -53,6 +53,10 @@ pub const OPTIONS: [(&str, &str); 21] = [
     ("weightp", "weighted prediction, on|off"),
     ("refs", "references P frames may predict from, 1..=8 (block)"),
     ("subpel-rd", "sub-pel RD refinement (x264's subme 8), on|off"),
+    (
+        "fast-pskip",
+        "skip before the other modes where skip codes no level, on|off",
+    ),
     ("8x8dct", "the 8x8 transform (and 8x8 intra), on|off"),
     (
         "partitions",
@@ -120,6 +124,7 @@ impl EncoderConfig {
             "weightp" => self.weightp = switch(value).map_err(bad)?,
             "refs" => self.refs = parse(value).map_err(bad)?,
             "subpel-rd" => self.subpel_rd = switch(value).map_err(bad)?,
+            "fast-pskip" => self.fast_pskip = switch(value).map_err(bad)?,
             "8x8dct" | "dct8x8" => self.transform_8x8 = switch(value).map_err(bad)?,
             "partitions" => self.partitions = parse::<Partitions>(value).map_err(bad)?,
             "metrics" => self.metrics = parse::<Metrics>(value).map_err(bad)?,
@@ -214,6 +219,7 @@ mod tests {
             ("weightp", "no"),
             ("refs", "3"),
             ("subpel-rd", "1"),
+            ("fast-pskip", "off"),
             ("8x8dct", "off"),
             ("partitions", "p8x8,i4x4"),
             ("metrics", "ms-ssim"),

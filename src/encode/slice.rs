@@ -237,6 +237,8 @@ pub(crate) struct InterInputs<'a> {
     pub partitions: bool,
     /// Sub-pel RD refinement of 16x16 inter vectors (block frames).
     pub subpel_rd: bool,
+    /// x264's fast P-skip (see [`super::EncoderConfig::fast_pskip`]).
+    pub fast_pskip: bool,
 }
 
 /// A P frame's mode decision: one analysis context over the frame, one
@@ -255,6 +257,8 @@ pub(super) struct InterFrameCoder<'a> {
     pub(super) partitions: bool,
     /// Sub-pel RD refinement of 16x16 inter vectors (block frames).
     pub(super) subpel_rd: bool,
+    /// x264's fast P-skip (see [`super::EncoderConfig::fast_pskip`]).
+    pub(super) fast_pskip: bool,
     /// A vector per 8x8 block, when motion analysis has one (flows).
     pub(super) blocks: Option<Vec<Mv>>,
     /// Motion analysis' vectors per macroblock into each older reference.
@@ -339,6 +343,7 @@ impl<'a> InterFrameCoder<'a> {
             searched,
             partitions: inputs.partitions && inputs.tool == MotionTool::Block,
             subpel_rd: inputs.subpel_rd,
+            fast_pskip: inputs.fast_pskip,
             halfpel,
             blocks,
             warped,

@@ -185,6 +185,10 @@ impl MotionAnalyser {
         cfg.metric = Metric::Satd;
         cfg.full_pel_sad = s.full_pel_sad;
         cfg.lambda = lambda_for_qp(Metric::Satd, self.qp);
+        if s.sub_pel_sad {
+            cfg.metric = Metric::Sad;
+            cfg.lambda = lambda_for_qp(Metric::Sad, self.qp);
+        }
         cfg
     }
 

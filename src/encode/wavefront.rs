@@ -70,13 +70,21 @@ struct Worker {
     satd8: RefCell<SatdCache>,
 }
 
+/// A frame's decided macroblocks (raster order), and the reconstruction
+/// of them all when one worker decided every row (its own copy then holds
+/// every macroblock: no need to write them again).
+pub(super) struct DecidedFrame {
+    mbs: Vec<Decided>,
+    whole_recon: Option<Frame>,
+}
+
 impl WavefrontFrame<'_> {
     /// Every macroblock decided by `decide(env, index)` on the current
-    /// rayon pool's threads, in raster order.
+    /// rayon pool's threads.
     pub(super) fn decide(
         &self,
         decide: &(dyn Fn(&MbEnv<'_>, usize) -> Decision + Sync),
-    ) -> Result<Vec<Decided>, PictureError> {
+    ) -> Result<DecidedFrame, PictureError> {
         let (cols, rows) = (self.seq.mb_cols(), self.seq.mb_rows());
         let decided: Vec<OnceLock<Decided>> = (0..cols * rows).map(|_| OnceLock::new()).collect();
         let starts: Vec<OnceLock<RowStart>> = (0..rows).map(|_| OnceLock::new()).collect();
@@ -102,7 +110,7 @@ impl WavefrontFrame<'_> {
             satd8: RefCell::default(),
         };
         let lead = self.lead.clamp(2.min(cols), cols);
-        wavefront(cols, rows, lead, &new_worker, &|w: &mut Worker, c, r| {
+        let mut workers = wavefront(cols, rows, lead, &new_worker, &|w: &mut Worker, c, r| {
             if c == 0 {
                 let start = if r == 0 {
                     &first
@@ -130,10 +138,12 @@ impl WavefrontFrame<'_> {
             }
             let _ = decided[r * cols + c].set(d);
         });
-        Ok(decided
+        let whole_recon = (workers.len() == 1).then(|| workers.swap_remove(0).recon);
+        let mbs = decided
             .into_iter()
             .map(|d| d.into_inner().expect("every macroblock decided"))
-            .collect())
+            .collect();
+        Ok(DecidedFrame { mbs, whole_recon })
     }
 
     /// Macroblock (c, r) decided from the worker's state, and committed to
@@ -200,15 +210,25 @@ pub(super) struct FrameSummary {
     pub(super) kinds: [usize; 3],
 }
 
-/// Writes `decided` (raster order) into `recon` and sums them up.
-pub(super) fn collect(decided: Vec<Decided>, recon: &mut Frame, cols: usize) -> FrameSummary {
+/// Writes `decided` into `recon` (or swaps in the reconstruction one
+/// worker made of them all) and sums them up.
+pub(super) fn collect(decided: DecidedFrame, recon: &mut Frame, cols: usize) -> FrameSummary {
     let mut out = FrameSummary {
-        mbs: Vec::with_capacity(decided.len()),
+        mbs: Vec::with_capacity(decided.mbs.len()),
         prediction_sse: 0,
         kinds: [0; 3],
     };
-    for (i, d) in decided.into_iter().enumerate() {
-        write_mb(&d.samples, recon, i % cols, i / cols);
+    let written = match decided.whole_recon {
+        Some(mut whole) => {
+            std::mem::swap(recon, &mut whole);
+            true
+        }
+        None => false,
+    };
+    for (i, d) in decided.mbs.into_iter().enumerate() {
+        if !written {
+            write_mb(&d.samples, recon, i % cols, i / cols);
+        }
         out.prediction_sse += d.prediction_sse;
         out.kinds[kind_index(&d.coded.kind)] += 1;
         out.mbs.push(d.coded);

@@ -65,17 +65,19 @@ struct Progress(AtomicUsize);
 /// What a block computes must depend only on those neighbours (and on
 /// what `block` publishes itself): then it is the same for any number of
 /// threads. `block` must not wait on other rayon work (a worker spins
-/// while the row above catches up).
-pub(crate) fn wavefront<S>(
+/// while the row above catches up). The states of the workers that took
+/// rows are returned (one: it did every block).
+pub(crate) fn wavefront<S: Send>(
     cols: usize,
     rows: usize,
     start: usize,
     new_state: &(dyn Fn() -> S + Sync),
     block: &(dyn Fn(&mut S, usize, usize) + Sync),
-) {
+) -> Vec<S> {
     // Blocks done in each row; a row is claimed by one worker, in order.
     let done: Vec<Progress> = (0..rows).map(|_| Progress::default()).collect();
     let next_row = AtomicUsize::new(0);
+    let states = std::sync::Mutex::new(Vec::new());
     let work = || {
         let mut state = None;
         loop {
@@ -104,6 +106,9 @@ pub(crate) fn wavefront<S>(
                 done[r].0.store(c + 1, Ordering::Release);
             }
         }
+        if let (Some(state), Ok(mut states)) = (state, states.lock()) {
+            states.push(state);
+        }
     };
     let workers = rayon::current_num_threads().min(rows).max(1);
     // Tasks of the current pool (not threads of their own: nested in a
@@ -115,6 +120,7 @@ pub(crate) fn wavefront<S>(
         }
         work();
     });
+    states.into_inner().unwrap_or_default()
 }
 
 /// Every block of a `cols x rows` grid searched by `search` (which may read

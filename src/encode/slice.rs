@@ -131,7 +131,7 @@ pub(crate) fn code_intra(
     src: &Frame,
     deblock: bool,
     state: &mut EntropyState,
-    mut recon: Frame,
+    recon: Frame,
 ) -> Result<CodedFrame, PictureError> {
     let cols = seq.mb_cols();
     let header = FrameHeader {
@@ -155,7 +155,7 @@ pub(crate) fn code_intra(
         // order; after half a row, 0.25 %, with two workers still busy.
         lead: cols / 2,
     };
-    let decided = frame.decide(&|env, index| {
+    let decided = frame.decide(recon, &|env, index| {
         let (mb_x, mb_y) = (index % cols, index / cols);
         let s = MbSource::load(src, mb_x, mb_y);
         let best = best_intra(
@@ -170,7 +170,7 @@ pub(crate) fn code_intra(
         let sse = visible_luma_sse(&s, &best.pred, mb_x, mb_y, seq);
         (best, sse)
     })?;
-    let sum = wavefront::collect(decided, &mut recon, cols);
+    let (sum, recon) = wavefront::collect(decided, cols);
     let syntax = FrameSyntax {
         header,
         grid: None,
@@ -390,6 +390,12 @@ impl<'a> InterFrameCoder<'a> {
     /// frame.
     fn decide_on_wavefront(&mut self) -> Result<(), PictureError> {
         let cols = self.seq.mb_cols();
+        // The reconstruction is lent to a worker (and comes back, complete
+        // or to be written); a macroblock-sized frame holds its place.
+        let recon = std::mem::replace(
+            &mut self.frame.recon,
+            Frame::new(crate::codec::consts::MB, crate::codec::consts::MB)?,
+        );
         let decided = WavefrontFrame {
             seq: self.seq,
             modes: self.sink.modes(),
@@ -400,12 +406,13 @@ impl<'a> InterFrameCoder<'a> {
             // (-0.1 %), the contexts being trained by the frames before.
             lead: 2,
         }
-        .decide(&|env, index| {
+        .decide(recon, &|env, index| {
             let mb = self.analyse(index, env);
             let sse = visible_luma_sse(&mb.source, &mb.best.pred, mb.mb_x, mb.mb_y, self.seq);
             (mb.best, sse)
         })?;
-        let sum = wavefront::collect(decided, &mut self.frame.recon, cols);
+        let sum;
+        (sum, self.frame.recon) = wavefront::collect(decided, cols);
         self.frame.syntax.mbs = sum.mbs;
         self.frame.prediction_sse = sum.prediction_sse;
         self.frame.kinds = sum.kinds;

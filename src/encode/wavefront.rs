@@ -70,19 +70,22 @@ struct Worker {
     satd8: RefCell<SatdCache>,
 }
 
-/// A frame's decided macroblocks (raster order), and the reconstruction
+/// A frame's decided macroblocks (raster order), and a reconstruction:
 /// of them all when one worker decided every row (its own copy then holds
-/// every macroblock: no need to write them again).
+/// every macroblock: no need to write them again), else one worker's.
 pub(super) struct DecidedFrame {
     mbs: Vec<Decided>,
-    whole_recon: Option<Frame>,
+    recon: Frame,
+    complete: bool,
 }
 
 impl WavefrontFrame<'_> {
     /// Every macroblock decided by `decide(env, index)` on the current
-    /// rayon pool's threads.
+    /// rayon pool's threads; `recon` (coded size, any content) is one
+    /// worker's reconstruction, so that one worker allocates none.
     pub(super) fn decide(
         &self,
+        recon: Frame,
         decide: &(dyn Fn(&MbEnv<'_>, usize) -> Decision + Sync),
     ) -> Result<DecidedFrame, PictureError> {
         let (cols, rows) = (self.seq.mb_cols(), self.seq.mb_rows());
@@ -93,9 +96,12 @@ impl WavefrontFrame<'_> {
             residual: self.residual.contexts().to_vec(),
         };
         // The workers' reconstructions, made before the rows start (an
-        // allocation that fails is an error, not a panic on a worker).
-        let recons = (0..rayon::current_num_threads().min(rows).max(1))
+        // allocation that fails is an error, not a panic on a worker). A
+        // macroblock's analysis reads only what its worker wrote before
+        // it, so `recon`'s old content is never seen.
+        let recons = (1..rayon::current_num_threads().min(rows).max(1))
             .map(|_| Frame::new(self.seq.coded_width(), self.seq.coded_height()))
+            .chain([Ok(recon)])
             .collect::<Result<Vec<_>, _>>()?;
         let recons = Mutex::new(recons);
         let new_worker = || Worker {
@@ -138,12 +144,21 @@ impl WavefrontFrame<'_> {
             }
             let _ = decided[r * cols + c].set(d);
         });
-        let whole_recon = (workers.len() == 1).then(|| workers.swap_remove(0).recon);
+        let complete = workers.len() == 1;
+        let recon = match workers.pop() {
+            Some(w) => w.recon,
+            // No worker took a row (a frame has one at least).
+            None => recons
+                .into_inner()
+                .ok()
+                .and_then(|mut r| r.pop())
+                .expect("the reconstruction given"),
+        };
         let mbs = decided
             .into_iter()
             .map(|d| d.into_inner().expect("every macroblock decided"))
             .collect();
-        Ok(DecidedFrame { mbs, whole_recon })
+        Ok(DecidedFrame { mbs, recon, complete })
     }
 
     /// Macroblock (c, r) decided from the worker's state, and committed to
@@ -210,28 +225,22 @@ pub(super) struct FrameSummary {
     pub(super) kinds: [usize; 3],
 }
 
-/// Writes `decided` into `recon` (or swaps in the reconstruction one
-/// worker made of them all) and sums them up.
-pub(super) fn collect(decided: DecidedFrame, recon: &mut Frame, cols: usize) -> FrameSummary {
+/// The frame's reconstruction (every macroblock of `decided` written into
+/// it), and the sums of its macroblocks.
+pub(super) fn collect(decided: DecidedFrame, cols: usize) -> (FrameSummary, Frame) {
     let mut out = FrameSummary {
         mbs: Vec::with_capacity(decided.mbs.len()),
         prediction_sse: 0,
         kinds: [0; 3],
     };
-    let written = match decided.whole_recon {
-        Some(mut whole) => {
-            std::mem::swap(recon, &mut whole);
-            true
-        }
-        None => false,
-    };
+    let mut recon = decided.recon;
     for (i, d) in decided.mbs.into_iter().enumerate() {
-        if !written {
-            write_mb(&d.samples, recon, i % cols, i / cols);
+        if !decided.complete {
+            write_mb(&d.samples, &mut recon, i % cols, i / cols);
         }
         out.prediction_sse += d.prediction_sse;
         out.kinds[kind_index(&d.coded.kind)] += 1;
         out.mbs.push(d.coded);
     }
-    out
+    (out, recon)
 }

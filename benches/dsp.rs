@@ -18,7 +18,7 @@ use mocomp::codec::Plane;
 use mocomp::encode::dsp::CODER;
 use mocomp::features::dsp::FEATURES;
 use mocomp::imgproc::dsp::IMGPROC;
-use mocomp::me::dsp::PIXEL;
+use mocomp::me::dsp::{fill_halfpel, PIXEL};
 use mocomp::metrics::dsp::{BandScratch, ColumnSums, METRICS, WIN};
 
 type Group<'a> = BenchmarkGroup<'a, criterion::measurement::WallTime>;
@@ -152,7 +152,7 @@ fn pixel_table(c: &mut Criterion) {
             (t.satd_16x16_capped)(black_box(&a), 64, &b, 64, 500)
         });
         bench(g, "halfpel_planes_cif", l, || {
-            (t.halfpel_planes)(black_box(&reference), 32, &mut planes)
+            fill_halfpel(t.halfpel_planes, black_box(&reference), 32, &mut planes, 1)
         });
         let (stride, rows) = (reference.stride(), reference.data().len() / reference.stride());
         bench(g, "box_sums_cif_8", l, || {

@@ -22,7 +22,7 @@ use mocomp::features::dsp::{FeaturesDsp, FEATURES};
 use mocomp::flow::dis::{dis_flow, DisParams, DisPreset};
 use mocomp::flow::refine::{refine, RefineParams};
 use mocomp::imgproc::dsp::{ImgprocDsp, IMGPROC};
-use mocomp::me::dsp::{PixelDsp, PIXEL};
+use mocomp::me::dsp::{fill_halfpel, PixelDsp, PIXEL};
 use mocomp::metrics::dsp::{BandScratch, ColumnSums, MetricsDsp, METRICS, WIN};
 use ndarray::Array2;
 
@@ -345,14 +345,17 @@ fn pixel_kernels() {
         for (w, h, margin) in [(37, 21, 16), (64, 16, 32), (5, 9, 0)] {
             for r in planes(w, h) {
                 let fresh = || (0..3).map(|_| Plane::new(w, h).unwrap()).collect::<Vec<_>>();
-                let (mut a, mut b) = (fresh(), fresh());
-                halfpel_planes(&r, margin, &mut a);
-                (s.halfpel_planes)(&r, margin, &mut b);
-                for (p, q) in a.iter().zip(&b) {
-                    assert!(
-                        p.data() == q.data(),
-                        "{isa} half-pel planes {w}x{h} margin {margin}"
-                    );
+                // One band against several: bands only split the rows.
+                for bands in [1, 3, 64] {
+                    let (mut a, mut b) = (fresh(), fresh());
+                    fill_halfpel(halfpel_planes, &r, margin, &mut a, bands);
+                    fill_halfpel(s.halfpel_planes, &r, margin, &mut b, 1);
+                    for (p, q) in a.iter().zip(&b) {
+                        assert!(
+                            p.data() == q.data(),
+                            "{isa} half-pel planes {w}x{h} margin {margin}, {bands} bands"
+                        );
+                    }
                 }
             }
         }

@@ -40,11 +40,61 @@ pub type PairFn = fn(&[u8; 32], &[u8; 32]) -> [u32; 2];
 /// cannot beat its best stop half way (SATD only grows with rows).
 pub type CappedFn = fn(&[u8], usize, &[u8], usize, u32) -> u32;
 
-/// Signature of the half-pel planes: `(reference, margin, planes)` writes
+/// Signature of the half-pel planes: `(reference, margin, band)` writes
 /// the horizontal, vertical and diagonal half-pel phases of `reference`
-/// into the three `planes` (its size) over the picture and `margin`
-/// pixels around it, with the codec's filter and rounding.
-pub type HalfpelFn = fn(&Plane, usize, &mut [Plane]);
+/// over the band's rows of the picture and `margin` pixels around it, with
+/// the codec's filter and rounding ([`fill_halfpel`] makes the bands).
+pub type HalfpelFn = fn(&Plane, usize, HalfpelBand<'_>);
+
+/// Rows of the three half-pel planes.
+pub struct HalfpelBand<'a> {
+    /// The band's rows, counted among the filled rows from the first of
+    /// the top margin.
+    pub rows: std::ops::Range<usize>,
+    /// The horizontal, vertical and diagonal planes, each from the band's
+    /// first row, `margin` columns left of the picture.
+    pub out: [&'a mut [u8]; 3],
+    /// Of the planes' rows.
+    pub stride: usize,
+}
+
+/// The half-pel planes of `reference` by `kernel` into `planes` (three,
+/// its size and padding), over the picture and `margin` pixels around it,
+/// in `bands` bands of rows on the current rayon pool's threads (each
+/// band filters the 7 rows its vertical taps share with the next again;
+/// the planes are the same for any number of bands).
+pub fn fill_halfpel(kernel: HalfpelFn, reference: &Plane, margin: usize, planes: &mut [Plane], bands: usize) {
+    use rayon::prelude::*;
+    let rows = reference.height() + 2 * margin;
+    let per_band = rows.div_ceil(bands.clamp(1, rows.max(1)));
+    let stride = reference.stride();
+    let m = margin as isize;
+    let [a, b, c] = planes else {
+        panic!("three half-pel planes");
+    };
+    fn chunks(p: &mut Plane, m: isize, len: usize) -> std::slice::ChunksMut<'_, u8> {
+        let first = p.index(-m, -m);
+        p.data_mut()[first..].chunks_mut(len)
+    }
+    let len = per_band * stride;
+    let jobs: Vec<HalfpelBand<'_>> = chunks(a, m, len)
+        .zip(chunks(b, m, len))
+        .zip(chunks(c, m, len))
+        .enumerate()
+        .take(rows.div_ceil(per_band))
+        .map(|(i, ((a, b), c))| HalfpelBand {
+            rows: i * per_band..((i + 1) * per_band).min(rows),
+            out: [a, b, c],
+            stride,
+        })
+        .collect();
+    if jobs.len() == 1 {
+        jobs.into_iter().for_each(|band| kernel(reference, margin, band));
+    } else {
+        jobs.into_par_iter()
+            .for_each(|band| kernel(reference, margin, band));
+    }
+}
 
 /// Signature of a 16x16 block copy: `(a, a_stride, out)`, `out` in rows
 /// of 16.
@@ -251,16 +301,17 @@ pub(crate) const HALF: [i16; 8] = {
     half
 };
 
-fn halfpel_planes_scalar(reference: &Plane, margin: usize, planes: &mut [Plane]) {
+fn halfpel_planes_scalar(reference: &Plane, margin: usize, band: HalfpelBand<'_>) {
     // SAFETY: AVX2 off.
-    unsafe { halfpel_planes_body::<false>(reference, margin, planes) }
+    unsafe { halfpel_planes_body::<false>(reference, margin, band) }
 }
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
+    use super::HalfpelBand;
     use crate::codec::Plane;
     crate::codec::compiled_for! { "avx2":
-        fn halfpel_planes(reference: &Plane, margin: usize, planes: &mut [Plane])
+        fn halfpel_planes(reference: &Plane, margin: usize, band: HalfpelBand<'_>)
             => super::halfpel_planes_body::<true>;
         fn box_sums(data: &[u8], stride: usize, rows: usize, side: usize, out: &mut [u16])
             => crate::me::sea::box_sums;
@@ -274,19 +325,25 @@ mod avx2 {
 /// # Safety
 /// `AVX2` is true only where the CPU has AVX2.
 #[inline(always)]
-unsafe fn halfpel_planes_body<const AVX2: bool>(reference: &Plane, margin: usize, planes: &mut [Plane]) {
-    let (w, h, m) = (reference.width(), reference.height(), margin as isize);
+unsafe fn halfpel_planes_body<const AVX2: bool>(reference: &Plane, margin: usize, band: HalfpelBand<'_>) {
+    let (w, m) = (reference.width(), margin as isize);
     let span = w + 2 * margin;
     let clip = |v: i32| v.clamp(0, 255) as u8;
+    let HalfpelBand {
+        rows: band_rows,
+        out: [plane_h, plane_v, plane_d],
+        stride,
+    } = band;
+    let y0 = band_rows.start;
     // Unrounded horizontal pass (within i16: -6120..=22440) of the rows
-    // the vertical filters read: -m - 3 .. h + m + 4.
-    let rows = h + 2 * margin + 7;
+    // the band's vertical filters read: y0 - m - 3 .. end - m + 4.
+    let rows = band_rows.len() + 7;
     let mut hpass = HPASS.with(|b| std::mem::take(&mut *b.borrow_mut()));
     // Every entry is assigned by the first tap below: no need to clear
     // what a previous picture left.
     hpass.resize(rows * span, 0);
     for (r, out) in hpass[..rows * span].chunks_exact_mut(span).enumerate() {
-        let src = &reference.data()[reference.index(-m - 3, r as isize - m - 3)..];
+        let src = &reference.data()[reference.index(-m - 3, (y0 + r) as isize - m - 3)..];
         for (o, &v) in out.iter_mut().zip(&src[..span]) {
             *o = HALF[0] * i16::from(v);
         }
@@ -296,28 +353,26 @@ unsafe fn halfpel_planes_body<const AVX2: bool>(reference: &Plane, margin: usize
             }
         }
     }
-    let hrow = |y: usize| &hpass[y * span..(y + 1) * span];
+    let hrow = |i: usize| &hpass[i * span..(i + 1) * span];
     let mut acc16 = vec![0i16; span];
     let mut acc32 = vec![0i32; span];
-    for y in 0..h + 2 * margin {
-        let at = planes[0].index(-m, y as isize - m);
-        for (o, &v) in planes[0].data_mut()[at..at + span].iter_mut().zip(hrow(y + 3)) {
+    for (i, y) in band_rows.enumerate() {
+        let at = i * stride;
+        for (o, &v) in plane_h[at..at + span].iter_mut().zip(hrow(i + 3)) {
             *o = clip((i32::from(v) + 32) >> 6);
         }
         acc16.fill(0);
         for (k, &t) in HALF.iter().enumerate() {
-            let at = reference.index(-m, y as isize - m - 3 + k as isize);
-            for (a, &v) in acc16.iter_mut().zip(&reference.data()[at..at + span]) {
+            let from = reference.index(-m, y as isize - m - 3 + k as isize);
+            for (a, &v) in acc16.iter_mut().zip(&reference.data()[from..from + span]) {
                 *a += t * i16::from(v);
             }
         }
-        let at = planes[1].index(-m, y as isize - m);
-        for (o, &v) in planes[1].data_mut()[at..at + span].iter_mut().zip(&acc16) {
+        for (o, &v) in plane_v[at..at + span].iter_mut().zip(&acc16) {
             *o = clip((i32::from(v) + 32) >> 6);
         }
-        let at = planes[2].index(-m, y as isize - m);
-        let out = &mut planes[2].data_mut()[at..at + span];
-        let rows: [&[i16]; 8] = std::array::from_fn(|k| hrow(y + k));
+        let out = &mut plane_d[at..at + span];
+        let rows: [&[i16]; 8] = std::array::from_fn(|k| hrow(i + k));
         #[cfg(target_arch = "x86_64")]
         if AVX2 {
             // SAFETY: the caller's contract: AVX2 only where the CPU has it.

@@ -10,7 +10,7 @@
 
 use std::cell::RefCell;
 
-use super::dsp::{average_rows, copy_rows, pixel, PixelDsp};
+use super::dsp::{average_rows, copy_rows, fill_halfpel, pixel, PixelDsp};
 use crate::codec::interp::predict_luma;
 use crate::codec::mv::Mv;
 use crate::codec::Plane;
@@ -61,7 +61,10 @@ impl HalfPel {
             planes.push(take_plane(w, h, pad)?);
         }
         let dsp = pixel();
-        (dsp.halfpel_planes)(reference, margin, &mut planes);
+        // A band per worker: the planes are most of what a frame's motion
+        // analysis does on one thread before its rows start.
+        let bands = rayon::current_num_threads();
+        fill_halfpel(dsp.halfpel_planes, reference, margin, &mut planes, bands);
         Some(HalfPel {
             planes,
             margin: margin as isize,

@@ -67,11 +67,16 @@ pub fn fill_halfpel(kernel: HalfpelFn, reference: &Plane, margin: usize, planes:
     use rayon::prelude::*;
     let rows = reference.height() + 2 * margin;
     let per_band = rows.div_ceil(bands.clamp(1, rows.max(1)));
-    let stride = reference.stride();
     let m = margin as isize;
     let [a, b, c] = planes else {
         panic!("three half-pel planes");
     };
+    // The bands are cut from the planes: their stride, not the reference's.
+    let stride = a.stride();
+    assert!(
+        b.stride() == stride && c.stride() == stride,
+        "half-pel planes of one size"
+    );
     fn chunks(p: &mut Plane, m: isize, len: usize) -> std::slice::ChunksMut<'_, u8> {
         let first = p.index(-m, -m);
         p.data_mut()[first..].chunks_mut(len)

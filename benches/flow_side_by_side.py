@@ -1,0 +1,180 @@
+#!/usr/bin/env python3
+"""mocomp's DIS presets beside OpenCV's DIS presets, one thread, same run.
+
+Usage:
+  flow_side_by_side.py WORK [CLIP.y4m ...] [--pair DIR ...] [--repeats N]
+                       [--rounds R] [--mocomp BIN] [--peers DIR] [--csv OUT]
+
+Each CLIP gives one pair with an exact ground truth: its frame 5, and that
+frame under a known affine motion (rotation and zoom about the centre, then
+a translation; `peers/flow_opencv.py --synth`, bicubic). The motion of a
+clip the script knows is the one below (large motion, as the issue's real
+pairs); any other clip gets a translation of 6 % of its width and 3 % of
+its height, 1 degree and zoom 1.01. A `--pair DIR` is a ready pair
+(frame1.png, frame2.png, gt.flo), such as ../shared/data/flowpair.
+
+Per pair and preset (ultrafast, fast, medium) both tools run `--repeats`
+calls after a warm-up and report their median (OpenCV through
+cv2.DISOpticalFlow_create(preset), cv2.setNumThreads(1); mocomp through
+`mocomp flow --preset P --threads 1 --runs N`); the whole round is run
+`--rounds` times, alternating the tools, and the least median is kept. Both
+flows are scored by this script with one code: EPE over every pixel and
+over the pixels whose true destination is inside frame 2.
+
+Printed: per pair and preset, mocomp's and DIS's ms and EPE, the time
+ratio, and whether mocomp is no slower and no less accurate (the bar of
+issue 36); then per preset the geometric mean of the time ratios and the
+mean EPE of both.
+"""
+import argparse
+import csv
+import json
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+
+PRESETS = ("ultrafast", "fast", "medium")
+
+# tx, ty (px), rotation (degrees), zoom: the motions of the earlier notes.
+MOTIONS = {
+    "fish_1160": (40, -25, 2.0, 1.03),
+    "talk_vga": (30, 12, 1.0, 1.02),
+    "launch_360p": (-35, 10, 0.5, 1.0),
+    "room_400": (25, 20, 1.5, 0.98),
+    "smile_360p": (12, -8, 0.8, 1.01),
+}
+
+
+def read_flo(path):
+    with open(path, "rb") as f:
+        if np.fromfile(f, "<f4", 1)[0] != np.float32(202021.25):
+            raise ValueError(path + ": not a .flo")
+        w, h = (int(x) for x in np.fromfile(f, "<i4", 2))
+        return np.fromfile(f, "<f4", 2 * w * h).reshape(h, w, 2)
+
+
+def epe(est, gt, mask=None):
+    d = np.hypot(est[..., 0] - gt[..., 0], est[..., 1] - gt[..., 1])
+    return float(d[mask].mean() if mask is not None else d.mean())
+
+
+def inside_mask(gt, margin=2.0):
+    h, w = gt.shape[:2]
+    xs, ys = np.meshgrid(np.arange(w), np.arange(h))
+    dx, dy = xs + gt[..., 0], ys + gt[..., 1]
+    return (dx >= margin) & (dx <= w - 1 - margin) & (dy >= margin) & (dy <= h - 1 - margin)
+
+
+def make_pair(clip, work, peers):
+    name = os.path.splitext(os.path.basename(clip))[0]
+    out = os.path.join(work, name)
+    if not os.path.exists(os.path.join(out, "gt.flo")):
+        with open(clip, "rb") as f:
+            header = f.readline().decode()
+        w = int(next(t[1:] for t in header.split() if t.startswith("W")))
+        h = int(next(t[1:] for t in header.split() if t.startswith("H")))
+        tx, ty, rot, zoom = MOTIONS.get(name, (round(0.06 * w), round(0.03 * h), 1.0, 1.01))
+        subprocess.run([sys.executable, os.path.join(peers, "flow_opencv.py"), "--synth", out,
+                        "--src-y4m", clip, "--src-frame", "5", "--tx", str(tx), "--ty", str(ty),
+                        "--rot", str(rot), "--zoom", str(zoom), "--methods", "dis_ultrafast",
+                        "--repeats", "1"], check=True, stdout=subprocess.DEVNULL,
+                       stderr=subprocess.DEVNULL)
+    return name, out
+
+
+def run_opencv(pair, peers, repeats):
+    est = os.path.join(pair, "est")
+    table = os.path.join(est, "opencv.csv")
+    subprocess.run([sys.executable, os.path.join(peers, "flow_opencv.py"),
+                    "--img1", os.path.join(pair, "frame1.png"), "--img2", os.path.join(pair, "frame2.png"),
+                    "--threads", "1", "--repeats", str(repeats),
+                    "--methods", ",".join("dis_" + p for p in PRESETS),
+                    "--save-flo", est, "--csv", table], check=True,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    times = {r["method"][4:]: float(r["time_ms"]) for r in csv.DictReader(open(table))}
+    return times, {p: os.path.join(est, "dis_%s.flo" % p) for p in PRESETS}
+
+
+def run_mocomp(pair, binary, repeats):
+    est = os.path.join(pair, "est")
+    times, flows = {}, {}
+    for p in PRESETS:
+        flo = os.path.join(est, "mocomp_%s.flo" % p)
+        out = subprocess.run([binary, "flow", os.path.join(pair, "frame1.png"),
+                              os.path.join(pair, "frame2.png"), "--preset", p, "--threads", "1",
+                              "--runs", str(repeats), "--json", "-o", flo],
+                             check=True, capture_output=True, text=True).stdout
+        times[p] = json.loads(out.strip().splitlines()[-1])["ms"]
+        flows[p] = flo
+    return times, flows
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("work")
+    ap.add_argument("clips", nargs="*")
+    ap.add_argument("--pair", action="append", default=[])
+    ap.add_argument("--repeats", type=int, default=9)
+    ap.add_argument("--rounds", type=int, default=2)
+    ap.add_argument("--mocomp", default="target/release/mocomp")
+    ap.add_argument("--peers", default=os.path.join(os.path.dirname(__file__), "..", "..", "shared", "peers"))
+    ap.add_argument("--csv")
+    a = ap.parse_args()
+    os.makedirs(a.work, exist_ok=True)
+    pairs = [make_pair(c, a.work, a.peers) for c in a.clips]
+    pairs += [(os.path.basename(os.path.normpath(d)), d) for d in a.pair]
+    rows = []
+    for name, d in pairs:
+        os.makedirs(os.path.join(d, "est"), exist_ok=True)
+        best = {"mocomp": {}, "dis": {}}
+        for r in range(a.rounds):
+            order = ["mocomp", "dis"] if r % 2 == 0 else ["dis", "mocomp"]
+            for tool in order:
+                if tool == "mocomp":
+                    t, flows_m = run_mocomp(d, a.mocomp, a.repeats)
+                else:
+                    t, flows_d = run_opencv(d, a.peers, a.repeats)
+                for p, ms in t.items():
+                    best[tool][p] = min(ms, best[tool].get(p, math.inf))
+        gt = read_flo(os.path.join(d, "gt.flo"))
+        inside = inside_mask(gt)
+        h, w = gt.shape[:2]
+        for p in PRESETS:
+            fm, fd = read_flo(flows_m[p]), read_flo(flows_d[p])
+            rows.append(dict(pair=name, size="%dx%d" % (w, h), max_motion=float(np.hypot(gt[..., 0], gt[..., 1]).max()),
+                             preset=p, mocomp_ms=best["mocomp"][p], dis_ms=best["dis"][p],
+                             mocomp_epe=epe(fm, gt), dis_epe=epe(fd, gt),
+                             mocomp_epe_inside=epe(fm, gt, inside), dis_epe_inside=epe(fd, gt, inside)))
+        print("%s done" % name, file=sys.stderr, flush=True)
+    report(rows)
+    if a.csv:
+        with open(a.csv, "w", newline="") as f:
+            wr = csv.DictWriter(f, fieldnames=list(rows[0]))
+            wr.writeheader()
+            wr.writerows(rows)
+
+
+def report(rows):
+    print("| pair | size | max motion | preset | mocomp ms | DIS ms | time ratio | mocomp EPE | DIS EPE | bar |")
+    print("|---|---|---:|---|---:|---:|---:|---:|---:|---|")
+    for r in rows:
+        ok = r["mocomp_ms"] <= r["dis_ms"] and r["mocomp_epe"] <= r["dis_epe"]
+        print("| %s | %s | %.0f px | %s | %.2f | %.2f | %.2fx | %.3f | %.3f | %s |" % (
+            r["pair"], r["size"], r["max_motion"], r["preset"], r["mocomp_ms"], r["dis_ms"],
+            r["mocomp_ms"] / r["dis_ms"], r["mocomp_epe"], r["dis_epe"], "met" if ok else "not met"))
+    print()
+    print("| preset | time ratio (geometric mean) | mocomp EPE (mean) | DIS EPE (mean) | pairs meeting the bar |")
+    print("|---|---:|---:|---:|---:|")
+    for p in PRESETS:
+        sel = [r for r in rows if r["preset"] == p]
+        ratio = math.exp(sum(math.log(r["mocomp_ms"] / r["dis_ms"]) for r in sel) / len(sel))
+        met = sum(r["mocomp_ms"] <= r["dis_ms"] and r["mocomp_epe"] <= r["dis_epe"] for r in sel)
+        print("| %s | %.2fx | %.3f | %.3f | %d of %d |" % (
+            p, ratio, np.mean([r["mocomp_epe"] for r in sel]), np.mean([r["dis_epe"] for r in sel]), met, len(sel)))
+
+
+if __name__ == "__main__":
+    main()

@@ -198,12 +198,20 @@ fn analysis_tables(c: &mut Criterion) {
     let src: Vec<f32> = a.iter().map(|&v| f32::from(v)).collect();
     let mut dst = vec![0f32; 352 * 32];
     let kernel = [0.0625f32, 0.25, 0.375, 0.25, 0.0625];
+    let picture = ndarray::Array2::from_shape_vec((288, 352), src.clone()).unwrap();
+    let (mut half, mut scratch) = (ndarray::Array2::zeros((144, 176)), Vec::new());
     levels(c, "imgproc", &IMGPROC, |g, t, l| {
         bench(g, "filter_rows_32_rows", l, || {
             (t.filter_rows)(black_box(&src[..352 * 32]), 352, &kernel, &mut dst)
         });
         bench(g, "filter_cols_32_rows", l, || {
             (t.filter_cols)(black_box(&src), 288, 352, 64, &kernel, &mut dst)
+        });
+        bench(g, "downsample_binomial_cif", l, || {
+            (t.downsample_binomial)(black_box(&picture), &mut scratch, &mut half)
+        });
+        bench(g, "upsample_1_level_to_cif", l, || {
+            (t.upsample_levels)(black_box(&half), 288, 352, 1, 2.0)
         });
     });
     let words: Vec<[u64; 4]> = a

@@ -410,6 +410,8 @@ fn image_filters() {
         let ImgprocDsp {
             filter_rows,
             filter_cols,
+            downsample_binomial,
+            upsample_levels,
         } = *t;
         let mut r = Random(8);
         for (w, h) in [(101, 75), (16, 3), (5, 40)] {
@@ -430,6 +432,27 @@ fn image_filters() {
                     a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
                     "{isa} cols {w}x{h}"
                 );
+            }
+        }
+        let same =
+            |a: &Array2<f32>, b: &Array2<f32>| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
+        for (w, h) in [(101, 75), (16, 3), (5, 40), (1, 1), (290, 235)] {
+            let src = Array2::from_shape_fn((h, w), |_| f32::from(r.byte()) * 0.61 - 20.0);
+            let (mut a, mut b) = (
+                Array2::zeros((h.div_ceil(2), w.div_ceil(2))),
+                Array2::zeros((h.div_ceil(2), w.div_ceil(2))),
+            );
+            downsample_binomial(&src, &mut Vec::new(), &mut a);
+            (s.downsample_binomial)(&src, &mut Vec::new(), &mut b);
+            assert!(same(&a, &b), "{isa} binomial halving {w}x{h}");
+            for levels in 0..4 {
+                let (uh, uw) = (h << levels, (w << levels).saturating_sub(levels));
+                let (a, b) = (
+                    upsample_levels(&src, uh, uw, levels, 1.5),
+                    (s.upsample_levels)(&src, uh, uw, levels, 1.5),
+                );
+                assert_eq!(a.dim(), (uh, uw));
+                assert!(same(&a, &b), "{isa} upsample {w}x{h} by {levels} levels");
             }
         }
     });

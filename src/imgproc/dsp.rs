@@ -1,9 +1,13 @@
 //! The image filters' kernels, one table per CPU level
 //! ([`crate::codec::dsp`]): the horizontal and vertical passes of a
-//! separable filter over a band of rows. The AVX2 builds are the scalar
+//! separable filter over a band of rows, the binomial pyramid's halving
+//! and the linear upsampling of a coarse field. The AVX2 builds are the scalar
 //! source compiled for AVX2, without FMA, so that every output adds its
 //! terms in the same order and rounds the same way: the same bits.
 
+use ndarray::Array2;
+
+use super::pyramid::{downsample_binomial_body, upsample_levels_body};
 use crate::codec::dsp::PerLevel;
 
 /// The horizontal pass over a band of whole rows: `(src, w, kernel, out)`,
@@ -14,6 +18,14 @@ pub type RowsFn = fn(&[f32], usize, &[f32], &mut [f32]);
 /// (as many as `out` holds) of the `h x w` picture `src`, edges repeated.
 pub type ColsFn = fn(&[f32], usize, usize, usize, &[f32], &mut [f32]);
 
+/// The binomial halving: `(src, scratch, out)`, as
+/// [`super::pyramid::downsample_binomial_into`].
+pub type HalveFn = fn(&Array2<f32>, &mut Vec<f32>, &mut Array2<f32>);
+
+/// Linear upsampling by levels: `(src, h, w, levels, scale)`, as
+/// [`super::pyramid::upsample_levels`].
+pub type UpsampleFn = fn(&Array2<f32>, usize, usize, usize, f32) -> Array2<f32>;
+
 /// The image filters' kernels of one CPU level.
 #[derive(Debug, Clone, Copy)]
 pub struct ImgprocDsp {
@@ -21,11 +33,17 @@ pub struct ImgprocDsp {
     pub filter_rows: RowsFn,
     /// Vertical separable pass.
     pub filter_cols: ColsFn,
+    /// A pyramid level from the one below, binomial filter.
+    pub downsample_binomial: HalveFn,
+    /// A coarse field brought levels finer.
+    pub upsample_levels: UpsampleFn,
 }
 
 const SCALAR: ImgprocDsp = ImgprocDsp {
     filter_rows: rows_band,
     filter_cols: cols_band,
+    downsample_binomial: downsample_binomial_body,
+    upsample_levels: upsample_levels_body,
 };
 
 /// The tables, lowest level first.
@@ -36,6 +54,8 @@ pub static IMGPROC: PerLevel<ImgprocDsp> = PerLevel([
     ImgprocDsp {
         filter_rows: avx2::rows_band,
         filter_cols: avx2::cols_band,
+        downsample_binomial: avx2::downsample_binomial,
+        upsample_levels: avx2::upsample_levels,
     },
     #[cfg(not(target_arch = "x86_64"))]
     SCALAR,
@@ -49,7 +69,13 @@ pub fn imgproc() -> &'static ImgprocDsp {
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
+    use ndarray::Array2;
+
     crate::codec::compiled_for! { "avx2":
+        fn downsample_binomial(src: &Array2<f32>, tmp: &mut Vec<f32>, out: &mut Array2<f32>)
+            => super::downsample_binomial_body;
+        fn upsample_levels(src: &Array2<f32>, h: usize, w: usize, levels: usize, scale: f32) -> Array2<f32>
+            => super::upsample_levels_body;
         fn rows_band(src: &[f32], w: usize, kernel: &[f32], out: &mut [f32]) => super::rows_band;
         fn cols_band(src: &[f32], h: usize, w: usize, y0: usize, kernel: &[f32], out: &mut [f32]) => super::cols_band;
     }

@@ -245,27 +245,74 @@ fn linear_taps(n: usize, n_src: usize, levels: usize) -> Vec<(usize, usize, f32)
         .collect()
 }
 
+/// One row of [`upsample_levels`]' first pass: `dst[x]` linear between
+/// the samples of `src` that `cols[x]` names. Between two samples the
+/// `2^levels` outputs have the same weights at every interval (the
+/// dyadic positions of [`linear_taps`], exact in `f32`), so the inside of
+/// the row goes an interval at a time without looking the taps up; the
+/// same sums as the taps give.
+#[inline(always)]
+fn upsample_row(src: &[f32], cols: &[(usize, usize, f32)], levels: usize, dst: &mut [f32]) {
+    let (f, w) = (1usize << levels, dst.len());
+    let half = f / 2;
+    // Interval i (between samples i and i + 1) holds outputs
+    // half + f i .. half + f (i + 1), at t = (j + 0.5) / f.
+    let full = (w.saturating_sub(half) / f).min(src.len().saturating_sub(1));
+    let tap = |&(a, b, t): &(usize, usize, f32)| src[a] + t * (src[b] - src[a]);
+    let lead = if levels == 0 { w } else { half.min(w) };
+    for (d, c) in dst[..lead].iter_mut().zip(cols) {
+        *d = tap(c);
+    }
+    if levels == 0 {
+        return;
+    }
+    let ts: Vec<f32> = (0..f).map(|j| (j as f32 + 0.5) / f as f32).collect();
+    for (i, out) in dst[half..half + f * full].chunks_exact_mut(f).enumerate() {
+        let (p, q) = (src[i], src[i + 1]);
+        for (o, &t) in out.iter_mut().zip(&ts) {
+            *o = p + t * (q - p);
+        }
+    }
+    let rest = half + f * full;
+    for (d, c) in dst[rest..].iter_mut().zip(&cols[rest..]) {
+        *d = tap(c);
+    }
+}
+
 /// A field `levels` pyramid levels finer, of `h x w`, linear between
 /// samples (edges repeat), every value multiplied by `scale`: a flow of a
 /// coarse level brought to a finer one in one pass.
 pub fn upsample_levels(src: &Array2<f32>, h: usize, w: usize, levels: usize, scale: f32) -> Array2<f32> {
+    (super::dsp::imgproc().upsample_levels)(src, h, w, levels, scale)
+}
+
+/// [`upsample_levels`] for any instruction set.
+#[inline(always)]
+pub(crate) fn upsample_levels_body(
+    src: &Array2<f32>,
+    h: usize,
+    w: usize,
+    levels: usize,
+    scale: f32,
+) -> Array2<f32> {
     let (sh, sw) = src.dim();
     let s = src.as_standard_layout();
     let s = s.as_slice().expect("standard");
     let (cols, rows) = (linear_taps(w, sw, levels), linear_taps(h, sh, levels));
     // Rows first: (sh, w). Both buffers are filled by extension, not
     // zeroed first: at full size the zeroing would cost a pass of its own.
-    let mut tmp = Vec::with_capacity(sh * w);
-    for src_row in s.chunks_exact(sw) {
-        tmp.extend(
-            cols.iter()
-                .map(|&(a, b, t)| src_row[a] + t * (src_row[b] - src_row[a])),
-        );
+    let mut tmp = vec![0f32; sh * w];
+    for (src_row, dst) in s.chunks_exact(sw).zip(tmp.chunks_exact_mut(w.max(1))) {
+        upsample_row(src_row, &cols, levels, dst);
     }
-    let mut out = Vec::with_capacity(h * w);
-    for &(a, b, t) in &rows {
+    // The output zeroed by the allocator (fresh pages), then each row one
+    // straight loop that vectorises (an `extend` per row did not).
+    let mut out = vec![0f32; h * w];
+    for (&(a, b, t), dst) in rows.iter().zip(out.chunks_exact_mut(w.max(1))) {
         let (ra, rb) = (&tmp[a * w..][..w], &tmp[b * w..][..w]);
-        out.extend(ra.iter().zip(rb).map(|(&p, &q)| scale * (p + t * (q - p))));
+        for ((o, &p), &q) in dst.iter_mut().zip(ra).zip(rb) {
+            *o = scale * (p + t * (q - p));
+        }
     }
     Array2::from_shape_vec((h, w), out).expect("h x w samples")
 }
@@ -276,6 +323,12 @@ pub fn upsample_levels(src: &Array2<f32>, h: usize, w: usize, levels: usize, sca
 /// [`downsample`] (output k at input 2k + 0.5), with a quarter of its taps,
 /// and far less aliasing than 2x2 block means.
 pub fn downsample_binomial_into(src: &Array2<f32>, tmp: &mut Vec<f32>, out: &mut Array2<f32>) {
+    (super::dsp::imgproc().downsample_binomial)(src, tmp, out)
+}
+
+/// [`downsample_binomial_into`] for any instruction set.
+#[inline(always)]
+pub(crate) fn downsample_binomial_body(src: &Array2<f32>, tmp: &mut Vec<f32>, out: &mut Array2<f32>) {
     let (h, w) = src.dim();
     let (nh, nw) = (h.div_ceil(2), w.div_ceil(2));
     assert_eq!(out.dim(), (nh, nw), "downsample_binomial_into: output size");
@@ -306,11 +359,25 @@ pub fn downsample_binomial_into(src: &Array2<f32>, tmp: &mut Vec<f32>, out: &mut
     // clamping there.
     let inner = if w >= 4 { (w - 3) / 2 + 1 } else { 1 }.min(nw);
     let o = out.as_slice_mut().expect("standard");
+    // The row's even and odd samples apart, so that outputs 1 .. inner,
+    // `0.125 (odd[x-1] + even[x+1]) + 0.375 (even[x] + odd[x])`, are
+    // straight loops over four contiguous slices (the same sums as `tap`).
+    let (mut even, mut odd) = (vec![0f32; nw + 1], vec![0f32; nw + 1]);
     for (row, dst) in tmp.chunks_exact(w).zip(o.chunks_exact_mut(nw)) {
+        for (k, pair) in row.chunks_exact(2).enumerate() {
+            (even[k], odd[k]) = (pair[0], pair[1]);
+        }
+        if w % 2 == 1 {
+            even[w / 2] = row[w - 1];
+        }
         dst[0] = tap(row, 0);
-        for (x, d) in dst.iter_mut().enumerate().take(inner).skip(1) {
-            let q = &row[2 * x - 1..2 * x + 3];
-            *d = 0.125 * (q[0] + q[3]) + 0.375 * (q[1] + q[2]);
+        if inner > 1 {
+            let m = inner - 1;
+            let (a, e) = (&odd[..m], &even[2..m + 2]);
+            let (b, c) = (&even[1..m + 1], &odd[1..m + 1]);
+            for (k, d) in dst[1..inner].iter_mut().enumerate() {
+                *d = 0.125 * (a[k] + e[k]) + 0.375 * (b[k] + c[k]);
+            }
         }
         for (x, d) in dst.iter_mut().enumerate().skip(inner.max(1)) {
             *d = tap(row, x);
@@ -509,6 +576,20 @@ mod tests {
                     "({x},{y}): {} vs {want}",
                     big[[y, x]]
                 );
+            }
+        }
+    }
+
+    #[test]
+    fn upsampling_by_several_levels_matches_bilinear_sampling() {
+        let small = Array2::from_shape_fn((5, 7), |(y, x)| ((x * 13 + y * 7) % 11) as f32 + 0.25 * x as f32);
+        for (levels, h, w) in [(2, 20, 28), (2, 17, 25), (3, 40, 56), (3, 33, 49)] {
+            let f = (1usize << levels) as f32;
+            let big = upsample_levels(&small, h, w, levels, 3.0);
+            for ((y, x), &got) in big.indexed_iter() {
+                let at = |p: usize| (p as f32 + 0.5) / f - 0.5;
+                let want = 3.0 * crate::flow::warp::sample_bilinear(&small, at(x), at(y));
+                assert!((got - want).abs() < 1e-4, "{levels} levels ({x},{y}): {got} vs {want}");
             }
         }
     }

@@ -13,8 +13,21 @@ use ndarray::Array2;
 use super::search::{Padded, SparseFlow};
 
 /// Writes the dense flow of the level into `u`, `v`; `a2` is the second
-/// picture padded as for the search.
+/// picture padded as for the search. By the flow kernels of the CPU level
+/// in force (the AVX2 build: this source compiled for AVX2, the same bits).
 pub(super) fn densify(
+    a1: &Array2<f32>,
+    a2: &Padded,
+    s: &SparseFlow,
+    u: &mut Array2<f32>,
+    v: &mut Array2<f32>,
+) {
+    (crate::flow::dsp::flow().densify)(a1, a2, s, u, v)
+}
+
+/// [`densify`] for any instruction set.
+#[inline(always)]
+pub(crate) fn densify_body(
     a1: &Array2<f32>,
     a2: &Padded,
     s: &SparseFlow,
@@ -31,6 +44,7 @@ pub(super) fn densify(
     }
 }
 
+#[inline(always)]
 fn densify_sized<const P: usize>(
     a1: &Array2<f32>,
     a2: &Padded,

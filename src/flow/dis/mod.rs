@@ -23,7 +23,7 @@
 //! upsampled, as OpenCV's presets do; small pictures are computed finer
 //! (`min_side`).
 
-mod densify;
+pub(crate) mod densify;
 pub(crate) mod search;
 
 use ndarray::Array2;

@@ -230,7 +230,12 @@ impl<const P: usize> Template<P> {
     /// SSD of the mean-removed difference.
     #[inline(always)]
     fn cost(&self, i1: &Padded, x0: usize, y0: usize, u: f32, v: f32, mean_normalize: bool) -> f32 {
-        let [sd, sd2, _, _] = self.residual(i1, x0 as f32 + u, y0 as f32 + v);
+        self.distance(self.residual(i1, x0 as f32 + u, y0 as f32 + v), mean_normalize)
+    }
+
+    /// The patch distance of a [`Template::residual`].
+    #[inline(always)]
+    fn distance(&self, [sd, sd2, _, _]: [f32; 4], mean_normalize: bool) -> f32 {
         if mean_normalize {
             sd2 - sd * sd / (P * P) as f32
         } else {
@@ -279,12 +284,31 @@ impl<const P: usize> Template<P> {
         steps: usize,
         mn: bool,
     ) -> (f32, f32) {
+        self.descend_from(i1, x0, y0, (u, v), None, steps, mn)
+    }
+
+    /// [`Template::descend`], given the residual at the start when the
+    /// caller has it already (the candidates' comparison computes it).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn descend_from(
+        &self,
+        i1: &Padded,
+        x0: usize,
+        y0: usize,
+        (u, v): (f32, f32),
+        mut known: Option<[f32; 4]>,
+        steps: usize,
+        mn: bool,
+    ) -> (f32, f32) {
         let n = (P * P) as f32;
         let (mut u, mut v) = (u, v);
         let mut best = f32::INFINITY;
         let mut last = (u, v);
         for _ in 0..steps {
-            let [sd, sd2, sdx, sdy] = self.residual(i1, x0 as f32 + u, y0 as f32 + v);
+            let [sd, sd2, sdx, sdy] = known
+                .take()
+                .unwrap_or_else(|| self.residual(i1, x0 as f32 + u, y0 as f32 + v));
             let (cost, bx, by) = if mn {
                 (
                     sd2 - sd * sd / n,
@@ -565,17 +589,21 @@ impl StripeContext<'_> {
                     let i = centre(r, c);
                     candidates[2] = Some((hu[i], hv[i]));
                 }
+                let mut known = None;
                 if candidates.iter().any(Option::is_some) {
-                    let mut best = t.cost(self.lv.i1, x0, y0, start.0, start.1, mn);
+                    let residual = |(u, v): (f32, f32)| t.residual(self.lv.i1, x0 as f32 + u, y0 as f32 + v);
+                    let mut best_residual = residual(start);
+                    let mut best = t.distance(best_residual, mn);
                     for cand in candidates.into_iter().flatten() {
-                        let cost = t.cost(self.lv.i1, x0, y0, cand.0, cand.1, mn);
+                        let r = residual(cand);
+                        let cost = t.distance(r, mn);
                         if cost < best {
-                            best = cost;
-                            start = cand;
+                            (best, best_residual, start) = (cost, r, cand);
                         }
                     }
+                    known = Some(best_residual);
                 }
-                let end = t.descend(self.lv.i1, x0, y0, start, steps_per_pass, mn);
+                let end = t.descend_from(self.lv.i1, x0, y0, start, known, steps_per_pass, mn);
                 // A step that runs further than a patch from its start has
                 // most likely left the basin of the right match: keep the start.
                 (su[k], sv[k]) = if (end.0 - start.0).hypot(end.1 - start.1) <= P as f32 {

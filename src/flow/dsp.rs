@@ -34,7 +34,7 @@ pub(crate) struct FlowDsp {
 }
 
 const SCALAR: FlowDsp = FlowDsp {
-    dis_search_level: |input, patch| search_level_body(input, patch),
+    dis_search_level: |input, patch| search_level_body::<false>(input, patch),
     densify: densify_body,
     refine: Refiner::refine_body,
 };
@@ -65,7 +65,7 @@ mod avx2 {
 
     use super::{LevelSearch, Padded, RefineParams, Refiner, SparseFlow};
     crate::codec::compiled_for! { "avx2":
-        fn dis_search_level(input: &LevelSearch, patch: usize) -> SparseFlow => super::search_level_body;
+        fn dis_search_level(input: &LevelSearch, patch: usize) -> SparseFlow => super::search_level_body::<true>;
         fn densify(a1: &Array2<f32>, a2: &Padded, s: &SparseFlow, u: &mut Array2<f32>, v: &mut Array2<f32>)
             => super::densify_body;
         fn refine(r: &mut Refiner, i1: &Array2<f32>, i2: &Array2<f32>, u: &mut Array2<f32>, v: &mut Array2<f32>, p: &RefineParams)

@@ -589,7 +589,10 @@ mod tests {
             for ((y, x), &got) in big.indexed_iter() {
                 let at = |p: usize| (p as f32 + 0.5) / f - 0.5;
                 let want = 3.0 * crate::flow::warp::sample_bilinear(&small, at(x), at(y));
-                assert!((got - want).abs() < 1e-4, "{levels} levels ({x},{y}): {got} vs {want}");
+                assert!(
+                    (got - want).abs() < 1e-4,
+                    "{levels} levels ({x},{y}): {got} vs {want}"
+                );
             }
         }
     }

@@ -158,6 +158,8 @@ struct Template<const P: usize> {
     /// The smaller eigenvalue of the (mean-normalised) Hessian per pixel:
     /// how well the patch pins down motion in every direction.
     texture: f32,
+    /// [`Level::avx2`].
+    avx2: bool,
 }
 
 impl<const P: usize> Template<P> {
@@ -171,6 +173,7 @@ impl<const P: usize> Template<P> {
             mean_gy: 0.0,
             inv: [0.0; 3],
             texture: 0.0,
+            avx2: lv.avx2,
         };
         let (mut sxx, mut sxy, mut syy, mut sx, mut sy) = (0f32, 0f32, 0f32, 0f32, 0f32);
         for r in 0..P {
@@ -211,16 +214,34 @@ impl<const P: usize> Template<P> {
     /// returns (sum d, sum d^2, sum d gx, sum d gy).
     #[inline(always)]
     fn residual(&self, i1: &Padded, x: f32, y: f32) -> [f32; 4] {
-        let (base, [w00, w01, w10, w11]) = i1.patch_at::<P>(x, y);
+        let (base, weights) = i1.patch_at::<P>(x, y);
+        #[cfg(target_arch = "x86_64")]
+        if P == 8 && self.avx2 {
+            // SAFETY: `avx2` is set only by the AVX2 table's entry, which
+            // the tables hand out only on a CPU that runs AVX2.
+            return unsafe {
+                avx2::residual8(
+                    i1,
+                    base,
+                    weights,
+                    [&self.i0, &self.gx, &self.gy].map(|a| a.as_flattened()),
+                )
+            };
+        }
+        let [w00, w01, w10, w11] = weights;
         let (mut sd, mut sd2, mut sdx, mut sdy) = ([0f32; P], [0f32; P], [0f32; P], [0f32; P]);
         for r in 0..P {
             let (top, bot) = i1.rows::<P>(base, r);
+            // Each tap its own P-long slice (two unaligned loads a row
+            // where LLVM otherwise shuffles one load into the other).
+            let (t0, t1, b0, b1) = (&top[..P], &top[1..=P], &bot[..P], &bot[1..=P]);
+            let (i0, gx, gy) = (&self.i0[r], &self.gx[r], &self.gy[r]);
             for c in 0..P {
-                let d = w00 * top[c] + w01 * top[c + 1] + w10 * bot[c] + w11 * bot[c + 1] - self.i0[r][c];
+                let d = w00 * t0[c] + w01 * t1[c] + w10 * b0[c] + w11 * b1[c] - i0[c];
                 sd[c] += d;
                 sd2[c] += d * d;
-                sdx[c] += d * self.gx[r][c];
-                sdy[c] += d * self.gy[r][c];
+                sdx[c] += d * gx[c];
+                sdy[c] += d * gy[c];
             }
         }
         [sd, sd2, sdx, sdy].map(|a| a.iter().sum())
@@ -353,6 +374,9 @@ struct Level<'a> {
     i1: &'a Padded,
     w: usize,
     damping: f32,
+    /// Whether this is the AVX2 build (its table entry): 8-pixel patches
+    /// then sample the second picture with the AVX2 kernel.
+    avx2: bool,
 }
 
 /// What a level's search works on: the two pictures of the level, the
@@ -382,19 +406,20 @@ pub(super) fn search_level(input: &LevelSearch, patch: usize) -> SparseFlow {
 
 /// [`search_level`] for any instruction set.
 #[inline(always)]
-pub(crate) fn search_level_body(input: &LevelSearch, patch: usize) -> SparseFlow {
+/// `AVX2` only in the AVX2 table's entry (it runs [`avx2::residual8`]).
+pub(crate) fn search_level_body<const AVX2: bool>(input: &LevelSearch, patch: usize) -> SparseFlow {
     match patch {
-        16 => search_sized::<16>(input),
-        12 => search_sized::<12>(input),
-        8 => search_sized::<8>(input),
-        4..=7 => search_sized::<4>(input),
-        2..=3 => search_sized::<2>(input),
-        _ => search_sized::<1>(input),
+        16 => search_sized::<16>(input, AVX2),
+        12 => search_sized::<12>(input, AVX2),
+        8 => search_sized::<8>(input, AVX2),
+        4..=7 => search_sized::<4>(input, AVX2),
+        2..=3 => search_sized::<2>(input, AVX2),
+        _ => search_sized::<1>(input, AVX2),
     }
 }
 
 #[inline(always)]
-fn search_sized<const P: usize>(input: &LevelSearch) -> SparseFlow {
+fn search_sized<const P: usize>(input: &LevelSearch, avx2: bool) -> SparseFlow {
     let &LevelSearch {
         a1,
         a2,
@@ -415,6 +440,7 @@ fn search_sized<const P: usize>(input: &LevelSearch) -> SparseFlow {
         i1: a2,
         w,
         damping,
+        avx2,
     };
     let stride = p.stride.min(P);
     let (xs, ys) = (patch_origins(w, P, stride), patch_origins(h, P, stride));
@@ -616,6 +642,77 @@ impl StripeContext<'_> {
     }
 }
 
+/// The second picture's samples over an 8x8 patch with AVX2: the same
+/// operations in the same order as [`Template::residual`]'s loop, a row
+/// of the patch one register (the loop as LLVM vectorises it shuffles one
+/// load into the next instead), so the same bits.
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use std::arch::x86_64::*;
+
+    use super::Padded;
+
+    /// `(sum d, sum d^2, sum d gx, sum d gy)` of `d` the bilinear sample at
+    /// `base` with `weights` minus `i0`, each sum over the rows per column
+    /// and then over the columns in order, as the scalar loop.
+    ///
+    /// # Safety
+    /// The CPU must run AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn residual8(
+        i1: &Padded,
+        base: usize,
+        [w00, w01, w10, w11]: [f32; 4],
+        [i0, gx, gy]: [&[f32]; 3],
+    ) -> [f32; 4] {
+        let s = i1.stride;
+        // Every load below reads data[base + r s ..= base + r s + 8] for r
+        // in 0..=8, and 8 samples from 8 r of the template's rows: checked
+        // once here.
+        assert!(
+            base + 8 * s + 9 <= i1.data.len(),
+            "residual8: patch outside the picture"
+        );
+        assert!(
+            i0.len() == 64 && gx.len() == 64 && gy.len() == 64,
+            "residual8: not an 8x8 template"
+        );
+        let p = i1.data.as_ptr().add(base);
+        let (a, b, c, d) = (
+            _mm256_set1_ps(w00),
+            _mm256_set1_ps(w01),
+            _mm256_set1_ps(w10),
+            _mm256_set1_ps(w11),
+        );
+        let (mut sd, mut sd2, mut sdx, mut sdy) = (
+            _mm256_setzero_ps(),
+            _mm256_setzero_ps(),
+            _mm256_setzero_ps(),
+            _mm256_setzero_ps(),
+        );
+        for r in 0..8 {
+            let (top, bot) = (p.add(r * s), p.add((r + 1) * s));
+            let mut e = _mm256_add_ps(
+                _mm256_mul_ps(a, _mm256_loadu_ps(top)),
+                _mm256_mul_ps(b, _mm256_loadu_ps(top.add(1))),
+            );
+            e = _mm256_add_ps(e, _mm256_mul_ps(c, _mm256_loadu_ps(bot)));
+            e = _mm256_add_ps(e, _mm256_mul_ps(d, _mm256_loadu_ps(bot.add(1))));
+            e = _mm256_sub_ps(e, _mm256_loadu_ps(i0.as_ptr().add(8 * r)));
+            sd = _mm256_add_ps(sd, e);
+            sd2 = _mm256_add_ps(sd2, _mm256_mul_ps(e, e));
+            sdx = _mm256_add_ps(sdx, _mm256_mul_ps(e, _mm256_loadu_ps(gx.as_ptr().add(8 * r))));
+            sdy = _mm256_add_ps(sdy, _mm256_mul_ps(e, _mm256_loadu_ps(gy.as_ptr().add(8 * r))));
+        }
+        let lanes = |v: __m256| {
+            let mut out = [0f32; 8];
+            _mm256_storeu_ps(out.as_mut_ptr(), v);
+            out
+        };
+        [sd, sd2, sdx, sdy].map(|v| lanes(v).iter().sum())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -666,7 +763,7 @@ mod tests {
                     exhaustive: global,
                     damping: params.damping,
                 };
-                let plain = search_level_body(&input, patch);
+                let plain = search_level_body::<false>(&input, patch);
                 for level in crate::codec::cpu::available() {
                     let wide = (crate::flow::dsp::FLOW.at(level).dis_search_level)(&input, patch);
                     assert!(

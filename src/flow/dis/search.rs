@@ -220,8 +220,9 @@ impl<const P: usize> Template<P> {
             // SAFETY: `avx2` is set only by the AVX2 table's entry, which
             // the tables hand out only on a CPU that runs AVX2.
             return unsafe {
-                avx2::residual8(
-                    i1,
+                crate::flow::dsp::x86::dis_residual8(
+                    &i1.data,
+                    i1.stride,
                     base,
                     weights,
                     [&self.i0, &self.gx, &self.gy].map(|a| a.as_flattened()),
@@ -404,9 +405,9 @@ pub(super) fn search_level(input: &LevelSearch, patch: usize) -> SparseFlow {
     (crate::flow::dsp::flow().dis_search_level)(input, patch)
 }
 
-/// [`search_level`] for any instruction set.
+/// [`search_level`] for any instruction set; `AVX2` only in the AVX2
+/// table's entry (8x8 patches then run `dsp::x86::dis_residual8`).
 #[inline(always)]
-/// `AVX2` only in the AVX2 table's entry (it runs [`avx2::residual8`]).
 pub(crate) fn search_level_body<const AVX2: bool>(input: &LevelSearch, patch: usize) -> SparseFlow {
     match patch {
         16 => search_sized::<16>(input, AVX2),
@@ -639,77 +640,6 @@ impl StripeContext<'_> {
                 };
             }
         }
-    }
-}
-
-/// The second picture's samples over an 8x8 patch with AVX2: the same
-/// operations in the same order as [`Template::residual`]'s loop, a row
-/// of the patch one register (the loop as LLVM vectorises it shuffles one
-/// load into the next instead), so the same bits.
-#[cfg(target_arch = "x86_64")]
-mod avx2 {
-    use std::arch::x86_64::*;
-
-    use super::Padded;
-
-    /// `(sum d, sum d^2, sum d gx, sum d gy)` of `d` the bilinear sample at
-    /// `base` with `weights` minus `i0`, each sum over the rows per column
-    /// and then over the columns in order, as the scalar loop.
-    ///
-    /// # Safety
-    /// The CPU must run AVX2.
-    #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn residual8(
-        i1: &Padded,
-        base: usize,
-        [w00, w01, w10, w11]: [f32; 4],
-        [i0, gx, gy]: [&[f32]; 3],
-    ) -> [f32; 4] {
-        let s = i1.stride;
-        // Every load below reads data[base + r s ..= base + r s + 8] for r
-        // in 0..=8, and 8 samples from 8 r of the template's rows: checked
-        // once here.
-        assert!(
-            base + 8 * s + 9 <= i1.data.len(),
-            "residual8: patch outside the picture"
-        );
-        assert!(
-            i0.len() == 64 && gx.len() == 64 && gy.len() == 64,
-            "residual8: not an 8x8 template"
-        );
-        let p = i1.data.as_ptr().add(base);
-        let (a, b, c, d) = (
-            _mm256_set1_ps(w00),
-            _mm256_set1_ps(w01),
-            _mm256_set1_ps(w10),
-            _mm256_set1_ps(w11),
-        );
-        let (mut sd, mut sd2, mut sdx, mut sdy) = (
-            _mm256_setzero_ps(),
-            _mm256_setzero_ps(),
-            _mm256_setzero_ps(),
-            _mm256_setzero_ps(),
-        );
-        for r in 0..8 {
-            let (top, bot) = (p.add(r * s), p.add((r + 1) * s));
-            let mut e = _mm256_add_ps(
-                _mm256_mul_ps(a, _mm256_loadu_ps(top)),
-                _mm256_mul_ps(b, _mm256_loadu_ps(top.add(1))),
-            );
-            e = _mm256_add_ps(e, _mm256_mul_ps(c, _mm256_loadu_ps(bot)));
-            e = _mm256_add_ps(e, _mm256_mul_ps(d, _mm256_loadu_ps(bot.add(1))));
-            e = _mm256_sub_ps(e, _mm256_loadu_ps(i0.as_ptr().add(8 * r)));
-            sd = _mm256_add_ps(sd, e);
-            sd2 = _mm256_add_ps(sd2, _mm256_mul_ps(e, e));
-            sdx = _mm256_add_ps(sdx, _mm256_mul_ps(e, _mm256_loadu_ps(gx.as_ptr().add(8 * r))));
-            sdy = _mm256_add_ps(sdy, _mm256_mul_ps(e, _mm256_loadu_ps(gy.as_ptr().add(8 * r))));
-        }
-        let lanes = |v: __m256| {
-            let mut out = [0f32; 8];
-            _mm256_storeu_ps(out.as_mut_ptr(), v);
-            out
-        };
-        [sd, sd2, sdx, sdy].map(|v| lanes(v).iter().sum())
     }
 }
 

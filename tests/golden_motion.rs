@@ -116,7 +116,7 @@ fn flows_vectors_matches_and_metrics_are_the_pinned_ones() {
         (
             "synth_qcif.y4m",
             [
-                0x2b8f65bb1f8a8e01,
+                0xf41f2c09aaa501e1,
                 0x11f1d4bcf10788b8,
                 0xa2fb325df39cca87,
                 0xb358b4003541484c,
@@ -125,7 +125,7 @@ fn flows_vectors_matches_and_metrics_are_the_pinned_ones() {
         (
             "tree_qcif.y4m",
             [
-                0x6f8982cbc06adb1c,
+                0xbd4a31fdd9a9e63b,
                 0x9bb4fee41451bfa5,
                 0xe9545a0776768122,
                 0x352f2880649a8813,

@@ -219,6 +219,9 @@ pub struct FlowOptions {
     pub global_search: bool,
     /// DIS: each patch also started from the nearest feature match.
     pub matches: bool,
+    /// DIS: small pictures computed a level finer than the preset's
+    /// ([`DisParams::fine_on_small`]; `finest` overrides it).
+    pub fine_on_small: bool,
 }
 
 /// An option outside its range.
@@ -300,7 +303,11 @@ impl FlowOptions {
 
     /// The DIS settings: the preset's, with the options.
     pub fn dis_params(&self) -> DisParams {
-        let base = dis_preset(self.preset);
+        let base = if self.fine_on_small {
+            dis_preset(self.preset).fine_on_small()
+        } else {
+            dis_preset(self.preset)
+        };
         DisParams {
             global_search: self.global_search,
             seed_matches: base.seed_matches || self.matches,
@@ -337,13 +344,15 @@ impl FlowEstimator {
     }
 
     /// The method with its own default settings (`LkParams::default()`,
-    /// `HsParams::default()`, DIS medium, `Tvl1Params::default()`): what
-    /// the encoder's flow predictors use.
+    /// `HsParams::default()`, DIS medium finer on small pictures,
+    /// `Tvl1Params::default()`): what the encoder's flow predictors use.
     pub fn with_defaults(method: FlowMethod) -> FlowEstimator {
         match method {
             FlowMethod::Lk => FlowEstimator::Lk(Box::new(Lk::new(LkParams::default()))),
             FlowMethod::Hs => FlowEstimator::Hs(HsParams::default()),
-            FlowMethod::Dis => FlowEstimator::Dis(Box::new(Dis::new(DisParams::preset(DisPreset::Medium)))),
+            FlowMethod::Dis => FlowEstimator::Dis(Box::new(Dis::new(
+                DisParams::preset(DisPreset::Medium).fine_on_small(),
+            ))),
             FlowMethod::Tvl1 => FlowEstimator::Tvl1(Tvl1Params::default()),
         }
     }

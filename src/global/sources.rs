@@ -56,6 +56,7 @@ impl PairCorrespondences {
     pub fn new(source: Source, preset: Preset) -> PairCorrespondences {
         let options = FlowOptions {
             preset,
+            fine_on_small: true,
             ..FlowOptions::default()
         };
         PairCorrespondences {

@@ -93,6 +93,7 @@ impl Interpolator {
         }
         let options = FlowOptions {
             preset: params.preset,
+            fine_on_small: true,
             ..FlowOptions::default()
         };
         let make = || FlowEstimator::new(&options).map_err(|e| InterpolateError::Params(e.to_string()));

@@ -102,6 +102,7 @@ impl Segmenter {
         }
         let options = FlowOptions {
             preset: params.preset,
+            fine_on_small: true,
             ..FlowOptions::default()
         };
         let make = || FlowEstimator::new(&options).map_err(|e| SegmentError::Params(e.to_string()));

@@ -20,8 +20,9 @@
 //! The coarsest level is chosen so that it is a few patches across (motion
 //! of a quarter of the picture stays within reach); the finest level
 //! computed can stop above full size (`finest`), the flow then being
-//! upsampled, as OpenCV's presets do; small pictures are computed finer
-//! (`min_side`).
+//! upsampled, as OpenCV's presets do, at every picture size; small
+//! pictures can be computed finer (`min_side`, [`DisParams::fine_on_small`]:
+//! more accurate, for 2-4 times the time).
 
 pub(crate) mod densify;
 pub(crate) mod search;
@@ -44,7 +45,8 @@ pub struct DisParams {
     /// 8 pixels on a CIF picture at quarter size (88x72) cover too much of
     /// it; OpenCV's presets, with a fixed level, were made for pictures of
     /// 640 and more, where this changes nothing. 0 keeps `finest` at
-    /// every size.
+    /// every size, as the presets do (OpenCV's time on small pictures);
+    /// [`DisParams::fine_on_small`] sets it.
     pub min_side: usize,
     /// Coarsest level; `None` chooses it from the picture size (the level
     /// at which the picture is about four patches across).
@@ -102,11 +104,14 @@ pub enum DisPreset {
 }
 
 impl DisParams {
-    /// The settings of a preset.
+    /// The settings of a preset: OpenCV's pyramid levels at every size
+    /// (its finest level 2 for ultrafast and fast, 1 for medium), so that
+    /// each preset takes no more than OpenCV's preset of the same name on
+    /// small pictures too (see the README's side-by-side).
     pub fn preset(preset: DisPreset) -> DisParams {
         let base = DisParams {
             finest: 2,
-            min_side: 160,
+            min_side: 0,
             coarsest: None,
             patch: 8,
             stride: 4,
@@ -130,7 +135,6 @@ impl DisParams {
             DisPreset::Fast => base,
             DisPreset::Medium => DisParams {
                 finest: 1,
-                min_side: 320,
                 stride: 3,
                 iterations: 25,
                 ..base
@@ -144,6 +148,23 @@ impl DisParams {
                 ..base
             },
         }
+    }
+
+    /// These settings computed a level finer on small pictures (the level
+    /// whose longer side is nearest 160 pixels for ultrafast and fast, 320
+    /// for medium, where that is finer than `finest`): CIF at half size
+    /// (fast) or full size (medium). About half the end-point error of
+    /// OpenCV's preset there, for 2-4 times its time; what the
+    /// applications (global motion, stabilisation, interpolation,
+    /// segmentation) and the encoder's flow predictors use. A preset whose
+    /// `finest` is 0 is unchanged.
+    pub fn fine_on_small(self) -> DisParams {
+        let min_side = match self.finest {
+            0 => 0,
+            1 => 320,
+            _ => 160,
+        };
+        DisParams { min_side, ..self }
     }
 
     /// Checks the settings, saying which is out of range.
@@ -373,10 +394,10 @@ mod tests {
     #[test]
     fn small_pictures_are_computed_finer() {
         let (fast, medium) = (
-            DisParams::preset(DisPreset::Fast),
-            DisParams::preset(DisPreset::Medium),
+            DisParams::preset(DisPreset::Fast).fine_on_small(),
+            DisParams::preset(DisPreset::Medium).fine_on_small(),
         );
-        let ultrafast = DisParams::preset(DisPreset::Ultrafast);
+        let ultrafast = DisParams::preset(DisPreset::Ultrafast).fine_on_small();
         // 640 and more: the preset's level, as OpenCV's.
         assert_eq!(finest_level(640, 480, &fast), 2);
         assert_eq!(finest_level(640, 480, &medium), 1);
@@ -391,6 +412,22 @@ mod tests {
         assert_eq!(finest_level(160, 120, &ultrafast), 1);
         let fixed = DisParams { min_side: 0, ..fast };
         assert_eq!(finest_level(352, 288, &fixed), 2);
+        // The presets themselves: OpenCV's level at every size.
+        for (preset, level) in [
+            (DisPreset::Ultrafast, 2),
+            (DisPreset::Fast, 2),
+            (DisPreset::Medium, 1),
+        ] {
+            for (w, h) in [(1280, 720), (640, 480), (352, 288), (176, 144)] {
+                assert_eq!(
+                    finest_level(w, h, &DisParams::preset(preset)),
+                    level,
+                    "{preset:?} {w}x{h}"
+                );
+            }
+        }
+        let accurate = DisParams::preset(DisPreset::Accurate);
+        assert_eq!(accurate.fine_on_small(), accurate);
     }
 
     #[test]

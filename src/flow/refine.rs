@@ -160,11 +160,23 @@ fn derivatives(f: &[f32], g: &Padded, dx: &mut [f32], dy: &mut [f32]) {
     for y in 0..h {
         let (up, down) = (g.at(0, y.saturating_sub(1)), g.at(0, (y + 1).min(h - 1)));
         let row = g.at(0, y);
-        for x in 0..w {
-            let (l, r) = (x.saturating_sub(1), (x + 1).min(w - 1));
-            dx[row + x] = 0.5 * (f[row + r] - f[row + l]);
-            dy[row + x] = 0.5 * (f[down + x] - f[up + x]);
+        // Whole rows as straight loops (the edges' clamped taps apart).
+        let (fu, fd) = (&f[up..up + w], &f[down..down + w]);
+        for ((o, &a), &b) in dy[row..row + w].iter_mut().zip(fd).zip(fu) {
+            *o = 0.5 * (a - b);
         }
+        let (fr, out) = (&f[row..row + w], &mut dx[row..row + w]);
+        if w < 3 {
+            for x in 0..w {
+                out[x] = 0.5 * (fr[(x + 1).min(w - 1)] - fr[x.saturating_sub(1)]);
+            }
+            continue;
+        }
+        out[0] = 0.5 * (fr[1] - fr[0]);
+        for ((o, &a), &b) in out[1..w - 1].iter_mut().zip(&fr[2..]).zip(&fr[..w - 2]) {
+            *o = 0.5 * (a - b);
+        }
+        out[w - 1] = 0.5 * (fr[w - 1] - fr[w - 2]);
     }
 }
 
@@ -372,11 +384,6 @@ impl Sweeps {
         }
     }
 
-    /// Colour and index of pixel (x, y).
-    fn at(&self, x: usize, y: usize) -> (usize, usize) {
-        ((x + y) % 2, (y + 1) * self.wc + x / 2 + 1)
-    }
-
     /// Folds what the sweeps do not change into per-pixel constants (the
     /// increment itself stays in the split layout between iterations): with
     /// `c = b + sum_n e_n (w_n - w)` (the neighbours' current flow) and the
@@ -470,10 +477,18 @@ impl Sweeps {
     #[inline(always)]
     fn unfold(&self, du: &mut [f32], dv: &mut [f32], g: &Padded) {
         for y in 0..g.h {
-            for x in 0..g.w {
-                let (c, k) = self.at(x, y);
-                du[g.at(x, y)] = self.du[c][k];
-                dv[g.at(x, y)] = self.dv[c][k];
+            let (row, split) = (g.at(0, y)..g.at(0, y) + g.w, (y + 1) * self.wc + 1);
+            for c in 0..2 {
+                // This colour's pixels of row y, x = first + 2k, are samples
+                // k of its colour row (after one of padding).
+                let first = (y + c) % 2;
+                let (su, sv) = (&self.du[c][split..], &self.dv[c][split..]);
+                for (d, &v) in du[row.clone()].iter_mut().skip(first).step_by(2).zip(su) {
+                    *d = v;
+                }
+                for (d, &v) in dv[row.clone()].iter_mut().skip(first).step_by(2).zip(sv) {
+                    *d = v;
+                }
             }
         }
     }
@@ -609,10 +624,12 @@ impl Refiner {
             sweeps.unfold(du, dv, g);
         }
         for y in 0..h {
-            for x in 0..w {
-                let i = g.at(x, y);
-                us[y * w + x] += du[i];
-                vs[y * w + x] += dv[i];
+            let row = g.at(0, y)..g.at(0, y) + w;
+            for (o, &d) in us[y * w..(y + 1) * w].iter_mut().zip(&du[row.clone()]) {
+                *o += d;
+            }
+            for (o, &d) in vs[y * w..(y + 1) * w].iter_mut().zip(&dv[row]) {
+                *o += d;
             }
         }
     }

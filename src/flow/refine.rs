@@ -329,8 +329,12 @@ impl System {
 #[inline(always)]
 fn every_other(dst: &mut [f32], src: &[f32]) {
     let pairs = dst.len().min(src.len() / 2);
-    for (d, s) in dst.iter_mut().zip(src[..2 * pairs].chunks_exact(2)) {
-        *d = s[0];
+    // Both cut to length first: a plain indexed loop without bounds checks
+    // (over two-sample chunks it cost the fast preset 5 % more
+    // instructions on CIF).
+    let (d, s) = (&mut dst[..pairs], &src[..2 * pairs]);
+    for k in 0..pairs {
+        d[k] = s[2 * k];
     }
     if pairs < dst.len() {
         dst[pairs] = src[2 * pairs];

@@ -657,6 +657,40 @@ fn flow_by_dense_inverse_search_and_the_benchmark_generator() {
     assert_eq!(v["method"], "dis");
     // A pan of (2.3, -1.4) px with zoom and rotation: measured EPE 0.13 px.
     assert!(v["epe"].as_f64().unwrap() < 0.3, "{v}");
+    // --fine-on-small computes this 96x64 pair at full size, as --finest 0
+    // does, instead of the fast preset's quarter size, and is more accurate.
+    let fast = |extra: &[&str], out: &str| {
+        json_stdout(
+            mocomp()
+                .args([
+                    "flow",
+                    case.join("frame1.png").to_str().unwrap(),
+                    case.join("frame2.png").to_str().unwrap(),
+                    "--preset",
+                    "fast",
+                    "--json",
+                    "--gt",
+                    case.join("gt.flo").to_str().unwrap(),
+                    "-o",
+                    dir.path().join(out).to_str().unwrap(),
+                ])
+                .args(extra),
+        )["epe"]
+            .as_f64()
+            .unwrap()
+    };
+    let (plain, fine, full) = (
+        fast(&[], "plain.flo"),
+        fast(&["--fine-on-small"], "fine.flo"),
+        fast(&["--finest", "0"], "full.flo"),
+    );
+    let read = |f: &str| std::fs::read(dir.path().join(f)).unwrap();
+    assert_eq!(read("fine.flo"), read("full.flo"));
+    assert_ne!(read("fine.flo"), read("plain.flo"));
+    assert!(
+        fine < plain && fine == full,
+        "fine {fine}, plain {plain}, full {full}"
+    );
     mocomp()
         .args(["flowbench", "--out", pairs.to_str().unwrap(), "--width", "8"])
         .args(photos.iter().map(|p| p.to_str().unwrap()))

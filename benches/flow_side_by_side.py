@@ -39,6 +39,9 @@ import sys
 
 import numpy as np
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "flowbench"))
+from evaluate import read_flo  # noqa: E402  (the flow benchmark's reader)
+
 PRESETS = ("ultrafast", "fast", "medium")
 
 # tx, ty (px), rotation (degrees), zoom: the motions of the earlier notes.
@@ -49,14 +52,6 @@ MOTIONS = {
     "room_400": (25, 20, 1.5, 0.98),
     "smile_360p": (12, -8, 0.8, 1.01),
 }
-
-
-def read_flo(path):
-    with open(path, "rb") as f:
-        if np.fromfile(f, "<f4", 1)[0] != np.float32(202021.25):
-            raise ValueError(path + ": not a .flo")
-        w, h = (int(x) for x in np.fromfile(f, "<i4", 2))
-        return np.fromfile(f, "<f4", 2 * w * h).reshape(h, w, 2)
 
 
 def epe(est, gt, mask=None):

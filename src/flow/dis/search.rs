@@ -233,16 +233,12 @@ impl<const P: usize> Template<P> {
         let (mut sd, mut sd2, mut sdx, mut sdy) = ([0f32; P], [0f32; P], [0f32; P], [0f32; P]);
         for r in 0..P {
             let (top, bot) = i1.rows::<P>(base, r);
-            // Each tap its own P-long slice (two unaligned loads a row
-            // where LLVM otherwise shuffles one load into the other).
-            let (t0, t1, b0, b1) = (&top[..P], &top[1..=P], &bot[..P], &bot[1..=P]);
-            let (i0, gx, gy) = (&self.i0[r], &self.gx[r], &self.gy[r]);
             for c in 0..P {
-                let d = w00 * t0[c] + w01 * t1[c] + w10 * b0[c] + w11 * b1[c] - i0[c];
+                let d = w00 * top[c] + w01 * top[c + 1] + w10 * bot[c] + w11 * bot[c + 1] - self.i0[r][c];
                 sd[c] += d;
                 sd2[c] += d * d;
-                sdx[c] += d * gx[c];
-                sdy[c] += d * gy[c];
+                sdx[c] += d * self.gx[r][c];
+                sdy[c] += d * self.gy[r][c];
             }
         }
         [sd, sd2, sdx, sdy].map(|a| a.iter().sum())

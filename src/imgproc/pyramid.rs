@@ -252,7 +252,7 @@ fn linear_taps(n: usize, n_src: usize, levels: usize) -> Vec<(usize, usize, f32)
 /// the row goes an interval at a time without looking the taps up; the
 /// same sums as the taps give.
 #[inline(always)]
-fn upsample_row(src: &[f32], cols: &[(usize, usize, f32)], levels: usize, dst: &mut [f32]) {
+fn upsample_row(src: &[f32], cols: &[(usize, usize, f32)], levels: usize, ts: &[f32], dst: &mut [f32]) {
     let (f, w) = (1usize << levels, dst.len());
     let half = f / 2;
     // Interval i (between samples i and i + 1) holds outputs
@@ -266,10 +266,9 @@ fn upsample_row(src: &[f32], cols: &[(usize, usize, f32)], levels: usize, dst: &
     if levels == 0 {
         return;
     }
-    let ts: Vec<f32> = (0..f).map(|j| (j as f32 + 0.5) / f as f32).collect();
     for (i, out) in dst[half..half + f * full].chunks_exact_mut(f).enumerate() {
         let (p, q) = (src[i], src[i + 1]);
-        for (o, &t) in out.iter_mut().zip(&ts) {
+        for (o, &t) in out.iter_mut().zip(ts) {
             *o = p + t * (q - p);
         }
     }
@@ -301,9 +300,12 @@ pub(crate) fn upsample_levels_body(
     let (cols, rows) = (linear_taps(w, sw, levels), linear_taps(h, sh, levels));
     // Rows first: (sh, w). Both buffers are filled by extension, not
     // zeroed first: at full size the zeroing would cost a pass of its own.
+    // The weights inside an interval, t = (j + 0.5) / 2^levels.
+    let f = 1usize << levels;
+    let ts: Vec<f32> = (0..f).map(|j| (j as f32 + 0.5) / f as f32).collect();
     let mut tmp = vec![0f32; sh * w];
     for (src_row, dst) in s.chunks_exact(sw).zip(tmp.chunks_exact_mut(w.max(1))) {
-        upsample_row(src_row, &cols, levels, dst);
+        upsample_row(src_row, &cols, levels, &ts, dst);
     }
     // The output zeroed by the allocator (fresh pages), then each row one
     // straight loop that vectorises (an `extend` per row did not).

@@ -31,7 +31,7 @@ use ndarray::Array2;
 
 use super::refine::{RefineParams, Refiner};
 use super::Flow;
-use crate::imgproc::pyramid::{upsample2, upsample_levels, Pyramid};
+use crate::imgproc::pyramid::{parallel_worth, upsample2, upsample_levels, Pyramid};
 
 /// Settings of dense inverse search.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -301,13 +301,17 @@ impl Dis {
         let (h0, w0) = i1.dim();
         let coarsest = p.coarsest.unwrap_or_else(|| coarsest_level(w0, h0, p.patch));
         let finest = finest_level(w0, h0, &p).min(coarsest);
-        if finest == 0 {
-            self.p1.build_binomial(i1, coarsest + 1, 1);
-            self.p2.build_binomial(i2, coarsest + 1, 1);
-        } else {
-            self.p1.build_binomial_above_full_size(i1, coarsest + 1, 1);
-            self.p2.build_binomial_above_full_size(i2, coarsest + 1, 1);
-        }
+        // The two pyramids, and at the end the two components, are
+        // independent: one worker each where there are two.
+        let build = |p: &mut Pyramid, img: &Array2<f32>| {
+            if finest == 0 {
+                p.build_binomial(img, coarsest + 1, 1);
+            } else {
+                p.build_binomial_above_full_size(img, coarsest + 1, 1);
+            }
+        };
+        let (p1, p2) = (&mut self.p1, &mut self.p2);
+        both(parallel_worth(w0 * h0), || build(p1, i1), || build(p2, i2));
         let top = self.p1.levels.len() - 1;
         self.refiners.resize_with(top + 1, Refiner::default);
         let (mut u, mut v) = (
@@ -354,10 +358,26 @@ impl Dis {
         }
         if finest > 0 {
             let f = (1usize << finest) as f32;
-            u = upsample_levels(&u, h0, w0, finest, f);
-            v = upsample_levels(&v, h0, w0, finest, f);
+            (u, v) = both(
+                parallel_worth(w0 * h0),
+                || upsample_levels(&u, h0, w0, finest, f),
+                || upsample_levels(&v, h0, w0, finest, f),
+            );
         }
         Flow::from_uv(u, v)
+    }
+}
+
+/// `a()` and `b()`, on two workers when `parallel` (the same results).
+fn both<A: Send, B: Send>(
+    parallel: bool,
+    a: impl FnOnce() -> A + Send,
+    b: impl FnOnce() -> B + Send,
+) -> (A, B) {
+    if parallel {
+        rayon::join(a, b)
+    } else {
+        (a(), b())
     }
 }
 

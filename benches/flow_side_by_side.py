@@ -21,8 +21,9 @@ other, which goes first alternating; this is done `--rounds` times. The
 time ratio is the median over rounds of each round's ratio (a pair of runs
 seconds apart sees the same machine: single times here drift by 1.5x
 between minutes), the times the medians over rounds. Both flows are scored
-by this script with one code: EPE over every pixel and over the pixels
-whose true destination is inside frame 2.
+by this script with one code: EPE over every pixel (printed), and in the
+CSV also over the pixels whose true destination is inside frame 2 and
+over those whose content leaves it.
 
 Printed: per pair and preset, mocomp's and DIS's ms and EPE, the time
 ratio, and whether mocomp is no slower and no less accurate (the bar of
@@ -142,7 +143,9 @@ def main():
                              preset=p, mocomp_ms=float(np.median(tm)), dis_ms=float(np.median(td)),
                              ratio=float(np.median([m / c for m, c in zip(tm, td)])),
                              mocomp_epe=epe(fm, gt), dis_epe=epe(fd, gt),
-                             mocomp_epe_inside=epe(fm, gt, inside), dis_epe_inside=epe(fd, gt, inside)))
+                             mocomp_epe_inside=epe(fm, gt, inside), dis_epe_inside=epe(fd, gt, inside),
+                             mocomp_epe_leaving=epe(fm, gt, ~inside), dis_epe_leaving=epe(fd, gt, ~inside),
+                             leaving_share=float(1 - inside.mean())))
         print("%s done" % name, file=sys.stderr, flush=True)
     report(rows)
     if a.csv:

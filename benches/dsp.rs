@@ -200,6 +200,9 @@ fn analysis_tables(c: &mut Criterion) {
     let kernel = [0.0625f32, 0.25, 0.375, 0.25, 0.0625];
     let picture = ndarray::Array2::from_shape_vec((288, 352), src.clone()).unwrap();
     let (mut half, mut scratch) = (ndarray::Array2::zeros((144, 176)), Vec::new());
+    let bytes = ndarray::Array2::from_shape_vec((288, 352), a[..288 * 352].to_vec()).unwrap();
+    let quarter = ndarray::Array2::from_shape_fn((72, 88), |(y, x)| (x as f32 - y as f32) * 0.25);
+    let mut pairs = vec![0f32; 2 * 288 * 352];
     levels(c, "imgproc", &IMGPROC, |g, t, l| {
         bench(g, "filter_rows_32_rows", l, || {
             (t.filter_rows)(black_box(&src[..352 * 32]), 352, &kernel, &mut dst)
@@ -208,10 +211,16 @@ fn analysis_tables(c: &mut Criterion) {
             (t.filter_cols)(black_box(&src), 288, 352, 64, &kernel, &mut dst)
         });
         bench(g, "downsample_binomial_cif", l, || {
-            (t.downsample_binomial)(black_box(&picture), &mut scratch, &mut half)
+            (t.downsample_binomial)(black_box(picture.view()), &mut scratch, &mut half)
+        });
+        bench(g, "downsample_binomial_u8_cif", l, || {
+            (t.downsample_binomial_u8)(black_box(bytes.view()), &mut scratch, &mut half)
         });
         bench(g, "upsample_1_level_to_cif", l, || {
             (t.upsample_levels)(black_box(&half), 288, 352, 1, 2.0)
+        });
+        bench(g, "upsample_pair_2_levels_to_cif", l, || {
+            (t.upsample_levels_pair)(black_box(&quarter), &quarter, (288, 352), 2, 4.0, 0, &mut pairs)
         });
     });
     let words: Vec<[u64; 4]> = a

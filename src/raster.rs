@@ -17,6 +17,15 @@ pub fn plane_to_array(plane: &Plane) -> Array2<f32> {
     out
 }
 
+/// The visible pixels of a plane, `[[y, x]]`.
+pub fn plane_to_u8_array(plane: &Plane) -> Array2<u8> {
+    let mut out = Array2::zeros((plane.height(), plane.width()));
+    for (mut dst, src) in out.rows_mut().into_iter().zip(plane.rows()) {
+        dst.iter_mut().zip(src).for_each(|(d, &s)| *d = s);
+    }
+    out
+}
+
 /// A plane from a float field: rounded to nearest, clamped to 0..=255.
 pub fn array_to_plane(values: &Array2<f32>) -> Result<Plane, PictureError> {
     let (h, w) = values.dim();

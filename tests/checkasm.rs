@@ -411,7 +411,9 @@ fn image_filters() {
             filter_rows,
             filter_cols,
             downsample_binomial,
+            downsample_binomial_u8,
             upsample_levels,
+            upsample_levels_pair,
         } = *t;
         let mut r = Random(8);
         for (w, h) in [(101, 75), (16, 3), (5, 40)] {
@@ -442,9 +444,14 @@ fn image_filters() {
                 Array2::zeros((h.div_ceil(2), w.div_ceil(2))),
                 Array2::zeros((h.div_ceil(2), w.div_ceil(2))),
             );
-            downsample_binomial(&src, &mut Vec::new(), &mut a);
-            (s.downsample_binomial)(&src, &mut Vec::new(), &mut b);
+            downsample_binomial(src.view(), &mut Vec::new(), &mut a);
+            (s.downsample_binomial)(src.view(), &mut Vec::new(), &mut b);
             assert!(same(&a, &b), "{isa} binomial halving {w}x{h}");
+            let bytes = Array2::from_shape_fn((h, w), |_| r.byte());
+            downsample_binomial_u8(bytes.view(), &mut Vec::new(), &mut a);
+            (s.downsample_binomial_u8)(bytes.view(), &mut Vec::new(), &mut b);
+            assert!(same(&a, &b), "{isa} binomial halving of bytes {w}x{h}");
+            let other = src.mapv(|x| 0.5 - x);
             for levels in 0..4 {
                 let (uh, uw) = (h << levels, (w << levels).saturating_sub(levels));
                 let (a, b) = (
@@ -453,6 +460,15 @@ fn image_filters() {
                 );
                 assert_eq!(a.dim(), (uh, uw));
                 assert!(same(&a, &b), "{isa} upsample {w}x{h} by {levels} levels");
+                // From a middle row to the end, as a worker's half does.
+                let y0 = uh / 3;
+                let (mut a, mut b) = (vec![0f32; 2 * (uh - y0) * uw], vec![1f32; 2 * (uh - y0) * uw]);
+                upsample_levels_pair(&src, &other, (uh, uw), levels, 1.5, y0, &mut a);
+                (s.upsample_levels_pair)(&src, &other, (uh, uw), levels, 1.5, y0, &mut b);
+                assert!(
+                    a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
+                    "{isa} upsample pair {w}x{h} by {levels} levels"
+                );
             }
         }
     });

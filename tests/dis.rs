@@ -8,6 +8,7 @@ mod common;
 use common::{translated, visible_epe};
 use mocomp::flow::dis::{dis_flow, Dis, DisParams, DisPreset};
 use mocomp::flow::Flow;
+use mocomp::imgproc::Luma;
 use mocomp::metrics::flow_errors;
 use ndarray::Array2;
 
@@ -133,6 +134,39 @@ fn results_do_not_depend_on_the_number_of_threads() {
         })
     };
     assert!(run(1) == run(3), "DIS differs between 1 and 3 threads");
+}
+
+#[test]
+fn bytes_in_and_pairs_out_give_the_same_flow() {
+    // Whole-pixel grey levels, so that the 8-bit pictures hold them exactly.
+    let (i1, i2, _) = translated(512, 384, 5.5, -3.25);
+    let (b1, b2) = (i1.mapv(|x| x.round() as u8), i2.mapv(|x| x.round() as u8));
+    let (f1, f2) = (b1.mapv(f32::from), b2.mapv(f32::from));
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        for p in [DisPreset::Ultrafast, DisPreset::Fast, DisPreset::Medium] {
+            for params in [preset(p), preset(p).fine_on_small()] {
+                let mut dis = Dis::new(params);
+                let want = pool.install(|| dis.compute(&f1, &f2));
+                let from_bytes =
+                    pool.install(|| dis.compute_luma(Luma::U8(b1.view()), Luma::U8(b2.view()), None));
+                assert!(from_bytes == want, "{p:?} from bytes, {threads} threads");
+                let mut pairs = vec![f32::NAN; 2 * 512 * 384];
+                pool.install(|| {
+                    dis.compute_interleaved(Luma::U8(b1.view()), Luma::U8(b2.view()), &mut pairs)
+                });
+                let mut planar = vec![0f32; 2 * 512 * 384];
+                want.write_interleaved(&mut planar);
+                assert!(
+                    pairs.iter().zip(&planar).all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "{p:?} interleaved, {threads} threads"
+                );
+            }
+        }
+    }
 }
 
 #[test]

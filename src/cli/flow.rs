@@ -14,7 +14,7 @@ use crate::flow::warp::warp_bilinear;
 use crate::flow::{Flow, FlowEstimator, FlowMethod, FlowOptions, Preset};
 use crate::io::{flo, image, y4m::Y4mReader};
 use crate::metrics::{flow_errors, psnr_from_mse, FlowErrors};
-use crate::raster::{array_to_plane, plane_to_array};
+use crate::raster::{array_to_plane, plane_to_u8_array};
 use crate::viz::{draw_flow_arrows, flow_to_rgb};
 
 /// Speed / accuracy trade-offs, as x264 and DIS have them.
@@ -110,7 +110,7 @@ pub struct Args {
     pub json: bool,
 }
 
-fn read_pair(args: &Args) -> Result<(Array2<f32>, Array2<f32>)> {
+fn read_pair(args: &Args) -> Result<(Array2<u8>, Array2<u8>)> {
     let is_y4m = args.first.extension().is_some_and(|e| e == "y4m") || args.first.as_os_str() == "-";
     if is_y4m {
         if args.second.is_some() {
@@ -124,10 +124,10 @@ fn read_pair(args: &Args) -> Result<(Array2<f32>, Array2<f32>)> {
         let mut frame = crate::codec::Frame::new(reader.info().width, reader.info().height)?;
         while reader.read_frame_into(&mut frame).with_context(|| name.clone())? {
             if t == a {
-                fa = Some(plane_to_array(frame.y()));
+                fa = Some(plane_to_u8_array(frame.y()));
             }
             if t == b {
-                fb = Some(plane_to_array(frame.y()));
+                fb = Some(plane_to_u8_array(frame.y()));
                 break;
             }
             t += 1;
@@ -159,7 +159,7 @@ fn read_pair(args: &Args) -> Result<(Array2<f32>, Array2<f32>)> {
                 b.height()
             );
         }
-        Ok((plane_to_array(&a), plane_to_array(&b)))
+        Ok((plane_to_u8_array(&a), plane_to_u8_array(&b)))
     }
 }
 
@@ -209,26 +209,29 @@ struct Measured {
 }
 
 pub fn run(args: &Args) -> Result<()> {
-    let (i1, i2) = read_pair(args)?;
-    let gt = read_ground_truth(args, i1.dim())?;
+    let (p1, p2) = read_pair(args)?;
+    let gt = read_ground_truth(args, p1.dim())?;
     if args.runs == 0 {
         bail!("--runs must be at least 1");
     }
     let pool = super::thread_pool(args.threads)?;
     let mut estimator = FlowEstimator::new(&flow_options(args))?;
-    let mut estimate = |a: &Array2<f32>, b: &Array2<f32>| pool.install(|| estimator.compute(a, b));
+    // The estimator reads the 8-bit pictures as they were decoded.
+    let mut estimate =
+        |a: &Array2<u8>, b: &Array2<u8>| pool.install(|| estimator.compute_luma(a.into(), b.into()));
     let mut times = Vec::with_capacity(args.runs);
     let mut flow = Flow::zeros(1, 1);
     for _ in 0..args.runs {
         let start = Instant::now();
-        flow = estimate(&i1, &i2);
+        flow = estimate(&p1, &p2);
         times.push(start.elapsed().as_secs_f64() * 1000.0);
     }
     times.sort_by(f64::total_cmp);
     let occluded = args
         .occlusion
         .as_ref()
-        .map(|_| inconsistent(&flow, &estimate(&i2, &i1)));
+        .map(|_| inconsistent(&flow, &estimate(&p2, &p1)));
+    let (i1, i2) = (p1.mapv(f32::from), p2.mapv(f32::from));
     let warped = warp_bilinear(&i2, &flow);
     let mse = i1
         .iter()

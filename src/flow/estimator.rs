@@ -24,6 +24,7 @@ use super::hs::{horn_schunck, HsParams};
 use super::lk::{Lk, LkParams};
 use super::tvl1::{tvl1, Tvl1Params};
 use super::Flow;
+use crate::imgproc::Luma;
 
 /// A dense flow method: what `mocomp flow --method` computes and what
 /// guides a flow-based predictor.
@@ -374,6 +375,27 @@ impl FlowEstimator {
             FlowEstimator::Hs(hs) => horn_schunck(a, b, hs).0,
             FlowEstimator::Dis(dis) => dis.compute(a, b),
             FlowEstimator::Tvl1(tv) => tvl1(a, b, tv),
+        }
+    }
+
+    /// [`FlowEstimator::compute`] from 8-bit or float pictures: DIS reads
+    /// 8-bit samples without a conversion pass; the other methods convert
+    /// first.
+    pub fn compute_luma(&mut self, a: Luma<'_>, b: Luma<'_>) -> Flow {
+        match self {
+            FlowEstimator::Dis(dis) => dis.compute_luma(a, b, None),
+            other => other.compute(&a.to_f32(), &b.to_f32()),
+        }
+    }
+
+    /// [`FlowEstimator::compute_luma`] written into `out` as (u, v) pairs
+    /// row by row (`2 h w` floats, OpenCV's layout), NaN where not valid:
+    /// DIS writes its last upsampling there directly. Panics if the
+    /// pictures differ in size or `out` has another length.
+    pub fn compute_interleaved(&mut self, a: Luma<'_>, b: Luma<'_>, out: &mut [f32]) {
+        match self {
+            FlowEstimator::Dis(dis) => dis.compute_interleaved(a, b, out),
+            other => other.compute_luma(a, b).write_interleaved(out),
         }
     }
 }

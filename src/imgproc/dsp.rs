@@ -5,9 +5,11 @@
 //! source compiled for AVX2, without FMA, so that every output adds its
 //! terms in the same order and rounds the same way: the same bits.
 
-use ndarray::Array2;
+use ndarray::{Array2, ArrayView2};
 
-use super::pyramid::{downsample_binomial_body, upsample_levels_body};
+use super::pyramid::{
+    downsample_binomial_body, downsample_binomial_u8_body, upsample_levels_body, upsample_levels_pair_body,
+};
 use crate::codec::dsp::PerLevel;
 
 /// The horizontal pass over a band of whole rows: `(src, w, kernel, out)`,
@@ -20,11 +22,20 @@ pub type ColsFn = fn(&[f32], usize, usize, usize, &[f32], &mut [f32]);
 
 /// The binomial halving: `(src, scratch, out)`, as
 /// [`super::pyramid::downsample_binomial_into`].
-pub type HalveFn = fn(&Array2<f32>, &mut Vec<f32>, &mut Array2<f32>);
+pub type HalveFn = fn(ArrayView2<'_, f32>, &mut Vec<f32>, &mut Array2<f32>);
+
+/// The binomial halving of 8-bit samples, as
+/// [`super::pyramid::downsample_binomial_u8_into`].
+pub type HalveU8Fn = fn(ArrayView2<'_, u8>, &mut Vec<f32>, &mut Array2<f32>);
 
 /// Linear upsampling by levels: `(src, h, w, levels, scale)`, as
 /// [`super::pyramid::upsample_levels`].
 pub type UpsampleFn = fn(&Array2<f32>, usize, usize, usize, f32) -> Array2<f32>;
+
+/// Both components of a field upsampled into (u, v) pairs: `(u, v, (h, w),
+/// levels, scale, y0, out)`, output rows `y0..` (as many as `out` holds),
+/// as [`super::pyramid::upsample_levels_interleaved`].
+pub type UpsamplePairFn = fn(&Array2<f32>, &Array2<f32>, (usize, usize), usize, f32, usize, &mut [f32]);
 
 /// The image filters' kernels of one CPU level.
 #[derive(Debug, Clone, Copy)]
@@ -35,15 +46,21 @@ pub struct ImgprocDsp {
     pub filter_cols: ColsFn,
     /// A pyramid level from the one below, binomial filter.
     pub downsample_binomial: HalveFn,
+    /// The same from 8-bit samples.
+    pub downsample_binomial_u8: HalveU8Fn,
     /// A coarse field brought levels finer.
     pub upsample_levels: UpsampleFn,
+    /// Both components of a coarse field brought levels finer, interleaved.
+    pub upsample_levels_pair: UpsamplePairFn,
 }
 
 const SCALAR: ImgprocDsp = ImgprocDsp {
     filter_rows: rows_band,
     filter_cols: cols_band,
     downsample_binomial: downsample_binomial_body,
+    downsample_binomial_u8: downsample_binomial_u8_body,
     upsample_levels: upsample_levels_body,
+    upsample_levels_pair: upsample_levels_pair_body,
 };
 
 /// The tables, lowest level first.
@@ -55,7 +72,9 @@ pub static IMGPROC: PerLevel<ImgprocDsp> = PerLevel([
         filter_rows: avx2::rows_band,
         filter_cols: avx2::cols_band,
         downsample_binomial: avx2::downsample_binomial,
+        downsample_binomial_u8: avx2::downsample_binomial_u8,
         upsample_levels: avx2::upsample_levels,
+        upsample_levels_pair: avx2::upsample_levels_pair,
     },
     #[cfg(not(target_arch = "x86_64"))]
     SCALAR,
@@ -69,13 +88,19 @@ pub fn imgproc() -> &'static ImgprocDsp {
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    use ndarray::Array2;
+    use ndarray::{Array2, ArrayView2};
 
     crate::codec::compiled_for! { "avx2":
-        fn downsample_binomial(src: &Array2<f32>, tmp: &mut Vec<f32>, out: &mut Array2<f32>)
+        fn downsample_binomial(src: ArrayView2<'_, f32>, tmp: &mut Vec<f32>, out: &mut Array2<f32>)
             => super::downsample_binomial_body;
+        fn downsample_binomial_u8(src: ArrayView2<'_, u8>, tmp: &mut Vec<f32>, out: &mut Array2<f32>)
+            => super::downsample_binomial_u8_body;
         fn upsample_levels(src: &Array2<f32>, h: usize, w: usize, levels: usize, scale: f32) -> Array2<f32>
             => super::upsample_levels_body;
+        fn upsample_levels_pair(
+            u: &Array2<f32>, v: &Array2<f32>, size: (usize, usize), levels: usize, scale: f32, y0: usize,
+            out: &mut [f32]
+        ) => super::upsample_levels_pair_body;
         fn rows_band(src: &[f32], w: usize, kernel: &[f32], out: &mut [f32]) => super::rows_band;
         fn cols_band(src: &[f32], h: usize, w: usize, y0: usize, kernel: &[f32], out: &mut [f32]) => super::cols_band;
     }

@@ -2,10 +2,11 @@
 //! Gaussian pyramids, image gradients. Borders repeat the edge samples.
 //! Everything works on contiguous row-major `Array2<f32>` (`[[y, x]]`).
 
-use ndarray::Array2;
+use ndarray::{Array2, ArrayView2};
 use rayon::prelude::*;
 
 use super::dsp::imgproc;
+use super::Luma;
 
 /// A normalised 1-D Gaussian of standard deviation `sigma`, truncated at
 /// `ceil(3 sigma)` on each side (at least one tap each side).
@@ -285,6 +286,81 @@ pub fn upsample_levels(src: &Array2<f32>, h: usize, w: usize, levels: usize, sca
     (super::dsp::imgproc().upsample_levels)(src, h, w, levels, scale)
 }
 
+/// [`upsample_levels`] of the two components of a field at once, written
+/// as (u, v) pairs row by row into `out` (`2 h w` floats, the layout of
+/// OpenCV's flow and of .flo files): no planar field to interleave
+/// afterwards. The same values as [`upsample_levels`] of each. Halves of
+/// the rows run on two workers where that pays. Panics unless `u` and `v`
+/// are of one size and in standard layout.
+#[allow(clippy::too_many_arguments)]
+pub fn upsample_levels_interleaved(
+    u: &Array2<f32>,
+    v: &Array2<f32>,
+    h: usize,
+    w: usize,
+    levels: usize,
+    scale: f32,
+    out: &mut [f32],
+) {
+    assert_eq!(
+        u.dim(),
+        v.dim(),
+        "upsample_levels_interleaved: components differ in size"
+    );
+    assert_eq!(out.len(), 2 * h * w, "upsample_levels_interleaved: output size");
+    let pair = super::dsp::imgproc().upsample_levels_pair;
+    if parallel_worth(h * w) && h >= 2 {
+        let (top, bottom) = out.split_at_mut(h / 2 * 2 * w);
+        rayon::join(
+            || pair(u, v, (h, w), levels, scale, 0, top),
+            || pair(u, v, (h, w), levels, scale, h / 2, bottom),
+        );
+    } else {
+        pair(u, v, (h, w), levels, scale, 0, out);
+    }
+}
+
+/// Rows `y0..` (as many as `out` holds, `2 w` floats each) of
+/// [`upsample_levels_interleaved`], for any instruction set.
+#[inline(always)]
+pub(crate) fn upsample_levels_pair_body(
+    u: &Array2<f32>,
+    v: &Array2<f32>,
+    (h, w): (usize, usize),
+    levels: usize,
+    scale: f32,
+    y0: usize,
+    out: &mut [f32],
+) {
+    let (sh, sw) = u.dim();
+    let (su, sv) = (u.as_slice().expect("standard"), v.as_slice().expect("standard"));
+    let n_out = out.len() / (2 * w).max(1);
+    let rows = &linear_taps(h, sh, levels)[y0..y0 + n_out];
+    let (Some(&(first, _, _)), Some(&(_, last, _))) = (rows.first(), rows.last()) else {
+        return;
+    };
+    // The first pass on the source rows these output rows read (the taps
+    // run in order), both components.
+    let cols = linear_taps(w, sw, levels);
+    let f = 1usize << levels;
+    let ts: Vec<f32> = (0..f).map(|j| (j as f32 + 0.5) / f as f32).collect();
+    let n = last - first + 1;
+    let (mut tu, mut tv) = (vec![0f32; n * w], vec![0f32; n * w]);
+    for (k, (du, dv)) in tu.chunks_exact_mut(w).zip(tv.chunks_exact_mut(w)).enumerate() {
+        let row = (first + k) * sw;
+        upsample_row(&su[row..row + sw], &cols, levels, &ts, du);
+        upsample_row(&sv[row..row + sw], &cols, levels, &ts, dv);
+    }
+    for (&(a, b, t), dst) in rows.iter().zip(out.chunks_exact_mut(2 * w)) {
+        let (a, b) = ((a - first) * w, (b - first) * w);
+        let (ua, ub, va, vb) = (&tu[a..a + w], &tu[b..b + w], &tv[a..a + w], &tv[b..b + w]);
+        for ((((o, &pu), &qu), &pv), &qv) in dst.chunks_exact_mut(2).zip(ua).zip(ub).zip(va).zip(vb) {
+            o[0] = scale * (pu + t * (qu - pu));
+            o[1] = scale * (pv + t * (qv - pv));
+        }
+    }
+}
+
 /// [`upsample_levels`] for any instruction set.
 #[inline(always)]
 pub(crate) fn upsample_levels_body(
@@ -325,16 +401,44 @@ pub(crate) fn upsample_levels_body(
 /// [`downsample`] (output k at input 2k + 0.5), with a quarter of its taps,
 /// and far less aliasing than 2x2 block means.
 pub fn downsample_binomial_into(src: &Array2<f32>, tmp: &mut Vec<f32>, out: &mut Array2<f32>) {
-    (super::dsp::imgproc().downsample_binomial)(src, tmp, out)
+    (super::dsp::imgproc().downsample_binomial)(src.view(), tmp, out)
+}
+
+/// [`downsample_binomial_into`] from 8-bit samples (0..255 as grey levels),
+/// the conversion done in the first pass: the same values as converting
+/// `src` to float first, without that full-size pass.
+pub fn downsample_binomial_u8_into(src: ArrayView2<'_, u8>, tmp: &mut Vec<f32>, out: &mut Array2<f32>) {
+    (super::dsp::imgproc().downsample_binomial_u8)(src, tmp, out)
 }
 
 /// [`downsample_binomial_into`] for any instruction set.
 #[inline(always)]
-pub(crate) fn downsample_binomial_body(src: &Array2<f32>, tmp: &mut Vec<f32>, out: &mut Array2<f32>) {
-    let (h, w) = src.dim();
+pub(crate) fn downsample_binomial_body(src: ArrayView2<'_, f32>, tmp: &mut Vec<f32>, out: &mut Array2<f32>) {
+    let s = src.to_slice().expect("standard");
+    downsample_binomial_samples(s, src.dim(), tmp, out)
+}
+
+/// [`downsample_binomial_u8_into`] for any instruction set.
+#[inline(always)]
+pub(crate) fn downsample_binomial_u8_body(
+    src: ArrayView2<'_, u8>,
+    tmp: &mut Vec<f32>,
+    out: &mut Array2<f32>,
+) {
+    let s = src.to_slice().expect("standard");
+    downsample_binomial_samples(s, src.dim(), tmp, out)
+}
+
+/// The binomial halving of the row-major `h x w` samples `s`.
+#[inline(always)]
+fn downsample_binomial_samples<T: Copy + Into<f32>>(
+    s: &[T],
+    (h, w): (usize, usize),
+    tmp: &mut Vec<f32>,
+    out: &mut Array2<f32>,
+) {
     let (nh, nw) = (h.div_ceil(2), w.div_ceil(2));
     assert_eq!(out.dim(), (nh, nw), "downsample_binomial_into: output size");
-    let s = src.as_slice().expect("standard");
     let at = |i: isize, n: usize| i.clamp(0, n as isize - 1) as usize;
     // Columns first, on whole rows (contiguous, vectorised), then rows on
     // the half-height result: the strided pass sees half the rows.
@@ -344,7 +448,8 @@ pub(crate) fn downsample_binomial_body(src: &Array2<f32>, tmp: &mut Vec<f32>, ou
         let r = |k: isize| &s[at(c + k, h) * w..][..w];
         let (ra, rb, rc, re) = (r(-1), r(0), r(1), r(2));
         for x in 0..w {
-            dst[x] = 0.125 * (ra[x] + re[x]) + 0.375 * (rb[x] + rc[x]);
+            let (a, b, c, e): (f32, f32, f32, f32) = (ra[x].into(), rb[x].into(), rc[x].into(), re[x].into());
+            dst[x] = 0.125 * (a + e) + 0.375 * (b + c);
         }
     }
     let tap = |row: &[f32], x: usize| {
@@ -408,24 +513,52 @@ pub struct Pyramid {
 impl Pyramid {
     /// Rebuilds the levels from `src`, as [`pyramid`] does.
     pub fn build(&mut self, src: &Array2<f32>, levels: usize, min_size: usize) {
-        self.build_with(src, levels, min_size, false, true)
+        self.build_with(src.view(), levels, min_size, false, true)
     }
 
     /// Rebuilds the levels from `src` with the binomial filter
     /// ([`downsample_binomial_into`]) instead of the Gaussian.
     pub fn build_binomial(&mut self, src: &Array2<f32>, levels: usize, min_size: usize) {
-        self.build_with(src, levels, min_size, true, true)
+        self.build_with(src.view(), levels, min_size, true, true)
     }
 
     /// As [`Pyramid::build_binomial`] for a reader of the levels from 1 up
     /// only: level 0 is sized but not filled (its copy of `src` is the one
     /// full-size pass that reader does not need).
     pub fn build_binomial_above_full_size(&mut self, src: &Array2<f32>, levels: usize, min_size: usize) {
-        self.build_with(src, levels, min_size, true, false)
+        self.build_with(src.view(), levels, min_size, true, false)
     }
 
-    fn build_with(&mut self, src: &Array2<f32>, levels: usize, min_size: usize, binomial: bool, full: bool) {
-        let mut dims = vec![src.dim()];
+    /// As [`Pyramid::build_binomial`] (`full`) or
+    /// [`Pyramid::build_binomial_above_full_size`], from 8-bit or float
+    /// samples: 8-bit ones are made float in the first halving's pass (and
+    /// in level 0's copy when `full`), with no conversion pass of their own.
+    pub fn build_binomial_luma(&mut self, src: Luma<'_>, levels: usize, min_size: usize, full: bool) {
+        let src = match src {
+            Luma::F32(a) => return self.build_with(a, levels, min_size, true, full),
+            Luma::U8(a) => a,
+        };
+        let contiguous = src.is_standard_layout();
+        self.size_levels(src.dim(), levels, min_size);
+        let full = full || !contiguous;
+        if full {
+            self.levels[0].zip_mut_with(&src, |d, &s| *d = f32::from(s));
+        }
+        let (lower, upper) = self.levels.split_at_mut(1);
+        if let Some(level1) = upper.first_mut() {
+            if full {
+                downsample_binomial_into(&lower[0], &mut self.tmp, level1);
+            } else {
+                downsample_binomial_u8_into(src, &mut self.tmp, level1);
+            }
+        }
+        self.halve_from(2);
+    }
+
+    /// Levels of the sizes a pyramid of `size` has (`levels` at most, none
+    /// under `min_size` on a side), allocated only where a size changed.
+    fn size_levels(&mut self, size: (usize, usize), levels: usize, min_size: usize) {
+        let mut dims = vec![size];
         while dims.len() < levels.max(1) {
             let (h, w) = dims[dims.len() - 1];
             if h.div_ceil(2) < min_size || w.div_ceil(2) < min_size {
@@ -441,24 +574,47 @@ impl Pyramid {
                 self.levels[i] = Array2::zeros(d);
             }
         }
+    }
+
+    /// Binomial levels `from..` each from the one below.
+    fn halve_from(&mut self, from: usize) {
+        for i in from..self.levels.len() {
+            let (lower, upper) = self.levels.split_at_mut(i);
+            downsample_binomial_into(&lower[i - 1], &mut self.tmp, &mut upper[0]);
+        }
+    }
+
+    fn build_with(
+        &mut self,
+        src: ArrayView2<'_, f32>,
+        levels: usize,
+        min_size: usize,
+        binomial: bool,
+        full: bool,
+    ) {
+        self.size_levels(src.dim(), levels, min_size);
         // The level-1 pass reads rows of a standard layout: another layout
-        // goes through level 0's copy.
-        let full = full || src.as_slice().is_none();
+        // goes through level 0's copy (as the Gaussian's levels always do).
+        let full = full || !binomial || src.as_slice().is_none();
         if full {
             match (self.levels[0].as_slice_mut(), src.as_slice()) {
                 (Some(dst), Some(s)) => dst.copy_from_slice(s),
-                _ => self.levels[0].assign(src),
+                _ => self.levels[0].assign(&src),
             }
         }
-        for i in 1..dims.len() {
-            let (lower, upper) = self.levels.split_at_mut(i);
-            let below = if i == 1 && !full { src } else { &lower[i - 1] };
-            if binomial {
-                downsample_binomial_into(below, &mut self.tmp, &mut upper[0]);
-            } else {
-                downsample_into(below, &mut self.tmp, &mut upper[0]);
+        if !binomial {
+            for i in 1..self.levels.len() {
+                let (lower, upper) = self.levels.split_at_mut(i);
+                downsample_into(&lower[i - 1], &mut self.tmp, &mut upper[0]);
             }
+            return;
         }
+        let (lower, upper) = self.levels.split_at_mut(1);
+        if let Some(level1) = upper.first_mut() {
+            let below = if full { lower[0].view() } else { src };
+            (imgproc().downsample_binomial)(below, &mut self.tmp, level1);
+        }
+        self.halve_from(2);
     }
 }
 
@@ -625,6 +781,58 @@ mod tests {
                 }
                 assert!((got - want).abs() < 1e-4, "{h}x{w} ({x},{y}): {got} vs {want}");
             }
+        }
+    }
+
+    #[test]
+    fn the_halving_of_bytes_is_the_halving_of_their_floats() {
+        for (h, w) in [(1, 1), (3, 2), (7, 9), (38, 61)] {
+            let bytes = Array2::from_shape_fn((h, w), |(y, x)| ((x * 97 + y * 31) % 256) as u8);
+            let (mut a, mut b) = (
+                Array2::zeros((h.div_ceil(2), w.div_ceil(2))),
+                Array2::zeros((h.div_ceil(2), w.div_ceil(2))),
+            );
+            downsample_binomial_u8_into(bytes.view(), &mut Vec::new(), &mut a);
+            downsample_binomial_into(&bytes.mapv(f32::from), &mut Vec::new(), &mut b);
+            assert!(
+                a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
+                "{h}x{w}"
+            );
+            // The pyramid from bytes, with and without level 0, as from floats.
+            let mut p = Pyramid::default();
+            let mut q = Pyramid::default();
+            for full in [true, false] {
+                p.build_binomial_luma(Luma::U8(bytes.view()), 4, 1, full);
+                q.build_binomial(&bytes.mapv(f32::from), 4, 1);
+                assert_eq!(p.levels.len(), q.levels.len());
+                let from = if full { 0 } else { 1 };
+                assert!(
+                    p.levels[from..] == q.levels[from..],
+                    "{h}x{w} pyramid, level 0 {full}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn the_interleaved_upsampling_pairs_the_planar_ones() {
+        let u = Array2::from_shape_fn((9, 11), |(y, x)| ((x * 13 + y * 7) % 11) as f32 - 4.5);
+        let v = Array2::from_shape_fn((9, 11), |(y, x)| (x as f32 * 0.37 - y as f32).sin());
+        // 2 threads and more than 32768 samples: the two halves of the rows
+        // run apart (odd heights, so the halves differ by a row).
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+        for (levels, h, w) in [(0, 9, 11), (2, 33, 41), (3, 70, 87), (5, 287, 351)] {
+            let (pu, pv) = (
+                upsample_levels(&u, h, w, levels, 1.75),
+                upsample_levels(&v, h, w, levels, 1.75),
+            );
+            let mut out = vec![f32::NAN; 2 * h * w];
+            pool.install(|| upsample_levels_interleaved(&u, &v, h, w, levels, 1.75, &mut out));
+            let pairs: Vec<f32> = pu.iter().zip(&pv).flat_map(|(&a, &b)| [a, b]).collect();
+            assert!(
+                out.iter().zip(&pairs).all(|(x, y)| x.to_bits() == y.to_bits()),
+                "{levels} levels to {w}x{h}"
+            );
         }
     }
 

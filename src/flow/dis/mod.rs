@@ -31,7 +31,10 @@ use ndarray::Array2;
 
 use super::refine::{RefineParams, Refiner};
 use super::Flow;
-use crate::imgproc::pyramid::{parallel_worth, upsample2, upsample_levels, Pyramid};
+use crate::imgproc::pyramid::{
+    parallel_worth, upsample2, upsample_levels, upsample_levels_interleaved, Pyramid,
+};
+use crate::imgproc::Luma;
 
 /// Settings of dense inverse search.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -289,6 +292,44 @@ impl Dis {
     /// sequences, or a flow interpolated from sparse matches. Panics if the
     /// pictures or the initial flow differ in size.
     pub fn compute_from(&mut self, i1: &Array2<f32>, i2: &Array2<f32>, initial: Option<&Flow>) -> Flow {
+        self.compute_luma(i1.into(), i2.into(), initial)
+    }
+
+    /// As [`Dis::compute_from`], from 8-bit or float pictures without
+    /// converting them first.
+    pub fn compute_luma(&mut self, i1: Luma<'_>, i2: Luma<'_>, initial: Option<&Flow>) -> Flow {
+        let (h0, w0) = i1.dim();
+        let (u, v, finest) = self.coarse_to_fine(i1, i2, initial);
+        if finest == 0 {
+            return Flow::from_uv(u, v);
+        }
+        let f = (1usize << finest) as f32;
+        let (u, v) = both(
+            parallel_worth(w0 * h0),
+            || upsample_levels(&u, h0, w0, finest, f),
+            || upsample_levels(&v, h0, w0, finest, f),
+        );
+        Flow::from_uv(u, v)
+    }
+
+    /// The flow from `i1` to `i2` written into `out` as (u, v) pairs row by
+    /// row (`2 h w` floats, OpenCV's and the .flo layout), with no planar
+    /// field in between: the same values as [`Dis::compute_luma`]. Panics
+    /// if the pictures differ in size or `out` is not `2 h w` long.
+    pub fn compute_interleaved(&mut self, i1: Luma<'_>, i2: Luma<'_>, out: &mut [f32]) {
+        let (h0, w0) = i1.dim();
+        assert_eq!(out.len(), 2 * h0 * w0, "dis: output size");
+        let (u, v, finest) = self.coarse_to_fine(i1, i2, None);
+        upsample_levels_interleaved(&u, &v, h0, w0, finest, (1usize << finest) as f32, out);
+    }
+
+    /// The flow at the finest level computed, and that level.
+    fn coarse_to_fine(
+        &mut self,
+        i1: Luma<'_>,
+        i2: Luma<'_>,
+        initial: Option<&Flow>,
+    ) -> (Array2<f32>, Array2<f32>, usize) {
         assert_eq!(i1.dim(), i2.dim(), "dis: pictures of different sizes");
         if let Some(f) = initial {
             assert_eq!(
@@ -301,15 +342,9 @@ impl Dis {
         let (h0, w0) = i1.dim();
         let coarsest = p.coarsest.unwrap_or_else(|| coarsest_level(w0, h0, p.patch));
         let finest = finest_level(w0, h0, &p).min(coarsest);
-        // The two pyramids, and at the end the two components, are
-        // independent: one worker each where there are two.
-        let build = |p: &mut Pyramid, img: &Array2<f32>| {
-            if finest == 0 {
-                p.build_binomial(img, coarsest + 1, 1);
-            } else {
-                p.build_binomial_above_full_size(img, coarsest + 1, 1);
-            }
-        };
+        // The two pyramids are independent: one worker each where there
+        // are two. Level 0 is filled only when the search reads it.
+        let build = |p: &mut Pyramid, img: Luma<'_>| p.build_binomial_luma(img, coarsest + 1, 1, finest == 0);
         let (p1, p2) = (&mut self.p1, &mut self.p2);
         both(parallel_worth(w0 * h0), || build(p1, i1), || build(p2, i2));
         let top = self.p1.levels.len() - 1;
@@ -320,8 +355,9 @@ impl Dis {
         );
         let seed = match initial {
             None if p.seed_matches => {
+                let (a, b) = (i1.to_f32(), i2.to_f32());
                 let matches =
-                    crate::features::match_pictures(i1, i2, &crate::features::MatchParams::default());
+                    crate::features::match_pictures(&a, &b, &crate::features::MatchParams::default());
                 crate::flow::matches_to_flow(&matches, w0, h0)
             }
             _ => None,
@@ -356,15 +392,7 @@ impl Dis {
                 self.refiners[level].refine(a1, a2, &mut u, &mut v, &p.refine);
             }
         }
-        if finest > 0 {
-            let f = (1usize << finest) as f32;
-            (u, v) = both(
-                parallel_worth(w0 * h0),
-                || upsample_levels(&u, h0, w0, finest, f),
-                || upsample_levels(&v, h0, w0, finest, f),
-            );
-        }
-        Flow::from_uv(u, v)
+        (u, v, finest)
     }
 }
 

@@ -1,15 +1,20 @@
 """mocomp.flow from Python against the CLI's own timing of the same preset
 and against OpenCV-python's DIS, one thread each, in one run.
 
-    python python/examples/flow_overhead.py PAIR.y4m [RUNS] [MOCOMP_BINARY]
+    python python/examples/flow_overhead.py PAIR.y4m [RUNS] [MOCOMP_BINARY] [ROUNDS]
 
 Times are medians over RUNS calls (default 9) of the flow alone: for the
-CLI, `mocomp flow --threads 1 --runs RUNS --json` (its own median);
-CLI and Python alternate over 3 rounds and each reports the median of its
-rounds (a 2-core virtual machine drifts by several percent between runs);
-for Python, the call to mocomp.flow and to a mocomp.DenseFlow object's
-calc, made once (conversion of the arrays included);
-for OpenCV, DISOpticalFlow.calc on the same luma (cv2.setNumThreads(1)).
+CLI, `mocomp flow --threads 1 --runs RUNS --json` (its own median); for
+Python, the call to mocomp.flow and to a mocomp.DenseFlow object's calc
+(reading the arrays and making the returned one included); for OpenCV,
+DISOpticalFlow.calc on the same luma (cv2.setNumThreads(1)).
+
+One tool's time alone drifts by up to 1.5x between minutes on a 2-core
+virtual machine, so the ratios are paired: each of ROUNDS rounds (default
+7) times the CLI and both Python calls back to back (the order alternating
+between rounds), and a ratio is the median over rounds of that round's
+ratio, printed with the least and greatest. The ms columns are medians over
+rounds.
 """
 
 import json
@@ -24,6 +29,7 @@ import mocomp
 src = pathlib.Path(sys.argv[1])
 runs = int(sys.argv[2]) if len(sys.argv) > 2 else 9
 binary = sys.argv[3] if len(sys.argv) > 3 else "target/release/mocomp"
+n_rounds = int(sys.argv[4]) if len(sys.argv) > 4 else 7
 frames = mocomp.read_y4m(src, frames=2)
 a, b = frames[0][0], frames[1][0]
 
@@ -46,9 +52,11 @@ def median_ms(f):
     return statistics.median(times)
 
 
-print(f"{src.name} {a.shape[1]}x{a.shape[0]}, one thread, median of {runs}")
-print("| preset | CLI ms | mocomp.flow ms | flow / CLI | DenseFlow.calc ms | DenseFlow / CLI | OpenCV DIS ms |")
+print(f"{src.name} {a.shape[1]}x{a.shape[0]}, one thread, median of {runs} calls, {n_rounds} paired rounds")
+print("| preset | CLI ms | mocomp.flow ms | flow / CLI (min-max) | DenseFlow.calc ms | DenseFlow / CLI (min-max) | OpenCV DIS ms |")
 print("|---|---:|---:|---:|---:|---:|---:|")
+
+
 def cli_ms(preset):
     cli = subprocess.run(
         [binary, "flow", str(src), "--frames", "0:1", "--preset", preset, "--threads", "1",
@@ -58,19 +66,29 @@ def cli_ms(preset):
     return json.loads(cli.stdout)["ms"]
 
 
+def paired_round(k, preset, estimator):
+    """(CLI, mocomp.flow, DenseFlow.calc) ms, the CLI first in even rounds."""
+    py = lambda: median_ms(lambda: mocomp.flow(a, b, preset=preset, threads=1))
+    obj = lambda: median_ms(lambda: estimator.calc(a, b))
+    if k % 2 == 0:
+        c = cli_ms(preset)
+        return c, py(), obj()
+    p, o = py(), obj()
+    return cli_ms(preset), p, o
+
+
+def spread(ratios):
+    return f"{statistics.median(ratios):.3f} ({min(ratios):.3f}-{max(ratios):.3f})"
+
+
 for preset in ("ultrafast", "fast", "medium"):
     estimator = mocomp.DenseFlow(preset=preset, threads=1)
-    rounds = [
-        (
-            cli_ms(preset),
-            median_ms(lambda: mocomp.flow(a, b, preset=preset, threads=1)),
-            median_ms(lambda: estimator.calc(a, b)),
-        )
-        for _ in range(3)
-    ]
+    rounds = [paired_round(k, preset, estimator) for k in range(n_rounds)]
     cli, py, obj = (statistics.median(r[k] for r in rounds) for k in range(3))
+    py_ratio = spread([r[1] / r[0] for r in rounds])
+    obj_ratio = spread([r[2] / r[0] for r in rounds])
     cv_ms = float("nan")
     if preset in cv_presets:
         dis = cv2.DISOpticalFlow_create(cv_presets[preset])
         cv_ms = median_ms(lambda: dis.calc(a, b, None))
-    print(f"| {preset} | {cli:.2f} | {py:.2f} | {py / cli:.3f} | {obj:.2f} | {obj / cli:.3f} | {cv_ms:.2f} |")
+    print(f"| {preset} | {cli:.2f} | {py:.2f} | {py_ratio} | {obj:.2f} | {obj_ratio} | {cv_ms:.2f} |")

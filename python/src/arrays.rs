@@ -4,6 +4,7 @@ use std::sync::{Arc, Mutex};
 
 use mocomp::codec::{Frame, Plane};
 use mocomp::flow::Flow;
+use mocomp::imgproc::Luma;
 use mocomp::io::image::luma_from_rgb;
 use ndarray::{Array2, ArrayView2, Axis};
 use numpy::{
@@ -51,34 +52,44 @@ const PICTURE: &str = "a uint8 array H x W (luma) or H x W x 3 (RGB), or float32
 /// A picture as float luma (0..255): uint8 luma, uint8 RGB (BT.601
 /// full-range luma, as mocomp reads image files) or float32 luma.
 pub fn luma_f32(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Array2<f32>> {
-    let mut out = Array2::zeros((0, 0));
-    luma_f32_into(name, obj, &mut out)?;
-    Ok(out)
+    Ok(LumaArg::extract(name, obj)?.luma().to_f32())
 }
 
-/// [`luma_f32`] into `out`, whose buffer is reused when it has the size
-/// already (a fresh buffer per call costs page faults that a fast flow
-/// notices).
-pub fn luma_f32_into(name: &str, obj: &Bound<'_, PyAny>, out: &mut Array2<f32>) -> PyResult<()> {
-    let mut fill = |dim: (usize, usize), f: &mut dyn FnMut(&mut Array2<f32>)| -> PyResult<()> {
-        check_picture_size(name, dim)?;
-        if out.dim() != dim {
-            *out = Array2::zeros(dim);
+/// A picture argument held for one call: the caller's numpy array itself
+/// (uint8 or float32 luma, read in place), or the luma of an RGB array.
+pub enum LumaArg<'py> {
+    /// uint8 luma, borrowed.
+    U8(PyReadonlyArray2<'py, u8>),
+    /// float32 luma, borrowed.
+    F32(PyReadonlyArray2<'py, f32>),
+    /// Luma made from RGB.
+    Owned(Array2<u8>),
+}
+
+impl<'py> LumaArg<'py> {
+    /// `obj` as a picture ([`PICTURE`]), its size checked.
+    pub fn extract(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<LumaArg<'py>> {
+        let arg = if let Ok(a) = obj.extract::<PyReadonlyArray2<'py, u8>>() {
+            LumaArg::U8(a)
+        } else if let Ok(a) = obj.extract::<PyReadonlyArray2<'py, f32>>() {
+            LumaArg::F32(a)
+        } else {
+            let plane = luma_plane(name, obj, 0).map_err(|_| wrong(name, obj, PICTURE))?;
+            LumaArg::Owned(plane_view(&plane))
+        };
+        let (h, w) = arg.luma().dim();
+        check_picture_size(name, (h, w))?;
+        Ok(arg)
+    }
+
+    /// The samples, as the estimators take them.
+    pub fn luma(&self) -> Luma<'_> {
+        match self {
+            LumaArg::U8(a) => Luma::U8(a.as_array()),
+            LumaArg::F32(a) => Luma::F32(a.as_array()),
+            LumaArg::Owned(a) => Luma::U8(a.view()),
         }
-        f(out);
-        Ok(())
-    };
-    if let Ok(a) = obj.extract::<PyReadonlyArray2<'_, f32>>() {
-        let a = a.as_array();
-        return fill(a.dim(), &mut |o| o.assign(&a));
     }
-    if let Ok(a) = obj.extract::<PyReadonlyArray2<'_, u8>>() {
-        let a = a.as_array();
-        return fill(a.dim(), &mut |o| o.zip_mut_with(&a, |d, &s| *d = f32::from(s)));
-    }
-    let plane = luma_plane(name, obj, 0).map_err(|_| wrong(name, obj, PICTURE))?;
-    *out = mocomp::raster::plane_to_array(&plane);
-    Ok(())
 }
 
 /// A uint8 picture (luma, or RGB made luma) as a plane with `pad` pixels of
@@ -198,40 +209,19 @@ pub fn flow_from_py(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Flow> {
 }
 
 /// A flow as a new float32 H x W x 2 array; invalid pixels are NaN.
-pub fn flow_to_py<'py>(py: Python<'py>, flow: &Flow) -> Bound<'py, PyArray3<f32>> {
-    let (w, h) = (flow.width(), flow.height());
-    // numpy's own allocation: it reuses freed memory where a Rust buffer
-    // handed over would be a fresh mapping (page faults) on every call.
-    // SAFETY: `interleave` writes all 2 x H x W elements before the array
-    // is returned (a zeroed array would be written twice).
-    let out = unsafe { PyArray3::<f32>::new(py, (h, w, 2), false) };
-    // Slices, so that the loop vectorises (element-wise iteration of the
-    // arrays cost a fast flow 7 % of its time).
-    let (u, v) = (flow.u().as_standard_layout(), flow.v().as_standard_layout());
-    let valid = flow.valid().as_standard_layout();
-    let (Some(u), Some(v), Some(valid)) = (u.as_slice(), v.as_slice(), valid.as_slice()) else {
-        unreachable!("standard layout is contiguous")
-    };
-    // SAFETY: a new C-contiguous array of 2 x H x W elements, and u, v and
-    // valid hold H x W each.
-    unsafe { interleave(out.data(), u, v, valid) };
-    out
+pub fn flow_to_py<'py>(py: Python<'py>, flow: &Flow) -> PyResult<Bound<'py, PyArray3<f32>>> {
+    let out = new_flow_array(py, flow.height(), flow.width());
+    flow.write_interleaved(out.readwrite().as_slice_mut()?);
+    Ok(out)
 }
 
-/// Writes `u` and `v` as pairs at `dst`, NaN where not `valid`.
-///
-/// # Safety
-/// `dst` must be valid for writes of `2 * u.len()` floats, and `v` and
-/// `valid` as long as `u`.
-unsafe fn interleave(dst: *mut f32, u: &[f32], v: &[f32], valid: &[bool]) {
-    for (i, ((&u, &v), &ok)) in u.iter().zip(v).zip(valid).enumerate() {
-        let nan_or = |x: f32| if ok { x } else { f32::NAN };
-        // SAFETY: i < u.len(), so 2i + 1 < 2 u.len().
-        unsafe {
-            dst.add(2 * i).write(nan_or(u));
-            dst.add(2 * i + 1).write(nan_or(v));
-        }
-    }
+/// A new float32 H x W x 2 array whose every element the caller writes.
+pub fn new_flow_array(py: Python<'_>, h: usize, w: usize) -> Bound<'_, PyArray3<f32>> {
+    // numpy's own allocation: it reuses freed memory where a Rust buffer
+    // handed over would be a fresh mapping (page faults) on every call.
+    // SAFETY: every caller writes all 2 x H x W elements before the array
+    // reaches Python (a zeroed array would be written twice).
+    unsafe { PyArray3::<f32>::new(py, (h, w, 2), false) }
 }
 
 /// The pools of `threads` workers made so far: a pool is made once per size

@@ -7,11 +7,11 @@ use mocomp::flow::warp::warp_bilinear;
 use mocomp::flow::{FlowEstimator, FlowMethod, FlowOptions, Preset};
 use mocomp::io::flo;
 use ndarray::{Array2, Array3, Axis};
-use numpy::{PyArray2, PyArray3, PyReadonlyArray2, PyReadonlyArray3};
+use numpy::{PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{flow_from_py, flow_to_py, luma_f32_into, value_error, with_threads};
+use crate::arrays::{flow_from_py, flow_to_py, new_flow_array, value_error, with_threads, LumaArg};
 
 /// Dense optical flow from `img1` to `img2`: `img1(p) ~ img2(p + flow(p))`.
 ///
@@ -90,27 +90,23 @@ fn flow_options(method: Option<&str>, preset: &str, options: FlowOptions) -> PyR
     })
 }
 
-/// An estimator with the options it was made with and the pictures' float
-/// buffers, reused from call to call.
+/// An estimator with the options it was made with, reused from call to
+/// call (its pyramids and buffers with it).
 struct FlowRunner {
     options: FlowOptions,
     estimator: FlowEstimator,
-    img1: Array2<f32>,
-    img2: Array2<f32>,
 }
 
 impl FlowRunner {
     fn new(options: FlowOptions) -> PyResult<FlowRunner> {
         let estimator = FlowEstimator::new(&options).map_err(|e| value_error(e.to_string()))?;
-        Ok(FlowRunner {
-            options,
-            estimator,
-            img1: Array2::zeros((0, 0)),
-            img2: Array2::zeros((0, 0)),
-        })
+        Ok(FlowRunner { options, estimator })
     }
 
-    /// The flow from `img1` to `img2`, the GIL released while it runs.
+    /// The flow from `img1` to `img2`, the GIL released while it runs. The
+    /// pictures are read in place (uint8 or float32 luma) and the flow is
+    /// written straight into the new array: no conversion or copy around
+    /// the estimator.
     fn calc<'py>(
         &mut self,
         py: Python<'py>,
@@ -118,14 +114,8 @@ impl FlowRunner {
         img2: &Bound<'py, PyAny>,
         threads: Option<usize>,
     ) -> PyResult<Bound<'py, PyArray3<f32>>> {
-        let FlowRunner {
-            estimator,
-            img1: a,
-            img2: b,
-            ..
-        } = self;
-        luma_f32_into("img1", img1, a)?;
-        luma_f32_into("img2", img2, b)?;
+        let (arg1, arg2) = (LumaArg::extract("img1", img1)?, LumaArg::extract("img2", img2)?);
+        let (a, b) = (arg1.luma(), arg2.luma());
         if a.dim() != b.dim() {
             return Err(value_error(format!(
                 "img1 and img2 differ in size: {:?} and {:?}",
@@ -133,8 +123,15 @@ impl FlowRunner {
                 b.dim()
             )));
         }
-        let result = py.detach(|| with_threads(threads, || estimator.compute(a, b)))?;
-        Ok(flow_to_py(py, &result))
+        let (h, w) = a.dim();
+        let out = new_flow_array(py, h, w);
+        {
+            let mut writer = out.readwrite();
+            let dst = writer.as_slice_mut()?;
+            let estimator = &mut self.estimator;
+            py.detach(|| with_threads(threads, || estimator.compute_interleaved(a, b, dst)))?;
+        }
+        Ok(out)
     }
 }
 
@@ -323,7 +320,7 @@ pub fn read_flo<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyAr
     let f = py
         .detach(|| flo::read_flo(&path))
         .map_err(|e| crate::flo_error(&path, e))?;
-    Ok(flow_to_py(py, &f))
+    flow_to_py(py, &f)
 }
 
 /// Writes `flow` (float32 H x W x 2; NaN pixels as unknown) as a

@@ -53,6 +53,24 @@ def test_rgb_float_and_luma_inputs(synth_frames):
     assert np.array_equal(mocomp.flow(big[:, ::2], b, method="lk", preset="fast"), grey)
 
 
+@pytest.mark.parametrize("preset", ["ultrafast", "fast", "medium"])
+def test_dis_reads_bytes_floats_and_views_alike(synth_frames, preset):
+    # DIS reads uint8 in place (no float copy): every form of the same
+    # pictures gives the same flow, bit for bit.
+    a, b = synth_frames[0][0], synth_frames[1][0]
+    grey = mocomp.flow(a, b, preset=preset)
+    assert grey.shape == (144, 176, 2) and grey.dtype == np.float32 and grey.flags.c_contiguous
+    assert np.isfinite(grey).all() and np.abs(grey).max() > 0.5
+    forms = {
+        "float32": (a.astype(np.float32), b.astype(np.float32)),
+        "rgb": (np.dstack([a] * 3), np.dstack([b] * 3)),
+        "fortran order": (np.asfortranarray(a), np.asfortranarray(b)),
+        "strided view": (np.repeat(a, 2, axis=1)[:, ::2], b),
+    }
+    for name, (x, y) in forms.items():
+        assert np.array_equal(mocomp.flow(x, y, preset=preset), grey), name
+
+
 def test_calls_that_change_size_options_or_thread_give_fresh_results(synth_frames):
     # flow keeps its estimator and picture buffers between calls: a call
     # after others of another size, method or thread gives what it gives

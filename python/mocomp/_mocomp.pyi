@@ -30,6 +30,7 @@ def flow(
     finest: Optional[int] = None,
     global_search: bool = False,
     matches: bool = False,
+    fine_on_small: bool = False,
 ) -> Flow: ...
 class DenseFlow:
     """A dense flow estimator made once and called per frame pair."""
@@ -50,6 +51,7 @@ class DenseFlow:
         finest: Optional[int] = None,
         global_search: bool = False,
         matches: bool = False,
+        fine_on_small: bool = False,
     ) -> None: ...
     def calc(self, img1: Picture, img2: Picture) -> Flow: ...
     def __call__(self, img1: Picture, img2: Picture) -> Flow: ...

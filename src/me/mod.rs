@@ -432,17 +432,24 @@ impl<'a> SearchContext<'a> {
         let [x0, x1, y0, y1] = self.in_place;
         if (x0..=x1).contains(&dx) && (y0..=y1).contains(&dy) {
             let at = self.reference.index(self.x + dx as isize, self.y + dy as isize);
-            let (b, r, stride) = (
-                self.cfg.block,
-                &self.reference.data()[at..],
-                self.reference.stride(),
-            );
-            return match self.capped {
-                Some(capped) => capped(self.block, self.cur.stride(), r, stride, cap),
-                None => (self.full_pel_kernel)(self.block, self.cur.stride(), r, stride, b, b),
-            };
+            return self.distortion_at(at, cap);
         }
         self.distortion_clamped(dx, dy)
+    }
+
+    /// [`SearchContext::distortion`] of the reference's block at index
+    /// `at` of its buffer (the caller knows it lies inside).
+    #[inline]
+    fn distortion_at(&self, at: usize, cap: u32) -> u32 {
+        let (b, r, stride) = (
+            self.cfg.block,
+            &self.reference.data()[at..],
+            self.reference.stride(),
+        );
+        match self.capped {
+            Some(capped) => capped(self.block, self.cur.stride(), r, stride, cap),
+            None => (self.full_pel_kernel)(self.block, self.cur.stride(), r, stride, b, b),
+        }
     }
 
     /// [`SearchContext::distortion`] where the block reaches past the

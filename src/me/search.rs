@@ -148,6 +148,31 @@ impl<'s, 'p> Walk<'s, 'p> {
         better
     }
 
+    /// Evaluates (dx, dy), with `rate` its rate term, where the caller
+    /// knows the position lies in the window and the block inside the
+    /// reference's buffer at `at` (its index there): [`Walk::try_at`]
+    /// without the checks, for the survivors of successive elimination.
+    /// Marks it seen; evaluating a position twice changes nothing (its
+    /// cost is the same, and only a strictly better key replaces the best).
+    #[inline]
+    fn try_inside(&mut self, dx: i32, dy: i32, at: usize, rate: u64) {
+        let i = (dy - self.origin.1 + self.range) as usize * self.side
+            + (dx - self.origin.0 + self.range) as usize;
+        self.seen.words()[i / 64] |= 1u64 << (i % 64);
+        let cap = self.best.cost.saturating_sub(rate).min(u64::from(u32::MAX)) as u32;
+        let cost = u64::from(self.s.distortion_at(at, cap)) + rate;
+        if cost > self.best.cost {
+            return;
+        }
+        let c = Candidate {
+            cost,
+            mv: Mv::full_pel(dx, dy),
+        };
+        if c.beats(&self.best) {
+            self.best = c;
+        }
+    }
+
     /// The best position so far, full-pel.
     fn centre(&self) -> (i32, i32) {
         (self.best.mv.x / 4, self.best.mv.y / 4)
@@ -359,6 +384,10 @@ fn eliminate(
         );
     }
     let at = |i: usize| (x_lo + (i % width) as i32, y_lo + (i / width) as i32);
+    let (corner, stride) = (
+        s.reference.index(s.x + x_lo as isize, s.y + y_lo as isize),
+        s.reference.stride(),
+    );
     // Scanned in chunks whose minimum (a vector operation) is compared
     // first: most chunks hold no position to evaluate.
     const CHUNK: usize = 16;
@@ -377,12 +406,14 @@ fn eliminate(
             if d > limit {
                 continue;
             }
-            let (dx, dy) = at(k * CHUNK + j);
+            let i = k * CHUNK + j;
+            let (dx, dy) = at(i);
             // The rate term only where the distortion's bound leaves room.
-            if super::sea::bound_for(metric, d, samples) + s.rate(Mv::full_pel(dx, dy)) > best {
+            let rate = s.rate(Mv::full_pel(dx, dy));
+            if super::sea::bound_for(metric, d, samples) + rate > best {
                 continue;
             }
-            w.try_at(dx, dy);
+            w.try_inside(dx, dy, corner + (i / width) * stride + i % width, rate);
             if w.best.cost != best {
                 best = w.best.cost;
                 limit = max_diff(metric, best, samples).min(u64::from(u32::MAX)) as u32;

@@ -257,6 +257,7 @@ fn pixel_kernels() {
             average_8x8,
             box_sums,
             ads,
+            sad_16x16_row,
         } = *t;
         let sets = sample_sets(100 * 70, 5);
         for a in &sets {
@@ -284,6 +285,16 @@ fn pixel_kernels() {
                             "{isa} satd {w}x{h}"
                         );
                     }
+                }
+                // 16 positions along a row, each against the plain SAD,
+                // the reference ending exactly where the kernel may read.
+                let n = b.len() - 15 * 100 - 32;
+                for (da, db) in [(&a[101..], &b[7..]), (&a[..], &b[n..])] {
+                    let (mut x, mut y) = ([0u32; 16], [0u32; 16]);
+                    sad_16x16_row(da, 100, db, 100, &mut x);
+                    (s.sad_16x16_row)(da, 100, db, 100, &mut y);
+                    let each: [u32; 16] = std::array::from_fn(|k| sad(da, 100, &db[k..], 100, 16, 16));
+                    assert_eq!((x, y), (each, each), "{isa} 16x16 SADs along a row");
                 }
                 // A block ending exactly at its slice's end.
                 let n = a.len() - 15 * 100 - 16;

@@ -118,6 +118,13 @@ pub type BoxSumsFn = fn(&[u8], usize, usize, usize, &mut [u16]);
 /// `(rows, current, out)` ([`super::sea::ads`], x264's `ads4`).
 pub type AdsFn = fn([&[u16]; 4], [u16; 4], &mut [u32]);
 
+/// The SADs of a 16x16 block against the 16 blocks one column apart along
+/// a row of a reference: `(a, sa, b, sb, out)`, `out[k]` the SAD of `a`
+/// and the block at `b[k..]`. `b` must hold `15 sb + 32` samples (a column
+/// past the last block's, which the wide kernel loads and does not use).
+/// For exhaustive search where most positions are evaluated.
+pub type SadRowFn = fn(&[u8], usize, &[u8], usize, &mut [u32; 16]);
+
 /// The pixel kernels of one CPU level.
 #[derive(Clone, Copy)]
 pub struct PixelDsp {
@@ -141,6 +148,8 @@ pub struct PixelDsp {
     pub box_sums: BoxSumsFn,
     /// The bounds of a row of positions (successive elimination).
     pub ads: AdsFn,
+    /// 16x16 SADs at 16 consecutive columns (exhaustive search).
+    pub sad_16x16_row: SadRowFn,
 }
 
 impl std::fmt::Debug for PixelDsp {
@@ -161,7 +170,26 @@ const SCALAR: PixelDsp = PixelDsp {
     average_8x8: |a, c, out| average_rows(8, a, c, out),
     box_sums: super::sea::box_sums,
     ads: super::sea::ads,
+    sad_16x16_row: |a, sa, b, sb, out| sad_16x16_row_with(sad, a, sa, b, sb, out),
 };
+
+/// [`SadRowFn`] as 16 calls of a SAD kernel.
+#[inline(always)]
+fn sad_16x16_row_with(kernel: CostFn, a: &[u8], sa: usize, b: &[u8], sb: usize, out: &mut [u32; 16]) {
+    check_sad_row(a, sa, b, sb);
+    for (k, o) in out.iter_mut().enumerate() {
+        *o = kernel(a, sa, &b[k..], sb, 16, 16);
+    }
+}
+
+/// Panics unless `a` holds a 16x16 block and `b` the 16 blocks of a
+/// [`SadRowFn`] and the column after them.
+fn check_sad_row(a: &[u8], sa: usize, b: &[u8], sb: usize) {
+    assert!(
+        15 * sa + 16 <= a.len() && 15 * sb + 32 <= b.len(),
+        "sad_16x16_row: blocks outside their slices"
+    );
+}
 
 /// The tables, lowest level first.
 pub static PIXEL: PerLevel<PixelDsp> = PerLevel([
@@ -414,6 +442,7 @@ mod x86 {
         average_8x8: super::x86_halfpel::average_8x8,
         box_sums: crate::me::sea::box_sums,
         ads: crate::me::sea::ads,
+        sad_16x16_row: |a, sa, b, sb, out| super::sad_16x16_row_with(sad_sse2, a, sa, b, sb, out),
     };
     pub const AVX2: PixelDsp = PixelDsp {
         sad: sad_avx2,
@@ -423,8 +452,46 @@ mod x86 {
         halfpel_planes: super::avx2::halfpel_planes,
         box_sums: super::avx2::box_sums,
         ads: super::avx2::ads,
+        sad_16x16_row: sad_16x16_row_avx2,
         ..SSE2
     };
+
+    fn sad_16x16_row_avx2(a: &[u8], sa: usize, b: &[u8], sb: usize, out: &mut [u32; 16]) {
+        super::check_sad_row(a, sa, b, sb);
+        // SAFETY: AVX2 was detected before this set was chosen; bounds
+        // checked above.
+        unsafe { sad_16x16_row_avx2_raw(a.as_ptr(), sa, b.as_ptr(), sb, out) }
+    }
+
+    /// `mpsadbw` gives, per 128-bit lane, the SADs of one 4-byte group of
+    /// the block against 8 consecutive windows of the reference: lane 0
+    /// reads from column 0 (positions 0-7), lane 1 from column 8 (8-15).
+    /// Group g of a row needs the reference from column 4g: the immediate
+    /// picks the group (bits 0-1, 3-4) and a 4-column step (bits 2, 5), so
+    /// two loads serve the four groups. Sums stay within u16 (at most
+    /// 256 x 255).
+    #[target_feature(enable = "avx2")]
+    unsafe fn sad_16x16_row_avx2_raw(a: *const u8, sa: usize, b: *const u8, sb: usize, out: &mut [u32; 16]) {
+        let mut acc = _mm256_setzero_si256();
+        for r in 0..16 {
+            let block = _mm256_broadcastsi128_si256(_mm_loadu_si128(a.add(r * sa) as *const __m128i));
+            let row = b.add(r * sb);
+            let from0 = _mm256_loadu2_m128i(row.add(8) as *const __m128i, row as *const __m128i);
+            let from8 = _mm256_loadu2_m128i(row.add(16) as *const __m128i, row.add(8) as *const __m128i);
+            let g0 = _mm256_mpsadbw_epu8::<0b000_000>(from0, block);
+            let g1 = _mm256_mpsadbw_epu8::<0b101_101>(from0, block);
+            let g2 = _mm256_mpsadbw_epu8::<0b010_010>(from8, block);
+            let g3 = _mm256_mpsadbw_epu8::<0b111_111>(from8, block);
+            let sum = _mm256_add_epi16(_mm256_add_epi16(g0, g1), _mm256_add_epi16(g2, g3));
+            acc = _mm256_add_epi16(acc, sum);
+        }
+        let (lo, hi) = (
+            _mm256_cvtepu16_epi32(_mm256_castsi256_si128(acc)),
+            _mm256_cvtepu16_epi32(_mm256_extracti128_si256::<1>(acc)),
+        );
+        _mm256_storeu_si256(out.as_mut_ptr() as *mut __m256i, lo);
+        _mm256_storeu_si256(out.as_mut_ptr().add(8) as *mut __m256i, hi);
+    }
 
     fn satd_avx2(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
         check_bounds(a, sa, b, sb, w, h);

@@ -1,7 +1,8 @@
 //! The search patterns: full-pel search per method, then sub-pel refinement.
 
 use super::pipeline::SharedGrid;
-use super::{Candidate, Method, MotionField, SearchContext, Subpel};
+use super::sea::max_diff;
+use super::{Candidate, Method, Metric, MotionField, SearchContext, Subpel};
 use crate::codec::mv::Mv;
 
 /// Candidate vectors from neighbouring blocks, for predictive methods.
@@ -152,15 +153,19 @@ impl<'s, 'p> Walk<'s, 'p> {
     /// knows the position lies in the window and the block inside the
     /// reference's buffer at `at` (its index there): [`Walk::try_at`]
     /// without the checks, for the survivors of successive elimination.
-    /// Marks it seen; evaluating a position twice changes nothing (its
+    /// Not marked seen: evaluating a position twice changes nothing (its
     /// cost is the same, and only a strictly better key replaces the best).
     #[inline]
     fn try_inside(&mut self, dx: i32, dy: i32, at: usize, rate: u64) {
-        let i = (dy - self.origin.1 + self.range) as usize * self.side
-            + (dx - self.origin.0 + self.range) as usize;
-        self.seen.words()[i / 64] |= 1u64 << (i % 64);
         let cap = self.best.cost.saturating_sub(rate).min(u64::from(u32::MAX)) as u32;
         let cost = u64::from(self.s.distortion_at(at, cap)) + rate;
+        self.keep_if_better(dx, dy, cost);
+    }
+
+    /// Makes (dx, dy) at `cost` the best if it beats it (the tie-break
+    /// only on equal costs).
+    #[inline]
+    fn keep_if_better(&mut self, dx: i32, dy: i32, cost: u64) {
         if cost > self.best.cost {
             return;
         }
@@ -168,7 +173,7 @@ impl<'s, 'p> Walk<'s, 'p> {
             cost,
             mv: Mv::full_pel(dx, dy),
         };
-        if c.beats(&self.best) {
+        if cost < self.best.cost || c.beats(&self.best) {
             self.best = c;
         }
     }
@@ -363,7 +368,7 @@ fn eliminate(
     (xs, ys): (std::ops::RangeInclusive<i32>, std::ops::RangeInclusive<i32>),
     bounds: &mut Vec<u32>,
 ) {
-    use super::sea::{current_sums, max_diff, RowBounds};
+    use super::sea::{current_sums, RowBounds};
     let s = w.s;
     let b = s.cfg.block;
     let (metric, samples) = (s.cfg.full_pel_metric(), (b * b / 4) as u32);
@@ -388,35 +393,93 @@ fn eliminate(
         s.reference.index(s.x + x_lo as isize, s.y + y_lo as isize),
         s.reference.stride(),
     );
-    // Scanned in chunks whose minimum (a vector operation) is compared
-    // first: most chunks hold no position to evaluate.
-    const CHUNK: usize = 16;
-    let chunk_min = |c: &[u32]| c.iter().fold(u32::MAX, |m, &d| m.min(d));
-    let min = chunk_min(bounds);
+    let min = bounds.iter().fold(u32::MAX, |m, &d| m.min(d));
     let least = bounds.iter().position(|&d| d == min).unwrap_or(0);
     let (dx, dy) = at(least);
     w.try_at(dx, dy);
-    let mut best = w.best.cost;
-    let mut limit = max_diff(metric, best, samples).min(u64::from(u32::MAX)) as u32;
-    for (k, chunk) in bounds.chunks(CHUNK).enumerate() {
-        if chunk_min(chunk) > limit {
-            continue;
-        }
-        for (j, &d) in chunk.iter().enumerate() {
-            if d > limit {
+    let window = Survivors {
+        corner: (x_lo, y_lo),
+        at: corner,
+        stride,
+        metric,
+        samples,
+        // 16x16 SADs a row of 16 positions at a time where the kernel
+        // pays: noisy content leaves most positions above their bound.
+        row_kernel: (metric == Metric::Sad && s.cfg.block == 16 && s.capped.is_none())
+            .then(|| super::dsp::pixel().sad_16x16_row),
+    };
+    for (row, line) in bounds.chunks_exact(width).enumerate() {
+        window.evaluate_row(w, row, line);
+    }
+}
+
+/// Where the positions of an exhaustive window lie, and how their
+/// distortion is computed, for [`eliminate`].
+struct Survivors {
+    /// The window's first position (dx, dy).
+    corner: (i32, i32),
+    /// The reference's buffer index of the first position's block.
+    at: usize,
+    stride: usize,
+    metric: Metric,
+    samples: u32,
+    row_kernel: Option<super::dsp::SadRowFn>,
+}
+
+/// Surviving positions in a run of 16 from which the row kernel is used.
+const ROW_KERNEL_FROM: usize = 2;
+
+impl Survivors {
+    /// Evaluates the positions of window row `row` (bounds `line`) whose
+    /// bound does not exceed the best so far, in runs of 16: most runs hold
+    /// none (their minimum, a vector operation, is compared first).
+    fn evaluate_row(&self, w: &mut Walk<'_, '_>, row: usize, line: &[u32]) {
+        let s = w.s;
+        let dy = self.corner.1 + row as i32;
+        let limit_of = |best: u64| max_diff(self.metric, best, self.samples).min(u64::from(u32::MAX)) as u32;
+        let mut start = 0;
+        while start < line.len() {
+            // The last run ends at the row's end (overlapping the one before:
+            // evaluating a position twice changes nothing).
+            let first = start.min(line.len().saturating_sub(16));
+            let run = &line[first..(first + 16).min(line.len())];
+            start = first + 16;
+            let limit = limit_of(w.best.cost);
+            let survivors = run.iter().filter(|&&d| d <= limit).count();
+            if survivors == 0 {
                 continue;
             }
-            let i = k * CHUNK + j;
-            let (dx, dy) = at(i);
-            // The rate term only where the distortion's bound leaves room.
-            let rate = s.rate(Mv::full_pel(dx, dy));
-            if super::sea::bound_for(metric, d, samples) + rate > best {
+            let at = self.at + row * self.stride + first;
+            let data = &s.reference.data()[at..];
+            let kernel = self.row_kernel.filter(|_| {
+                survivors >= ROW_KERNEL_FROM && run.len() == 16 && data.len() >= 15 * self.stride + 32
+            });
+            if let Some(kernel) = kernel {
+                let mut sads = [0u32; 16];
+                kernel(s.block, s.cur.stride(), data, self.stride, &mut sads);
+                // Only a SAD within the best so far can make a better cost.
+                let best = w.best.cost;
+                let mut within = (0..16).fold(0u32, |m, j| m | u32::from(u64::from(sads[j]) <= best) << j);
+                while within != 0 {
+                    let j = within.trailing_zeros() as usize;
+                    within &= within - 1;
+                    let dx = self.corner.0 + (first + j) as i32;
+                    w.keep_if_better(dx, dy, u64::from(sads[j]) + s.rate(Mv::full_pel(dx, dy)));
+                }
                 continue;
             }
-            w.try_inside(dx, dy, corner + (i / width) * stride + i % width, rate);
-            if w.best.cost != best {
-                best = w.best.cost;
-                limit = max_diff(metric, best, samples).min(u64::from(u32::MAX)) as u32;
+            for (j, &d) in run.iter().enumerate() {
+                let best = w.best.cost;
+                if d > limit_of(best) {
+                    continue;
+                }
+                let dx = self.corner.0 + (first + j) as i32;
+                // The rate term only where the distortion's bound leaves room.
+                let rate = s.rate(Mv::full_pel(dx, dy));
+                if super::sea::bound_for(self.metric, d, self.samples) + rate > best {
+                    continue;
+                }
+                w.try_inside(dx, dy, at + j, rate);
             }
         }
     }

@@ -145,6 +145,10 @@ fn pixel_table(c: &mut Criterion) {
                 (t.satd)(black_box(&a[1..]), 64, &b[3..], 64, size, size)
             });
         }
+        let mut row = [0u32; 16];
+        bench(g, "sad_16x16_row_of_16", l, || {
+            (t.sad_16x16_row)(black_box(&a[1..]), 64, &b[3..], 64, &mut row)
+        });
         bench(g, "satd_4x4_pair", l, || {
             (t.satd_4x4_pair)(black_box(&pair), &pair)
         });

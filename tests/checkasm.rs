@@ -291,10 +291,16 @@ fn pixel_kernels() {
                 let n = b.len() - 15 * 100 - 32;
                 for (da, db) in [(&a[101..], &b[7..]), (&a[..], &b[n..])] {
                     let (mut x, mut y) = ([0u32; 16], [0u32; 16]);
-                    sad_16x16_row(da, 100, db, 100, &mut x);
-                    (s.sad_16x16_row)(da, 100, db, 100, &mut y);
+                    let least_x = sad_16x16_row(da, 100, db, 100, &mut x);
+                    let least_y = (s.sad_16x16_row)(da, 100, db, 100, &mut y);
                     let each: [u32; 16] = std::array::from_fn(|k| sad(da, 100, &db[k..], 100, 16, 16));
                     assert_eq!((x, y), (each, each), "{isa} 16x16 SADs along a row");
+                    let least = each.iter().min().copied();
+                    assert_eq!(
+                        (Some(least_x), Some(least_y)),
+                        (least, least),
+                        "{isa} their least"
+                    );
                 }
                 // A block ending exactly at its slice's end.
                 let n = a.len() - 15 * 100 - 16;

@@ -122,8 +122,9 @@ pub type AdsFn = fn([&[u16]; 4], [u16; 4], &mut [u32]);
 /// a row of a reference: `(a, sa, b, sb, out)`, `out[k]` the SAD of `a`
 /// and the block at `b[k..]`. `b` must hold `15 sb + 32` samples (a column
 /// past the last block's, which the wide kernel loads and does not use).
-/// For exhaustive search where most positions are evaluated.
-pub type SadRowFn = fn(&[u8], usize, &[u8], usize, &mut [u32; 16]);
+/// Returns the least of them. For exhaustive search where most positions
+/// are evaluated.
+pub type SadRowFn = fn(&[u8], usize, &[u8], usize, &mut [u32; 16]) -> u32;
 
 /// The pixel kernels of one CPU level.
 #[derive(Clone, Copy)]
@@ -175,11 +176,12 @@ const SCALAR: PixelDsp = PixelDsp {
 
 /// [`SadRowFn`] as 16 calls of a SAD kernel.
 #[inline(always)]
-fn sad_16x16_row_with(kernel: CostFn, a: &[u8], sa: usize, b: &[u8], sb: usize, out: &mut [u32; 16]) {
+fn sad_16x16_row_with(kernel: CostFn, a: &[u8], sa: usize, b: &[u8], sb: usize, out: &mut [u32; 16]) -> u32 {
     check_sad_row(a, sa, b, sb);
     for (k, o) in out.iter_mut().enumerate() {
         *o = kernel(a, sa, &b[k..], sb, 16, 16);
     }
+    out.iter().copied().fold(u32::MAX, u32::min)
 }
 
 /// Panics unless `a` holds a 16x16 block and `b` the 16 blocks of a
@@ -456,7 +458,7 @@ mod x86 {
         ..SSE2
     };
 
-    fn sad_16x16_row_avx2(a: &[u8], sa: usize, b: &[u8], sb: usize, out: &mut [u32; 16]) {
+    fn sad_16x16_row_avx2(a: &[u8], sa: usize, b: &[u8], sb: usize, out: &mut [u32; 16]) -> u32 {
         super::check_sad_row(a, sa, b, sb);
         // SAFETY: AVX2 was detected before this set was chosen; bounds
         // checked above.
@@ -471,7 +473,13 @@ mod x86 {
     /// two loads serve the four groups. Sums stay within u16 (at most
     /// 256 x 255).
     #[target_feature(enable = "avx2")]
-    unsafe fn sad_16x16_row_avx2_raw(a: *const u8, sa: usize, b: *const u8, sb: usize, out: &mut [u32; 16]) {
+    unsafe fn sad_16x16_row_avx2_raw(
+        a: *const u8,
+        sa: usize,
+        b: *const u8,
+        sb: usize,
+        out: &mut [u32; 16],
+    ) -> u32 {
         let mut acc = _mm256_setzero_si256();
         for r in 0..16 {
             let block = _mm256_broadcastsi128_si256(_mm_loadu_si128(a.add(r * sa) as *const __m128i));
@@ -485,12 +493,11 @@ mod x86 {
             let sum = _mm256_add_epi16(_mm256_add_epi16(g0, g1), _mm256_add_epi16(g2, g3));
             acc = _mm256_add_epi16(acc, sum);
         }
-        let (lo, hi) = (
-            _mm256_cvtepu16_epi32(_mm256_castsi256_si128(acc)),
-            _mm256_cvtepu16_epi32(_mm256_extracti128_si256::<1>(acc)),
-        );
-        _mm256_storeu_si256(out.as_mut_ptr() as *mut __m256i, lo);
-        _mm256_storeu_si256(out.as_mut_ptr().add(8) as *mut __m256i, hi);
+        let (lo, hi) = (_mm256_castsi256_si128(acc), _mm256_extracti128_si256::<1>(acc));
+        _mm256_storeu_si256(out.as_mut_ptr() as *mut __m256i, _mm256_cvtepu16_epi32(lo));
+        _mm256_storeu_si256(out.as_mut_ptr().add(8) as *mut __m256i, _mm256_cvtepu16_epi32(hi));
+        // The least of the 16 (phminposuw: the least u16 of a register).
+        (_mm_cvtsi128_si32(_mm_minpos_epu16(_mm_min_epu16(lo, hi))) & 0xffff) as u32
     }
 
     fn satd_avx2(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {

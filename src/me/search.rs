@@ -162,6 +162,26 @@ impl<'s, 'p> Walk<'s, 'p> {
         self.keep_if_better(dx, dy, cost);
     }
 
+    /// Whether a position of row `dy` with its column in `dxs` can beat
+    /// the best: always, unless the best costs nothing, when only the
+    /// tie-break (the shorter vector first) can, so only positions no
+    /// farther from the zero vector than the best's. On flat areas (a black
+    /// border, a dark scene) every position costs nothing; this keeps the
+    /// exhaustive search from comparing each of them.
+    fn could_improve_on(&self, dy: i32, dxs: std::ops::RangeInclusive<i32>) -> bool {
+        if self.best.cost > 0 {
+            return true;
+        }
+        let nearest = if dxs.contains(&0) {
+            0
+        } else {
+            dxs.start().abs().min(dxs.end().abs())
+        };
+        let length = |x: i32, y: i32| i64::from(4 * x).pow(2) + i64::from(4 * y).pow(2);
+        let best = i64::from(self.best.mv.x).pow(2) + i64::from(self.best.mv.y).pow(2);
+        length(nearest, dy) <= best
+    }
+
     /// Makes (dx, dy) at `cost` the best if it beats it (the tie-break
     /// only on equal costs).
     #[inline]
@@ -444,6 +464,10 @@ impl Survivors {
             let first = start.min(line.len().saturating_sub(16));
             let run = &line[first..(first + 16).min(line.len())];
             start = first + 16;
+            let dxs = self.corner.0 + first as i32..=self.corner.0 + (first + run.len() - 1) as i32;
+            if !w.could_improve_on(dy, dxs) {
+                continue;
+            }
             let limit = limit_of(w.best.cost);
             let survivors = run.iter().filter(|&&d| d <= limit).count();
             if survivors == 0 {
@@ -456,9 +480,13 @@ impl Survivors {
             });
             if let Some(kernel) = kernel {
                 let mut sads = [0u32; 16];
-                kernel(s.block, s.cur.stride(), data, self.stride, &mut sads);
-                // Only a SAD within the best so far can make a better cost.
+                let least = kernel(s.block, s.cur.stride(), data, self.stride, &mut sads);
+                // Only a SAD within the best so far can make a better cost:
+                // most runs hold none.
                 let best = w.best.cost;
+                if u64::from(least) > best {
+                    continue;
+                }
                 let mut within = (0..16).fold(0u32, |m, j| m | u32::from(u64::from(sads[j]) <= best) << j);
                 while within != 0 {
                     let j = within.trailing_zeros() as usize;

@@ -429,7 +429,11 @@ fn eliminate(
             .then(|| super::dsp::pixel().sad_16x16_row),
     };
     for (row, line) in bounds.chunks_exact(width).enumerate() {
-        window.evaluate_row(w, row, line);
+        // Most rows hold no survivor: one count (vector operations) says so.
+        let limit = max_diff(metric, w.best.cost, samples).min(u64::from(u32::MAX)) as u32;
+        if line.iter().filter(|&&d| d <= limit).count() > 0 {
+            window.evaluate_row(w, row, line);
+        }
     }
 }
 
@@ -459,9 +463,7 @@ impl Survivors {
         let limit_of = |best: u64| max_diff(self.metric, best, self.samples).min(u64::from(u32::MAX)) as u32;
         let mut start = 0;
         while start < line.len() {
-            // The last run ends at the row's end (overlapping the one before:
-            // evaluating a position twice changes nothing).
-            let first = start.min(line.len().saturating_sub(16));
+            let first = start;
             let run = &line[first..(first + 16).min(line.len())];
             start = first + 16;
             let dxs = self.corner.0 + first as i32..=self.corner.0 + (first + run.len() - 1) as i32;

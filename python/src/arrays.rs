@@ -6,6 +6,7 @@ use mocomp::codec::{Frame, Plane};
 use mocomp::flow::Flow;
 use mocomp::imgproc::Luma;
 use mocomp::io::image::luma_from_rgb;
+use mocomp::raster::plane_to_u8_array;
 use ndarray::{Array2, ArrayView2, Axis};
 use numpy::{
     PyArray2, PyArray3, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3,
@@ -75,7 +76,7 @@ impl<'py> LumaArg<'py> {
             LumaArg::F32(a)
         } else {
             let plane = luma_plane(name, obj, 0).map_err(|_| wrong(name, obj, PICTURE))?;
-            LumaArg::Owned(plane_view(&plane))
+            LumaArg::Owned(plane_to_u8_array(&plane))
         };
         let (h, w) = arg.luma().dim();
         check_picture_size(name, (h, w))?;
@@ -106,7 +107,7 @@ pub fn luma_plane(name: &str, obj: &Bound<'_, PyAny>, pad: usize) -> PyResult<Pl
             let rgb: Vec<u8> = a.iter().copied().collect();
             let plane = luma_from_rgb(w, h, &rgb).map_err(|e| value_error(format!("{name}: {e}")))?;
             return if pad > plane.pad() {
-                plane_from_view(name, plane_view(&plane).view(), pad)
+                plane_from_view(name, plane_to_u8_array(&plane).view(), pad)
             } else {
                 Ok(plane)
             };
@@ -138,19 +139,9 @@ pub fn plane_from_view(name: &str, view: ArrayView2<'_, u8>, pad: usize) -> PyRe
     Ok(plane)
 }
 
-/// The visible samples of `plane`, H x W.
-pub fn plane_view(plane: &Plane) -> Array2<u8> {
-    let (w, h) = (plane.width(), plane.height());
-    let mut out = Array2::zeros((h, w));
-    for (mut dst, src) in out.axis_iter_mut(Axis(0)).zip(plane.rows()) {
-        dst.iter_mut().zip(src).for_each(|(d, s)| *d = *s);
-    }
-    out
-}
-
 /// `plane` as a new numpy array.
 pub fn plane_to_py<'py>(py: Python<'py>, plane: &Plane) -> Bound<'py, PyArray2<u8>> {
-    PyArray2::from_owned_array(py, plane_view(plane))
+    PyArray2::from_owned_array(py, plane_to_u8_array(plane))
 }
 
 /// A frame's planes as a (Y, U, V) tuple of numpy arrays.

@@ -456,7 +456,7 @@ const ROW_KERNEL_FROM: usize = 2;
 impl Survivors {
     /// Evaluates the positions of window row `row` (bounds `line`) whose
     /// bound does not exceed the best so far, in runs of 16: most runs hold
-    /// none (their minimum, a vector operation, is compared first).
+    /// none (their count, a vector operation, is taken first).
     fn evaluate_row(&self, w: &mut Walk<'_, '_>, row: usize, line: &[u32]) {
         let s = w.s;
         let dy = self.corner.1 + row as i32;

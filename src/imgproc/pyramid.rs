@@ -246,6 +246,14 @@ fn linear_taps(n: usize, n_src: usize, levels: usize) -> Vec<(usize, usize, f32)
         .collect()
 }
 
+/// The weights of the outputs inside an interval between two samples,
+/// `levels` levels finer: `t = (j + 0.5) / 2^levels`, the same at every
+/// interval (what [`upsample_row`] takes).
+fn interval_weights(levels: usize) -> Vec<f32> {
+    let f = 1usize << levels;
+    (0..f).map(|j| (j as f32 + 0.5) / f as f32).collect()
+}
+
 /// One row of [`upsample_levels`]' first pass: `dst[x]` linear between
 /// the samples of `src` that `cols[x]` names. Between two samples the
 /// `2^levels` outputs have the same weights at every interval (the
@@ -342,8 +350,7 @@ pub(crate) fn upsample_levels_pair_body(
     // The first pass on the source rows these output rows read (the taps
     // run in order), both components.
     let cols = linear_taps(w, sw, levels);
-    let f = 1usize << levels;
-    let ts: Vec<f32> = (0..f).map(|j| (j as f32 + 0.5) / f as f32).collect();
+    let ts = interval_weights(levels);
     let n = last - first + 1;
     let (mut tu, mut tv) = (vec![0f32; n * w], vec![0f32; n * w]);
     for (k, (du, dv)) in tu.chunks_exact_mut(w).zip(tv.chunks_exact_mut(w)).enumerate() {
@@ -376,9 +383,7 @@ pub(crate) fn upsample_levels_body(
     let (cols, rows) = (linear_taps(w, sw, levels), linear_taps(h, sh, levels));
     // Rows first: (sh, w). Both buffers are filled by extension, not
     // zeroed first: at full size the zeroing would cost a pass of its own.
-    // The weights inside an interval, t = (j + 0.5) / 2^levels.
-    let f = 1usize << levels;
-    let ts: Vec<f32> = (0..f).map(|j| (j as f32 + 0.5) / f as f32).collect();
+    let ts = interval_weights(levels);
     let mut tmp = vec![0f32; sh * w];
     for (src_row, dst) in s.chunks_exact(sw).zip(tmp.chunks_exact_mut(w.max(1))) {
         upsample_row(src_row, &cols, levels, &ts, dst);

@@ -349,13 +349,19 @@ fn pixel_kernels() {
             }
         }
         let sums: Vec<u16> = sets[3].iter().map(|&v| u16::from(v) * 200).collect();
-        for n in [1, 15, 16, 17, 33, 129] {
+        for n in [0, 1, 15, 16, 17, 33, 129] {
             let rows = [&sums[..], &sums[3..], &sums[170..], &sums[1001..]];
             for current in [[0, 0, 0, 0], [65535, 1, 30000, 40000], [12345, 54321, 0, 255]] {
                 let (mut x, mut y) = (vec![0u32; n], vec![0u32; n]);
-                ads(rows, current, &mut x);
-                (s.ads)(rows, current, &mut y);
+                let least_x = ads(rows, current, &mut x);
+                let least_y = (s.ads)(rows, current, &mut y);
                 assert_eq!(x, y, "{isa} ads of {n}");
+                assert_eq!(least_x, least_y, "{isa} ads' least of {n}");
+                assert_eq!(
+                    least_y,
+                    y.iter().copied().min().unwrap_or(u32::MAX),
+                    "{isa} least of {n}"
+                );
             }
         }
         // Widths with and without a remainder past the 16-column steps.

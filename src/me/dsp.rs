@@ -115,8 +115,9 @@ pub type AverageFn = fn((&[u8], usize), (&[u8], usize), &mut [u8]);
 pub type BoxSumsFn = fn(&[u8], usize, usize, usize, &mut [u16]);
 
 /// The quadrants' absolute differences of sums along a row of positions:
-/// `(rows, current, out)` ([`super::sea::ads`], x264's `ads4`).
-pub type AdsFn = fn([&[u16]; 4], [u16; 4], &mut [u32]);
+/// `(rows, current, out)` ([`super::sea::ads`], x264's `ads4`); returns
+/// the least of them.
+pub type AdsFn = fn([&[u16]; 4], [u16; 4], &mut [u32]) -> u32;
 
 /// The SADs of a 16x16 block against the 16 blocks one column apart along
 /// a row of a reference: `(a, sa, b, sb, out)`, `out[k]` the SAD of `a`
@@ -350,7 +351,7 @@ mod avx2 {
             => super::halfpel_planes_body::<true>;
         fn box_sums(data: &[u8], stride: usize, rows: usize, side: usize, out: &mut [u16])
             => crate::me::sea::box_sums;
-        fn ads(rows: [&[u16]; 4], current: [u16; 4], out: &mut [u32]) => crate::me::sea::ads;
+        fn ads(rows: [&[u16]; 4], current: [u16; 4], out: &mut [u32]) -> u32 => crate::me::sea::ads;
     }
 }
 

@@ -83,16 +83,23 @@ pub fn box_sums(data: &[u8], stride: usize, rows: usize, side: usize, out: &mut 
 
 /// The scalar `ads`: for the `out.len()` positions along a row, `out[i] =
 /// sum_q |rows[q][i] - current[q]|`, the quadrants' difference of sums.
+/// Returns the least of them (`u32::MAX` for none): a row whose least
+/// bound is above the best cost holds no survivor, and the window's least
+/// bound is the least of its rows'.
 #[inline(always)]
-pub fn ads(rows: [&[u16]; 4], current: [u16; 4], out: &mut [u32]) {
+pub fn ads(rows: [&[u16]; 4], current: [u16; 4], out: &mut [u32]) -> u32 {
     let n = out.len();
     let [a, b, c, d] = rows.map(|r| &r[..n]);
+    let mut least = u32::MAX;
     for i in 0..n {
-        out[i] = u32::from(a[i].abs_diff(current[0]))
+        let bound = u32::from(a[i].abs_diff(current[0]))
             + u32::from(b[i].abs_diff(current[1]))
             + u32::from(c[i].abs_diff(current[2]))
             + u32::from(d[i].abs_diff(current[3]));
+        out[i] = bound;
+        least = least.min(bound);
     }
+    least
 }
 
 /// Whether elimination saves time over a window of radius `r` in `metric`:
@@ -171,13 +178,13 @@ pub(crate) struct RowBounds<'a> {
 
 impl RowBounds<'_> {
     /// The quadrant bounds of `n` positions whose first block starts at
-    /// buffer offset `at`, into `out`.
+    /// buffer offset `at`, into `out`; returns the least of them.
     #[inline]
-    pub fn row(&self, at: usize, n: usize, out: &mut [u32]) {
+    pub fn row(&self, at: usize, n: usize, out: &mut [u32]) -> u32 {
         let (side, stride) = (self.sums.side, self.sums.stride);
         let rows =
             [at, at + side, at + side * stride, at + side * stride + side].map(|o| self.sums.row(o, n));
-        (self.ads)(rows, self.current, &mut out[..n]);
+        (self.ads)(rows, self.current, &mut out[..n])
     }
 }
 

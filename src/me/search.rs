@@ -323,10 +323,17 @@ pub(crate) fn full_pel(s: &SearchContext<'_>, neighbours: &Neighbours) -> Candid
     w.best
 }
 
+/// The quadrant bounds of an exhaustive window, and the least of each of
+/// its rows.
+#[derive(Default)]
+struct WindowBounds {
+    all: Vec<u32>,
+    row_least: Vec<u32>,
+}
+
 thread_local! {
-    /// The quadrant bounds of an exhaustive window, reused from block to
-    /// block.
-    static BOUNDS: std::cell::RefCell<Vec<u32>> = const { std::cell::RefCell::new(Vec::new()) };
+    /// The bounds' buffers, reused from block to block.
+    static BOUNDS: std::cell::RefCell<WindowBounds> = std::cell::RefCell::new(WindowBounds::default());
 }
 
 /// Every position within `r` of `centre` (inside the walk's window): all of
@@ -386,7 +393,7 @@ fn eliminate(
     w: &mut Walk<'_, '_>,
     sums: &super::sea::QuadrantSums,
     (xs, ys): (std::ops::RangeInclusive<i32>, std::ops::RangeInclusive<i32>),
-    bounds: &mut Vec<u32>,
+    bounds: &mut WindowBounds,
 ) {
     use super::sea::{current_sums, RowBounds};
     let s = w.s;
@@ -399,24 +406,23 @@ fn eliminate(
     };
     let (x_lo, y_lo) = (*xs.start(), *ys.start());
     let width = (xs.end() - x_lo + 1) as usize;
-    bounds.clear();
-    bounds.resize(width * ys.clone().count(), 0);
-    for (dy, row) in ys.clone().zip(bounds.chunks_exact_mut(width)) {
-        rows.row(
-            s.reference.index(s.x + x_lo as isize, s.y + dy as isize),
-            width,
-            row,
-        );
+    // Every entry is written by the bounds below: no clearing.
+    bounds.all.resize(width * ys.clone().count(), 0);
+    bounds.row_least.clear();
+    for (dy, row) in ys.clone().zip(bounds.all.chunks_exact_mut(width)) {
+        let at = s.reference.index(s.x + x_lo as isize, s.y + dy as isize);
+        bounds.row_least.push(rows.row(at, width, row));
     }
-    let at = |i: usize| (x_lo + (i % width) as i32, y_lo + (i / width) as i32);
     let (corner, stride) = (
         s.reference.index(s.x + x_lo as isize, s.y + y_lo as isize),
         s.reference.stride(),
     );
-    let min = bounds.iter().fold(u32::MAX, |m, &d| m.min(d));
-    let least = bounds.iter().position(|&d| d == min).unwrap_or(0);
-    let (dx, dy) = at(least);
-    w.try_at(dx, dy);
+    // The first position of the least bound, found from the rows' least.
+    let min = bounds.row_least.iter().fold(u32::MAX, |m, &d| m.min(d));
+    let least_row = bounds.row_least.iter().position(|&d| d == min).unwrap_or(0);
+    let line = &bounds.all[least_row * width..(least_row + 1) * width];
+    let least_col = line.iter().position(|&d| d == min).unwrap_or(0);
+    w.try_at(x_lo + least_col as i32, y_lo + least_row as i32);
     let window = Survivors {
         corner: (x_lo, y_lo),
         at: corner,
@@ -428,10 +434,9 @@ fn eliminate(
         row_kernel: (metric == Metric::Sad && s.cfg.block == 16 && s.capped.is_none())
             .then(|| super::dsp::pixel().sad_16x16_row),
     };
-    for (row, line) in bounds.chunks_exact(width).enumerate() {
-        // Most rows hold no survivor: one count (vector operations) says so.
-        let limit = max_diff(metric, w.best.cost, samples).min(u64::from(u32::MAX)) as u32;
-        if line.iter().filter(|&&d| d <= limit).count() > 0 {
+    for (row, (line, &least)) in bounds.all.chunks_exact(width).zip(&bounds.row_least).enumerate() {
+        // Most rows hold no survivor: their least bound says so.
+        if u64::from(least) <= max_diff(metric, w.best.cost, samples) {
             window.evaluate_row(w, row, line);
         }
     }

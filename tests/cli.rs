@@ -658,7 +658,9 @@ fn flow_by_dense_inverse_search_and_the_benchmark_generator() {
     // A pan of (2.3, -1.4) px with zoom and rotation: measured EPE 0.13 px.
     assert!(v["epe"].as_f64().unwrap() < 0.3, "{v}");
     // --fine-on-small computes this 96x64 pair at full size, as --finest 0
-    // does, instead of the fast preset's quarter size, and is more accurate.
+    // does, instead of the fast preset's quarter size, and is more accurate
+    // (not the same bytes as --finest 0: the finer mode keeps the full
+    // damping at every level, DisParams::damping_falls).
     let fast = |extra: &[&str], out: &str| {
         json_stdout(
             mocomp()
@@ -685,10 +687,9 @@ fn flow_by_dense_inverse_search_and_the_benchmark_generator() {
         fast(&["--finest", "0"], "full.flo"),
     );
     let read = |f: &str| std::fs::read(dir.path().join(f)).unwrap();
-    assert_eq!(read("fine.flo"), read("full.flo"));
     assert_ne!(read("fine.flo"), read("plain.flo"));
     assert!(
-        fine < plain && fine == full,
+        fine < plain && full < plain && (fine - full).abs() < 0.25 * full,
         "fine {fine}, plain {plain}, full {full}"
     );
     mocomp()

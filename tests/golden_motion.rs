@@ -116,7 +116,7 @@ fn flows_vectors_matches_and_metrics_are_the_pinned_ones() {
         (
             "synth_qcif.y4m",
             [
-                0xf41f2c09aaa501e1,
+                0xef44888b583a53f9,
                 0x11f1d4bcf10788b8,
                 0xa2fb325df39cca87,
                 0xb358b4003541484c,
@@ -125,7 +125,7 @@ fn flows_vectors_matches_and_metrics_are_the_pinned_ones() {
         (
             "tree_qcif.y4m",
             [
-                0xbd4a31fdd9a9e63b,
+                0xaf60f6294f0aec60,
                 0x9bb4fee41451bfa5,
                 0xe9545a0776768122,
                 0x352f2880649a8813,

@@ -302,18 +302,17 @@ impl FlowOptions {
         Ok(tv)
     }
 
-    /// The DIS settings: the preset's, with the options.
+    /// The DIS settings: the preset's, with the options. A finest level
+    /// given overrides the finer mode as a whole.
     pub fn dis_params(&self) -> DisParams {
-        let base = if self.fine_on_small {
-            dis_preset(self.preset).fine_on_small()
-        } else {
-            dis_preset(self.preset)
+        let base = match (self.fine_on_small, self.finest) {
+            (true, None) => dis_preset(self.preset).fine_on_small(),
+            _ => dis_preset(self.preset),
         };
         DisParams {
             global_search: self.global_search,
             seed_matches: base.seed_matches || self.matches,
             finest: self.finest.unwrap_or(base.finest),
-            min_side: if self.finest.is_some() { 0 } else { base.min_side },
             ..base
         }
     }

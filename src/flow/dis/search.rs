@@ -116,6 +116,17 @@ impl Padded {
         )
     }
 
+    /// Whether a `P x P` patch with top-left (x, y) lies within the
+    /// picture, up to an eighth of a patch past its edges. Farther out,
+    /// its samples are mostly the replicated border: the content it is
+    /// looking for has left the picture, and nothing there says where.
+    #[inline(always)]
+    pub(super) fn holds<const P: usize>(&self, x: f32, y: f32) -> bool {
+        let slack = P as f32 / 8.0;
+        let within = |p: f32, n: usize| p >= -slack && p + P as f32 <= n as f32 + slack;
+        within(x, self.w) && within(y, self.h)
+    }
+
     /// Row `r` of the patch at `base` and the row below, each `P + 1` long.
     #[inline(always)]
     pub(super) fn rows<const P: usize>(&self, base: usize, r: usize) -> (&[f32], &[f32]) {
@@ -391,6 +402,9 @@ pub(crate) struct LevelSearch<'a> {
     pub exhaustive: bool,
     /// Added to the Hessian's diagonal per pixel of the patch.
     pub damping: f32,
+    /// Whether `u`, `v` come from a coarser level (every level but the
+    /// coarsest): then a patch whose start leaves the picture keeps it.
+    pub refines: bool,
 }
 
 /// Searches every patch of the level with patches of side `patch`, by the
@@ -426,6 +440,7 @@ fn search_sized<const P: usize>(input: &LevelSearch, avx2: bool) -> SparseFlow {
         params: p,
         exhaustive,
         damping,
+        refines,
     } = input;
     let (h, w) = a1.dim();
     let i0 = a1.as_slice().expect("standard");
@@ -459,6 +474,7 @@ fn search_sized<const P: usize>(input: &LevelSearch, avx2: bool) -> SparseFlow {
         v: v.as_slice().expect("standard"),
         hint: hint.map(|(a, b)| (a.as_slice().expect("standard"), b.as_slice().expect("standard"))),
         p,
+        refines,
         global: global.as_ref().map(|(a, b)| (a.as_slice(), b.as_slice())),
     };
     let chunk = rows_per * ws;
@@ -519,6 +535,8 @@ struct StripeContext<'a> {
     v: &'a [f32],
     hint: Option<(&'a [f32], &'a [f32])>,
     p: &'a DisParams,
+    /// [`LevelSearch::refines`].
+    refines: bool,
     /// The exhaustive search's matches on the whole grid (median-filtered),
     /// at the coarsest level.
     global: Option<(&'a [f32], &'a [f32])>,
@@ -626,6 +644,16 @@ impl StripeContext<'_> {
                     }
                     known = Some(best_residual);
                 }
+                // Below the coarsest level, a patch whose start takes it out
+                // of the picture keeps that start (the coarser level's and
+                // its neighbours' motion, extrapolated): a descent against
+                // the replicated border slides along it, as far as the
+                // distance check lets it. The coarsest level's starts are
+                // no such estimate.
+                if self.refines && !self.lv.i1.holds::<P>(x0 as f32 + start.0, y0 as f32 + start.1) {
+                    (su[k], sv[k]) = start;
+                    continue;
+                }
                 let end = t.descend_from(self.lv.i1, x0, y0, start, known, steps_per_pass, mn);
                 // A step that runs further than a patch from its start has
                 // most likely left the basin of the right match: keep the start.
@@ -688,6 +716,7 @@ mod tests {
                     params: &params,
                     exhaustive: global,
                     damping: params.damping,
+                    refines: true,
                 };
                 let plain = search_level_body::<false>(&input, patch);
                 for level in crate::codec::cpu::available() {

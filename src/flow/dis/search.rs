@@ -582,6 +582,34 @@ impl StripeContext<'_> {
         }
     }
 
+    /// The patch's start: the least distant of its own vector and the
+    /// candidates, with its residual (the descent's first step), or its
+    /// own vector unmeasured when there is no candidate.
+    #[inline(always)]
+    fn best_start<const P: usize>(
+        &self,
+        t: &Template<P>,
+        (x0, y0): (usize, usize),
+        own: (f32, f32),
+        candidates: [Option<(f32, f32)>; 3],
+    ) -> ((f32, f32), Option<[f32; 4]>) {
+        if candidates.iter().all(Option::is_none) {
+            return (own, None);
+        }
+        let mn = self.p.mean_normalize;
+        let residual = |(u, v): (f32, f32)| t.residual(self.lv.i1, x0 as f32 + u, y0 as f32 + v);
+        let (mut start, mut best_residual) = (own, residual(own));
+        let mut best = t.distance(best_residual, mn);
+        for cand in candidates.into_iter().flatten() {
+            let r = residual(cand);
+            let cost = t.distance(r, mn);
+            if cost < best {
+                (best, best_residual, start) = (cost, r, cand);
+            }
+        }
+        (start, Some(best_residual))
+    }
+
     /// Searches the patch rows `row0..` held by `su`/`sv`: a forward pass
     /// then a backward pass, each patch starting from the best of its own
     /// vector and its searched neighbours'.
@@ -609,7 +637,7 @@ impl StripeContext<'_> {
                 // Rebuilt at each visit: cheaper than keeping every
                 // patch's copy between the passes.
                 let t = &Template::<P>::new(self.lv, x0, y0, mn);
-                let mut start = (su[k], sv[k]);
+                let start = (su[k], sv[k]);
                 let mut candidates = [None; 3];
                 if self.p.propagate {
                     let (has_left, has_up) = if forward {
@@ -630,20 +658,7 @@ impl StripeContext<'_> {
                     let i = centre(r, c);
                     candidates[2] = Some((hu[i], hv[i]));
                 }
-                let mut known = None;
-                if candidates.iter().any(Option::is_some) {
-                    let residual = |(u, v): (f32, f32)| t.residual(self.lv.i1, x0 as f32 + u, y0 as f32 + v);
-                    let mut best_residual = residual(start);
-                    let mut best = t.distance(best_residual, mn);
-                    for cand in candidates.into_iter().flatten() {
-                        let r = residual(cand);
-                        let cost = t.distance(r, mn);
-                        if cost < best {
-                            (best, best_residual, start) = (cost, r, cand);
-                        }
-                    }
-                    known = Some(best_residual);
-                }
+                let (start, known) = self.best_start(t, (x0, y0), start, candidates);
                 // Below the coarsest level, a patch whose start takes it out
                 // of the picture keeps that start (the coarser level's and
                 // its neighbours' motion, extrapolated): a descent against

@@ -129,17 +129,9 @@ mod avx2 {
 #[inline(always)]
 pub(crate) fn coefficient_cost(b: &Block4) -> u32 {
     const COST: [u32; 16] = [3, 2, 2, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0];
-    let flat = b.as_flattened();
-    // Which raster positions hold a level (a compare and a bit gather the
-    // compiler vectorises), and whether any exceeds 1.
-    let (mut raster, mut big) = (0usize, false);
-    for (k, &v) in flat.iter().enumerate() {
-        raster |= usize::from(v != 0) << k;
-        big |= v.unsigned_abs() > 1;
-    }
-    if big {
+    let Some(raster) = small_levels(b) else {
         return 999;
-    }
+    };
     // The same bits in scan order.
     let mut mask = u32::from(TO_SCAN[0][raster & 0xff] | TO_SCAN[1][raster >> 8]);
     // Each level costs by the run of zeros since the previous one.
@@ -151,6 +143,65 @@ pub(crate) fn coefficient_cost(b: &Block4) -> u32 {
         mask &= mask - 1;
     }
     cost
+}
+
+/// The raster bit mask of a block's nonzero levels, `None` when any
+/// exceeds 1 in magnitude.
+#[inline(always)]
+fn small_levels(b: &Block4) -> Option<usize> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        // SAFETY: SSE2 is part of x86-64.
+        unsafe { x86::small_levels_sse2(b) }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    small_levels_scalar(b)
+}
+
+/// The scalar [`small_levels`] (a compare and a bit gather per level).
+#[inline(always)]
+#[cfg_attr(target_arch = "x86_64", allow(dead_code))]
+pub(crate) fn small_levels_scalar(b: &Block4) -> Option<usize> {
+    let (mut raster, mut big) = (0usize, false);
+    for (k, &v) in b.as_flattened().iter().enumerate() {
+        raster |= usize::from(v != 0) << k;
+        big |= v.unsigned_abs() > 1;
+    }
+    (!big).then_some(raster)
+}
+
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod x86 {
+    use crate::codec::transform::Block4;
+    use std::arch::x86_64::*;
+
+    /// [`super::small_levels_scalar`] in SSE2: the levels packed to bytes
+    /// with saturation (a magnitude above 1 stays above 1), then a compare
+    /// and a byte mask.
+    #[inline]
+    #[target_feature(enable = "sse2")]
+    pub(crate) unsafe fn small_levels_sse2(b: &Block4) -> Option<usize> {
+        let p = b.as_ptr() as *const __m128i;
+        // SAFETY: a Block4 is 16 contiguous i32, four unaligned loads.
+        let (r0, r1, r2, r3) = unsafe {
+            (
+                _mm_loadu_si128(p),
+                _mm_loadu_si128(p.add(1)),
+                _mm_loadu_si128(p.add(2)),
+                _mm_loadu_si128(p.add(3)),
+            )
+        };
+        let bytes = _mm_packs_epi16(_mm_packs_epi32(r0, r1), _mm_packs_epi32(r2, r3));
+        let big = _mm_or_si128(
+            _mm_cmpgt_epi8(bytes, _mm_set1_epi8(1)),
+            _mm_cmplt_epi8(bytes, _mm_set1_epi8(-1)),
+        );
+        if _mm_movemask_epi8(big) != 0 {
+            return None;
+        }
+        let zero = _mm_movemask_epi8(_mm_cmpeq_epi8(bytes, _mm_setzero_si128())) as usize;
+        Some(!zero & 0xffff)
+    }
 }
 
 /// `TO_SCAN[h][m]`: the zig-zag-order bit mask of the raster bits `m` of
@@ -451,6 +502,36 @@ mod tests {
                 };
             }
             assert_eq!(coefficient_cost(&b), walk(&b), "{b:?}");
+        }
+    }
+
+    #[test]
+    fn the_level_mask_in_sse2_equals_the_scalar_one() {
+        let mut seed = 7u32;
+        for _ in 0..20_000 {
+            let mut b = [[0i32; 4]; 4];
+            for v in b.as_flattened_mut() {
+                seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
+                *v = match (seed >> 16) % 16 {
+                    0 => 1,
+                    1 => -1,
+                    2 if seed % 5 == 0 => 2,
+                    3 if seed % 7 == 0 => -2,
+                    // Past i16 and i8: saturation must keep them large.
+                    4 if seed % 11 == 0 => 70_000,
+                    5 if seed % 11 == 0 => -300,
+                    6 if seed % 13 == 0 => 65_536,
+                    _ => 0,
+                };
+            }
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: SSE2 is part of x86-64.
+            assert_eq!(
+                unsafe { x86::small_levels_sse2(&b) },
+                small_levels_scalar(&b),
+                "{b:?}"
+            );
+            assert_eq!(small_levels(&b), small_levels_scalar(&b));
         }
     }
 

@@ -70,27 +70,14 @@ impl PlaneStats {
         let sum = block_sums.iter().map(|&s| u64::from(s)).sum::<u64>();
         let n = (w * h) as f64;
         let mean = sum as f64 / n;
-        // sum |v - mean| from the sum and count of the samples above the
-        // mean, integer sums the compiler vectorises (a float sum of
-        // absolute values a sample is not).
-        let cut = mean.floor().clamp(0.0, 255.0) as u8;
-        let (mut above_sum, mut above_n) = (0u64, 0u64);
-        for r in p.rows() {
-            // Runs of 64 samples, whose sums fit u16 lanes.
-            for run in r.chunks(64) {
-                let (mut s, mut c) = (0u16, 0u16);
-                for &v in run {
-                    let above = v > cut;
-                    s += if above { u16::from(v) } else { 0 };
-                    c += u16::from(above);
-                }
-                above_sum += u64::from(s);
-                above_n += u64::from(c);
-            }
-        }
-        let below_sum = (sum - above_sum) as f64;
-        let below_n = (w * h) as f64 - above_n as f64;
-        let deviation = ((above_sum as f64 - mean * above_n as f64) + (mean * below_n - below_sum)) / n;
+        // sum |v - mean| is linear in the mean between two integers (no
+        // sample lies strictly between them): interpolated from the sums
+        // of |v - cut| at the integers either side, sums of absolute
+        // differences the compiler makes SAD instructions of.
+        let cut = mean.floor().clamp(0.0, 254.0) as u8;
+        let (at_cut, above_cut) = (abs_differences(p, cut), abs_differences(p, cut + 1));
+        let frac = mean - f64::from(cut);
+        let deviation = ((1.0 - frac) * at_cut as f64 + frac * above_cut as f64) / n;
         let block_means = block_sums
             .iter()
             .enumerate()
@@ -105,6 +92,32 @@ impl PlaneStats {
             block_means,
         }
     }
+}
+
+/// sum |v - c| over a plane: the pixel kernels' SAD against a row of `c`
+/// (stride 0) over the columns in whole runs of 16, in bands of rows
+/// whose sums fit its u32; the rest of each row one sample at a time.
+fn abs_differences(p: &Plane, c: u8) -> u64 {
+    const BAND: usize = 64;
+    let (w, h) = (p.width(), p.height());
+    let wide = w - w % 16;
+    let constant = vec![c; wide];
+    let sad = crate::me::dsp::pixel().sad;
+    let mut total = 0u64;
+    for y0 in (0..h).step_by(BAND) {
+        let rows = BAND.min(h - y0);
+        if wide > 0 {
+            let band = &p.data()[p.index(0, y0 as isize)..];
+            total += u64::from(sad(band, p.stride(), &constant, 0, wide, rows));
+        }
+        for y in y0..y0 + rows {
+            total += p.row(y)[wide..]
+                .iter()
+                .map(|&v| u64::from(v.abs_diff(c)))
+                .sum::<u64>();
+        }
+    }
+    total
 }
 
 fn plane_weight(source: &Plane, reference: &Plane) -> Option<PlaneWeight> {

@@ -287,6 +287,40 @@ impl Plane {
             .map(move |r| &mut r[pad..pad + w])
     }
 
+    /// The `N`-wide block at (x, y) inside the picture, into `out` (rows
+    /// of `N`, as many as it holds): one bounds check for the block, not
+    /// one a row (a macroblock's source loads and reconstruction writes).
+    #[inline]
+    pub fn read_block<const N: usize>(&self, x: usize, y: usize, out: &mut [u8]) {
+        let rows = out.len() / N;
+        assert!(
+            x + N <= self.width && y + rows <= self.height,
+            "block outside the picture"
+        );
+        let start = (y + self.pad) * self.stride + self.pad + x;
+        let src = &self.data[start..start + (rows.max(1) - 1) * self.stride + N];
+        for (o, r) in out.chunks_exact_mut(N).zip(src.chunks(self.stride)) {
+            o.copy_from_slice(&r[..N]);
+        }
+    }
+
+    /// Writes `block` (rows of `N`) at (x, y) inside the picture, as
+    /// [`Plane::read_block`] reads one. The border is not updated.
+    #[inline]
+    pub fn write_block<const N: usize>(&mut self, x: usize, y: usize, block: &[u8]) {
+        let rows = block.len() / N;
+        assert!(
+            x + N <= self.width && y + rows <= self.height,
+            "block outside the picture"
+        );
+        let start = (y + self.pad) * self.stride + self.pad + x;
+        let stride = self.stride;
+        let dst = &mut self.data[start..start + (rows.max(1) - 1) * stride + N];
+        for (r, b) in dst.chunks_mut(stride).zip(block.chunks_exact(N)) {
+            r[..N].copy_from_slice(b);
+        }
+    }
+
     /// Pixel (x, y) inside the picture.
     #[inline]
     pub fn get(&self, x: usize, y: usize) -> u8 {
@@ -584,6 +618,36 @@ mod tests {
     use super::*;
 
     type Result = std::result::Result<(), PictureError>;
+
+    #[test]
+    fn blocks_read_and_written_are_the_pixels_at_their_place() -> Result {
+        let mut p = Plane::from_fn(40, 24, |x, y| (x * 7 + y * 13) as u8)?;
+        let mut block = [0u8; 16 * 8];
+        p.read_block::<16>(24, 16, &mut block);
+        for (k, &v) in block.iter().enumerate() {
+            assert_eq!(v, p.get(24 + k % 16, 16 + k / 16));
+        }
+        let marks: Vec<u8> = (0..64).map(|k| 200 - k as u8).collect();
+        p.write_block::<8>(32, 0, &marks);
+        for y in 0..24 {
+            for x in 0..40 {
+                let want = if x >= 32 && y < 8 {
+                    marks[(y * 8 + x - 32) as usize]
+                } else {
+                    (x * 7 + y * 13) as u8
+                };
+                assert_eq!(p.get(x, y), want, "({x}, {y})");
+            }
+        }
+        Ok(())
+    }
+
+    #[test]
+    #[should_panic(expected = "outside the picture")]
+    fn a_block_past_the_edge_is_refused() {
+        let p = Plane::new(40, 24).unwrap();
+        p.read_block::<16>(32, 0, &mut [0u8; 16 * 4]);
+    }
 
     fn ramp(w: usize, h: usize) -> std::result::Result<Plane, PictureError> {
         Plane::from_fn(w, h, |x, y| (x * 7 + y * 13) as u8)

@@ -382,14 +382,11 @@ pub fn reconstruct_samples(pred: &MbSamples, residual: &MbResidual, qp: u8) -> M
 /// Borders are not extended.
 pub fn write_mb(samples: &MbSamples, recon: &mut Frame, mb_x: usize, mb_y: usize) {
     let (x0, y0) = (mb_x * MB, mb_y * MB);
-    for (r, row) in samples.luma.chunks_exact(MB).enumerate() {
-        recon.plane_mut(0).row_mut(y0 + r)[x0..x0 + MB].copy_from_slice(row);
-    }
-    let (cx, cy) = (x0 / 2, y0 / 2);
+    recon.plane_mut(0).write_block::<MB>(x0, y0, &samples.luma);
     for p in 0..2 {
-        for (r, row) in samples.chroma[p].chunks_exact(8).enumerate() {
-            recon.plane_mut(p + 1).row_mut(cy + r)[cx..cx + 8].copy_from_slice(row);
-        }
+        recon
+            .plane_mut(p + 1)
+            .write_block::<8>(x0 / 2, y0 / 2, &samples.chroma[p]);
     }
 }
 

@@ -35,14 +35,11 @@ impl MbSource {
             chroma: [[0; 64]; 2],
         };
         let (x0, y0) = (mb_x * MB, mb_y * MB);
-        for r in 0..MB {
-            s.luma[r * MB..(r + 1) * MB].copy_from_slice(&frame.y().row(y0 + r)[x0..x0 + MB]);
-        }
+        frame.y().read_block::<MB>(x0, y0, &mut s.luma);
         for p in 0..2 {
-            for r in 0..8 {
-                s.chroma[p][r * 8..(r + 1) * 8]
-                    .copy_from_slice(&frame.plane(p + 1).row(y0 / 2 + r)[x0 / 2..x0 / 2 + 8]);
-            }
+            frame
+                .plane(p + 1)
+                .read_block::<8>(x0 / 2, y0 / 2, &mut s.chroma[p]);
         }
         s
     }

@@ -68,6 +68,9 @@ struct Worker {
     residual: ResidualCoder,
     recon: Frame,
     satd8: RefCell<SatdCache>,
+    /// The row the worker decided last: when that is the row above, its
+    /// state already holds the neighbours there (one worker: every row).
+    last_row: Option<usize>,
 }
 
 /// A frame's decided macroblocks (raster order), and a reconstruction:
@@ -114,6 +117,7 @@ impl WavefrontFrame<'_> {
                 .and_then(|mut r| r.pop())
                 .expect("a reconstruction per worker"),
             satd8: RefCell::default(),
+            last_row: None,
         };
         let lead = self.lead.clamp(2.min(cols), cols);
         let mut workers = wavefront(cols, rows, lead, &new_worker, &|w: &mut Worker, c, r| {
@@ -126,7 +130,11 @@ impl WavefrontFrame<'_> {
                 w.modes.set_contexts(&start.modes);
                 w.residual.set_contexts(&start.residual);
             }
-            if r > 0 {
+            let above_is_own = r > 0 && w.last_row == Some(r - 1);
+            if c + 1 == cols {
+                w.last_row = Some(r);
+            }
+            if r > 0 && !above_is_own {
                 // The neighbours of the row above this macroblock reads
                 // that the worker has not brought in yet.
                 for x in (if c == 0 { 0 } else { c + 1 })..(c + 2).min(cols) {

@@ -533,11 +533,15 @@ fn macroblock_coder() {
             for pred in sample_sets(256, 11) {
                 for qp in [0, 12, 26, 40, 51] {
                     for rounding in [1.0 / 3.0, 1.0 / 6.0] {
-                        assert_eq!(
-                            quantize_4x4(src, &pred, 16, (1, 2), qp, rounding),
-                            (s.quantize_4x4)(src, &pred, 16, (1, 2), qp, rounding),
-                            "{isa} quantise a block"
-                        );
+                        // Blocks inside and at the end of the samples.
+                        for (size, at) in [(16, (1, 2)), (16, (3, 3)), (8, (0, 0)), (8, (1, 1))] {
+                            let n = size * size;
+                            assert_eq!(
+                                quantize_4x4(&src[..n], &pred[..n], size, at, qp, rounding),
+                                (s.quantize_4x4)(&src[..n], &pred[..n], size, at, qp, rounding),
+                                "{isa} quantise block {at:?} of {size}x{size}"
+                            );
+                        }
                         for size in [16, 8] {
                             let n = (size / 4) * (size / 4);
                             let mut got = (vec![[[0; 4]; 4]; n], vec![[[0; 4]; 4]; n]);

@@ -113,17 +113,42 @@ pub fn forward_4x4(x: &Block4) -> Block4 {
 /// for intra and 1/6 for inter blocks).
 #[inline(always)]
 pub fn quantize(coeffs: &mut Block4, qp: u8, rounding: f64) {
-    assert!(qp <= MAX_QP, "qp {qp} above {MAX_QP}");
-    let shift = 15 + u32::from(qp / 6);
-    let offset = (rounding.clamp(0.0, 0.5) * f64::from(1u32 << shift)) as u64;
+    let q = Quantizer4x4::new(qp, rounding);
     // Magnitudes below 2^17 (every 8-bit residual's) keep |w| * MF +
     // offset within 32 bits (MF < 2^14, offset <= 2^22).
     quantize_levels(
         coeffs.as_flattened_mut(),
-        &QUANT_BY_POSITION[(qp % 6) as usize],
-        (shift, offset),
+        q.multipliers,
+        (q.shift, q.offset),
         1 << 17,
     );
+}
+
+/// What [`quantize`] computes a 4x4 block's levels with, for kernels that
+/// quantise several blocks at once.
+#[derive(Debug, Clone, Copy)]
+pub struct Quantizer4x4 {
+    /// MF of each position, row by row.
+    pub multipliers: &'static [u32; 16],
+    /// `15 + qp / 6`.
+    pub shift: u32,
+    /// The rounding offset `f * 2^shift` (below `2^shift / 2 + 1`).
+    pub offset: u64,
+}
+
+impl Quantizer4x4 {
+    /// The quantiser of `qp` with rounding offset `rounding` (clamped to
+    /// [0, 0.5]); panics above [`MAX_QP`].
+    #[inline(always)]
+    pub fn new(qp: u8, rounding: f64) -> Quantizer4x4 {
+        assert!(qp <= MAX_QP, "qp {qp} above {MAX_QP}");
+        let shift = 15 + u32::from(qp / 6);
+        Quantizer4x4 {
+            multipliers: &QUANT_BY_POSITION[(qp % 6) as usize],
+            shift,
+            offset: (rounding.clamp(0.0, 0.5) * f64::from(1u32 << shift)) as u64,
+        }
+    }
 }
 
 /// `w = sign(w) ((|w| mf + offset) >> shift)` over coefficients and their

@@ -503,6 +503,11 @@ mod x86 {
 
     fn satd_avx2(a: &[u8], sa: usize, b: &[u8], sb: usize, w: usize, h: usize) -> u32 {
         check_bounds(a, sa, b, sb, w, h);
+        if w == 8 && h % 8 == 0 {
+            // SAFETY: AVX2 was detected before this set was chosen; every
+            // 8x8 block lies inside the checked one.
+            return unsafe { satd_8xn_avx2(a.as_ptr(), sa, b.as_ptr(), sb, h) };
+        }
         if w % 16 != 0 || h % 4 != 0 {
             return satd_sse2(a, sa, b, sb, w, h);
         }
@@ -529,6 +534,20 @@ mod x86 {
             }
         }
         acc.iter().sum::<u32>().div_ceil(2)
+    }
+
+    /// SATD of an 8-wide block of `h` rows (a multiple of 8), an 8x8 block
+    /// a step (one step of the 16x4 region's transform each).
+    #[target_feature(enable = "avx2")]
+    unsafe fn satd_8xn_avx2(a: *const u8, sa: usize, b: *const u8, sb: usize, h: usize) -> u32 {
+        let mut acc = _mm256_setzero_si256();
+        for ty in (0..h).step_by(8) {
+            let pairs = hadamard_8x8_last_pairs(a.add(ty * sa), sa, b.add(ty * sb), sb);
+            acc = _mm256_add_epi32(acc, abs_sum_lanes(pairs));
+        }
+        let mut lanes = [0u32; 8];
+        _mm256_storeu_si256(lanes.as_mut_ptr() as *mut __m256i, acc);
+        lanes.iter().sum::<u32>().div_ceil(2)
     }
 
     fn satd_16x16_capped_sse2(a: &[u8], sa: usize, b: &[u8], sb: usize, cap: u32) -> u32 {
@@ -591,7 +610,34 @@ mod x86 {
             let y = _mm256_cvtepu8_epi16(_mm_loadu_si128(b.add(r * sb) as *const __m128i));
             _mm256_sub_epi16(x, y)
         };
-        let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
+        last_pairs([row(0), row(1), row(2), row(3)])
+    }
+
+    /// [`hadamard_16x4_last_pairs`] of an 8x8 block: rows r and r + 4 side
+    /// by side make the sixteen columns (the 4x4 tiles are independent, so
+    /// their coefficients are the block's).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn hadamard_8x8_last_pairs(
+        a: *const u8,
+        sa: usize,
+        b: *const u8,
+        sb: usize,
+    ) -> ((__m256i, __m256i), (__m256i, __m256i)) {
+        let halves = |p: *const u8, stride: usize, r: usize| {
+            let top = _mm_loadl_epi64(p.add(r * stride) as *const __m128i);
+            let bottom = _mm_loadl_epi64(p.add((r + 4) * stride) as *const __m128i);
+            _mm256_cvtepu8_epi16(_mm_unpacklo_epi64(top, bottom))
+        };
+        let row = |r: usize| _mm256_sub_epi16(halves(a, sa, r), halves(b, sb, r));
+        last_pairs([row(0), row(1), row(2), row(3)])
+    }
+
+    /// The transform of four rows of sixteen differences up to its last
+    /// butterfly.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn last_pairs([r0, r1, r2, r3]: [__m256i; 4]) -> ((__m256i, __m256i), (__m256i, __m256i)) {
         let (s01, d01) = (_mm256_add_epi16(r0, r1), _mm256_sub_epi16(r0, r1));
         let (s23, d23) = (_mm256_add_epi16(r2, r3), _mm256_sub_epi16(r2, r3));
         let v0 = _mm256_add_epi16(s01, s23);
@@ -627,7 +673,13 @@ mod x86 {
     #[inline]
     #[target_feature(enable = "avx2")]
     unsafe fn hadamard_abs_16x4_lanes(a: *const u8, sa: usize, b: *const u8, sb: usize) -> __m256i {
-        let (pq0, pq1) = hadamard_16x4_last_pairs(a, sa, b, sb);
+        abs_sum_lanes(hadamard_16x4_last_pairs(a, sa, b, sb))
+    }
+
+    /// [`hadamard_abs_16x4_lanes`] of the pairs of a transform.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn abs_sum_lanes((pq0, pq1): ((__m256i, __m256i), (__m256i, __m256i))) -> __m256i {
         let mut acc = _mm256_setzero_si256();
         for (p, q) in [pq0, pq1] {
             let m = _mm256_max_epi16(_mm256_abs_epi16(p), _mm256_abs_epi16(q));

@@ -279,29 +279,34 @@ pub(crate) mod x86 {
         stride: usize,
         q: &Quantizer4x4,
     ) -> ([__m256i; 4], [__m256i; 4]) {
-        // SAFETY: the caller's: 8 bytes of each row lie inside s and p.
-        let row = |r: usize| unsafe {
-            let x = _mm256_cvtepu8_epi32(_mm_loadl_epi64(s.add(r * stride) as *const __m128i));
-            let y = _mm256_cvtepu8_epi32(_mm_loadl_epi64(p.add(r * stride) as *const __m128i));
-            _mm256_sub_epi32(x, y)
-        };
-        let residual = [row(0), row(1), row(2), row(3)];
+        // No closures or array maps here: they are not inlined into a
+        // target-feature function reliably (a build that called them
+        // per block took 5x the instructions).
+        let mut residual = [_mm256_setzero_si256(); 4];
+        for (r, out) in residual.iter_mut().enumerate() {
+            // SAFETY: the caller's: 8 bytes of each row lie inside s and p.
+            unsafe {
+                let x = _mm256_cvtepu8_epi32(_mm_loadl_epi64(s.add(r * stride) as *const __m128i));
+                let y = _mm256_cvtepu8_epi32(_mm_loadl_epi64(p.add(r * stride) as *const __m128i));
+                *out = _mm256_sub_epi32(x, y);
+            }
+        }
         // The core transform is exact integer arithmetic, so its passes
         // may run in either order: between the rows first, then
         // (transposed) between the columns, then back to rows.
         let coeffs = transpose(butterflies(transpose(butterflies(residual))));
-        let m = q.multipliers;
         let offset = _mm256_set1_epi32(q.offset as i32);
         let shift = _mm_cvtsi32_si128(q.shift as i32);
-        let levels = std::array::from_fn(|r| {
-            let mf = [0, 1, 2, 3, 0, 1, 2, 3].map(|c| m[4 * r + c] as i32);
-            // SAFETY: 32 bytes from an array of eight i32.
-            let mf = unsafe { _mm256_loadu_si256(mf.as_ptr() as *const __m256i) };
+        let mut levels = [_mm256_setzero_si256(); 4];
+        for (r, (out, &w)) in levels.iter_mut().zip(&coeffs).enumerate() {
+            // The row's four multipliers for both blocks.
+            // SAFETY: 16 bytes of the 64-byte table from row r.
+            let m = unsafe { _mm_loadu_si128(q.multipliers[4 * r..].as_ptr() as *const __m128i) };
+            let mf = _mm256_broadcastsi128_si256(m);
             // |w| < 2^14 and MF < 2^14: product and offset fit 32 bits.
-            let w = coeffs[r];
             let scaled = _mm256_add_epi32(_mm256_mullo_epi32(_mm256_abs_epi32(w), mf), offset);
-            _mm256_sign_epi32(_mm256_srl_epi32(scaled, shift), w)
-        });
+            *out = _mm256_sign_epi32(_mm256_srl_epi32(scaled, shift), w);
+        }
         (residual, levels)
     }
 

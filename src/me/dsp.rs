@@ -380,14 +380,7 @@ unsafe fn halfpel_planes_body<const AVX2: bool>(reference: &Plane, margin: usize
     hpass.resize(rows * span, 0);
     for (r, out) in hpass[..rows * span].chunks_exact_mut(span).enumerate() {
         let src = &reference.data()[reference.index(-m - 3, (y0 + r) as isize - m - 3)..];
-        for (o, &v) in out.iter_mut().zip(&src[..span]) {
-            *o = HALF[0] * i16::from(v);
-        }
-        for (k, &t) in HALF.iter().enumerate().skip(1) {
-            for (o, &v) in out.iter_mut().zip(&src[k..k + span]) {
-                *o += t * i16::from(v);
-            }
-        }
+        filter_run(out, |k| &src[k..k + span]);
     }
     let hrow = |i: usize| &hpass[i * span..(i + 1) * span];
     let mut acc16 = vec![0i16; span];
@@ -397,13 +390,11 @@ unsafe fn halfpel_planes_body<const AVX2: bool>(reference: &Plane, margin: usize
         for (o, &v) in plane_h[at..at + span].iter_mut().zip(hrow(i + 3)) {
             *o = clip((i32::from(v) + 32) >> 6);
         }
-        acc16.fill(0);
-        for (k, &t) in HALF.iter().enumerate() {
+        let taps: [&[u8]; 8] = std::array::from_fn(|k| {
             let from = reference.index(-m, y as isize - m - 3 + k as isize);
-            for (a, &v) in acc16.iter_mut().zip(&reference.data()[from..from + span]) {
-                *a += t * i16::from(v);
-            }
-        }
+            &reference.data()[from..from + span]
+        });
+        filter_run(&mut acc16, |k| taps[k]);
         for (o, &v) in plane_v[at..at + span].iter_mut().zip(&acc16) {
             *o = clip((i32::from(v) + 32) >> 6);
         }
@@ -426,6 +417,37 @@ unsafe fn halfpel_planes_body<const AVX2: bool>(reference: &Plane, margin: usize
         }
     }
     HPASS.with(|b| *b.borrow_mut() = hpass);
+}
+
+/// `out[x] = sum_k HALF[k] * tap(k)[x]`, sixteen outputs at a time with
+/// all eight taps summed in registers (one store per output, not one per
+/// tap; a bounds check per tap and run). Each `tap(k)` holds `out.len()`
+/// samples. Unrounded: within i16 for 8-bit samples (-6120..=22440).
+#[inline(always)]
+fn filter_run<'a>(out: &mut [i16], tap: impl Fn(usize) -> &'a [u8]) {
+    const RUN: usize = 16;
+    let n = out.len();
+    let taps: [&[u8]; 8] = std::array::from_fn(|k| &tap(k)[..n]);
+    let mut runs = out.chunks_exact_mut(RUN);
+    for (i, run) in runs.by_ref().enumerate() {
+        let x0 = i * RUN;
+        let mut acc = [0i16; RUN];
+        for (&t, samples) in HALF.iter().zip(&taps) {
+            let window: &[u8; RUN] = samples[x0..x0 + RUN].try_into().expect("a run inside the row");
+            for (a, &v) in acc.iter_mut().zip(window) {
+                *a += t * i16::from(v);
+            }
+        }
+        run.copy_from_slice(&acc);
+    }
+    let whole = n / RUN * RUN;
+    for (j, o) in runs.into_remainder().iter_mut().enumerate() {
+        *o = HALF
+            .iter()
+            .zip(&taps)
+            .map(|(&t, s)| t * i16::from(s[whole + j]))
+            .sum();
+    }
 }
 
 #[cfg(target_arch = "x86_64")]

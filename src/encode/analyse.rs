@@ -104,10 +104,17 @@ pub(super) fn best_intra(
         .as_ref()
         .filter(|_| coder.intra8x8)
         .and_then(|search| search.run8(s, None, estimate_bound));
+    // The 4x4 search stops once it passes 10/8 of the least of the 16x16
+    // SATD and the 8x8 estimate (x264's `i_satd_thresh` under RD mode
+    // decision), and inter's estimate.
+    let least = blocks8
+        .as_ref()
+        .map_or(f64::from(satd), |b| b.estimate.min(f64::from(satd)));
+    let bound4 = estimate_bound.min(INTRA4_MARGIN * least);
     let blocks4 = search
         .as_ref()
         .filter(|_| coder.intra4x4)
-        .and_then(|search| search.run(s, None, estimate_bound));
+        .and_then(|search| search.run(s, None, bound4));
     if !whole && blocks8.is_none() && blocks4.is_none() {
         return None;
     }
@@ -145,6 +152,10 @@ pub(super) fn best_intra(
     }
     candidates.into_iter().min_by(|a, b| a.cost.total_cmp(&b.cost))
 }
+
+/// How far above the 16x16 and 8x8 estimates the 4x4 search may run
+/// before it stops (x264's 10/8).
+const INTRA4_MARGIN: f64 = 1.25;
 
 /// One way to code a macroblock, with its cost.
 pub(super) struct Choice {

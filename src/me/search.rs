@@ -128,12 +128,9 @@ impl<'s, 'p> Walk<'s, 'p> {
         if wx as u32 >= side || wy as u32 >= side {
             return false;
         }
-        let i = wy as usize * self.side + wx as usize;
-        let (word, bit) = (&mut self.seen.words()[i / 64], 1u64 << (i % 64));
-        if *word & bit != 0 {
+        if !self.mark_seen(wx as usize, wy as usize) {
             return false;
         }
-        *word |= bit;
         let cost = self.s.full_pel_cost(dx, dy, self.best.cost);
         if cost > self.best.cost {
             return false;
@@ -147,6 +144,17 @@ impl<'s, 'p> Walk<'s, 'p> {
             self.best = c;
         }
         better
+    }
+
+    /// Marks window position (wx, wy) (from the window's corner) seen;
+    /// false if it already was.
+    #[inline]
+    fn mark_seen(&mut self, wx: usize, wy: usize) -> bool {
+        let i = wy * self.side + wx;
+        let (word, bit) = (&mut self.seen.words()[i / 64], 1u64 << (i % 64));
+        let new = *word & bit == 0;
+        *word |= bit;
+        new
     }
 
     /// Evaluates (dx, dy), with `rate` its rate term, where the caller
@@ -353,8 +361,10 @@ fn exhaustive(w: &mut Walk<'_, '_>, (cx, cy): (i32, i32), r: i32) {
             .filter(|_| super::sea::pays(w.s.cfg.full_pel_metric(), r));
     let Some(sums) = sums else {
         for dy in ys {
-            for dx in xs.clone() {
-                w.try_at(dx, dy);
+            if !by_row_kernel(w, xs.clone(), dy) {
+                for dx in xs.clone() {
+                    w.try_at(dx, dy);
+                }
             }
         }
         return;
@@ -383,6 +393,52 @@ fn exhaustive(w: &mut Walk<'_, '_>, (cx, cy): (i32, i32), r: i32) {
         eliminate(w, sums, (bx, by), &mut bounds);
         *cell.borrow_mut() = bounds;
     });
+}
+
+/// Evaluates the positions `xs` of row `dy` (inside the walk's window) by
+/// the row kernel's sixteen 16x16 SADs from the first (SAD, uncapped, the
+/// sixteen blocks inside the reference's buffer): the cost of about two
+/// SADs for a window row of up to sixteen. Marks them seen, as
+/// [`Walk::try_at`] does; false (nothing done) where the kernel does not
+/// apply. The same best as evaluating them one by one: the tie-break is an
+/// order of its own.
+fn by_row_kernel(w: &mut Walk<'_, '_>, xs: std::ops::RangeInclusive<i32>, dy: i32) -> bool {
+    let s = w.s;
+    let [x0, x1, y0, y1] = s.in_place;
+    let x_lo = *xs.start();
+    let usable = s.cfg.full_pel_metric() == Metric::Sad
+        && s.cfg.block == 16
+        && s.capped.is_none()
+        && xs.end() - x_lo < 16
+        && x_lo >= x0
+        && x_lo + 15 <= x1
+        && (y0..=y1).contains(&dy);
+    if !usable {
+        return false;
+    }
+    let (at, stride) = (
+        s.reference.index(s.x + x_lo as isize, s.y + dy as isize),
+        s.reference.stride(),
+    );
+    let data = &s.reference.data()[at..];
+    if data.len() < 15 * stride + 32 {
+        return false;
+    }
+    let mut sads = [0u32; 16];
+    let least = (super::dsp::pixel().sad_16x16_row)(s.block, s.cur.stride(), data, stride, &mut sads);
+    let wy = (dy - w.origin.1 + w.range) as usize;
+    let check = u64::from(least) <= w.best.cost;
+    for dx in xs {
+        let wx = (dx - w.origin.0 + w.range) as usize;
+        if !w.mark_seen(wx, wy) || !check {
+            continue;
+        }
+        let sad = u64::from(sads[(dx - x_lo) as usize]);
+        if sad <= w.best.cost {
+            w.keep_if_better(dx, dy, sad + s.rate(Mv::full_pel(dx, dy)));
+        }
+    }
+    true
 }
 
 /// Successive elimination over the positions `xs` x `ys`, all with the

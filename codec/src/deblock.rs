@@ -65,13 +65,22 @@ impl MbEdgeInfo {
             .collect()
     }
 
+    /// Inter, without levels, its blocks sharing one motion (most of a P
+    /// frame's macroblocks): no edge inside it, and each of its edges has
+    /// one strength along it, from the motion on either side alone.
+    fn is_plain(&self) -> bool {
+        !self.intra && self.coded == 0 && self.mvs.iter().all(|v| *v == self.mvs[0])
+    }
+
     fn coded_at(&self, bx: usize, by: usize) -> bool {
         self.coded >> (by * 4 + bx) & 1 == 1
     }
 }
 
 /// The boundary strength of the edge between luma 4x4 blocks `p` (left or
-/// above) and `q`, in block units, on a picture `mb_cols` macroblocks wide.
+/// above) and `q`, in block units, on a picture `mb_cols` macroblocks wide
+/// (the definition [`Strengths::of`] is tested against).
+#[cfg(test)]
 fn strength(info: &[MbEdgeInfo], mb_cols: usize, p: (usize, usize), q: (usize, usize)) -> u8 {
     let mb = |(bx, by): (usize, usize)| &info[(by / 4) * mb_cols + bx / 4];
     let mb_edge = (p.0 / 4, p.1 / 4) != (q.0 / 4, q.1 / 4);
@@ -133,22 +142,42 @@ impl Strengths {
         };
         for (i, m) in info.iter().enumerate() {
             let (mx, my) = (i % mb_cols, i / mb_cols);
-            // An inter macroblock without levels whose blocks share one
-            // motion has no edge inside it (most of a P frame's).
-            let plain = !m.intra && m.coded == 0 && m.mvs.iter().all(|v| *v == m.mvs[0]);
+            let plain = m.is_plain();
             for y in 0..4 {
                 for x in 0..4 {
                     let (bx, by) = (4 * mx + x, 4 * my + y);
                     let at = by * cols + bx;
-                    if x == 0 && mx > 0 {
-                        s.vertical[at] = strength(info, mb_cols, (bx - 1, by), (bx, by));
-                    } else if x > 0 && !plain {
+                    if x > 0 && !plain {
                         s.vertical[at] = strength_between((m, (x - 1, y)), (m, (x, y)), false, true);
                     }
-                    if y == 0 && my > 0 {
-                        s.horizontal[at] = strength(info, mb_cols, (bx, by - 1), (bx, by));
-                    } else if y > 0 && !plain {
+                    if y > 0 && !plain {
                         s.horizontal[at] = strength_between((m, (x, y - 1)), (m, (x, y)), false, false);
+                    }
+                }
+            }
+            let corner = 4 * my * cols + 4 * mx;
+            if mx > 0 {
+                let left = &info[i - 1];
+                let edge = (0..4).map(|y| corner + y * cols);
+                if plain && left.is_plain() {
+                    // One strength along the whole edge: motion alone.
+                    let v = strength_between((left, (3, 0)), (m, (0, 0)), true, true);
+                    edge.for_each(|at| s.vertical[at] = v);
+                } else {
+                    for (y, at) in edge.enumerate() {
+                        s.vertical[at] = strength_between((left, (3, y)), (m, (0, y)), true, true);
+                    }
+                }
+            }
+            if my > 0 {
+                let above = &info[i - mb_cols];
+                if plain && above.is_plain() {
+                    let v = strength_between((above, (0, 3)), (m, (0, 0)), true, false);
+                    s.horizontal[corner..corner + 4].fill(v);
+                } else {
+                    for x in 0..4 {
+                        s.horizontal[corner + x] =
+                            strength_between((above, (x, 3)), (m, (x, 0)), true, false);
                     }
                 }
             }
@@ -249,6 +278,49 @@ mod tests {
             mvs: [Some(RefMv::previous(mv)); 4],
             coded,
             transform_8x8: false,
+        }
+    }
+
+    #[test]
+    fn a_frames_strengths_are_each_edges_by_the_definition() {
+        // Macroblocks of every kind, mostly plain inter ones in runs.
+        let (cols, rows) = (7, 5);
+        let mut seed = 17u32;
+        let mut next = |n: u32| {
+            seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
+            (seed >> 16) % n
+        };
+        let info: Vec<MbEdgeInfo> = (0..cols * rows)
+            .map(|_| {
+                let mv = |k: u32| Mv::new([0, 4, -3, 9][k as usize], [0, 0, 5, -4][k as usize]);
+                let shared = next(4);
+                let mut m = inter(mv(shared), 0);
+                match next(6) {
+                    0 => m.intra = true,
+                    1 => m.coded = next(1 << 16) as u16,
+                    2 => m.mvs[next(4) as usize] = Some(RefMv::previous(mv(next(4)))),
+                    3 => m.transform_8x8 = true,
+                    _ => {}
+                }
+                m
+            })
+            .collect();
+        let s = Strengths::of(&info, cols, (4 * cols, 4 * rows));
+        for by in 0..4 * rows {
+            for bx in 0..4 * cols {
+                let at = by * 4 * cols + bx;
+                let v = if bx > 0 {
+                    strength(&info, cols, (bx - 1, by), (bx, by))
+                } else {
+                    0
+                };
+                let h = if by > 0 {
+                    strength(&info, cols, (bx, by - 1), (bx, by))
+                } else {
+                    0
+                };
+                assert_eq!((s.vertical[at], s.horizontal[at]), (v, h), "block ({bx}, {by})");
+            }
         }
     }
 

@@ -62,6 +62,11 @@ pub(super) fn visible_luma_sse(
 ) -> u64 {
     let w = (seq.width - mb_x * 16).min(16);
     let h = (seq.height - mb_y * 16).min(16);
+    if w == 16 {
+        // Whole rows: one run of samples (a call a row cost 16 kernel calls
+        // a macroblock).
+        return squared_difference_sum(&src.luma[..h * 16], &pred.luma[..h * 16]);
+    }
     (0..h)
         .map(|r| squared_difference_sum(&src.luma[r * 16..r * 16 + w], &pred.luma[r * 16..r * 16 + w]))
         .sum()

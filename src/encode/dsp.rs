@@ -666,49 +666,53 @@ mod tests {
             }
             cost
         }
-        let mut seed = 3u32;
-        for _ in 0..20_000 {
-            let mut b = [[0i32; 4]; 4];
-            for v in b.as_flattened_mut() {
-                seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
-                *v = match (seed >> 16) % 12 {
-                    0 => 1,
-                    1 => -1,
-                    2 if seed % 7 == 0 => 2,
-                    _ => 0,
-                };
-            }
-            assert_eq!(coefficient_cost(&b), walk(&b), "{b:?}");
+        let blocks = random_blocks(3, |seed| match (seed >> 16) % 12 {
+            0 => 1,
+            1 => -1,
+            2 if seed % 7 == 0 => 2,
+            _ => 0,
+        });
+        for b in &blocks {
+            assert_eq!(coefficient_cost(b), walk(b), "{b:?}");
         }
+    }
+
+    /// 20 000 blocks of levels, each `level(seed)` of a fresh LCG state.
+    fn random_blocks(mut seed: u32, level: impl Fn(u32) -> i32) -> Vec<Block4> {
+        (0..20_000)
+            .map(|_| {
+                let mut b = [[0i32; 4]; 4];
+                for v in b.as_flattened_mut() {
+                    seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
+                    *v = level(seed);
+                }
+                b
+            })
+            .collect()
     }
 
     #[test]
     fn the_level_mask_in_sse2_equals_the_scalar_one() {
-        let mut seed = 7u32;
-        for _ in 0..20_000 {
-            let mut b = [[0i32; 4]; 4];
-            for v in b.as_flattened_mut() {
-                seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
-                *v = match (seed >> 16) % 16 {
-                    0 => 1,
-                    1 => -1,
-                    2 if seed % 5 == 0 => 2,
-                    3 if seed % 7 == 0 => -2,
-                    // Past i16 and i8: saturation must keep them large.
-                    4 if seed % 11 == 0 => 70_000,
-                    5 if seed % 11 == 0 => -300,
-                    6 if seed % 13 == 0 => 65_536,
-                    _ => 0,
-                };
-            }
+        let blocks = random_blocks(7, |seed| match (seed >> 16) % 16 {
+            0 => 1,
+            1 => -1,
+            2 if seed % 5 == 0 => 2,
+            3 if seed % 7 == 0 => -2,
+            // Past i16 and i8: saturation must keep them large.
+            4 if seed % 11 == 0 => 70_000,
+            5 if seed % 11 == 0 => -300,
+            6 if seed % 13 == 0 => 65_536,
+            _ => 0,
+        });
+        for b in &blocks {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: SSE2 is part of x86-64.
             assert_eq!(
-                unsafe { x86::small_levels_sse2(&b) },
-                small_levels_scalar(&b),
+                unsafe { x86::small_levels_sse2(b) },
+                small_levels_scalar(b),
                 "{b:?}"
             );
-            assert_eq!(small_levels(&b), small_levels_scalar(&b));
+            assert_eq!(small_levels(b), small_levels_scalar(b));
         }
     }
 

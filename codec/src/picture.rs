@@ -632,7 +632,7 @@ mod tests {
         for y in 0..24 {
             for x in 0..40 {
                 let want = if x >= 32 && y < 8 {
-                    marks[(y * 8 + x - 32) as usize]
+                    marks[y * 8 + x - 32]
                 } else {
                     (x * 7 + y * 13) as u8
                 };

@@ -406,8 +406,9 @@ fn successive_elimination_gives_exactly_the_vectors_of_plain_exhaustive_search()
                     (true, lambda_for_qp(metric, 30), Subpel::Quarter),
                     (false, lambda_for_qp(metric, 22), Subpel::Half),
                 ] {
-                    // Windows where elimination runs for every metric.
-                    for (method, window) in [(Method::Esa, 0), (Method::Epzs, 7)] {
+                    // Windows where elimination runs for every metric, and
+                    // EPZS's small window (the row kernel's, for 16x16 SAD).
+                    for (method, window) in [(Method::Esa, 0), (Method::Epzs, 7), (Method::Epzs, 3)] {
                         let mut cfg = MeConfig::new(method, block, 9);
                         (cfg.metric, cfg.full_pel_sad, cfg.lambda, cfg.subpel, cfg.window) =
                             (metric, full_pel_sad, lambda, subpel, window);

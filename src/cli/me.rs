@@ -36,9 +36,9 @@ pub struct Args {
     /// Add the rate term of the codec's vector code at this QP (H.264's lambda).
     #[arg(long)]
     pub qp: Option<u8>,
-    /// Evaluate every position of an exhaustive window instead of skipping
-    /// those successive elimination rules out (the same vectors, slower:
-    /// for comparison).
+    /// Evaluate every position of an exhaustive window, one at a time,
+    /// instead of skipping those successive elimination rules out or taking
+    /// a row's SADs at once (the same vectors, slower: for comparison).
     #[arg(long)]
     pub no_elimination: bool,
     /// Frames A:B (inclusive, from 0): frames A+1..=B are searched against their predecessors.

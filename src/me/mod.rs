@@ -209,8 +209,10 @@ pub struct MeConfig {
     pub full_pel_sad: bool,
     /// Exhaustive search (`esa`, and EPZS's window) skips the positions
     /// whose lower bound from sums of the block's quadrants already
-    /// exceeds the best cost ([`sea`]): the same vectors, far fewer
-    /// evaluations. Off only to compare with the plain search.
+    /// exceeds the best cost ([`sea`]), and where that does not pay (EPZS's
+    /// small windows) takes a window row's 16x16 SADs sixteen at once: the
+    /// same vectors, far less work. Off only to compare with the plain
+    /// search, every position evaluated one at a time.
     pub successive_elimination: bool,
 }
 

@@ -406,7 +406,8 @@ fn by_row_kernel(w: &mut Walk<'_, '_>, xs: std::ops::RangeInclusive<i32>, dy: i3
     let s = w.s;
     let [x0, x1, y0, y1] = s.in_place;
     let x_lo = *xs.start();
-    let usable = s.cfg.full_pel_metric() == Metric::Sad
+    let usable = s.cfg.successive_elimination
+        && s.cfg.full_pel_metric() == Metric::Sad
         && s.cfg.block == 16
         && s.capped.is_none()
         && xs.end() - x_lo < 16

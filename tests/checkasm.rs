@@ -117,7 +117,12 @@ fn inverse_transforms() {
         let ItxDsp { add_4x4, add_8x8 } = *t;
         for pred in sample_sets(256, 2) {
             for qp in [0, 12, 27, 51] {
-                for levels in level_blocks::<4>(qp as u64) {
+                // Past 16 bits too: dequantisation clamps them.
+                let extreme = [
+                    [[i32::MAX, i32::MIN, 40_000, -40_000]; 4],
+                    [[70_000, 0, 0, -1]; 4],
+                ];
+                for levels in level_blocks::<4>(qp as u64).into_iter().chain(extreme) {
                     let (mut a, mut b) = (pred.clone(), pred.clone());
                     add_4x4(&levels, qp, &mut a, 16, (4, 8));
                     (s.add_4x4)(&levels, qp, &mut b, 16, (4, 8));

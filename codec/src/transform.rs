@@ -197,6 +197,23 @@ pub fn dequantize(coeffs: &mut Block4, qp: u8) {
     }
 }
 
+/// [`DEQUANT`] spread over the 16 positions of a block, row by row, for
+/// kernels that dequantise a block at once ([`dequantize_level`] is the
+/// definition).
+pub const DEQUANT_BY_POSITION: [[i32; 16]; 6] = {
+    let mut t = [[0i32; 16]; 6];
+    let mut q = 0;
+    while q < 6 {
+        let mut k = 0;
+        while k < 16 {
+            t[q][k] = DEQUANT[q][class(k / 4, k % 4)];
+            k += 1;
+        }
+        q += 1;
+    }
+    t
+};
+
 /// [`dequantize`] of the one level at row `r`, column `c`: what an encoder
 /// trying single levels needs.
 #[inline]

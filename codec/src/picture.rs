@@ -645,8 +645,10 @@ mod tests {
     #[test]
     #[should_panic(expected = "outside the picture")]
     fn a_block_past_the_edge_is_refused() {
-        let p = Plane::new(40, 24).unwrap();
-        p.read_block::<16>(32, 0, &mut [0u8; 16 * 4]);
+        // (A plane that cannot be made does not panic: the test fails.)
+        if let Ok(p) = Plane::new(40, 24) {
+            p.read_block::<16>(32, 0, &mut [0u8; 16 * 4]);
+        }
     }
 
     fn ramp(w: usize, h: usize) -> std::result::Result<Plane, PictureError> {

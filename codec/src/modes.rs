@@ -608,6 +608,12 @@ impl ModeCoder {
         SKIP + self.skipped_neighbours(mb_x, mb_y)
     }
 
+    /// How many of macroblock (mb_x, mb_y)'s neighbours (left, above) are
+    /// intra.
+    pub fn intra_neighbours(&self, mb_x: usize, mb_y: usize) -> usize {
+        self.neighbours(mb_x, mb_y).iter().filter(|s| s.intra).count()
+    }
+
     /// How many of macroblock (mb_x, mb_y)'s neighbours (left, above) were
     /// skipped.
     pub fn skipped_neighbours(&self, mb_x: usize, mb_y: usize) -> usize {

@@ -12,7 +12,8 @@ use super::slice::{self, CodedFrame};
 use super::stats::FrameStats;
 use super::weights;
 use super::{EncodeError, EncodedFrame};
-use crate::codec::recon::crop_reusing;
+use crate::codec::mv::Mv;
+use crate::codec::recon::{crop_reusing, frame_vectors};
 use crate::codec::syntax::{EntropyState, FrameType, MotionTool, SequenceHeader, Vui, STREAM_END};
 use crate::codec::weight::Weights;
 use crate::codec::{Frame, PictureError};
@@ -79,7 +80,7 @@ impl Encoder {
             intra_coder: MbCoder::new(config.intra_qp(), config.lambda_scale, config.rdoq)
                 .intra4x4(config.i_frame_partitions.i4x4)
                 .intra8x8(config.i_frame_intra8x8()),
-            analyser: MotionAnalyser::new(config.predictor, config.qp, config.partitions.p8x8),
+            analyser: MotionAnalyser::new(config.predictor, config.qp, config.partitions.p8x8, config.refs),
             references: Vec::new(),
             prev_source: None,
             spare_recon: None,
@@ -217,6 +218,13 @@ impl Encoder {
             fast_pskip: self.config.fast_pskip,
         };
         let coded = slice::code_inter(&self.seq, &self.coder, src, inputs, &mut self.entropy, recon)?;
+        if self.analyser.searches_in_decision() {
+            let mvs = frame_vectors(&self.seq, &coded.syntax)
+                .iter()
+                .map(|v| v[0].filter(|m| m.ref_idx == 0).map_or(Mv::ZERO, |m| m.mv))
+                .collect();
+            self.analyser.remember(src.width(), src.height(), mvs);
+        }
         Ok((coded, me_ms))
     }
 

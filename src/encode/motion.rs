@@ -12,7 +12,7 @@ use crate::codec::warp::MotionGrid;
 use crate::codec::{Frame, Plane};
 use crate::flow::{Flow, FlowEstimator};
 use crate::me::halfpel::HalfPel;
-use crate::me::{self, lambda_for_qp, MeConfig, Metric, MotionField};
+use crate::me::{self, lambda_for_qp, FrameSearch, MeConfig, Metric, MotionField};
 use crate::raster::plane_to_array;
 
 /// What motion analysis hands to mode decision.
@@ -35,6 +35,17 @@ pub(crate) struct BlockMotion {
     pub halfpel: Option<HalfPel>,
     /// Per older reference (index 1, 2, ...), one vector per macroblock.
     pub older: Vec<Vec<Mv>>,
+    /// The search itself, when the mode decision searches the macroblocks
+    /// it needs one for (then `mb` is empty).
+    pub lazy: Option<Box<LazySearch>>,
+}
+
+/// The search of a frame's macroblocks, run from the mode decision (x264's
+/// way): a macroblock skipped before it needs a vector is never searched.
+pub(crate) struct LazySearch {
+    pub search: FrameSearch<'static>,
+    /// The previous P frame's decided vectors: the co-located candidates.
+    pub prior: Option<MotionField>,
 }
 
 /// How far beyond the picture the half-pel planes kept for the partition
@@ -52,17 +63,38 @@ pub(crate) struct MotionAnalyser {
     blocks: bool,
     /// The flow predictors' estimator.
     flow: Option<FlowEstimator>,
+    /// `block` frames' macroblocks searched from the mode decision
+    /// ([`LazySearch`]): with one reference (older references' searches
+    /// take the frame-level search's field as their temporal candidates).
+    lazy: bool,
 }
 
 impl MotionAnalyser {
-    /// `partitions`: flow predictors give 8x8 blocks' vectors too.
-    pub fn new(predictor: Predictor, qp: u8, partitions: bool) -> MotionAnalyser {
+    /// `partitions`: flow predictors give 8x8 blocks' vectors too; `refs`:
+    /// the references a P frame may have.
+    pub fn new(predictor: Predictor, qp: u8, partitions: bool, refs: u8) -> MotionAnalyser {
         MotionAnalyser {
             predictor,
             qp,
             prior: None,
             blocks: partitions,
             flow: None,
+            lazy: refs == 1,
+        }
+    }
+
+    /// Whether `block` frames' macroblocks are searched from the mode
+    /// decision ([`LazySearch`]).
+    pub fn searches_in_decision(&self) -> bool {
+        self.lazy && matches!(self.predictor, Predictor::Block(_))
+    }
+
+    /// The decided vectors of a P frame of `width x height` (one per
+    /// macroblock, raster order): the next frame's co-located candidates
+    /// when the mode decision searches ([`LazySearch`]).
+    pub fn remember(&mut self, width: usize, height: usize, vectors: Vec<Mv>) {
+        if self.lazy {
+            self.prior = MotionField::from_vectors(width, height, MB, vectors);
         }
     }
 
@@ -85,7 +117,37 @@ impl MotionAnalyser {
                 blocks: None,
                 halfpel: self.planes(reference),
                 older: Vec::new(),
+                lazy: None,
             }),
+            Predictor::Block(s) if self.lazy => {
+                let cfg = self.search_config(s);
+                // The partitions' search reads the planes too, further out.
+                let search = match self.planes(reference) {
+                    Some(planes) => FrameSearch::owning(reference.y(), &cfg, planes),
+                    None => FrameSearch::new(reference.y(), &cfg, None),
+                };
+                match search {
+                    Ok(search) => FrameMotion::Vectors(BlockMotion {
+                        mb: Vec::new(),
+                        blocks: None,
+                        halfpel: None,
+                        older: Vec::new(),
+                        lazy: Some(Box::new(LazySearch {
+                            search,
+                            prior: self.prior.clone(),
+                        })),
+                    }),
+                    // The configuration was checked when the encoder was
+                    // made: this is not reached.
+                    Err(_) => FrameMotion::Vectors(BlockMotion {
+                        mb: vec![Mv::ZERO; cols * rows],
+                        blocks: None,
+                        halfpel: None,
+                        older: Vec::new(),
+                        lazy: None,
+                    }),
+                }
+            }
             Predictor::Block(s) => {
                 let halfpel = self.planes(reference);
                 let mb = self.search(source.y(), reference.y(), s, halfpel.as_ref());
@@ -95,6 +157,7 @@ impl MotionAnalyser {
                     blocks: None,
                     halfpel,
                     older,
+                    lazy: None,
                 })
             }
             Predictor::Obmc(s) => FrameMotion::Vectors(BlockMotion {
@@ -102,6 +165,7 @@ impl MotionAnalyser {
                 blocks: None,
                 halfpel: None,
                 older: Vec::new(),
+                lazy: None,
             }),
             Predictor::FlowBlock { flow, refine } => {
                 let f = self.flow(flow, source.y(), prev_source.y());
@@ -138,6 +202,7 @@ impl MotionAnalyser {
                     blocks,
                     halfpel: self.planes(reference),
                     older: Vec::new(),
+                    lazy: None,
                 })
             }
             Predictor::Dense { flow, grid } => {

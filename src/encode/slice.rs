@@ -13,7 +13,7 @@ use super::wavefront::{self, WavefrontFrame};
 use super::config::ModeDecision;
 use super::intra4x4::IntraBlockSearch;
 use super::macroblock::{MbCoder, MbSource};
-use super::motion::{BlockMotion, FrameMotion};
+use super::motion::{BlockMotion, FrameMotion, LazySearch};
 use super::partition::SatdCache;
 use super::{rate, rdo};
 use crate::codec::deblock::{FrameDeblocker, MbEdgeInfo};
@@ -256,8 +256,11 @@ pub(super) struct InterFrameCoder<'a> {
     pub(super) references: Vec<&'a Frame>,
     pub(super) tool: MotionTool,
     pub(super) decision: ModeDecision,
-    /// Motion analysis' vector per macroblock (zero for grid frames).
+    /// Motion analysis' vector per macroblock (zero for grid frames;
+    /// empty when the decision searches, `lazy`).
     pub(super) searched: Vec<Mv>,
+    /// The search the decision runs per macroblock that needs a vector.
+    pub(super) lazy: Option<Box<LazySearch>>,
     /// Whether inter macroblocks may be split (block frames).
     pub(super) partitions: bool,
     /// Sub-pel RD refinement of 16x16 inter vectors (block frames).
@@ -302,6 +305,7 @@ impl<'a> InterFrameCoder<'a> {
                 blocks,
                 halfpel,
                 older,
+                lazy,
             },
             grid,
             warped,
@@ -315,6 +319,7 @@ impl<'a> InterFrameCoder<'a> {
                     blocks: None,
                     halfpel: None,
                     older: Vec::new(),
+                    lazy: None,
                 };
                 (none, Some(g), Some(out))
             }
@@ -346,6 +351,7 @@ impl<'a> InterFrameCoder<'a> {
             syntax: vector_syntax(&header),
             context: searched.iter().map(|&v| [Some(RefMv::previous(v)); 4]).collect(),
             searched,
+            lazy,
             partitions: inputs.partitions && inputs.tool == MotionTool::Block,
             subpel_rd: inputs.subpel_rd,
             fast_pskip: inputs.fast_pskip,

@@ -39,7 +39,9 @@ pub struct FrameStats {
     pub inter_mbs: usize,
     /// Macroblocks intra-coded.
     pub intra_mbs: usize,
-    /// Motion estimation or flow time, ms.
+    /// Motion estimation or flow time before the macroblock decision, ms
+    /// (`block` frames with one reference search inside the decision:
+    /// then only the reference's half-pel planes are counted here).
     pub me_ms: f64,
     /// Time to code the frame, ms (the quality measurements not included).
     pub total_ms: f64,
@@ -106,7 +108,8 @@ pub struct Summary {
     pub bits_residual: u64,
     /// Coding time, ms (reading and writing files not included).
     pub encode_ms: f64,
-    /// Of which motion estimation or flow, ms.
+    /// Of which motion estimation or flow before the macroblock decision,
+    /// ms (as [`FrameStats::me_ms`]).
     pub me_ms: f64,
     /// Frames per second coded.
     pub fps: f64,

@@ -39,7 +39,7 @@ pub mod dsp;
 pub(crate) mod halfpel;
 pub(crate) mod pipeline;
 pub(crate) mod sea;
-mod search;
+pub(crate) mod search;
 pub(crate) use search::SQUARE;
 
 use std::fmt;
@@ -309,6 +309,21 @@ impl MotionField {
             vectors: vec![Mv::ZERO; cols * rows],
             costs: vec![0; cols * rows],
         }
+    }
+
+    /// The field of `vectors` (one per block, raster order) over a `width
+    /// x height` picture; `None` when their number is not the blocks'.
+    pub(crate) fn from_vectors(
+        width: usize,
+        height: usize,
+        block: usize,
+        vectors: Vec<Mv>,
+    ) -> Option<MotionField> {
+        let mut field = MotionField::new(width, height, block);
+        (vectors.len() == field.vectors.len()).then(|| {
+            field.vectors = vectors;
+            field
+        })
     }
 
     /// Block side in pixels.
@@ -584,6 +599,118 @@ pub fn estimate_with_prior(
     estimate_with_planes(cur, reference, cfg, prior, None)
 }
 
+/// What the searches of one picture's blocks against one reference share,
+/// made once: the configuration, the reference's half-pel planes and its
+/// quadrant sums. [`estimate_with_planes`] searches every block with it;
+/// the encoder searches a macroblock at a time, only those its mode
+/// decision needs, with candidates of its own (x264's motion search
+/// inside the macroblock analysis).
+pub(crate) struct FrameSearch<'p> {
+    cfg: MeConfig,
+    lambda_q8: u64,
+    halfpel: Option<Planes<'p>>,
+    sums: Option<sea::QuadrantSums>,
+}
+
+/// Half-pel planes the caller gave, or made for the search.
+enum Planes<'p> {
+    Given(&'p halfpel::HalfPel),
+    Own(halfpel::HalfPel),
+}
+
+impl Planes<'_> {
+    fn get(&self) -> &halfpel::HalfPel {
+        match self {
+            Planes::Given(p) => p,
+            Planes::Own(p) => p,
+        }
+    }
+}
+
+impl<'p> FrameSearch<'p> {
+    /// The searches of `cfg` against `reference` (borders extended), with
+    /// its half-pel `planes` when the caller has them (wide enough margin)
+    /// rather than making its own.
+    pub(crate) fn new(
+        reference: &Plane,
+        cfg: &MeConfig,
+        planes: Option<&'p halfpel::HalfPel>,
+    ) -> Result<FrameSearch<'p>, MeError> {
+        FrameSearch::with_planes(reference, cfg, planes.map(Planes::Given))
+    }
+
+    /// [`FrameSearch::new`] keeping `planes` (the reference's half-pel
+    /// planes, used when their margin is wide enough; others read them
+    /// after, [`FrameSearch::halfpel`]).
+    pub(crate) fn owning(
+        reference: &Plane,
+        cfg: &MeConfig,
+        planes: halfpel::HalfPel,
+    ) -> Result<FrameSearch<'static>, MeError> {
+        FrameSearch::with_planes(reference, cfg, Some(Planes::Own(planes)))
+    }
+
+    fn with_planes(
+        reference: &Plane,
+        cfg: &MeConfig,
+        planes: Option<Planes<'p>>,
+    ) -> Result<FrameSearch<'p>, MeError> {
+        cfg.check()?;
+        // Half-pel planes over the window's reach (range, plus one for the
+        // sub-pel steps and one for the quarter-pel average's neighbour),
+        // rounded up to 8, when the border holds them.
+        let margin = (cfg.range as usize + 2).div_ceil(8) * 8;
+        let halfpel = match (cfg.subpel, planes.filter(|p| p.get().margin() >= margin)) {
+            (Subpel::None, _) => None,
+            (_, Some(given)) => Some(given),
+            _ => halfpel::HalfPel::new(reference, margin).map(Planes::Own),
+        };
+        // Sums for successive elimination, once per reference, where a
+        // search is exhaustive over a window.
+        let radius = match cfg.method {
+            Method::Esa => cfg.range,
+            Method::Epzs => cfg.window,
+            _ => 0,
+        };
+        let sums = (cfg.successive_elimination && sea::pays(cfg.full_pel_metric(), radius))
+            .then(|| sea::QuadrantSums::new(reference, cfg.block, dsp::pixel()));
+        Ok(FrameSearch {
+            cfg: *cfg,
+            lambda_q8: (cfg.lambda * 256.0).round() as u64,
+            halfpel,
+            sums,
+        })
+    }
+
+    /// The reference's half-pel planes the search reads.
+    pub(crate) fn halfpel(&self) -> Option<&halfpel::HalfPel> {
+        self.halfpel.as_ref().map(Planes::get)
+    }
+
+    /// The best vector of the block (col, row) of `cur` (same size as the
+    /// reference): `candidates` and the method's pattern at full pel, then
+    /// the sub-pel refinement, the rate priced against `mvp`.
+    pub(crate) fn search(
+        &self,
+        cur: &Plane,
+        reference: &Plane,
+        (col, row): (usize, usize),
+        mvp: Mv,
+        candidates: &search::Neighbours,
+    ) -> Candidate {
+        let block = self.cfg.block;
+        let s = SearchContext {
+            mvp,
+            lambda_q8: self.lambda_q8,
+            halfpel: self.halfpel.as_ref().map(Planes::get),
+            sums: self.sums.as_ref(),
+            ..SearchContext::new(cur, reference, (col * block, row * block), &self.cfg)
+        };
+        let best = search::full_pel(&s, candidates);
+        search::refine(&s, s.in_sub_pel_measure(best))
+    }
+}
+
 /// As [`estimate_with_prior`], with the reference's half-pel planes when
 /// the caller has them (wide enough margin) rather than making its own:
 /// the encoder's partition search reads the same planes afterwards.
@@ -598,46 +725,22 @@ pub(crate) fn estimate_with_planes(
     check_pictures(cur, reference, cfg)?;
     let mut field = MotionField::new(cur.width(), cur.height(), cfg.block);
     let prior = prior.filter(|p| p.cols == field.cols && p.rows == field.rows && p.block == field.block);
-    let lambda_q8 = (cfg.lambda * 256.0).round() as u64;
     let (cols, rows) = (field.cols, field.rows);
-    // Half-pel planes over the window's reach (range, plus one for the
-    // sub-pel steps and one for the quarter-pel average's neighbour),
-    // rounded up to 8, when the border holds them.
-    let margin = (cfg.range as usize + 2).div_ceil(8) * 8;
-    let given = planes.filter(|p| p.margin() >= margin);
-    let own = match (cfg.subpel, given) {
-        (Subpel::None, _) | (_, Some(_)) => None,
-        _ => halfpel::HalfPel::new(reference, margin),
-    };
-    let halfpel = if cfg.subpel == Subpel::None {
-        None
-    } else {
-        given.or(own.as_ref())
-    };
-    // Sums for successive elimination, once per reference, where a search
-    // is exhaustive over a window.
-    let radius = match cfg.method {
-        Method::Esa => cfg.range,
-        Method::Epzs => cfg.window,
-        _ => 0,
-    };
-    let sums = (cfg.successive_elimination && sea::pays(cfg.full_pel_metric(), radius))
-        .then(|| sea::QuadrantSums::new(reference, cfg.block, dsp::pixel()));
+    let frame = FrameSearch::new(reference, cfg, planes)?;
+    let lambda_q8 = frame.lambda_q8;
     let search_one = |grid: &pipeline::SharedGrid, col: usize, row: usize| -> Candidate {
-        let s = SearchContext {
-            mvp: if lambda_q8 > 0 || cfg.method.uses_neighbours() {
-                grid.predictor(col, row)
-            } else {
-                Mv::ZERO
-            },
-            lambda_q8,
-            halfpel,
-            sums: sums.as_ref(),
-            ..SearchContext::new(cur, reference, (col * cfg.block, row * cfg.block), cfg)
+        let mvp = if lambda_q8 > 0 || cfg.method.uses_neighbours() {
+            grid.predictor(col, row)
+        } else {
+            Mv::ZERO
         };
-        let neighbours = search::Neighbours::of(grid, prior, col, row);
-        let best = search::full_pel(&s, &neighbours);
-        search::refine(&s, s.in_sub_pel_measure(best))
+        frame.search(
+            cur,
+            reference,
+            (col, row),
+            mvp,
+            &search::Neighbours::of(grid, prior, col, row),
+        )
     };
     if lambda_q8 > 0 || cfg.method.uses_neighbours() {
         // Each block reads its left, top and top-right neighbours' final

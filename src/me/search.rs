@@ -7,8 +7,9 @@ use crate::codec::mv::Mv;
 
 /// Candidate vectors from neighbouring blocks, for predictive methods.
 pub(crate) struct Neighbours {
-    /// At most the predictor, three neighbours and three prior vectors.
-    candidates: [Mv; 7],
+    /// At most the predictor, three neighbours and three prior vectors
+    /// (and zero, for [`Neighbours::list`]).
+    candidates: [Mv; 8],
     len: usize,
 }
 
@@ -18,7 +19,7 @@ impl Neighbours {
     /// right and lower blocks of the previous field.
     pub(crate) fn of(field: &SharedGrid, prior: Option<&MotionField>, col: usize, row: usize) -> Neighbours {
         let mut n = Neighbours {
-            candidates: [Mv::ZERO; 7],
+            candidates: [Mv::ZERO; 8],
             len: 0,
         };
         n.push(field.predictor(col, row));
@@ -43,10 +44,22 @@ impl Neighbours {
         n
     }
 
+    /// The predicted vector `mvp`, then `others` (at most six), then zero
+    /// (x264's candidates: a still background is found even where the
+    /// neighbours' vectors drifted).
+    pub(crate) fn list(mvp: Mv, others: &[Mv]) -> Neighbours {
+        let mut n = Neighbours::single(mvp);
+        for &mv in others.iter().take(6) {
+            n.push(mv);
+        }
+        n.push(Mv::ZERO);
+        n
+    }
+
     /// Only `mv` (a seeded search's predicted vector).
     pub(crate) fn single(mv: Mv) -> Neighbours {
         let mut n = Neighbours {
-            candidates: [Mv::ZERO; 7],
+            candidates: [Mv::ZERO; 8],
             len: 0,
         };
         n.push(mv);

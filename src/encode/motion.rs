@@ -119,35 +119,7 @@ impl MotionAnalyser {
                 older: Vec::new(),
                 lazy: None,
             }),
-            Predictor::Block(s) if self.lazy => {
-                let cfg = self.search_config(s);
-                // The partitions' search reads the planes too, further out.
-                let search = match self.planes(reference) {
-                    Some(planes) => FrameSearch::owning(reference.y(), &cfg, planes),
-                    None => FrameSearch::new(reference.y(), &cfg, None),
-                };
-                match search {
-                    Ok(search) => FrameMotion::Vectors(BlockMotion {
-                        mb: Vec::new(),
-                        blocks: None,
-                        halfpel: None,
-                        older: Vec::new(),
-                        lazy: Some(Box::new(LazySearch {
-                            search,
-                            prior: self.prior.clone(),
-                        })),
-                    }),
-                    // The configuration was checked when the encoder was
-                    // made: this is not reached.
-                    Err(_) => FrameMotion::Vectors(BlockMotion {
-                        mb: vec![Mv::ZERO; cols * rows],
-                        blocks: None,
-                        halfpel: None,
-                        older: Vec::new(),
-                        lazy: None,
-                    }),
-                }
-            }
+            Predictor::Block(s) if self.lazy => self.decision_search(reference, s),
             Predictor::Block(s) => {
                 let halfpel = self.planes(reference);
                 let mb = self.search(source.y(), reference.y(), s, halfpel.as_ref());
@@ -210,6 +182,39 @@ impl MotionAnalyser {
                 FrameMotion::Grid(grid_from_flow(&f, source.width(), source.height(), grid))
             }
         }
+    }
+
+    /// `block` frames' motion when the decision searches ([`LazySearch`]):
+    /// the search made ready against `reference`, no vectors yet.
+    fn decision_search(&self, reference: &Frame, s: SearchSettings) -> FrameMotion {
+        let cfg = self.search_config(s);
+        // The partitions' search reads the planes too, further out.
+        let search = match self.planes(reference) {
+            Some(planes) => FrameSearch::owning(reference.y(), &cfg, planes),
+            None => FrameSearch::new(reference.y(), &cfg, None),
+        };
+        let (cols, rows) = (reference.width() / MB, reference.height() / MB);
+        FrameMotion::Vectors(match search {
+            Ok(search) => BlockMotion {
+                mb: Vec::new(),
+                blocks: None,
+                halfpel: None,
+                older: Vec::new(),
+                lazy: Some(Box::new(LazySearch {
+                    search,
+                    prior: self.prior.clone(),
+                })),
+            },
+            // The configuration was checked when the encoder was made: this
+            // is not reached.
+            Err(_) => BlockMotion {
+                mb: vec![Mv::ZERO; cols * rows],
+                blocks: None,
+                halfpel: None,
+                older: Vec::new(),
+                lazy: None,
+            },
+        })
     }
 
     /// The half-pel planes of `reference`'s luma, when partitions are

@@ -39,11 +39,12 @@ def test_coding_tools_by_keyword(synth_frames, samples):
         mocomp.encode(source, ipratio=0.5)
     # Partitions by x264's names or as a flag: True is "all". They are P
     # frames' (as x264's): over a cut, where a P frame codes intra, fewer
-    # differ.
-    assert mocomp.encode(source, qp=30, partitions="p8x8,i8x8,i4x4")[0] == on
+    # differ. The default preset's are all but 4x4 intra (from slow).
+    assert mocomp.encode(source, qp=30, partitions="p8x8,i8x8")[0] == on
     cut = list(source[:2]) + list(mocomp.read_y4m(samples / "tree_qcif.y4m")[:1])
     assert mocomp.encode(cut, qp=30, partitions="p8x8,i4x4")[0] != mocomp.encode(cut, qp=30)[0]
-    assert mocomp.encode(source, qp=30, partitions=True)[0] == on
+    all_named = mocomp.encode(source, qp=30, partitions="p8x8,i8x8,i4x4")[0]
+    assert mocomp.encode(source, qp=30, partitions=True)[0] == all_named
     assert mocomp.encode(source, qp=30, partitions="none")[0] == mocomp.encode(source, qp=30, partitions=False)[0]
     with pytest.raises(ValueError):
         mocomp.encode(source, partitions="p4x4")

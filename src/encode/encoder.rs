@@ -13,7 +13,7 @@ use super::stats::FrameStats;
 use super::weights;
 use super::{EncodeError, EncodedFrame};
 use crate::codec::mv::Mv;
-use crate::codec::recon::{crop_reusing, frame_vectors};
+use crate::codec::recon::crop_reusing;
 use crate::codec::syntax::{EntropyState, FrameType, MotionTool, SequenceHeader, Vui, STREAM_END};
 use crate::codec::weight::Weights;
 use crate::codec::{Frame, PictureError};
@@ -39,6 +39,8 @@ pub struct Encoder {
     /// A returned reconstruction given back ([`Encoder::recycle`]).
     spare_output: Option<Frame>,
     spare_source: Option<Frame>,
+    /// The last weighted reference, to weigh the next one into.
+    spare_weighted: Option<Frame>,
     /// Contexts carried from frame to frame, as the decoder carries them.
     entropy: EntropyState,
     index: usize,
@@ -86,6 +88,7 @@ impl Encoder {
             spare_recon: None,
             spare_output: None,
             spare_source: None,
+            spare_weighted: None,
             entropy: EntropyState::new(),
             index: 0,
         })
@@ -188,7 +191,13 @@ impl Encoder {
             Weights::NONE
         };
         let weighted = weights.any().then(|| {
-            let mut out = unweighted.clone();
+            // Every sample of `out` is written, borders included.
+            let layout =
+                |f: &Frame| [0, 1, 2].map(|p| (f.plane(p).width(), f.plane(p).height(), f.plane(p).pad()));
+            let mut out = match self.spare_weighted.take() {
+                Some(f) if layout(&f) == layout(unweighted) => f,
+                _ => unweighted.clone(),
+            };
             weights.apply_into(unweighted, &mut out);
             out
         });
@@ -219,12 +228,14 @@ impl Encoder {
         };
         let coded = slice::code_inter(&self.seq, &self.coder, src, inputs, &mut self.entropy, recon)?;
         if self.analyser.searches_in_decision() {
-            let mvs = frame_vectors(&self.seq, &coded.syntax)
+            let mvs = coded
+                .vectors
                 .iter()
                 .map(|v| v[0].filter(|m| m.ref_idx == 0).map_or(Mv::ZERO, |m| m.mv))
                 .collect();
             self.analyser.remember(src.width(), src.height(), mvs);
         }
+        self.spare_weighted = weighted.or(self.spare_weighted.take());
         Ok((coded, me_ms))
     }
 

@@ -49,6 +49,9 @@ pub(crate) struct CodedFrame {
     pub prediction_sse: u64,
     /// Macroblocks coded as skip, inter, intra.
     pub kinds: [usize; 3],
+    /// Each macroblock's vectors (none for intra), as
+    /// [`crate::codec::recon::frame_vectors`] gives them.
+    pub vectors: Vec<MbVectors>,
 }
 
 /// The squared luma error of `pred` against `src` over the visible part of
@@ -188,6 +191,7 @@ pub(crate) fn code_intra(
         recon,
         prediction_sse: sum.prediction_sse,
         kinds: sum.kinds,
+        vectors: sum.vectors,
     };
     frame.write_and_finish(seq, state);
     Ok(frame)
@@ -200,7 +204,7 @@ impl CodedFrame {
     fn write_and_finish(&mut self, seq: &SequenceHeader, state: &mut EntropyState) {
         let (written, ()) = rayon::join(
             || write_frame(seq, &self.syntax, state),
-            || finish_recon(seq, &self.syntax, &mut self.recon),
+            || finish_recon(seq, &self.syntax, &self.vectors, &mut self.recon),
         );
         (self.bytes, self.bits) = written;
     }
@@ -209,11 +213,11 @@ impl CodedFrame {
 /// The reconstruction of `syntax` as the decoder's: deblocked when the
 /// header says so (after every macroblock, whose intra prediction read the
 /// samples before it; the three planes at once), borders extended.
-fn finish_recon(seq: &SequenceHeader, syntax: &FrameSyntax, recon: &mut Frame) {
+fn finish_recon(seq: &SequenceHeader, syntax: &FrameSyntax, vectors: &[MbVectors], recon: &mut Frame) {
     let header = &syntax.header;
     let deblocker = header.deblock.then(|| {
-        let vectors = frame_vectors(seq, syntax);
-        let info = MbEdgeInfo::of_frame(syntax, &vectors);
+        debug_assert_eq!(vectors, frame_vectors(seq, syntax));
+        let info = MbEdgeInfo::of_frame(syntax, vectors);
         FrameDeblocker::new(&info, (recon.width(), recon.height()), header.qp)
     });
     let finish = |plane: &mut Plane, index: usize| {
@@ -372,6 +376,7 @@ impl<'a> InterFrameCoder<'a> {
                 recon,
                 prediction_sse: 0,
                 kinds: [0; 3],
+                vectors: Vec::new(),
             },
         })
     }
@@ -427,6 +432,7 @@ impl<'a> InterFrameCoder<'a> {
         self.frame.syntax.mbs = sum.mbs;
         self.frame.prediction_sse = sum.prediction_sse;
         self.frame.kinds = sum.kinds;
+        self.frame.vectors = sum.vectors;
         Ok(())
     }
 
@@ -465,10 +471,14 @@ impl<'a> InterFrameCoder<'a> {
     /// The coded frame, written; `state` updated.
     fn finish(self, state: &mut EntropyState) -> Result<CodedFrame, PictureError> {
         let mut frame = self.frame;
+        if frame.vectors.is_empty() {
+            // Decided in raster order: the frame's own record.
+            frame.vectors = self.decided;
+        }
         match self.sink {
             MbSink::Write(writer) => {
                 (frame.bytes, frame.bits) = writer.finish(state);
-                finish_recon(self.seq, &frame.syntax, &mut frame.recon);
+                finish_recon(self.seq, &frame.syntax, &frame.vectors, &mut frame.recon);
             }
             MbSink::Adapt(_) => {
                 // Decisions saw neighbours' searched vectors; code the

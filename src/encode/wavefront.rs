@@ -231,6 +231,7 @@ pub(super) struct FrameSummary {
     pub(super) mbs: Vec<CodedMb>,
     pub(super) prediction_sse: u64,
     pub(super) kinds: [usize; 3],
+    pub(super) vectors: Vec<MbVectors>,
 }
 
 /// The frame's reconstruction (every macroblock of `decided` written into
@@ -240,6 +241,7 @@ pub(super) fn collect(decided: DecidedFrame, cols: usize) -> (FrameSummary, Fram
         mbs: Vec::with_capacity(decided.mbs.len()),
         prediction_sse: 0,
         kinds: [0; 3],
+        vectors: Vec::with_capacity(decided.mbs.len()),
     };
     let mut recon = decided.recon;
     for (i, d) in decided.mbs.into_iter().enumerate() {
@@ -248,6 +250,7 @@ pub(super) fn collect(decided: DecidedFrame, cols: usize) -> (FrameSummary, Fram
         }
         out.prediction_sse += d.prediction_sse;
         out.kinds[kind_index(&d.coded.kind)] += 1;
+        out.vectors.push(d.vectors);
         out.mbs.push(d.coded);
     }
     (out, recon)

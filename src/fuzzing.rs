@@ -201,6 +201,7 @@ impl EncoderCase {
         maybe(&mut b, "deblock", &on);
         maybe(&mut b, "weightp", &on);
         maybe(&mut b, "subpel-rd", &on);
+        maybe(&mut b, "early-pskip", &on);
         maybe(&mut b, "8x8dct", &on);
         maybe(&mut b, "partitions", &|b| {
             b.pick(&["all", "none", "p8x8", "i8x8", "i4x4", "p8x8,i4x4", "i8x8,i4x4"])

@@ -171,6 +171,7 @@ def encode(
     refs: Optional[int] = None,
     subpel_rd: Optional[bool] = None,
     fast_pskip: Optional[bool] = None,
+    early_pskip: Optional[bool] = None,
     dct8x8: Optional[bool] = None,
     partitions: Optional[Union[bool, str]] = None,
     metrics: Optional[str] = None,

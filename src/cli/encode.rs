@@ -119,6 +119,11 @@ pub struct ToolArgs {
     /// tries its other modes even where skipping it would code no level.
     #[arg(long)]
     pub no_fast_pskip: bool,
+    /// Fast P-skip probed before the motion search too where the left and
+    /// upper neighbours were skipped, saving the search (x264's rule below
+    /// --subme 3) [default: the preset's].
+    #[arg(long, value_name = "on|off", value_parser = on_off)]
+    pub early_pskip: Option<bool>,
     /// No 8x8 transform (x264's --no-8x8dct): luma in 4x4 transforms only
     /// (no 8x8 intra either).
     #[arg(long = "no-8x8dct")]
@@ -153,6 +158,7 @@ impl ToolArgs {
         o.extend(self.no_weightp.then(|| ("weightp", on(false))));
         o.extend(self.no_8x8dct.then(|| ("8x8dct", on(false))));
         o.extend(self.no_fast_pskip.then(|| ("fast-pskip", on(false))));
+        o.extend(self.early_pskip.map(|b| ("early-pskip", on(b))));
         o.extend(self.partitions.map(|p| ("partitions", p.to_string())));
         o.extend(self.refs.map(|n| ("refs", n.to_string())));
         o.extend(self.subpel_rd.map(|b| ("subpel-rd", on(b))));

@@ -225,6 +225,7 @@ impl Encoder {
             partitions: self.config.partitions.p8x8,
             subpel_rd: self.config.subpel_rd,
             fast_pskip: self.config.fast_pskip,
+            early_pskip: self.config.early_pskip,
         };
         let coded = slice::code_inter(&self.seq, &self.coder, src, inputs, &mut self.entropy, recon)?;
         if self.analyser.searches_in_decision() {

@@ -23,7 +23,7 @@ use crate::metrics::{Metric, Metrics};
 
 /// Every option [`EncoderConfig::set`] takes, with what its value is
 /// (names as `mocomp encode` spells them; `_` may stand for `-`).
-pub const OPTIONS: [(&str, &str); 22] = [
+pub const OPTIONS: [(&str, &str); 23] = [
     ("qp", "quantisation parameter, 0..=51"),
     ("gop", "I-frame period (0: only the first frame)"),
     (
@@ -56,6 +56,10 @@ pub const OPTIONS: [(&str, &str); 22] = [
     (
         "fast-pskip",
         "skip before the other modes where skip codes no level, on|off",
+    ),
+    (
+        "early-pskip",
+        "fast P-skip probed before the motion search beside skipped neighbours, on|off",
     ),
     ("8x8dct", "the 8x8 transform (and 8x8 intra), on|off"),
     (
@@ -125,6 +129,7 @@ impl EncoderConfig {
             "refs" => self.refs = parse(value).map_err(bad)?,
             "subpel-rd" => self.subpel_rd = switch(value).map_err(bad)?,
             "fast-pskip" => self.fast_pskip = switch(value).map_err(bad)?,
+            "early-pskip" => self.early_pskip = switch(value).map_err(bad)?,
             "8x8dct" | "dct8x8" => self.transform_8x8 = switch(value).map_err(bad)?,
             "partitions" => self.partitions = parse::<Partitions>(value).map_err(bad)?,
             "metrics" => self.metrics = parse::<Metrics>(value).map_err(bad)?,
@@ -220,6 +225,7 @@ mod tests {
             ("refs", "3"),
             ("subpel-rd", "1"),
             ("fast-pskip", "off"),
+            ("early-pskip", "on"),
             ("8x8dct", "off"),
             ("partitions", "p8x8,i4x4"),
             ("metrics", "ms-ssim"),

@@ -248,6 +248,8 @@ pub(crate) struct InterInputs<'a> {
     pub subpel_rd: bool,
     /// x264's fast P-skip (see [`super::EncoderConfig::fast_pskip`]).
     pub fast_pskip: bool,
+    /// Fast P-skip before the search too ([`super::EncoderConfig::early_pskip`]).
+    pub early_pskip: bool,
 }
 
 /// A P frame's mode decision: one analysis context over the frame, one
@@ -271,6 +273,8 @@ pub(super) struct InterFrameCoder<'a> {
     pub(super) subpel_rd: bool,
     /// x264's fast P-skip (see [`super::EncoderConfig::fast_pskip`]).
     pub(super) fast_pskip: bool,
+    /// Fast P-skip before the search too ([`super::EncoderConfig::early_pskip`]).
+    pub(super) early_pskip: bool,
     /// A vector per 8x8 block, when motion analysis has one (flows).
     pub(super) blocks: Option<Vec<Mv>>,
     /// Motion analysis' vectors per macroblock into each older reference.
@@ -359,6 +363,7 @@ impl<'a> InterFrameCoder<'a> {
             partitions: inputs.partitions && inputs.tool == MotionTool::Block,
             subpel_rd: inputs.subpel_rd,
             fast_pskip: inputs.fast_pskip,
+            early_pskip: inputs.early_pskip,
             halfpel,
             blocks,
             warped,

@@ -33,7 +33,10 @@ pub(super) struct Decided {
     pub(super) coded: CodedMb,
     mode: MbMode,
     vectors: MbVectors,
-    samples: MbSamples,
+    /// Its reconstruction, for the other workers' rows (none with one
+    /// worker, whose own reconstruction holds every macroblock: the copy
+    /// of each was a few per cent of ultrafast's time on 720p).
+    samples: Option<Box<MbSamples>>,
     /// The prediction's squared luma error (visible part).
     prediction_sse: u64,
 }
@@ -77,7 +80,7 @@ struct Worker {
 /// of them all when one worker decided every row (its own copy then holds
 /// every macroblock: no need to write them again), else one worker's.
 pub(super) struct DecidedFrame {
-    mbs: Vec<Decided>,
+    mbs: Vec<OnceLock<Decided>>,
     recon: Frame,
     complete: bool,
 }
@@ -106,6 +109,7 @@ impl WavefrontFrame<'_> {
             .map(|_| Frame::new(self.seq.coded_width(), self.seq.coded_height()))
             .chain([Ok(recon)])
             .collect::<Result<Vec<_>, _>>()?;
+        let shared = recons.len() > 1;
         let recons = Mutex::new(recons);
         let new_worker = || Worker {
             decided: vec![[None; 4]; cols * rows],
@@ -142,7 +146,7 @@ impl WavefrontFrame<'_> {
                     self.bring_in(w, above, x, r - 1);
                 }
             }
-            let d = self.commit(w, decide, c, r);
+            let d = self.commit(w, decide, (c, r), shared);
             if c + 1 == lead {
                 let start = RowStart {
                     modes: w.modes.contexts().to_vec(),
@@ -162,21 +166,22 @@ impl WavefrontFrame<'_> {
                 .and_then(|mut r| r.pop())
                 .expect("the reconstruction given"),
         };
-        let mbs = decided
-            .into_iter()
-            .map(|d| d.into_inner().expect("every macroblock decided"))
-            .collect();
-        Ok(DecidedFrame { mbs, recon, complete })
+        Ok(DecidedFrame {
+            mbs: decided,
+            recon,
+            complete,
+        })
     }
 
     /// Macroblock (c, r) decided from the worker's state, and committed to
-    /// it.
+    /// it; its reconstruction kept when other workers will read it
+    /// (`shared`).
     fn commit(
         &self,
         w: &mut Worker,
         decide: &(dyn Fn(&MbEnv<'_>, usize) -> Decision + Sync),
-        c: usize,
-        r: usize,
+        (c, r): (usize, usize),
+        shared: bool,
     ) -> Decided {
         let cols = self.seq.mb_cols();
         let index = r * cols + c;
@@ -195,15 +200,15 @@ impl WavefrontFrame<'_> {
             Some(levels) => CodedMb::with_levels(best.kind, levels),
             None => CodedMb::without_residual(best.kind),
         };
+        write_mb(&best.samples, &mut w.recon, c, r);
         let d = Decided {
             prediction_sse,
-            samples: best.samples,
+            samples: shared.then(|| Box::new(best.samples)),
             coded,
             mode,
             vectors,
         };
         w.decided[index] = d.vectors;
-        write_mb(&d.samples, &mut w.recon, c, r);
         w.modes.commit(c, r, self.inter_frame, self.syntax, &d.mode);
         if d.coded.kind != MbKind::Skip {
             w.residual
@@ -216,7 +221,8 @@ impl WavefrontFrame<'_> {
     /// state as a neighbour (a worker's coders adapt only to its own row).
     fn bring_in(&self, w: &mut Worker, d: &Decided, x: usize, y: usize) {
         w.decided[y * self.seq.mb_cols() + x] = d.vectors;
-        write_mb(&d.samples, &mut w.recon, x, y);
+        let samples = d.samples.as_ref().expect("kept with several workers");
+        write_mb(samples, &mut w.recon, x, y);
         w.modes.record(x, y, &d.mode);
         if d.coded.kind != MbKind::Skip {
             w.residual
@@ -245,8 +251,10 @@ pub(super) fn collect(decided: DecidedFrame, cols: usize) -> (FrameSummary, Fram
     };
     let mut recon = decided.recon;
     for (i, d) in decided.mbs.into_iter().enumerate() {
+        let d = d.into_inner().expect("every macroblock decided");
         if !decided.complete {
-            write_mb(&d.samples, &mut recon, i % cols, i / cols);
+            let samples = d.samples.as_ref().expect("kept with several workers");
+            write_mb(samples, &mut recon, i % cols, i / cols);
         }
         out.prediction_sse += d.prediction_sse;
         out.kinds[kind_index(&d.coded.kind)] += 1;

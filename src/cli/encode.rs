@@ -85,9 +85,10 @@ pub struct ToolArgs {
     /// with tools added (the options below override it).
     #[arg(long, default_value = "medium")]
     pub preset: EncoderPreset,
-    /// Multiply the mode-decision lambda `0.85 * 2^((QP - 12) / 3)`.
-    #[arg(long, default_value_t = 1.4)]
-    pub lambda_scale: f64,
+    /// Multiply the mode-decision lambda `0.85 * 2^((QP - 12) / 3)`
+    /// [default: the preset's: 1.4, from medium 1.3].
+    #[arg(long)]
+    pub lambda_scale: Option<f64>,
     /// No rate-distortion optimised quantisation.
     #[arg(long)]
     pub no_rdoq: bool,
@@ -148,10 +149,10 @@ impl ToolArgs {
     fn options(&self) -> Vec<(&'static str, String)> {
         let on = |b: bool| if b { "on" } else { "off" }.to_string();
         let mut o = vec![
-            ("lambda-scale", self.lambda_scale.to_string()),
             ("ipratio", self.ipratio.to_string()),
             ("metrics", self.metrics.to_string()),
         ];
+        o.extend(self.lambda_scale.map(|l| ("lambda-scale", l.to_string())));
         o.extend(self.decision.map(|d| ("decision", d.name().to_string())));
         o.extend(self.no_rdoq.then(|| ("rdoq", on(false))));
         o.extend(self.no_deblock.then(|| ("deblock", on(false))));

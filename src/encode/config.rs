@@ -562,8 +562,9 @@ impl EncoderConfig {
         // With RDOQ, a lambda 1.3 times x264's base instead of 1.4: in
         // medium -0.9 % on the development set's mean (1.0 to 1.3 each
         // gave -0.6 % to -1.0 %, 1.65 +7 %; dark_cif moves most, -7 % at
-        // 1.3), in slow -0.45 % (dark_cif -7.8 %). Below medium, 1.3 bought ultrafast -1.1 %
-        // for 1.05x its time and fast -0.8 % for 1.08x.
+        // 1.3), in slow -0.45 % (dark_cif -7.8 %). Below medium, 1.3
+        // bought ultrafast -1.1 % for 1.05x its time and fast -0.8 % for
+        // 1.08x.
         self.lambda_scale = if preset >= Medium { 1.3 } else { 1.4 };
         // In every preset (x264's from superfast): a flickering light
         // (fish_1160) is half of the bits without it; in ultrafast -6.8

@@ -207,13 +207,11 @@ impl InterFrameCoder<'_> {
     /// they can win.
     pub(super) fn analyse(&self, index: usize, env: &MbEnv<'_>) -> MbAnalysis {
         let mut mb = self.analyse_skip(index, env);
-        if mb.exhaustive && self.skips_before_search(&mb, env) {
+        if !mb.exhaustive || self.skips_before_search(&mb, env) {
             return mb;
         }
-        if mb.exhaustive {
-            mb.searched = self.searched_vector(&mb, env);
-        }
-        if mb.exhaustive && !self.skips_early(&mb, env) {
+        mb.searched = self.searched_vector(&mb, env);
+        if !self.skips_early(&mb, env) {
             self.analyse_inter(&mut mb, env);
             self.analyse_split(&mut mb, env);
             self.analyse_intra(&mut mb, env);

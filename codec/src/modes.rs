@@ -260,7 +260,7 @@ fn read_intra_mode(dec: &mut RangeDecoder<'_>, c: &mut [Context], base: usize) -
 /// The luma modes of an intra macroblock: whether in blocks, whether
 /// those are 8x8, then either each block's mode against its most probable
 /// one ([`code_block_modes`]), or the 16x16 mode.
-fn code_luma_intra<B: Bins>(b: &mut B, n: &[MbState; 2], luma: &LumaIntra) {
+fn code_luma_intra<B: Bins>(b: &mut B, n: &[&MbState; 2], luma: &LumaIntra) {
     let in_blocks = n.iter().filter(|s| s.modes4.is_some()).count();
     b.bin(BLOCKS4 + in_blocks, !matches!(luma, LumaIntra::Whole(_)));
     let around = [n[0].modes4_seen(), n[1].modes4_seen()];
@@ -284,7 +284,7 @@ fn code_luma_intra<B: Bins>(b: &mut B, n: &[MbState; 2], luma: &LumaIntra) {
 }
 
 /// How many of the neighbours are coded in 8x8 intra blocks.
-fn blocks8_around(n: &[MbState; 2]) -> usize {
+fn blocks8_around(n: &[&MbState; 2]) -> usize {
     n.iter().filter(|s| s.blocks8).count()
 }
 
@@ -315,7 +315,7 @@ fn read_block_mode(dec: &mut RangeDecoder<'_>, c: &mut [Context], predicted: Int
 }
 
 /// Reads what [`code_luma_intra`] codes.
-fn read_luma_intra(dec: &mut RangeDecoder<'_>, c: &mut [Context], n: &[MbState; 2]) -> LumaIntra {
+fn read_luma_intra(dec: &mut RangeDecoder<'_>, c: &mut [Context], n: &[&MbState; 2]) -> LumaIntra {
     let in_blocks = n.iter().filter(|s| s.modes4.is_some()).count();
     if !dec.decode(&mut c[BLOCKS4 + in_blocks]) {
         return LumaIntra::Whole(read_intra_mode(dec, c, LUMA_MODE));
@@ -342,7 +342,7 @@ fn read_luma_intra(dec: &mut RangeDecoder<'_>, c: &mut [Context], n: &[MbState; 
 fn read_inter(
     dec: &mut RangeDecoder<'_>,
     c: &mut [Context],
-    n: &[MbState; 2],
+    n: &[&MbState; 2],
     vectors: VectorSyntax,
 ) -> Option<MbMode> {
     let split = if vectors.per_partition() && dec.decode(&mut c[SPLIT + n.iter().filter(|s| s.split).count()])
@@ -378,24 +378,43 @@ fn read_inter(
     })
 }
 
-/// Neighbour state of macroblock (x, y): the left and above ones (default
-/// outside the picture).
-fn neighbours(states: &[MbState], cols: usize, x: usize, y: usize) -> [MbState; 2] {
+/// The state of a macroblock outside the picture.
+const OUTSIDE: MbState = MbState {
+    inside: false,
+    skip: false,
+    intra: false,
+    split: false,
+    mvd_abs: [[0; 2]; 4],
+    refs: [0; 4],
+    modes4: None,
+    blocks8: false,
+};
+
+/// Neighbour state of macroblock (x, y): the left and above ones
+/// ([`OUTSIDE`] outside the picture). By reference: the pricing of every
+/// candidate asks for them.
+fn neighbours(states: &[MbState], cols: usize, x: usize, y: usize) -> [&MbState; 2] {
     let left = if x > 0 {
-        states[y * cols + x - 1]
+        &states[y * cols + x - 1]
     } else {
-        MbState::default()
+        &OUTSIDE
     };
     let above = if y > 0 {
-        states[(y - 1) * cols + x]
+        &states[(y - 1) * cols + x]
     } else {
-        MbState::default()
+        &OUTSIDE
     };
     [left, above]
 }
 
 /// Everything of a macroblock's mode but its vector difference.
-fn code_flags<B: Bins>(b: &mut B, n: &[MbState; 2], inter_frame: bool, mode: &MbMode, vectors: VectorSyntax) {
+fn code_flags<B: Bins>(
+    b: &mut B,
+    n: &[&MbState; 2],
+    inter_frame: bool,
+    mode: &MbMode,
+    vectors: VectorSyntax,
+) {
     if inter_frame {
         let skipped = n.iter().filter(|s| s.skip).count();
         b.bin(SKIP + skipped, *mode == MbMode::Skip);
@@ -420,7 +439,7 @@ fn code_flags<B: Bins>(b: &mut B, n: &[MbState; 2], inter_frame: bool, mode: &Mb
 /// (none for the others, or when the frame codes no vectors), per
 /// partition, each element's context from the 8x8 blocks left of and
 /// above the partition's top-left block.
-fn code_mvd<B: Bins>(b: &mut B, n: &[MbState; 2], mode: &MbMode, vectors: VectorSyntax) {
+fn code_mvd<B: Bins>(b: &mut B, n: &[&MbState; 2], mode: &MbMode, vectors: VectorSyntax) {
     if !vectors.any() {
         return;
     }
@@ -447,19 +466,19 @@ fn code_mvd<B: Bins>(b: &mut B, n: &[MbState; 2], mode: &MbMode, vectors: Vector
 /// The 8x8 blocks left of and above partition `p`'s top-left block: in
 /// the macroblock (`own`, its partitions coded so far) or in the
 /// neighbours `n`, as (state, block index).
-fn left_and_above<'a>(n: &'a [MbState; 2], own: &'a MbState, p: &Part) -> [(&'a MbState, usize); 2] {
+fn left_and_above<'a>(n: &[&'a MbState; 2], own: &'a MbState, p: &Part) -> [(&'a MbState, usize); 2] {
     let left = if p.x8 > 0 {
         (own, p.y8 * 2)
     } else {
-        (&n[0], p.y8 * 2 + 1)
+        (n[0], p.y8 * 2 + 1)
     };
-    let above = if p.y8 > 0 { (own, p.x8) } else { (&n[1], 2 + p.x8) };
+    let above = if p.y8 > 0 { (own, p.x8) } else { (n[1], 2 + p.x8) };
     [left, above]
 }
 
 /// Per component, |mvd| of the 8x8 block left of partition `p`'s top-left
 /// block plus that of the one above it.
-fn neighbour_sums(n: &[MbState; 2], own: &MbState, p: &Part) -> [u32; 2] {
+fn neighbour_sums(n: &[&MbState; 2], own: &MbState, p: &Part) -> [u32; 2] {
     let [(l, i), (a, j)] = left_and_above(n, own, p);
     [
         l.mvd_abs[i][0] + a.mvd_abs[j][0],
@@ -469,7 +488,7 @@ fn neighbour_sums(n: &[MbState; 2], own: &MbState, p: &Part) -> [u32; 2] {
 
 /// How many of the 8x8 blocks left of and above partition `p`'s top-left
 /// block use a reference above 0.
-fn refs_above_0(n: &[MbState; 2], own: &MbState, p: &Part) -> usize {
+fn refs_above_0(n: &[&MbState; 2], own: &MbState, p: &Part) -> usize {
     left_and_above(n, own, p)
         .iter()
         .filter(|(s, k)| s.refs[*k] > 0)
@@ -477,7 +496,7 @@ fn refs_above_0(n: &[MbState; 2], own: &MbState, p: &Part) -> usize {
 }
 
 /// The split of an inter macroblock of a frame coding vectors per partition.
-fn code_split<B: Bins>(b: &mut B, n: &[MbState; 2], split: Option<Split>) {
+fn code_split<B: Bins>(b: &mut B, n: &[&MbState; 2], split: Option<Split>) {
     let ctx = SPLIT + n.iter().filter(|s| s.split).count();
     b.bin(ctx, split.is_some());
     if let Some(split) = split {
@@ -488,7 +507,7 @@ fn code_split<B: Bins>(b: &mut B, n: &[MbState; 2], split: Option<Split>) {
     }
 }
 
-fn code_mb<B: Bins>(b: &mut B, n: &[MbState; 2], inter_frame: bool, mode: &MbMode, vectors: VectorSyntax) {
+fn code_mb<B: Bins>(b: &mut B, n: &[&MbState; 2], inter_frame: bool, mode: &MbMode, vectors: VectorSyntax) {
     code_flags(b, n, inter_frame, mode, vectors);
     code_mvd(b, n, mode, vectors);
 }
@@ -584,7 +603,7 @@ impl ModeCoder {
         }
     }
 
-    fn neighbours(&self, mb_x: usize, mb_y: usize) -> [MbState; 2] {
+    fn neighbours(&self, mb_x: usize, mb_y: usize) -> [&MbState; 2] {
         neighbours(&self.states, self.mb_cols, mb_x, mb_y)
     }
 
@@ -660,7 +679,7 @@ impl ModeCoder {
         vectors: VectorSyntax,
         mode: &MbMode,
     ) {
-        let n = self.neighbours(mb_x, mb_y);
+        let n = neighbours(&self.states, self.mb_cols, mb_x, mb_y);
         code_mb(
             &mut Adapter(&mut self.contexts[..]),
             &n,
@@ -682,7 +701,7 @@ impl ModeCoder {
         vectors: VectorSyntax,
         mode: &MbMode,
     ) -> (u32, u32) {
-        let n = self.neighbours(mb_x, mb_y);
+        let n = neighbours(&self.states, self.mb_cols, mb_x, mb_y);
         // The flags and modes first, priced apart from the vector.
         let mut w = Writer::new(enc, &mut self.contexts[..]);
         code_flags(&mut w, &n, inter_frame, mode, vectors);
@@ -704,7 +723,7 @@ impl ModeCoder {
         inter_frame: bool,
         vectors: VectorSyntax,
     ) -> Option<MbMode> {
-        let n = self.neighbours(mb_x, mb_y);
+        let n = neighbours(&self.states, self.mb_cols, mb_x, mb_y);
         let c = &mut self.contexts;
         let mut intra = !inter_frame;
         if inter_frame {

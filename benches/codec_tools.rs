@@ -1,7 +1,8 @@
 //! The coding tools added in stream version 3, on a CIF frame of the
 //! synthetic sample: the deblocking filter (an intra frame: every edge
 //! strength 3 or 4; an inter frame of coded blocks: strength 2 on their
-//! edges) and the reference weighting of weighted prediction; and the
+//! edges) and the reference weighting of weighted prediction (and the
+//! encoder's guess of the weights); and the
 //! nine 8x8 intra modes as the encoder's search makes them. The kernels
 //! under them, one by one at every CPU level, are in `benches/dsp.rs`.
 
@@ -63,6 +64,11 @@ fn tools(c: &mut Criterion) {
     let mut out = frame.clone();
     g.bench_function("weigh_reference_luma", |b| {
         b.iter(|| weights.apply_into(&frame, &mut out))
+    });
+    // The encoder's guess of the weights (every plane's statistics of the
+    // source and of the reference), here of a frame from a darker copy.
+    g.bench_function("estimate_weights", |b| {
+        b.iter(|| mocomp::encode::estimate_weights(black_box(&frame), black_box(&out)))
     });
     g.finish();
 }

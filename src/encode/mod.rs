@@ -63,6 +63,9 @@ pub use config::{
 pub use encoder::Encoder;
 pub use params::OPTIONS;
 pub use stats::{FrameStats, Summary, SummaryBuilder};
+/// The weighted prediction a P frame's encoder chooses, from the source
+/// and its reference (both coded size; exposed for its bench).
+pub use weights::estimate as estimate_weights;
 
 use crate::codec::syntax::Vui;
 use crate::codec::{Frame, PictureError};

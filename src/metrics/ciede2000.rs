@@ -40,10 +40,14 @@ pub fn ciede2000(reference: &Frame, test: &Frame) -> f64 {
         "ciede2000: frames of different sizes"
     );
     let (w, h) = (reference.width(), reference.height());
-    let sum: f64 = (0..h)
+    // The rows' sums added in order: rayon's own sum splits the work as
+    // its threads steal it, and floating-point addition in another order
+    // moved the last digit from one call to the next.
+    let rows: Vec<f64> = (0..h)
         .into_par_iter()
         .map(|y| row_difference(reference, test, y))
-        .sum();
+        .collect();
+    let sum: f64 = rows.iter().sum();
     let mean = sum / (w * h) as f64;
     if mean <= 0.0 {
         return IDENTICAL;

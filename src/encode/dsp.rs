@@ -257,15 +257,20 @@ pub(crate) mod x86 {
         let blocks = cols * cols;
         let (s, p) = (&s[..size * size], &p[..size * size]);
         let (residuals, levels) = (&mut residuals[..blocks], &mut levels[..blocks]);
-        for k in (0..blocks).step_by(2) {
-            let at = (k / cols) * 4 * size + (k % cols) * 4;
-            // SAFETY: the two blocks' four rows of 8 samples lie inside s
-            // and p (k and cols are even: both blocks are on one row of
-            // blocks).
-            let (residual, level) =
-                unsafe { quantize_pair(s.as_ptr().add(at), p.as_ptr().add(at), size, &q) };
-            store_pair(residual, &mut residuals[k..k + 2]);
-            store_pair(level, &mut levels[k..k + 2]);
+        // Rows and columns of blocks in two loops, not a division and a
+        // remainder by `cols` per pair (`quantize_blocks_16x16/avx2`
+        // 111-140 ns against 133-216 ns, five alternate runs).
+        for (by, k0) in (0..blocks).step_by(cols).enumerate() {
+            for bx in (0..cols).step_by(2) {
+                let (k, at) = (k0 + bx, by * 4 * size + bx * 4);
+                // SAFETY: the two blocks' four rows of 8 samples lie inside
+                // s and p (bx and cols are even: both blocks are on one row
+                // of blocks).
+                let (residual, level) =
+                    unsafe { quantize_pair(s.as_ptr().add(at), p.as_ptr().add(at), size, &q) };
+                store_pair(residual, &mut residuals[k..k + 2]);
+                store_pair(level, &mut levels[k..k + 2]);
+            }
         }
     }
 

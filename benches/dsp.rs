@@ -159,6 +159,10 @@ fn pixel_table(c: &mut Criterion) {
             fill_halfpel(t.halfpel_planes, black_box(&reference), 32, &mut planes, 1)
         });
         let (stride, rows) = (reference.stride(), reference.data().len() / reference.stride());
+        let mut groups = vec![0u32; 44];
+        bench(g, "group_sums_cif_band", l, || {
+            (t.group_sums)(black_box(reference.data()), stride, (352, 8), &mut groups)
+        });
         bench(g, "box_sums_cif_8", l, || {
             (t.box_sums)(black_box(reference.data()), stride, rows, 8, &mut sums)
         });

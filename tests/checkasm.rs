@@ -262,6 +262,7 @@ fn pixel_kernels() {
             average_8x8,
             box_sums,
             ads,
+            group_sums,
             sad_16x16_row,
         } = *t;
         let sets = sample_sets(100 * 70, 5);
@@ -352,6 +353,31 @@ fn pixel_kernels() {
                     box_sums(&data, stride, rows, side, &mut x);
                     (s.box_sums)(&data, stride, rows, side, &mut y);
                     assert_eq!(x, y, "{isa} box sums {stride}x{rows} side {side}");
+                }
+            }
+        }
+        // Group sums over bands of 0 to 8 rows, widths with and without a
+        // remainder past the 16-column steps and a last group of fewer
+        // than 8 columns, white and saturated.
+        for (stride, width) in [(7usize, 7usize), (40, 37), (100, 96), (100, 100), (64, 16)] {
+            for data in [sets[3][..stride * 8].to_vec(), vec![255u8; stride * 8]] {
+                for rows in 0..=8 {
+                    let groups = width.div_ceil(8);
+                    let (mut x, mut y) = (vec![7u32; groups], vec![9u32; groups]);
+                    group_sums(&data, stride, (width, rows), &mut x);
+                    (s.group_sums)(&data, stride, (width, rows), &mut y);
+                    assert_eq!(x, y, "{isa} group sums {width} of {stride}, {rows} rows");
+                    // Against the samples themselves.
+                    let want = |g: usize| -> u32 {
+                        (0..rows)
+                            .flat_map(|r| (8 * g..(8 * g + 8).min(width)).map(move |c| (r, c)))
+                            .map(|(r, c)| u32::from(data[r * stride + c]))
+                            .sum()
+                    };
+                    assert!(
+                        (0..groups).all(|g| y[g] == want(g)),
+                        "{isa} group sums {width}, {rows} rows"
+                    );
                 }
             }
         }

@@ -53,19 +53,11 @@ impl PlaneStats {
         let (w, h) = (p.width(), p.height());
         let cols = w.div_ceil(8);
         let mut block_sums = vec![0u32; cols * h.div_ceil(8)];
-        // Column sums over each band of 8 rows (at most 8 * 255: u16 lanes
-        // the compiler vectorises), then 8 columns to a block.
-        let mut column_sums = vec![0u16; w];
+        let group_sums = crate::me::dsp::pixel().group_sums;
         for (band, sums) in block_sums.chunks_exact_mut(cols).enumerate() {
-            column_sums.fill(0);
-            for y in band * 8..(band * 8 + 8).min(h) {
-                for (c, &v) in column_sums.iter_mut().zip(p.row(y)) {
-                    *c += u16::from(v);
-                }
-            }
-            for (s, chunk) in sums.iter_mut().zip(column_sums.chunks(8)) {
-                *s = chunk.iter().map(|&c| u32::from(c)).sum();
-            }
+            let y0 = band * 8;
+            let band_data = &p.data()[p.index(0, y0 as isize)..];
+            group_sums(band_data, p.stride(), (w, (h - y0).min(8)), sums);
         }
         let sum = block_sums.iter().map(|&s| u64::from(s)).sum::<u64>();
         let n = (w * h) as f64;

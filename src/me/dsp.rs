@@ -162,6 +162,13 @@ pub type AverageFn = fn((&[u8], usize), (&[u8], usize), &mut [u8]);
 /// sum of the `side x side` block at `data[p]` ([`super::sea`]).
 pub type BoxSumsFn = fn(&[u8], usize, usize, usize, &mut [u16]);
 
+/// The sums of 8-column groups over a band of rows: `(data, stride, (width,
+/// rows), out)`, `out[g]` the sum of columns `8g .. 8g + 8` (fewer for the
+/// last group of a width not a multiple of 8) of the band's `rows` rows
+/// (at most 8); `out` holds `width.div_ceil(8)` sums. An 8x8 block's sum
+/// each (the weighted prediction's statistics).
+pub type GroupSumsFn = fn(&[u8], usize, (usize, usize), &mut [u32]);
+
 /// The quadrants' absolute differences of sums along a row of positions:
 /// `(rows, current, out)` ([`super::sea::ads`], x264's `ads4`); returns
 /// the least of them.
@@ -198,6 +205,8 @@ pub struct PixelDsp {
     pub box_sums: BoxSumsFn,
     /// The bounds of a row of positions (successive elimination).
     pub ads: AdsFn,
+    /// Sums of 8-column groups over up to 8 rows (8x8 block sums).
+    pub group_sums: GroupSumsFn,
     /// 16x16 SADs at 16 consecutive columns (exhaustive search).
     pub sad_16x16_row: SadRowFn,
 }
@@ -220,8 +229,35 @@ const SCALAR: PixelDsp = PixelDsp {
     average_8x8: |a, c, out| average_rows(8, a, c, out),
     box_sums: super::sea::box_sums,
     ads: super::sea::ads,
+    group_sums,
     sad_16x16_row: |a, sa, b, sb, out| sad_16x16_row_with(sad, a, sa, b, sb, out),
 };
+
+/// The scalar [`GroupSumsFn`].
+pub fn group_sums(data: &[u8], stride: usize, (width, rows): (usize, usize), out: &mut [u32]) {
+    check_group_sums(data, stride, (width, rows), out);
+    out[..width.div_ceil(8)].fill(0);
+    for r in 0..rows {
+        let row = &data[r * stride..r * stride + width];
+        for (o, group) in out.iter_mut().zip(row.chunks(8)) {
+            *o += group.iter().map(|&v| u32::from(v)).sum::<u32>();
+        }
+    }
+}
+
+/// The bounds every [`GroupSumsFn`] relies on.
+#[inline]
+fn check_group_sums(data: &[u8], stride: usize, (width, rows): (usize, usize), out: &[u32]) {
+    assert!(
+        rows <= 8 && width <= stride,
+        "a band of at most 8 rows of the buffer"
+    );
+    assert!(
+        rows == 0 || data.len() >= (rows - 1) * stride + width,
+        "the band inside the data"
+    );
+    assert!(out.len() >= width.div_ceil(8), "a sum per group");
+}
 
 /// [`SadRowFn`] as 16 calls of a SAD kernel.
 #[inline(always)]
@@ -517,8 +553,37 @@ mod x86 {
         average_8x8: super::x86_halfpel::average_8x8,
         box_sums: crate::me::sea::box_sums,
         ads: crate::me::sea::ads,
+        group_sums: group_sums_sse2,
         sad_16x16_row: |a, sa, b, sb, out| super::sad_16x16_row_with(sad_sse2, a, sa, b, sb, out),
     };
+
+    /// [`super::GroupSumsFn`] by `psadbw` against zero: 16 samples of a row
+    /// give two groups' sums, added down the band's rows; the columns past
+    /// the last multiple of 16 by the scalar kernel.
+    fn group_sums_sse2(data: &[u8], stride: usize, (width, rows): (usize, usize), out: &mut [u32]) {
+        super::check_group_sums(data, stride, (width, rows), out);
+        let wide = width - width % 16;
+        for x in (0..wide).step_by(16) {
+            // SAFETY: SSE2 is part of x86-64; each row's 16 samples from x
+            // lie inside the checked band.
+            let (a, b) = unsafe {
+                let mut acc = _mm_setzero_si128();
+                for r in 0..rows {
+                    let v = _mm_loadu_si128(data.as_ptr().add(r * stride + x) as *const __m128i);
+                    acc = _mm_add_epi64(acc, _mm_sad_epu8(v, _mm_setzero_si128()));
+                }
+                (
+                    _mm_cvtsi128_si32(acc),
+                    _mm_cvtsi128_si32(_mm_unpackhi_epi64(acc, acc)),
+                )
+            };
+            out[x / 8] = a as u32;
+            out[x / 8 + 1] = b as u32;
+        }
+        if wide < width {
+            super::group_sums(&data[wide..], stride, (width - wide, rows), &mut out[wide / 8..]);
+        }
+    }
     pub const AVX2: PixelDsp = PixelDsp {
         sad: sad_avx2,
         satd: satd_avx2,

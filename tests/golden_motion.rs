@@ -119,7 +119,7 @@ fn flows_vectors_matches_and_metrics_are_the_pinned_ones() {
                 0xef44888b583a53f9,
                 0x11f1d4bcf10788b8,
                 0xa2fb325df39cca87,
-                0xb358b4003541484c,
+                0x036c795b6b600177,
             ],
         ),
         (
@@ -128,7 +128,7 @@ fn flows_vectors_matches_and_metrics_are_the_pinned_ones() {
                 0xaf60f6294f0aec60,
                 0x9bb4fee41451bfa5,
                 0xe9545a0776768122,
-                0x352f2880649a8813,
+                0xcb1d65653d1b8f5e,
             ],
         ),
     ];

@@ -67,7 +67,7 @@ impl PlaneStats {
         // of |v - cut| at the integers either side, sums of absolute
         // differences the compiler makes SAD instructions of.
         let cut = mean.floor().clamp(0.0, 254.0) as u8;
-        let (at_cut, above_cut) = (abs_differences(p, cut), abs_differences(p, cut + 1));
+        let [at_cut, above_cut] = abs_differences(p, [cut, cut + 1]);
         let frac = mean - f64::from(cut);
         let deviation = ((1.0 - frac) * at_cut as f64 + frac * above_cut as f64) / n;
         // Row by row: a block's place without two integer divisions per
@@ -89,30 +89,33 @@ impl PlaneStats {
     }
 }
 
-/// sum |v - c| over a plane: the pixel kernels' SAD against a row of `c`
-/// (stride 0) over the columns in whole runs of 16, in bands of rows
-/// whose sums fit its u32; the rest of each row one sample at a time.
-fn abs_differences(p: &Plane, c: u8) -> u64 {
+/// sum |v - c| over a plane for each of two `c`: the pixel kernels' SAD
+/// against a row of `c` (stride 0) over the columns in whole runs of 16,
+/// in bands of rows whose sums fit its u32 (both `c` on a band while it is
+/// in cache); the rest of each row one sample at a time.
+fn abs_differences(p: &Plane, cuts: [u8; 2]) -> [u64; 2] {
     const BAND: usize = 64;
     let (w, h) = (p.width(), p.height());
     let wide = w - w % 16;
-    let constant = vec![c; wide];
+    let constants = cuts.map(|c| vec![c; wide]);
     let sad = crate::me::dsp::pixel().sad;
-    let mut total = 0u64;
+    let mut totals = [0u64; 2];
     for y0 in (0..h).step_by(BAND) {
         let rows = BAND.min(h - y0);
-        if wide > 0 {
-            let band = &p.data()[p.index(0, y0 as isize)..];
-            total += u64::from(sad(band, p.stride(), &constant, 0, wide, rows));
-        }
-        for y in y0..y0 + rows {
-            total += p.row(y)[wide..]
-                .iter()
-                .map(|&v| u64::from(v.abs_diff(c)))
-                .sum::<u64>();
+        for (total, (&c, constant)) in totals.iter_mut().zip(cuts.iter().zip(&constants)) {
+            if wide > 0 {
+                let band = &p.data()[p.index(0, y0 as isize)..];
+                *total += u64::from(sad(band, p.stride(), constant, 0, wide, rows));
+            }
+            for y in y0..y0 + rows {
+                *total += p.row(y)[wide..]
+                    .iter()
+                    .map(|&v| u64::from(v.abs_diff(c)))
+                    .sum::<u64>();
+            }
         }
     }
-    total
+    totals
 }
 
 fn plane_weight(source: &Plane, reference: &Plane) -> Option<PlaneWeight> {

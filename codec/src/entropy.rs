@@ -402,6 +402,15 @@ impl Bins for Pricer<'_> {
     }
 }
 
+/// How many bypass bins [`put_exp_golomb`] writes for `v` of order `k`:
+/// a one per doubling past `2^k`, the zero, and `k` plus that many
+/// suffix bits.
+pub fn exp_golomb_bins(v: u32, k: u32) -> u32 {
+    // The ones: the largest `n` with `2^k (2^n - 1) <= v`.
+    let n = (u64::from(v) / (1u64 << k) + 1).ilog2();
+    2 * n + 1 + k
+}
+
 /// k-th order Exp-Golomb in bypass bins: ones while the value covers the
 /// next `2^k` (k growing by one each time), a zero, then the remainder in
 /// k bits, most significant first.
@@ -441,6 +450,29 @@ pub(crate) fn get_exp_golomb(dec: &mut RangeDecoder<'_>, mut k: u32, max_ones: u
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Counts the bins it is given.
+    struct Count(u32);
+    impl Bins for Count {
+        fn bin(&mut self, _: usize, _: bool) {
+            self.0 += 1;
+        }
+        fn bypass(&mut self, _: bool) {
+            self.0 += 1;
+        }
+    }
+
+    #[test]
+    fn exp_golomb_bins_counts_what_is_written() {
+        let values = (0..300).chain([1 << 16, (1 << 20) - 1, u32::MAX >> 4]);
+        for v in values {
+            for k in 0..4 {
+                let mut c = Count(0);
+                put_exp_golomb(&mut c, v, k);
+                assert_eq!(exp_golomb_bins(v, k), c.0, "v {v} k {k}");
+            }
+        }
+    }
     use proptest::prelude::*;
 
     /// A deterministic stream of skewed bits from a small generator.

@@ -29,7 +29,8 @@
 //! exactly as it adapts.
 
 use crate::entropy::{
-    get_exp_golomb, put_exp_golomb, Adapter, Bins, Context, RangeDecoder, RangeEncoder, Writer,
+    exp_golomb_bins, get_exp_golomb, put_exp_golomb, Adapter, Bins, Context, RangeDecoder, RangeEncoder,
+    Writer,
 };
 use crate::transform::Block4;
 use crate::transform8x8::{Block8, ZIGZAG8};
@@ -157,6 +158,100 @@ const CLASS8: usize = CBP + 2 * CBP_CONTEXTS;
 /// above that use the 8x8 transform.
 const T8_FLAG: usize = CLASS8 + 2 * CLASS8_CONTEXTS;
 const CONTEXTS: usize = T8_FLAG + 3;
+
+/// The anti-diagonal of each scan position of an 8x8 block: its
+/// significance context (its last context is half of it).
+const DIAGONAL8: [usize; 64] = {
+    let mut d = [0usize; 64];
+    let mut k = 0;
+    while k < 64 {
+        d[k] = ZIGZAG8[k] / 8 + ZIGZAG8[k] % 8;
+        k += 1;
+    }
+    d
+};
+
+/// Where the bins of an `N`-coefficient block take their contexts, as
+/// offsets from its class's first context: the significance and last
+/// flags of each scan position (the last position has neither: a level
+/// there is implied), then the first of the levels' "> 1" contexts and of
+/// their magnitudes' ([`level_contexts`] picks among them). The writer
+/// and the reader code by it; an encoder prices a block from it a position
+/// at a time instead of replaying the bins (x264's `rdo.c` sizes CABAC
+/// blocks from its own tables in the same way).
+#[derive(Debug)]
+pub struct ScanContexts<const N: usize> {
+    /// Significance context of each scan position (entry `N - 1` unused).
+    pub sig: [usize; N],
+    /// Last-flag context of each scan position (entry `N - 1` unused).
+    pub last: [usize; N],
+    /// The first "> 1" context.
+    pub gt1: usize,
+    /// The first magnitude context.
+    pub abs: usize,
+}
+
+/// `first + i` for scan position `i` but the last.
+const fn consecutive<const N: usize>(first: usize) -> [usize; N] {
+    let mut c = [0; N];
+    let mut i = 0;
+    while i < N - 1 {
+        c[i] = first + i;
+        i += 1;
+    }
+    c
+}
+
+/// `first` plus an 8x8 scan position's anti-diagonal over `per`, for
+/// every position but the last.
+const fn by_diagonal(first: usize, per: usize) -> [usize; 64] {
+    let mut c = [0; 64];
+    let mut i = 0;
+    while i < 63 {
+        c[i] = first + DIAGONAL8[i] / per;
+        i += 1;
+    }
+    c
+}
+
+/// The 4x4 blocks' contexts: one significance and one last context per
+/// position.
+pub const SCAN4: ScanContexts<16> = ScanContexts {
+    sig: consecutive(SIG),
+    last: consecutive(LAST),
+    gt1: GT1,
+    abs: ABS,
+};
+
+/// The 8x8 blocks' contexts: significance by the position's anti-diagonal,
+/// last by pairs of anti-diagonals.
+pub const SCAN8: ScanContexts<64> = ScanContexts {
+    sig: by_diagonal(SIG8, 1),
+    last: by_diagonal(LAST8, 2),
+    gt1: GT1_8,
+    abs: ABS8,
+};
+
+/// The offsets of a level's "> 1" context and of its magnitude's from
+/// the class's first of each, after `eq1` levels equal to 1 and `gt1`
+/// greater (in reverse scan order).
+#[inline]
+pub fn level_contexts(eq1: usize, gt1: usize) -> (usize, usize) {
+    let first = if gt1 > 0 { 0 } else { (1 + eq1).min(4) };
+    (first, gt1.min(4))
+}
+
+/// The bins of magnitude `m` (a level's absolute value less 2): ones in
+/// its context, whether a terminating zero follows, and the bypass bins
+/// of the Exp-Golomb suffix past the unary part.
+#[inline]
+pub fn magnitude_bins(m: u32) -> (u32, bool, u32) {
+    if m < UNARY_MAX {
+        (m, true, 0)
+    } else {
+        (UNARY_MAX, false, exp_golomb_bins(m - UNARY_MAX, 0))
+    }
+}
 
 /// One of the four block classes whose contexts are kept apart: luma or
 /// chroma blocks, of intra or inter macroblocks.
@@ -404,28 +499,16 @@ pub fn code_block<B: Bins>(b: &mut B, cls: usize, block: &Block4) {
     let scan: [i32; 16] = std::array::from_fn(|k| flat[ZIGZAG[k]]);
     let last = scan.iter().rposition(|&v| v != 0).unwrap_or(0);
     for (i, &v) in scan.iter().enumerate().take(15) {
-        b.bin(cls + SIG + i, v != 0);
+        b.bin(cls + SCAN4.sig[i], v != 0);
         if v != 0 {
-            b.bin(cls + LAST + i, i == last);
+            b.bin(cls + SCAN4.last[i], i == last);
             if i == last {
                 break;
             }
         }
     }
-    code_levels(b, cls + GT1, cls + ABS, &scan[..=last]);
+    code_levels(b, cls + SCAN4.gt1, cls + SCAN4.abs, &scan[..=last]);
 }
-
-/// The anti-diagonal of each scan position of an 8x8 block: its
-/// significance context (its last context is half of it).
-const DIAGONAL8: [usize; 64] = {
-    let mut d = [0usize; 64];
-    let mut k = 0;
-    while k < 64 {
-        d[k] = ZIGZAG8[k] / 8 + ZIGZAG8[k] % 8;
-        k += 1;
-    }
-    d
-};
 
 /// One 8x8 block with at least one non-zero level, in the class whose
 /// first context is `cls`.
@@ -436,15 +519,15 @@ pub fn code_block8<B: Bins>(b: &mut B, cls: usize, block: &Block8) {
     let scan: [i32; 64] = std::array::from_fn(|k| flat[ZIGZAG8[k]]);
     let last = scan.iter().rposition(|&v| v != 0).unwrap_or(0);
     for (i, &v) in scan.iter().enumerate().take(63) {
-        b.bin(cls + SIG8 + DIAGONAL8[i], v != 0);
+        b.bin(cls + SCAN8.sig[i], v != 0);
         if v != 0 {
-            b.bin(cls + LAST8 + DIAGONAL8[i] / 2, i == last);
+            b.bin(cls + SCAN8.last[i], i == last);
             if i == last {
                 break;
             }
         }
     }
-    code_levels(b, cls + GT1_8, cls + ABS8, &scan[..=last]);
+    code_levels(b, cls + SCAN8.gt1, cls + SCAN8.abs, &scan[..=last]);
 }
 
 /// The levels of a block up to its last, in reverse scan order: `> 1` in
@@ -454,16 +537,16 @@ fn code_levels<B: Bins>(b: &mut B, gt1_ctx: usize, abs_ctx: usize, scan: &[i32])
     let (mut eq1, mut gt1) = (0usize, 0usize);
     for &v in scan.iter().rev().filter(|&&v| v != 0) {
         let a = v.unsigned_abs();
-        let ctx = if gt1 > 0 { 0 } else { (1 + eq1).min(4) };
-        b.bin(gt1_ctx + ctx, a > 1);
+        let (first, rest) = level_contexts(eq1, gt1);
+        b.bin(gt1_ctx + first, a > 1);
         if a > 1 {
-            let ctx = abs_ctx + gt1.min(4);
             let m = a - 2;
-            for _ in 0..m.min(UNARY_MAX) {
-                b.bin(ctx, true);
+            let (ones, zero, _) = magnitude_bins(m);
+            for _ in 0..ones {
+                b.bin(abs_ctx + rest, true);
             }
-            if m < UNARY_MAX {
-                b.bin(ctx, false);
+            if zero {
+                b.bin(abs_ctx + rest, false);
             } else {
                 put_exp_golomb(b, m - UNARY_MAX, 0);
             }
@@ -768,18 +851,25 @@ fn read_block(
     let mut significant = [false; 16];
     let mut last = 15;
     for (i, s) in significant.iter_mut().enumerate().take(15) {
-        *s = dec.decode(&mut c[cls + SIG + i]);
-        if *s && dec.decode(&mut c[cls + LAST + i]) {
+        *s = dec.decode(&mut c[cls + SCAN4.sig[i]]);
+        if *s && dec.decode(&mut c[cls + SCAN4.last[i]]) {
             last = i;
             break;
         }
     }
     significant[last] = true;
     let mut block = [[0i32; 4]; 4];
-    read_levels(dec, c, cls + GT1, cls + ABS, &significant[..=last], |i, v| {
-        let idx = ZIGZAG[i];
-        block[idx / 4][idx % 4] = v;
-    })?;
+    read_levels(
+        dec,
+        c,
+        cls + SCAN4.gt1,
+        cls + SCAN4.abs,
+        &significant[..=last],
+        |i, v| {
+            let idx = ZIGZAG[i];
+            block[idx / 4][idx % 4] = v;
+        },
+    )?;
     Ok(block)
 }
 
@@ -791,18 +881,25 @@ fn read_block8(
     let mut significant = [false; 64];
     let mut last = 63;
     for (i, s) in significant.iter_mut().enumerate().take(63) {
-        *s = dec.decode(&mut c[cls + SIG8 + DIAGONAL8[i]]);
-        if *s && dec.decode(&mut c[cls + LAST8 + DIAGONAL8[i] / 2]) {
+        *s = dec.decode(&mut c[cls + SCAN8.sig[i]]);
+        if *s && dec.decode(&mut c[cls + SCAN8.last[i]]) {
             last = i;
             break;
         }
     }
     significant[last] = true;
     let mut block = [[0i32; 8]; 8];
-    read_levels(dec, c, cls + GT1_8, cls + ABS8, &significant[..=last], |i, v| {
-        let idx = ZIGZAG8[i];
-        block[idx / 8][idx % 8] = v;
-    })?;
+    read_levels(
+        dec,
+        c,
+        cls + SCAN8.gt1,
+        cls + SCAN8.abs,
+        &significant[..=last],
+        |i, v| {
+            let idx = ZIGZAG8[i];
+            block[idx / 8][idx % 8] = v;
+        },
+    )?;
     Ok(block)
 }
 
@@ -818,10 +915,10 @@ fn read_levels(
 ) -> Result<(), ResidualError> {
     let (mut eq1, mut gt1) = (0usize, 0usize);
     for i in (0..significant.len()).rev().filter(|&i| significant[i]) {
-        let ctx = if gt1 > 0 { 0 } else { (1 + eq1).min(4) };
+        let (first, rest) = level_contexts(eq1, gt1);
         let mut a = 1u32;
-        if dec.decode(&mut c[gt1_ctx + ctx]) {
-            let ctx = abs_ctx + gt1.min(4);
+        if dec.decode(&mut c[gt1_ctx + first]) {
+            let ctx = abs_ctx + rest;
             let mut m = 0;
             while m < UNARY_MAX && dec.decode(&mut c[ctx]) {
                 m += 1;

@@ -6,14 +6,14 @@
 //! (`entropy::Pricer`, the writer's statistics' table); what to price and
 //! how fast is the encoder's. Prices are in 1/256 bit.
 
-use crate::codec::entropy::{cost_table, Bins, Pricer, BYPASS_COST};
+use crate::codec::entropy::{cost_table, Context, Pricer, BYPASS_COST};
 use crate::codec::modes::{MbMode, ModeCoder, VectorSyntax};
 use crate::codec::residual::{
-    class8_base, code_block, code_block8, BlockClass, MbResidual, ResidualCoder, ResidualSyntax,
-    CLASS8_CONTEXTS, CLASS_CONTEXTS,
+    class8_base, code_block, level_contexts, magnitude_bins, BlockClass, MbResidual, ResidualCoder,
+    ResidualSyntax, ScanContexts, SCAN4, SCAN8, ZIGZAG,
 };
 use crate::codec::transform::Block4;
-use crate::codec::transform8x8::Block8;
+use crate::codec::transform8x8::{Block8, ZIGZAG8};
 
 /// The bits of coding `mode` as macroblock (mb_x, mb_y) now
 /// (`inter_frame`: a P frame; `vectors`: which vectors the frame codes).
@@ -76,29 +76,116 @@ pub fn block_cost(coder: &ResidualCoder, class: BlockClass, block: &Block4) -> u
     p.cost.saturating_sub(flag.cost(false))
 }
 
+/// The prices of one block class's bins, laid out by scan position, so
+/// that a block is priced from its non-zero levels alone: the significance
+/// bins of a run of zeros are one prefix sum, each non-zero level adds its
+/// own significance and last flags, then its magnitude. Gives exactly
+/// what replaying [`code_block`] / [`code_block8`] bin by bin gives (the
+/// same integer prices added in another order); RDOQ prices every trial
+/// block this way.
+#[derive(Debug, Clone)]
+struct ScanPrices<const N: usize> {
+    /// `zero_run[n]`: the significance bins of positions `0..n`, all zero.
+    zero_run: [u32; N],
+    /// What a non-zero level at a position adds over a zero there: its
+    /// significance as one, and its last flag as zero (wrapping: it may
+    /// be less).
+    nonzero: [u32; N],
+    /// What the last flag costs more as one than as zero, per position.
+    last_gain: [u32; N],
+    /// "> 1" bins by context, `[zero, one]`.
+    gt1: [[u32; 2]; 5],
+    /// Magnitude bins by context, `[zero, one]`.
+    abs: [[u32; 2]; 5],
+}
+
+impl<const N: usize> ScanPrices<N> {
+    /// The prices of the class whose first context is `cls` in `contexts`
+    /// present state, laid out as `scan` says.
+    fn new(contexts: &[Context], cls: usize, scan: &ScanContexts<N>) -> ScanPrices<N> {
+        let table = cost_table();
+        let price = |ctx: usize| contexts[cls + ctx].costs_in(table);
+        let mut zero_run = [0u32; N];
+        let (mut nonzero, mut last_gain) = ([0u32; N], [0u32; N]);
+        for i in 0..N - 1 {
+            let (sig, last) = (price(scan.sig[i]), price(scan.last[i]));
+            zero_run[i + 1] = zero_run[i] + sig[0];
+            nonzero[i] = (sig[1] + last[0]).wrapping_sub(sig[0]);
+            last_gain[i] = last[1].wrapping_sub(last[0]);
+        }
+        ScanPrices {
+            zero_run,
+            nonzero,
+            last_gain,
+            gt1: std::array::from_fn(|k| price(scan.gt1 + k)),
+            abs: std::array::from_fn(|k| price(scan.abs + k)),
+        }
+    }
+
+    /// The bins of a block whose scan position `i` holds `level(i)`,
+    /// non-zero exactly at the bits of `mask` (not empty).
+    #[inline]
+    fn cost(&self, mask: u64, level: impl Fn(usize) -> i32) -> u32 {
+        let last = 63 - mask.leading_zeros() as usize;
+        // Significance and last flags: positions 0..=last, but the final
+        // position has none.
+        let mut cost = if last < N - 1 {
+            self.zero_run[last + 1].wrapping_add(self.last_gain[last])
+        } else {
+            self.zero_run[N - 1]
+        };
+        let mut flagged = mask & !(1 << (N - 1));
+        while flagged != 0 {
+            cost = cost.wrapping_add(self.nonzero[flagged.trailing_zeros() as usize]);
+            flagged &= flagged - 1;
+        }
+        // The levels in reverse scan order.
+        let (mut eq1, mut gt1) = (0, 0);
+        let mut rest = mask;
+        while rest != 0 {
+            let i = 63 - rest.leading_zeros() as usize;
+            rest &= !(1 << i);
+            let a = level(i).unsigned_abs();
+            let (first, magnitude) = level_contexts(eq1, gt1);
+            cost += self.gt1[first][usize::from(a > 1)] + BYPASS_COST;
+            if a > 1 {
+                let (ones, zero, bypass) = magnitude_bins(a - 2);
+                let [p0, p1] = self.abs[magnitude];
+                cost += ones * p1 + if zero { p0 } else { 0 } + bypass * BYPASS_COST;
+                gt1 += 1;
+            } else {
+                eq1 += 1;
+            }
+        }
+        cost
+    }
+}
+
+/// Bit `k` set where scan position `k` of `flat` (in raster order, `scan`
+/// its zig-zag) is non-zero.
+#[inline]
+fn scan_mask(flat: &[i32], scan: &[usize]) -> u64 {
+    scan.iter()
+        .enumerate()
+        .fold(0, |m, (k, &r)| m | u64::from(flat[r] != 0) << k)
+}
+
 /// [`block_cost`] for one block class with the prices of its contexts'
 /// bins looked up once: what pricing many trial blocks against the same
 /// state needs (RDOQ).
 #[derive(Debug, Clone)]
 pub struct BlockPricer {
-    /// Price of a 0 and of a 1 in each of the class's contexts.
-    costs: [[u32; 2]; CLASS_CONTEXTS],
-    cls: usize,
+    prices: ScanPrices<16>,
     /// The coded flag's prices (0, 1) with one coded neighbour.
     flag: (u32, u32),
 }
 
 /// The [`BlockPricer`] of `class` in `coder`'s present state.
 pub fn block_pricer(coder: &ResidualCoder, class: BlockClass) -> BlockPricer {
-    let cls = class.first_context();
-    let table = cost_table();
-    let costs: [[u32; 2]; CLASS_CONTEXTS] =
-        std::array::from_fn(|k| coder.contexts()[cls + k].costs_in(table));
-    let [flag0, flag1] = costs[class.coded_flag_context(1) - cls];
+    let flag = coder.contexts()[class.coded_flag_context(1)].costs_in(cost_table());
     BlockPricer {
-        costs,
-        cls,
-        flag: (flag0, flag1),
+        prices: ScanPrices::new(coder.contexts(), class.first_context(), &SCAN4),
+        flag: (flag[0], flag[1]),
     }
 }
 
@@ -106,34 +193,27 @@ impl BlockPricer {
     /// What [`block_cost`] gives for `block` in the state the pricer was
     /// made from.
     pub fn block_cost(&self, block: &Block4) -> u32 {
-        if is_zero(block) {
+        let flat = block.as_flattened();
+        let mask = scan_mask(flat, &ZIGZAG);
+        if mask == 0 {
             return 0;
         }
-        let mut p = TablePricer {
-            costs: &self.costs,
-            first: self.cls,
-            cost: self.flag.1,
-        };
-        code_block(&mut p, self.cls, block);
-        p.cost.saturating_sub(self.flag.0)
+        let levels = self.prices.cost(mask, |i| flat[ZIGZAG[i]]);
+        (self.flag.1 + levels).saturating_sub(self.flag.0)
     }
 }
 
 /// The prices of the 8x8 luma blocks' bins of intra or inter macroblocks.
 #[derive(Debug, Clone)]
 pub struct Block8Pricer {
-    costs: [[u32; 2]; CLASS8_CONTEXTS],
-    cls: usize,
+    prices: Box<ScanPrices<64>>,
 }
 
 /// The [`Block8Pricer`] of intra (`true`) or inter macroblocks in
 /// `coder`'s present state.
 pub fn block8_pricer(coder: &ResidualCoder, intra: bool) -> Block8Pricer {
-    let cls = class8_base(intra);
-    let table = cost_table();
     Block8Pricer {
-        costs: std::array::from_fn(|k| coder.contexts()[cls + k].costs_in(table)),
-        cls,
+        prices: Box::new(ScanPrices::new(coder.contexts(), class8_base(intra), &SCAN8)),
     }
 }
 
@@ -141,40 +221,19 @@ impl Block8Pricer {
     /// The bits of `block`'s levels (0 for an all-zero block; its pattern
     /// bit is the caller's).
     pub fn block_cost(&self, block: &Block8) -> u32 {
-        if is_zero(block) {
+        let flat = block.as_flattened();
+        let mask = scan_mask(flat, &ZIGZAG8);
+        if mask == 0 {
             return 0;
         }
-        let mut p = TablePricer {
-            costs: &self.costs,
-            first: self.cls,
-            cost: 0,
-        };
-        code_block8(&mut p, self.cls, block);
-        p.cost
-    }
-}
-
-/// Prices bins from a table of one class's bin prices (`first`: the
-/// class's first context).
-struct TablePricer<'a> {
-    costs: &'a [[u32; 2]],
-    first: usize,
-    cost: u32,
-}
-
-impl Bins for TablePricer<'_> {
-    #[inline]
-    fn bin(&mut self, ctx: usize, bit: bool) {
-        self.cost += self.costs[ctx - self.first][usize::from(bit)];
-    }
-    fn bypass(&mut self, _: bool) {
-        self.cost += BYPASS_COST;
+        self.prices.cost(mask, |i| flat[ZIGZAG8[i]])
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::codec::residual::code_block8;
 
     fn lcg(seed: u32) -> impl FnMut(u32) -> i32 {
         let mut seed = seed;
@@ -218,22 +277,53 @@ mod tests {
         }
     }
 
+    /// A random 8x8 block: sparse or dense, small levels and some past
+    /// the unary part, the final scan position sometimes set.
+    fn random_block8(next: &mut impl FnMut(u32) -> i32) -> Block8 {
+        let density = 1 + next(8) as u32;
+        let mut b8: Block8 = [[0; 8]; 8];
+        for v in b8.as_flattened_mut() {
+            if next(density) == 0 {
+                *v = match next(12) {
+                    0 => next(401) - 200,
+                    1..=3 => next(31) - 15,
+                    _ => next(5) - 2,
+                };
+            }
+        }
+        if next(4) == 0 {
+            b8[7][7] = next(7) - 3;
+        }
+        b8
+    }
+
     #[test]
     fn the_8x8_pricer_prices_the_blocks_bins() {
         let mut next = lcg(77);
-        let coder = ResidualCoder::new(1, 1);
-        for intra in [false, true] {
+        let mut coder = ResidualCoder::new(4, 4);
+        for round in 0..120 {
+            let intra = round % 2 == 0;
             let pricer = block8_pricer(&coder, intra);
-            for _ in 0..50 {
-                let mut b8: Block8 = [[0; 8]; 8];
-                for v in b8.as_flattened_mut() {
-                    *v = if next(6) == 0 { next(9) - 4 } else { 0 };
-                }
-                b8[0][0] = 2;
+            let blocks: [Block8; 4] = std::array::from_fn(|_| random_block8(&mut next));
+            for b8 in &blocks {
                 let mut p = Pricer::new(coder.contexts(), 0);
-                code_block8(&mut p, class8_base(intra), &b8);
-                assert_eq!(pricer.block_cost(&b8), p.cost);
+                if b8.as_flattened().iter().any(|&v| v != 0) {
+                    code_block8(&mut p, class8_base(intra), b8);
+                }
+                assert_eq!(pricer.block_cost(b8), p.cost, "round {round}: {b8:?}");
             }
+            // Adapt the 8x8 contexts, so that later rounds price other
+            // states.
+            let res = MbResidual {
+                luma8: Some(Box::new(blocks)),
+                ..MbResidual::default()
+            };
+            let syntax = if intra {
+                ResidualSyntax::Intra8x8
+            } else {
+                ResidualSyntax::Inter
+            };
+            coder.commit(round % 4, round / 4 % 4, syntax, &res);
         }
     }
 

@@ -11,7 +11,7 @@
 //! arithmetic and the same floating-point operations without FMA: the
 //! same levels.
 
-use super::rate::{Block8Pricer, BlockPricer};
+use super::rate::{Block8Pricer, BlockPricer, ScanLevels};
 use super::transform8x8::{inter_luma8, intra_block8};
 use crate::codec::dsp::PerLevel;
 use crate::codec::residual::ZIGZAG;
@@ -536,8 +536,8 @@ fn block_error(residual: &Block4, levels: &Block4, qp: u8) -> i64 {
 /// Bits `levels` add over an empty block, priced for its class (chroma or
 /// luma, intra or inter) in the frame's residual coder as it stands.
 #[inline(always)]
-fn block_bits(rate: &BlockPricer, levels: &Block4) -> f64 {
-    f64::from(rate.block_cost(levels)) / 256.0
+fn block_bits(rate: &BlockPricer, scan: &ScanLevels<16>) -> f64 {
+    f64::from(rate.scan_cost(scan)) / 256.0
 }
 
 /// The inverse transform's basis doubled: row `k` is twice the weight of
@@ -576,16 +576,16 @@ pub fn rdoq_4x4(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rat
     dequantize(&mut coeffs, qp);
     let mut unrounded = inverse_4x4_unrounded(&coeffs);
     let mut error = rounded_error(residual, &unrounded);
-    let mut bits = block_bits(rate, levels);
-    for &k in ZIGZAG.iter().rev() {
+    let mut scan = ScanLevels::gather(levels.as_flattened(), &ZIGZAG);
+    let mut bits = block_bits(rate, &scan);
+    for (i, &k) in ZIGZAG.iter().enumerate().rev() {
         let (r, c) = (k / 4, k % 4);
         let v = levels[r][c];
         if v == 0 {
             continue;
         }
-        let mut trial = *levels;
-        trial[r][c] = v - v.signum();
-        let coeff = dequantize_level(trial[r][c], qp, r, c);
+        let lowered = v - v.signum();
+        let coeff = dequantize_level(lowered, qp, r, c);
         let delta = coeff - coeffs[r][c];
         let moved = if delta % 4 == 0 {
             let mut u = unrounded;
@@ -605,9 +605,12 @@ pub fn rdoq_4x4(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rat
         if (e - error) as f64 >= lambda * bits {
             continue;
         }
-        let b = block_bits(rate, &trial);
-        if (e - error) as f64 + lambda * (b - bits) < 0.0 {
-            *levels = trial;
+        scan.set(i, lowered);
+        let b = block_bits(rate, &scan);
+        if (e - error) as f64 + lambda * (b - bits) >= 0.0 {
+            scan.set(i, v);
+        } else {
+            levels[r][c] = lowered;
             coeffs[r][c] = coeff;
             unrounded = moved;
             error = e;
@@ -644,7 +647,9 @@ mod tests {
             let before = levels;
             let rate = crate::encode::rate::block_pricer(&ResidualCoder::new(1, 1), BlockClass::luma(false));
             rdoq_4x4(&residual, &mut levels, qp, lambda, &rate);
-            let cost = |l: &Block4| block_error(&residual, l, qp) as f64 + lambda * block_bits(&rate, l);
+            let cost = |l: &Block4| {
+                block_error(&residual, l, qp) as f64 + lambda * f64::from(rate.block_cost(l)) / 256.0
+            };
             assert!(cost(&levels) <= cost(&before) + 1e-9);
             for (a, b) in levels.iter().flatten().zip(before.iter().flatten()) {
                 assert!(a.abs() <= b.abs() && a * b >= 0, "{a} from {b}");

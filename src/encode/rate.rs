@@ -170,6 +170,35 @@ fn scan_mask(flat: &[i32], scan: &[usize]) -> u64 {
         .fold(0, |m, (k, &r)| m | u64::from(flat[r] != 0) << k)
 }
 
+/// A block's levels in scan order with the mask of the non-zero ones:
+/// what RDOQ changes a level at a time and prices after each change,
+/// without gathering the block again.
+#[derive(Debug, Clone, Copy)]
+pub struct ScanLevels<const N: usize> {
+    /// The level at each scan position.
+    pub levels: [i32; N],
+    /// Bit `k` set where `levels[k]` is non-zero.
+    pub mask: u64,
+}
+
+impl<const N: usize> ScanLevels<N> {
+    /// The levels of `flat` (raster order) along `zigzag`.
+    #[inline]
+    pub fn gather(flat: &[i32], zigzag: &[usize; N]) -> ScanLevels<N> {
+        ScanLevels {
+            levels: std::array::from_fn(|k| flat[zigzag[k]]),
+            mask: scan_mask(flat, zigzag),
+        }
+    }
+
+    /// Sets scan position `k` to `v`.
+    #[inline]
+    pub fn set(&mut self, k: usize, v: i32) {
+        self.levels[k] = v;
+        self.mask = self.mask & !(1 << k) | u64::from(v != 0) << k;
+    }
+}
+
 /// [`block_cost`] for one block class with the prices of its contexts'
 /// bins looked up once: what pricing many trial blocks against the same
 /// state needs (RDOQ).
@@ -201,6 +230,17 @@ impl BlockPricer {
         let levels = self.prices.cost(mask, |i| flat[ZIGZAG[i]]);
         (self.flag.1 + levels).saturating_sub(self.flag.0)
     }
+
+    /// [`BlockPricer::block_cost`] of the block whose levels in scan
+    /// order are `scan`.
+    #[inline]
+    pub fn scan_cost(&self, scan: &ScanLevels<16>) -> u32 {
+        if scan.mask == 0 {
+            return 0;
+        }
+        let levels = self.prices.cost(scan.mask, |i| scan.levels[i]);
+        (self.flag.1 + levels).saturating_sub(self.flag.0)
+    }
 }
 
 /// The prices of the 8x8 luma blocks' bins of intra or inter macroblocks.
@@ -227,6 +267,16 @@ impl Block8Pricer {
             return 0;
         }
         self.prices.cost(mask, |i| flat[ZIGZAG8[i]])
+    }
+
+    /// [`Block8Pricer::block_cost`] of the block whose levels in scan
+    /// order are `scan`.
+    #[inline]
+    pub fn scan_cost(&self, scan: &ScanLevels<64>) -> u32 {
+        if scan.mask == 0 {
+            return 0;
+        }
+        self.prices.cost(scan.mask, |i| scan.levels[i])
     }
 }
 
@@ -269,7 +319,12 @@ mod tests {
                     res.luma.iter().collect()
                 };
                 for b in blocks {
-                    assert_eq!(pricer.block_cost(b), block_cost(&coder, class, b));
+                    let want = block_cost(&coder, class, b);
+                    assert_eq!(pricer.block_cost(b), want);
+                    assert_eq!(
+                        pricer.scan_cost(&ScanLevels::gather(b.as_flattened(), &ZIGZAG)),
+                        want
+                    );
                 }
             }
             // Adapt, so that later rounds price other states.
@@ -311,6 +366,8 @@ mod tests {
                     code_block8(&mut p, class8_base(intra), b8);
                 }
                 assert_eq!(pricer.block_cost(b8), p.cost, "round {round}: {b8:?}");
+                let scan = ScanLevels::gather(b8.as_flattened(), &ZIGZAG8);
+                assert_eq!(pricer.scan_cost(&scan), p.cost);
             }
             // Adapt the 8x8 contexts, so that later rounds price other
             // states.
@@ -324,6 +381,24 @@ mod tests {
                 ResidualSyntax::Inter
             };
             coder.commit(round % 4, round / 4 % 4, syntax, &res);
+        }
+    }
+
+    #[test]
+    fn scan_levels_follow_their_changes() {
+        // Levels set one at a time, to zero and back, hold the same
+        // levels and mask as gathering the changed block.
+        let mut next = lcg(3);
+        let mut b8 = random_block8(&mut next);
+        let mut scan = ScanLevels::gather(b8.as_flattened(), &ZIGZAG8);
+        for _ in 0..500 {
+            let k = next(64) as usize;
+            let v = if next(2) == 0 { 0 } else { next(9) - 4 };
+            scan.set(k, v);
+            let raster = ZIGZAG8[k];
+            b8[raster / 8][raster % 8] = v;
+            let want = ScanLevels::gather(b8.as_flattened(), &ZIGZAG8);
+            assert_eq!((scan.levels, scan.mask), (want.levels, want.mask));
         }
     }
 

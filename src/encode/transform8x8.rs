@@ -4,7 +4,7 @@
 //! 4x4 transforms per quadrant; and those of one block of an 8x8 intra
 //! macroblock, for its search.
 
-use super::rate::Block8Pricer;
+use super::rate::{Block8Pricer, ScanLevels};
 use crate::codec::syntax::MB;
 use crate::codec::transform8x8::{
     dequantize_level_8x8, dequantized_orthonormal, forward_8x8, orthonormal_scale, quantize_8x8, Block8,
@@ -96,14 +96,15 @@ fn lower_levels8(source: &[f64; 64], levels: &mut Block8, qp: u8, lambda: f64, r
     let recon =
         |v: i32, k: usize| dequantized_orthonormal(dequantize_level_8x8(v, qp, k / 8, k % 8), k / 8, k % 8);
     let sq = |x: f64| x * x;
-    let mut bits = f64::from(rate.block_cost(levels)) / 256.0;
+    let mut scan = ScanLevels::gather(levels.as_flattened(), &ZIGZAG8);
+    let mut bits = f64::from(rate.scan_cost(&scan)) / 256.0;
     if bits == 0.0 {
         return;
     }
     let mut error: f64 = (0..64)
         .map(|k| sq(source[k] - recon(levels[k / 8][k % 8], k)))
         .sum();
-    for &k in ZIGZAG8.iter().rev() {
+    for (i, &k) in ZIGZAG8.iter().enumerate().rev() {
         let (r, c) = (k / 8, k % 8);
         let v = levels[r][c];
         if v == 0 {
@@ -115,11 +116,12 @@ fn lower_levels8(source: &[f64; 64], levels: &mut Block8, qp: u8, lambda: f64, r
         if delta >= lambda * bits {
             continue;
         }
-        let mut trial = *levels;
-        trial[r][c] = lowered;
-        let b = f64::from(rate.block_cost(&trial)) / 256.0;
-        if delta + lambda * (b - bits) < 0.0 {
-            *levels = trial;
+        scan.set(i, lowered);
+        let b = f64::from(rate.scan_cost(&scan)) / 256.0;
+        if delta + lambda * (b - bits) >= 0.0 {
+            scan.set(i, v);
+        } else {
+            levels[r][c] = lowered;
             error += delta;
             bits = b;
         }

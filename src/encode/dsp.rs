@@ -16,7 +16,7 @@ use super::transform8x8::{inter_luma8, intra_block8};
 use crate::codec::dsp::PerLevel;
 use crate::codec::residual::ZIGZAG;
 use crate::codec::transform::{
-    dequantize, dequantize_level, forward_4x4, inverse_4x4, inverse_4x4_unrounded, quantize, Block4,
+    dequantize, dequantize_level, forward_4x4, inverse_4x4_unrounded, quantize, Block4,
 };
 use crate::codec::transform8x8::Block8;
 
@@ -519,20 +519,6 @@ pub fn quantize_4x4(
     (b, c)
 }
 
-/// Squared error between a residual and what `levels` reconstruct to.
-#[inline(always)]
-fn block_error(residual: &Block4, levels: &Block4, qp: u8) -> i64 {
-    let mut d = *levels;
-    dequantize(&mut d, qp);
-    let r = inverse_4x4(&d);
-    let mut e = 0i64;
-    for (a, b) in residual.as_flattened().iter().zip(r.as_flattened()) {
-        let x = i64::from(a - b);
-        e += x * x;
-    }
-    e
-}
-
 /// Bits `levels` add over an empty block, priced for its class (chroma or
 /// luma, intra or inter) in the frame's residual coder as it stands.
 #[inline(always)]
@@ -578,12 +564,14 @@ pub fn rdoq_4x4(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rat
     let mut error = rounded_error(residual, &unrounded);
     let mut scan = ScanLevels::gather(levels.as_flattened(), &ZIGZAG);
     let mut bits = block_bits(rate, &scan);
-    for (i, &k) in ZIGZAG.iter().enumerate().rev() {
+    // The non-zero levels from the last: a trial changes only its own.
+    let mut untried = scan.mask;
+    while untried != 0 {
+        let i = 63 - untried.leading_zeros() as usize;
+        untried &= !(1 << i);
+        let k = ZIGZAG[i];
         let (r, c) = (k / 4, k % 4);
         let v = levels[r][c];
-        if v == 0 {
-            continue;
-        }
         let lowered = v - v.signum();
         let coeff = dequantize_level(lowered, qp, r, c);
         let delta = coeff - coeffs[r][c];
@@ -617,11 +605,16 @@ pub fn rdoq_4x4(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rat
             bits = b;
         }
     }
-    // Last, the whole block against none of it.
+    // Last, the whole block against none of it (whose error is the
+    // residual's energy).
     if bits > 0.0 {
-        let zero = [[0; 4]; 4];
-        if (block_error(residual, &zero, qp) - error) as f64 <= lambda * bits {
-            *levels = zero;
+        let energy: i64 = residual
+            .as_flattened()
+            .iter()
+            .map(|&a| i64::from(a) * i64::from(a))
+            .sum();
+        if (energy - error) as f64 <= lambda * bits {
+            *levels = [[0; 4]; 4];
         }
     }
 }
@@ -630,6 +623,20 @@ pub fn rdoq_4x4(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rat
 mod tests {
     use super::*;
     use crate::codec::residual::{BlockClass, ResidualCoder};
+    use crate::codec::transform::inverse_4x4;
+
+    /// Squared error between a residual and what `levels` reconstruct to.
+    fn block_error(residual: &Block4, levels: &Block4, qp: u8) -> i64 {
+        let mut d = *levels;
+        dequantize(&mut d, qp);
+        let r = inverse_4x4(&d);
+        let mut e = 0i64;
+        for (a, b) in residual.as_flattened().iter().zip(r.as_flattened()) {
+            let x = i64::from(a - b);
+            e += x * x;
+        }
+        e
+    }
 
     #[test]
     fn rdoq_only_moves_levels_toward_zero_and_never_raises_the_cost() {

@@ -104,12 +104,14 @@ fn lower_levels8(source: &[f64; 64], levels: &mut Block8, qp: u8, lambda: f64, r
     let mut error: f64 = (0..64)
         .map(|k| sq(source[k] - recon(levels[k / 8][k % 8], k)))
         .sum();
-    for (i, &k) in ZIGZAG8.iter().enumerate().rev() {
+    // The non-zero levels from the last: a trial changes only its own.
+    let mut untried = scan.mask;
+    while untried != 0 {
+        let i = 63 - untried.leading_zeros() as usize;
+        untried &= !(1 << i);
+        let k = ZIGZAG8[i];
         let (r, c) = (k / 8, k % 8);
         let v = levels[r][c];
-        if v == 0 {
-            continue;
-        }
         let lowered = v - v.signum();
         let delta = sq(source[k] - recon(lowered, k)) - sq(source[k] - recon(v, k));
         // Fewer bits than none cannot pay for more error than this.

@@ -26,7 +26,7 @@ use crate::codec::mv::Mv;
 use crate::codec::mvpred::{mv_prediction, mv_prediction_into, walk_partitions};
 use crate::codec::partition::{MbVectors, Part, RefMv, Split};
 use crate::codec::recon::{predict_inter, predict_inter_blocks, MbSamples};
-use crate::codec::residual::{MbResidual, ResidualCoder};
+use crate::codec::residual::{MbResidual, ResidualCoder, ResidualSyntax};
 use crate::codec::syntax::{mb_mode, MbKind, MotionTool};
 use crate::codec::Frame;
 use crate::me::search::Neighbours;
@@ -133,22 +133,39 @@ pub(super) fn best_intra(
             samples: c.samples,
         }
     };
-    let code4 = |pred: &MbSamples| coder.code(s, pred, true, residual_coder, at.0, at.1);
+    // The chroma's levels are the same whatever the luma: found once. The
+    // block searches' luma levels are those [`MbCoder::code`] would find
+    // against their predictions: kept, not found again.
+    let chroma_levels = coder.intra_chroma_levels(s, &pred, residual_coder);
+    let code = |pred: &MbSamples, mut residual: Box<MbResidual>, syntax| {
+        residual.chroma = chroma_levels;
+        coder.code_intra_levels(s, pred, residual, (residual_coder, syntax), at)
+    };
     let mut candidates = Vec::with_capacity(3);
     if whole {
-        candidates.push(choice(LumaIntra::Whole(luma), pred.clone(), code4(&pred)));
+        let luma_levels = coder.luma_residual(s, &pred, true, residual_coder);
+        let coded = code(&pred, luma_levels, ResidualSyntax::Intra);
+        candidates.push(choice(LumaIntra::Whole(luma), pred.clone(), coded));
     }
     if let Some(b) = blocks8 {
         let pred8 = MbSamples {
             luma: b.pred,
             ..pred.clone()
         };
-        let coded = coder.code_intra8x8(s, &pred8, b.levels, residual_coder, at);
+        let levels = Box::new(MbResidual {
+            luma8: b.levels,
+            ..MbResidual::default()
+        });
+        let coded = code(&pred8, levels, ResidualSyntax::Intra8x8);
         candidates.push(choice(LumaIntra::Blocks8(b.modes), pred8, coded));
     }
     if let Some(b) = blocks4 {
         let pred4 = MbSamples { luma: b.pred, ..pred };
-        let coded = code4(&pred4);
+        let levels = Box::new(MbResidual {
+            luma: b.levels,
+            ..MbResidual::default()
+        });
+        let coded = code(&pred4, levels, ResidualSyntax::Intra);
         candidates.push(choice(LumaIntra::Blocks(b.modes), pred4, coded));
     }
     candidates.into_iter().min_by(|a, b| a.cost.total_cmp(&b.cost))

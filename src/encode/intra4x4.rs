@@ -20,6 +20,9 @@ pub(crate) struct Intra4x4Luma {
     pub modes: [Intra4x4Mode; 16],
     /// Each block's prediction (from the reconstruction of those before).
     pub pred: [u8; 256],
+    /// The levels each block was reconstructed with (as
+    /// [`MbCoder::code`] quantises them against `pred`).
+    pub levels: [Block4; 16],
     /// SATD + sqrt(lambda) * mode bits, summed over the blocks.
     pub estimate: f64,
 }
@@ -73,6 +76,7 @@ impl IntraBlockSearch<'_> {
         let mut out = Intra4x4Luma {
             modes: [Intra4x4Mode::Dc; 16],
             pred: [0; 256],
+            levels: [[[0; 4]; 4]; 16],
             estimate: 0.0,
         };
         let mut own = [0u8; 256];
@@ -113,10 +117,11 @@ impl IntraBlockSearch<'_> {
                 out.pred[i..i + 4].copy_from_slice(&block[4 * r..4 * r + 4]);
                 own[i..i + 4].copy_from_slice(&block[4 * r..4 * r + 4]);
             }
-            let levels: Block4 =
-                self.coder
-                    .intra_luma_levels(src, &out.pred, (bx / 4, by / 4), rate.as_ref());
-            add_block(&levels, self.coder.qp, &mut own, MB, (bx, by));
+            let levels = &mut out.levels[by + bx / 4];
+            *levels = self
+                .coder
+                .intra_luma_levels(src, &out.pred, (bx / 4, by / 4), rate.as_ref());
+            add_block(levels, self.coder.qp, &mut own, MB, (bx, by));
         }
         Some(out)
     }

@@ -218,6 +218,35 @@ impl MbCoder {
         mb_x: usize,
         mb_y: usize,
     ) -> Coded {
+        let mut residual = self.luma_residual(src, pred, intra, residual_coder);
+        self.code_chroma(src, pred, intra, residual_coder, &mut residual);
+        let syntax = ResidualSyntax::of_4x4(intra);
+        self.reconstructed(src, pred, residual, (residual_coder, syntax), (mb_x, mb_y))
+    }
+
+    /// `residual` (every level decided) reconstructed over `pred`,
+    /// measured and priced.
+    fn reconstructed(
+        &self,
+        src: &MbSource,
+        pred: &MbSamples,
+        residual: Box<MbResidual>,
+        coder_syntax: (&ResidualCoder, ResidualSyntax),
+        at: (usize, usize),
+    ) -> Coded {
+        let samples = reconstruct_samples(pred, &residual, self.qp);
+        Coded::priced(src, residual, samples, coder_syntax, at)
+    }
+
+    /// The luma levels of `src - pred` in 4x4 transforms as
+    /// [`MbCoder::code`] quantises them (chroma left empty).
+    pub fn luma_residual(
+        &self,
+        src: &MbSource,
+        pred: &MbSamples,
+        intra: bool,
+        residual_coder: &ResidualCoder,
+    ) -> Box<MbResidual> {
         let mut residual = Box::<MbResidual>::default();
         let rounding = if intra { ROUND_INTRA } else { ROUND_INTER };
         let mut luma_residual = [[[0i32; 4]; 4]; 16];
@@ -248,14 +277,61 @@ impl MbCoder {
                 (self.dsp.decimate_luma)(&mut residual.luma);
             }
         }
-        self.code_chroma(src, pred, intra, residual_coder, &mut residual);
-        let samples = reconstruct_samples(pred, &residual, self.qp);
-        Coded::priced(
+        residual
+    }
+
+    /// The chroma levels of an intra macroblock predicted by `pred`, as
+    /// [`MbCoder::code`] quantises them: the same for every luma choice
+    /// of the macroblock.
+    pub fn intra_chroma_levels(
+        &self,
+        src: &MbSource,
+        pred: &MbSamples,
+        residual_coder: &ResidualCoder,
+    ) -> [[Block4; 4]; 2] {
+        let mut residual = MbResidual::default();
+        self.code_chroma(src, pred, true, residual_coder, &mut residual);
+        residual.chroma
+    }
+
+    /// An intra macroblock whose levels are all decided (luma by a block
+    /// search or [`MbCoder::luma_residual`], chroma by
+    /// [`MbCoder::intra_chroma_levels`]), reconstructed, measured and
+    /// priced as `syntax` codes it.
+    pub fn code_intra_levels(
+        &self,
+        src: &MbSource,
+        pred: &MbSamples,
+        residual: Box<MbResidual>,
+        (residual_coder, syntax): (&ResidualCoder, ResidualSyntax),
+        at: (usize, usize),
+    ) -> Coded {
+        self.reconstructed(src, pred, residual, (residual_coder, syntax), at)
+    }
+
+    /// An intra macroblock coded in 8x8 blocks: `pred` (each luma block
+    /// predicted from the reconstruction of those before it with `luma8`,
+    /// the levels the search chose), the chroma coded as [`MbCoder::code`]
+    /// codes it.
+    pub fn code_intra8x8(
+        &self,
+        src: &MbSource,
+        pred: &MbSamples,
+        luma8: Option<Box<[Block8; 4]>>,
+        residual_coder: &ResidualCoder,
+        at: (usize, usize),
+    ) -> Coded {
+        let residual = Box::new(MbResidual {
+            luma8,
+            chroma: self.intra_chroma_levels(src, pred, residual_coder),
+            ..MbResidual::default()
+        });
+        self.code_intra_levels(
             src,
+            pred,
             residual,
-            samples,
-            (residual_coder, ResidualSyntax::of_4x4(intra)),
-            (mb_x, mb_y),
+            (residual_coder, ResidualSyntax::Intra8x8),
+            at,
         )
     }
 
@@ -301,33 +377,6 @@ impl MbCoder {
                 }
             }
         }
-    }
-
-    /// An intra macroblock coded in 8x8 blocks: `pred` (each luma block
-    /// predicted from the reconstruction of those before it with `luma8`,
-    /// the levels the search chose), the chroma coded as [`MbCoder::code`]
-    /// codes it.
-    pub fn code_intra8x8(
-        &self,
-        src: &MbSource,
-        pred: &MbSamples,
-        luma8: Option<Box<[Block8; 4]>>,
-        residual_coder: &ResidualCoder,
-        at: (usize, usize),
-    ) -> Coded {
-        let mut residual = Box::new(MbResidual {
-            luma8,
-            ..MbResidual::default()
-        });
-        self.code_chroma(src, pred, true, residual_coder, &mut residual);
-        let samples = reconstruct_samples(pred, &residual, self.qp);
-        Coded::priced(
-            src,
-            residual,
-            samples,
-            (residual_coder, ResidualSyntax::Intra8x8),
-            at,
-        )
     }
 
     /// An inter macroblock's `residual` and reconstructed `samples` (as

@@ -22,7 +22,7 @@ use crate::picture::Plane;
 use crate::transform::Block4;
 
 use crate::dsp::ipred::ipred;
-pub use crate::dsp::ipred::{Edges, Intra4x4Mode};
+pub use crate::dsp::ipred::{Edges, Intra4x4Mode, ModeSource4};
 
 /// How a macroblock's luma is intra-predicted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

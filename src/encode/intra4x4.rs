@@ -6,7 +6,7 @@
 //! candidate already costs.
 
 use super::macroblock::{MbCoder, MbSource};
-use crate::codec::intra4x4::{self, most_probable, neighbour_modes, Intra4x4Mode, CODING_ORDER};
+use crate::codec::intra4x4::{self, most_probable, neighbour_modes, Intra4x4Mode, ModeSource4, CODING_ORDER};
 use crate::codec::modes::ModeCoder;
 use crate::codec::recon::add_block;
 use crate::codec::residual::{BlockClass, ResidualCoder};
@@ -94,19 +94,19 @@ impl IntraBlockSearch<'_> {
                     n += 1;
                 }
             }
-            let mut preds = [[0u8; 16]; 9];
-            for (m, p) in candidates[..n].iter().zip(&mut preds) {
-                intra4x4::predict(*m, &edges, p);
-            }
-            let satds = block_satds(&src.luma, (bx, by), &preds[..n]);
-            let mut best = (f64::INFINITY, Intra4x4Mode::Dc, [0u8; 16]);
+            // The modes gathered from one source of the edges.
+            let source = ModeSource4::new(&edges);
+            let satds = block_satds(&src.luma, (bx, by), &source, &candidates[..n]);
+            let mut best = (f64::INFINITY, Intra4x4Mode::Dc);
             for i in 0..n {
                 let cost = f64::from(satds[i]) + self.mode_cost(candidates[i] == probable);
                 if cost < best.0 {
-                    best = (cost, candidates[i], preds[i]);
+                    best = (cost, candidates[i]);
                 }
             }
-            let (cost, mode, block) = best;
+            let (cost, mode) = best;
+            let mut block = [0u8; 16];
+            source.predict(mode, &mut block);
             out.estimate += cost;
             if out.estimate >= bound {
                 return None;
@@ -127,26 +127,29 @@ impl IntraBlockSearch<'_> {
     }
 }
 
-/// The SATD against the source's 4x4 block at (bx, by) of each
-/// prediction, two at a time.
-fn block_satds(src: &[u8; 256], (bx, by): (usize, usize), preds: &[[u8; 16]]) -> [u32; 9] {
+/// The SATD against the source's 4x4 block at (bx, by) of each mode's
+/// prediction, two at a time (gathered side by side).
+fn block_satds(
+    src: &[u8; 256],
+    (bx, by): (usize, usize),
+    source: &ModeSource4,
+    modes: &[Intra4x4Mode],
+) -> [u32; 9] {
     let pair = pixel().satd_4x4_pair;
     // The source block twice side by side, predictions likewise.
-    let mut source = [0u8; 32];
+    let mut doubled = [0u8; 32];
     for r in 0..4 {
         let row = &src[(by + r) * MB + bx..][..4];
-        source[8 * r..8 * r + 4].copy_from_slice(row);
-        source[8 * r + 4..8 * r + 8].copy_from_slice(row);
+        doubled[8 * r..8 * r + 4].copy_from_slice(row);
+        doubled[8 * r + 4..8 * r + 8].copy_from_slice(row);
     }
     let mut out = [0u32; 9];
-    for i in (0..preds.len()).step_by(2) {
-        let j = (i + 1).min(preds.len() - 1);
+    for i in (0..modes.len()).step_by(2) {
+        let j = (i + 1).min(modes.len() - 1);
         let mut two = [0u8; 32];
-        for r in 0..4 {
-            two[8 * r..8 * r + 4].copy_from_slice(&preds[i][4 * r..4 * r + 4]);
-            two[8 * r + 4..8 * r + 8].copy_from_slice(&preds[j][4 * r..4 * r + 4]);
-        }
-        let [a, b] = pair(&source, &two);
+        source.predict_strided(modes[i], &mut two, 8);
+        source.predict_strided(modes[j], &mut two[4..], 8);
+        let [a, b] = pair(&doubled, &two);
         out[i] = a;
         out[j] = b;
     }

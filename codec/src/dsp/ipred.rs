@@ -339,6 +339,121 @@ fn pred_4x4(mode: Intra4x4Mode, e: &Edges, out: &mut [u8; 16]) {
     }
 }
 
+/// What every 4x4 mode's samples are drawn from, as [`ModeSource`] for
+/// 8x8 blocks: the edge as one line (`p(-1, y)` at `3 - y`, the corner at
+/// 4, `p(x, -1)` at `5 + x`), its [1 2 1] and [1 1] averages, two values
+/// of their own and the DC. An encoder trying the nine modes of a block
+/// builds it once and gathers each mode from it; [`pred_4x4`] computes
+/// one mode alone (the decoder's), and a test holds the two equal.
+#[derive(Debug, Clone)]
+pub struct ModeSource4([u8; SOURCE4_LEN]);
+
+const LINE4: usize = 0; // 13 samples
+const F3_4: usize = 13; // 13: (a + 2b + c + 2) >> 2 centred on line[i], i = 1..=11
+const F2_4: usize = 26; // 12: (a + b + 1) >> 1 of line[i], line[i + 1]
+const DDL_CORNER4: usize = 38; // diagonal down-left at (3, 3)
+const HU_END4: usize = 39; // horizontal-up where x + 2y = 5
+const DC_VALUE4: usize = 40;
+const SOURCE4_LEN: usize = 41;
+
+impl ModeSource4 {
+    /// The source of a block whose edges are `e` (missing ones read as 0).
+    pub fn new(e: &Edges) -> ModeSource4 {
+        let mut line = [0u16; 13];
+        if let Some(l) = e.left {
+            for (y, &v) in l.iter().enumerate() {
+                line[3 - y] = u16::from(v);
+            }
+        }
+        line[4] = u16::from(e.top_left.unwrap_or(0));
+        if let Some(t) = e.top {
+            for (x, &v) in t.iter().enumerate() {
+                line[5 + x] = u16::from(v);
+            }
+        }
+        let mut v = [0u8; SOURCE4_LEN];
+        for i in 0..13 {
+            v[LINE4 + i] = line[i] as u8;
+        }
+        for i in 1..12 {
+            v[F3_4 + i] = ((line[i - 1] + 2 * line[i] + line[i + 1] + 2) >> 2) as u8;
+        }
+        for i in 0..12 {
+            v[F2_4 + i] = ((line[i] + line[i + 1] + 1) >> 1) as u8;
+        }
+        v[DDL_CORNER4] = ((line[11] + 3 * line[12] + 2) >> 2) as u8;
+        v[HU_END4] = ((line[1] + 3 * line[0] + 2) >> 2) as u8;
+        v[DC_VALUE4] = dc(e) as u8;
+        ModeSource4(v)
+    }
+
+    /// The prediction in `mode` into `out` (row-major).
+    #[inline]
+    pub fn predict(&self, mode: Intra4x4Mode, out: &mut [u8; 16]) {
+        self.predict_strided(mode, out, 4);
+    }
+
+    /// The prediction in `mode` into the first four samples of four rows
+    /// of `out`, `stride` apart (two modes side by side, say).
+    #[inline]
+    pub fn predict_strided(&self, mode: Intra4x4Mode, out: &mut [u8], stride: usize) {
+        for (r, index) in MODE_INDEX4[mode as usize].chunks_exact(4).enumerate() {
+            for (o, &i) in out[r * stride..r * stride + 4].iter_mut().zip(index) {
+                *o = self.0[usize::from(i)];
+            }
+        }
+    }
+}
+
+/// Where sample (x, y) of each 4x4 mode comes from in a [`ModeSource4`].
+const MODE_INDEX4: [[u8; 16]; 9] = {
+    let mut table = [[0u8; 16]; 9];
+    let mut m = 0;
+    while m < 9 {
+        let mut i = 0;
+        while i < 16 {
+            table[m][i] = mode_index4(m, (i % 4) as isize, (i / 4) as isize) as u8;
+            i += 1;
+        }
+        m += 1;
+    }
+    table
+};
+
+/// [`MODE_INDEX4`] of mode `m` at (x, y): [`pred_4x4`]'s formulas, each
+/// an average centred at (or starting from) one place of the edge line.
+const fn mode_index4(m: usize, x: isize, y: isize) -> isize {
+    let (f3, f2, line) = (F3_4 as isize, F2_4 as isize, LINE4 as isize);
+    match m {
+        0 => line + 5 + x,
+        1 => line + 3 - y,
+        2 => DC_VALUE4 as isize,
+        3 if x == 3 && y == 3 => DDL_CORNER4 as isize,
+        3 => f3 + 6 + x + y,
+        4 => f3 + 4 + x - y,
+        5 => match 2 * x - y {
+            z if z >= 0 && z % 2 == 0 => f2 + 4 + x - (y >> 1),
+            z if z > 0 => f3 + 4 + x - (y >> 1),
+            -1 => f3 + 4,
+            _ => f3 + 5 + 2 * x - y,
+        },
+        6 => match 2 * y - x {
+            z if z >= 0 && z % 2 == 0 => f2 + 3 - y + (x >> 1),
+            z if z > 0 => f3 + 4 - y + (x >> 1),
+            -1 => f3 + 4,
+            _ => f3 + 3 + x - 2 * y,
+        },
+        7 if y % 2 == 0 => f2 + 5 + x + (y >> 1),
+        7 => f3 + 6 + x + (y >> 1),
+        _ => match x + 2 * y {
+            z if z < 5 && z % 2 == 0 => f2 + 2 - y - (x >> 1),
+            z if z < 5 => f3 + 2 - y - (x >> 1),
+            5 => HU_END4 as isize,
+            _ => line,
+        },
+    }
+}
+
 /// DC of a 4x4 block: the rounded mean of the edges it has, 128 with none.
 fn dc(e: &Edges) -> i32 {
     let top: i32 = e.top.map_or(0, |t| t[..4].iter().map(|&v| i32::from(v)).sum());
@@ -490,4 +605,40 @@ pub(crate) fn dc8(e: &Edges8) -> u8 {
         (None, None) => 128,
     };
     v as u8
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_4x4_mode_source_predicts_as_each_mode_alone() {
+        let mut seed = 7u32;
+        let mut next = move || {
+            seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
+            (seed >> 16) as u8
+        };
+        for round in 0..400 {
+            // Every pair of neighbours present or not; random, flat and
+            // extreme samples.
+            let (above, left) = (round % 2 == 0, round / 2 % 2 == 0);
+            let mut sample = || match round % 5 {
+                0 => 255,
+                1 => 0,
+                _ => next(),
+            };
+            let e = Edges {
+                top: above.then(|| std::array::from_fn(|_| sample())),
+                left: left.then(|| std::array::from_fn(|_| sample())),
+                top_left: (above && left).then(&mut next),
+            };
+            let source = ModeSource4::new(&e);
+            for mode in Intra4x4Mode::ALL {
+                let (mut want, mut got) = ([0u8; 16], [0u8; 16]);
+                pred_4x4(mode, &e, &mut want);
+                source.predict(mode, &mut got);
+                assert_eq!(got, want, "{mode:?} {e:?}");
+            }
+        }
+    }
 }

@@ -202,25 +202,40 @@ fn filter_plane(plane: &mut Plane, strengths: &Strengths, qp: u8, sub: usize) {
     if !Edge::filters_at(qp) {
         return;
     }
+    if sub == 1 {
+        filter_plane_sized::<1>(plane, strengths, qp);
+    } else {
+        filter_plane_sized::<2>(plane, strengths, qp);
+    }
+}
+
+/// [`filter_plane`] with the plane's subsampling known when compiled (the
+/// strengths' positions from shifts, not multiplications): an edge of
+/// four 0 strengths, most of a still or skipped picture's, is passed
+/// over before the kernel's call.
+fn filter_plane_sized<const SUB: usize>(plane: &mut Plane, strengths: &Strengths, qp: u8) {
     let filter_mb_edge = lf().filter_mb_edge;
     let (w, h, stride) = (plane.width(), plane.height(), plane.stride());
     let origin = plane.index(0, 0);
-    let (luma, piece) = (sub == 1, 4 / sub);
-    let mb = 16 / sub;
+    let (luma, piece, mb) = (SUB == 1, 4 / SUB, 16 / SUB);
     let data = plane.data_mut();
     let cols = strengths.cols;
     for y0 in (0..h).step_by(mb) {
         for x in (4..w).step_by(4) {
-            let bx = x * sub / 4;
-            let bs = std::array::from_fn(|k| strengths.vertical[((y0 + k * piece) * sub / 4) * cols + bx]);
-            filter_mb_edge(data, (origin + y0 * stride + x, 1, stride), bs, qp, luma);
+            let bx = x * SUB / 4;
+            let bs = std::array::from_fn(|k| strengths.vertical[((y0 + k * piece) * SUB / 4) * cols + bx]);
+            if bs != [0; 4] {
+                filter_mb_edge(data, (origin + y0 * stride + x, 1, stride), bs, qp, luma);
+            }
         }
     }
     for x0 in (0..w).step_by(mb) {
         for y in (4..h).step_by(4) {
-            let row = (y * sub / 4) * cols;
-            let bs = std::array::from_fn(|k| strengths.horizontal[row + (x0 + k * piece) * sub / 4]);
-            filter_mb_edge(data, (origin + y * stride + x0, stride, 1), bs, qp, luma);
+            let row = (y * SUB / 4) * cols;
+            let bs = std::array::from_fn(|k| strengths.horizontal[row + (x0 + k * piece) * SUB / 4]);
+            if bs != [0; 4] {
+                filter_mb_edge(data, (origin + y * stride + x0, stride, 1), bs, qp, luma);
+            }
         }
     }
 }

@@ -405,54 +405,19 @@ impl ModeSource4 {
     }
 }
 
-/// Where sample (x, y) of each 4x4 mode comes from in a [`ModeSource4`].
-const MODE_INDEX4: [[u8; 16]; 9] = {
-    let mut table = [[0u8; 16]; 9];
-    let mut m = 0;
-    while m < 9 {
-        let mut i = 0;
-        while i < 16 {
-            table[m][i] = mode_index4(m, (i % 4) as isize, (i / 4) as isize) as u8;
-            i += 1;
-        }
-        m += 1;
-    }
-    table
-};
-
-/// [`MODE_INDEX4`] of mode `m` at (x, y): [`pred_4x4`]'s formulas, each
-/// an average centred at (or starting from) one place of the edge line.
-const fn mode_index4(m: usize, x: isize, y: isize) -> isize {
-    let (f3, f2, line) = (F3_4 as isize, F2_4 as isize, LINE4 as isize);
-    match m {
-        0 => line + 5 + x,
-        1 => line + 3 - y,
-        2 => DC_VALUE4 as isize,
-        3 if x == 3 && y == 3 => DDL_CORNER4 as isize,
-        3 => f3 + 6 + x + y,
-        4 => f3 + 4 + x - y,
-        5 => match 2 * x - y {
-            z if z >= 0 && z % 2 == 0 => f2 + 4 + x - (y >> 1),
-            z if z > 0 => f3 + 4 + x - (y >> 1),
-            -1 => f3 + 4,
-            _ => f3 + 5 + 2 * x - y,
-        },
-        6 => match 2 * y - x {
-            z if z >= 0 && z % 2 == 0 => f2 + 3 - y + (x >> 1),
-            z if z > 0 => f3 + 4 - y + (x >> 1),
-            -1 => f3 + 4,
-            _ => f3 + 3 + x - 2 * y,
-        },
-        7 if y % 2 == 0 => f2 + 5 + x + (y >> 1),
-        7 => f3 + 6 + x + (y >> 1),
-        _ => match x + 2 * y {
-            z if z < 5 && z % 2 == 0 => f2 + 2 - y - (x >> 1),
-            z if z < 5 => f3 + 2 - y - (x >> 1),
-            5 => HU_END4 as isize,
-            _ => line,
-        },
-    }
-}
+/// Where sample (x, y) of each 4x4 mode comes from in a [`ModeSource4`]:
+/// [`pred_4x4`]'s formulas.
+const MODE_INDEX4: [[u8; 16]; 9] = mode_table(
+    4,
+    SourceLayout {
+        line: LINE4,
+        f3: F3_4,
+        f2: F2_4,
+        ddl_corner: DDL_CORNER4,
+        hu_end: HU_END4,
+        dc: DC_VALUE4,
+    },
+);
 
 /// DC of a 4x4 block: the rounded mean of the edges it has, 128 with none.
 fn dc(e: &Edges) -> i32 {
@@ -537,51 +502,78 @@ impl ModeSource {
 }
 
 /// Where sample (x, y) of each mode comes from in a [`ModeSource`]
-/// (FORMAT.md section 9.2's formulas, each an average at one place of the
-/// edge line).
-const MODE_INDEX: [[u8; 64]; 9] = {
-    let mut table = [[0u8; 64]; 9];
+/// (FORMAT.md section 9.2's formulas).
+const MODE_INDEX: [[u8; 64]; 9] = mode_table(
+    8,
+    SourceLayout {
+        line: LINE,
+        f3: F3,
+        f2: F2,
+        ddl_corner: DDL_CORNER,
+        hu_end: HU_END,
+        dc: DC_VALUE,
+    },
+);
+
+/// Where the parts of a mode source lie: the edge line, its [1 2 1] and
+/// [1 1] averages, the two values of their own and the DC.
+struct SourceLayout {
+    line: usize,
+    f3: usize,
+    f2: usize,
+    ddl_corner: usize,
+    hu_end: usize,
+    dc: usize,
+}
+
+/// The gather table of an `n x n` block's nine modes (`S = n * n`) from a
+/// source laid out as `at` says.
+const fn mode_table<const S: usize>(n: usize, at: SourceLayout) -> [[u8; S]; 9] {
+    let mut table = [[0u8; S]; 9];
     let mut m = 0;
     while m < 9 {
         let mut i = 0;
-        while i < 64 {
-            table[m][i] = mode_index(m, (i % 8) as isize, (i / 8) as isize) as u8;
+        while i < S {
+            table[m][i] = mode_index(&at, n as isize, m, (i % n) as isize, (i / n) as isize) as u8;
             i += 1;
         }
         m += 1;
     }
     table
-};
+}
 
-/// [`MODE_INDEX`] of mode `m` at (x, y).
-const fn mode_index(m: usize, x: isize, y: isize) -> isize {
-    let (f3, f2, line) = (F3 as isize, F2 as isize, LINE as isize);
+/// Where sample (x, y) of mode `m` of an `n x n` block comes from: each
+/// formula an average centred at (or starting from) one place of the
+/// edge line, whose corner sits at `n` (`p(x, -1)` at `n + 1 + x`,
+/// `p(-1, y)` at `n - 1 - y`).
+const fn mode_index(at: &SourceLayout, n: isize, m: usize, x: isize, y: isize) -> isize {
+    let (f3, f2, line) = (at.f3 as isize + n, at.f2 as isize + n, at.line as isize + n);
     match m {
-        0 => line + 9 + x,
-        1 => line + 7 - y,
-        2 => DC_VALUE as isize,
-        3 if x == 7 && y == 7 => DDL_CORNER as isize,
-        3 => f3 + 10 + x + y,
-        4 => f3 + 8 + x - y,
+        0 => line + 1 + x,
+        1 => line - 1 - y,
+        2 => at.dc as isize,
+        3 if x == n - 1 && y == n - 1 => at.ddl_corner as isize,
+        3 => f3 + 2 + x + y,
+        4 => f3 + x - y,
         5 => match 2 * x - y {
-            z if z >= 0 && z % 2 == 0 => f2 + 8 + x - (y >> 1),
-            z if z > 0 => f3 + 8 + x - (y >> 1),
-            -1 => f3 + 8,
-            _ => f3 + 9 + 2 * x - y,
+            z if z >= 0 && z % 2 == 0 => f2 + x - (y >> 1),
+            z if z > 0 => f3 + x - (y >> 1),
+            -1 => f3,
+            _ => f3 + 1 + 2 * x - y,
         },
         6 => match 2 * y - x {
-            z if z >= 0 && z % 2 == 0 => f2 + 7 - y + (x >> 1),
-            z if z > 0 => f3 + 8 - y + (x >> 1),
-            -1 => f3 + 8,
-            _ => f3 + 7 + x - 2 * y,
+            z if z >= 0 && z % 2 == 0 => f2 - 1 - y + (x >> 1),
+            z if z > 0 => f3 - y + (x >> 1),
+            -1 => f3,
+            _ => f3 - 1 + x - 2 * y,
         },
-        7 if y % 2 == 0 => f2 + 9 + x + (y >> 1),
-        7 => f3 + 10 + x + (y >> 1),
+        7 if y % 2 == 0 => f2 + 1 + x + (y >> 1),
+        7 => f3 + 2 + x + (y >> 1),
         _ => match x + 2 * y {
-            z if z < 13 && z % 2 == 0 => f2 + 6 - y - (x >> 1),
-            z if z < 13 => f3 + 6 - y - (x >> 1),
-            13 => HU_END as isize,
-            _ => line,
+            z if z < 2 * n - 3 && z % 2 == 0 => f2 - 2 - y - (x >> 1),
+            z if z < 2 * n - 3 => f3 - 2 - y - (x >> 1),
+            z if z == 2 * n - 3 => at.hu_end as isize,
+            _ => at.line as isize,
         },
     }
 }

@@ -359,30 +359,13 @@ const SOURCE4_LEN: usize = 41;
 impl ModeSource4 {
     /// The source of a block whose edges are `e` (missing ones read as 0).
     pub fn new(e: &Edges) -> ModeSource4 {
-        let mut line = [0u16; 13];
-        if let Some(l) = e.left {
-            for (y, &v) in l.iter().enumerate() {
-                line[3 - y] = u16::from(v);
-            }
-        }
-        line[4] = u16::from(e.top_left.unwrap_or(0));
-        if let Some(t) = e.top {
-            for (x, &v) in t.iter().enumerate() {
-                line[5 + x] = u16::from(v);
-            }
-        }
+        let line: [u16; 13] = edge_line(
+            e.left.as_ref().map(|l| &l[..]),
+            e.top_left,
+            e.top.as_ref().map(|t| &t[..]),
+        );
         let mut v = [0u8; SOURCE4_LEN];
-        for i in 0..13 {
-            v[LINE4 + i] = line[i] as u8;
-        }
-        for i in 1..12 {
-            v[F3_4 + i] = ((line[i - 1] + 2 * line[i] + line[i + 1] + 2) >> 2) as u8;
-        }
-        for i in 0..12 {
-            v[F2_4 + i] = ((line[i] + line[i + 1] + 1) >> 1) as u8;
-        }
-        v[DDL_CORNER4] = ((line[11] + 3 * line[12] + 2) >> 2) as u8;
-        v[HU_END4] = ((line[1] + 3 * line[0] + 2) >> 2) as u8;
+        fill_source(&line, &LAYOUT4, &mut v);
         v[DC_VALUE4] = dc(e) as u8;
         ModeSource4(v)
     }
@@ -407,17 +390,17 @@ impl ModeSource4 {
 
 /// Where sample (x, y) of each 4x4 mode comes from in a [`ModeSource4`]:
 /// [`pred_4x4`]'s formulas.
-const MODE_INDEX4: [[u8; 16]; 9] = mode_table(
-    4,
-    SourceLayout {
-        line: LINE4,
-        f3: F3_4,
-        f2: F2_4,
-        ddl_corner: DDL_CORNER4,
-        hu_end: HU_END4,
-        dc: DC_VALUE4,
-    },
-);
+const MODE_INDEX4: [[u8; 16]; 9] = mode_table(4, &LAYOUT4);
+
+/// Where a [`ModeSource4`]'s parts lie.
+const LAYOUT4: SourceLayout = SourceLayout {
+    line: LINE4,
+    f3: F3_4,
+    f2: F2_4,
+    ddl_corner: DDL_CORNER4,
+    hu_end: HU_END4,
+    dc: DC_VALUE4,
+};
 
 /// DC of a 4x4 block: the rounded mean of the edges it has, 128 with none.
 fn dc(e: &Edges) -> i32 {
@@ -464,30 +447,13 @@ const SOURCE_LEN: usize = 77;
 impl ModeSource {
     /// The source of a block whose filtered edges are `e`.
     pub fn new(e: &Edges8) -> ModeSource {
-        let mut line = [0u16; 25];
-        if let Some(l) = e.left {
-            for (y, &v) in l.iter().enumerate() {
-                line[7 - y] = u16::from(v);
-            }
-        }
-        line[8] = u16::from(e.top_left.unwrap_or(0));
-        if let Some(t) = e.top {
-            for (x, &v) in t.iter().enumerate() {
-                line[9 + x] = u16::from(v);
-            }
-        }
+        let line: [u16; 25] = edge_line(
+            e.left.as_ref().map(|l| &l[..]),
+            e.top_left,
+            e.top.as_ref().map(|t| &t[..]),
+        );
         let mut v = [0u8; SOURCE_LEN];
-        for i in 0..25 {
-            v[LINE + i] = line[i] as u8;
-        }
-        for i in 1..24 {
-            v[F3 + i] = ((line[i - 1] + 2 * line[i] + line[i + 1] + 2) >> 2) as u8;
-        }
-        for i in 0..24 {
-            v[F2 + i] = ((line[i] + line[i + 1] + 1) >> 1) as u8;
-        }
-        v[DDL_CORNER] = ((line[23] + 3 * line[24] + 2) >> 2) as u8;
-        v[HU_END] = ((line[1] + 3 * line[0] + 2) >> 2) as u8;
+        fill_source(&line, &LAYOUT8, &mut v);
         v[DC_VALUE] = dc8(e);
         ModeSource(v)
     }
@@ -503,17 +469,17 @@ impl ModeSource {
 
 /// Where sample (x, y) of each mode comes from in a [`ModeSource`]
 /// (FORMAT.md section 9.2's formulas).
-const MODE_INDEX: [[u8; 64]; 9] = mode_table(
-    8,
-    SourceLayout {
-        line: LINE,
-        f3: F3,
-        f2: F2,
-        ddl_corner: DDL_CORNER,
-        hu_end: HU_END,
-        dc: DC_VALUE,
-    },
-);
+const MODE_INDEX: [[u8; 64]; 9] = mode_table(8, &LAYOUT8);
+
+/// Where a [`ModeSource`]'s parts lie.
+const LAYOUT8: SourceLayout = SourceLayout {
+    line: LINE,
+    f3: F3,
+    f2: F2,
+    ddl_corner: DDL_CORNER,
+    hu_end: HU_END,
+    dc: DC_VALUE,
+};
 
 /// Where the parts of a mode source lie: the edge line, its [1 2 1] and
 /// [1 1] averages, the two values of their own and the DC.
@@ -526,15 +492,54 @@ struct SourceLayout {
     dc: usize,
 }
 
+/// An `n x n` block's edges as one line of `L = 3n + 1` samples: the left
+/// column bottom to top, the corner, the row above and above right
+/// (missing ones 0).
+#[inline(always)]
+fn edge_line<const L: usize>(left: Option<&[u8]>, top_left: Option<u8>, top: Option<&[u8]>) -> [u16; L] {
+    let n = (L - 1) / 3;
+    let mut line = [0u16; L];
+    if let Some(l) = left {
+        for (y, &v) in l.iter().enumerate() {
+            line[n - 1 - y] = u16::from(v);
+        }
+    }
+    line[n] = u16::from(top_left.unwrap_or(0));
+    if let Some(t) = top {
+        for (x, &v) in t.iter().enumerate() {
+            line[n + 1 + x] = u16::from(v);
+        }
+    }
+    line
+}
+
+/// A mode source's parts from its edge `line`, laid out as `at` says
+/// (all but the DC, which is the caller's).
+#[inline(always)]
+fn fill_source<const L: usize>(line: &[u16; L], at: &SourceLayout, v: &mut [u8]) {
+    let len = L;
+    for (i, &x) in line.iter().enumerate() {
+        v[at.line + i] = x as u8;
+    }
+    for i in 1..len - 1 {
+        v[at.f3 + i] = ((line[i - 1] + 2 * line[i] + line[i + 1] + 2) >> 2) as u8;
+    }
+    for i in 0..len - 1 {
+        v[at.f2 + i] = ((line[i] + line[i + 1] + 1) >> 1) as u8;
+    }
+    v[at.ddl_corner] = ((line[len - 2] + 3 * line[len - 1] + 2) >> 2) as u8;
+    v[at.hu_end] = ((line[1] + 3 * line[0] + 2) >> 2) as u8;
+}
+
 /// The gather table of an `n x n` block's nine modes (`S = n * n`) from a
 /// source laid out as `at` says.
-const fn mode_table<const S: usize>(n: usize, at: SourceLayout) -> [[u8; S]; 9] {
+const fn mode_table<const S: usize>(n: usize, at: &SourceLayout) -> [[u8; S]; 9] {
     let mut table = [[0u8; S]; 9];
     let mut m = 0;
     while m < 9 {
         let mut i = 0;
         while i < S {
-            table[m][i] = mode_index(&at, n as isize, m, (i % n) as isize, (i / n) as isize) as u8;
+            table[m][i] = mode_index(at, n as isize, m, (i % n) as isize, (i / n) as isize) as u8;
             i += 1;
         }
         m += 1;

@@ -491,43 +491,42 @@ fn code_mb<B: Bins>(b: &mut B, e: &Edges, syntax: ResidualSyntax, res: &MbResidu
     }
 }
 
-/// One block with at least one non-zero level.
-/// The bins of a 4x4 block's levels in the class whose first context is
-/// `cls`, its coded flag excepted (the macroblock's syntax codes it).
+/// The bins of a 4x4 block's levels (at least one non-zero) in the class
+/// whose first context is `cls`, its coded flag excepted (the
+/// macroblock's syntax codes it).
 pub fn code_block<B: Bins>(b: &mut B, cls: usize, block: &Block4) {
-    let flat = block.as_flattened();
-    let scan: [i32; 16] = std::array::from_fn(|k| flat[ZIGZAG[k]]);
-    let last = scan.iter().rposition(|&v| v != 0).unwrap_or(0);
-    for (i, &v) in scan.iter().enumerate().take(15) {
-        b.bin(cls + SCAN4.sig[i], v != 0);
-        if v != 0 {
-            b.bin(cls + SCAN4.last[i], i == last);
-            if i == last {
-                break;
-            }
-        }
-    }
-    code_levels(b, cls + SCAN4.gt1, cls + SCAN4.abs, &scan[..=last]);
+    code_scan(b, cls, block.as_flattened(), &ZIGZAG, &SCAN4);
 }
 
-/// One 8x8 block with at least one non-zero level, in the class whose
-/// first context is `cls`.
-/// The bins of an 8x8 block's levels in the class whose first context is
-/// `cls` ([`class8_base`]).
+/// The bins of an 8x8 block's levels (at least one non-zero) in the class
+/// whose first context is `cls` ([`class8_base`]).
 pub fn code_block8<B: Bins>(b: &mut B, cls: usize, block: &Block8) {
-    let flat = block.as_flattened();
-    let scan: [i32; 64] = std::array::from_fn(|k| flat[ZIGZAG8[k]]);
+    code_scan(b, cls, block.as_flattened(), &ZIGZAG8, &SCAN8);
+}
+
+/// The bins of an `N`-coefficient block's levels (`flat`, in raster
+/// order; `zigzag` its scan) in the contexts `at` lays out: significance
+/// and last flags up to the last level, then the levels.
+#[inline(always)]
+fn code_scan<B: Bins, const N: usize>(
+    b: &mut B,
+    cls: usize,
+    flat: &[i32],
+    zigzag: &[usize; N],
+    at: &ScanContexts<N>,
+) {
+    let scan: [i32; N] = std::array::from_fn(|k| flat[zigzag[k]]);
     let last = scan.iter().rposition(|&v| v != 0).unwrap_or(0);
-    for (i, &v) in scan.iter().enumerate().take(63) {
-        b.bin(cls + SCAN8.sig[i], v != 0);
+    for (i, &v) in scan.iter().enumerate().take(N - 1) {
+        b.bin(cls + at.sig[i], v != 0);
         if v != 0 {
-            b.bin(cls + SCAN8.last[i], i == last);
+            b.bin(cls + at.last[i], i == last);
             if i == last {
                 break;
             }
         }
     }
-    code_levels(b, cls + SCAN8.gt1, cls + SCAN8.abs, &scan[..=last]);
+    code_levels(b, cls + at.gt1, cls + at.abs, &scan[..=last]);
 }
 
 /// The levels of a block up to its last, in reverse scan order: `> 1` in
@@ -848,28 +847,8 @@ fn read_block(
     c: &mut [Context; CONTEXTS],
     cls: usize,
 ) -> Result<Block4, ResidualError> {
-    let mut significant = [false; 16];
-    let mut last = 15;
-    for (i, s) in significant.iter_mut().enumerate().take(15) {
-        *s = dec.decode(&mut c[cls + SCAN4.sig[i]]);
-        if *s && dec.decode(&mut c[cls + SCAN4.last[i]]) {
-            last = i;
-            break;
-        }
-    }
-    significant[last] = true;
     let mut block = [[0i32; 4]; 4];
-    read_levels(
-        dec,
-        c,
-        cls + SCAN4.gt1,
-        cls + SCAN4.abs,
-        &significant[..=last],
-        |i, v| {
-            let idx = ZIGZAG[i];
-            block[idx / 4][idx % 4] = v;
-        },
-    )?;
+    read_scan(dec, c, cls, (&ZIGZAG, &SCAN4), block.as_flattened_mut())?;
     Ok(block)
 }
 
@@ -878,29 +857,37 @@ fn read_block8(
     c: &mut [Context; CONTEXTS],
     cls: usize,
 ) -> Result<Block8, ResidualError> {
-    let mut significant = [false; 64];
-    let mut last = 63;
-    for (i, s) in significant.iter_mut().enumerate().take(63) {
-        *s = dec.decode(&mut c[cls + SCAN8.sig[i]]);
-        if *s && dec.decode(&mut c[cls + SCAN8.last[i]]) {
+    let mut block = [[0i32; 8]; 8];
+    read_scan(dec, c, cls, (&ZIGZAG8, &SCAN8), block.as_flattened_mut())?;
+    Ok(block)
+}
+
+/// Reads what [`code_scan`] writes into `flat` (raster order, all zero).
+fn read_scan<const N: usize>(
+    dec: &mut RangeDecoder<'_>,
+    c: &mut [Context; CONTEXTS],
+    cls: usize,
+    (zigzag, at): (&[usize; N], &ScanContexts<N>),
+    flat: &mut [i32],
+) -> Result<(), ResidualError> {
+    let mut significant = [false; N];
+    let mut last = N - 1;
+    for (i, s) in significant.iter_mut().enumerate().take(N - 1) {
+        *s = dec.decode(&mut c[cls + at.sig[i]]);
+        if *s && dec.decode(&mut c[cls + at.last[i]]) {
             last = i;
             break;
         }
     }
     significant[last] = true;
-    let mut block = [[0i32; 8]; 8];
     read_levels(
         dec,
         c,
-        cls + SCAN8.gt1,
-        cls + SCAN8.abs,
+        cls + at.gt1,
+        cls + at.abs,
         &significant[..=last],
-        |i, v| {
-            let idx = ZIGZAG8[i];
-            block[idx / 8][idx % 8] = v;
-        },
-    )?;
-    Ok(block)
+        |i, v| flat[zigzag[i]] = v,
+    )
 }
 
 /// Reads what [`code_levels`] writes for the scan positions flagged in

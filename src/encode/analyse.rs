@@ -139,7 +139,7 @@ pub(super) fn best_intra(
     let chroma_levels = coder.intra_chroma_levels(s, &pred, residual_coder);
     let code = |pred: &MbSamples, mut residual: Box<MbResidual>, syntax| {
         residual.chroma = chroma_levels;
-        coder.code_intra_levels(s, pred, residual, (residual_coder, syntax), at)
+        coder.reconstructed(s, pred, residual, (residual_coder, syntax), at)
     };
     let mut candidates = Vec::with_capacity(3);
     if whole {

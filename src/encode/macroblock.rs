@@ -224,9 +224,11 @@ impl MbCoder {
         self.reconstructed(src, pred, residual, (residual_coder, syntax), (mb_x, mb_y))
     }
 
-    /// `residual` (every level decided) reconstructed over `pred`,
-    /// measured and priced.
-    fn reconstructed(
+    /// A macroblock whose levels are all decided (an intra one's luma by a
+    /// block search or [`MbCoder::luma_residual`], its chroma by
+    /// [`MbCoder::intra_chroma_levels`]), reconstructed over `pred`,
+    /// measured and priced as `syntax` codes it.
+    pub fn reconstructed(
         &self,
         src: &MbSource,
         pred: &MbSamples,
@@ -294,21 +296,6 @@ impl MbCoder {
         residual.chroma
     }
 
-    /// An intra macroblock whose levels are all decided (luma by a block
-    /// search or [`MbCoder::luma_residual`], chroma by
-    /// [`MbCoder::intra_chroma_levels`]), reconstructed, measured and
-    /// priced as `syntax` codes it.
-    pub fn code_intra_levels(
-        &self,
-        src: &MbSource,
-        pred: &MbSamples,
-        residual: Box<MbResidual>,
-        (residual_coder, syntax): (&ResidualCoder, ResidualSyntax),
-        at: (usize, usize),
-    ) -> Coded {
-        self.reconstructed(src, pred, residual, (residual_coder, syntax), at)
-    }
-
     /// An intra macroblock coded in 8x8 blocks: `pred` (each luma block
     /// predicted from the reconstruction of those before it with `luma8`,
     /// the levels the search chose), the chroma coded as [`MbCoder::code`]
@@ -326,7 +313,7 @@ impl MbCoder {
             chroma: self.intra_chroma_levels(src, pred, residual_coder),
             ..MbResidual::default()
         });
-        self.code_intra_levels(
+        self.reconstructed(
             src,
             pred,
             residual,

@@ -222,13 +222,7 @@ impl BlockPricer {
     /// What [`block_cost`] gives for `block` in the state the pricer was
     /// made from.
     pub fn block_cost(&self, block: &Block4) -> u32 {
-        let flat = block.as_flattened();
-        let mask = scan_mask(flat, &ZIGZAG);
-        if mask == 0 {
-            return 0;
-        }
-        let levels = self.prices.cost(mask, |i| flat[ZIGZAG[i]]);
-        (self.flag.1 + levels).saturating_sub(self.flag.0)
+        self.scan_cost(&ScanLevels::gather(block.as_flattened(), &ZIGZAG))
     }
 
     /// [`BlockPricer::block_cost`] of the block whose levels in scan
@@ -246,14 +240,14 @@ impl BlockPricer {
 /// The prices of the 8x8 luma blocks' bins of intra or inter macroblocks.
 #[derive(Debug, Clone)]
 pub struct Block8Pricer {
-    prices: Box<ScanPrices<64>>,
+    prices: ScanPrices<64>,
 }
 
 /// The [`Block8Pricer`] of intra (`true`) or inter macroblocks in
 /// `coder`'s present state.
 pub fn block8_pricer(coder: &ResidualCoder, intra: bool) -> Block8Pricer {
     Block8Pricer {
-        prices: Box::new(ScanPrices::new(coder.contexts(), class8_base(intra), &SCAN8)),
+        prices: ScanPrices::new(coder.contexts(), class8_base(intra), &SCAN8),
     }
 }
 
@@ -261,12 +255,7 @@ impl Block8Pricer {
     /// The bits of `block`'s levels (0 for an all-zero block; its pattern
     /// bit is the caller's).
     pub fn block_cost(&self, block: &Block8) -> u32 {
-        let flat = block.as_flattened();
-        let mask = scan_mask(flat, &ZIGZAG8);
-        if mask == 0 {
-            return 0;
-        }
-        self.prices.cost(mask, |i| flat[ZIGZAG8[i]])
+        self.scan_cost(&ScanLevels::gather(block.as_flattened(), &ZIGZAG8))
     }
 
     /// [`Block8Pricer::block_cost`] of the block whose levels in scan

@@ -9,9 +9,11 @@ x264's own command line at every x264 preset from ultrafast to slower
 --scenecut 0 --threads 1`), IPPP, one thread, the first FRAMES
 frames (default 30). Each encode is timed as a whole process; encodes are
 interleaved per sequence and QP so that the machine's drift falls on all
-encoders alike. x264's settings SEI is not counted in its size; its PSNR
-is measured on its output decoded by ffmpeg (`mocomp quality`, the same
-per-frame luma PSNR as mocomp's own), outside the timed process.
+encoders alike. Neither encoder measures quality in the timed process
+(x264 without --psnr, mocomp with --metrics none): each PSNR is measured
+after, on the stream decoded (x264's by ffmpeg, mocomp's by `mocomp
+decode`), by `mocomp quality` (per-frame luma PSNR). x264's settings SEI
+is not counted in its size.
 
 Per sequence: BD-rate (luma PSNR, mean over frames, cubic, `mocomp
 bdrate`) of every preset against x264 medium and x264 superfast. Over the
@@ -116,19 +118,33 @@ def encode_x264(binary, seq, preset, qp, out, threads=1, measure=True):
     # format conversion (a full-range source would otherwise be scaled).
     subprocess.run(["ffmpeg", "-v", "error", "-y", "-nostdin", "-i", out, "-fps_mode", "passthrough",
                     "-f", "yuv4mpegpipe", "-strict", "-1", decoded], check=True)
+    frames, psnr = quality_of(binary, seq, decoded)
+    return annexb_bytes_without_sei(out), frames, psnr, seconds
+
+
+def quality_of(binary, seq, decoded):
+    """Frames and mean luma PSNR of `decoded` against `seq` (removed after)."""
     done = subprocess.run([binary, "quality", seq, decoded, "--metrics", "psnr", "--json"],
                           capture_output=True, text=True, check=True)
     quality = json.loads(done.stdout)
     os.remove(decoded)
-    return annexb_bytes_without_sei(out), quality["frames"], quality["psnr_y"], seconds
+    return quality["frames"], quality["psnr_y"]
 
 
-def encode_mocomp(binary, seq, preset, qp, out, threads=1):
+def encode_mocomp(binary, seq, preset, qp, out, threads=1, measure=True):
+    """Times mocomp alone (--metrics none, as x264 without --psnr); the
+    PSNR is measured after, on the stream decoded (not when `measure` is
+    false: the time alone)."""
     cmd = [binary, "encode", seq, "-o", out, "--preset", preset, "--qp", str(qp), "--threads", str(threads),
-           "--frames", str(FRAMES), "--metrics", "psnr", "--json", "--quiet"] + MOCOMP_ARGS
+           "--frames", str(FRAMES), "--metrics", "none", "--json", "--quiet"] + MOCOMP_ARGS
     log, seconds = timed(cmd)
     summary = json.loads(log.strip().splitlines()[-1])
-    return summary["bytes"], summary["frames"], summary["psnr_y"], seconds
+    if not measure:
+        return summary["bytes"], summary["frames"], None, seconds
+    decoded = out + ".y4m"
+    subprocess.run([binary, "decode", out, "-o", decoded], check=True, capture_output=True)
+    frames, psnr = quality_of(binary, seq, decoded)
+    return summary["bytes"], frames, psnr, seconds
 
 
 def bd_rate(binary, csv_path, anchor, test):
@@ -273,7 +289,7 @@ def thread_scaling(binary, seqs, out_dir):
         times = {k: [] for k in ("m1", "m2", "x1", "x2")}
         for _ in range(runs):
             for t in (1, 2):
-                times[f"m{t}"].append(encode_mocomp(binary, seq, preset, 27, os.path.join(out_dir, "t.mcv"), t)[3])
+                times[f"m{t}"].append(encode_mocomp(binary, seq, preset, 27, os.path.join(out_dir, "t.mcv"), t, measure=False)[3])
                 times[f"x{t}"].append(
                     encode_x264(binary, seq, preset, 27, os.path.join(out_dir, "t.264"), t, measure=False)[3]
                 )

@@ -282,3 +282,54 @@ fn similarities_are_compared_in_decibels() {
     ]);
     assert!(err.contains("no ciede2000 values"), "{err}");
 }
+
+#[test]
+fn encode_with_no_metrics_measures_nothing_and_codes_the_same_stream() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    let src = sample("tree_176.y4m");
+    let encode = |out: &str, metrics: &str| {
+        json_stdout(mocomp().args([
+            "encode",
+            src.to_str().unwrap(),
+            "-o",
+            &p(out),
+            "--preset",
+            "ultrafast",
+            "--metrics",
+            metrics,
+            "--json",
+            "--quiet",
+        ]))
+    };
+    let (measured, bare) = (encode("a.mcv", "psnr"), encode("b.mcv", "none"));
+    assert_eq!(
+        std::fs::read(p("a.mcv")).unwrap(),
+        std::fs::read(p("b.mcv")).unwrap()
+    );
+    assert_eq!(measured["bytes"], bare["bytes"]);
+    assert!(measured["psnr_y"].as_f64().unwrap() > 25.0, "{measured}");
+    for key in ["psnr_y", "psnr_u", "psnr_v", "psnr_y_mse", "ssim"] {
+        assert!(bare[key].is_null(), "{key}: {bare}");
+    }
+    // The text summary says so rather than printing NaN.
+    let out = mocomp()
+        .args([
+            "encode",
+            src.to_str().unwrap(),
+            "-o",
+            &p("c.mcv"),
+            "--metrics",
+            "none",
+        ])
+        .assert()
+        .success()
+        .get_output()
+        .stdout
+        .clone();
+    let text = String::from_utf8(out).unwrap();
+    assert!(
+        text.contains("quality not measured") && !text.contains("NaN"),
+        "{text}"
+    );
+}

@@ -138,7 +138,8 @@ pub struct ToolArgs {
     pub partitions: Option<Partitions>,
     /// Quality metrics to measure, comma-separated: psnr, ssim, ms-ssim,
     /// psnr-hvs, ciede2000, vmaf (through an ffmpeg built with libvmaf), or
-    /// all (all but vmaf). PSNR is always measured.
+    /// all (all but vmaf); none for no measurement at all (as x264 without
+    /// --psnr: the encode's time alone). PSNR is measured unless none.
     #[arg(long, default_value = "psnr,ssim", value_name = "LIST")]
     pub metrics: Metrics,
 }
@@ -342,11 +343,15 @@ fn print_summary(args: &Args, config: &EncoderConfig, s: &Summary) -> Result<()>
         config.predictor.describe()
     )?;
     writeln!(stdout, "  {} bytes, {:.2} kbit/s", s.bytes, s.kbps)?;
-    write!(
-        stdout,
-        "  PSNR Y {:.3} U {:.3} V {:.3} dB",
-        s.quality.psnr_y, s.quality.psnr_u, s.quality.psnr_v
-    )?;
+    if s.quality.psnr_y.is_nan() {
+        write!(stdout, "  quality not measured (--metrics none)")?;
+    } else {
+        write!(
+            stdout,
+            "  PSNR Y {:.3} U {:.3} V {:.3} dB",
+            s.quality.psnr_y, s.quality.psnr_u, s.quality.psnr_v
+        )?;
+    }
     let q = &s.quality;
     for (name, v, unit) in [
         ("SSIM", q.ssim, ""),

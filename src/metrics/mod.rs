@@ -39,8 +39,8 @@ pub enum SsimWindow {
     Blocks8x8,
 }
 
-/// What a quality record measures: the metrics (PSNR always) and which
-/// SSIM.
+/// What a quality record measures: the metrics (PSNR unless none) and
+/// which SSIM.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct QualitySettings {
     /// The metrics to measure.
@@ -104,7 +104,11 @@ impl FrameQuality {
             SsimWindow::Blocks8x8 => ssim_8x8(a, b),
         };
         FrameQuality {
-            psnr: frame_psnr(reference, test),
+            psnr: if which.has(Metric::Psnr) {
+                frame_psnr(reference, test)
+            } else {
+                FramePsnr::from_mse([f64::NAN; 3])
+            },
             ssim: when(Metric::Ssim, &|| ssim_of(reference.y(), test.y())),
             ms_ssim: when(Metric::MsSsim, &|| ms_ssim(reference.y(), test.y())),
             psnr_hvs: hvs.map_or(f64::NAN, |h| h.total),

@@ -48,8 +48,12 @@ pub fn mse(a: &Plane, b: &Plane) -> f64 {
     sse(a, b) as f64 / (a.width() * a.height()) as f64
 }
 
-/// `10 log10(255^2 / mse)`, at most [`PSNR_CAP_DB`].
+/// `10 log10(255^2 / mse)`, at most [`PSNR_CAP_DB`]; NaN for an MSE not
+/// measured (NaN).
 pub fn psnr_from_mse(mse: f64) -> f64 {
+    if mse.is_nan() {
+        return f64::NAN;
+    }
     if mse <= 0.0 {
         return PSNR_CAP_DB;
     }

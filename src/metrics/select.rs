@@ -134,6 +134,17 @@ impl Metrics {
         Metrics::of(&[Metric::Psnr])
     }
 
+    /// No metric, not even PSNR (`--metrics none`, as x264 without
+    /// `--psnr`): an encode's time alone, every figure NaN.
+    pub fn none() -> Metrics {
+        Metrics { bits: 0 }
+    }
+
+    /// Whether no metric is measured.
+    pub fn is_none(self) -> bool {
+        self.bits == 0
+    }
+
     /// PSNR and the given metrics.
     pub fn of(list: &[Metric]) -> Metrics {
         let mut m = Metrics { bits: 1 };
@@ -174,8 +185,12 @@ impl Metrics {
 impl FromStr for Metrics {
     type Err = UnknownMetric;
 
-    /// A comma-separated list of names; `all` for every metric but VMAF.
+    /// A comma-separated list of names; `all` for every metric but VMAF;
+    /// `none` alone for none.
     fn from_str(s: &str) -> Result<Metrics, UnknownMetric> {
+        if s.trim().eq_ignore_ascii_case("none") {
+            return Ok(Metrics::none());
+        }
         let mut out = Metrics::psnr_only();
         for name in s.split(',').filter(|n| !n.trim().is_empty()) {
             if name.trim().eq_ignore_ascii_case("all") {
@@ -190,6 +205,9 @@ impl FromStr for Metrics {
 
 impl fmt::Display for Metrics {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.is_none() {
+            return f.write_str("none");
+        }
         let names: Vec<&str> = self.iter().map(Metric::name).collect();
         f.write_str(&names.join(","))
     }
@@ -217,6 +235,12 @@ mod tests {
         assert!(!m.has(Metric::Ssim) && !m.has(Metric::Vmaf));
         assert_eq!(m.to_string(), "psnr,ms-ssim,ciede2000");
         assert!(m.with(Metric::Psnr, false).has(Metric::Psnr));
+        // `none` alone is the empty set, PSNR included; within a list it
+        // is not a metric.
+        let none: Metrics = " None".parse().unwrap();
+        assert!(none.is_none() && Metric::ALL.iter().all(|&m| !none.has(m)));
+        assert_eq!(none.to_string(), "none");
+        assert!("none,ssim".parse::<Metrics>().is_err());
         let all: Metrics = "all".parse().unwrap();
         assert_eq!(all, Metrics::all_builtin());
         assert!(!all.has(Metric::Vmaf));

@@ -448,6 +448,9 @@ mod avx2 {
 unsafe fn halfpel_planes_body<const AVX2: bool>(reference: &Plane, margin: usize, band: HalfpelBand<'_>) {
     let m = margin as isize;
     let clip = |v: i32| v.clamp(0, 255) as u8;
+    // The rounding of a pass's 16-bit sum in 16 bits (exact: the sum is at
+    // most 22440), which vectorises twice as wide as in 32.
+    let round16 = |v: i16| ((v + 32) >> 6).clamp(0, 255) as u8;
     let HalfpelBand {
         rows: band_rows,
         cols,
@@ -466,6 +469,12 @@ unsafe fn halfpel_planes_body<const AVX2: bool>(reference: &Plane, margin: usize
     hpass.resize(rows * span, 0);
     for (r, out) in hpass[..rows * span].chunks_exact_mut(span).enumerate() {
         let src = &reference.data()[reference.index(left - 3, (y0 + r) as isize - m - 3)..];
+        #[cfg(target_arch = "x86_64")]
+        if AVX2 {
+            // SAFETY: the caller's contract: AVX2 only where the CPU has it.
+            unsafe { x86_halfpel::horizontal_row_avx2(&src[..span + 7], out) };
+            continue;
+        }
         filter_run(out, |k| &src[k..k + span]);
     }
     let hrow = |i: usize| &hpass[i * span..(i + 1) * span];
@@ -474,15 +483,25 @@ unsafe fn halfpel_planes_body<const AVX2: bool>(reference: &Plane, margin: usize
     for (i, y) in band_rows.enumerate() {
         let at = i * stride + x0;
         for (o, &v) in plane_h[at..at + span].iter_mut().zip(hrow(i + 3)) {
-            *o = clip((i32::from(v) + 32) >> 6);
+            *o = round16(v);
         }
         let taps: [&[u8]; 8] = std::array::from_fn(|k| {
             let from = reference.index(left, y as isize - m - 3 + k as isize);
             &reference.data()[from..from + span]
         });
-        filter_run(&mut acc16, |k| taps[k]);
-        for (o, &v) in plane_v[at..at + span].iter_mut().zip(&acc16) {
-            *o = clip((i32::from(v) + 32) >> 6);
+        #[cfg(target_arch = "x86_64")]
+        let vertical_done = AVX2 && {
+            // SAFETY: the caller's contract: AVX2 only where the CPU has it.
+            unsafe { x86_halfpel::vertical_row_avx2(&taps, &mut plane_v[at..at + span]) };
+            true
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let vertical_done = false;
+        if !vertical_done {
+            filter_run(&mut acc16, |k| taps[k]);
+            for (o, &v) in plane_v[at..at + span].iter_mut().zip(&acc16) {
+                *o = round16(v);
+            }
         }
         let out = &mut plane_d[at..at + span];
         let rows: [&[i16]; 8] = std::array::from_fn(|k| hrow(i + k));
@@ -1003,6 +1022,121 @@ mod x86_halfpel {
     use std::arch::x86_64::*;
 
     use super::HALF;
+
+    /// Tap pairs (2k, 2k + 1) of the half-pel filter as signed bytes, for
+    /// `pmaddubsw` on sample pairs (each pair's sum is within i16: at most
+    /// 40 * 255; the four pairs' sum too, -6120..=22440, as the scalar
+    /// pass).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn tap_pairs() -> [__m256i; 4] {
+        std::array::from_fn(|k| {
+            let pair = (i32::from(HALF[2 * k + 1] as i8 as u8) << 8) | i32::from(HALF[2 * k] as i8 as u8);
+            _mm256_set1_epi16(pair as i16)
+        })
+    }
+
+    /// The unrounded horizontal pass of one row, `out[x] = sum_k HALF[k]
+    /// src[x + k]` (`src` holds `out.len() + 7` samples), sixteen outputs
+    /// at a time: each 128-bit lane holds eight outputs' fifteen samples,
+    /// shuffled into sample pairs for one `pmaddubsw` per tap pair. The
+    /// columns past the last multiple of 16 in scalar code.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn horizontal_row_avx2(src: &[u8], out: &mut [i16]) {
+        let n = out.len();
+        assert!(
+            src.len() >= n + 7,
+            "a row of the horizontal pass past its samples"
+        );
+        let taps = tap_pairs();
+        // Lane 0 from sample x (outputs x..x + 8), lane 1 from x + 7
+        // (outputs x + 8..x + 16: one sample later in the lane), so that
+        // the last load ends at the row's last sample.
+        let order: [__m256i; 4] = std::array::from_fn(|k| {
+            let index = |lane: usize, b: usize| (b / 2 + 2 * k + b % 2 + lane) as i8;
+            let lane = |l: usize| std::array::from_fn::<i8, 16, _>(|b| index(l, b));
+            let (a, c) = (lane(0), lane(1));
+            // SAFETY: 16 bytes each, unaligned loads.
+            unsafe {
+                _mm256_inserti128_si256::<1>(
+                    _mm256_castsi128_si256(_mm_loadu_si128(a.as_ptr() as *const __m128i)),
+                    _mm_loadu_si128(c.as_ptr() as *const __m128i),
+                )
+            }
+        });
+        let mut x = 0;
+        while x + 16 <= n {
+            // SAFETY: x + 7 + 16 <= n + 7 <= src.len() (asserted above);
+            // x + 16 <= out.len().
+            unsafe {
+                let p = src.as_ptr().add(x);
+                let samples = _mm256_inserti128_si256::<1>(
+                    _mm256_castsi128_si256(_mm_loadu_si128(p as *const __m128i)),
+                    _mm_loadu_si128(p.add(7) as *const __m128i),
+                );
+                let mut acc = _mm256_maddubs_epi16(_mm256_shuffle_epi8(samples, order[0]), taps[0]);
+                for k in 1..4 {
+                    let pairs = _mm256_shuffle_epi8(samples, order[k]);
+                    acc = _mm256_add_epi16(acc, _mm256_maddubs_epi16(pairs, taps[k]));
+                }
+                _mm256_storeu_si256(out.as_mut_ptr().add(x) as *mut __m256i, acc);
+            }
+            x += 16;
+        }
+        for (j, o) in out.iter_mut().enumerate().skip(x) {
+            *o = HALF
+                .iter()
+                .enumerate()
+                .map(|(k, &t)| t * i16::from(src[j + k]))
+                .sum();
+        }
+    }
+
+    /// The vertical phase of one row, rounded: `out[x] = clip((sum_k
+    /// HALF[k] rows[k][x] + 32) >> 6)` (each row holds `out.len()`
+    /// samples), 32 outputs at a time: rows interleaved in pairs for one
+    /// `pmaddubsw` per tap pair, rounded in 16 bits, packed (the
+    /// in-lane unpacks and the pack undo each other's order). The columns
+    /// past the last multiple of 32 in scalar code.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn vertical_row_avx2(rows: &[&[u8]; 8], out: &mut [u8]) {
+        let n = out.len();
+        assert!(
+            rows.iter().all(|r| r.len() >= n),
+            "a row of the vertical pass past its samples"
+        );
+        let taps = tap_pairs();
+        let round = _mm256_set1_epi16(32);
+        let mut x = 0;
+        while x + 32 <= n {
+            let (mut lo, mut hi) = (_mm256_setzero_si256(), _mm256_setzero_si256());
+            for (k, t) in taps.iter().enumerate() {
+                // SAFETY: x + 32 <= n <= every row's length (asserted).
+                let (a, b) = unsafe {
+                    (
+                        _mm256_loadu_si256(rows[2 * k].as_ptr().add(x) as *const __m256i),
+                        _mm256_loadu_si256(rows[2 * k + 1].as_ptr().add(x) as *const __m256i),
+                    )
+                };
+                lo = _mm256_add_epi16(lo, _mm256_maddubs_epi16(_mm256_unpacklo_epi8(a, b), *t));
+                hi = _mm256_add_epi16(hi, _mm256_maddubs_epi16(_mm256_unpackhi_epi8(a, b), *t));
+            }
+            let lo = _mm256_srai_epi16::<6>(_mm256_add_epi16(lo, round));
+            let hi = _mm256_srai_epi16::<6>(_mm256_add_epi16(hi, round));
+            // SAFETY: x + 32 <= out.len().
+            unsafe {
+                _mm256_storeu_si256(
+                    out.as_mut_ptr().add(x) as *mut __m256i,
+                    _mm256_packus_epi16(lo, hi),
+                )
+            };
+            x += 32;
+        }
+        for (j, o) in out.iter_mut().enumerate().skip(x) {
+            let v: i16 = HALF.iter().zip(rows).map(|(&t, r)| t * i16::from(r[j])).sum();
+            *o = ((v + 32) >> 6).clamp(0, 255) as u8;
+        }
+    }
 
     /// Panics unless a `16 x 16` block at stride `stride` fits in `len`.
     fn check_16x16(len: usize, stride: usize) {

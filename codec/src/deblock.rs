@@ -16,6 +16,15 @@ use crate::residual::MbResidual;
 use crate::syntax::{FrameSyntax, MbKind, MotionTool};
 use crate::transform::chroma_qp;
 
+/// Bit `k` set where luma 4x4 block `k` has a level.
+fn luma_coded_bits(residual: &MbResidual) -> u16 {
+    residual
+        .luma_coded()
+        .iter()
+        .enumerate()
+        .fold(0, |bits, (k, &c)| bits | u16::from(c) << k)
+}
+
 /// What the boundary strength needs of one macroblock.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct MbEdgeInfo {
@@ -36,12 +45,17 @@ impl MbEdgeInfo {
     /// The information of macroblock `mb` of a frame using `tool`, whose
     /// vector (for its neighbours' prediction) is `mv`.
     pub fn of(kind: &MbKind, residual: &MbResidual, tool: MotionTool, mvs: MbVectors) -> MbEdgeInfo {
-        let coded = residual
-            .luma_coded()
-            .iter()
-            .enumerate()
-            .filter(|(_, &c)| c)
-            .fold(0u16, |bits, (i, _)| bits | 1 << i);
+        MbEdgeInfo::with_coded(kind, residual, luma_coded_bits(residual), tool, mvs)
+    }
+
+    /// [`MbEdgeInfo::of`] with the luma blocks' coded bits known.
+    fn with_coded(
+        kind: &MbKind,
+        residual: &MbResidual,
+        coded: u16,
+        tool: MotionTool,
+        mvs: MbVectors,
+    ) -> MbEdgeInfo {
         MbEdgeInfo {
             intra: matches!(kind, MbKind::Intra { .. }),
             mvs: if matches!(tool, MotionTool::Grid(_)) {
@@ -55,23 +69,22 @@ impl MbEdgeInfo {
     }
 
     /// Every macroblock of `frame`, with `vectors` from
-    /// [`crate::recon::frame_vectors`].
+    /// [`crate::recon::frame_vectors`] (a macroblock without levels, most
+    /// of a P frame's, read no further than its kind).
     pub fn of_frame(frame: &FrameSyntax, vectors: &[MbVectors]) -> Vec<MbEdgeInfo> {
+        let tool = frame.header.tool;
         frame
             .mbs
             .iter()
             .zip(vectors)
-            .map(|(mb, &mv)| MbEdgeInfo::of(&mb.kind, mb.residual(), frame.header.tool, mv))
+            .map(|(mb, &mv)| {
+                let coded = mb.levels().map_or(0, luma_coded_bits);
+                MbEdgeInfo::with_coded(&mb.kind, mb.residual(), coded, tool, mv)
+            })
             .collect()
     }
 
-    /// Inter, without levels, its blocks sharing one motion (most of a P
-    /// frame's macroblocks): no edge inside it, and each of its edges has
-    /// one strength along it, from the motion on either side alone.
-    fn is_plain(&self) -> bool {
-        !self.intra && self.coded == 0 && self.mvs.iter().all(|v| *v == self.mvs[0])
-    }
-
+    #[cfg(test)]
     fn coded_at(&self, bx: usize, by: usize) -> bool {
         self.coded >> (by * 4 + bx) & 1 == 1
     }
@@ -91,7 +104,7 @@ fn strength(info: &[MbEdgeInfo], mb_cols: usize, p: (usize, usize), q: (usize, u
 /// [`strength`] of blocks `p` and `q` given by their macroblocks and their
 /// positions in them (`mb_edge`: in different macroblocks; `vertical`: the
 /// edge between them is vertical).
-#[inline(always)]
+#[cfg(test)]
 fn strength_between(
     (mp, (px, py)): (&MbEdgeInfo, (usize, usize)),
     (mq, (qx, qy)): (&MbEdgeInfo, (usize, usize)),
@@ -142,47 +155,143 @@ impl Strengths {
         };
         for (i, m) in info.iter().enumerate() {
             let (mx, my) = (i % mb_cols, i / mb_cols);
-            let plain = m.is_plain();
-            for y in 0..4 {
-                for x in 0..4 {
-                    let (bx, by) = (4 * mx + x, 4 * my + y);
-                    let at = by * cols + bx;
-                    if x > 0 && !plain {
-                        s.vertical[at] = strength_between((m, (x - 1, y)), (m, (x, y)), false, true);
-                    }
-                    if y > 0 && !plain {
-                        s.horizontal[at] = strength_between((m, (x, y - 1)), (m, (x, y)), false, false);
-                    }
-                }
+            let left = (mx > 0).then(|| &info[i - 1]);
+            let above = (my > 0).then(|| &info[i - mb_cols]);
+            let masks = EdgeMasks::of(m, left, above);
+            // Most of a P frame: no edge of the macroblock filtered, and
+            // the strengths are 0 already.
+            if masks.all_zero() {
+                continue;
             }
+            let [vertical, horizontal] = masks.strengths();
             let corner = 4 * my * cols + 4 * mx;
-            if mx > 0 {
-                let left = &info[i - 1];
-                let edge = (0..4).map(|y| corner + y * cols);
-                if plain && left.is_plain() {
-                    // One strength along the whole edge: motion alone.
-                    let v = strength_between((left, (3, 0)), (m, (0, 0)), true, true);
-                    edge.for_each(|at| s.vertical[at] = v);
-                } else {
-                    for (y, at) in edge.enumerate() {
-                        s.vertical[at] = strength_between((left, (3, y)), (m, (0, y)), true, true);
-                    }
-                }
-            }
-            if my > 0 {
-                let above = &info[i - mb_cols];
-                if plain && above.is_plain() {
-                    let v = strength_between((above, (0, 3)), (m, (0, 0)), true, false);
-                    s.horizontal[corner..corner + 4].fill(v);
-                } else {
-                    for x in 0..4 {
-                        s.horizontal[corner + x] =
-                            strength_between((above, (x, 3)), (m, (x, 0)), true, false);
-                    }
-                }
+            for y in 0..4 {
+                let at = corner + y * cols;
+                s.vertical[at..at + 4].copy_from_slice(&vertical[4 * y..4 * y + 4]);
+                s.horizontal[at..at + 4].copy_from_slice(&horizontal[4 * y..4 * y + 4]);
             }
         }
         s
+    }
+}
+
+/// The strengths of the edges left of and above a macroblock's sixteen
+/// 4x4 blocks, as bit masks over the blocks (bit `y * 4 + x`), one per
+/// rule of [`strength_between`] (the definition the tests hold them to):
+/// the masks hold a macroblock's 32 edges in a few operations instead of a
+/// decision per edge.
+struct EdgeMasks {
+    /// Edges that exist: inside the picture, and inside the macroblock
+    /// not cutting an 8x8 transform block.
+    edges: [u16; 2],
+    /// Of those, the edges with intra on a side (strength 4 on the
+    /// macroblock's edge, 3 inside it).
+    intra: [u16; 2],
+    /// Levels on a side (strength 2).
+    coded: [u16; 2],
+    /// Motion differing across (strength 1).
+    motion: [u16; 2],
+}
+
+/// The blocks of column 0 and of row 0 of a macroblock.
+const COLUMN_0: u16 = 0x1111;
+const ROW_0: u16 = 0x000f;
+
+impl EdgeMasks {
+    /// Vertical (index 0) and horizontal (1) edges of macroblock `m`, its
+    /// `left` and `above` neighbours where there are.
+    fn of(m: &MbEdgeInfo, left: Option<&MbEdgeInfo>, above: Option<&MbEdgeInfo>) -> EdgeMasks {
+        // Inside: the edges after columns (rows) 0-2, or only the 8x8
+        // blocks' middle one in the 8x8 transform.
+        let inner = if m.transform_8x8 {
+            [0x4444, 0x0f00]
+        } else {
+            [0xeeee, 0xfff0]
+        };
+        let c = m.coded;
+        let mut masks = EdgeMasks {
+            edges: inner,
+            intra: if m.intra { inner } else { [0; 2] },
+            coded: [(c | c << 1) & inner[0], (c | c << 4) & inner[1]],
+            // Inside, motion differs only across the 8x8 blocks' middles:
+            // blocks 0 | 1 and 2 | 3 (vertical), 0 | 2 and 1 | 3.
+            motion: [
+                differs(m.mvs[0], m.mvs[1]) & 0x0044 | differs(m.mvs[2], m.mvs[3]) & 0x4400,
+                differs(m.mvs[0], m.mvs[2]) & 0x0300 | differs(m.mvs[1], m.mvs[3]) & 0x0c00,
+            ],
+        };
+        if let Some(l) = left {
+            masks.edges[0] |= COLUMN_0;
+            if m.intra || l.intra {
+                masks.intra[0] |= COLUMN_0;
+            }
+            masks.coded[0] |= (l.coded >> 3 | c) & COLUMN_0;
+            masks.motion[0] |= differs(l.mvs[1], m.mvs[0]) & 0x0011 | differs(l.mvs[3], m.mvs[2]) & 0x1100;
+        }
+        if let Some(a) = above {
+            masks.edges[1] |= ROW_0;
+            if m.intra || a.intra {
+                masks.intra[1] |= ROW_0;
+            }
+            masks.coded[1] |= (a.coded >> 12 | c) & ROW_0;
+            masks.motion[1] |= differs(a.mvs[2], m.mvs[0]) & 0x0003 | differs(a.mvs[3], m.mvs[1]) & 0x000c;
+        }
+        masks
+    }
+
+    /// Whether every edge's strength is 0.
+    fn all_zero(&self) -> bool {
+        (0..2).all(|d| (self.intra[d] | self.coded[d] | self.motion[d]) & self.edges[d] == 0)
+    }
+
+    /// The strength of each block's left (index 0) and upper (1) edge:
+    /// the strongest rule that holds, a row of four blocks at a time in
+    /// the bytes of a word (each rule's mask made exclusive of the
+    /// stronger ones, so that the sum is the strongest's value).
+    fn strengths(&self) -> [[u8; 16]; 2] {
+        std::array::from_fn(|d| {
+            let outer = if d == 0 { COLUMN_0 } else { ROW_0 };
+            let intra = self.intra[d] & self.edges[d];
+            let coded = self.coded[d] & self.edges[d] & !intra;
+            let motion = self.motion[d] & self.edges[d] & !intra & !coded;
+            let mut out = [0u8; 16];
+            for (y, row) in out.chunks_exact_mut(4).enumerate() {
+                let bytes = |mask: u16| SPREAD[usize::from(mask >> (4 * y) & 15)];
+                let s = 3 * bytes(intra) + bytes(intra & outer) + 2 * bytes(coded) + bytes(motion);
+                row.copy_from_slice(&s.to_le_bytes());
+            }
+            out
+        })
+    }
+}
+
+/// Byte `k` of `SPREAD[n]` is bit `k` of `n`: four blocks' bits as four
+/// bytes.
+const SPREAD: [u32; 16] = {
+    let mut table = [0u32; 16];
+    let mut n = 0;
+    while n < 16 {
+        let mut k = 0;
+        while k < 4 {
+            table[n] |= ((n as u32 >> k) & 1) << (8 * k);
+            k += 1;
+        }
+        n += 1;
+    }
+    table
+};
+
+/// All bits where the two 8x8 blocks' motion differs by H.264's rule
+/// (another reference, or a component a pel or more apart), none
+/// elsewhere (an intra block's or a grid frame's, which have no vector).
+fn differs(a: Option<crate::partition::RefMv>, b: Option<crate::partition::RefMv>) -> u16 {
+    match (a, b) {
+        (Some(a), Some(b))
+            if a.ref_idx != b.ref_idx || (a.mv.x - b.mv.x).abs() >= 4 || (a.mv.y - b.mv.y).abs() >= 4 =>
+        {
+            u16::MAX
+        }
+        _ => 0,
     }
 }
 
@@ -299,7 +408,7 @@ mod tests {
     #[test]
     fn a_frames_strengths_are_each_edges_by_the_definition() {
         // Macroblocks of every kind, mostly plain inter ones in runs.
-        let (cols, rows) = (7, 5);
+        let (cols, rows) = (23, 17);
         let mut seed = 17u32;
         let mut next = |n: u32| {
             seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
@@ -310,12 +419,29 @@ mod tests {
                 let mv = |k: u32| Mv::new([0, 4, -3, 9][k as usize], [0, 0, 5, -4][k as usize]);
                 let shared = next(4);
                 let mut m = inter(mv(shared), 0);
-                match next(6) {
-                    0 => m.intra = true,
-                    1 => m.coded = next(1 << 16) as u16,
-                    2 => m.mvs[next(4) as usize] = Some(RefMv::previous(mv(next(4)))),
-                    3 => m.transform_8x8 = true,
-                    _ => {}
+                // Each trait on its own or together (levels in the 8x8
+                // transform beside a partition, intra in 8x8 blocks, a
+                // grid frame's missing vectors).
+                if next(6) == 0 {
+                    m.intra = true;
+                    m.mvs = [None; 4];
+                }
+                if next(3) == 0 {
+                    m.coded = next(1 << 16) as u16;
+                }
+                for _ in 0..next(3) {
+                    let other = [
+                        Some(RefMv::previous(mv(next(4)))),
+                        None,
+                        Some(RefMv {
+                            ref_idx: 1,
+                            mv: mv(shared),
+                        }),
+                    ];
+                    m.mvs[next(4) as usize] = other[next(3) as usize];
+                }
+                if next(4) == 0 {
+                    m.transform_8x8 = true;
                 }
                 m
             })

@@ -107,6 +107,11 @@ impl CodedMb {
         CodedMb { kind, residual: None }
     }
 
+    /// Its levels where any was coded.
+    pub fn levels(&self) -> Option<&MbResidual> {
+        self.residual.as_deref()
+    }
+
     /// Its levels (all zero when none were coded).
     pub fn residual(&self) -> &MbResidual {
         self.residual.as_deref().unwrap_or(&NO_RESIDUAL)

@@ -196,7 +196,10 @@ fn intra_prediction() {
 #[test]
 fn deblocking() {
     each_level(&LF, |isa, t, s| {
-        let LfDsp { filter_mb_edge } = *t;
+        let LfDsp {
+            filter_mb_edge,
+            filter_chroma_edge,
+        } = *t;
         let mut r = Random(0x5eed_deb1);
         // 24x24 pictures of every kind, and near-flat ones with a step at
         // the edge (where most lines pass the filter's thresholds).
@@ -220,6 +223,27 @@ fn deblocking() {
         for (n, data) in pictures.iter().enumerate() {
             for qp in [15, 16, 22, 30, 37, 45, 51, 16 + r.below(36) as u8] {
                 let strengths = [0, 1, 2, 3].map(|_| r.below(5) as u8);
+                // Both chroma planes at once (the second plane another
+                // picture), against the scalar kernel on each.
+                let other = &pictures[(n + 7) % pictures.len()];
+                let chroma_edges = [(12, 1, 24, 16 + 7 * 24), (12 * 24 + 4, 24, 1, 15 * 24 + 4 + 8)];
+                for (first, step, line_step, end) in chroma_edges {
+                    let (mut u, mut v) = (data.clone(), other.clone());
+                    let (mut su, mut sv) = (data.clone(), other.clone());
+                    filter_chroma_edge(
+                        &mut u[..end],
+                        &mut v[..end],
+                        (first, step, line_step),
+                        strengths,
+                        qp,
+                    );
+                    (s.filter_mb_edge)(&mut su[..end], (first, step, line_step), strengths, qp, false);
+                    (s.filter_mb_edge)(&mut sv[..end], (first, step, line_step), strengths, qp, false);
+                    assert!(
+                        u == su && v == sv,
+                        "{isa} chroma pair {n} bS {strengths:?} QP {qp} step {step}"
+                    );
+                }
                 for luma in [true, false] {
                     // A vertical edge at x = 12, a horizontal one at y =
                     // 12 (the slice ending at the last sample read).

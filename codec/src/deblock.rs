@@ -318,32 +318,76 @@ fn filter_plane(plane: &mut Plane, strengths: &Strengths, qp: u8, sub: usize) {
     }
 }
 
-/// [`filter_plane`] with the plane's subsampling known when compiled (the
-/// strengths' positions from shifts, not multiplications): an edge of
-/// four 0 strengths, most of a still or skipped picture's, is passed
-/// over before the kernel's call.
+/// [`filter_plane`] with the plane's subsampling known when compiled.
 fn filter_plane_sized<const SUB: usize>(plane: &mut Plane, strengths: &Strengths, qp: u8) {
     let filter_mb_edge = lf().filter_mb_edge;
-    let (w, h, stride) = (plane.width(), plane.height(), plane.stride());
-    let origin = plane.index(0, 0);
-    let (luma, piece, mb) = (SUB == 1, 4 / SUB, 16 / SUB);
+    let layout = Layout::of(plane);
     let data = plane.data_mut();
+    each_edge::<SUB>(layout, strengths, |at, bs| {
+        filter_mb_edge(data, at, bs, qp, SUB == 1)
+    });
+}
+
+/// Both chroma planes' edges, each edge of the two at once (a plane's
+/// edge fills half of the kernel's lanes).
+fn filter_chroma_planes(u: &mut Plane, v: &mut Plane, strengths: &Strengths, qp: u8) {
+    if !Edge::filters_at(qp) {
+        return;
+    }
+    let filter_chroma_edge = lf().filter_chroma_edge;
+    let layout = Layout::of(u);
+    assert!(layout == Layout::of(v), "chroma planes laid out alike");
+    let (u, v) = (u.data_mut(), v.data_mut());
+    each_edge::<2>(layout, strengths, |at, bs| filter_chroma_edge(u, v, at, bs, qp));
+}
+
+/// A plane's size, row stride and the index of its sample (0, 0).
+#[derive(Clone, Copy, PartialEq, Eq)]
+struct Layout {
+    width: usize,
+    height: usize,
+    stride: usize,
+    origin: usize,
+}
+
+impl Layout {
+    fn of(plane: &Plane) -> Layout {
+        Layout {
+            width: plane.width(),
+            height: plane.height(),
+            stride: plane.stride(),
+            origin: plane.index(0, 0),
+        }
+    }
+}
+
+/// Each macroblock's length of edge of a plane with subsampling `SUB`
+/// known when compiled (the strengths' positions from shifts), in the
+/// order of filtering, to `edge` as the kernels take it: `((first, step,
+/// line_step), strengths)`. An edge of four 0 strengths, most of a still
+/// or skipped picture's, is passed over.
+fn each_edge<const SUB: usize>(
+    l: Layout,
+    strengths: &Strengths,
+    mut edge: impl FnMut((usize, usize, usize), [u8; 4]),
+) {
+    let (piece, mb) = (4 / SUB, 16 / SUB);
     let cols = strengths.cols;
-    for y0 in (0..h).step_by(mb) {
-        for x in (4..w).step_by(4) {
+    for y0 in (0..l.height).step_by(mb) {
+        for x in (4..l.width).step_by(4) {
             let bx = x * SUB / 4;
             let bs = std::array::from_fn(|k| strengths.vertical[((y0 + k * piece) * SUB / 4) * cols + bx]);
             if bs != [0; 4] {
-                filter_mb_edge(data, (origin + y0 * stride + x, 1, stride), bs, qp, luma);
+                edge((l.origin + y0 * l.stride + x, 1, l.stride), bs);
             }
         }
     }
-    for x0 in (0..w).step_by(mb) {
-        for y in (4..h).step_by(4) {
+    for x0 in (0..l.width).step_by(mb) {
+        for y in (4..l.height).step_by(4) {
             let row = (y * SUB / 4) * cols;
             let bs = std::array::from_fn(|k| strengths.horizontal[row + (x0 + k * piece) * SUB / 4]);
             if bs != [0; 4] {
-                filter_mb_edge(data, (origin + y * stride + x0, stride, 1), bs, qp, luma);
+                edge((l.origin + y * l.stride + x0, l.stride, 1), bs);
             }
         }
     }
@@ -378,15 +422,21 @@ impl FrameDeblocker {
             filter_plane(plane, &self.strengths, chroma_qp(self.qp), 2);
         }
     }
+
+    /// Deblocks both chroma planes in place, the same as [`Self::filter`]
+    /// on each, in about half the time where the kernel takes both.
+    pub fn filter_chroma(&self, u: &mut Plane, v: &mut Plane) {
+        filter_chroma_planes(u, v, &self.strengths, chroma_qp(self.qp));
+    }
 }
 
 /// Deblocks `frame` (coded size), coded at `qp` with macroblocks `info`
 /// in raster order, in place. Borders are not extended.
 pub fn deblock_frame(frame: &mut Frame, info: &[MbEdgeInfo], qp: u8) {
     let deblocker = FrameDeblocker::new(info, (frame.width(), frame.height()), qp);
-    for (index, plane) in frame.planes_mut().iter_mut().enumerate() {
-        deblocker.filter(plane, index);
-    }
+    let [y, u, v] = frame.planes_mut();
+    deblocker.filter(y, 0);
+    deblocker.filter_chroma(u, v);
 }
 
 #[cfg(test)]

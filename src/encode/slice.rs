@@ -220,14 +220,23 @@ fn finish_recon(seq: &SequenceHeader, syntax: &FrameSyntax, vectors: &[MbVectors
         let info = MbEdgeInfo::of_frame(syntax, vectors);
         FrameDeblocker::new(&info, (recon.width(), recon.height()), header.qp)
     });
-    let finish = |plane: &mut Plane, index: usize| {
+    let luma = |y: &mut Plane| {
         if let Some(d) = &deblocker {
-            d.filter(plane, index);
+            d.filter(y, 0);
         }
-        plane.extend_border();
+        y.extend_border();
+    };
+    // The chroma planes together: the kernel filters an edge of both at
+    // once.
+    let chroma = |u: &mut Plane, v: &mut Plane| {
+        if let Some(d) = &deblocker {
+            d.filter_chroma(u, v);
+        }
+        u.extend_border();
+        v.extend_border();
     };
     let [y, u, v] = recon.planes_mut();
-    rayon::join(|| finish(y, 0), || rayon::join(|| finish(u, 1), || finish(v, 2)));
+    rayon::join(|| luma(y), || chroma(u, v));
 }
 
 /// What a P frame is predicted from and how.

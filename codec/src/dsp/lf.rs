@@ -14,14 +14,24 @@ use super::PerLevel;
 /// lies `line_step` further on. Every line reads 4 samples on each side.
 pub type FilterMbEdgeFn = fn(&mut [u8], (usize, usize, usize), [u8; 4], u8, bool);
 
+/// The same chroma edge of both chroma planes (laid out alike): `(u, v,
+/// (first, step, line_step), strengths, qp)`, [`FilterMbEdgeFn`] on each
+/// (`luma` false).
+pub type FilterChromaEdgeFn = fn(&mut [u8], &mut [u8], (usize, usize, usize), [u8; 4], u8);
+
 /// The deblocking kernels of one CPU level.
 #[derive(Debug, Clone, Copy)]
 pub struct LfDsp {
     /// One macroblock's length of an edge.
     pub filter_mb_edge: FilterMbEdgeFn,
+    /// One macroblock's length of a chroma edge, in both chroma planes.
+    pub filter_chroma_edge: FilterChromaEdgeFn,
 }
 
-const SCALAR: LfDsp = LfDsp { filter_mb_edge };
+const SCALAR: LfDsp = LfDsp {
+    filter_mb_edge,
+    filter_chroma_edge,
+};
 
 /// The tables, lowest level first.
 pub static LF: PerLevel<LfDsp> = PerLevel([
@@ -30,6 +40,7 @@ pub static LF: PerLevel<LfDsp> = PerLevel([
     #[cfg(target_arch = "x86_64")]
     LfDsp {
         filter_mb_edge: x86::filter_mb_edge_avx2,
+        filter_chroma_edge: x86::filter_chroma_edge_avx2,
     },
     #[cfg(not(target_arch = "x86_64"))]
     SCALAR,
@@ -70,6 +81,12 @@ pub fn filter_mb_edge(
     }
 }
 
+/// [`FilterChromaEdgeFn`], a plane at a time.
+pub fn filter_chroma_edge(u: &mut [u8], v: &mut [u8], at: (usize, usize, usize), strengths: [u8; 4], qp: u8) {
+    filter_mb_edge(u, at, strengths, qp, false);
+    filter_mb_edge(v, at, strengths, qp, false);
+}
+
 #[cfg(target_arch = "x86_64")]
 mod x86 {
     //! The edge filter on sixteen lines at once, as x264's `deblock_v_luma`
@@ -79,7 +96,7 @@ mod x86 {
 
     use std::arch::x86_64::*;
 
-    use super::{filter_mb_edge, mb_edge_lines, Edge, ALPHA, BETA, TC0};
+    use super::{filter_chroma_edge, filter_mb_edge, mb_edge_lines, Edge, ALPHA, BETA, TC0};
 
     /// [`super::FilterMbEdgeFn`] with AVX2 (the scalar twin where the
     /// edge is neither along rows nor along columns, or reaches past the
@@ -110,6 +127,91 @@ mod x86 {
         }
     }
 
+    /// [`super::FilterChromaEdgeFn`] with AVX2: both planes' eight lines in
+    /// the sixteen lanes (Cb's in the low eight, Cr's in the high), one
+    /// pass of the kernel for the two (the scalar twin where the edge is
+    /// neither along rows nor along columns, or reaches past a slice).
+    pub(super) fn filter_chroma_edge_avx2(
+        u: &mut [u8],
+        v: &mut [u8],
+        (first, step, line_step): (usize, usize, usize),
+        strengths: [u8; 4],
+        qp: u8,
+    ) {
+        if strengths == [0; 4] || !Edge::filters_at(qp) {
+            return;
+        }
+        let len = u.len().min(v.len());
+        let vertical = step == 1 && first >= 4 && first + 7 * line_step + 4 <= len;
+        let horizontal = line_step == 1 && first >= 4 * step && first + 3 * step + 8 <= len;
+        let (pu, pv) = (u.as_mut_ptr(), v.as_mut_ptr());
+        // SAFETY (both calls): AVX2 is in force (this kernel sits only in
+        // the AVX2 table), and every sample read or written lies in the
+        // ranges checked just above, in both planes.
+        if vertical {
+            unsafe { across_columns_pair((pu.add(first - 4), pv.add(first - 4)), line_step, strengths, qp) };
+        } else if horizontal {
+            let back = first - 4 * step;
+            unsafe { across_rows_pair((pu.add(back), pv.add(back)), step, strengths, qp) };
+        } else {
+            filter_chroma_edge(u, v, (first, step, line_step), strengths, qp);
+        }
+    }
+
+    /// A horizontal chroma edge of both planes: each of the rows p3 ... q3
+    /// (from `base`, `stride` apart) holds Cb's eight columns, then Cr's.
+    #[target_feature(enable = "avx2")]
+    unsafe fn across_rows_pair((u, v): (*mut u8, *mut u8), stride: usize, strengths: [u8; 4], qp: u8) {
+        let lanes = &Lanes::chroma_pair(strengths, qp);
+        let mut x = [_mm256_setzero_si256(); 8];
+        for (r, x) in x.iter_mut().enumerate() {
+            let (a, b) = (
+                u.add(r * stride) as *const __m128i,
+                v.add(r * stride) as *const __m128i,
+            );
+            *x = _mm256_cvtepu8_epi16(_mm_unpacklo_epi64(_mm_loadl_epi64(a), _mm_loadl_epi64(b)));
+        }
+        filter(&mut x, lanes, false);
+        // Only p0 and q0 change.
+        for (r, &row) in x.iter().enumerate().take(5).skip(3) {
+            let both = narrow(row);
+            _mm_storel_epi64(u.add(r * stride) as *mut __m128i, both);
+            _mm_storel_epi64(v.add(r * stride) as *mut __m128i, _mm_unpackhi_epi64(both, both));
+        }
+    }
+
+    /// A vertical chroma edge of both planes: Cb's eight lines (from `u`,
+    /// `stride` apart, each p3 ... q3) as the first eight of sixteen, Cr's
+    /// as the last.
+    #[target_feature(enable = "avx2")]
+    unsafe fn across_columns_pair((u, v): (*mut u8, *mut u8), stride: usize, strengths: [u8; 4], qp: u8) {
+        let lanes = &Lanes::chroma_pair(strengths, qp);
+        let line = |k: usize| {
+            if k < 8 {
+                u.add(k * stride)
+            } else {
+                v.add((k - 8) * stride)
+            }
+        };
+        let mut rows = [_mm_setzero_si128(); 16];
+        for (k, r) in rows.iter_mut().enumerate() {
+            *r = _mm_loadl_epi64(line(k) as *const __m128i);
+        }
+        let columns = transpose_16x8(&rows);
+        let mut x = [_mm256_setzero_si256(); 8];
+        for (x, c) in x.iter_mut().zip(columns) {
+            *x = _mm256_cvtepu8_epi16(c);
+        }
+        filter(&mut x, lanes, false);
+        let mut columns = [_mm_setzero_si128(); 8];
+        for (c, x) in columns.iter_mut().zip(x) {
+            *c = narrow(x);
+        }
+        for (k, r) in transpose_8x16(&columns).iter().enumerate() {
+            _mm_storel_epi64(line(k) as *mut __m128i, *r);
+        }
+    }
+
     /// Each lane's thresholds: alpha (0 in a lane not filtered), beta,
     /// tc0, and whether its strength is 4.
     struct Lanes {
@@ -120,6 +222,20 @@ mod x86 {
     }
 
     impl Lanes {
+        /// Chroma's thresholds in both 128-bit halves: the same edge of
+        /// the two chroma planes.
+        #[target_feature(enable = "avx2")]
+        fn chroma_pair(strengths: [u8; 4], qp: u8) -> Lanes {
+            let one = Lanes::new(strengths, qp, false);
+            let both = |x: __m256i| _mm256_broadcastsi128_si256(_mm256_castsi256_si128(x));
+            Lanes {
+                alpha: both(one.alpha),
+                beta: one.beta,
+                tc0: both(one.tc0),
+                strong: both(one.strong),
+            }
+        }
+
         #[target_feature(enable = "avx2")]
         fn new(strengths: [u8; 4], qp: u8, luma: bool) -> Lanes {
             let q = usize::from(qp);

@@ -107,7 +107,6 @@ unsafe fn luma_body<const AVX2: bool>(
         let mut block = [0u8; 256];
         // SAFETY: this function's contract passes on.
         luma_16x16::<AVX2>(data, stride, fx, fy, &mut block);
-        // Rows of a length the compiler knows: moves, not memcpy calls.
         for r in 0..16 {
             out[r * out_stride..][..16].copy_from_slice(&block[r * 16..][..16]);
         }
@@ -115,9 +114,14 @@ unsafe fn luma_body<const AVX2: bool>(
     }
     match (fx, fy) {
         (0, 0) => {
-            for r in 0..h {
-                let src = (r + B) * stride + B;
-                out[r * out_stride..r * out_stride + w].copy_from_slice(&data[src..src + w]);
+            // A whole-sample block is a copy: rows of the macroblock's or
+            // a partition's width with a length the compiler knows (moves,
+            // not a memcpy call a row).
+            let row = |r: usize| (r + B) * stride + B;
+            match w {
+                16 => (0..h).for_each(|r| out[r * out_stride..][..16].copy_from_slice(&data[row(r)..][..16])),
+                8 => (0..h).for_each(|r| out[r * out_stride..][..8].copy_from_slice(&data[row(r)..][..8])),
+                _ => (0..h).for_each(|r| out[r * out_stride..][..w].copy_from_slice(&data[row(r)..][..w])),
             }
         }
         (_, 0) => {

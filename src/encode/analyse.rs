@@ -220,22 +220,23 @@ impl MbAnalysis {
 }
 
 impl InterFrameCoder<'_> {
-    /// Macroblock `index`, decided: skip first, then inter and intra when
-    /// they can win.
-    pub(super) fn analyse(&self, index: usize, env: &MbEnv<'_>) -> MbAnalysis {
-        let mut mb = self.analyse_skip(index, env);
-        if !mb.exhaustive || self.skips_before_search(&mb, env) {
-            return mb;
+    /// Macroblock `mb`, decided beyond skip ([`Self::analyse_skip`]):
+    /// inter and intra when they can win.
+    /// (Made by the caller in two steps, [`Self::analyse_skip`] then
+    /// this, the record stays where the caller made it: returned from here
+    /// it was copied out, 1.7 KB a macroblock.)
+    pub(super) fn analyse_beyond_skip(&self, mb: &mut MbAnalysis, env: &MbEnv<'_>) {
+        if !mb.exhaustive || self.skips_before_search(mb, env) {
+            return;
         }
-        mb.searched = self.searched_vector(&mb, env);
-        if !self.skips_early(&mb, env) {
-            self.analyse_inter(&mut mb, env);
-            self.analyse_split(&mut mb, env);
-            self.analyse_intra(&mut mb, env);
-            self.analyse_subpel_rd(&mut mb, env);
-            self.analyse_transform(&mut mb, env);
+        mb.searched = self.searched_vector(mb, env);
+        if !self.skips_early(mb, env) {
+            self.analyse_inter(mb, env);
+            self.analyse_split(mb, env);
+            self.analyse_intra(mb, env);
+            self.analyse_subpel_rd(mb, env);
+            self.analyse_transform(mb, env);
         }
-        mb
     }
 
     /// The macroblock's searched vector: motion analysis', or, when the
@@ -405,13 +406,21 @@ impl InterFrameCoder<'_> {
             Mv::ZERO
         };
         let skip_pred = predict_inter(&self.inter_context(), mb_x, mb_y, RefMv::previous(mvp));
-        let mut mb = MbAnalysis {
+        let lambda = self.coder.lambda;
+        let skip_bits = self.mode_bits_at(env, (mb_x, mb_y), &MbMode::Skip);
+        let cost = rdo::cost(lambda, source.ssd(&skip_pred), skip_bits);
+        // Every other choice spends at least the flag saying it is not
+        // skipped: when skip costs no more, nothing can beat it.
+        let not_skipped = rdo::bits(rate::not_skipped_cost(env.modes, (mb_x, mb_y)));
+        // Built as the returned value, in place (a 1.7 KB record a
+        // macroblock: made in a local, it was copied out twice).
+        MbAnalysis {
             index,
             mb_x,
             mb_y,
             mvp,
             best: Choice {
-                cost: 0.0,
+                cost,
                 residual_cost: 0.0,
                 kind: MbKind::Skip,
                 pred: skip_pred.clone(),
@@ -420,22 +429,11 @@ impl InterFrameCoder<'_> {
             },
             source,
             skip_pred,
-            exhaustive: false,
+            exhaustive: cost > rdo::cost(lambda, 0, not_skipped),
             searched: mvp,
             inter_satd: u32::MAX,
             inter_estimate: f64::INFINITY,
-        };
-        let lambda = self.coder.lambda;
-        mb.best.cost = rdo::cost(
-            lambda,
-            mb.source.ssd(&mb.skip_pred),
-            self.mode_bits(env, &mb, &MbMode::Skip),
-        );
-        // Every other choice spends at least the flag saying it is not
-        // skipped: when skip costs no more, nothing can beat it.
-        let not_skipped = rdo::bits(rate::not_skipped_cost(env.modes, (mb_x, mb_y)));
-        mb.exhaustive = mb.best.cost > rdo::cost(lambda, 0, not_skipped);
-        mb
+        }
     }
 
     /// Inter with the predicted vector and with the searched one, and

@@ -407,13 +407,12 @@ impl<'a> InterFrameCoder<'a> {
 
     /// Bits of a mode as the mode coder of `env` prices it.
     pub(super) fn mode_bits(&self, env: &MbEnv<'_>, mb: &MbAnalysis, mode: &MbMode) -> f64 {
-        rdo::bits(rate::mode_cost(
-            env.modes,
-            (mb.mb_x, mb.mb_y),
-            true,
-            self.syntax,
-            mode,
-        ))
+        self.mode_bits_at(env, (mb.mb_x, mb.mb_y), mode)
+    }
+
+    /// [`Self::mode_bits`] of the macroblock at `at`.
+    pub(super) fn mode_bits_at(&self, env: &MbEnv<'_>, at: (usize, usize), mode: &MbMode) -> f64 {
+        rdo::bits(rate::mode_cost(env.modes, at, true, self.syntax, mode))
     }
 
     /// Decides every macroblock on a wavefront (block frames) into the
@@ -437,7 +436,8 @@ impl<'a> InterFrameCoder<'a> {
             lead: 2,
         }
         .decide(recon, &|env, index| {
-            let mb = self.analyse(index, env);
+            let mut mb = self.analyse_skip(index, env);
+            self.analyse_beyond_skip(&mut mb, env);
             let sse = visible_luma_sse(&mb.source, &mb.best.pred, mb.mb_x, mb.mb_y, self.seq);
             (mb.best, sse)
         })?;
@@ -533,7 +533,9 @@ pub(crate) fn code_inter(
         // decided, and grid frames are cheap to decide: raster order.
         let satd8 = RefCell::default();
         for index in 0..seq.mb_cols() * seq.mb_rows() {
-            let mb = frame_coder.analyse(index, &frame_coder.raster_env(&satd8));
+            let env = frame_coder.raster_env(&satd8);
+            let mut mb = frame_coder.analyse_skip(index, &env);
+            frame_coder.analyse_beyond_skip(&mut mb, &env);
             frame_coder.commit(mb);
         }
     }

@@ -220,21 +220,25 @@ impl EdgeMasks {
                 differs(m.mvs[0], m.mvs[2]) & 0x0300 | differs(m.mvs[1], m.mvs[3]) & 0x0c00,
             ],
         };
-        if let Some(l) = left {
-            masks.edges[0] |= COLUMN_0;
-            if m.intra || l.intra {
-                masks.intra[0] |= COLUMN_0;
+        // The macroblock's own edge in direction `d` (its blocks `outer`)
+        // beside neighbour `n`, whose blocks across it are coded as
+        // `n_coded` (moved onto `outer`) and whose motion differs by
+        // `motion`.
+        let mut beside = |d: usize, outer: u16, n: &MbEdgeInfo, n_coded: u16, motion: u16| {
+            masks.edges[d] |= outer;
+            if m.intra || n.intra {
+                masks.intra[d] |= outer;
             }
-            masks.coded[0] |= (l.coded >> 3 | c) & COLUMN_0;
-            masks.motion[0] |= differs(l.mvs[1], m.mvs[0]) & 0x0011 | differs(l.mvs[3], m.mvs[2]) & 0x1100;
+            masks.coded[d] |= (n_coded | c) & outer;
+            masks.motion[d] |= motion;
+        };
+        if let Some(l) = left {
+            let motion = differs(l.mvs[1], m.mvs[0]) & 0x0011 | differs(l.mvs[3], m.mvs[2]) & 0x1100;
+            beside(0, COLUMN_0, l, l.coded >> 3, motion);
         }
         if let Some(a) = above {
-            masks.edges[1] |= ROW_0;
-            if m.intra || a.intra {
-                masks.intra[1] |= ROW_0;
-            }
-            masks.coded[1] |= (a.coded >> 12 | c) & ROW_0;
-            masks.motion[1] |= differs(a.mvs[2], m.mvs[0]) & 0x0003 | differs(a.mvs[3], m.mvs[1]) & 0x000c;
+            let motion = differs(a.mvs[2], m.mvs[0]) & 0x0003 | differs(a.mvs[3], m.mvs[1]) & 0x000c;
+            beside(1, ROW_0, a, a.coded >> 12, motion);
         }
         masks
     }

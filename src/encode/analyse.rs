@@ -220,11 +220,10 @@ impl MbAnalysis {
 }
 
 impl InterFrameCoder<'_> {
-    /// Macroblock `mb`, decided beyond skip ([`Self::analyse_skip`]):
-    /// inter and intra when they can win.
-    /// (Made by the caller in two steps, [`Self::analyse_skip`] then
-    /// this, the record stays where the caller made it: returned from here
-    /// it was copied out, 1.7 KB a macroblock.)
+    /// Decides macroblock `mb` (made by [`Self::analyse_skip`]) beyond
+    /// skip: inter and intra where they can win. It works on the record in
+    /// place: returned by value, the 1.7 KB record was copied out twice a
+    /// macroblock.
     pub(super) fn analyse_beyond_skip(&self, mb: &mut MbAnalysis, env: &MbEnv<'_>) {
         if !mb.exhaustive || self.skips_before_search(mb, env) {
             return;

@@ -332,4 +332,13 @@ fn encode_with_no_metrics_measures_nothing_and_codes_the_same_stream() {
         text.contains("quality not measured") && !text.contains("NaN"),
         "{text}"
     );
+    // `quality` exists to measure: none is refused there, with a reason.
+    let err = stderr_of(&[
+        "quality",
+        src.to_str().unwrap(),
+        src.to_str().unwrap(),
+        "--metrics",
+        "none",
+    ]);
+    assert!(err.contains("measures nothing"), "{err}");
 }

@@ -106,6 +106,9 @@ pub fn run(args: &Args) -> Result<()> {
 
 /// Reads both files frame by frame and measures every pair.
 fn measure(args: &Args) -> Result<(Vec<FrameQuality>, SequenceQuality)> {
+    if args.metrics.is_none() {
+        bail!("--metrics none measures nothing (it is for encode): quality measures PSNR at least");
+    }
     if args.metrics.has(Metric::Vmaf) && vmaf::ffmpeg_with_libvmaf().is_none() {
         bail!(vmaf::VmafError::NoLibvmaf);
     }

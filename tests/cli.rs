@@ -1718,9 +1718,37 @@ fn interpolate_doubles_the_rate_and_evaluates_rebuilt_frames() {
     for (k, f) in orig.iter().enumerate() {
         assert!(double[2 * k] == *f, "output frame {} is input frame {k}", 2 * k);
     }
-    let v = json_stdout(mocomp().args(["interpolate", input.to_str().unwrap(), "--evaluate", "--json"]));
+    let v = json_stdout(mocomp().args([
+        "interpolate",
+        input.to_str().unwrap(),
+        "--evaluate",
+        "--json",
+        "-o",
+        &p("rebuilt.y4m"),
+    ]));
     assert_eq!(v["frames"], 4);
     assert!(v["mean_psnr_y"].as_f64().unwrap() > 30.0, "{v}");
+    // --evaluate rebuilds what interpolating the kept frames (0, 2, 4 ...)
+    // makes: the same pairs, their paths bent by the same neighbours.
+    {
+        let file = std::fs::File::create(p("kept.y4m")).unwrap();
+        let mut writer = mocomp::io::y4m::Y4mWriter::new(file, read(input.to_str().unwrap()).info()).unwrap();
+        for f in orig.iter().step_by(2) {
+            writer.write_frame(f).unwrap();
+        }
+    }
+    mocomp()
+        .args(["interpolate", &p("kept.y4m"), "-o", &p("kept2.y4m")])
+        .assert()
+        .success();
+    let (rebuilt, kept2) = (
+        read(&p("rebuilt.y4m")).read_all().unwrap(),
+        read(&p("kept2.y4m")).read_all().unwrap(),
+    );
+    assert_eq!(kept2.len(), 9);
+    for k in (1..9).step_by(2) {
+        assert!(rebuilt[k] == kept2[k], "frame {k}");
+    }
     fails_cleanly(&[
         "interpolate",
         input.to_str().unwrap(),

@@ -90,3 +90,55 @@ fn a_cut_repeats_the_earlier_frame() {
     })
     .is_err());
 }
+
+/// A camera shaking along a sinusoid, frames 0 to 9; its speed changes
+/// fastest at frame 6.
+fn shaken(seed: u64) -> Synth {
+    Synth::new(
+        SceneSpec::new("shake", 192, 144, 10)
+            .seed(seed)
+            .camera(Motion::translation(1.0, 0.5).with_wobble((3.0, 2.0), 12.0)),
+    )
+    .unwrap()
+}
+
+#[test]
+fn a_shaking_camera_is_followed_along_a_curve_through_the_frames_either_side() {
+    for seed in [7, 8] {
+        let s = shaken(seed);
+        let f: Vec<Frame> = (0..10).map(|t| s.frame(t)).collect();
+        let mut interp = Interpolator::new(&InterpolateParams::default()).unwrap();
+        // Frame 6 rebuilt from 5 and 7; the kept frames either side: 3, 9.
+        let (before, after) = (interp.pair(&f[3], &f[5]), interp.pair(&f[7], &f[9]));
+        let mut pair = interp.pair(&f[5], &f[7]);
+        let straight = psnr_y(&f[6], &interp.at(&pair, &f[5], &f[7], 0.5));
+        pair.accelerate(Some(&before), Some(&after));
+        let curved = psnr_y(&f[6], &interp.at(&pair, &f[5], &f[7], 0.5));
+        eprintln!("seed {seed}: straight {straight:.2} dB, curved {curved:.2} dB");
+        assert!(
+            curved > 42.0 && curved > straight + 5.0,
+            "straight {straight:.2} dB, curved {curved:.2} dB"
+        );
+    }
+}
+
+#[test]
+fn a_steady_pan_with_sensor_noise_is_not_bent() {
+    let s = scene((3.0, 1.5), (-4.0, 2.0), 9);
+    let mut spec = s.spec().clone().noise(3.0);
+    spec.frames = 7;
+    let s = Synth::new(spec).unwrap();
+    let f: Vec<Frame> = (0..7).map(|t| s.frame(t)).collect();
+    let mut interp = Interpolator::new(&InterpolateParams::default()).unwrap();
+    // Frame 3 from 2 and 4, the kept frames either side 0 and 6.
+    let (before, after) = (interp.pair(&f[0], &f[2]), interp.pair(&f[4], &f[6]));
+    let mut pair = interp.pair(&f[2], &f[4]);
+    let straight = psnr_y(&f[3], &interp.at(&pair, &f[2], &f[4], 0.5));
+    pair.accelerate(Some(&before), Some(&after));
+    let curved = psnr_y(&f[3], &interp.at(&pair, &f[2], &f[4], 0.5));
+    eprintln!("steady: straight {straight:.3} dB, curved {curved:.3} dB");
+    assert!(
+        curved > straight - 0.05,
+        "straight {straight:.2} dB, curved {curved:.2} dB"
+    );
+}

@@ -93,6 +93,8 @@ def interpolate(
     frame1: Yuv,
     times: Sequence[float] = (0.5,),
     preset: Literal["ultrafast", "fast", "medium", "accurate"] = "fast",
+    before: Optional[Yuv] = None,
+    after: Optional[Yuv] = None,
 ) -> list[Yuv]: ...
 def motion_mask(
     img: Picture,

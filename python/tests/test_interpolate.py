@@ -25,6 +25,21 @@ def test_interpolate_rebuilds_a_middle_frame(synth_frames):
     assert ours > plain + 3.0, (ours, plain)
 
 
+def test_interpolate_bends_paths_through_the_frames_either_side(synth_frames):
+    # Frame 3 from 2 and 4, with 0 and 6 known: the CLI's way on a sequence.
+    f = synth_frames
+    straight = mocomp.interpolate(f[2], f[4])[0]
+    curved = mocomp.interpolate(f[2], f[4], before=f[0], after=f[6])[0]
+    average = ((f[2][0].astype(int) + f[4][0]) // 2).astype(np.uint8)
+    plain = psnr(f[3][0], average)
+    assert psnr(f[3][0], curved[0]) > plain + 3.0
+    # The scene moves steadily: the bend stays within the flows' noise.
+    assert psnr(f[3][0], curved[0]) > psnr(f[3][0], straight[0]) - 0.5
+    small = tuple(p[:20, :20] for p in f[0])
+    with pytest.raises(ValueError, match="before"):
+        mocomp.interpolate(f[2], f[4], before=small)
+
+
 def test_interpolate_checks_its_input(synth_frames):
     f0 = synth_frames[0]
     with pytest.raises(ValueError, match=r"not in \[0, 1\]"):

@@ -10,7 +10,7 @@ use serde_json::json;
 
 use crate::codec::Frame;
 use crate::flow::Preset;
-use crate::interpolate::{InterpolateParams, Interpolator};
+use crate::interpolate::{InterpolateParams, Interpolator, PairMotion};
 use crate::io::y4m::{Y4mInfo, Y4mReader, Y4mWriter};
 use crate::io::OutputFile;
 use crate::metrics::{mse, psnr_from_mse};
@@ -65,19 +65,25 @@ pub fn run(args: &Args) -> Result<()> {
     let (start, mut made) = (Instant::now(), 0usize);
     {
         let mut writer = Y4mWriter::new(&mut out, &out_info)?;
-        let Some(mut prev) = reader.read_frame().with_context(|| name.clone())? else {
+        let mut read = || reader.read_frame().with_context(|| name.clone());
+        let Some(mut f0) = read()? else {
             bail!("{name} has no frames");
         };
-        while let Some(next) = reader.read_frame().with_context(|| name.clone())? {
-            writer.write_frame(&prev)?;
-            let pair = interp.pair(&prev, &next);
+        // Each pair is interpolated once the next pair's motion is known,
+        // which bends its paths (`accelerate`); the flows are found once.
+        let mut before: Option<PairMotion> = None;
+        let mut ahead = read()?.map(|f1| (interp.pair(&f0, &f1), f1));
+        while let Some((mut pair, f1)) = ahead.take() {
+            ahead = read()?.map(|f2| (interp.pair(&f1, &f2), f2));
+            pair.accelerate(before.as_ref(), ahead.as_ref().map(|(p, _)| p));
+            writer.write_frame(&f0)?;
             for j in 1..args.factor {
-                writer.write_frame(&interp.at(&pair, &prev, &next, j as f64 / args.factor as f64))?;
+                writer.write_frame(&interp.at(&pair, &f0, &f1, j as f64 / args.factor as f64))?;
                 made += 1;
             }
-            prev = next;
+            (before, f0) = (Some(pair), f1);
         }
-        writer.write_frame(&prev)?;
+        writer.write_frame(&f0)?;
     }
     out.commit().with_context(|| out_name)?;
     outln!(
@@ -108,12 +114,20 @@ fn evaluate(
     let start = Instant::now();
     let mut rows = Vec::new();
     let mut rebuilt = frames.clone();
-    for k in (1..frames.len() - 1).step_by(2) {
-        let pair = interp.pair(&frames[k - 1], &frames[k + 1]);
+    let odd: Vec<usize> = (1..frames.len() - 1).step_by(2).collect();
+    let motion = |interp: &mut Interpolator, k: usize| interp.pair(&frames[k - 1], &frames[k + 1]);
+    // The kept frames' paths bent through the kept frames either side, as
+    // `run` bends them on a whole sequence; three pairs held at a time.
+    let (mut before, mut current) = (None, Some(motion(interp, 1)));
+    for (i, &k) in odd.iter().enumerate() {
+        let Some(mut pair) = current.take() else { break };
+        current = odd.get(i + 1).map(|&n| motion(interp, n));
+        pair.accelerate(before.as_ref(), current.as_ref());
         let made = interp.at(&pair, &frames[k - 1], &frames[k + 1], 0.5);
         let psnr = psnr_from_mse(mse(frames[k].y(), made.y()));
         rows.push((k, psnr, pair.cut));
         rebuilt[k] = made;
+        before = Some(pair);
     }
     let ms = start.elapsed().as_secs_f64() * 1000.0 / rows.len() as f64;
     let mean = rows.iter().map(|r| r.1).sum::<f64>() / rows.len() as f64;

@@ -6,12 +6,15 @@
 //!    check marks the pixels each frame has that the other does not show.
 //! 2. Each frame's pixels are splatted to where they are at time `t`
 //!    ([`splat`]), giving per pixel the flow to both frames and whether it
-//!    is seen in each.
+//!    is seen in each. With the motion of the pairs either side
+//!    ([`PairMotion::accelerate`]) a pixel moves along a parabola through
+//!    three frames instead of a straight line: a hand-held camera or a
+//!    moving hand seldom moves at a constant speed.
 //! 3. Both frames are read along those flows (bicubic) and blended, each
 //!    by its nearness in time and by whether the pixel is seen in it.
 //!
-//! Where too few pixels pass the forward-backward check (a scene cut, or
-//! motion the flow cannot follow), the nearer frame is repeated instead.
+//! Where too few pixels pass the forward-backward check and the luma
+//! histogram changed (a scene cut), the nearer frame is repeated instead.
 //!
 //! ```
 //! use mocomp::codec::Frame;
@@ -41,16 +44,22 @@ pub struct InterpolateParams {
     /// DIS preset of both flows.
     pub preset: Preset,
     /// Below this share of pixels passing the forward-backward check, the
-    /// pair is a cut and the nearer frame is repeated.
+    /// pair is a cut and the nearer frame is repeated...
     pub cut_below: f64,
+    /// ... if its luma histogram changed by at least this much too
+    /// ([`histogram_change`]); below it (fast motion, a fade) the flows are
+    /// used as they are.
+    pub cut_histogram: f64,
 }
 
 impl Default for InterpolateParams {
-    /// DIS fast; a cut below 40 % consistent pixels.
+    /// DIS fast; a cut below 40 % consistent pixels with 30 % of the
+    /// histogram moved.
     fn default() -> InterpolateParams {
         InterpolateParams {
             preset: Preset::Fast,
             cut_below: 0.4,
+            cut_histogram: 0.3,
         }
     }
 }
@@ -68,10 +77,68 @@ pub struct PairMotion {
     luma: [Array2<f32>; 2],
     flow: [Flow; 2],
     occluded: [Array2<bool>; 2],
+    /// Per side, the trajectory's second difference (see [`PairMotion::accelerate`]).
+    acceleration: [Option<Flow>; 2],
     /// Whether the pair is a cut (the nearer frame is repeated).
     pub cut: bool,
     /// Share of frame 0's pixels that pass the forward-backward check.
     pub consistent: f64,
+}
+
+impl PairMotion {
+    /// Bends the pair's straight paths into parabolas through the frames
+    /// either side (the quadratic motion of QVI, Xu et al. 2019, without its
+    /// learned refinement). `before` is the
+    /// motion of the frame before and frame 0, `after` that of frame 1 and
+    /// the frame after, at the same spacing. A pixel of frame 0 moves along
+    /// `p(t) = t * f01 + (t^2 - t) / 2 * a` with `a = f01 + f0,-1` (and
+    /// frame 1's the same way backwards). Where the outer flow fails its
+    /// forward-backward check, or either neighbour is a cut, the path stays
+    /// straight; accelerations within flow noise ([`ACCELERATION_NOISE`])
+    /// are shrunk to nothing, so a steady pan stays straight.
+    pub fn accelerate(&mut self, before: Option<&PairMotion>, after: Option<&PairMotion>) {
+        if self.cut {
+            self.acceleration = [None, None];
+            return;
+        }
+        let [ahead0, ahead1] = &self.flow;
+        let (a0, a1) = rayon::join(
+            || before.and_then(|b| second_difference(ahead0, b, 1)),
+            || after.and_then(|a| second_difference(ahead1, a, 0)),
+        );
+        self.acceleration = [a0, a1];
+    }
+}
+
+/// Flow noise (px) below which an acceleration is taken as none; larger
+/// ones are shrunk by it (soft thresholding).
+pub const ACCELERATION_NOISE: f32 = 0.4;
+
+/// The second difference of a path at one frame: its flow `ahead` to the
+/// next frame plus its flow to the frame before, which is side `side` of
+/// the neighbouring pair `behind`; none where `behind` is a cut or of
+/// another size.
+fn second_difference(ahead: &Flow, behind: &PairMotion, side: usize) -> Option<Flow> {
+    let back = &behind.flow[side];
+    let occluded = &behind.occluded[side];
+    if behind.cut || (back.width(), back.height()) != (ahead.width(), ahead.height()) {
+        return None;
+    }
+    let (mut u, mut v) = (ahead.u() + back.u(), ahead.v() + back.v());
+    ndarray::Zip::from(&mut u)
+        .and(&mut v)
+        .and(occluded)
+        .for_each(|u, v, &occluded| {
+            let length = u.hypot(*v);
+            let keep = if occluded || !length.is_finite() || length <= ACCELERATION_NOISE {
+                0.0
+            } else {
+                1.0 - ACCELERATION_NOISE / length
+            };
+            *u *= keep;
+            *v *= keep;
+        });
+    Some(Flow::from_uv(u, v))
 }
 
 /// Interpolates frames; its flow estimator (and buffers) is kept from
@@ -85,11 +152,15 @@ pub struct Interpolator {
 impl Interpolator {
     /// An interpolator with `params`.
     pub fn new(params: &InterpolateParams) -> Result<Interpolator, InterpolateError> {
-        if !(0.0..=1.0).contains(&params.cut_below) {
-            return Err(InterpolateError::Params(format!(
-                "cut threshold {} must be between 0 and 1",
-                params.cut_below
-            )));
+        for (what, value) in [
+            ("cut threshold", params.cut_below),
+            ("cut histogram change", params.cut_histogram),
+        ] {
+            if !(0.0..=1.0).contains(&value) {
+                return Err(InterpolateError::Params(format!(
+                    "{what} {value} must be between 0 and 1"
+                )));
+            }
         }
         let options = FlowOptions {
             preset: params.preset,
@@ -123,7 +194,9 @@ impl Interpolator {
             luma,
             flow: [forward, backward],
             occluded,
-            cut: consistent < self.params.cut_below,
+            acceleration: [None, None],
+            cut: consistent < self.params.cut_below
+                && histogram_change(f0.y(), f1.y()) >= self.params.cut_histogram,
             consistent,
         }
     }
@@ -141,6 +214,7 @@ impl Interpolator {
             other: &motion.luma[1 - k],
             flow: &motion.flow[k],
             occluded: &motion.occluded[k],
+            acceleration: motion.acceleration[k].as_ref(),
         };
         let mid = intermediate(&side(0), &side(1), t as f32);
         let half = halve(&mid);
@@ -150,6 +224,31 @@ impl Interpolator {
         let (u, v) = (chroma(f0.u(), f1.u()), chroma(f0.v(), f1.v()));
         Frame::from_planes(y, u, v).expect("planes of one frame's sizes")
     }
+}
+
+/// How much of the luma histogram (32 bins) moved between two planes: 0
+/// for the same distribution, 1 for disjoint ones.
+pub fn histogram_change(a: &Plane, b: &Plane) -> f64 {
+    let hist = |p: &Plane| {
+        let mut h = [0u64; 32];
+        for row in p.rows() {
+            for &v in row {
+                h[usize::from(v >> 3)] += 1;
+            }
+        }
+        h
+    };
+    let (ha, hb) = (hist(a), hist(b));
+    let (na, nb) = (
+        ha.iter().sum::<u64>().max(1) as f64,
+        hb.iter().sum::<u64>().max(1) as f64,
+    );
+    let common: f64 = ha
+        .iter()
+        .zip(&hb)
+        .map(|(&x, &y)| (x as f64 / na).min(y as f64 / nb))
+        .sum();
+    1.0 - common
 }
 
 /// One plane at time `t`: both frames read along the intermediate flows
@@ -198,5 +297,62 @@ fn halve(mid: &Intermediate) -> Intermediate {
         to1: (down(&mid.to1.0, 0.5), down(&mid.to1.1, 0.5)),
         seen0: down(&mid.seen0, 1.0),
         seen1: down(&mid.seen1, 1.0),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn motion(back: (f32, f32), occluded_at: Option<(usize, usize)>, cut: bool) -> PairMotion {
+        let (w, h) = (8, 6);
+        let flow = |(u, v): (f32, f32)| Flow::from_fn(w, h, |_, _| (u, v));
+        let mut occluded = Array2::from_elem((h, w), false);
+        if let Some((x, y)) = occluded_at {
+            occluded[[y, x]] = true;
+        }
+        PairMotion {
+            luma: [Array2::zeros((h, w)), Array2::zeros((h, w))],
+            flow: [flow((0.0, 0.0)), flow(back)],
+            occluded: [occluded.clone(), occluded],
+            acceleration: [None, None],
+            cut,
+            consistent: 1.0,
+        }
+    }
+
+    #[test]
+    fn the_second_difference_is_shrunk_by_the_noise_and_dropped_where_unsure() {
+        let ahead = Flow::from_fn(8, 6, |_, _| (2.0, 1.0));
+        // Flow to the frame before (-3, -1): second difference (-1, 0),
+        // shrunk by the noise to (-0.6, 0); occluded pixels keep none.
+        let d = second_difference(&ahead, &motion((-3.0, -1.0), Some((2, 3)), false), 1).unwrap();
+        assert!(
+            (d.get(0, 0).0 + (1.0 - ACCELERATION_NOISE)).abs() < 1e-6,
+            "{:?}",
+            d.get(0, 0)
+        );
+        assert_eq!(d.get(0, 0).1, 0.0);
+        assert_eq!(d.get(2, 3), (0.0, 0.0));
+        // Within the noise: no bend at all.
+        let small = second_difference(&ahead, &motion((-2.2, -1.1), None, false), 1).unwrap();
+        assert!(small.u().iter().chain(small.v()).all(|&c| c == 0.0));
+        // Next to a cut, or of another size: none.
+        assert!(second_difference(&ahead, &motion((-3.0, -1.0), None, true), 1).is_none());
+        let other = Flow::from_fn(4, 6, |_, _| (2.0, 1.0));
+        assert!(second_difference(&other, &motion((-3.0, -1.0), None, false), 1).is_none());
+    }
+
+    #[test]
+    fn the_histogram_change_is_zero_for_moved_content_and_one_for_disjoint() {
+        let ramp = |shift: usize| Plane::from_fn(64, 16, |x, _| (((x + shift) % 64) * 4) as u8).unwrap();
+        assert_eq!(histogram_change(&ramp(0), &ramp(0)), 0.0);
+        // The same content moved: the same histogram.
+        assert!(histogram_change(&ramp(0), &ramp(17)) < 1e-12);
+        let flat = |v: u8| Plane::from_fn(64, 16, |_, _| v).unwrap();
+        assert_eq!(histogram_change(&flat(10), &flat(200)), 1.0);
+        // Half the picture changed to a new grey level.
+        let half = Plane::from_fn(64, 16, |x, _| if x < 32 { 10 } else { 200 }).unwrap();
+        assert!((histogram_change(&flat(10), &half) - 0.5).abs() < 1e-12);
     }
 }

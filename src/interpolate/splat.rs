@@ -35,6 +35,9 @@ pub struct Side<'a> {
     pub flow: &'a Flow,
     /// Where the forward-backward check fails (occluded in the other).
     pub occluded: &'a Array2<bool>,
+    /// The trajectory's second difference per pixel (flow to the other
+    /// frame plus flow to the frame before this one), if known.
+    pub acceleration: Option<&'a Flow>,
 }
 
 /// Per pixel: weight, flow to 0 (u, v), flow to 1 (u, v), seen in 0,
@@ -95,6 +98,15 @@ fn splat(mut acc: Accumulator, side: &Side<'_>, s: f32, from: usize) -> Accumula
         side.flow.v().as_slice().expect("standard layout"),
     );
     let occluded = side.occluded.as_slice().expect("standard layout");
+    let acc_uv = side.acceleration.map(|a| {
+        (
+            a.u().as_slice().expect("standard layout"),
+            a.v().as_slice().expect("standard layout"),
+        )
+    });
+    // Along a parabola through the frame before, this one and the other:
+    // at fraction s, s * flow + (s^2 - s) / 2 * acceleration.
+    let bend = 0.5 * (s * s - s);
     for y in 0..h {
         for x in 0..w {
             let i = y * w + x;
@@ -110,8 +122,12 @@ fn splat(mut acc: Accumulator, side: &Side<'_>, s: f32, from: usize) -> Accumula
                 (u, v, err) = (0.0, 0.0, still);
             }
             let weight = prior * (-err / ERROR_SCALE).exp() * if occluded[i] { 0.5 } else { 1.0 };
+            let (du, dv) = match acc_uv {
+                Some((au, av)) if u != 0.0 || v != 0.0 => (s * u + bend * au[i], s * v + bend * av[i]),
+                _ => (s * u, s * v),
+            };
             // Motion to frame 0 and to frame 1 of the surface at q.
-            let (back, ahead) = ((-s * u, -s * v), ((1.0 - s) * u, (1.0 - s) * v));
+            let (back, ahead) = ((-du, -dv), (u - du, v - dv));
             let (to0, to1) = if from == 0 { (back, ahead) } else { (ahead, back) };
             let seen = match (occluded[i], from) {
                 (false, _) => [1.0, 1.0],
@@ -119,7 +135,7 @@ fn splat(mut acc: Accumulator, side: &Side<'_>, s: f32, from: usize) -> Accumula
                 (true, _) => [0.0, 1.0],
             };
             let cell = [1.0, to0.0, to0.1, to1.0, to1.1, seen[0], seen[1]];
-            deposit(&mut acc, (x as f32 + s * u, y as f32 + s * v), weight, &cell);
+            deposit(&mut acc, (x as f32 + du, y as f32 + dv), weight, &cell);
         }
     }
     acc

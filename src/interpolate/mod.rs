@@ -33,7 +33,7 @@ use rayon::prelude::*;
 
 use crate::codec::{Frame, Plane};
 use crate::flow::consistency::inconsistent;
-use crate::flow::warp::sample_bicubic;
+use crate::flow::warp::{bilinear_clamped, sample_bicubic};
 use crate::flow::{Flow, FlowEstimator, FlowOptions, Preset};
 use crate::raster::plane_to_array;
 use splat::{intermediate, Intermediate, Side};
@@ -95,7 +95,11 @@ impl PairMotion {
     /// frame 1's the same way backwards). Where the outer flow fails its
     /// forward-backward check, or either neighbour is a cut, the path stays
     /// straight; accelerations within flow noise ([`ACCELERATION_NOISE`])
-    /// are shrunk to nothing, so a steady pan stays straight.
+    /// are shrunk to nothing, so a steady pan stays straight. With both
+    /// neighbours, each frame's second difference is averaged with the
+    /// other's along the pair's flow: halfway, the path is then the cubic
+    /// through the four frames (weights -1, 9, 9, -1 over 16), which
+    /// follows a change of acceleration better than either parabola.
     pub fn accelerate(&mut self, before: Option<&PairMotion>, after: Option<&PairMotion>) {
         if self.cut {
             self.acceleration = [None, None];
@@ -106,8 +110,37 @@ impl PairMotion {
             || before.and_then(|b| second_difference(ahead0, b, 1)),
             || after.and_then(|a| second_difference(ahead1, a, 0)),
         );
-        self.acceleration = [a0, a1];
+        self.acceleration = match (a0, a1) {
+            (Some(a0), Some(a1)) => {
+                let (m0, m1) = rayon::join(|| mean_along(&a0, &a1, ahead0), || mean_along(&a1, &a0, ahead1));
+                [Some(m0), Some(m1)]
+            }
+            (a0, a1) => [a0, a1],
+        };
     }
+}
+
+/// The mean of `own` and `other`, the latter read where `flow` takes each
+/// pixel (bilinear): both frames' second differences of one path.
+fn mean_along(own: &Flow, other: &Flow, flow: &Flow) -> Flow {
+    let (w, h) = (own.width(), own.height());
+    let (ou, ov) = (
+        other.u().as_slice().expect("standard layout"),
+        other.v().as_slice().expect("standard layout"),
+    );
+    Flow::from_fn(w, h, |x, y| {
+        let (a, b) = own.get(x, y);
+        let (fu, fv) = flow.get(x, y);
+        let (px, py) = (x as f32 + fu, y as f32 + fv);
+        if !(px.is_finite() && py.is_finite()) {
+            return (0.0, 0.0);
+        }
+        let (c, d) = (
+            bilinear_clamped(ou, w, h, px, py),
+            bilinear_clamped(ov, w, h, px, py),
+        );
+        (0.5 * (a + c), 0.5 * (b + d))
+    })
 }
 
 /// Flow noise (px) below which an acceleration is taken as none; larger
@@ -354,5 +387,17 @@ mod tests {
         // Half the picture changed to a new grey level.
         let half = Plane::from_fn(64, 16, |x, _| if x < 32 { 10 } else { 200 }).unwrap();
         assert!((histogram_change(&flat(10), &half) - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn both_frames_second_differences_are_averaged_along_the_flow() {
+        // The other frame's field is a ramp in x; the flow moves 2 px right.
+        let own = Flow::from_fn(8, 6, |_, _| (1.0, -1.0));
+        let other = Flow::from_fn(8, 6, |x, _| (x as f32, 0.0));
+        let flow = Flow::from_fn(8, 6, |_, _| (2.0, 0.0));
+        let m = mean_along(&own, &other, &flow);
+        assert_eq!(m.get(1, 2), (0.5 * (1.0 + 3.0), -0.5));
+        // Beyond the edge the other field is read at its edge.
+        assert_eq!(m.get(7, 0), (0.5 * (1.0 + 7.0), -0.5));
     }
 }

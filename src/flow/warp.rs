@@ -59,6 +59,20 @@ pub fn sample_bicubic(img: &Array2<f32>, x: f32, y: f32) -> f32 {
     let (x0, y0) = (x0 as isize, y0 as isize);
     let data = img.as_slice().expect("standard layout");
     let mut acc = 0.0;
+    if x0 >= 1 && y0 >= 1 && x0 + 2 < w as isize && y0 + 2 < h as isize {
+        // Inside: the four rows' four samples without clamping.
+        let (x0, y0) = (x0 as usize - 1, y0 as usize - 1);
+        for (j, wyj) in wy.iter().enumerate() {
+            let at = (y0 + j) * w + x0;
+            let row = &data[at..at + 4];
+            let mut r = 0.0;
+            for (wxi, v) in wx.iter().zip(row) {
+                r += wxi * v;
+            }
+            acc += wyj * r;
+        }
+        return acc;
+    }
     for (j, wyj) in wy.iter().enumerate() {
         let yy = (y0 + j as isize - 1).clamp(0, h as isize - 1) as usize;
         let row = &data[yy * w..(yy + 1) * w];
@@ -127,5 +141,34 @@ mod tests {
         let ramp = Array2::from_shape_fn((8, 8), |(y, x)| 3.0 * x as f32 + y as f32);
         let half = Flow::from_fn(8, 8, |_, _| (0.5, 0.25));
         assert!((warp_bicubic(&ramp, &half)[[3, 3]] - warp_bilinear(&ramp, &half)[[3, 3]]).abs() < 1e-4);
+    }
+
+    #[test]
+    fn bicubic_inside_and_at_the_edges_is_the_clamped_sum() {
+        // The definition: 4x4 samples around the point, indices clamped.
+        let clamped = |img: &Array2<f32>, x: f32, y: f32| {
+            let (h, w) = img.dim();
+            let (x, y) = (x.clamp(0.0, (w - 1) as f32), y.clamp(0.0, (h - 1) as f32));
+            let (wx, wy) = (cubic_weights(x - x.floor()), cubic_weights(y - y.floor()));
+            let at = |i: f32, n: usize| (i as isize).clamp(0, n as isize - 1) as usize;
+            let mut acc = 0.0;
+            for (j, wyj) in wy.iter().enumerate() {
+                let mut r = 0.0;
+                for (i, wxi) in wx.iter().enumerate() {
+                    r += wxi
+                        * img[[
+                            at(y.floor() + j as f32 - 1.0, h),
+                            at(x.floor() + i as f32 - 1.0, w),
+                        ]];
+                }
+                acc += wyj * r;
+            }
+            acc
+        };
+        let img = Array2::from_shape_fn((9, 11), |(y, x)| ((x * 37 + y * 91) % 23) as f32);
+        for k in 0..400 {
+            let (x, y) = (-1.5 + 0.037 * k as f32, -1.25 + 0.029 * (k * 7 % 400) as f32);
+            assert_eq!(sample_bicubic(&img, x, y), clamped(&img, x, y), "({x}, {y})");
+        }
     }
 }

@@ -124,23 +124,27 @@ impl PairMotion {
 /// pixel (bilinear): both frames' second differences of one path.
 fn mean_along(own: &Flow, other: &Flow, flow: &Flow) -> Flow {
     let (w, h) = (own.width(), own.height());
-    let (ou, ov) = (
-        other.u().as_slice().expect("standard layout"),
-        other.v().as_slice().expect("standard layout"),
-    );
-    Flow::from_fn(w, h, |x, y| {
-        let (a, b) = own.get(x, y);
-        let (fu, fv) = flow.get(x, y);
-        let (px, py) = (x as f32 + fu, y as f32 + fv);
-        if !(px.is_finite() && py.is_finite()) {
-            return (0.0, 0.0);
+    let [au, av, ou, ov, fu, fv] = [own.u(), own.v(), other.u(), other.v(), flow.u(), flow.v()]
+        .map(|a| a.as_slice().expect("standard layout"));
+    let (mut u, mut v) = (Vec::with_capacity(w * h), Vec::with_capacity(w * h));
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            let (px, py) = (x as f32 + fu[i], y as f32 + fv[i]);
+            let (c, d) = if px.is_finite() && py.is_finite() {
+                (
+                    bilinear_clamped(ou, w, h, px, py),
+                    bilinear_clamped(ov, w, h, px, py),
+                )
+            } else {
+                (-au[i], -av[i])
+            };
+            u.push(0.5 * (au[i] + c));
+            v.push(0.5 * (av[i] + d));
         }
-        let (c, d) = (
-            bilinear_clamped(ou, w, h, px, py),
-            bilinear_clamped(ov, w, h, px, py),
-        );
-        (0.5 * (a + c), 0.5 * (b + d))
-    })
+    }
+    let field = |d: Vec<f32>| Array2::from_shape_vec((h, w), d).expect("w * h values");
+    Flow::from_uv(field(u), field(v))
 }
 
 /// Flow noise (px) below which an acceleration is taken as none; larger

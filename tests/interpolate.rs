@@ -102,18 +102,28 @@ fn shaken(seed: u64) -> Synth {
     .unwrap()
 }
 
+/// PSNR-Y of frame `k` rebuilt from `k - 1` and `k + 1` along straight
+/// paths, then along paths bent by the kept frames either side (`k - 3`,
+/// `k + 3`), as interpolating every other frame does.
+fn straight_and_curved(f: &[Frame], k: usize) -> (f64, f64) {
+    let mut interp = Interpolator::new(&InterpolateParams::default()).unwrap();
+    let (before, after) = (
+        interp.pair(&f[k - 3], &f[k - 1]),
+        interp.pair(&f[k + 1], &f[k + 3]),
+    );
+    let mut pair = interp.pair(&f[k - 1], &f[k + 1]);
+    let straight = psnr_y(&f[k], &interp.at(&pair, &f[k - 1], &f[k + 1], 0.5));
+    pair.accelerate(Some(&before), Some(&after));
+    let curved = psnr_y(&f[k], &interp.at(&pair, &f[k - 1], &f[k + 1], 0.5));
+    (straight, curved)
+}
+
 #[test]
 fn a_shaking_camera_is_followed_along_a_curve_through_the_frames_either_side() {
     for seed in [7, 8] {
         let s = shaken(seed);
         let f: Vec<Frame> = (0..10).map(|t| s.frame(t)).collect();
-        let mut interp = Interpolator::new(&InterpolateParams::default()).unwrap();
-        // Frame 6 rebuilt from 5 and 7; the kept frames either side: 3, 9.
-        let (before, after) = (interp.pair(&f[3], &f[5]), interp.pair(&f[7], &f[9]));
-        let mut pair = interp.pair(&f[5], &f[7]);
-        let straight = psnr_y(&f[6], &interp.at(&pair, &f[5], &f[7], 0.5));
-        pair.accelerate(Some(&before), Some(&after));
-        let curved = psnr_y(&f[6], &interp.at(&pair, &f[5], &f[7], 0.5));
+        let (straight, curved) = straight_and_curved(&f, 6);
         eprintln!("seed {seed}: straight {straight:.2} dB, curved {curved:.2} dB");
         assert!(
             curved > 42.0 && curved > straight + 5.0,
@@ -129,13 +139,7 @@ fn a_steady_pan_with_sensor_noise_is_not_bent() {
     spec.frames = 7;
     let s = Synth::new(spec).unwrap();
     let f: Vec<Frame> = (0..7).map(|t| s.frame(t)).collect();
-    let mut interp = Interpolator::new(&InterpolateParams::default()).unwrap();
-    // Frame 3 from 2 and 4, the kept frames either side 0 and 6.
-    let (before, after) = (interp.pair(&f[0], &f[2]), interp.pair(&f[4], &f[6]));
-    let mut pair = interp.pair(&f[2], &f[4]);
-    let straight = psnr_y(&f[3], &interp.at(&pair, &f[2], &f[4], 0.5));
-    pair.accelerate(Some(&before), Some(&after));
-    let curved = psnr_y(&f[3], &interp.at(&pair, &f[2], &f[4], 0.5));
+    let (straight, curved) = straight_and_curved(&f, 3);
     eprintln!("steady: straight {straight:.3} dB, curved {curved:.3} dB");
     assert!(
         curved > straight - 0.05,

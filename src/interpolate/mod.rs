@@ -87,10 +87,10 @@ pub struct PairMotion {
 
 impl PairMotion {
     /// Bends the pair's straight paths into parabolas through the frames
-    /// either side (the quadratic motion of QVI, Xu et al. 2019, without its
-    /// learned refinement). `before` is the
-    /// motion of the frame before and frame 0, `after` that of frame 1 and
-    /// the frame after, at the same spacing. A pixel of frame 0 moves along
+    /// either side (the quadratic motion of QVI, Xu et al. 2019, without
+    /// its learned refinement). `before` is the motion of the frame before
+    /// and frame 0, `after` that of frame 1 and the frame after, at the
+    /// same spacing. A pixel of frame 0 moves along
     /// `p(t) = t * f01 + (t^2 - t) / 2 * a` with `a = f01 + f0,-1` (and
     /// frame 1's the same way backwards). Where the outer flow fails its
     /// forward-backward check, or either neighbour is a cut, the path stays
@@ -137,6 +137,7 @@ fn mean_along(own: &Flow, other: &Flow, flow: &Flow) -> Flow {
                     bilinear_clamped(ov, w, h, px, py),
                 )
             } else {
+                // No flow to follow: no bend.
                 (-au[i], -av[i])
             };
             u.push(0.5 * (au[i] + c));

@@ -47,8 +47,8 @@ pub struct InterpolateParams {
     /// pair is a cut and the nearer frame is repeated...
     pub cut_below: f64,
     /// ... if its luma histogram changed by at least this much too
-    /// ([`histogram_change`]); below it (fast motion, a fade) the flows are
-    /// used as they are.
+    /// ([`histogram_change`]); below it (fast motion within one shot) the
+    /// flows are used as they are.
     pub cut_histogram: f64,
 }
 

@@ -10,7 +10,7 @@ use ndarray::Array2;
 
 use super::dis::densify::densify_body;
 use super::dis::search::{search_level_body, LevelSearch, Padded, SparseFlow};
-use super::refine::{RefineParams, Refiner};
+use super::refine::{band_body, Band, BandFn};
 use crate::codec::dsp::PerLevel;
 
 /// The DIS search of one pyramid level: `(input, patch side)`.
@@ -19,10 +19,6 @@ pub(crate) type DisSearchFn = fn(&LevelSearch, usize) -> SparseFlow;
 /// DIS densification of one level: `(i1, padded i2, patch vectors, u, v)`.
 pub(crate) type DensifyFn = fn(&Array2<f32>, &Padded, &SparseFlow, &mut Array2<f32>, &mut Array2<f32>);
 
-/// The variational refinement: `(refiner, i1, i2, u, v, params)`.
-pub(crate) type RefineFn =
-    fn(&mut Refiner, &Array2<f32>, &Array2<f32>, &mut Array2<f32>, &mut Array2<f32>, &RefineParams);
-
 /// The flow kernels of one CPU level.
 #[derive(Clone, Copy)]
 pub(crate) struct FlowDsp {
@@ -30,14 +26,14 @@ pub(crate) struct FlowDsp {
     pub dis_search_level: DisSearchFn,
     /// DIS densification of a level.
     pub densify: DensifyFn,
-    /// Variational refinement.
-    pub refine: RefineFn,
+    /// A band of the variational refinement's work.
+    pub refine_band: BandFn,
 }
 
 const SCALAR: FlowDsp = FlowDsp {
     dis_search_level: |input, patch| search_level_body::<false>(input, patch),
     densify: densify_body,
-    refine: Refiner::refine_body,
+    refine_band: band_body,
 };
 
 /// The tables, lowest level first.
@@ -48,7 +44,7 @@ pub(crate) static FLOW: PerLevel<FlowDsp> = PerLevel([
     FlowDsp {
         dis_search_level: avx2::dis_search_level,
         densify: avx2::densify,
-        refine: avx2::refine,
+        refine_band: avx2::refine_band,
     },
     #[cfg(not(target_arch = "x86_64"))]
     SCALAR,
@@ -64,13 +60,12 @@ pub(crate) fn flow() -> &'static FlowDsp {
 mod avx2 {
     use ndarray::Array2;
 
-    use super::{LevelSearch, Padded, RefineParams, Refiner, SparseFlow};
+    use super::{Band, LevelSearch, Padded, SparseFlow};
     crate::codec::compiled_for! { "avx2":
         fn dis_search_level(input: &LevelSearch, patch: usize) -> SparseFlow => super::search_level_body::<true>;
         fn densify(a1: &Array2<f32>, a2: &Padded, s: &SparseFlow, u: &mut Array2<f32>, v: &mut Array2<f32>)
             => super::densify_body;
-        fn refine(r: &mut Refiner, i1: &Array2<f32>, i2: &Array2<f32>, u: &mut Array2<f32>, v: &mut Array2<f32>, p: &RefineParams)
-            => Refiner::refine_body;
+        fn refine_band(band: Band<'_>) => super::band_body;
     }
 }
 

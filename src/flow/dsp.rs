@@ -16,8 +16,9 @@ use crate::codec::dsp::PerLevel;
 /// The DIS search of one pyramid level: `(input, patch side)`.
 pub(crate) type DisSearchFn = fn(&LevelSearch, usize) -> SparseFlow;
 
-/// DIS densification of one level: `(i1, padded i2, patch vectors, u, v)`.
-pub(crate) type DensifyFn = fn(&Array2<f32>, &Padded, &SparseFlow, &mut Array2<f32>, &mut Array2<f32>);
+/// DIS densification of a band of rows of one level: `(i1, padded i2,
+/// patch vectors, first row, u, v)` (`u`, `v` the band's rows).
+pub(crate) type DensifyFn = fn(&Array2<f32>, &Padded, &SparseFlow, usize, &mut [f32], &mut [f32]);
 
 /// The flow kernels of one CPU level.
 #[derive(Clone, Copy)]
@@ -63,7 +64,7 @@ mod avx2 {
     use super::{Band, LevelSearch, Padded, SparseFlow};
     crate::codec::compiled_for! { "avx2":
         fn dis_search_level(input: &LevelSearch, patch: usize) -> SparseFlow => super::search_level_body::<true>;
-        fn densify(a1: &Array2<f32>, a2: &Padded, s: &SparseFlow, u: &mut Array2<f32>, v: &mut Array2<f32>)
+        fn densify(a1: &Array2<f32>, a2: &Padded, s: &SparseFlow, first: usize, u: &mut [f32], v: &mut [f32])
             => super::densify_body;
         fn refine_band(band: Band<'_>) => super::band_body;
     }

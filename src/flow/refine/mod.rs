@@ -25,7 +25,7 @@ mod system;
 use ndarray::Array2;
 use rayon::prelude::*;
 
-use self::sweeps::{gather_rows, sweep_band, Block, Sweeps, BLOCKS, COEFFICIENTS};
+use self::sweeps::{gather_rows, sweep_band, unfold_rows, Block, Sweeps, BLOCKS, COEFFICIENTS};
 use self::system::{data_rows, fold_rows, smoothness_rows, Linearised, Padded, System};
 
 /// Settings of the variational refinement.
@@ -129,6 +129,13 @@ pub(crate) enum Band<'a> {
         stride: usize,
         g: &'a Padded,
     },
+    /// The increment back from the blocks into `[du, dv]`.
+    Unfold {
+        out: [&'a mut [f32]; 2],
+        base: usize,
+        sweeps: &'a Sweeps,
+        g: &'a Padded,
+    },
     /// A block's SOR update.
     Sweep {
         out: [&'a mut [f32]; 2],
@@ -182,6 +189,7 @@ pub(crate) fn band_body(band: Band<'_>) {
             stride,
             g,
         } => gather_rows(out, base, src, block, stride, g),
+        Band::Unfold { out, base, sweeps, g } => unfold_rows(out, base, sweeps, g),
         Band::Sweep {
             out,
             base,
@@ -481,7 +489,10 @@ impl Refiner {
         for _ in 0..p.sor_iterations {
             sweep(kernel, sweeps, p.omega, cut);
         }
-        sweeps.unfold(du, dv, g);
+        let sweeps = &*sweeps;
+        for_bands([du, dv], band, cut.parallel, |out, base| {
+            kernel(Band::Unfold { out, base, sweeps, g })
+        });
     }
 }
 
@@ -628,7 +639,7 @@ mod tests {
                 sweep(band_body, &mut sweeps, 1.6, cut);
             }
             let (mut du, mut dv) = (vec![0f32; g.len()], vec![0f32; g.len()]);
-            sweeps.unfold(&mut du, &mut dv, &g);
+            unfold_rows([&mut du, &mut dv], 0, &sweeps, &g);
             let (pu, pv) = plain_sweeps(&sys, &g, 1.6, 4);
             assert!(du == pu && dv == pv, "{w}x{h}: split and plain sweeps differ");
             assert!(

@@ -176,21 +176,26 @@ impl Sweeps {
         }
         self.at(0, 0)..self.at(b.rows - 1, b.len)
     }
+}
 
-    /// Copies the increment back to the padded full grid.
-    pub(super) fn unfold(&self, du: &mut [f32], dv: &mut [f32], g: &Padded) {
-        for (c, first) in BLOCKS {
-            let b = self.block(c, first);
-            for r in 0..b.rows {
-                let row = g.at(0, b.q + 2 * r)..g.at(0, b.q + 2 * r) + g.w;
-                let split = self.at(r, 0);
-                let (su, sv) = (&self.du[b.index][split..], &self.dv[b.index][split..]);
-                for (d, &v) in du[row.clone()].iter_mut().skip(first).step_by(2).zip(su) {
-                    *d = v;
-                }
-                for (d, &v) in dv[row].iter_mut().skip(first).step_by(2).zip(sv) {
-                    *d = v;
-                }
+/// Copies the increment back to the rows of the padded full grid that a
+/// band holds: `out` is `[du, dv]` cut to the band, which starts at sample
+/// `base`.
+#[inline(always)]
+pub(super) fn unfold_rows(out: [&mut [f32]; 2], base: usize, sweeps: &Sweeps, g: &Padded) {
+    let [du, dv] = out;
+    for y in band_rows(base, du.len(), g.stride(), g.h) {
+        let row = g.at(0, y) - base..g.at(0, y) - base + g.w;
+        for first in 0..2 {
+            // Row y is row y / 2 of the blocks whose rows have its parity.
+            let b = sweeps.block((y + first) % 2, first);
+            let split = sweeps.at(y / 2, 0);
+            let (su, sv) = (&sweeps.du[b.index][split..], &sweeps.dv[b.index][split..]);
+            for (d, &v) in du[row.clone()].iter_mut().skip(first).step_by(2).zip(su) {
+                *d = v;
+            }
+            for (d, &v) in dv[row.clone()].iter_mut().skip(first).step_by(2).zip(sv) {
+                *d = v;
             }
         }
     }

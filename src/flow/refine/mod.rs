@@ -269,6 +269,14 @@ impl std::fmt::Debug for Refiner {
     }
 }
 
+/// The smallest picture whose refinement runs on several threads. Lower
+/// than the image filters' threshold (32768): a pixel's fixed-point
+/// iteration costs far more than a filter tap. On 2 threads, 8192 against
+/// 32768 took 0.94x the time of pan_cif's medium preset (its 176x144
+/// level) and 0.91x of talk_vga's fast (160x120), `farm-bench -n 11` of
+/// `mocomp flow CLIP --frames 3:4 --threads 2 --runs 100`.
+const PARALLEL_PIXELS: usize = 8192;
+
 /// How the work of one picture is cut: the bands per stage (one without
 /// threads; several per thread so that uneven bands even out).
 #[derive(Clone, Copy)]
@@ -317,7 +325,7 @@ impl Refiner {
         let (h, w) = i1.dim();
         // Bands of rows on every thread where the level is large enough
         // for that to pay (CIF's quarter-size level is not).
-        let parallel = crate::imgproc::pyramid::parallel_worth(w * h);
+        let parallel = w * h >= PARALLEL_PIXELS && rayon::current_num_threads() > 1;
         let cut = Cut {
             bands: if parallel {
                 4 * rayon::current_num_threads()

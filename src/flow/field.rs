@@ -29,8 +29,16 @@ impl Flow {
 
     /// A field from its components, all valid. Panics if the shapes differ.
     pub fn from_uv(u: Array2<f32>, v: Array2<f32>) -> Flow {
+        assert!(
+            u.dim() == v.dim(),
+            "flow components of different shapes: u {:?}, v {:?}",
+            u.dim(),
+            v.dim()
+        );
+        // All valid: no pass over the components to zero invalid pixels
+        // (3 % of the perf samples of DIS ultrafast on smile_360p).
         let valid = Array2::from_elem(u.dim(), true);
-        Flow::from_parts(u, v, valid)
+        Flow { u, v, valid }
     }
 
     /// A field from its components and validity mask. Panics if the shapes

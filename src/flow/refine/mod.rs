@@ -25,7 +25,7 @@ mod system;
 use ndarray::Array2;
 use rayon::prelude::*;
 
-use self::sweeps::{gather_rows, sweep_band, unfold_rows, Block, Sweeps, BLOCKS, COEFFICIENTS};
+use self::sweeps::{coefficient_sources, gather_rows, sweep_band, unfold_rows, Block, Sweeps, BLOCKS};
 use self::system::{data_rows, fold_rows, smoothness_rows, Linearised, Padded, System};
 
 /// Settings of the variational refinement.
@@ -124,7 +124,7 @@ pub(crate) enum Band<'a> {
     Gather {
         out: [&'a mut [f32]; 9],
         base: usize,
-        src: [&'a [f32]; 9],
+        src: [(&'a [f32], usize); 9],
         block: Block,
         stride: usize,
         g: &'a Padded,
@@ -506,7 +506,7 @@ impl Refiner {
 
 /// Every block's coefficients from the folded system.
 fn gather(kernel: BandFn, sweeps: &mut Sweeps, sys: &System, g: &Padded, cut: Cut) {
-    let src = COEFFICIENTS.map(|(source, _)| source.of(sys));
+    let src = coefficient_sources(sys, g.stride());
     let stride = sweeps.stride;
     let band = cut.rows(g.h.div_ceil(2) + 2, stride);
     for (c, first) in BLOCKS {

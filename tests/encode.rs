@@ -11,7 +11,8 @@ use mocomp::codec::syntax::{
 };
 use mocomp::codec::Frame;
 use mocomp::encode::{
-    Encoder, EncoderConfig, EncoderPreset, FrameStats, ModeDecision, Partitions, Predictor,
+    encode_sequence, EncodeError, Encoder, EncoderConfig, EncoderPreset, FrameSource, FrameStats,
+    ModeDecision, Partitions, Predictor, SequenceInfo,
 };
 use mocomp::synth::{Motion, SceneSpec, Shape, Synth};
 
@@ -732,4 +733,75 @@ fn what_reappears_is_predicted_from_the_older_reference() {
         bytes(&one),
         psnr(&one)
     );
+}
+
+/// A source of `frames` whose read number `fail_at` (from 0) fails,
+/// counting its reads.
+struct BreakingSource {
+    frames: Vec<Frame>,
+    fail_at: usize,
+    reads: usize,
+}
+
+impl FrameSource for BreakingSource {
+    fn next_frame(&mut self, frame: &mut Frame) -> Result<bool, EncodeError> {
+        let i = self.reads;
+        self.reads += 1;
+        if i == self.fail_at {
+            return Err(EncodeError::Input("the source broke".into()));
+        }
+        Ok(self.frames.get(i).map(|f| frame.clone_from(f)).is_some())
+    }
+}
+
+/// The encode loop reads the next frame while it codes one: it must still
+/// read no frame it will not code, and report a read error only after
+/// the frames before it are written, on one thread and on two.
+#[test]
+fn the_encode_loop_reads_only_what_it_codes_and_fails_after_the_frames_before() {
+    let frames = scene(64, 48, 5, 1.0, 0.5);
+    let info = SequenceInfo {
+        width: 64,
+        height: 48,
+        fps: (25, 1),
+        vui: Default::default(),
+    };
+    let source = |fail_at| BreakingSource {
+        frames: frames.clone(),
+        fail_at,
+        reads: 0,
+    };
+    let config = || EncoderConfig::new().qp(30);
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            // Two frames of a source that breaks at its third: two reads.
+            let mut two = source(2);
+            let mut stream = Vec::new();
+            let summary =
+                encode_sequence(&mut two, info, config(), Some(2), &mut stream, |_| Ok(())).unwrap();
+            assert_eq!((summary.quality.frames, two.reads), (2, 2));
+
+            // Without the limit: the error, after both frames were written
+            // and seen.
+            let mut broken = source(2);
+            let (mut written, mut seen) = (Vec::new(), 0);
+            let err = encode_sequence(&mut broken, info, config(), None, &mut written, |_| {
+                seen += 1;
+                Ok(())
+            })
+            .unwrap_err();
+            assert!(err.to_string().contains("the source broke"), "{err}");
+            assert_eq!(seen, 2);
+            assert_eq!(written[..], stream[..stream.len() - Encoder::trailer().len()]);
+
+            // A whole source: every frame, then the one read that ends it.
+            let mut whole = source(usize::MAX);
+            let summary = encode_sequence(&mut whole, info, config(), None, Vec::new(), |_| Ok(())).unwrap();
+            assert_eq!((summary.quality.frames, whole.reads), (5, 6));
+        });
+    }
 }

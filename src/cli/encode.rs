@@ -210,7 +210,7 @@ pub fn config(args: &Args) -> Result<EncoderConfig> {
 /// A Y4M reader as the encoder's frame source.
 struct Y4mSource<'a, R: std::io::Read>(&'a mut Y4mReader<R>);
 
-impl<R: std::io::Read> FrameSource for Y4mSource<'_, R> {
+impl<R: std::io::Read + Send> FrameSource for Y4mSource<'_, R> {
     fn next_frame(&mut self, frame: &mut crate::codec::Frame) -> Result<bool, EncodeError> {
         self.0
             .read_frame_into(frame)

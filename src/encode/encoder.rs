@@ -13,6 +13,7 @@ use super::stats::FrameStats;
 use super::weights;
 use super::{EncodeError, EncodedFrame};
 use crate::codec::mv::Mv;
+use crate::codec::picture::Plane;
 use crate::codec::recon::crop_reusing;
 use crate::codec::syntax::{EntropyState, FrameType, MotionTool, SequenceHeader, Vui, STREAM_END};
 use crate::codec::weight::Weights;
@@ -288,9 +289,8 @@ fn pad_to_coded(
         Some(f) => f,
         None => Frame::new(width, height)?,
     };
-    for p in 0..3 {
+    let pad_plane = |p: usize, dst: &mut Plane| {
         let src = frame.plane(p);
-        let dst = out.plane_mut(p);
         let (sw, sh) = (src.width(), src.height());
         for y in 0..dst.height() {
             let row = src.row(y.min(sh - 1));
@@ -299,7 +299,17 @@ fn pad_to_coded(
             let last = row[sw - 1];
             d[sw..].fill(last);
         }
-    }
-    out.extend_borders();
+        dst.extend_border();
+    };
+    // Luma beside the two chroma planes (two thirds of the samples against
+    // one): a copy the frame's threads would otherwise wait for.
+    let [y, u, v] = out.planes_mut();
+    rayon::join(
+        || pad_plane(0, y),
+        || {
+            pad_plane(1, u);
+            pad_plane(2, v);
+        },
+    );
     Ok(out)
 }

@@ -113,7 +113,7 @@ pub struct EncodedFrame {
 /// Where an encode's frames come from (a Y4M reader, frames in memory,
 /// arrays from Python): the one encode loop, [`encode_sequence`], reads
 /// them through this.
-pub trait FrameSource {
+pub trait FrameSource: Send {
     /// The next frame into `frame` (the sequence's size); `false` at the
     /// end.
     fn next_frame(&mut self, frame: &mut Frame) -> Result<bool, EncodeError>;
@@ -169,13 +169,33 @@ pub fn encode_sequence<W: Write>(
     out.write_all(&header)?;
     let rate = f64::from(info.fps.0) / f64::from(info.fps.1);
     let mut summary = SummaryBuilder::new(rate, header.len() + 1);
+    let wanted = |coded: usize| max_frames.is_none_or(|n| coded < n);
     let mut frame = Frame::new(info.width, info.height)?;
-    while max_frames.is_none_or(|n| summary.frames() < n) && source.next_frame(&mut frame)? {
-        let coded = encoder.encode(&frame)?;
+    let mut next = Frame::new(info.width, info.height)?;
+    let mut have = wanted(0) && source.next_frame(&mut frame)?;
+    while have {
+        // The next frame is read while this one is coded, on another
+        // thread where the pool has one: the copies of reading are work
+        // the encoder's threads would otherwise wait for.
+        let read_next = wanted(summary.frames() + 1);
+        let (coded, read) = rayon::join(
+            || encoder.encode(&frame),
+            || {
+                if read_next {
+                    source.next_frame(&mut next)
+                } else {
+                    Ok(false)
+                }
+            },
+        );
+        let coded = coded?;
         out.write_all(&coded.bytes)?;
         summary.push(&coded.stats);
         on_frame(&coded)?;
         encoder.recycle(coded.recon);
+        // A read error comes after the frames before it are out.
+        have = read?;
+        std::mem::swap(&mut frame, &mut next);
     }
     out.write_all(&Encoder::trailer())?;
     out.flush()?;

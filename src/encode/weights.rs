@@ -119,7 +119,9 @@ fn abs_differences(p: &Plane, cuts: [u8; 2]) -> [u64; 2] {
 }
 
 fn plane_weight(source: &Plane, reference: &Plane) -> Option<PlaneWeight> {
-    let (s, r) = (PlaneStats::of(source), PlaneStats::of(reference));
+    // Two planes' passes at once: they are work the frame's threads would
+    // otherwise wait for.
+    let (s, r) = rayon::join(|| PlaneStats::of(source), || PlaneStats::of(reference));
     let scale = if r.deviation > 0.5 {
         (f64::from(WEIGHT_ONE) * s.deviation / r.deviation)
             .round()

@@ -503,6 +503,24 @@ pub fn crop(frame: &Frame, width: usize, height: usize) -> Result<Frame, Picture
     crop_reusing(frame, width, height, None)
 }
 
+/// Whether `f` is a frame [`crop`] gives at `width x height`: its size and
+/// borders.
+pub fn holds_crop(f: &Frame, width: usize, height: usize) -> bool {
+    (f.width(), f.height()) == (width, height)
+        && f.y().pad() == Plane::DEFAULT_PAD
+        && f.plane(1).pad() == Plane::DEFAULT_PAD.div_ceil(2)
+}
+
+/// The top-left part of `src` the size of `dst`, into `dst`, its border
+/// extended: one plane of [`crop`] (planes may go to several threads).
+pub fn crop_plane_into(src: &Plane, dst: &mut Plane) {
+    let w = dst.width();
+    for r in 0..dst.height() {
+        dst.row_mut(r).copy_from_slice(&src.row(r)[..w]);
+    }
+    dst.extend_border();
+}
+
 /// [`crop`] written into `reuse` when it is a frame of `width x height`
 /// with the borders [`crop`] gives (a frame [`crop`] returned earlier):
 /// no allocation, and none of the page faults a fresh one costs.
@@ -512,20 +530,10 @@ pub fn crop_reusing(
     height: usize,
     reuse: Option<Frame>,
 ) -> Result<Frame, PictureError> {
-    let fits = |f: &Frame| {
-        (f.width(), f.height()) == (width, height)
-            && f.y().pad() == Plane::DEFAULT_PAD
-            && f.plane(1).pad() == Plane::DEFAULT_PAD.div_ceil(2)
-    };
-    if let Some(mut out) = reuse.filter(fits) {
+    if let Some(mut out) = reuse.filter(|f| holds_crop(f, width, height)) {
         for p in 0..3 {
-            let (src, dst) = (frame.plane(p), out.plane_mut(p));
-            let w = dst.width();
-            for r in 0..dst.height() {
-                dst.row_mut(r).copy_from_slice(&src.row(r)[..w]);
-            }
+            crop_plane_into(frame.plane(p), out.plane_mut(p));
         }
-        out.extend_borders();
         return Ok(out);
     }
     // The borders of Frame::new: the default for luma, half for chroma.

@@ -14,7 +14,7 @@ use super::weights;
 use super::{EncodeError, EncodedFrame};
 use crate::codec::mv::Mv;
 use crate::codec::picture::Plane;
-use crate::codec::recon::crop_reusing;
+use crate::codec::recon::{crop, crop_plane_into, holds_crop};
 use crate::codec::syntax::{EntropyState, FrameType, MotionTool, SequenceHeader, Vui, STREAM_END};
 use crate::codec::weight::Weights;
 use crate::codec::{Frame, PictureError};
@@ -157,12 +157,7 @@ impl Encoder {
                 (i, 0.0)
             }
         };
-        let recon = crop_reusing(
-            &coded.recon,
-            self.seq.width,
-            self.seq.height,
-            self.spare_output.take(),
-        )?;
+        let recon = self.visible_recon(&coded.recon)?;
         // The quality measurements are not coding time: some cost more than
         // the coding.
         let coding_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -178,6 +173,24 @@ impl Encoder {
         self.spare_source = self.prev_source.replace(src);
         self.index += 1;
         Ok(EncodedFrame { bytes, recon, stats })
+    }
+
+    /// The visible part of a coded reconstruction, in the frame given back
+    /// where it fits: luma beside chroma, as the source was padded.
+    fn visible_recon(&mut self, coded: &Frame) -> Result<Frame, PictureError> {
+        let (w, h) = (self.seq.width, self.seq.height);
+        let Some(mut out) = self.spare_output.take().filter(|f| holds_crop(f, w, h)) else {
+            return crop(coded, w, h);
+        };
+        let [y, u, v] = out.planes_mut();
+        rayon::join(
+            || crop_plane_into(coded.plane(0), y),
+            || {
+                crop_plane_into(coded.plane(1), u);
+                crop_plane_into(coded.plane(2), v);
+            },
+        );
+        Ok(out)
     }
 
     /// A P frame: the reference weighted, motion analysed, the

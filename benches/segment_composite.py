@@ -4,8 +4,14 @@ Test material for moving-object segmentation with known truth: REAL seen
 by a camera that pans (a window sliding 2 px right and 1 px down a frame
 over REAL's frames), with a disc cut from OBJECT's first frame pasted on
 top, moving 3 px left and 2 px down a frame across the view. The disc's
-mask is the truth: MASKS_DIR/00000.png ... (255 inside). 4:2:0 8-bit Y4M
-in and out; numpy only (PNGs written with zlib)."""
+mask is the truth: MASKS_DIR/00000.png ... (255 inside), in the labels of
+CDnet 2014. What REAL itself moves (people in the footage) is not in the
+truth: where REAL's own luma changes from the frame before or to the frame
+after (at the same place in the scene, so the pan does not count: a 5x5
+mean of the difference above four times its noise and at least 6 levels,
+grown by 8 px), the truth says 170, "unknown motion", which CDnet and
+`mocomp segment --truth` do not score. With --no-unknown it says 0 there.
+4:2:0 8-bit Y4M in and out; numpy only (PNGs written with zlib)."""
 import re
 import struct
 import sys
@@ -41,9 +47,51 @@ def write_png(path, mask):
     Path(path).write_bytes(png)
 
 
+UNKNOWN = 170  # CDnet 2014's "unknown motion": not scored
+GROW = 8
+
+
+def box_mean(a, r):
+    """The mean of each (2r+1)^2 window of `a` (edges repeated)."""
+    p = np.pad(a.astype(np.float64), r, mode="edge")
+    c = np.cumsum(np.cumsum(p, 0), 1)
+    c = np.pad(c, ((1, 0), (1, 0)))
+    k = 2 * r + 1
+    return (c[k:, k:] - c[:-k, k:] - c[k:, :-k] + c[:-k, :-k]) / (k * k)
+
+
+def grow(mask, r):
+    """`mask` dilated by a (2r+1)^2 square."""
+    out = mask.copy()
+    for axis in (0, 1):
+        grown = out.copy()
+        for d in range(1, r + 1):
+            grown[tuple(slice(d, None) if a == axis else slice(None) for a in (0, 1))] |= \
+                out[tuple(slice(None, -d) if a == axis else slice(None) for a in (0, 1))]
+            grown[tuple(slice(None, -d) if a == axis else slice(None) for a in (0, 1))] |= \
+                out[tuple(slice(d, None) if a == axis else slice(None) for a in (0, 1))]
+        out = grown
+    return out
+
+
+def own_motion(lumas, t, window):
+    """Where the footage itself changes around frame t, in its window."""
+    oy, ox, h, w = window
+    here = lumas[t][oy : oy + h, ox : ox + w].astype(np.int16)
+    diffs = [np.abs(here - lumas[s][oy : oy + h, ox : ox + w].astype(np.int16))
+             for s in (t - 1, t + 1) if 0 <= s < len(lumas)]
+    moved = np.zeros((h, w), bool)
+    for d in diffs:
+        noise = 1.4826 * np.median(d) + 0.5
+        moved |= box_mean(d, 2) > max(6.0, 4.0 * noise)
+    return grow(moved, GROW)
+
+
 def main():
-    real, obj, out, masks = sys.argv[1:5]
-    n = int(sys.argv[5]) if len(sys.argv) > 5 else 40
+    args = [a for a in sys.argv[1:] if a != "--no-unknown"]
+    with_unknown = "--no-unknown" not in sys.argv
+    real, obj, out, masks = args[:4]
+    n = int(args[4]) if len(args) > 4 else 40
     head, frames = read_y4m(real, n)
     _, (donor, *_) = read_y4m(obj, 1)
     H, W = frames[0][0].shape
@@ -59,6 +107,8 @@ def main():
     cdisc = disc[::2, ::2]
     Path(masks).mkdir(parents=True, exist_ok=True)
     head = re.sub(r" W\d+", f" W{w}", re.sub(r" H\d+", f" H{h}", head))
+    lumas = [y for y, _, _ in frames]
+    unknown_share = []
     with open(out, "wb") as f:
         f.write(head.encode() + b"\n")
         for t, (y, u, v) in enumerate(frames):
@@ -69,6 +119,9 @@ def main():
                       v[oy // 2 : (oy + h) // 2, ox // 2 : (ox + w) // 2].copy()]
             px, py = (w - 2 * r - 8 - 3 * t) & ~1, (h // 8 + 2 * t) & ~1  # the disc's corner, even
             mask = np.zeros((h, w), np.uint8)
+            if with_unknown:
+                mask[own_motion(lumas, t, (oy, ox, h, w))] = UNKNOWN
+                unknown_share.append(float((mask == UNKNOWN).mean()))
             if 0 <= px and px + 2 * r <= w and 0 <= py and py + 2 * r <= h:
                 planes[0][py : py + 2 * r, px : px + 2 * r][disc] = patch[0][disc]
                 for k in (1, 2):
@@ -76,6 +129,9 @@ def main():
                 mask[py : py + 2 * r, px : px + 2 * r][disc] = 255
             f.write(b"FRAME\n" + b"".join(p.tobytes() for p in planes))
             write_png(Path(masks) / f"{t:05d}.png", mask)
+    if unknown_share:
+        print(f"{Path(real).stem}: unknown (the footage's own motion) {100 * np.mean(unknown_share):.1f} % "
+              f"of the pixels", file=sys.stderr)
 
 
 main()

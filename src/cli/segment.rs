@@ -13,7 +13,7 @@ use crate::flow::Preset;
 use crate::io::image::{read_luma, write_plane};
 use crate::io::y4m::{Y4mReader, Y4mWriter};
 use crate::io::OutputFile;
-use crate::segment::{iou, SegmentParams, Segmenter};
+use crate::segment::{iou_against_truth, SegmentParams, Segmenter};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -32,7 +32,10 @@ pub struct Args {
     /// its motion).
     #[arg(long, default_value_t = 1.0)]
     pub tolerance: f32,
-    /// Known masks (the same names) to score against: IoU per frame.
+    /// Known masks (00000.png, 00001.png, ...) to score against: IoU per
+    /// frame. In CDnet 2014's labels: 255 moving, 0 and 50 (shadow)
+    /// static, 85 (outside the region of interest) and 170 (unknown) not
+    /// scored; other values moving from 128.
     #[arg(long, value_name = "DIR")]
     pub truth: Option<PathBuf>,
     /// One JSON object instead of text.
@@ -86,7 +89,7 @@ pub fn run(args: &Args) -> Result<()> {
             w.write_frame(&tinted(&frames[t], &mask))?;
         }
         if let Some(dir) = &args.truth {
-            scores.push((t, iou(&mask, &read_truth(dir, t)?)));
+            scores.push((t, iou_against_truth(&mask, &read_truth(dir, t)?)));
         }
     }
     drop(writer);

@@ -380,3 +380,82 @@ pub fn iou(a: &Plane, b: &Plane) -> f64 {
         inter as f64 / union as f64
     }
 }
+
+/// What a ground-truth mask says of a pixel, in the labels of the
+/// CDnet 2014 change-detection benchmark, whose masks use them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TruthLabel {
+    /// 0 (static) and 50 (hard shadow, which CDnet scores as static), and
+    /// any other value under 128.
+    Static,
+    /// 255 (motion) and any other value from 128 up but 170.
+    Moving,
+    /// 85 (outside the region of interest) and 170 (unknown motion): not
+    /// scored.
+    NotScored,
+}
+
+impl TruthLabel {
+    /// The label of a truth mask's sample.
+    pub fn of(v: u8) -> TruthLabel {
+        match v {
+            85 | 170 => TruthLabel::NotScored,
+            128.. => TruthLabel::Moving,
+            _ => TruthLabel::Static,
+        }
+    }
+}
+
+/// Intersection over union of `mask` (non-zero is moving) and a truth
+/// mask in CDnet's labels ([`TruthLabel`]), over the pixels the truth
+/// scores; 1 when neither marks any of them.
+pub fn iou_against_truth(mask: &Plane, truth: &Plane) -> f64 {
+    let (mut inter, mut union) = (0usize, 0usize);
+    for (rm, rt) in mask.rows().zip(truth.rows()) {
+        for (&m, &t) in rm.iter().zip(rt) {
+            let moving = match TruthLabel::of(t) {
+                TruthLabel::NotScored => continue,
+                label => label == TruthLabel::Moving,
+            };
+            inter += usize::from(m > 0 && moving);
+            union += usize::from(m > 0 || moving);
+        }
+    }
+    if union == 0 {
+        1.0
+    } else {
+        inter as f64 / union as f64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plane(w: usize, values: &[u8]) -> Plane {
+        let mut p = Plane::new(w, values.len() / w).unwrap();
+        for (y, row) in values.chunks(w).enumerate() {
+            p.row_mut(y).copy_from_slice(row);
+        }
+        p
+    }
+
+    #[test]
+    fn truth_in_cdnet_labels_scores_only_what_it_knows() {
+        // Mask:  moving everywhere but the last pixel.
+        let mask = plane(4, &[255, 255, 255, 255, 255, 255, 255, 0]);
+        // Truth: moving, moving, unknown, outside, shadow, static,
+        // static, moving.
+        let truth = plane(4, &[255, 200, 170, 85, 50, 0, 10, 255]);
+        // Scored: six pixels; both moving at two; either at all six.
+        assert!((iou_against_truth(&mask, &truth) - 2.0 / 6.0).abs() < 1e-12);
+        // A truth of 0/255 alone is plain IoU.
+        let plain = plane(4, &[255, 0, 0, 255, 0, 0, 255, 255]);
+        assert_eq!(iou_against_truth(&mask, &plain), iou(&mask, &plain));
+        // Nothing scored: 1.
+        let unknown = plane(4, &[170; 8]);
+        assert_eq!(iou_against_truth(&mask, &unknown), 1.0);
+        assert_eq!(TruthLabel::of(128), TruthLabel::Moving);
+        assert_eq!(TruthLabel::of(127), TruthLabel::Static);
+    }
+}

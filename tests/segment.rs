@@ -40,7 +40,11 @@ fn scene(camera: Motion, object: Motion, shape: Shape, seed: u64) -> (Vec<Frame>
 }
 
 fn mean_iou(frames: &[Frame], masks: &[Plane]) -> f64 {
-    let mut seg = Segmenter::new(&SegmentParams::default()).unwrap();
+    mean_iou_with(frames, masks, &SegmentParams::default())
+}
+
+fn mean_iou_with(frames: &[Frame], masks: &[Plane], params: &SegmentParams) -> f64 {
+    let mut seg = Segmenter::new(params).unwrap();
     let scores: Vec<f64> = (0..frames.len())
         .map(|t| {
             let near: Vec<&Frame> = [t.checked_sub(1), Some(t + 1)]
@@ -132,4 +136,73 @@ fn flows_kept_from_the_frame_before_give_the_masks_of_fresh_ones() {
             "frame {t}"
         );
     }
+}
+
+/// A textured disc moving over a flat wall that fills the middle of a
+/// textured, panning scene (a person before a white door): the flow
+/// spreads the disc's motion over the flat wall around it, and the rest
+/// of the wall must outvote it.
+fn disc_before_a_flat_wall() -> (Vec<Frame>, Vec<Plane>) {
+    let (w, h, n) = (192usize, 144usize, 6usize);
+    let hash = |x: i64, y: i64| {
+        let v = (x.wrapping_mul(73_856_093) ^ y.wrapping_mul(19_349_663)) as u64;
+        (v.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 58) as i64
+    };
+    // Texture: 8x8 cells of random grey (64 levels), in scene coordinates.
+    let texture = |x: i64, y: i64| 60 + 2 * hash(x.div_euclid(8), y.div_euclid(8));
+    let (r, mut frames, mut masks) = (18i64, Vec::new(), Vec::new());
+    for t in 0..n as i64 {
+        let (cx, cy) = (70 + 3 * t, 72 - t);
+        let luma = Plane::from_fn(w, h, |x, y| {
+            let (x, y) = (x as i64, y as i64);
+            let (dx, dy) = (x - cx, y - cy);
+            let v = if dx * dx + dy * dy <= r * r {
+                // The disc's own texture moves with it.
+                150 + texture(dx + 40, dy + 40) / 2
+            } else if (36..156).contains(&(x + t)) && (24..120).contains(&(y + t)) {
+                // The wall pans with the rest of the scene.
+                200
+            } else {
+                // The camera pans 1 px right and 1 px down a frame.
+                texture(x + t, y + t)
+            };
+            v as u8
+        })
+        .unwrap();
+        let (cw, ch) = Frame::chroma_size(w, h);
+        let grey = || Plane::from_fn(cw, ch, |_, _| 128).unwrap();
+        frames.push(Frame::from_planes(luma, grey(), grey()).unwrap());
+        masks.push(
+            Plane::from_fn(w, h, |x, y| {
+                let (dx, dy) = (x as i64 - cx, y as i64 - cy);
+                if dx * dx + dy * dy <= r * r {
+                    255
+                } else {
+                    0
+                }
+            })
+            .unwrap(),
+        );
+    }
+    (frames, masks)
+}
+
+#[test]
+fn a_flat_wall_beside_a_moving_object_is_not_marked() {
+    let (frames, masks) = disc_before_a_flat_wall();
+    let regions = mean_iou(&frames, &masks);
+    let plain = mean_iou_with(
+        &frames,
+        &masks,
+        &SegmentParams {
+            region_reach: 0.0,
+            ..SegmentParams::default()
+        },
+    );
+    eprintln!("flat wall: mean IoU {regions:.3}, without the regions' vote {plain:.3}");
+    assert!(regions >= 0.78, "mean IoU {regions:.3}");
+    assert!(
+        regions > plain + 0.3,
+        "{regions:.3} against {plain:.3} without the vote"
+    );
 }

@@ -4,6 +4,7 @@
 //! response.
 
 pub mod corners;
+pub mod domain;
 pub mod dsp;
 pub mod pyramid;
 pub mod warp;

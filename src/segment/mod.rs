@@ -9,8 +9,11 @@
 //! certain where it is large) and doubled where the forward-backward check
 //! fails (occlusions). The two directions' scores are averaged (a pixel
 //! that moves in both is surely moving; one occluded in one direction is
-//! judged by the other), smoothed by a Gaussian, thresholded, and cleaned
-//! by an opening and a closing (3x3).
+//! judged by the other), smoothed by a Gaussian, then capped and spread
+//! within the frame's regions of like brightness by an edge-aware filter
+//! (the domain transform's, guided by the luma: a flat background that
+//! took a mover's motion is outvoted by the rest of its region),
+//! thresholded, and cleaned by an opening and a closing (3x3).
 
 use ndarray::Array2;
 
@@ -20,6 +23,7 @@ use crate::flow::warp::sample_bilinear;
 use crate::flow::{Flow, FlowEstimator, FlowOptions, Preset};
 use crate::global::sources::from_flow;
 use crate::global::{estimate, GlobalParams, Model, Transform};
+use crate::imgproc::domain::domain_transform;
 use crate::imgproc::pyramid::blur;
 use crate::raster::plane_to_array;
 
@@ -35,16 +39,45 @@ pub struct SegmentParams {
     pub relative: f32,
     /// Sigma of the score's smoothing, pixels.
     pub smoothing: f32,
+    /// How far the score then spreads within the frame's regions of like
+    /// brightness, as a share of the picture's smaller side (0: not at
+    /// all): a flat background beside something that moves takes its
+    /// motion in the flow, and the rest of its region outvotes it.
+    pub region_reach: f32,
+    /// The brightness step (grey levels) that stretches the distance
+    /// across it by the whole reach: the regions' edges.
+    pub region_edge: f32,
+    /// The most a pixel's score counts for in that vote (above 1, the
+    /// threshold): a few pixels far off the camera's motion must not
+    /// carry a region.
+    pub evidence_cap: f32,
+}
+
+impl SegmentParams {
+    /// The score's spatial reach in pixels on a picture of `dim`
+    /// (height, width), when it spreads at all.
+    fn region_reach(&self, (h, w): (usize, usize)) -> Option<f32> {
+        let reach = h.min(w) as f32 * self.region_reach;
+        (reach >= 1.0).then_some(reach)
+    }
 }
 
 impl Default for SegmentParams {
-    /// DIS fast, 1 pixel plus 10 % of the motion, smoothing sigma 1.5.
+    /// DIS fast, 1 pixel plus 10 % of the motion, smoothing sigma 1.5;
+    /// the score capped at 1.5 and spread over half the smaller side
+    /// within edges of 10 grey levels. On six real clips with a pasted
+    /// disc (benches/segment_composite.sh) the mean IoU is 0.887 with
+    /// these, 0.771 without the spreading; an edge of 5 or 20 levels
+    /// gave 0.859 and 0.849, a cap of 2 0.875, the whole side 0.877.
     fn default() -> SegmentParams {
         SegmentParams {
             preset: Preset::Fast,
             tolerance: 1.0,
             relative: 0.1,
             smoothing: 1.5,
+            region_reach: 0.5,
+            region_edge: 10.0,
+            evidence_cap: 1.5,
         }
     }
 }
@@ -94,10 +127,14 @@ impl Segmenter {
         if !(positive(params.tolerance)
             && params.tolerance > 0.0
             && positive(params.relative)
-            && positive(params.smoothing))
+            && positive(params.smoothing)
+            && positive(params.region_reach)
+            && params.region_edge > 0.0
+            && params.region_edge.is_finite()
+            && params.evidence_cap > 1.0)
         {
             return Err(SegmentError::Params(
-                "tolerance must be > 0, relative and smoothing >= 0".into(),
+                "tolerance and region_edge must be > 0, relative, smoothing and region_reach >= 0, evidence_cap > 1".into(),
             ));
         }
         let options = FlowOptions {
@@ -136,6 +173,11 @@ impl Segmenter {
         }
         if self.params.smoothing > 0.0 {
             total = blur(&total, self.params.smoothing);
+        }
+        if let Some(reach) = self.params.region_reach(total.dim()) {
+            let cap = self.params.evidence_cap;
+            total.mapv_inplace(|v| v.min(cap));
+            total = domain_transform(&me, &total, reach, self.params.region_edge, 3);
         }
         Evidence {
             me,
@@ -344,24 +386,35 @@ fn close(mask: &Array2<bool>) -> Array2<bool> {
     morph(&morph(mask, true), false)
 }
 
-/// 3x3 dilation (`grow`) or erosion, the border replicated.
+/// 3x3 dilation (`grow`) or erosion over the window's part inside the
+/// picture: a pass along rows, then one across them (the square is both
+/// lines; a 3x3 loop per pixel was half of segmentation's time).
 fn morph(mask: &Array2<bool>, grow: bool) -> Array2<bool> {
+    let pick = |a: bool, b: bool| if grow { a | b } else { a & b };
     let (h, w) = mask.dim();
-    Array2::from_shape_fn((h, w), |(y, x)| {
-        let mut any = false;
-        let mut all = true;
-        for yy in y.saturating_sub(1)..(y + 2).min(h) {
-            for xx in x.saturating_sub(1)..(x + 2).min(w) {
-                any |= mask[[yy, xx]];
-                all &= mask[[yy, xx]];
+    let mut along = mask.clone();
+    for (src, mut dst) in mask.rows().into_iter().zip(along.rows_mut()) {
+        for x in 0..w {
+            if x > 0 {
+                dst[x] = pick(dst[x], src[x - 1]);
+            }
+            if x + 1 < w {
+                dst[x] = pick(dst[x], src[x + 1]);
             }
         }
-        if grow {
-            any
-        } else {
-            all
+    }
+    let mut out = along.clone();
+    for y in 0..h {
+        for other in [y.checked_sub(1), Some(y + 1).filter(|&b| b < h)]
+            .into_iter()
+            .flatten()
+        {
+            for (o, &a) in out.row_mut(y).iter_mut().zip(along.row(other)) {
+                *o = pick(*o, a);
+            }
         }
-    })
+    }
+    out
 }
 
 /// Intersection over union of two masks (non-zero is set); 1 when both
@@ -431,6 +484,35 @@ pub fn iou_against_truth(mask: &Plane, truth: &Plane) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    /// The 3x3 window read pixel by pixel.
+    fn morph_plain(mask: &Array2<bool>, grow: bool) -> Array2<bool> {
+        let (h, w) = mask.dim();
+        Array2::from_shape_fn((h, w), |(y, x)| {
+            let mut window = (y.saturating_sub(1)..(y + 2).min(h))
+                .flat_map(|yy| (x.saturating_sub(1)..(x + 2).min(w)).map(move |xx| (yy, xx)));
+            if grow {
+                window.any(|p| mask[p])
+            } else {
+                window.all(|p| mask[p])
+            }
+        })
+    }
+
+    proptest! {
+        #[test]
+        fn separable_morphology_is_the_3x3_window(
+            (h, w, bits) in (1usize..9, 1usize..9).prop_flat_map(|(h, w)| {
+                (Just(h), Just(w), proptest::collection::vec(any::<bool>(), h * w))
+            }),
+        ) {
+            let mask = Array2::from_shape_vec((h, w), bits).unwrap();
+            for grow in [false, true] {
+                prop_assert_eq!(morph(&mask, grow), morph_plain(&mask, grow));
+            }
+        }
+    }
 
     fn plane(w: usize, values: &[u8]) -> Plane {
         let mut p = Plane::new(w, values.len() / w).unwrap();

@@ -11,7 +11,8 @@ use ndarray::{Array2, Axis};
 
 /// `input` smoothed within the regions of `guide` (same size): spatial
 /// reach `sigma_s` pixels, range `sigma_r` grey levels, in `iterations`
-/// rounds of a horizontal and a vertical pass (3 in the paper).
+/// rounds of a horizontal and a vertical pass (3 in the paper). Panics
+/// unless `guide` and `input` are of one size.
 pub fn domain_transform(
     guide: &Array2<f32>,
     input: &Array2<f32>,

@@ -390,31 +390,46 @@ fn close(mask: &Array2<bool>) -> Array2<bool> {
 /// picture: a pass along rows, then one across them (the square is both
 /// lines; a 3x3 loop per pixel was half of segmentation's time).
 fn morph(mask: &Array2<bool>, grow: bool) -> Array2<bool> {
-    let pick = |a: bool, b: bool| if grow { a | b } else { a & b };
+    if grow {
+        morph_with(mask, |a, b| a | b)
+    } else {
+        morph_with(mask, |a, b| a & b)
+    }
+}
+
+/// [`morph`] with `pick` (or: dilation, and: erosion), on the rows as
+/// slices so that the passes are plain loops over three shifted runs.
+fn morph_with(mask: &Array2<bool>, pick: impl Fn(bool, bool) -> bool + Copy) -> Array2<bool> {
     let (h, w) = mask.dim();
-    let mut along = mask.clone();
-    for (src, mut dst) in mask.rows().into_iter().zip(along.rows_mut()) {
-        for x in 0..w {
-            if x > 0 {
-                dst[x] = pick(dst[x], src[x - 1]);
-            }
-            if x + 1 < w {
-                dst[x] = pick(dst[x], src[x + 1]);
-            }
+    if h == 0 || w == 0 {
+        return mask.clone();
+    }
+    let src = mask.as_standard_layout();
+    let src = src.as_slice().expect("standard layout");
+    let mut along = src.to_vec();
+    for (s, d) in src.chunks_exact(w).zip(along.chunks_exact_mut(w)) {
+        for (d, &left) in d[1..].iter_mut().zip(s) {
+            *d = pick(*d, left);
+        }
+        for (d, &right) in d.iter_mut().zip(&s[1..]) {
+            *d = pick(*d, right);
         }
     }
     let mut out = along.clone();
-    for y in 0..h {
-        for other in [y.checked_sub(1), Some(y + 1).filter(|&b| b < h)]
-            .into_iter()
-            .flatten()
-        {
-            for (o, &a) in out.row_mut(y).iter_mut().zip(along.row(other)) {
+    for (y, row) in out.chunks_exact_mut(w).enumerate() {
+        let mut with = |other: usize| {
+            for (o, &a) in row.iter_mut().zip(&along[other * w..(other + 1) * w]) {
                 *o = pick(*o, a);
             }
+        };
+        if y > 0 {
+            with(y - 1);
+        }
+        if y + 1 < h {
+            with(y + 1);
         }
     }
-    out
+    Array2::from_shape_vec((h, w), out).expect("the mask's own size")
 }
 
 /// Intersection over union of two masks (non-zero is set); 1 when both

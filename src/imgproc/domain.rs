@@ -94,9 +94,11 @@ fn horizontal_pass(f: &mut Array2<f32>, steps: &Array2<f32>, feedback: &Feedback
 fn vertical_pass(f: &mut Array2<f32>, steps: &Array2<f32>, feedback: &Feedback) {
     let h = f.nrows();
     let weights = steps.mapv(|s| feedback.of(s));
+    // The row a step reads, copied into one buffer (not a new one a row).
+    let mut prev = ndarray::Array1::<f32>::zeros(f.ncols());
     let mut blend = |to: usize, from: usize, w: usize| {
-        let (prev, mut row) = (f.row(from).to_owned(), f.row_mut(to));
-        for ((v, &p), &a) in row.iter_mut().zip(&prev).zip(weights.row(w)) {
+        prev.assign(&f.row(from));
+        for ((v, &p), &a) in f.row_mut(to).iter_mut().zip(&prev).zip(weights.row(w)) {
             *v += a * (p - *v);
         }
     };

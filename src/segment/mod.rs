@@ -399,7 +399,7 @@ fn morph(mask: &Array2<bool>, grow: bool) -> Array2<bool> {
 
 /// [`morph`] with `pick` (or: dilation, and: erosion), on the rows as
 /// slices so that the passes are plain loops over three shifted runs.
-fn morph_with(mask: &Array2<bool>, pick: impl Fn(bool, bool) -> bool + Copy) -> Array2<bool> {
+fn morph_with(mask: &Array2<bool>, pick: impl Fn(bool, bool) -> bool) -> Array2<bool> {
     let (h, w) = mask.dim();
     if h == 0 || w == 0 {
         return mask.clone();

@@ -254,6 +254,54 @@ fn block_vectors_follow_a_known_translation() {
 }
 
 #[test]
+fn a_camera_moving_past_the_search_range_is_followed() {
+    // A pan of (28, -18) px per frame, past the search range of 16 around
+    // zero (a hand-held camera's shake): the windows centre on the
+    // camera's motion, found on pictures reduced eight times, so the
+    // background's vectors are the pan's, (-112, 72) quarter-pels.
+    let (w, h) = (640, 384);
+    let frames = scene(w, h, 4, 28.0, -18.0);
+    let truth = Mv::new(-112, 72);
+    for preset in [EncoderPreset::Ultrafast, EncoderPreset::Medium] {
+        let config = EncoderConfig::new().preset(preset).qp(27);
+        let (stream, recon, stats) = encode(&frames, config);
+        let seq = SequenceHeader::parse(&stream).unwrap();
+        let (_, decoded) = decoder::decode(&stream).unwrap();
+        assert_eq!(decoded, recon, "{preset:?}: the decoder follows");
+        let (cols, rows) = (seq.mb_cols(), seq.mb_rows());
+        let (mut checked, mut right) = (0, 0);
+        for syntax in frames_of(&seq, &stream).iter().skip(1) {
+            let vectors = mocomp::codec::recon::frame_vectors(&seq, syntax);
+            for (i, v) in vectors.iter().enumerate() {
+                let (x, y) = (i % cols, i / cols);
+                // Away from the edges (where the pan brings new content)
+                // and from the object (centre (213, 192), radii 107 x 77).
+                let near_object = (6..=21).contains(&x) && (5..=19).contains(&y);
+                if x < 2 || y < 2 || x + 2 >= cols || y + 2 >= rows || near_object {
+                    continue;
+                }
+                checked += 1;
+                if v[0].is_some_and(|m| (m.mv.x - truth.x).abs() <= 1 && (m.mv.y - truth.y).abs() <= 1) {
+                    right += 1;
+                }
+            }
+        }
+        assert!(checked >= 300, "{preset:?}: {checked}");
+        assert!(
+            right * 10 >= checked * 9,
+            "{preset:?}: {right} of {checked} vectors are within 1/4 px of {truth:?}"
+        );
+        for s in &stats[1..] {
+            assert!(
+                s.intra_mbs * 10 < cols * rows,
+                "{preset:?}: {} intra",
+                s.intra_mbs
+            );
+        }
+    }
+}
+
+#[test]
 fn subpel_rd_refinement_saves_bytes_and_the_decoder_follows() {
     // The bundled CIF sample (a textured scene panning by fractions of a
     // pel, objects moving otherwise): the search's SATD-ranked quarter-pel

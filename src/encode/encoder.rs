@@ -5,6 +5,7 @@
 
 use std::time::Instant;
 
+use super::camera::CameraMotion;
 use super::config::{EncoderConfig, Predictor};
 use super::macroblock::MbCoder;
 use super::motion::MotionAnalyser;
@@ -34,6 +35,9 @@ pub struct Encoder {
     references: Vec<Frame>,
     /// The previous source, coded size (flow predictors read it).
     prev_source: Option<Frame>,
+    /// The camera's motion from source to source (block searches centre
+    /// their windows on it).
+    camera: CameraMotion,
     /// Coded-size frames to reuse (the reference and source before the
     /// previous ones): fresh ones cost page faults every frame.
     spare_recon: Option<Frame>,
@@ -86,6 +90,7 @@ impl Encoder {
             analyser: MotionAnalyser::new(config.predictor, config.qp, config.partitions.p8x8, config.refs),
             references: Vec::new(),
             prev_source: None,
+            camera: CameraMotion::default(),
             spare_recon: None,
             spare_output: None,
             spare_source: None,
@@ -143,8 +148,13 @@ impl Encoder {
             None => Frame::new(cw, ch)?,
         };
         let intra = self.config.gop > 0 && self.index % self.config.gop == 0;
+        // Every source, I frames' too: each is the next one's previous.
+        let camera = match self.config.predictor {
+            Predictor::Block(_) | Predictor::Obmc(_) => self.camera.next(src.y())?,
+            _ => Mv::ZERO,
+        };
         let (coded, me_ms) = match (self.references.first(), &self.prev_source, intra) {
-            (Some(_), Some(_), false) => self.code_p_frame(&src, recon)?,
+            (Some(_), Some(_), false) => self.code_p_frame(&src, recon, camera)?,
             _ => {
                 let i = slice::code_intra(
                     &self.seq,
@@ -195,7 +205,12 @@ impl Encoder {
 
     /// A P frame: the reference weighted, motion analysed, the
     /// macroblocks decided and coded; with the motion analysis' time, ms.
-    fn code_p_frame(&mut self, src: &Frame, recon: Frame) -> Result<(CodedFrame, f64), EncodeError> {
+    fn code_p_frame(
+        &mut self,
+        src: &Frame,
+        recon: Frame,
+        camera: Mv,
+    ) -> Result<(CodedFrame, f64), EncodeError> {
         let (Some(unweighted), Some(prev)) = (self.references.first(), &self.prev_source) else {
             return Err(EncodeError::Config("a P frame without a reference".into()));
         };
@@ -219,7 +234,9 @@ impl Encoder {
         let t = Instant::now();
         // Older references: `block` only (the list holds one frame for the
         // other predictors).
-        let motion = self.analyser.analyse(src, prev, reference, &self.references[1..]);
+        let motion = self
+            .analyser
+            .analyse(src, prev, reference, &self.references[1..], camera);
         let me_ms = t.elapsed().as_secs_f64() * 1e3;
         let tool = match self.config.predictor {
             Predictor::Obmc(_) => MotionTool::Obmc,

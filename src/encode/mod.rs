@@ -37,6 +37,7 @@
 //! ```
 
 mod analyse;
+mod camera;
 mod config;
 pub mod dsp;
 mod encoder;

@@ -3,6 +3,8 @@
 
 use ndarray::Array2;
 
+#[cfg(doc)]
+use super::camera::CameraMotion;
 use super::config::{FlowMethod, Predictor, SearchSettings};
 use crate::codec::mv::Mv;
 use crate::codec::mvpred::mv_prediction;
@@ -101,13 +103,15 @@ impl MotionAnalyser {
     /// Motion of `source` (coded size) against `reference` (the previous
     /// reconstruction) and, for `block`, against the `older` ones (the
     /// frame before it first); flow predictors look at `prev_source`
-    /// instead.
+    /// instead. Block searches centre their windows on `camera` (the
+    /// camera's motion from `prev_source`, [`CameraMotion`]).
     pub fn analyse(
         &mut self,
         source: &Frame,
         prev_source: &Frame,
         reference: &Frame,
         older: &[Frame],
+        camera: Mv,
     ) -> FrameMotion {
         let cols = source.width() / MB;
         let rows = source.height() / MB;
@@ -119,11 +123,11 @@ impl MotionAnalyser {
                 older: Vec::new(),
                 lazy: None,
             }),
-            Predictor::Block(s) if self.lazy => self.decision_search(reference, s),
+            Predictor::Block(s) if self.lazy => self.decision_search(reference, s, camera),
             Predictor::Block(s) => {
                 let halfpel = self.planes(reference);
-                let mb = self.search(source.y(), reference.y(), s, halfpel.as_ref());
-                let older = self.search_older(source.y(), older, s);
+                let mb = self.search(source.y(), reference.y(), s, halfpel.as_ref(), camera);
+                let older = self.search_older(source.y(), older, s, camera);
                 FrameMotion::Vectors(BlockMotion {
                     mb,
                     blocks: None,
@@ -133,7 +137,7 @@ impl MotionAnalyser {
                 })
             }
             Predictor::Obmc(s) => FrameMotion::Vectors(BlockMotion {
-                mb: self.search(source.y(), reference.y(), s, None),
+                mb: self.search(source.y(), reference.y(), s, None, camera),
                 blocks: None,
                 halfpel: None,
                 older: Vec::new(),
@@ -186,13 +190,14 @@ impl MotionAnalyser {
 
     /// `block` frames' motion when the decision searches ([`LazySearch`]):
     /// the search made ready against `reference`, no vectors yet.
-    fn decision_search(&self, reference: &Frame, s: SearchSettings) -> FrameMotion {
+    fn decision_search(&self, reference: &Frame, s: SearchSettings, camera: Mv) -> FrameMotion {
         let cfg = self.search_config(s);
         // The partitions' search reads the planes too, further out.
         let search = match self.planes(reference) {
             Some(planes) => FrameSearch::owning(reference.y(), &cfg, planes),
             None => FrameSearch::new(reference.y(), &cfg, None),
-        };
+        }
+        .map(|search| search.centred_on(camera));
         let (cols, rows) = (reference.width() / MB, reference.height() / MB);
         FrameMotion::Vectors(match search {
             Ok(search) => BlockMotion {
@@ -233,11 +238,12 @@ impl MotionAnalyser {
         reference: &Plane,
         s: SearchSettings,
         planes: Option<&HalfPel>,
+        camera: Mv,
     ) -> Vec<Mv> {
         let cfg = self.search_config(s);
         // The configuration was checked when the encoder was made and the
         // frames are the encoder's own, so the search cannot refuse them.
-        match me::estimate_with_planes(cur, reference, &cfg, self.prior.as_ref(), planes) {
+        match me::estimate_with_planes(cur, reference, &cfg, self.prior.as_ref(), planes, camera) {
             Ok(field) => {
                 let v = field.vectors().to_vec();
                 self.prior = Some(field);
@@ -266,7 +272,7 @@ impl MotionAnalyser {
     /// its window (the frame-level search gives each block its
     /// neighbours' vectors into the same reference as candidates), the
     /// reference-0 field scaled by the frame distance as the temporal one.
-    fn search_older(&self, cur: &Plane, older: &[Frame], s: SearchSettings) -> Vec<Vec<Mv>> {
+    fn search_older(&self, cur: &Plane, older: &[Frame], s: SearchSettings, camera: Mv) -> Vec<Vec<Mv>> {
         let cfg = self.search_config(SearchSettings {
             method: me::Method::Epzs,
             window: 0,
@@ -279,7 +285,11 @@ impl MotionAnalyser {
                 let steady = self.prior.as_ref().map(|f| f.scaled(distance));
                 // As in `search`: the configuration and frames are the
                 // encoder's own.
-                match me::estimate_with_planes(cur, reference.y(), &cfg, steady.as_ref(), None) {
+                let centre = Mv::new(
+                    camera.x.saturating_mul(distance),
+                    camera.y.saturating_mul(distance),
+                );
+                match me::estimate_with_planes(cur, reference.y(), &cfg, steady.as_ref(), None, centre) {
                     Ok(field) => field.vectors().to_vec(),
                     Err(_) => vec![Mv::ZERO; (cur.width() / MB) * (cur.height() / MB)],
                 }

@@ -596,7 +596,7 @@ pub fn estimate_with_prior(
     cfg: &MeConfig,
     prior: Option<&MotionField>,
 ) -> Result<MotionField, MeError> {
-    estimate_with_planes(cur, reference, cfg, prior, None)
+    estimate_with_planes(cur, reference, cfg, prior, None, Mv::ZERO)
 }
 
 /// What the searches of one picture's blocks against one reference share,
@@ -610,6 +610,9 @@ pub(crate) struct FrameSearch<'p> {
     lambda_q8: u64,
     halfpel: Option<Planes<'p>>,
     sums: Option<sea::QuadrantSums>,
+    /// The full-pel centre of every block's window (zero unless
+    /// [`FrameSearch::centred_on`]).
+    centre: (i32, i32),
 }
 
 /// Half-pel planes the caller gave, or made for the search.
@@ -679,7 +682,21 @@ impl<'p> FrameSearch<'p> {
             lambda_q8: (cfg.lambda * 256.0).round() as u64,
             halfpel,
             sums,
+            centre: (0, 0),
         })
+    }
+
+    /// The searches with every window (`range` pels each way) centred on
+    /// `mv` rounded to full pel instead of on zero: on the camera's motion
+    /// (see the encoder's `camera.rs`), a hand-held camera's 20-40 px a
+    /// frame are within reach of a range of 16, as
+    /// x264's `--merange` bounds the search around its predictors, not
+    /// the vector. Centred on each block's own predictors instead, the
+    /// vectors of flat areas drift from block to block and frame to frame
+    /// (fish_1160: four times as many beyond 16 px, +6.4 % bits).
+    pub(crate) fn centred_on(mut self, mv: Mv) -> FrameSearch<'p> {
+        self.centre = ((mv.x + 2) >> 2, (mv.y + 2) >> 2);
+        self
     }
 
     /// The reference's half-pel planes the search reads.
@@ -704,6 +721,7 @@ impl<'p> FrameSearch<'p> {
             lambda_q8: self.lambda_q8,
             halfpel: self.halfpel.as_ref().map(Planes::get),
             sums: self.sums.as_ref(),
+            origin: self.centre,
             ..SearchContext::new(cur, reference, (col * block, row * block), &self.cfg)
         };
         let best = search::full_pel(&s, candidates);
@@ -712,21 +730,23 @@ impl<'p> FrameSearch<'p> {
 }
 
 /// As [`estimate_with_prior`], with the reference's half-pel planes when
-/// the caller has them (wide enough margin) rather than making its own:
-/// the encoder's partition search reads the same planes afterwards.
+/// the caller has them (wide enough margin) rather than making its own
+/// (the encoder's partition search reads the same planes afterwards), and
+/// the windows centred on `centre` ([`FrameSearch::centred_on`]).
 pub(crate) fn estimate_with_planes(
     cur: &Plane,
     reference: &Plane,
     cfg: &MeConfig,
     prior: Option<&MotionField>,
     planes: Option<&halfpel::HalfPel>,
+    centre: Mv,
 ) -> Result<MotionField, MeError> {
     cfg.check()?;
     check_pictures(cur, reference, cfg)?;
     let mut field = MotionField::new(cur.width(), cur.height(), cfg.block);
     let prior = prior.filter(|p| p.cols == field.cols && p.rows == field.rows && p.block == field.block);
     let (cols, rows) = (field.cols, field.rows);
-    let frame = FrameSearch::new(reference, cfg, planes)?;
+    let frame = FrameSearch::new(reference, cfg, planes)?.centred_on(centre);
     let lambda_q8 = frame.lambda_q8;
     let search_one = |grid: &pipeline::SharedGrid, col: usize, row: usize| -> Candidate {
         let mvp = if lambda_q8 > 0 || cfg.method.uses_neighbours() {

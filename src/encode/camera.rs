@@ -1,0 +1,252 @@
+//! The camera's motion between a P frame and its reference, found before
+//! the macroblocks' search on pictures a quarter the size (encoder side,
+//! not normative): where the searches centre their windows. A hand-held
+//! camera moves 20-40 px a frame and changes direction from frame to
+//! frame; a window of 16 pels around zero misses it, and one around each
+//! block's own predictors lets flat areas' vectors drift. x264 finds the
+//! same large motion through its lookahead's half-size search.
+
+use crate::codec::mv::Mv;
+use crate::codec::{PictureError, Plane};
+use crate::me::{self, MeConfig, Method, Metric};
+
+/// How much smaller each side of the pictures the camera's motion is
+/// found on is.
+const SCALE: usize = 8;
+
+/// Blocks of the reduced pictures (128x128 pels of the frame): a window
+/// row of their SADs is one kernel call ([`RANGE`]).
+const BLOCK: usize = 16;
+
+/// Search range on the reduced pictures (56 pels of the frame): a window
+/// row is then 15 positions, which the SAD kernel of sixteen covers.
+const RANGE: i32 = 7;
+
+/// The camera's motion from each source to the one before it, from the
+/// sources reduced `SCALE` times (each reduced once).
+#[derive(Default)]
+pub(crate) struct CameraMotion {
+    /// The previous source, reduced (none when too small to reduce).
+    previous: Option<Plane>,
+}
+
+impl CameraMotion {
+    /// The camera's motion from `source` (luma) to the source given the
+    /// call before ([`camera_motion`]); zero for the first, and where the
+    /// pictures are too small or differ in size.
+    pub(crate) fn next(&mut self, source: &Plane) -> Result<Mv, PictureError> {
+        let (w, h) = (source.width() / SCALE, source.height() / SCALE);
+        if w < 2 * BLOCK || h < 2 * BLOCK {
+            self.previous = None;
+            return Ok(Mv::ZERO);
+        }
+        let mut small = reduce(source, w, h)?;
+        small.extend_border();
+        let motion = match &self.previous {
+            Some(previous) if (previous.width(), previous.height()) == (w, h) => {
+                camera_motion(&small, previous)
+            }
+            _ => Mv::ZERO,
+        };
+        self.previous = Some(small);
+        Ok(motion)
+    }
+}
+
+/// The camera's motion from `source` to `reference` (reduced `SCALE`
+/// times, the same size, the reference's borders extended), quarter-pel
+/// at full size, rounded to whole pels: the median of the vectors of
+/// `BLOCK`-sided blocks found by exhaustive search, each block's counted
+/// as zero unless its vector clearly beats zero (a flat wall matches
+/// anywhere).
+fn camera_motion(source: &Plane, reference: &Plane) -> Mv {
+    let Some(vectors) = evidenced_vectors(source, reference) else {
+        return Mv::ZERO;
+    };
+    let median = |component: fn(&Mv) -> i32| {
+        let mut values: Vec<i32> = vectors.iter().map(component).collect();
+        let middle = values.len() / 2;
+        *values.select_nth_unstable(middle).1
+    };
+    // Reduced quarter pels times the scale, then whole pels (a window's
+    // centre is a full-pel position).
+    let whole = |v: i32| (v * SCALE as i32 + 2) >> 2;
+    Mv::full_pel(whole(median(|v| v.x)), whole(median(|v| v.y)))
+}
+
+/// The reduced pictures' block vectors (quarter pels of the reduced
+/// pictures), zero where zero does about as well.
+fn evidenced_vectors(source: &Plane, reference: &Plane) -> Option<Vec<Mv>> {
+    let field = me::estimate(source, reference, &search_config()).ok()?;
+    let (cols, rows) = (source.width() / BLOCK, source.height() / BLOCK);
+    let mut vectors = Vec::with_capacity(cols * rows);
+    for row in 0..rows {
+        for col in 0..cols {
+            let still = still_sad(source, reference, col * BLOCK, row * BLOCK);
+            let best = field.cost(col, row);
+            // Zero unless the vector saves half a grey level a sample and
+            // an eighth of the cost.
+            let clear = still > best + (BLOCK * BLOCK / 2) as u32 + best / 8;
+            vectors.push(if clear { field.vector(col, row) } else { Mv::ZERO });
+        }
+    }
+    Some(vectors)
+}
+
+/// Exhaustive search by SAD, whole pels of the reduced pictures (the
+/// median is then within four pels of the frame, well inside the window
+/// it centres), a rate term keeping flat areas on their neighbours'
+/// vector.
+fn search_config() -> MeConfig {
+    let mut cfg = MeConfig::new(Method::Esa, BLOCK, RANGE);
+    cfg.metric = Metric::Sad;
+    cfg.lambda = 16.0;
+    cfg
+}
+
+/// The SAD of the `BLOCK`-sided block at (x, y) of `a` against the same
+/// place in `b`.
+fn still_sad(a: &Plane, b: &Plane, x: usize, y: usize) -> u32 {
+    (y..y + BLOCK)
+        .map(|r| {
+            let (ra, rb) = (&a.row(r)[x..x + BLOCK], &b.row(r)[x..x + BLOCK]);
+            ra.iter()
+                .zip(rb)
+                .map(|(&p, &q)| u32::from(p.abs_diff(q)))
+                .sum::<u32>()
+        })
+        .sum()
+}
+
+/// `plane` reduced to `w x h` by the mean of each `SCALE x SCALE` square
+/// (rounded).
+fn reduce(plane: &Plane, w: usize, h: usize) -> Result<Plane, PictureError> {
+    let mut out = Plane::new(w, h)?;
+    let area = (SCALE * SCALE) as u32;
+    let mut sums = vec![0u32; w];
+    for y in 0..h {
+        sums.fill(0);
+        for row in (0..SCALE).map(|i| plane.row(SCALE * y + i)) {
+            for (sum, square) in sums.iter_mut().zip(row.chunks_exact(SCALE)) {
+                *sum += square.iter().map(|&s| u32::from(s)).sum::<u32>();
+            }
+        }
+        for (o, &sum) in out.row_mut(y).iter_mut().zip(&sums) {
+            *o = ((sum + area / 2) / area) as u8;
+        }
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A picture of blobs about 12 pels across (smooth random values on a
+    /// 12-pel lattice), its content shifted by `(dx, dy)` whole pels.
+    fn textured(w: usize, h: usize, (dx, dy): (i32, i32)) -> Plane {
+        let lattice = |i: i64, j: i64| {
+            let mut v = (i.wrapping_mul(73_856_093) ^ j.wrapping_mul(19_349_663)) as u64;
+            v = v.wrapping_mul(0x9e37_79b9_7f4a_7c15);
+            ((v >> 40) % 200) as f64 + 28.0
+        };
+        Plane::from_fn(w, h, |x, y| {
+            let (x, y) = (
+                (x as f64 - f64::from(dx)) / 12.0,
+                (y as f64 - f64::from(dy)) / 12.0,
+            );
+            let (i, j) = (x.floor(), y.floor());
+            let (fx, fy) = (x - i, y - j);
+            let (i, j) = (i as i64, j as i64);
+            let top = lattice(i, j) * (1.0 - fx) + lattice(i + 1, j) * fx;
+            let bottom = lattice(i, j + 1) * (1.0 - fx) + lattice(i + 1, j + 1) * fx;
+            (top * (1.0 - fy) + bottom * fy).round() as u8
+        })
+        .unwrap()
+    }
+
+    #[test]
+    fn a_camera_shift_beyond_the_search_range_is_found_within_a_few_pels() {
+        // Shifts of the whole picture, as a shaken camera's: the source at
+        // (x, y) shows the reference at (x + dx, y + dy).
+        for shift in [(0, 0), (24, -8), (-37, 13), (5, 41)] {
+            let reference = textured(640, 384, (0, 0));
+            let source = textured(640, 384, (-shift.0, -shift.1));
+            let mut camera = CameraMotion::default();
+            assert_eq!(camera.next(&reference).unwrap(), Mv::ZERO, "the first source");
+            let found = camera.next(&source).unwrap();
+            let (fx, fy) = (found.x / 4, found.y / 4);
+            // Whole pels of the reduced pictures are eight of the frame.
+            assert!(
+                (fx - shift.0).abs() <= 4 && (fy - shift.1).abs() <= 4,
+                "{shift:?}: found ({fx}, {fy})"
+            );
+        }
+    }
+
+    #[test]
+    fn a_still_flat_picture_with_one_moving_object_gives_zero() {
+        // A flat wall (a gentle ramp) and a textured square that moves 24
+        // pels: most blocks match anywhere, and count as still.
+        let scene = |at: usize| {
+            let texture = textured(64, 64, (0, 0));
+            Plane::from_fn(640, 384, |x, y| {
+                if (at..at + 64).contains(&x) && (64..128).contains(&y) {
+                    texture.get(x - at, y - 64)
+                } else {
+                    (100 + x / 40) as u8
+                }
+            })
+            .unwrap()
+        };
+        let mut camera = CameraMotion::default();
+        camera.next(&scene(40)).unwrap();
+        assert_eq!(camera.next(&scene(64)).unwrap(), Mv::ZERO);
+    }
+
+    #[test]
+    fn blocks_that_match_nowhere_better_than_in_place_count_as_still() {
+        // Two unrelated noise pictures (reduced): every block finds some
+        // best vector, none clearly better than zero.
+        let noise = |seed: u64| {
+            Plane::from_fn(80, 48, |x, y| {
+                let mut v = (x as u64 * 131 + y as u64 * 7919 + seed).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+                v ^= v >> 29;
+                (118 + (v % 21)) as u8
+            })
+            .unwrap()
+        };
+        let (source, mut reference) = (noise(1), noise(2));
+        reference.extend_border();
+        let vectors = evidenced_vectors(&source, &reference).unwrap();
+        assert!(vectors.iter().all(|&v| v == Mv::ZERO), "{vectors:?}");
+        // The search alone moves them.
+        let field = me::estimate(&source, &reference, &search_config()).unwrap();
+        assert!(field.vectors().iter().any(|&v| v != Mv::ZERO));
+    }
+
+    #[test]
+    fn pictures_too_small_to_reduce_give_zero() {
+        let mut camera = CameraMotion::default();
+        let p = textured(2 * SCALE * BLOCK - 1, 256, (0, 0));
+        let q = textured(2 * SCALE * BLOCK - 1, 256, (9, 0));
+        assert_eq!(camera.next(&p).unwrap(), Mv::ZERO);
+        assert_eq!(camera.next(&q).unwrap(), Mv::ZERO);
+    }
+
+    #[test]
+    fn reduction_is_the_rounded_mean_of_each_square() {
+        let side = 2 * SCALE;
+        let p = Plane::from_fn(side, side, |x, y| (x + side * y) as u8).unwrap();
+        let r = reduce(&p, 2, 2).unwrap();
+        // The mean of x + side * y over a square is its centre's value:
+        // x and y each average to the middle of their span.
+        let centre = |i: usize, j: usize| {
+            let mid = |k: usize| (k * SCALE) as f64 + (SCALE as f64 - 1.0) / 2.0;
+            (mid(i) + side as f64 * mid(j) + 0.5).floor() as u8
+        };
+        for (i, j) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+            assert_eq!(r.get(i, j), centre(i, j), "square ({i}, {j})");
+        }
+    }
+}

@@ -1,6 +1,6 @@
-//! The camera's motion between a P frame and its reference, found before
-//! the macroblocks' search on pictures a quarter the size (encoder side,
-//! not normative): where the searches centre their windows. A hand-held
+//! The camera's motion from one source to the next, found before the
+//! macroblocks' search on pictures reduced two to eight times (encoder
+//! side, not normative): where the searches centre their windows. A hand-held
 //! camera moves 20-40 px a frame and changes direction from frame to
 //! frame; a window of 16 pels around zero misses it, and one around each
 //! block's own predictors lets flat areas' vectors drift. x264 finds the
@@ -11,19 +11,30 @@ use crate::codec::{PictureError, Plane};
 use crate::me::{self, MeConfig, Method, Metric};
 
 /// How much smaller each side of the pictures the camera's motion is
-/// found on is.
-const SCALE: usize = 8;
+/// found on may be, the most first: the most that leaves enough blocks
+/// ([`scale_for`]).
+const SCALES: [usize; 3] = [8, 4, 2];
 
-/// Blocks of the reduced pictures (128x128 pels of the frame): a window
-/// row of their SADs is one kernel call ([`RANGE`]).
+/// Blocks of the reduced pictures (128x128 pels of the frame at the most):
+/// a window row of their SADs is one kernel call ([`RANGE`]).
 const BLOCK: usize = 16;
 
-/// Search range on the reduced pictures (56 pels of the frame): a window
-/// row is then 15 positions, which the SAD kernel of sixteen covers.
+/// Search range on the reduced pictures (56 pels of the frame at the
+/// most): a window row is then 15 positions, which the SAD kernel of
+/// sixteen covers.
 const RANGE: i32 = 7;
 
+/// The reduction for `width x height` pictures: the largest that leaves
+/// 4 x 3 blocks (1080p and 720p: 8; 640x360 and CIF: 4; QCIF: 2), none
+/// for smaller pictures.
+fn scale_for(width: usize, height: usize) -> Option<usize> {
+    SCALES
+        .into_iter()
+        .find(|&s| width / s / BLOCK >= 4 && height / s / BLOCK >= 3)
+}
+
 /// The camera's motion from each source to the one before it, from the
-/// sources reduced `SCALE` times (each reduced once).
+/// sources reduced ([`scale_for`]; each reduced once).
 #[derive(Default)]
 pub(crate) struct CameraMotion {
     /// The previous source, reduced (none when too small to reduce).
@@ -35,16 +46,16 @@ impl CameraMotion {
     /// call before ([`camera_motion`]); zero for the first, and where the
     /// pictures are too small or differ in size.
     pub(crate) fn next(&mut self, source: &Plane) -> Result<Mv, PictureError> {
-        let (w, h) = (source.width() / SCALE, source.height() / SCALE);
-        if w < 2 * BLOCK || h < 2 * BLOCK {
+        let Some(scale) = scale_for(source.width(), source.height()) else {
             self.previous = None;
             return Ok(Mv::ZERO);
-        }
-        let mut small = reduce(source, w, h)?;
+        };
+        let (w, h) = (source.width() / scale, source.height() / scale);
+        let mut small = reduce(source, scale, w, h)?;
         small.extend_border();
         let motion = match &self.previous {
             Some(previous) if (previous.width(), previous.height()) == (w, h) => {
-                camera_motion(&small, previous)
+                camera_motion(&small, previous, scale)
             }
             _ => Mv::ZERO,
         };
@@ -53,13 +64,13 @@ impl CameraMotion {
     }
 }
 
-/// The camera's motion from `source` to `reference` (reduced `SCALE`
+/// The camera's motion from `source` to `reference` (reduced `scale`
 /// times, the same size, the reference's borders extended), quarter-pel
 /// at full size, rounded to whole pels: the median of the vectors of
 /// `BLOCK`-sided blocks found by exhaustive search, each block's counted
 /// as zero unless its vector clearly beats zero (a flat wall matches
 /// anywhere).
-fn camera_motion(source: &Plane, reference: &Plane) -> Mv {
+fn camera_motion(source: &Plane, reference: &Plane, scale: usize) -> Mv {
     let Some(vectors) = evidenced_vectors(source, reference) else {
         return Mv::ZERO;
     };
@@ -70,7 +81,7 @@ fn camera_motion(source: &Plane, reference: &Plane) -> Mv {
     };
     // Reduced quarter pels times the scale, then whole pels (a window's
     // centre is a full-pel position).
-    let whole = |v: i32| (v * SCALE as i32 + 2) >> 2;
+    let whole = |v: i32| (v * scale as i32 + 2) >> 2;
     Mv::full_pel(whole(median(|v| v.x)), whole(median(|v| v.y)))
 }
 
@@ -118,16 +129,16 @@ fn still_sad(a: &Plane, b: &Plane, x: usize, y: usize) -> u32 {
         .sum()
 }
 
-/// `plane` reduced to `w x h` by the mean of each `SCALE x SCALE` square
+/// `plane` reduced to `w x h` by the mean of each `scale x scale` square
 /// (rounded).
-fn reduce(plane: &Plane, w: usize, h: usize) -> Result<Plane, PictureError> {
+fn reduce(plane: &Plane, scale: usize, w: usize, h: usize) -> Result<Plane, PictureError> {
     let mut out = Plane::new(w, h)?;
-    let area = (SCALE * SCALE) as u32;
+    let area = (scale * scale) as u32;
     let mut sums = vec![0u32; w];
     for y in 0..h {
         sums.fill(0);
-        for row in (0..SCALE).map(|i| plane.row(SCALE * y + i)) {
-            for (sum, square) in sums.iter_mut().zip(row.chunks_exact(SCALE)) {
+        for row in (0..scale).map(|i| plane.row(scale * y + i)) {
+            for (sum, square) in sums.iter_mut().zip(row.chunks_exact(scale)) {
                 *sum += square.iter().map(|&s| u32::from(s)).sum::<u32>();
             }
         }
@@ -169,14 +180,23 @@ mod tests {
     fn a_camera_shift_beyond_the_search_range_is_found_within_a_few_pels() {
         // Shifts of the whole picture, as a shaken camera's: the source at
         // (x, y) shows the reference at (x + dx, y + dy).
-        for shift in [(0, 0), (24, -8), (-37, 13), (5, 41)] {
-            let reference = textured(640, 384, (0, 0));
-            let source = textured(640, 384, (-shift.0, -shift.1));
+        // 640x384 is reduced eight times (reach 56 pels), CIF four (28).
+        let cases = [
+            ((640, 384), (0, 0)),
+            ((640, 384), (24, -8)),
+            ((640, 384), (-37, 13)),
+            ((640, 384), (5, 41)),
+            ((352, 288), (-22, 10)),
+        ];
+        for ((w, h), shift) in cases {
+            let reference = textured(w, h, (0, 0));
+            let source = textured(w, h, (-shift.0, -shift.1));
             let mut camera = CameraMotion::default();
             assert_eq!(camera.next(&reference).unwrap(), Mv::ZERO, "the first source");
             let found = camera.next(&source).unwrap();
             let (fx, fy) = (found.x / 4, found.y / 4);
-            // Whole pels of the reduced pictures are eight of the frame.
+            // Whole pels of the reduced pictures are up to eight of the
+            // frame.
             assert!(
                 (fx - shift.0).abs() <= 4 && (fy - shift.1).abs() <= 4,
                 "{shift:?}: found ({fx}, {fy})"
@@ -228,25 +248,43 @@ mod tests {
     #[test]
     fn pictures_too_small_to_reduce_give_zero() {
         let mut camera = CameraMotion::default();
-        let p = textured(2 * SCALE * BLOCK - 1, 256, (0, 0));
-        let q = textured(2 * SCALE * BLOCK - 1, 256, (9, 0));
+        let narrow = 4 * 2 * BLOCK - 1;
+        let p = textured(narrow, 256, (0, 0));
+        let q = textured(narrow, 256, (9, 0));
         assert_eq!(camera.next(&p).unwrap(), Mv::ZERO);
         assert_eq!(camera.next(&q).unwrap(), Mv::ZERO);
     }
 
     #[test]
+    fn the_reduction_is_the_largest_that_leaves_four_by_three_blocks() {
+        for ((w, h), scale) in [
+            ((1920, 1080), Some(8)),
+            ((1280, 720), Some(8)),
+            ((640, 360), Some(4)),
+            ((352, 288), Some(4)),
+            ((320, 240), Some(4)),
+            ((176, 144), Some(2)),
+            ((127, 500), None),
+        ] {
+            assert_eq!(scale_for(w, h), scale, "{w}x{h}");
+        }
+    }
+
+    #[test]
     fn reduction_is_the_rounded_mean_of_each_square() {
-        let side = 2 * SCALE;
-        let p = Plane::from_fn(side, side, |x, y| (x + side * y) as u8).unwrap();
-        let r = reduce(&p, 2, 2).unwrap();
-        // The mean of x + side * y over a square is its centre's value:
-        // x and y each average to the middle of their span.
-        let centre = |i: usize, j: usize| {
-            let mid = |k: usize| (k * SCALE) as f64 + (SCALE as f64 - 1.0) / 2.0;
-            (mid(i) + side as f64 * mid(j) + 0.5).floor() as u8
-        };
-        for (i, j) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-            assert_eq!(r.get(i, j), centre(i, j), "square ({i}, {j})");
+        for scale in SCALES {
+            let side = 2 * scale;
+            let p = Plane::from_fn(side, side, |x, y| (x + side * y) as u8).unwrap();
+            let r = reduce(&p, scale, 2, 2).unwrap();
+            // The mean of x + side * y over a square is its centre's
+            // value: x and y each average to the middle of their span.
+            let centre = |i: usize, j: usize| {
+                let mid = |k: usize| (k * scale) as f64 + (scale as f64 - 1.0) / 2.0;
+                (mid(i) + side as f64 * mid(j) + 0.5).floor() as u8
+            };
+            for (i, j) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                assert_eq!(r.get(i, j), centre(i, j), "scale {scale}, square ({i}, {j})");
+            }
         }
     }
 }

@@ -257,7 +257,7 @@ fn block_vectors_follow_a_known_translation() {
 fn a_camera_moving_past_the_search_range_is_followed() {
     // A pan of (28, -18) px per frame, past the search range of 16 around
     // zero (a hand-held camera's shake): the windows centre on the
-    // camera's motion, found on pictures reduced eight times, so the
+    // camera's motion, found on pictures reduced eight times here, so the
     // background's vectors are the pan's, (-112, 72) quarter-pels.
     let (w, h) = (640, 384);
     let frames = scene(w, h, 4, 28.0, -18.0);

@@ -536,6 +536,11 @@ impl<'a> SearchContext<'a> {
     }
 }
 
+/// The full-pel position nearest a quarter-pel vector (halves rounded up).
+pub(crate) fn nearest_full_pel(mv: Mv) -> (i32, i32) {
+    ((mv.x + 2) >> 2, (mv.y + 2) >> 2)
+}
+
 /// A vector and its cost (distortion plus rate term), ordered by the common
 /// tie-break.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -695,7 +700,7 @@ impl<'p> FrameSearch<'p> {
     /// vectors of flat areas drift from block to block and frame to frame
     /// (fish_1160: four times as many beyond 16 px, +6.4 % bits).
     pub(crate) fn centred_on(mut self, mv: Mv) -> FrameSearch<'p> {
-        self.centre = ((mv.x + 2) >> 2, (mv.y + 2) >> 2);
+        self.centre = nearest_full_pel(mv);
         self
     }
 
@@ -814,7 +819,7 @@ pub fn search_around(
     let s = SearchContext {
         mvp,
         lambda_q8: (cfg.lambda * 256.0).round() as u64,
-        origin: ((seed.x + 2) >> 2, (seed.y + 2) >> 2),
+        origin: nearest_full_pel(seed),
         ..SearchContext::new(cur, reference, (x, y), cfg)
     };
     let mut scratch = [0u8; 32 * 32];

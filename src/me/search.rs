@@ -328,7 +328,8 @@ pub(crate) fn full_pel(s: &SearchContext<'_>, neighbours: &Neighbours) -> Candid
         Method::Epzs => {
             for mv in neighbours.candidates() {
                 // Quarter-pel candidates, rounded to the nearest full pel.
-                w.try_at((mv.x + 2) >> 2, (mv.y + 2) >> 2);
+                let (dx, dy) = super::nearest_full_pel(*mv);
+                w.try_at(dx, dy);
             }
             while w.pattern(&CROSS, 1) {}
             // Every position near the best (MeConfig::window): flat shapes

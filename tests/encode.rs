@@ -291,9 +291,11 @@ fn a_camera_moving_past_the_search_range_is_followed() {
             right * 10 >= checked * 9,
             "{preset:?}: {right} of {checked} vectors are within 1/4 px of {truth:?}"
         );
+        // The pan brings about 9 % of each frame in new at its edges,
+        // where intra may win.
         for s in &stats[1..] {
             assert!(
-                s.intra_mbs * 10 < cols * rows,
+                s.intra_mbs * 100 < cols * rows * 15,
                 "{preset:?}: {} intra",
                 s.intra_mbs
             );

@@ -144,12 +144,14 @@ fn plane_weight(source: &Plane, reference: &Plane) -> Option<PlaneWeight> {
     let line = |(scale, offset): (f64, f64)| move |r: f64| r * scale / f64::from(WEIGHT_ONE) + offset;
     // Where part of the picture changes (a title leaves), the deviations'
     // ratio follows that part; the median follows the rest.
-    let candidates = [(scale, offset), (f64::from(WEIGHT_ONE), median_change(bs, br))];
-    let (scale, offset) = candidates
-        .map(|(scale, offset)| (scale, offset.clamp(-f64::from(MAX_OFFSET), f64::from(MAX_OFFSET))))
-        .into_iter()
-        .min_by(|&a, &b| err(&line(a)).total_cmp(&err(&line(b))))
-        .expect("two candidates");
+    let clamp = |offset: f64| offset.clamp(-f64::from(MAX_OFFSET), f64::from(MAX_OFFSET));
+    let guessed = (scale, clamp(offset));
+    let lifted = (f64::from(WEIGHT_ONE), clamp(median_change(bs, br)));
+    let (scale, offset) = if err(&line(lifted)) < err(&line(guessed)) {
+        lifted
+    } else {
+        guessed
+    };
     let w = PlaneWeight {
         scale: scale as u8,
         offset: offset as i16,
@@ -170,10 +172,10 @@ fn plane_weight(source: &Plane, reference: &Plane) -> Option<PlaneWeight> {
 /// The median of the block means' changes, rounded.
 fn median_change(source: &[f64], reference: &[f64]) -> f64 {
     let mut changes: Vec<f64> = source.iter().zip(reference).map(|(&s, &r)| s - r).collect();
-    let middle = changes.len() / 2;
     if changes.is_empty() {
         return 0.0;
     }
+    let middle = changes.len() / 2;
     changes.select_nth_unstable_by(middle, f64::total_cmp);
     changes[middle].round()
 }

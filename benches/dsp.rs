@@ -160,6 +160,9 @@ fn pixel_table(c: &mut Criterion) {
         });
         let (stride, rows) = (reference.stride(), reference.data().len() / reference.stride());
         let mut groups = vec![0u32; 44];
+        bench(g, "abs_count_cif", l, || {
+            (t.abs_count)(black_box(reference.data()), stride, (352, 288), 117)
+        });
         bench(g, "group_sums_cif_band", l, || {
             (t.group_sums)(black_box(reference.data()), stride, (352, 8), &mut groups)
         });
@@ -270,6 +273,9 @@ fn coder_table(c: &mut Criterion) {
                 &mut residuals,
                 &mut blocks,
             )
+        });
+        bench(g, "quadrant_levels", l, || {
+            (t.quadrant_levels)(black_box(&src), &pred, 3, 28, 1.0 / 6.0)
         });
         let (residual, levels) = (residuals[5], blocks[5]);
         bench(g, "rdoq_4x4", l, || {

@@ -287,6 +287,7 @@ fn pixel_kernels() {
             box_sums,
             ads,
             group_sums,
+            abs_count,
             sad_16x16_row,
         } = *t;
         let sets = sample_sets(100 * 70, 5);
@@ -377,6 +378,27 @@ fn pixel_kernels() {
                     box_sums(&data, stride, rows, side, &mut x);
                     (s.box_sums)(&data, stride, rows, side, &mut y);
                     assert_eq!(x, y, "{isa} box sums {stride}x{rows} side {side}");
+                }
+            }
+        }
+        // Distances from levels at both ends and between, over rows of
+        // widths with and without a remainder past the 16-column steps.
+        for (stride, width) in [(7usize, 7usize), (40, 37), (100, 96), (100, 100), (64, 16)] {
+            for data in [sets[3][..stride * 9].to_vec(), vec![255u8; stride * 9]] {
+                for rows in [0, 1, 5, 9] {
+                    for c in [0u8, 1, 97, 128, 254, 255] {
+                        let got = (s.abs_count)(&data, stride, (width, rows), c);
+                        assert_eq!(
+                            abs_count(&data, stride, (width, rows), c),
+                            got,
+                            "{isa} distances {width} of {stride}, {rows} rows, level {c}"
+                        );
+                        let samples = (0..rows).flat_map(|r| data[r * stride..r * stride + width].iter());
+                        let want = samples.fold((0u64, 0u64), |(t, n), &v| {
+                            (t + u64::from(v.abs_diff(c)), n + u64::from(v <= c))
+                        });
+                        assert_eq!(got, want, "{isa} distances against the samples");
+                    }
                 }
             }
         }
@@ -579,6 +601,7 @@ fn macroblock_coder() {
         let CoderDsp {
             quantize_4x4,
             quantize_blocks,
+            quadrant_levels,
             rdoq_4x4,
             decimate_luma,
             decimate_score,
@@ -610,6 +633,24 @@ fn macroblock_coder() {
                     }
                     let (src, pred): (&[u8; 256], [u8; 256]) =
                         (src[..].try_into().unwrap(), pred.clone().try_into().unwrap());
+                    for q in 0..4 {
+                        for rounding in [1.0 / 3.0, 1.0 / 6.0] {
+                            assert_eq!(
+                                quadrant_levels(src, &pred, q, qp, rounding),
+                                (s.quadrant_levels)(src, &pred, q, qp, rounding),
+                                "{isa} quadrant {q} at QP {qp}"
+                            );
+                            let (bx, by) = ((q % 2) * 2, (q / 2) * 2);
+                            let one_by_one: [[[i32; 4]; 4]; 4] = std::array::from_fn(|k| {
+                                quantize_4x4(src, &pred, 16, (bx + k % 2, by + k / 2), qp, rounding).1
+                            });
+                            assert_eq!(
+                                quadrant_levels(src, &pred, q, qp, rounding),
+                                one_by_one,
+                                "quadrant {q}'s blocks in raster order"
+                            );
+                        }
+                    }
                     let lambda = 0.85 * 2f64.powf((f64::from(qp) - 12.0) / 3.0);
                     for intra in [true, false] {
                         let rate = mocomp::encode::rate::block8_pricer(&coder, intra);

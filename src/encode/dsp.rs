@@ -31,6 +31,11 @@ pub type QuantizeFn = fn(&[u8], &[u8], usize, (usize, usize), u8, f64) -> (Block
 /// [`QuantizeFn`] block by block.
 pub type QuantizeBlocksFn = fn(&[u8], &[u8], usize, u8, f64, &mut [Block4], &mut [Block4]);
 
+/// The levels of one 8x8 quadrant of a macroblock's luma `s - p`: `(s,
+/// p, quadrant, qp, rounding)`, its four 4x4 blocks in raster order, as
+/// [`QuantizeFn`] gives them (the quadrant's index in raster order too).
+pub type QuadrantLevelsFn = fn(&[u8; 256], &[u8; 256], usize, u8, f64) -> [Block4; 4];
+
 /// RDOQ of a 4x4 block: `(residual, levels, qp, lambda, rate)` lowers
 /// `levels` where squared error + lambda * bits falls ([`rdoq_4x4`]).
 pub type RdoqFn = fn(&Block4, &mut Block4, u8, f64, &BlockPricer);
@@ -58,6 +63,8 @@ pub struct CoderDsp {
     pub quantize_4x4: QuantizeFn,
     /// The same over a plane's blocks.
     pub quantize_blocks: QuantizeBlocksFn,
+    /// The levels of a luma quadrant.
+    pub quadrant_levels: QuadrantLevelsFn,
     /// RDOQ of a 4x4 block.
     pub rdoq_4x4: RdoqFn,
     /// Inter luma's zeroing.
@@ -73,6 +80,7 @@ pub struct CoderDsp {
 const SCALAR: CoderDsp = CoderDsp {
     quantize_4x4,
     quantize_blocks,
+    quadrant_levels,
     rdoq_4x4,
     decimate_luma,
     decimate_score,
@@ -88,6 +96,7 @@ pub static CODER: PerLevel<CoderDsp> = PerLevel([
     CoderDsp {
         quantize_4x4: x86::quantize_4x4_avx2,
         quantize_blocks: x86::quantize_blocks_avx2,
+        quadrant_levels: x86::quadrant_levels_avx2,
         rdoq_4x4: avx2::rdoq_4x4,
         decimate_luma: avx2::decimate_luma,
         decimate_score: avx2::decimate_score,
@@ -193,6 +202,40 @@ pub(crate) mod x86 {
         // SAFETY: this kernel sits only in the AVX2 table, handed out only
         // where the CPU has AVX2.
         unsafe { quantize_sized_avx2(s, p, size, Quantizer4x4::new(qp, rounding), residuals, levels) }
+    }
+
+    /// The AVX2 [`super::QuadrantLevelsFn`]: the quadrant's two rows of
+    /// blocks as two pairs.
+    pub(crate) fn quadrant_levels_avx2(
+        s: &[u8; 256],
+        p: &[u8; 256],
+        quadrant: usize,
+        qp: u8,
+        rounding: f64,
+    ) -> [Block4; 4] {
+        let mut levels = [[[0; 4]; 4]; 4];
+        // SAFETY: this kernel sits only in the AVX2 table, handed out only
+        // where the CPU has AVX2.
+        unsafe { quadrant_levels_body(s, p, quadrant, Quantizer4x4::new(qp, rounding), &mut levels) };
+        levels
+    }
+
+    #[target_feature(enable = "avx2")]
+    fn quadrant_levels_body(
+        s: &[u8; 256],
+        p: &[u8; 256],
+        quadrant: usize,
+        q: Quantizer4x4,
+        out: &mut [Block4; 4],
+    ) {
+        let corner = (quadrant / 2) * 128 + (quadrant % 2) * 8;
+        for (half, pair) in out.chunks_exact_mut(2).enumerate() {
+            let at = corner + half * 64;
+            // SAFETY: the pair's four rows of 8 samples, 16 apart, start at
+            // most at 192 + 8: inside both 256-sample macroblocks.
+            let (_, level) = unsafe { quantize_pair(s.as_ptr().add(at), p.as_ptr().add(at), 16, &q) };
+            store_pair(level, pair);
+        }
     }
 
     /// The AVX2 [`super::QuantizeFn`]: one block in the low halves of the
@@ -445,6 +488,13 @@ pub fn decimate_luma(luma: &mut [Block4; 16]) {
 #[inline(always)]
 pub fn decimate_score(blocks: &[Block4]) -> u32 {
     blocks_cost(blocks)
+}
+
+/// The scalar [`QuadrantLevelsFn`].
+#[inline(always)]
+pub fn quadrant_levels(s: &[u8; 256], p: &[u8; 256], quadrant: usize, qp: u8, rounding: f64) -> [Block4; 4] {
+    let (bx, by) = ((quadrant % 2) * 2, (quadrant / 2) * 2);
+    std::array::from_fn(|k| quantize_4x4(s, p, 16, (bx + k % 2, by + k / 2), qp, rounding).1)
 }
 
 /// The scalar [`QuantizeBlocksFn`].

@@ -161,20 +161,19 @@ impl MbCoder {
     /// `macroblock_probe_pskip`: what skipping `pred` loses is then only
     /// what the decimation drops.
     pub fn codes_nothing(&self, src: &MbSource, pred: &MbSamples) -> bool {
-        let mut diffs = [[[0i32; 4]; 4]; 16];
-        let mut luma = [[[0i32; 4]; 4]; 16];
-        (self.dsp.quantize_blocks)(
-            &src.luma,
-            &pred.luma,
-            MB,
-            self.qp,
-            ROUND_INTER,
-            &mut diffs,
-            &mut luma,
-        );
-        (self.dsp.decimate_luma)(&mut luma);
-        if luma.iter().any(|b| b.as_flattened().iter().any(|&v| v != 0)) {
-            return false;
+        // Quadrant by quadrant, out at the first that settles it (x264's
+        // probe): the zeroing keeps a quadrant that costs 4 or more, and
+        // the macroblock's luma when those kept cost 6 or more.
+        let mut kept = 0;
+        for q in 0..4 {
+            let levels = (self.dsp.quadrant_levels)(&src.luma, &pred.luma, q, self.qp, ROUND_INTER);
+            let cost = (self.dsp.decimate_score)(&levels);
+            if cost >= 4 {
+                kept += cost;
+                if kept >= 6 {
+                    return false;
+                }
+            }
         }
         let cqp = chroma_qp(self.qp);
         (0..2).all(|p| {

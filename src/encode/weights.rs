@@ -73,10 +73,9 @@ impl PlaneStats {
         let mean = sum as f64 / n;
         // sum |v - mean| is linear in the mean between two integers (no
         // sample lies strictly between them): interpolated from the sums
-        // of |v - cut| at the integers either side, sums of absolute
-        // differences the compiler makes SAD instructions of.
+        // of |v - cut| at the integers either side (one pass).
         let cut = mean.floor().clamp(0.0, 254.0) as u8;
-        let [at_cut, above_cut] = abs_differences(p, [cut, cut + 1]);
+        let [at_cut, above_cut] = abs_differences(p, cut);
         let frac = mean - f64::from(cut);
         let deviation = ((1.0 - frac) * at_cut as f64 + frac * above_cut as f64) / n;
         // Row by row: a block's place without two integer divisions per
@@ -98,33 +97,15 @@ impl PlaneStats {
     }
 }
 
-/// sum |v - c| over a plane for each of two `c`: the pixel kernels' SAD
-/// against a row of `c` (stride 0) over the columns in whole runs of 16,
-/// in bands of rows whose sums fit its u32 (both `c` on a band while it is
-/// in cache); the rest of each row one sample at a time.
-fn abs_differences(p: &Plane, cuts: [u8; 2]) -> [u64; 2] {
-    const BAND: usize = 64;
+/// sum |v - c| over a plane for `c` and `c + 1`, in one pass: the
+/// second differs from the first by one for every sample, up for those at
+/// or below `c`, down for the rest.
+fn abs_differences(p: &Plane, c: u8) -> [u64; 2] {
     let (w, h) = (p.width(), p.height());
-    let wide = w - w % 16;
-    let constants = cuts.map(|c| vec![c; wide]);
-    let sad = crate::me::dsp::pixel().sad;
-    let mut totals = [0u64; 2];
-    for y0 in (0..h).step_by(BAND) {
-        let rows = BAND.min(h - y0);
-        for (total, (&c, constant)) in totals.iter_mut().zip(cuts.iter().zip(&constants)) {
-            if wide > 0 {
-                let band = &p.data()[p.index(0, y0 as isize)..];
-                *total += u64::from(sad(band, p.stride(), constant, 0, wide, rows));
-            }
-            for y in y0..y0 + rows {
-                *total += p.row(y)[wide..]
-                    .iter()
-                    .map(|&v| u64::from(v.abs_diff(c)))
-                    .sum::<u64>();
-            }
-        }
-    }
-    totals
+    let data = &p.data()[p.index(0, 0)..];
+    let (at_c, at_or_below) = (crate::me::dsp::pixel().abs_count)(data, p.stride(), (w, h), c);
+    let n = (w * h) as u64;
+    [at_c, at_c + 2 * at_or_below - n]
 }
 
 fn plane_weight(source: &Plane, reference: &Plane) -> Option<PlaneWeight> {

@@ -169,6 +169,12 @@ pub type BoxSumsFn = fn(&[u8], usize, usize, usize, &mut [u16]);
 /// each (the weighted prediction's statistics).
 pub type GroupSumsFn = fn(&[u8], usize, (usize, usize), &mut [u32]);
 
+/// Distances of a picture's samples from a level: `(data, stride, (width,
+/// rows), c)`, the sum of `|v - c|` and how many `v <= c` over the `rows`
+/// rows of `width` samples (a plane's mean deviation in one pass: the sum
+/// about `c + 1` follows from the count).
+pub type AbsCountFn = fn(&[u8], usize, (usize, usize), u8) -> (u64, u64);
+
 /// The quadrants' absolute differences of sums along a row of positions:
 /// `(rows, current, out)` ([`super::sea::ads`], x264's `ads4`); returns
 /// the least of them.
@@ -207,6 +213,8 @@ pub struct PixelDsp {
     pub ads: AdsFn,
     /// Sums of 8-column groups over up to 8 rows (8x8 block sums).
     pub group_sums: GroupSumsFn,
+    /// Distances from a level and the count at or below it.
+    pub abs_count: AbsCountFn,
     /// 16x16 SADs at 16 consecutive columns (exhaustive search).
     pub sad_16x16_row: SadRowFn,
 }
@@ -230,8 +238,31 @@ const SCALAR: PixelDsp = PixelDsp {
     box_sums: super::sea::box_sums,
     ads: super::sea::ads,
     group_sums,
+    abs_count,
     sad_16x16_row: |a, sa, b, sb, out| sad_16x16_row_with(sad, a, sa, b, sb, out),
 };
+
+/// The scalar [`AbsCountFn`].
+pub fn abs_count(data: &[u8], stride: usize, (width, rows): (usize, usize), c: u8) -> (u64, u64) {
+    check_abs_count(data, stride, (width, rows));
+    let (mut total, mut at_or_below) = (0u64, 0u64);
+    for r in 0..rows {
+        for &v in &data[r * stride..r * stride + width] {
+            total += u64::from(v.abs_diff(c));
+            at_or_below += u64::from(v <= c);
+        }
+    }
+    (total, at_or_below)
+}
+
+/// Panics unless `rows` rows of `width` samples at `stride` lie in `data`.
+fn check_abs_count(data: &[u8], stride: usize, (width, rows): (usize, usize)) {
+    assert!(width <= stride || rows <= 1, "rows that do not overlap");
+    assert!(
+        rows == 0 || data.len() >= (rows - 1) * stride + width,
+        "the rows inside the data"
+    );
+}
 
 /// The scalar [`GroupSumsFn`].
 pub fn group_sums(data: &[u8], stride: usize, (width, rows): (usize, usize), out: &mut [u32]) {
@@ -573,8 +604,42 @@ mod x86 {
         box_sums: crate::me::sea::box_sums,
         ads: crate::me::sea::ads,
         group_sums: group_sums_sse2,
+        abs_count: abs_count_sse2,
         sad_16x16_row: |a, sa, b, sb, out| super::sad_16x16_row_with(sad_sse2, a, sa, b, sb, out),
     };
+
+    /// [`super::AbsCountFn`] 16 samples at a time: `psadbw` against the
+    /// level for the distances; `v <= c` where `v - c` saturates to 0,
+    /// counted by `psadbw` of those bytes' ones. The columns past the last
+    /// multiple of 16 by the scalar kernel.
+    fn abs_count_sse2(data: &[u8], stride: usize, (width, rows): (usize, usize), c: u8) -> (u64, u64) {
+        super::check_abs_count(data, stride, (width, rows));
+        let wide = width - width % 16;
+        // SAFETY: SSE2 is part of x86-64; each row's first `wide` samples
+        // lie inside the checked rows.
+        let (mut total, mut at_or_below) = unsafe {
+            let (level, ones, zero) = (_mm_set1_epi8(c as i8), _mm_set1_epi8(1), _mm_setzero_si128());
+            let (mut distance, mut count) = (zero, zero);
+            for r in 0..rows {
+                let row = data.as_ptr().add(r * stride);
+                for x in (0..wide).step_by(16) {
+                    let v = _mm_loadu_si128(row.add(x) as *const __m128i);
+                    distance = _mm_add_epi64(distance, _mm_sad_epu8(v, level));
+                    let below = _mm_cmpeq_epi8(_mm_subs_epu8(v, level), zero);
+                    count = _mm_add_epi64(count, _mm_sad_epu8(_mm_and_si128(below, ones), zero));
+                }
+            }
+            let lanes =
+                |v: __m128i| _mm_cvtsi128_si64(v) as u64 + _mm_cvtsi128_si64(_mm_unpackhi_epi64(v, v)) as u64;
+            (lanes(distance), lanes(count))
+        };
+        if wide < width && rows > 0 {
+            let (t, n) = super::abs_count(&data[wide..], stride, (width - wide, rows), c);
+            total += t;
+            at_or_below += n;
+        }
+        (total, at_or_below)
+    }
 
     /// [`super::GroupSumsFn`] by `psadbw` against zero: 16 samples of a row
     /// give two groups' sums, added down the band's rows; the columns past

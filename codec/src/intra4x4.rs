@@ -91,33 +91,57 @@ pub fn neighbours(k: usize, mb_x: usize, mb_y: usize, mb_cols: usize) -> (bool, 
 /// inside it from `own` (the macroblock's blocks reconstructed so far,
 /// 16x16 row-major).
 pub fn edges(recon: &Plane, own: &[u8; 256], mb_x: usize, mb_y: usize, k: usize) -> Edges {
-    let (above, left, above_right) = neighbours(k, mb_x, mb_y, recon.width() / MB);
-    let at = mb_sampler(recon, own, mb_x, mb_y);
-    let (bx, by) = (4 * (k % 4) as isize, 4 * (k / 4) as isize);
+    let available = neighbours(k, mb_x, mb_y, recon.width() / MB);
+    let (top, left, top_left) =
+        block_edges::<4, 8>(recon, own, (mb_x, mb_y), (4 * (k % 4), 4 * (k / 4)), available);
+    Edges { top, left, top_left }
+}
+
+/// The `T = 2 N` samples above the `N x N` block at (bx, by) of macroblock
+/// (mb_x, mb_y) (the `N`-th repeated past it without `above_right`), the
+/// `N` to its left and the one above-left, each where available: inside
+/// the macroblock from `own` (16x16 row-major), outside from `recon`.
+/// Read as slices of the two sources, not sample by sample: a block
+/// search gathers the edges of every block it tries.
+pub(crate) fn block_edges<const N: usize, const T: usize>(
+    recon: &Plane,
+    own: &[u8; 256],
+    (mb_x, mb_y): (usize, usize),
+    (bx, by): (usize, usize),
+    (above, left, above_right): (bool, bool, bool),
+) -> (Option<[u8; T]>, Option<[u8; N]>, Option<u8>) {
+    let (mx, my) = (mb_x * MB, mb_y * MB);
     let top = above.then(|| {
-        let mut t = [0u8; 8];
-        for (c, v) in t.iter_mut().enumerate() {
-            let c = c as isize;
-            *v = if c < 4 || above_right {
-                at(bx + c, by - 1)
-            } else {
-                at(bx + 3, by - 1)
-            };
-        }
+        let row = if by > 0 {
+            &own[(by - 1) * MB + bx..]
+        } else {
+            &recon.row(my - 1)[mx + bx..]
+        };
+        let mut t = [row[N - 1]; T];
+        let n = if above_right { T } else { N };
+        t[..n].copy_from_slice(&row[..n]);
         t
     });
-    let left_col = left.then(|| [0, 1, 2, 3].map(|r| at(bx - 1, by + r)));
-    let top_left = (above && left).then(|| at(bx - 1, by - 1));
-    Edges {
-        top,
-        left: left_col,
-        top_left,
-    }
+    let left_col = left.then(|| {
+        std::array::from_fn(|r| {
+            if bx > 0 {
+                own[(by + r) * MB + bx - 1]
+            } else {
+                recon.row(my + by + r)[mx - 1]
+            }
+        })
+    });
+    let top_left = (above && left).then(|| match (bx > 0, by > 0) {
+        (true, true) => own[(by - 1) * MB + bx - 1],
+        _ => recon.row(my + by - 1)[mx + bx - 1],
+    });
+    (top, left_col, top_left)
 }
 
 /// Sample (x, y) relative to macroblock (mb_x, mb_y) (-1 is left of or
 /// above it) as intra prediction reads it: the macroblock's `own` samples
 /// (16x16 row-major) inside it, `recon`'s outside.
+#[cfg(test)]
 pub(crate) fn mb_sampler<'a>(
     recon: &'a Plane,
     own: &'a [u8; 256],
@@ -216,6 +240,39 @@ pub fn predict_mb(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// [`edges`] written sample by sample through [`mb_sampler`].
+    fn edges_sampled(recon: &Plane, own: &[u8; 256], mb_x: usize, mb_y: usize, k: usize) -> Edges {
+        let (above, left, above_right) = neighbours(k, mb_x, mb_y, recon.width() / MB);
+        let at = mb_sampler(recon, own, mb_x, mb_y);
+        let (bx, by) = (4 * (k % 4) as isize, 4 * (k / 4) as isize);
+        let top = above.then(|| {
+            std::array::from_fn(|c| {
+                let c = c as isize;
+                at(bx + if c < 4 || above_right { c } else { 3 }, by - 1)
+            })
+        });
+        Edges {
+            top,
+            left: left.then(|| [0, 1, 2, 3].map(|r| at(bx - 1, by + r))),
+            top_left: (above && left).then(|| at(bx - 1, by - 1)),
+        }
+    }
+
+    #[test]
+    fn edges_read_as_slices_are_the_samples_beside_the_block() {
+        let recon = Plane::from_fn(48, 48, |x, y| ((x * 37 + y * 101) % 251) as u8).unwrap();
+        let own: [u8; 256] = std::array::from_fn(|i| (i * 7 % 253) as u8);
+        for (mb_x, mb_y) in [(0, 0), (1, 0), (2, 0), (0, 1), (1, 1), (2, 1), (0, 2), (2, 2)] {
+            for k in 0..16 {
+                assert_eq!(
+                    edges(&recon, &own, mb_x, mb_y, k),
+                    edges_sampled(&recon, &own, mb_x, mb_y, k),
+                    "block {k} of macroblock ({mb_x}, {mb_y})"
+                );
+            }
+        }
+    }
 
     fn edges_of(top: [u8; 8], left: [u8; 4], corner: u8) -> Edges {
         Edges {

@@ -24,7 +24,7 @@
 //! ```
 
 use crate::consts::MB;
-use crate::intra4x4::{mb_sampler, neighbour_modes, spread8, Intra4x4Mode};
+use crate::intra4x4::{block_edges, neighbour_modes, spread8, Intra4x4Mode};
 use crate::picture::Plane;
 
 use crate::dsp::ipred::ipred;
@@ -66,20 +66,10 @@ pub fn neighbour_modes8(
 /// from `own` (the macroblock's blocks reconstructed so far, 16x16
 /// row-major).
 pub fn edges(recon: &Plane, own: &[u8; 256], mb_x: usize, mb_y: usize, q: usize) -> Edges8 {
-    let (above, left, above_right) = neighbours(q, mb_x, mb_y, recon.width() / MB);
-    let at = mb_sampler(recon, own, mb_x, mb_y);
-    let (bx, by) = (8 * (q % 2) as isize, 8 * (q / 2) as isize);
-    let top = above.then(|| {
-        std::array::from_fn(|c| {
-            let c = if c < 8 || above_right { c } else { 7 };
-            at(bx + c as isize, by - 1)
-        })
-    });
-    Edges8 {
-        top,
-        left: left.then(|| std::array::from_fn(|r| at(bx - 1, by + r as isize))),
-        top_left: (above && left).then(|| at(bx - 1, by - 1)),
-    }
+    let available = neighbours(q, mb_x, mb_y, recon.width() / MB);
+    let (top, left, top_left) =
+        block_edges::<8, 16>(recon, own, (mb_x, mb_y), (8 * (q % 2), 8 * (q / 2)), available);
+    Edges8 { top, left, top_left }
 }
 
 /// The edges smoothed by [1 2 1] along them (H.264 8.3.2.2.1), each end
@@ -167,6 +157,34 @@ pub fn predict_filtered(mode: Intra4x4Mode, e: &Edges8, out: &mut [u8; 64]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn edges_read_as_slices_are_the_samples_beside_the_block() {
+        let recon = Plane::from_fn(48, 48, |x, y| ((x * 37 + y * 101) % 251) as u8).unwrap();
+        let own: [u8; 256] = std::array::from_fn(|i| (i * 7 % 253) as u8);
+        for (mb_x, mb_y) in [(0, 0), (1, 0), (2, 0), (0, 1), (1, 1), (2, 1), (0, 2), (2, 2)] {
+            let at = crate::intra4x4::mb_sampler(&recon, &own, mb_x, mb_y);
+            for q in 0..4 {
+                let (above, left, above_right) = neighbours(q, mb_x, mb_y, 3);
+                let (bx, by) = (8 * (q % 2) as isize, 8 * (q / 2) as isize);
+                let top = above.then(|| {
+                    std::array::from_fn(|c| {
+                        at(bx + if c < 8 || above_right { c } else { 7 } as isize, by - 1)
+                    })
+                });
+                let sampled = Edges8 {
+                    top,
+                    left: left.then(|| std::array::from_fn(|r| at(bx - 1, by + r as isize))),
+                    top_left: (above && left).then(|| at(bx - 1, by - 1)),
+                };
+                assert_eq!(
+                    edges(&recon, &own, mb_x, mb_y, q),
+                    sampled,
+                    "block {q} of ({mb_x}, {mb_y})"
+                );
+            }
+        }
+    }
 
     /// The modes written sample by sample, as FORMAT.md section 9.2 gives
     /// them: what the gather tables must equal.

@@ -92,6 +92,15 @@ fn motion_compensation() {
                     (s.chroma)(&data[3..], 80, (fx, fy), (w, h), &mut b, 32);
                     assert_eq!(a, b, "{isa} chroma {w}x{h} phase ({fx}, {fy})");
                 }
+                // 8 wide with the slices no longer than the contract's
+                // (h + 1 rows of 9 samples; h rows of 8 out).
+                for h in [1, 4, 8] {
+                    let src = &data[5..5 + h * 80 + 9];
+                    let (mut a, mut b) = (vec![0u8; (h - 1) * 8 + 8], vec![0u8; (h - 1) * 8 + 8]);
+                    chroma(src, 80, (fx, fy), (8, h), &mut a, 8);
+                    (s.chroma)(src, 80, (fx, fy), (8, h), &mut b, 8);
+                    assert_eq!(a, b, "{isa} chroma 8x{h} in tight slices, phase ({fx}, {fy})");
+                }
             }
         }
     });

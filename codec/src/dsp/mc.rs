@@ -82,8 +82,31 @@ mod avx2 {
     crate::compiled_for! { "avx2":
         fn luma(src: &[u8], stride: usize, phase: (usize, usize), size: (usize, usize), out: &mut [u8], os: usize)
             => super::luma_body::<true>;
-        fn chroma(src: &[u8], stride: usize, phase: (usize, usize), size: (usize, usize), out: &mut [u8], os: usize)
+        fn chroma_any(src: &[u8], stride: usize, phase: (usize, usize), size: (usize, usize), out: &mut [u8], os: usize)
             => super::chroma_body;
+    }
+
+    /// The AVX2 [`super::ChromaFn`]: blocks 8 wide (a macroblock's) in
+    /// intrinsics, other widths as the scalar body compiled for AVX2.
+    pub(super) fn chroma(
+        src: &[u8],
+        stride: usize,
+        phase: (usize, usize),
+        (w, h): (usize, usize),
+        out: &mut [u8],
+        os: usize,
+    ) {
+        if w != 8 || h == 0 {
+            return chroma_any(src, stride, phase, (w, h), out, os);
+        }
+        assert!(
+            src.len() >= h * stride + 9 && out.len() >= (h - 1) * os + 8,
+            "an 8-wide chroma block past its slices"
+        );
+        // SAFETY: this kernel sits only in the AVX2 table, handed out only
+        // where the CPU has AVX2; the rows it reads and writes were
+        // checked above.
+        unsafe { super::x86::chroma8_avx2(src, stride, phase, h, out, os) }
     }
 }
 
@@ -293,6 +316,52 @@ mod x86 {
     use std::arch::x86_64::*;
 
     use super::N16;
+
+    /// An 8-wide bilinear chroma block, a row at a time: each source row's
+    /// samples paired with their right neighbours (two 8-byte loads,
+    /// interleaved) and weighed by one `pmaddubsw` for the row below it
+    /// and one for the row above (weights at most 64, sums at most
+    /// 64 * 255: exact in 16 bits, as the scalar body).
+    ///
+    /// # Safety
+    /// AVX2 is there; `src` holds `h + 1` rows of 9 samples `stride`
+    /// apart and `out` `h` rows of 8, `os` apart.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn chroma8_avx2(
+        src: &[u8],
+        stride: usize,
+        (fx, fy): (usize, usize),
+        h: usize,
+        out: &mut [u8],
+        os: usize,
+    ) {
+        let weights = |left: usize, right: usize| _mm_set1_epi16(((right << 8) | left) as i16);
+        let top = weights((8 - fx) * (8 - fy), fx * (8 - fy));
+        let below = weights((8 - fx) * fy, fx * fy);
+        let round = _mm_set1_epi16(32);
+        // SAFETY (the loads and stores): the caller's contract.
+        let pairs = |r: usize| unsafe {
+            let p = src.as_ptr().add(r * stride);
+            _mm_unpacklo_epi8(
+                _mm_loadl_epi64(p as *const __m128i),
+                _mm_loadl_epi64(p.add(1) as *const __m128i),
+            )
+        };
+        let mut upper = pairs(0);
+        for r in 0..h {
+            let lower = pairs(r + 1);
+            let sum = _mm_add_epi16(_mm_maddubs_epi16(upper, top), _mm_maddubs_epi16(lower, below));
+            let v = _mm_srli_epi16::<6>(_mm_add_epi16(sum, round));
+            // SAFETY: the caller's contract.
+            unsafe {
+                _mm_storel_epi64(
+                    out.as_mut_ptr().add(r * os) as *mut __m128i,
+                    _mm_packus_epi16(v, v),
+                )
+            };
+            upper = lower;
+        }
+    }
 
     /// The vertical 8-tap pass of a 16x16 prediction from its 23 rows of
     /// 16-bit first-pass values: taps in pairs, each pair one `pmaddwd` of

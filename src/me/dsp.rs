@@ -677,8 +677,92 @@ mod x86 {
         box_sums: super::avx2::box_sums,
         ads: super::avx2::ads,
         sad_16x16_row: sad_16x16_row_avx2,
+        abs_count: abs_count_avx2,
+        group_sums: group_sums_avx2,
         ..SSE2
     };
+
+    /// [`super::GroupSumsFn`] 32 samples a row at a time: `psadbw` against
+    /// zero gives the four groups' sums in the four 64-bit lanes; the
+    /// columns past the last multiple of 32 by the SSE2 kernel.
+    fn group_sums_avx2(data: &[u8], stride: usize, (width, rows): (usize, usize), out: &mut [u32]) {
+        super::check_group_sums(data, stride, (width, rows), out);
+        let wide = width - width % 32;
+        for x in (0..wide).step_by(32) {
+            // SAFETY: AVX2 was detected before this set was chosen; each
+            // row's 32 samples from x lie inside the checked band.
+            let sums = unsafe { group_sums_32(data, stride, rows, x) };
+            for (o, &s) in out[x / 8..x / 8 + 4].iter_mut().zip(&sums) {
+                *o = s as u32;
+            }
+        }
+        if wide < width {
+            group_sums_sse2(&data[wide..], stride, (width - wide, rows), &mut out[wide / 8..]);
+        }
+    }
+
+    #[target_feature(enable = "avx2")]
+    unsafe fn group_sums_32(data: &[u8], stride: usize, rows: usize, x: usize) -> [u64; 4] {
+        let mut acc = _mm256_setzero_si256();
+        for r in 0..rows {
+            // SAFETY: the caller's: 32 samples from x on each row.
+            let v = unsafe { _mm256_loadu_si256(data.as_ptr().add(r * stride + x) as *const __m256i) };
+            acc = _mm256_add_epi64(acc, _mm256_sad_epu8(v, _mm256_setzero_si256()));
+        }
+        let mut sums = [0u64; 4];
+        // SAFETY: 32 bytes into a 32-byte array.
+        unsafe { _mm256_storeu_si256(sums.as_mut_ptr() as *mut __m256i, acc) };
+        sums
+    }
+
+    /// [`abs_count_sse2`] 32 samples at a time; the columns past the last
+    /// multiple of 32 by the SSE2 kernel.
+    fn abs_count_avx2(data: &[u8], stride: usize, (width, rows): (usize, usize), c: u8) -> (u64, u64) {
+        super::check_abs_count(data, stride, (width, rows));
+        let wide = width - width % 32;
+        // SAFETY: AVX2 was detected before this set was chosen; the rows
+        // were checked above.
+        let (mut total, mut at_or_below) = unsafe { abs_count_avx2_raw(data, stride, (wide, rows), c) };
+        if wide < width && rows > 0 {
+            let (t, n) = abs_count_sse2(&data[wide..], stride, (width - wide, rows), c);
+            total += t;
+            at_or_below += n;
+        }
+        (total, at_or_below)
+    }
+
+    #[target_feature(enable = "avx2")]
+    unsafe fn abs_count_avx2_raw(
+        data: &[u8],
+        stride: usize,
+        (wide, rows): (usize, usize),
+        c: u8,
+    ) -> (u64, u64) {
+        let (level, ones, zero) = (
+            _mm256_set1_epi8(c as i8),
+            _mm256_set1_epi8(1),
+            _mm256_setzero_si256(),
+        );
+        let (mut distance, mut count) = (zero, zero);
+        for r in 0..rows {
+            // SAFETY: the caller's rows hold `wide` samples each.
+            let row = unsafe { data.as_ptr().add(r * stride) };
+            for x in (0..wide).step_by(32) {
+                // SAFETY: as above, x + 32 <= wide.
+                let v = unsafe { _mm256_loadu_si256(row.add(x) as *const __m256i) };
+                distance = _mm256_add_epi64(distance, _mm256_sad_epu8(v, level));
+                let below = _mm256_cmpeq_epi8(_mm256_subs_epu8(v, level), zero);
+                count = _mm256_add_epi64(count, _mm256_sad_epu8(_mm256_and_si256(below, ones), zero));
+            }
+        }
+        let lanes = |v: __m256i| {
+            let mut l = [0u64; 4];
+            // SAFETY: 32 bytes into a 32-byte array.
+            unsafe { _mm256_storeu_si256(l.as_mut_ptr() as *mut __m256i, v) };
+            l.iter().sum::<u64>()
+        };
+        (lanes(distance), lanes(count))
+    }
 
     fn sad_16x16_row_avx2(a: &[u8], sa: usize, b: &[u8], sb: usize, out: &mut [u32; 16]) -> u32 {
         super::check_sad_row(a, sa, b, sb);

@@ -83,11 +83,18 @@ impl PlaneStats {
         let mut block_means = Vec::with_capacity(block_sums.len());
         for (by, row) in block_sums.chunks_exact(cols).enumerate() {
             let rows = (h - by * 8).min(8);
-            block_means.extend(
-                row.iter()
-                    .enumerate()
-                    .map(|(bx, &s)| f64::from(s) / ((w - bx * 8).min(8) * rows) as f64),
-            );
+            // Whole blocks' sums divided by their count; by a power of two
+            // (most blocks: 64) that is a multiplication by its exact
+            // reciprocal, the same value.
+            let (whole, part) = row.split_at(w / 8);
+            let count = (8 * rows) as f64;
+            if (8 * rows).is_power_of_two() {
+                let scale = 1.0 / count;
+                block_means.extend(whole.iter().map(|&s| f64::from(s) * scale));
+            } else {
+                block_means.extend(whole.iter().map(|&s| f64::from(s) / count));
+            }
+            block_means.extend(part.iter().map(|&s| f64::from(s) / ((w % 8) * rows) as f64));
         }
         PlaneStats {
             mean,
@@ -121,14 +128,14 @@ fn plane_weight(source: &Plane, reference: &Plane) -> Option<PlaneWeight> {
     };
     let offset = (s.mean - scale / f64::from(WEIGHT_ONE) * r.mean).round();
     let (bs, br) = (&s.block_means, &r.block_means);
-    let err = |f: &dyn Fn(f64) -> f64| bs.iter().zip(br).map(|(&s, &r)| (s - f(r)).abs()).sum::<f64>();
+    let err = |f| misfit(bs, br, f);
     let line = |(scale, offset): (f64, f64)| move |r: f64| r * scale / f64::from(WEIGHT_ONE) + offset;
     // Where part of the picture changes (a title leaves), the deviations'
     // ratio follows that part; the median follows the rest.
     let clamp = |offset: f64| offset.clamp(-f64::from(MAX_OFFSET), f64::from(MAX_OFFSET));
     let guessed = (scale, clamp(offset));
     let lifted = (f64::from(WEIGHT_ONE), clamp(median_change(bs, br)));
-    let (scale, offset) = if err(&line(lifted)) < err(&line(guessed)) {
+    let (scale, offset) = if err(line(lifted)) < err(line(guessed)) {
         lifted
     } else {
         guessed
@@ -141,13 +148,24 @@ fn plane_weight(source: &Plane, reference: &Plane) -> Option<PlaneWeight> {
         return None;
     }
     let weigh = line((scale, offset));
-    let weighted = err(&weigh);
+    let weighted = err(weigh);
     let spread = bs.iter().map(|&b| (b - s.mean).abs()).sum::<f64>();
     let shift = br.iter().map(|&r| (weigh(r) - r).abs()).sum::<f64>();
-    let keep = weighted < KEEP_BELOW * err(&|r| r)
+    let keep = weighted < KEEP_BELOW * misfit(bs, br, |r| r)
         && weighted < CUT_ABOVE * spread
         && (w.scale == WEIGHT_ONE as u8 || shift >= MIN_SHIFT * br.len() as f64);
     keep.then_some(w)
+}
+
+/// How far the block means `source` are from `f` of the reference's
+/// (summed absolute differences); generic, not a `dyn Fn`, so that the
+/// line is inlined into the loop over blocks.
+fn misfit(source: &[f64], reference: &[f64], f: impl Fn(f64) -> f64) -> f64 {
+    source
+        .iter()
+        .zip(reference)
+        .map(|(&s, &r)| (s - f(r)).abs())
+        .sum()
 }
 
 /// The median of the block means' changes, rounded.

@@ -93,9 +93,14 @@ pub fn predict_with_references([a, b, c]: [Option<RefMv>; 3], ref_idx: u8) -> Mv
     if let (Some(a), None, None) = (a, b, c) {
         return a.mv;
     }
-    let mut same = [a, b, c].into_iter().flatten().filter(|n| n.ref_idx == ref_idx);
-    if let (Some(one), None) = (same.next(), same.next()) {
-        return one.mv;
+    // Which neighbours point into `ref_idx`, as bits (no iterator: this
+    // runs several times a macroblock, in the decoder too).
+    let into = |n: Option<RefMv>, bit: u8| n.filter(|n| n.ref_idx == ref_idx).map_or(0, |_| bit);
+    match into(a, 1) | into(b, 2) | into(c, 4) {
+        1 => return a.map_or(Mv::ZERO, |n| n.mv),
+        2 => return b.map_or(Mv::ZERO, |n| n.mv),
+        4 => return c.map_or(Mv::ZERO, |n| n.mv),
+        _ => {}
     }
     let [a, b, c] = [a, b, c].map(|n| n.map_or(Mv::ZERO, |n| n.mv));
     Mv::new(median3(a.x, b.x, c.x), median3(a.y, b.y, c.y))
@@ -171,6 +176,47 @@ pub fn mv_prediction_into(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Rules 1-3 over every mix of missing neighbours and neighbours into
+    /// references 0 and 1, against the rules written as FORMAT.md words
+    /// them.
+    #[test]
+    fn the_reference_rules_pick_as_written() {
+        let options = |mv: Mv| {
+            [
+                None,
+                Some(RefMv { mv, ref_idx: 0 }),
+                Some(RefMv { mv, ref_idx: 1 }),
+            ]
+        };
+        let (va, vb, vc) = (Mv::new(4, -8), Mv::new(12, 0), Mv::new(-4, 2));
+        for a in options(va) {
+            for b in options(vb) {
+                for c in options(vc) {
+                    for ref_idx in [0, 1] {
+                        let same: Vec<RefMv> = [a, b, c]
+                            .into_iter()
+                            .flatten()
+                            .filter(|n| n.ref_idx == ref_idx)
+                            .collect();
+                        let want = match (a, b, c) {
+                            (Some(a), None, None) => a.mv,
+                            _ if same.len() == 1 => same[0].mv,
+                            _ => {
+                                let [a, b, c] = [a, b, c].map(|n| n.map_or(Mv::ZERO, |n| n.mv));
+                                Mv::new(median3(a.x, b.x, c.x), median3(a.y, b.y, c.y))
+                            }
+                        };
+                        assert_eq!(
+                            predict_with_references([a, b, c], ref_idx),
+                            want,
+                            "{a:?} {b:?} {c:?} into {ref_idx}"
+                        );
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn median_of_three() {

@@ -26,6 +26,8 @@ import sys
 import tempfile
 from concurrent.futures import ThreadPoolExecutor
 
+from pair import parse_variants  # the same NAME=BINARY:PRESET[:ARGS] syntax
+
 QPS = os.environ.get("QPS", "22 32").split()
 FRAMES = os.environ.get("FRAMES", "10")
 JOBS = int(os.environ.get("JOBS", "2"))
@@ -35,15 +37,7 @@ def parse(argv):
     if "--" not in argv:
         raise SystemExit(__doc__)
     split = argv.index("--")
-    variants = []
-    for v in argv[:split]:
-        name, rest = v.split("=", 1)
-        parts = rest.split(":")
-        if len(parts) < 2:
-            raise SystemExit(f"{v}: expected NAME=BINARY:PRESET[:ARG,ARG...]")
-        extra = parts[2].split(",") if len(parts) > 2 and parts[2] else []
-        variants.append((name, parts[0], parts[1], extra))
-    return variants, argv[split + 1:]
+    return parse_variants(argv[:split]), argv[split + 1:]
 
 
 def count(job):

@@ -1189,7 +1189,8 @@ mod x86_halfpel {
     /// src[x + k]` (`src` holds `out.len() + 7` samples), sixteen outputs
     /// at a time: each 128-bit lane holds eight outputs' fifteen samples,
     /// shuffled into sample pairs for one `pmaddubsw` per tap pair. The
-    /// columns past the last multiple of 16 in scalar code.
+    /// columns past the last multiple of 16 as the row's last sixteen
+    /// (scalar in rows shorter than that).
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn horizontal_row_avx2(src: &[u8], out: &mut [i16]) {
         let n = out.len();
@@ -1213,8 +1214,9 @@ mod x86_halfpel {
                 )
             }
         });
-        let mut x = 0;
-        while x + 16 <= n {
+        // Sixteen outputs from x (x + 16 <= n: the loads end within src).
+        let chunk = |x: usize, out: &mut [i16]| {
+            debug_assert!(x + 16 <= n);
             // SAFETY: x + 7 + 16 <= n + 7 <= src.len() (asserted above);
             // x + 16 <= out.len().
             unsafe {
@@ -1230,7 +1232,17 @@ mod x86_halfpel {
                 }
                 _mm256_storeu_si256(out.as_mut_ptr().add(x) as *mut __m256i, acc);
             }
+        };
+        let mut x = 0;
+        while x + 16 <= n {
+            chunk(x, out);
             x += 16;
+        }
+        // The last columns as the last sixteen again (the same values
+        // written twice), where the row has sixteen.
+        if x < n && n >= 16 {
+            chunk(n - 16, out);
+            return;
         }
         for (j, o) in out.iter_mut().enumerate().skip(x) {
             *o = HALF
@@ -1246,7 +1258,8 @@ mod x86_halfpel {
     /// samples), 32 outputs at a time: rows interleaved in pairs for one
     /// `pmaddubsw` per tap pair, rounded in 16 bits, packed (the
     /// in-lane unpacks and the pack undo each other's order). The columns
-    /// past the last multiple of 32 in scalar code.
+    /// past the last multiple of 32 as the row's last 32 (scalar in rows
+    /// shorter than that).
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn vertical_row_avx2(rows: &[&[u8]; 8], out: &mut [u8]) {
         let n = out.len();
@@ -1256,8 +1269,8 @@ mod x86_halfpel {
         );
         let taps = tap_pairs();
         let round = _mm256_set1_epi16(32);
-        let mut x = 0;
-        while x + 32 <= n {
+        let chunk = |x: usize, out: &mut [u8]| {
+            debug_assert!(x + 32 <= n);
             let (mut lo, mut hi) = (_mm256_setzero_si256(), _mm256_setzero_si256());
             for (k, t) in taps.iter().enumerate() {
                 // SAFETY: x + 32 <= n <= every row's length (asserted).
@@ -1279,7 +1292,16 @@ mod x86_halfpel {
                     _mm256_packus_epi16(lo, hi),
                 )
             };
+        };
+        let mut x = 0;
+        while x + 32 <= n {
+            chunk(x, out);
             x += 32;
+        }
+        // The last columns as the last 32 again, where the row has 32.
+        if x < n && n >= 32 {
+            chunk(n - 32, out);
+            return;
         }
         for (j, o) in out.iter_mut().enumerate().skip(x) {
             let v: i16 = HALF.iter().zip(rows).map(|(&t, r)| t * i16::from(r[j])).sum();
@@ -1348,7 +1370,8 @@ mod x86_halfpel {
     /// rows of the unrounded horizontal pass, taps in pairs, each pair one
     /// `pmaddwd` of two interleaved rows (exact 32-bit sums, as the scalar
     /// pass), then `((v >> 6) + 32) >> 6` saturated to 8 bits; the columns
-    /// past the last multiple of 16 in scalar code.
+    /// past the last multiple of 16 as the row's last sixteen (scalar in
+    /// rows shorter than that).
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn diagonal_row_avx2(rows: &[&[i16]; 8], out: &mut [u8]) {
         let n = out.len();
@@ -1357,16 +1380,20 @@ mod x86_halfpel {
         let coef = [pair(0), pair(2), pair(4), pair(6)];
         let round = _mm256_set1_epi32(32);
         let finish = |v: __m256i| _mm256_srai_epi32::<6>(_mm256_add_epi32(_mm256_srai_epi32::<6>(v), round));
-        let mut x = 0;
-        while x + 16 <= n {
+        assert!(
+            rows.iter().all(|r| r.len() >= n),
+            "a row of the diagonal pass past its samples"
+        );
+        let chunk = |x: usize, out: &mut [u8]| {
+            debug_assert!(x + 16 <= n);
             let (mut lo, mut hi) = (_mm256_setzero_si256(), _mm256_setzero_si256());
             for (p, c) in coef.iter().enumerate() {
-                let (ra, rb) = (&rows[2 * p][x..x + 16], &rows[2 * p + 1][x..x + 16]);
-                // SAFETY: both slices are 16 i16 = 32 bytes.
+                // SAFETY: x + 16 <= n <= every row's length (asserted):
+                // 16 i16 = 32 bytes from x.
                 let (a, b) = unsafe {
                     (
-                        _mm256_loadu_si256(ra.as_ptr() as *const __m256i),
-                        _mm256_loadu_si256(rb.as_ptr() as *const __m256i),
+                        _mm256_loadu_si256(rows[2 * p].as_ptr().add(x) as *const __m256i),
+                        _mm256_loadu_si256(rows[2 * p + 1].as_ptr().add(x) as *const __m256i),
                     )
                 };
                 lo = _mm256_add_epi32(lo, _mm256_madd_epi16(_mm256_unpacklo_epi16(a, b), *c));
@@ -1376,10 +1403,24 @@ mod x86_halfpel {
             // 12-15): the packs restore column order within each lane.
             let words = _mm256_packs_epi32(finish(lo), finish(hi));
             let bytes = _mm256_permute4x64_epi64::<0b00_00_10_00>(_mm256_packus_epi16(words, words));
-            let o = &mut out[x..x + 16];
-            // SAFETY: `o` is 16 bytes.
-            unsafe { _mm_storeu_si128(o.as_mut_ptr() as *mut __m128i, _mm256_castsi256_si128(bytes)) };
+            // SAFETY: x + 16 <= n = out.len().
+            unsafe {
+                _mm_storeu_si128(
+                    out.as_mut_ptr().add(x) as *mut __m128i,
+                    _mm256_castsi256_si128(bytes),
+                )
+            };
+        };
+        let mut x = 0;
+        while x + 16 <= n {
+            chunk(x, out);
             x += 16;
+        }
+        // The last columns as the last sixteen again, where the row has
+        // sixteen.
+        if x < n && n >= 16 {
+            chunk(n - 16, out);
+            return;
         }
         for (c, o) in out.iter_mut().enumerate().skip(x) {
             let v: i32 = HALF

@@ -18,7 +18,7 @@ use mocomp::codec::Plane;
 use mocomp::encode::dsp::CODER;
 use mocomp::features::dsp::FEATURES;
 use mocomp::imgproc::dsp::IMGPROC;
-use mocomp::me::dsp::{fill_halfpel, PIXEL};
+use mocomp::me::dsp::{fill_halfpel, PATCH18_PHASE, PIXEL};
 use mocomp::metrics::dsp::{BandScratch, ColumnSums, METRICS, WIN};
 
 type Group<'a> = BenchmarkGroup<'a, criterion::measurement::WallTime>;
@@ -157,6 +157,11 @@ fn pixel_table(c: &mut Criterion) {
         });
         bench(g, "halfpel_planes_cif", l, || {
             fill_halfpel(t.halfpel_planes, black_box(&reference), 32, &mut planes, 1)
+        });
+        // One macroblock's patch (a CIF frame's planes are 396 of them).
+        let mut patch = [0u8; 3 * PATCH18_PHASE];
+        bench(g, "halfpel_patch18", l, || {
+            (t.halfpel_patch18)(black_box(&reference), (159, 95), &mut patch)
         });
         let (stride, rows) = (reference.stride(), reference.data().len() / reference.stride());
         let mut groups = vec![0u32; 44];

@@ -22,7 +22,7 @@ use mocomp::features::dsp::{FeaturesDsp, FEATURES};
 use mocomp::flow::dis::{dis_flow, DisParams, DisPreset};
 use mocomp::flow::refine::{refine, RefineParams};
 use mocomp::imgproc::dsp::{ImgprocDsp, IMGPROC};
-use mocomp::me::dsp::{fill_halfpel, PixelDsp, PIXEL};
+use mocomp::me::dsp::{fill_halfpel, PixelDsp, PATCH18_PHASE, PIXEL};
 use mocomp::metrics::dsp::{BandScratch, ColumnSums, MetricsDsp, METRICS, WIN};
 use ndarray::Array2;
 
@@ -290,6 +290,7 @@ fn pixel_kernels() {
             satd_4x4_pair,
             satd_16x16_capped,
             halfpel_planes,
+            halfpel_patch18,
             copy_16x16,
             average_16x16,
             average_8x8,
@@ -468,6 +469,25 @@ fn pixel_kernels() {
                         );
                     }
                 }
+            }
+        }
+        // A macroblock's patch wherever the border holds its taps: inside,
+        // and at the border's four limits.
+        for r in planes(48, 40) {
+            let pad = r.pad() as isize;
+            let (last_x, last_y) = (48 + pad - 36, 40 + pad - 22);
+            for (x, y) in [
+                (13, 7),
+                (0, 0),
+                (3 - pad, 3 - pad),
+                (last_x, last_y),
+                (3 - pad, last_y),
+                (last_x, -5),
+            ] {
+                let (mut a, mut b) = ([0u8; 3 * PATCH18_PHASE], [0u8; 3 * PATCH18_PHASE]);
+                halfpel_patch18(&r, (x, y), &mut a);
+                (s.halfpel_patch18)(&r, (x, y), &mut b);
+                assert!(a == b, "{isa} half-pel patch at ({x}, {y})");
             }
         }
     });

@@ -192,10 +192,15 @@ impl MotionAnalyser {
     /// the search made ready against `reference`, no vectors yet.
     fn decision_search(&self, reference: &Frame, s: SearchSettings, camera: Mv) -> FrameMotion {
         let cfg = self.search_config(s);
-        // The partitions' search reads the planes too, further out.
+        // The partitions' search reads the planes too, further out. Without
+        // it, each searched macroblock filters the half-pel patch it needs
+        // (x264 filters whole planes; here, where a macroblock skipped
+        // before its search needs none, patches took ultrafast 0.966x and
+        // 0.994x its time in two runs over 28 sequences, for +0.5 % of its
+        // instructions on eight, and a fifth less memory at 1080p).
         let search = match self.planes(reference) {
             Some(planes) => FrameSearch::owning(reference.y(), &cfg, planes),
-            None => FrameSearch::new(reference.y(), &cfg, None),
+            None => FrameSearch::per_block(reference.y(), &cfg),
         }
         .map(|search| search.centred_on(camera));
         let (cols, rows) = (reference.width() / MB, reference.height() / MB);

@@ -40,24 +40,50 @@ pub type PairFn = fn(&[u8; 32], &[u8; 32]) -> [u32; 2];
 /// cannot beat its best stop half way (SATD only grows with rows).
 pub type CappedFn = fn(&[u8], usize, &[u8], usize, u32) -> u32;
 
-/// Signature of the half-pel planes: `(reference, margin, band)` writes
-/// the horizontal, vertical and diagonal half-pel phases of `reference`
-/// over the band's rows of the picture and `margin` pixels around it, with
-/// the codec's filter and rounding ([`fill_halfpel`] makes the bands).
-pub type HalfpelFn = fn(&Plane, usize, HalfpelBand<'_>);
+/// Signature of the half-pel planes: `(reference, band)` writes the
+/// horizontal, vertical and diagonal half-pel phases of `reference` over
+/// the band's region, with the codec's filter and rounding
+/// ([`fill_halfpel`] makes the bands of whole planes; the search's
+/// patches are bands of their own).
+pub type HalfpelFn = fn(&Plane, HalfpelBand<'_>);
 
-/// Rows of the three half-pel planes.
+/// Signature of a half-pel patch for a 16x16 block's sub-pel steps:
+/// `(reference, origin, out)` writes the three phases over the
+/// [`PATCH18_ROWS`] x [`PATCH18_STRIDE`] samples from picture position
+/// `origin` into `out` (each phase [`PATCH18_ROWS`] rows of
+/// [`PATCH18_STRIDE`], one after the other; the first 18 columns are the
+/// patch, the rest what the vector width computes anyway). The
+/// reference's border must hold 3 samples before the rectangle and 4
+/// after it.
+pub type PatchFn = fn(&Plane, (isize, isize), &mut [u8]);
+
+/// A 16x16 block's patch rows: the block and one sample each way.
+pub const PATCH18_ROWS: usize = 18;
+
+/// A 16x16 block's patch columns as computed: the 18 it needs, rounded
+/// up to the vector width.
+pub const PATCH18_STRIDE: usize = 32;
+
+/// One phase of a 16x16 block's patch.
+pub const PATCH18_PHASE: usize = PATCH18_ROWS * PATCH18_STRIDE;
+
+/// A region of the three half-pel phases and where it is written.
 pub struct HalfpelBand<'a> {
-    /// The band's rows, counted among the filled rows from the first of
-    /// the top margin.
-    pub rows: std::ops::Range<usize>,
-    /// The columns to filter, counted from the first of the left margin
-    /// (the others are [`fill_halfpel`]'s to repeat).
-    pub cols: std::ops::Range<usize>,
-    /// The horizontal, vertical and diagonal planes, each from the band's
-    /// first row, `margin` columns left of the picture.
+    /// The picture coordinates of the region's first sample (its phases
+    /// are those at (x + 1/2, y), (x, y + 1/2) and (x + 1/2, y + 1/2));
+    /// the filter reads 3 samples before and 4 after it, which the
+    /// reference's border must hold.
+    pub origin: (isize, isize),
+    /// The region's rows.
+    pub rows: usize,
+    /// The region's columns.
+    pub span: usize,
+    /// The horizontal, vertical and diagonal phases, each from the
+    /// region's first row.
     pub out: [&'a mut [u8]; 3],
-    /// Of the planes' rows.
+    /// The column of each output row where the region's samples start.
+    pub out_x: usize,
+    /// Of the outputs' rows.
     pub stride: usize,
 }
 
@@ -99,18 +125,22 @@ pub fn fill_halfpel(kernel: HalfpelFn, reference: &Plane, margin: usize, planes:
         .zip(c.data_mut()[sc..].chunks_mut(len))
         .enumerate()
         .take(rows.len().div_ceil(per_band.max(1)))
-        .map(|(i, ((a, b), c))| HalfpelBand {
-            rows: rows.start + i * per_band..(rows.start + (i + 1) * per_band).min(rows.end),
-            cols: cols.clone(),
-            out: [a, b, c],
-            stride,
+        .map(|(i, ((a, b), c))| {
+            let first = rows.start + i * per_band;
+            HalfpelBand {
+                origin: (cols.start as isize - m, first as isize - m),
+                rows: (first + per_band).min(rows.end) - first,
+                span: cols.len(),
+                out: [a, b, c],
+                out_x: cols.start,
+                stride,
+            }
         })
         .collect();
     if jobs.len() == 1 {
-        jobs.into_iter().for_each(|band| kernel(reference, margin, band));
+        jobs.into_iter().for_each(|band| kernel(reference, band));
     } else {
-        jobs.into_par_iter()
-            .for_each(|band| kernel(reference, margin, band));
+        jobs.into_par_iter().for_each(|band| kernel(reference, band));
     }
     for plane in [a, b, c] {
         repeat_edges(plane, margin, &rows, &cols);
@@ -201,6 +231,8 @@ pub struct PixelDsp {
     pub satd_16x16_capped: CappedFn,
     /// The half-pel planes of a reference.
     pub halfpel_planes: HalfpelFn,
+    /// A 16x16 block's half-pel patch ([`PatchFn`]).
+    pub halfpel_patch18: PatchFn,
     /// 16x16 copy (a half-pel candidate).
     pub copy_16x16: CopyFn,
     /// 16x16 average (a quarter-pel candidate).
@@ -232,6 +264,7 @@ const SCALAR: PixelDsp = PixelDsp {
     satd_4x4_pair,
     satd_16x16_capped,
     halfpel_planes: halfpel_planes_scalar,
+    halfpel_patch18: halfpel_patch18_scalar,
     copy_16x16: |a, sa, out| copy_rows(16, a, sa, out),
     average_16x16: |a, c, out| average_rows(16, a, c, out),
     average_8x8: |a, c, out| average_rows(8, a, c, out),
@@ -452,9 +485,25 @@ pub(crate) const HALF: [i16; 8] = {
     half
 };
 
-fn halfpel_planes_scalar(reference: &Plane, margin: usize, band: HalfpelBand<'_>) {
+fn halfpel_planes_scalar(reference: &Plane, band: HalfpelBand<'_>) {
     // SAFETY: AVX2 off.
-    unsafe { halfpel_planes_body::<false>(reference, margin, band) }
+    unsafe { halfpel_planes_body::<false>(reference, band) }
+}
+
+/// The scalar patch ([`PatchFn`]): the planes' scalar kernel over the
+/// patch's rectangle.
+fn halfpel_patch18_scalar(reference: &Plane, origin: (isize, isize), out: &mut [u8]) {
+    let (h, rest) = out.split_at_mut(PATCH18_PHASE);
+    let (v, rest) = rest.split_at_mut(PATCH18_PHASE);
+    let band = HalfpelBand {
+        origin,
+        rows: PATCH18_ROWS,
+        span: PATCH18_STRIDE,
+        out: [h, v, &mut rest[..PATCH18_PHASE]],
+        out_x: 0,
+        stride: PATCH18_STRIDE,
+    };
+    halfpel_planes_scalar(reference, band);
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -462,8 +511,10 @@ mod avx2 {
     use super::HalfpelBand;
     use crate::codec::Plane;
     crate::codec::compiled_for! { "avx2":
-        fn halfpel_planes(reference: &Plane, margin: usize, band: HalfpelBand<'_>)
+        fn halfpel_planes(reference: &Plane, band: HalfpelBand<'_>)
             => super::halfpel_planes_body::<true>;
+        fn halfpel_patch18(reference: &Plane, origin: (isize, isize), out: &mut [u8])
+            => super::x86_halfpel::patch18_avx2;
         fn box_sums(data: &[u8], stride: usize, rows: usize, side: usize, out: &mut [u16])
             => crate::me::sea::box_sums;
         fn ads(rows: [&[u16]; 4], current: [u16; 4], out: &mut [u32]) -> u32 => crate::me::sea::ads;
@@ -476,30 +527,28 @@ mod avx2 {
 /// # Safety
 /// `AVX2` is true only where the CPU has AVX2.
 #[inline(always)]
-unsafe fn halfpel_planes_body<const AVX2: bool>(reference: &Plane, margin: usize, band: HalfpelBand<'_>) {
-    let m = margin as isize;
+unsafe fn halfpel_planes_body<const AVX2: bool>(reference: &Plane, band: HalfpelBand<'_>) {
     let clip = |v: i32| v.clamp(0, 255) as u8;
     // The rounding of a pass's 16-bit sum in 16 bits (exact: the sum is at
     // most 22440), which vectorises twice as wide as in 32.
     let round16 = |v: i16| ((v + 32) >> 6).clamp(0, 255) as u8;
     let HalfpelBand {
+        origin: (left, top),
         rows: band_rows,
-        cols,
+        span,
         out: [plane_h, plane_v, plane_d],
+        out_x: x0,
         stride,
     } = band;
-    let (y0, x0, span) = (band_rows.start, cols.start, cols.len());
-    // The band's first filtered column, from the left margin's first.
-    let left = x0 as isize - m;
     // Unrounded horizontal pass (within i16: -6120..=22440) of the rows
-    // the band's vertical filters read: y0 - m - 3 .. end - m + 4.
-    let rows = band_rows.len() + 7;
+    // the band's vertical filters read: top - 3 .. top + rows + 4.
+    let rows = band_rows + 7;
     let mut hpass = HPASS.with(|b| std::mem::take(&mut *b.borrow_mut()));
     // Every entry is assigned by the first tap below: no need to clear
     // what a previous picture left.
     hpass.resize(rows * span, 0);
     for (r, out) in hpass[..rows * span].chunks_exact_mut(span).enumerate() {
-        let src = &reference.data()[reference.index(left - 3, (y0 + r) as isize - m - 3)..];
+        let src = &reference.data()[reference.index(left - 3, top + r as isize - 3)..];
         #[cfg(target_arch = "x86_64")]
         if AVX2 {
             // SAFETY: the caller's contract: AVX2 only where the CPU has it.
@@ -509,15 +558,16 @@ unsafe fn halfpel_planes_body<const AVX2: bool>(reference: &Plane, margin: usize
         filter_run(out, |k| &src[k..k + span]);
     }
     let hrow = |i: usize| &hpass[i * span..(i + 1) * span];
-    let mut acc16 = vec![0i16; span];
-    let mut acc32 = vec![0i32; span];
-    for (i, y) in band_rows.enumerate() {
-        let at = i * stride + x0;
+    // The scalar passes' rows (not allocated where AVX2 does without).
+    let mut acc16 = if AVX2 { Vec::new() } else { vec![0i16; span] };
+    let mut acc32 = if AVX2 { Vec::new() } else { vec![0i32; span] };
+    for i in 0..band_rows {
+        let (y, at) = (top + i as isize, i * stride + x0);
         for (o, &v) in plane_h[at..at + span].iter_mut().zip(hrow(i + 3)) {
             *o = round16(v);
         }
         let taps: [&[u8]; 8] = std::array::from_fn(|k| {
-            let from = reference.index(left, y as isize - m - 3 + k as isize);
+            let from = reference.index(left, y - 3 + k as isize);
             &reference.data()[from..from + span]
         });
         #[cfg(target_arch = "x86_64")]
@@ -598,6 +648,7 @@ mod x86 {
         satd_4x4_pair: satd_4x4_pair_sse2,
         satd_16x16_capped: satd_16x16_capped_sse2,
         halfpel_planes: super::halfpel_planes_scalar,
+        halfpel_patch18: super::halfpel_patch18_scalar,
         copy_16x16: super::x86_halfpel::copy_16x16,
         average_16x16: super::x86_halfpel::average_16x16,
         average_8x8: super::x86_halfpel::average_8x8,
@@ -674,6 +725,7 @@ mod x86 {
         satd_4x4_pair: satd_4x4_pair_sse2,
         satd_16x16_capped: satd_16x16_capped_avx2,
         halfpel_planes: super::avx2::halfpel_planes,
+        halfpel_patch18: super::avx2::halfpel_patch18,
         box_sums: super::avx2::box_sums,
         ads: super::avx2::ads,
         sad_16x16_row: sad_16x16_row_avx2,
@@ -1172,25 +1224,205 @@ mod x86_halfpel {
 
     use super::HALF;
 
-    /// Tap pairs (2k, 2k + 1) of the half-pel filter as signed bytes, for
-    /// `pmaddubsw` on sample pairs (each pair's sum is within i16: at most
-    /// 40 * 255; the four pairs' sum too, -6120..=22440, as the scalar
-    /// pass).
-    #[inline]
+    /// The half-pel filter's constants in registers, made once per call of
+    /// a kernel, and its three passes on one vector of outputs each.
+    #[derive(Clone, Copy)]
+    struct Filter {
+        /// Tap pairs (2k, 2k + 1) as signed bytes, for `pmaddubsw` on
+        /// sample pairs (each pair's sum is within i16: at most 40 * 255;
+        /// the four pairs' sum too, -6120..=22440, as the scalar pass).
+        taps: [__m256i; 4],
+        /// The horizontal pass' shuffles of a row's samples into pairs:
+        /// lane 0 from sample x (outputs x..x + 8), lane 1 from x + 7
+        /// (outputs x + 8..x + 16: one sample later in the lane), so that
+        /// the last load ends at the sixteenth output's last sample.
+        order: [__m256i; 4],
+        /// Tap pairs (k, k + 1) as 16-bit words, for `pmaddwd` on the
+        /// diagonal pass' interleaved rows.
+        pairs16: [__m256i; 4],
+    }
+
+    impl Filter {
+        #[target_feature(enable = "avx2")]
+        fn new() -> Filter {
+            let taps = std::array::from_fn(|k| {
+                let pair = (i32::from(HALF[2 * k + 1] as i8 as u8) << 8) | i32::from(HALF[2 * k] as i8 as u8);
+                _mm256_set1_epi16(pair as i16)
+            });
+            let order = std::array::from_fn(|k| {
+                let index = |lane: usize, b: usize| (b / 2 + 2 * k + b % 2 + lane) as i8;
+                let lane = |l: usize| std::array::from_fn::<i8, 16, _>(|b| index(l, b));
+                let (a, c) = (lane(0), lane(1));
+                // SAFETY: 16 bytes each, unaligned loads.
+                unsafe {
+                    _mm256_inserti128_si256::<1>(
+                        _mm256_castsi128_si256(_mm_loadu_si128(a.as_ptr() as *const __m128i)),
+                        _mm_loadu_si128(c.as_ptr() as *const __m128i),
+                    )
+                }
+            });
+            let pairs16 = std::array::from_fn(|p| {
+                let k = 2 * p;
+                _mm256_set1_epi32((i32::from(HALF[k + 1]) << 16) | (i32::from(HALF[k]) & 0xffff))
+            });
+            Filter { taps, order, pairs16 }
+        }
+
+        /// Sixteen unrounded horizontal outputs, `sum_k HALF[k] p[x + k]`.
+        ///
+        /// # Safety
+        /// `p` points at 23 readable samples.
+        #[inline]
+        #[target_feature(enable = "avx2")]
+        unsafe fn horizontal16(&self, p: *const u8) -> __m256i {
+            // SAFETY: the caller's 23 samples.
+            let samples = unsafe {
+                _mm256_inserti128_si256::<1>(
+                    _mm256_castsi128_si256(_mm_loadu_si128(p as *const __m128i)),
+                    _mm_loadu_si128(p.add(7) as *const __m128i),
+                )
+            };
+            let mut acc = _mm256_maddubs_epi16(_mm256_shuffle_epi8(samples, self.order[0]), self.taps[0]);
+            for k in 1..4 {
+                let pairs = _mm256_shuffle_epi8(samples, self.order[k]);
+                acc = _mm256_add_epi16(acc, _mm256_maddubs_epi16(pairs, self.taps[k]));
+            }
+            acc
+        }
+
+        /// 32 vertical outputs, rounded: `clip((sum_k HALF[k] rows[k][x] +
+        /// 32) >> 6)`, rows interleaved in pairs for one `pmaddubsw` per
+        /// tap pair, rounded in 16 bits, packed (the in-lane unpacks and
+        /// the pack undo each other's order).
+        ///
+        /// # Safety
+        /// Each of `rows` points at 32 readable samples.
+        #[inline]
+        #[target_feature(enable = "avx2")]
+        unsafe fn vertical32(&self, rows: [*const u8; 8]) -> __m256i {
+            let (mut lo, mut hi) = (_mm256_setzero_si256(), _mm256_setzero_si256());
+            for (k, t) in self.taps.iter().enumerate() {
+                // SAFETY: the caller's 32 samples a row.
+                let (a, b) = unsafe {
+                    (
+                        _mm256_loadu_si256(rows[2 * k] as *const __m256i),
+                        _mm256_loadu_si256(rows[2 * k + 1] as *const __m256i),
+                    )
+                };
+                lo = _mm256_add_epi16(lo, _mm256_maddubs_epi16(_mm256_unpacklo_epi8(a, b), *t));
+                hi = _mm256_add_epi16(hi, _mm256_maddubs_epi16(_mm256_unpackhi_epi8(a, b), *t));
+            }
+            let round = _mm256_set1_epi16(32);
+            let lo = _mm256_srai_epi16::<6>(_mm256_add_epi16(lo, round));
+            let hi = _mm256_srai_epi16::<6>(_mm256_add_epi16(hi, round));
+            _mm256_packus_epi16(lo, hi)
+        }
+
+        /// Sixteen diagonal outputs: the filter down eight rows of the
+        /// unrounded horizontal pass, taps in pairs, each pair one
+        /// `pmaddwd` of two interleaved rows (exact 32-bit sums, as the
+        /// scalar pass), then `((v >> 6) + 32) >> 6` saturated to 8 bits.
+        ///
+        /// # Safety
+        /// Each of `rows` points at 16 readable values.
+        #[inline]
+        #[target_feature(enable = "avx2")]
+        unsafe fn diagonal16(&self, rows: [*const i16; 8]) -> __m128i {
+            let round = _mm256_set1_epi32(32);
+            let finish =
+                |v: __m256i| _mm256_srai_epi32::<6>(_mm256_add_epi32(_mm256_srai_epi32::<6>(v), round));
+            let (mut lo, mut hi) = (_mm256_setzero_si256(), _mm256_setzero_si256());
+            for (p, c) in self.pairs16.iter().enumerate() {
+                // SAFETY: the caller's 16 values (32 bytes) a row.
+                let (a, b) = unsafe {
+                    (
+                        _mm256_loadu_si256(rows[2 * p] as *const __m256i),
+                        _mm256_loadu_si256(rows[2 * p + 1] as *const __m256i),
+                    )
+                };
+                lo = _mm256_add_epi32(lo, _mm256_madd_epi16(_mm256_unpacklo_epi16(a, b), *c));
+                hi = _mm256_add_epi32(hi, _mm256_madd_epi16(_mm256_unpackhi_epi16(a, b), *c));
+            }
+            // Per 128-bit lane lo holds columns 0-3 and hi 4-7 (then 8-11,
+            // 12-15): the packs restore column order within each lane.
+            let words = _mm256_packs_epi32(finish(lo), finish(hi));
+            let bytes = _mm256_permute4x64_epi64::<0b00_00_10_00>(_mm256_packus_epi16(words, words));
+            _mm256_castsi256_si128(bytes)
+        }
+    }
+
+    /// A 16x16 block's half-pel patch ([`super::PatchFn`]) in one pass:
+    /// the horizontal pass of its 25 rows into registers' worth of a
+    /// local buffer, then each row's three phases, with the filter's
+    /// constants made once (the planes' row kernels, called per row of 32,
+    /// spend more on their set-up than on the row).
     #[target_feature(enable = "avx2")]
-    fn tap_pairs() -> [__m256i; 4] {
-        std::array::from_fn(|k| {
-            let pair = (i32::from(HALF[2 * k + 1] as i8 as u8) << 8) | i32::from(HALF[2 * k] as i8 as u8);
-            _mm256_set1_epi16(pair as i16)
-        })
+    pub(super) unsafe fn patch18_avx2(
+        reference: &crate::codec::Plane,
+        (x0, y0): (isize, isize),
+        out: &mut [u8],
+    ) {
+        use super::{PATCH18_PHASE as PHASE, PATCH18_ROWS as ROWS, PATCH18_STRIDE as W};
+        assert!(out.len() >= 3 * PHASE, "a half-pel patch past its buffer");
+        let stride = reference.stride();
+        // Samples read: rows y0 - 3 ..= y0 + ROWS + 3, columns x0 - 3 ..
+        // x0 + W + 4 (the last horizontal load's).
+        let first = reference.index(x0 - 3, y0 - 3);
+        assert!(
+            first + (ROWS + 6) * stride + W + 7 <= reference.data().len(),
+            "a half-pel patch past its reference"
+        );
+        // SAFETY: `first` is inside the reference's buffer (asserted).
+        let base = unsafe { reference.data().as_ptr().add(first) };
+        let filter = Filter::new();
+        let mut hpass = [[0i16; W]; ROWS + 7];
+        for (r, row) in hpass.iter_mut().enumerate() {
+            // SAFETY: row r's 39 samples from `base` (asserted), and 32
+            // values of `row`.
+            unsafe {
+                let p = base.add(r * stride);
+                _mm256_storeu_si256(row.as_mut_ptr() as *mut __m256i, filter.horizontal16(p));
+                _mm256_storeu_si256(
+                    row.as_mut_ptr().add(16) as *mut __m256i,
+                    filter.horizontal16(p.add(16)),
+                );
+            }
+        }
+        let (h, rest) = out.split_at_mut(PHASE);
+        let (v, rest) = rest.split_at_mut(PHASE);
+        let d = &mut rest[..PHASE];
+        let round = _mm256_set1_epi16(32);
+        for i in 0..ROWS {
+            let at = i * W;
+            // SAFETY: every load is within `hpass` or the asserted
+            // reference rows; every store within its phase's row `i`.
+            unsafe {
+                let centre = hpass[i + 3].as_ptr();
+                let a = _mm256_loadu_si256(centre as *const __m256i);
+                let b = _mm256_loadu_si256(centre.add(16) as *const __m256i);
+                let a = _mm256_srai_epi16::<6>(_mm256_add_epi16(a, round));
+                let b = _mm256_srai_epi16::<6>(_mm256_add_epi16(b, round));
+                // The pack interleaves the halves' lanes: back in order.
+                let bytes = _mm256_permute4x64_epi64::<0b11_01_10_00>(_mm256_packus_epi16(a, b));
+                _mm256_storeu_si256(h.as_mut_ptr().add(at) as *mut __m256i, bytes);
+                let taps = std::array::from_fn(|k| base.add((i + k) * stride + 3));
+                _mm256_storeu_si256(v.as_mut_ptr().add(at) as *mut __m256i, filter.vertical32(taps));
+                for half in [0, 16] {
+                    let rows = std::array::from_fn(|k| hpass[i + k].as_ptr().add(half));
+                    _mm_storeu_si128(
+                        d.as_mut_ptr().add(at + half) as *mut __m128i,
+                        filter.diagonal16(rows),
+                    );
+                }
+            }
+        }
     }
 
     /// The unrounded horizontal pass of one row, `out[x] = sum_k HALF[k]
     /// src[x + k]` (`src` holds `out.len() + 7` samples), sixteen outputs
-    /// at a time: each 128-bit lane holds eight outputs' fifteen samples,
-    /// shuffled into sample pairs for one `pmaddubsw` per tap pair. The
-    /// columns past the last multiple of 16 as the row's last sixteen
-    /// (scalar in rows shorter than that).
+    /// at a time ([`Filter::horizontal16`]). The columns past the last
+    /// multiple of 16 as the row's last sixteen (scalar in rows shorter
+    /// than that).
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn horizontal_row_avx2(src: &[u8], out: &mut [i16]) {
         let n = out.len();
@@ -1198,38 +1430,14 @@ mod x86_halfpel {
             src.len() >= n + 7,
             "a row of the horizontal pass past its samples"
         );
-        let taps = tap_pairs();
-        // Lane 0 from sample x (outputs x..x + 8), lane 1 from x + 7
-        // (outputs x + 8..x + 16: one sample later in the lane), so that
-        // the last load ends at the row's last sample.
-        let order: [__m256i; 4] = std::array::from_fn(|k| {
-            let index = |lane: usize, b: usize| (b / 2 + 2 * k + b % 2 + lane) as i8;
-            let lane = |l: usize| std::array::from_fn::<i8, 16, _>(|b| index(l, b));
-            let (a, c) = (lane(0), lane(1));
-            // SAFETY: 16 bytes each, unaligned loads.
-            unsafe {
-                _mm256_inserti128_si256::<1>(
-                    _mm256_castsi128_si256(_mm_loadu_si128(a.as_ptr() as *const __m128i)),
-                    _mm_loadu_si128(c.as_ptr() as *const __m128i),
-                )
-            }
-        });
+        let filter = Filter::new();
         // Sixteen outputs from x (x + 16 <= n: the loads end within src).
         let chunk = |x: usize, out: &mut [i16]| {
             debug_assert!(x + 16 <= n);
             // SAFETY: x + 7 + 16 <= n + 7 <= src.len() (asserted above);
             // x + 16 <= out.len().
             unsafe {
-                let p = src.as_ptr().add(x);
-                let samples = _mm256_inserti128_si256::<1>(
-                    _mm256_castsi128_si256(_mm_loadu_si128(p as *const __m128i)),
-                    _mm_loadu_si128(p.add(7) as *const __m128i),
-                );
-                let mut acc = _mm256_maddubs_epi16(_mm256_shuffle_epi8(samples, order[0]), taps[0]);
-                for k in 1..4 {
-                    let pairs = _mm256_shuffle_epi8(samples, order[k]);
-                    acc = _mm256_add_epi16(acc, _mm256_maddubs_epi16(pairs, taps[k]));
-                }
+                let acc = filter.horizontal16(src.as_ptr().add(x));
                 _mm256_storeu_si256(out.as_mut_ptr().add(x) as *mut __m256i, acc);
             }
         };
@@ -1255,11 +1463,9 @@ mod x86_halfpel {
 
     /// The vertical phase of one row, rounded: `out[x] = clip((sum_k
     /// HALF[k] rows[k][x] + 32) >> 6)` (each row holds `out.len()`
-    /// samples), 32 outputs at a time: rows interleaved in pairs for one
-    /// `pmaddubsw` per tap pair, rounded in 16 bits, packed (the
-    /// in-lane unpacks and the pack undo each other's order). The columns
-    /// past the last multiple of 32 as the row's last 32 (scalar in rows
-    /// shorter than that).
+    /// samples), 32 outputs at a time ([`Filter::vertical32`]). The
+    /// columns past the last multiple of 32 as the row's last 32 (scalar
+    /// in rows shorter than that).
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn vertical_row_avx2(rows: &[&[u8]; 8], out: &mut [u8]) {
         let n = out.len();
@@ -1267,31 +1473,15 @@ mod x86_halfpel {
             rows.iter().all(|r| r.len() >= n),
             "a row of the vertical pass past its samples"
         );
-        let taps = tap_pairs();
-        let round = _mm256_set1_epi16(32);
+        let filter = Filter::new();
         let chunk = |x: usize, out: &mut [u8]| {
             debug_assert!(x + 32 <= n);
-            let (mut lo, mut hi) = (_mm256_setzero_si256(), _mm256_setzero_si256());
-            for (k, t) in taps.iter().enumerate() {
-                // SAFETY: x + 32 <= n <= every row's length (asserted).
-                let (a, b) = unsafe {
-                    (
-                        _mm256_loadu_si256(rows[2 * k].as_ptr().add(x) as *const __m256i),
-                        _mm256_loadu_si256(rows[2 * k + 1].as_ptr().add(x) as *const __m256i),
-                    )
-                };
-                lo = _mm256_add_epi16(lo, _mm256_maddubs_epi16(_mm256_unpacklo_epi8(a, b), *t));
-                hi = _mm256_add_epi16(hi, _mm256_maddubs_epi16(_mm256_unpackhi_epi8(a, b), *t));
-            }
-            let lo = _mm256_srai_epi16::<6>(_mm256_add_epi16(lo, round));
-            let hi = _mm256_srai_epi16::<6>(_mm256_add_epi16(hi, round));
-            // SAFETY: x + 32 <= out.len().
+            // SAFETY: x + 32 <= n <= every row's length (asserted) and
+            // out's.
             unsafe {
-                _mm256_storeu_si256(
-                    out.as_mut_ptr().add(x) as *mut __m256i,
-                    _mm256_packus_epi16(lo, hi),
-                )
-            };
+                let v = filter.vertical32(rows.map(|r| r.as_ptr().add(x)));
+                _mm256_storeu_si256(out.as_mut_ptr().add(x) as *mut __m256i, v);
+            }
         };
         let mut x = 0;
         while x + 32 <= n {
@@ -1366,50 +1556,25 @@ mod x86_halfpel {
         }
     }
 
-    /// One row of the diagonal phase: the half-pel filter down the eight
-    /// rows of the unrounded horizontal pass, taps in pairs, each pair one
-    /// `pmaddwd` of two interleaved rows (exact 32-bit sums, as the scalar
-    /// pass), then `((v >> 6) + 32) >> 6` saturated to 8 bits; the columns
-    /// past the last multiple of 16 as the row's last sixteen (scalar in
-    /// rows shorter than that).
+    /// One row of the diagonal phase, sixteen outputs at a time
+    /// ([`Filter::diagonal16`]); the columns past the last multiple of 16
+    /// as the row's last sixteen (scalar in rows shorter than that).
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn diagonal_row_avx2(rows: &[&[i16]; 8], out: &mut [u8]) {
         let n = out.len();
-        let pair =
-            |k: usize| _mm256_set1_epi32((i32::from(HALF[k + 1]) << 16) | (i32::from(HALF[k]) & 0xffff));
-        let coef = [pair(0), pair(2), pair(4), pair(6)];
-        let round = _mm256_set1_epi32(32);
-        let finish = |v: __m256i| _mm256_srai_epi32::<6>(_mm256_add_epi32(_mm256_srai_epi32::<6>(v), round));
         assert!(
             rows.iter().all(|r| r.len() >= n),
             "a row of the diagonal pass past its samples"
         );
+        let filter = Filter::new();
         let chunk = |x: usize, out: &mut [u8]| {
             debug_assert!(x + 16 <= n);
-            let (mut lo, mut hi) = (_mm256_setzero_si256(), _mm256_setzero_si256());
-            for (p, c) in coef.iter().enumerate() {
-                // SAFETY: x + 16 <= n <= every row's length (asserted):
-                // 16 i16 = 32 bytes from x.
-                let (a, b) = unsafe {
-                    (
-                        _mm256_loadu_si256(rows[2 * p].as_ptr().add(x) as *const __m256i),
-                        _mm256_loadu_si256(rows[2 * p + 1].as_ptr().add(x) as *const __m256i),
-                    )
-                };
-                lo = _mm256_add_epi32(lo, _mm256_madd_epi16(_mm256_unpacklo_epi16(a, b), *c));
-                hi = _mm256_add_epi32(hi, _mm256_madd_epi16(_mm256_unpackhi_epi16(a, b), *c));
-            }
-            // Per 128-bit lane lo holds columns 0-3 and hi 4-7 (then 8-11,
-            // 12-15): the packs restore column order within each lane.
-            let words = _mm256_packs_epi32(finish(lo), finish(hi));
-            let bytes = _mm256_permute4x64_epi64::<0b00_00_10_00>(_mm256_packus_epi16(words, words));
-            // SAFETY: x + 16 <= n = out.len().
+            // SAFETY: x + 16 <= n <= every row's length (asserted) and
+            // out's.
             unsafe {
-                _mm_storeu_si128(
-                    out.as_mut_ptr().add(x) as *mut __m128i,
-                    _mm256_castsi256_si128(bytes),
-                )
-            };
+                let v = filter.diagonal16(rows.map(|r| r.as_ptr().add(x)));
+                _mm_storeu_si128(out.as_mut_ptr().add(x) as *mut __m128i, v);
+            }
         };
         let mut x = 0;
         while x + 16 <= n {

@@ -2,15 +2,20 @@
 //!
 //! The three half-pel phases (horizontal, vertical, both) are computed once
 //! per reference with the codec's own filter, so every half-pel candidate
-//! costs a copy; a quarter-pel candidate is the rounded average of its two
-//! nearest full- or half-pel samples, as H.264 interpolates. That average
+//! costs a copy (or, where few blocks are searched, per searched block over
+//! the patch its sub-pel steps read, [`with_patch`], the same samples); a
+//! quarter-pel candidate is the rounded average of its two nearest full-
+//! or half-pel samples, as H.264 interpolates. That average
 //! only approximates the codec's 8-tap quarter-pel filter: the search uses
 //! it to rank candidates, and what the encoder then predicts with is the
 //! codec's exact interpolation.
 
 use std::cell::RefCell;
 
-use super::dsp::{average_rows, copy_rows, fill_halfpel, pixel, PixelDsp};
+use super::dsp::{
+    average_rows, copy_rows, fill_halfpel, pixel, HalfpelBand, PixelDsp, PATCH18_PHASE, PATCH18_ROWS,
+    PATCH18_STRIDE,
+};
 use crate::codec::interp::predict_luma;
 use crate::codec::mv::Mv;
 use crate::codec::Plane;
@@ -36,16 +41,44 @@ fn take_plane(w: usize, h: usize, pad: usize) -> Option<Plane> {
 /// How far beyond a sample the 8-tap filter reads (3 before, 4 after).
 const FILTER_REACH: usize = 4;
 
-/// The reference's half-pel phases over the picture and a margin around it.
+/// The largest block a [`HalfPel::patch`] serves: a macroblock (larger
+/// blocks' searches keep whole planes).
+pub(crate) const PATCH_BLOCK_MAX: usize = 16;
+
+/// A patch's side for the largest block: the block and a sample each way.
+const PATCH_SIDE_MAX: usize = PATCH_BLOCK_MAX + 2;
+
+/// A patch's rows are filtered in multiples of this many samples.
+const PATCH_ROW_STEP: usize = 32;
+
+/// A patch's longest rows.
+const PATCH_STRIDE_MAX: usize = PATCH_SIDE_MAX.next_multiple_of(PATCH_ROW_STEP);
+
+/// The reference's half-pel phases over the picture and a margin around
+/// it, or over one block's neighbourhood.
 pub(crate) struct HalfPel {
-    /// Horizontal, vertical and diagonal half-pel samples: entry (x, y) is
+    store: Store,
+    /// How far outside the picture the phases are what the codec's filter
+    /// gives (candidates beyond take the filter itself).
+    margin: isize,
+    /// The kernels that made the phases and average them.
+    dsp: &'static PixelDsp,
+}
+
+/// Where a [`HalfPel`]'s samples are kept.
+enum Store {
+    /// Horizontal, vertical and diagonal half-pel planes: entry (x, y) is
     /// the sample at (x + 1/2, y), (x, y + 1/2), (x + 1/2, y + 1/2).
     /// (Only the picture and margin are written; nothing reads beyond.)
-    planes: Vec<Plane>,
-    /// How far outside the picture the planes are filled.
-    margin: isize,
-    /// The kernels that made the planes and average them.
-    dsp: &'static PixelDsp,
+    Planes(Vec<Plane>),
+    /// The same three phases over the `w x h` rectangle (`size`) from
+    /// picture position `origin` only (each phase `h` rows of `w`, one
+    /// after the other): all that one block's sub-pel steps read.
+    Patch {
+        samples: Box<[u8; 3 * PATCH_STRIDE_MAX * PATCH_SIDE_MAX]>,
+        origin: (isize, isize),
+        size: (usize, usize),
+    },
 }
 
 impl HalfPel {
@@ -66,23 +99,116 @@ impl HalfPel {
         let bands = rayon::current_num_threads();
         fill_halfpel(dsp.halfpel_planes, reference, margin, &mut planes, bands);
         Some(HalfPel {
-            planes,
+            store: Store::Planes(planes),
             margin: margin as isize,
             dsp,
         })
     }
 
-    /// How far beyond the picture the planes are filled.
+    /// Fills this patch with the half-pel phases that the sub-pel steps
+    /// of the `b x b` block at full-pel position (x, y) read (see
+    /// [`with_patch`]).
+    fn fill_patch(&mut self, reference: &Plane, (x, y): (isize, isize), b: usize) {
+        let Store::Patch {
+            samples,
+            origin,
+            size,
+        } = &mut self.store
+        else {
+            return;
+        };
+        // The square from a sample before the block to one after it, cut
+        // to where the reference's border holds the filter's taps (3
+        // before, 4 after): no candidate that reaches into the margin
+        // reads beyond that.
+        let (pad, b) = (reference.pad() as isize, b as isize);
+        let cut = |at: isize, len: usize| {
+            let (first, end) = ((at - 1).max(3 - pad), (at + b + 1).min(len as isize + pad - 4));
+            (first, (end - first).max(0) as usize)
+        };
+        let ((x0, w), (y0, h)) = (cut(x, reference.width()), cut(y, reference.height()));
+        // Rows filtered 32 samples wide where the border holds them: the
+        // kernels' vector width, where a few samples past it would go to
+        // their scalar tails and cost more than the rest.
+        let wide = w.next_multiple_of(PATCH_ROW_STEP);
+        let w = if x0 + (wide + FILTER_REACH) as isize <= reference.width() as isize + pad {
+            wide
+        } else {
+            w
+        };
+        if (w, h) == (PATCH18_STRIDE, PATCH18_ROWS) {
+            // A macroblock's whole patch: the one-pass kernel.
+            (self.dsp.halfpel_patch18)(reference, (x0, y0), &mut samples[..3 * PATCH18_PHASE]);
+        } else if w > 0 && h > 0 {
+            let area = w * h;
+            let (hp, rest) = samples.split_at_mut(area);
+            let (vp, rest) = rest.split_at_mut(area);
+            let band = HalfpelBand {
+                origin: (x0, y0),
+                rows: h,
+                span: w,
+                out: [hp, vp, &mut rest[..area]],
+                out_x: 0,
+                stride: w,
+            };
+            (self.dsp.halfpel_planes)(reference, band);
+        }
+        (*origin, *size) = ((x0, y0), (w, h));
+    }
+
+    /// How far beyond the picture the phases are filled.
     pub fn margin(&self) -> usize {
         self.margin as usize
     }
 
     /// Whether the `b x b` block at (bx, by), and one sample around it,
-    /// lies inside `reference`'s filled margin.
+    /// lies inside `reference`'s filled margin (for a patch, the same
+    /// answer as for planes: only blocks the patch holds can lie inside).
     fn reaches(&self, reference: &Plane, bx: isize, by: isize, b: usize) -> bool {
         let (w, h) = (reference.width() as isize, reference.height() as isize);
         let b = b as isize;
-        bx > -self.margin && by > -self.margin && bx + b < w + self.margin && by + b < h + self.margin
+        let inside =
+            bx > -self.margin && by > -self.margin && bx + b < w + self.margin && by + b < h + self.margin;
+        if let Store::Patch { origin, size, .. } = self.store {
+            // The block and the sample after it (a quarter's average).
+            let holds = |at: isize, o: isize, len: usize| at >= o && at + b < o + len as isize;
+            let held = holds(bx, origin.0, size.0) && holds(by, origin.1, size.1);
+            debug_assert!(!inside || held, "a sub-pel step beyond its patch");
+            return inside && held;
+        }
+        inside
+    }
+
+    /// The samples of phase `(px, py)` (quarter-pels, each 0 or 2) from
+    /// picture position (x, y) on, and their stride: the reference's own
+    /// at (0, 0).
+    fn phase_at<'a>(
+        &'a self,
+        reference: &'a Plane,
+        (px, py): (i32, i32),
+        x: isize,
+        y: isize,
+    ) -> (&'a [u8], usize) {
+        let k = match (px, py) {
+            (0, 0) => return (&reference.data()[reference.index(x, y)..], reference.stride()),
+            (2, 0) => 0,
+            (0, 2) => 1,
+            _ => 2,
+        };
+        match &self.store {
+            Store::Planes(planes) => {
+                let p = &planes[k];
+                (&p.data()[p.index(x, y)..], p.stride())
+            }
+            Store::Patch {
+                samples,
+                origin,
+                size: (w, h),
+            } => {
+                let at = k * w * h + (y - origin.1) as usize * w + (x - origin.0) as usize;
+                (&samples[at..], *w)
+            }
+        }
     }
 
     /// The `b x b` block at (x, y) displaced by the quarter-pel vector
@@ -101,13 +227,7 @@ impl HalfPel {
         if (mvx | mvy) & 1 != 0 || !self.reaches(reference, bx, by, b) {
             return None;
         }
-        let plane = match (mvx & 3, mvy & 3) {
-            (0, 0) => reference,
-            (2, 0) => &self.planes[0],
-            (0, 2) => &self.planes[1],
-            _ => &self.planes[2],
-        };
-        Some((&plane.data()[plane.index(bx, by)..], plane.stride()))
+        Some(self.phase_at(reference, (mvx & 3, mvy & 3), bx, by))
     }
 
     /// The `b x b` block at (x, y) displaced by the quarter-pel vector
@@ -132,16 +252,8 @@ impl HalfPel {
         let (fx, fy) = (mvx & 3, mvy & 3);
         // A point of the half-pel grid, in quarter-pels from (bx, by):
         // its plane and integer offset.
-        let point = |px: i32, py: i32| -> (&'a Plane, isize, isize) {
-            let plane = match (px & 3, py & 3) {
-                (0, 0) => reference,
-                (2, 0) => &self.planes[0],
-                (0, 2) => &self.planes[1],
-                _ => &self.planes[2],
-            };
-            (plane, bx + (px >> 2) as isize, by + (py >> 2) as isize)
-        };
-        let rows = |(p, px, py): (&'a Plane, isize, isize)| (&p.data()[p.index(px, py)..], p.stride());
+        let point = |px: i32, py: i32| ((px & 3, py & 3), bx + (px >> 2) as isize, by + (py >> 2) as isize);
+        let rows = |(phase, px, py)| self.phase_at(reference, phase, px, py);
         // The macroblock and partition sizes through the table; 8 passed
         // as a constant, so that the rows have a length the compiler knows.
         let copy = |(a, sa): (&[u8], usize), out: &mut [u8]| match b {
@@ -186,11 +298,55 @@ pub fn block_or_predicted<'a>(
     (scratch, b)
 }
 
+thread_local! {
+    /// Each thread's patch, filled again for every block it searches (a
+    /// patch made per block was cleared first and copied out after).
+    static PATCH: RefCell<Option<HalfPel>> = const { RefCell::new(None) };
+}
+
+/// Runs `f` with the half-pel phases that the sub-pel steps of the `b x b`
+/// block at full-pel position `at` read, up to a pel from it each way (the
+/// half- and quarter-pel steps' reach, three quarter-pels, and the quarter
+/// average's further neighbour): the samples [`HalfPel::new`]'s planes
+/// would hold there, for the same `margin`, for a search that visits too
+/// few blocks for whole planes to pay. `f` gets `None` where planes would
+/// be `None`, and for blocks larger than [`PATCH_BLOCK_MAX`]. `f` must
+/// not call this function again (the patch is the thread's one).
+pub(crate) fn with_patch<R>(
+    reference: &Plane,
+    margin: usize,
+    at: (isize, isize),
+    b: usize,
+    f: impl FnOnce(Option<&HalfPel>) -> R,
+) -> R {
+    if margin + FILTER_REACH > reference.pad() || b > PATCH_BLOCK_MAX {
+        return f(None);
+    }
+    PATCH.with(|cell| {
+        let mut slot = cell.borrow_mut();
+        let patch = slot.get_or_insert_with(|| HalfPel {
+            store: Store::Patch {
+                samples: Box::new([0; 3 * PATCH_STRIDE_MAX * PATCH_SIDE_MAX]),
+                origin: (0, 0),
+                size: (0, 0),
+            },
+            margin: 0,
+            dsp: pixel(),
+        });
+        patch.margin = margin as isize;
+        patch.fill_patch(reference, at, b);
+        f(Some(patch))
+    })
+}
+
 impl Drop for HalfPel {
     fn drop(&mut self) {
+        let Store::Planes(planes) = &mut self.store else {
+            return;
+        };
         SPARE.with(|s| {
             let mut s = s.borrow_mut();
-            s.append(&mut self.planes);
+            s.append(planes);
             // Enough for two sizes in turn; older ones go.
             let excess = s.len().saturating_sub(6);
             s.drain(..excess);
@@ -246,7 +402,11 @@ mod tests {
             for y in -16..21 + 16 {
                 for x in -16..37 + 16 {
                     predict_luma(&r, x, y, mvx, mvy, 1, 1, &mut one, 1);
-                    assert_eq!(hp.planes[p].at(x, y), one[0], "phase {p} at ({x}, {y})");
+                    assert_eq!(
+                        hp.phase_at(&r, [(2, 0), (0, 2), (2, 2)][p], x, y).0[0],
+                        one[0],
+                        "phase {p} at ({x}, {y})"
+                    );
                 }
             }
         }
@@ -255,6 +415,58 @@ mod tests {
         // Beyond the margin: refused, so that the caller uses the codec.
         assert!(!hp.predict(&r, 0, 0, -4 * 40, 0, 16, &mut a));
         assert!(hp.block_in_place(&r, (0, 0), (-4 * 40, 0), 16).is_none());
+    }
+
+    #[test]
+    fn a_patch_gives_every_sub_pel_step_what_the_planes_give() {
+        // Blocks inside, at the edges and out in the margin (where the
+        // patch is cut, or empty), every step within three quarter-pels of
+        // the full-pel centre, as the refinement takes them.
+        let r = textured(64, 48);
+        let margin = 24;
+        let planes = HalfPel::new(&r, margin).unwrap();
+        let (mut a, mut b) = ([0u8; 256], [0u8; 256]);
+        // The block at (ox, oy), its full-pel best at (x, y).
+        let (ox, oy) = (16isize, 16isize);
+        for (x, y) in [
+            (16, 16),
+            (0, 0),
+            (48, 32),
+            (-20, 5),
+            (-28, -30),
+            (60, 40),
+            (70, 50),
+            (45, -25),
+        ] {
+            with_patch(&r, margin, (x, y), 16, |patch| {
+                let patch = patch.expect("a patch for a 16x16 block");
+                for mvy in -3..=3 {
+                    for mvx in -3..=3 {
+                        let mv = (4 * (x - ox) as i32 + mvx, 4 * (y - oy) as i32 + mvy);
+                        let from_planes = planes.predict(&r, ox, oy, mv.0, mv.1, 16, &mut a);
+                        let from_patch = patch.predict(&r, ox, oy, mv.0, mv.1, 16, &mut b);
+                        assert_eq!(from_planes, from_patch, "reach of ({mvx}, {mvy}) at ({x}, {y})");
+                        if from_planes {
+                            assert_eq!(a, b, "step ({mvx}, {mvy}) at ({x}, {y})");
+                        }
+                        let in_place = |h: &HalfPel| {
+                            h.block_in_place(&r, (ox, oy), mv, 16).map(|(s, stride)| {
+                                (0..16)
+                                    .flat_map(|row| s[row * stride..][..16].to_vec())
+                                    .collect::<Vec<_>>()
+                            })
+                        };
+                        assert_eq!(
+                            in_place(&planes),
+                            in_place(patch),
+                            "in place ({mvx}, {mvy}) at ({x}, {y})"
+                        );
+                    }
+                }
+            });
+        }
+        // Larger blocks keep whole planes.
+        with_patch(&r, margin, (0, 0), 32, |patch| assert!(patch.is_none()));
     }
 
     #[test]

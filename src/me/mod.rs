@@ -536,6 +536,13 @@ impl<'a> SearchContext<'a> {
     }
 }
 
+/// How far beyond the picture a search's half-pel planes reach: the
+/// window's reach (range, plus one for the sub-pel steps and one for the
+/// quarter-pel average's neighbour), rounded up to 8.
+fn planes_margin(cfg: &MeConfig) -> usize {
+    (cfg.range as usize + 2).div_ceil(8) * 8
+}
+
 /// The full-pel position nearest a quarter-pel vector (halves rounded up).
 pub(crate) fn nearest_full_pel(mv: Mv) -> (i32, i32) {
     ((mv.x + 2) >> 2, (mv.y + 2) >> 2)
@@ -620,17 +627,21 @@ pub(crate) struct FrameSearch<'p> {
     centre: (i32, i32),
 }
 
-/// Half-pel planes the caller gave, or made for the search.
+/// Half-pel planes the caller gave, or made for the search, or patches
+/// made by each block's search.
 enum Planes<'p> {
     Given(&'p halfpel::HalfPel),
     Own(halfpel::HalfPel),
+    /// [`halfpel::with_patch`]es for this margin.
+    PerBlock(usize),
 }
 
 impl Planes<'_> {
-    fn get(&self) -> &halfpel::HalfPel {
+    fn get(&self) -> Option<&halfpel::HalfPel> {
         match self {
-            Planes::Given(p) => p,
-            Planes::Own(p) => p,
+            Planes::Given(p) => Some(p),
+            Planes::Own(p) => Some(p),
+            Planes::PerBlock(_) => None,
         }
     }
 }
@@ -658,17 +669,31 @@ impl<'p> FrameSearch<'p> {
         FrameSearch::with_planes(reference, cfg, Some(Planes::Own(planes)))
     }
 
+    /// [`FrameSearch::new`] without whole half-pel planes: each block's
+    /// search filters the patch its sub-pel steps read
+    /// ([`halfpel::HalfPel::patch`]), for the same vectors. Cheaper where
+    /// most blocks are never searched (an encoder's skipped macroblocks);
+    /// nothing is left for others to read after ([`FrameSearch::halfpel`]
+    /// is `None`).
+    /// Blocks larger than [`halfpel::PATCH_BLOCK_MAX`] keep whole planes.
+    pub(crate) fn per_block(reference: &Plane, cfg: &MeConfig) -> Result<FrameSearch<'static>, MeError> {
+        if cfg.block > halfpel::PATCH_BLOCK_MAX {
+            return FrameSearch::with_planes(reference, cfg, None);
+        }
+        FrameSearch::with_planes(reference, cfg, Some(Planes::PerBlock(planes_margin(cfg))))
+    }
+
     fn with_planes(
         reference: &Plane,
         cfg: &MeConfig,
         planes: Option<Planes<'p>>,
     ) -> Result<FrameSearch<'p>, MeError> {
         cfg.check()?;
-        // Half-pel planes over the window's reach (range, plus one for the
-        // sub-pel steps and one for the quarter-pel average's neighbour),
-        // rounded up to 8, when the border holds them.
-        let margin = (cfg.range as usize + 2).div_ceil(8) * 8;
-        let halfpel = match (cfg.subpel, planes.filter(|p| p.get().margin() >= margin)) {
+        // Half-pel planes over the window's reach, when the border holds
+        // them.
+        let margin = planes_margin(cfg);
+        let wide_enough = |p: &Planes<'_>| p.get().is_none_or(|p| p.margin() >= margin);
+        let halfpel = match (cfg.subpel, planes.filter(wide_enough)) {
             (Subpel::None, _) => None,
             (_, Some(given)) => Some(given),
             _ => halfpel::HalfPel::new(reference, margin).map(Planes::Own),
@@ -706,7 +731,7 @@ impl<'p> FrameSearch<'p> {
 
     /// The reference's half-pel planes the search reads.
     pub(crate) fn halfpel(&self) -> Option<&halfpel::HalfPel> {
-        self.halfpel.as_ref().map(Planes::get)
+        self.halfpel.as_ref().and_then(Planes::get)
     }
 
     /// The best vector of the block (col, row) of `cur` (same size as the
@@ -724,13 +749,21 @@ impl<'p> FrameSearch<'p> {
         let s = SearchContext {
             mvp,
             lambda_q8: self.lambda_q8,
-            halfpel: self.halfpel.as_ref().map(Planes::get),
+            halfpel: self.halfpel(),
             sums: self.sums.as_ref(),
             origin: self.centre,
             ..SearchContext::new(cur, reference, (col * block, row * block), &self.cfg)
         };
         let best = search::full_pel(&s, candidates);
-        search::refine(&s, s.in_sub_pel_measure(best))
+        let Some(Planes::PerBlock(margin)) = self.halfpel else {
+            return search::refine(&s, s.in_sub_pel_measure(best));
+        };
+        let (dx, dy) = nearest_full_pel(best.mv);
+        let at = (s.x + dx as isize, s.y + dy as isize);
+        halfpel::with_patch(reference, margin, at, block, |patch| {
+            let s = SearchContext { halfpel: patch, ..s };
+            search::refine(&s, s.in_sub_pel_measure(best))
+        })
     }
 }
 

@@ -129,11 +129,17 @@ fn still_sad(a: &Plane, b: &Plane, x: usize, y: usize) -> u32 {
         .sum()
 }
 
+/// The reduced pictures' border: what the search reads beyond them
+/// (`RANGE + BLOCK + 8`, [`me::estimate`]'s check), not the default 96,
+/// whose border held most of a reduced picture's samples and of the
+/// search's box sums (which cover the whole buffer).
+const REDUCED_PAD: usize = (RANGE as usize + BLOCK + 8).next_multiple_of(8);
+
 /// `plane` reduced to `w x h` by the mean of each `scale x scale` square
 /// (rounded): a square's rows added lane by lane first (sixteen-bit lanes
 /// the compiler vectorises), then each square's columns.
 fn reduce(plane: &Plane, scale: usize, w: usize, h: usize) -> Result<Plane, PictureError> {
-    let mut out = Plane::new(w, h)?;
+    let mut out = Plane::with_padding(w, h, REDUCED_PAD)?;
     let area = (scale * scale) as u32;
     let mut columns = vec![0u16; w * scale];
     for y in 0..h {

@@ -41,7 +41,7 @@ fn take_plane(w: usize, h: usize, pad: usize) -> Option<Plane> {
 /// How far beyond a sample the 8-tap filter reads (3 before, 4 after).
 const FILTER_REACH: usize = 4;
 
-/// The largest block a [`HalfPel::patch`] serves: a macroblock (larger
+/// The largest block a patch serves ([`with_patch`]): a macroblock (larger
 /// blocks' searches keep whole planes).
 pub(crate) const PATCH_BLOCK_MAX: usize = 16;
 

@@ -671,7 +671,7 @@ impl<'p> FrameSearch<'p> {
 
     /// [`FrameSearch::new`] without whole half-pel planes: each block's
     /// search filters the patch its sub-pel steps read
-    /// ([`halfpel::HalfPel::patch`]), for the same vectors. Cheaper where
+    /// ([`halfpel::with_patch`]), for the same vectors. Cheaper where
     /// most blocks are never searched (an encoder's skipped macroblocks);
     /// nothing is left for others to read after ([`FrameSearch::halfpel`]
     /// is `None`).

@@ -287,6 +287,30 @@ impl Plane {
             .map(move |r| &mut r[pad..pad + w])
     }
 
+    /// Asks the processor to bring `rows` rows of the samples from (x, y)
+    /// to the cache line after them into cache (a hint: nothing is read,
+    /// nothing can fault). Positions are clamped into the buffer, borders
+    /// included.
+    #[inline]
+    pub fn prefetch_rows(&self, x: isize, y: isize, rows: usize) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            let pad = self.pad as isize;
+            let cx = (x + pad).clamp(0, self.stride as isize - 1) as usize;
+            let total_rows = self.data.len() / self.stride;
+            let top = (y + pad).clamp(0, total_rows as isize - 1) as usize;
+            for r in top..(top + rows).min(total_rows) {
+                let at = &self.data[r * self.stride + cx];
+                // SAFETY: a prefetch reads nothing architecturally and never
+                // faults; the address is inside the buffer anyway.
+                unsafe { _mm_prefetch::<_MM_HINT_T0>(std::ptr::from_ref(at).cast()) };
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = (x, y, rows);
+    }
+
     /// The `N`-wide block at (x, y) inside the picture, into `out` (rows
     /// of `N`, as many as it holds): one bounds check for the block, not
     /// one a row (a macroblock's source loads and reconstruction writes).
@@ -756,6 +780,26 @@ mod tests {
             let got = src.cropped(w, h, pad)?;
             assert_eq!((got.stride, got.pad), (want.stride, want.pad));
             assert_eq!(got.data, want.data, "{w}x{h} pad {pad}");
+        }
+        Ok(())
+    }
+
+    /// A prefetch's position is clamped into the buffer: no position
+    /// near or far outside the picture panics (an index out of the buffer
+    /// would).
+    #[test]
+    fn a_prefetch_anywhere_inside_or_far_outside_does_not_panic() -> Result {
+        for pad in [0, 8] {
+            let p = Plane::with_padding(20, 12, pad)?;
+            for (x, y, rows) in [
+                (0, 0, 16),
+                (-1000, -1000, 4),
+                (1000, 1000, 40),
+                (19, 11, 1),
+                (5, -3, 30),
+            ] {
+                p.prefetch_rows(x, y, rows);
+            }
         }
         Ok(())
     }

@@ -6,6 +6,7 @@
 use super::dsp::{coder, CoderDsp};
 use super::rate::{self, BlockPricer};
 use super::rdo;
+use crate::codec::mv::Mv;
 use crate::codec::recon::{add_luma8, chroma_qp, reconstruct_samples, MbSamples};
 use crate::codec::residual::{BlockClass, MbResidual, ResidualCoder, ResidualSyntax};
 use crate::codec::syntax::MB;
@@ -42,6 +43,37 @@ impl MbSource {
                 .read_block::<8>(x0 / 2, y0 / 2, &mut s.chroma[p]);
         }
         s
+    }
+
+    /// Asks for the source rows of the macroblocks after (mb_x, mb_y) in
+    /// the row, one cache line on, to be brought into cache while this
+    /// one is decided (x264's `prefetch_fenc`): a macroblock reads 16 short
+    /// rows a frame's stride apart, which the processor does not foresee.
+    #[inline]
+    pub fn prefetch_ahead(frame: &Frame, mb_x: usize, mb_y: usize) {
+        MbSource::prefetch_ahead_displaced(frame, mb_x, mb_y, Mv::ZERO);
+    }
+
+    /// The same for a reference, displaced by `mv` (quarter pels) with
+    /// the interpolation filter's reach (x264's `prefetch_ref` at the
+    /// predicted vector).
+    #[inline]
+    pub fn prefetch_ahead_displaced(frame: &Frame, mb_x: usize, mb_y: usize, mv: Mv) {
+        const LINE: isize = 64;
+        let (x, y) = (
+            (mb_x * MB) as isize + (mv.x >> 2) as isize,
+            (mb_y * MB) as isize + (mv.y >> 2) as isize,
+        );
+        let (reach, chroma_reach) = if mv == Mv::ZERO { (0, 0) } else { (3, 1) };
+        frame
+            .y()
+            .prefetch_rows(x + LINE, y - reach, MB + 2 * reach as usize);
+        for p in 1..3 {
+            let rows = MB / 2 + 2 * chroma_reach as usize;
+            frame
+                .plane(p)
+                .prefetch_rows(x / 2 + LINE, y / 2 - chroma_reach, rows);
+        }
     }
 
     /// Squared error of a prediction (or reconstruction), luma and chroma.

@@ -166,6 +166,7 @@ pub(crate) fn code_intra(
     let decided = frame.decide(recon, &|env, index| {
         let (mb_x, mb_y) = (index % cols, index / cols);
         let s = MbSource::load(src, mb_x, mb_y);
+        MbSource::prefetch_ahead(src, mb_x, mb_y);
         let best = best_intra(
             coder,
             &s,

@@ -264,7 +264,7 @@ impl EncoderCase {
             None,
             &mut stream,
             |coded| {
-                recons.push(coded.recon.clone());
+                recons.extend(coded.recon.clone());
                 Ok(())
             },
         )

@@ -25,7 +25,7 @@ fn encode(frames: &[Frame], config: EncoderConfig) -> (Vec<u8>, Vec<FrameStats>,
         let coded = enc.encode(f).unwrap();
         stream.extend_from_slice(&coded.bytes);
         stats.push(coded.stats);
-        recons.push(coded.recon);
+        recons.push(coded.recon.expect("a reconstruction by default"));
     }
     stream.extend_from_slice(&Encoder::trailer());
     (stream, stats, recons)

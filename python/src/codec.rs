@@ -130,10 +130,11 @@ fn encode_all(frames: &[Frame], fps: (u32, u32), config: EncoderConfig, keep: bo
         stats: Vec::with_capacity(frames.len()),
         recons: Vec::new(),
     };
+    let config = config.reconstruction(keep);
     encode_sequence(&mut frames.iter(), info, config, None, &mut out.stream, |coded| {
         out.stats.push(coded.stats);
         if keep {
-            out.recons.push(coded.recon.clone());
+            out.recons.extend(coded.recon.clone());
         }
         Ok(())
     })

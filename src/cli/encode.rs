@@ -224,7 +224,10 @@ fn fps_part(v: u64) -> Result<u32, EncodeError> {
 }
 
 pub fn run(args: &Args) -> Result<()> {
-    let config = config(args)?;
+    let mut config = config(args)?;
+    // The reconstruction is copied out of the encoder only for what reads
+    // it here: the --recon file and VMAF.
+    config.reconstruction = args.recon.is_some() || config.metrics.has(Metric::Vmaf);
     let pool = super::thread_pool(args.threads)?;
     let input = args.input.display().to_string();
     let mut reader = Y4mReader::open(&args.input).with_context(|| input.clone())?;
@@ -272,13 +275,13 @@ pub fn run(args: &Args) -> Result<()> {
             args.frames,
             &mut out,
             |coded| {
-                if let Some(w) = recon.as_mut() {
-                    w.write_frame(&coded.recon)
+                if let (Some(w), Some(frame)) = (recon.as_mut(), &coded.recon) {
+                    w.write_frame(frame)
                         .map_err(|e| EncodeError::Output(std::io::Error::other(e)))?;
                 }
                 frame_stats.push(coded.stats);
                 if with_vmaf {
-                    recons.push(coded.recon.clone());
+                    recons.extend(coded.recon.clone());
                 }
                 bar.inc(1);
                 bar.set_message(format!(

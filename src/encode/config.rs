@@ -385,6 +385,13 @@ pub struct EncoderConfig {
     /// skip holds (x264's rule below `--subme 3`, which probes beside any
     /// skipped neighbour of four). Needs `fast_pskip`.
     pub early_pskip: bool,
+    /// Whether [`super::Encoder::encode`] gives back each frame's
+    /// reconstruction ([`super::EncodedFrame::recon`]; on by default). It
+    /// is a copy of the visible picture a frame (2 % of ultrafast's time
+    /// at 1080p), which a caller that keeps only the stream and its
+    /// statistics does without, as x264 writes its reconstruction only
+    /// when asked to (`--dump-yuv`).
+    pub reconstruction: bool,
 }
 
 /// The macroblock partitions the mode decision tries, as x264's
@@ -491,6 +498,7 @@ impl Default for EncoderConfig {
             subpel_rd: false,
             fast_pskip: true,
             early_pskip: true,
+            reconstruction: true,
         }
     }
 }
@@ -699,6 +707,12 @@ impl EncoderConfig {
     /// Turns the fast P-skip probe before the motion search on or off.
     pub fn early_pskip(mut self, on: bool) -> EncoderConfig {
         self.early_pskip = on;
+        self
+    }
+
+    /// Turns the reconstruction given back with each frame on or off.
+    pub fn reconstruction(mut self, on: bool) -> EncoderConfig {
+        self.reconstruction = on;
         self
     }
 

@@ -167,11 +167,17 @@ impl Encoder {
                 (i, 0.0)
             }
         };
-        let recon = self.visible_recon(&coded.recon)?;
+        let measured = !self.config.metrics.is_none();
+        let recon = if self.config.reconstruction || measured {
+            Some(self.visible_recon(&coded.recon)?)
+        } else {
+            None
+        };
         // The quality measurements are not coding time: some cost more than
         // the coding.
         let coding_ms = start.elapsed().as_secs_f64() * 1e3;
-        let stats = self.frame_stats(source, &recon, &coded, (me_ms, coding_ms));
+        let stats = self.frame_stats(source, recon.as_ref(), &coded, (me_ms, coding_ms));
+        let recon = recon.filter(|_| self.config.reconstruction);
         if intra {
             self.references.clear();
         }
@@ -276,7 +282,7 @@ impl Encoder {
     fn frame_stats(
         &self,
         source: &Frame,
-        recon: &Frame,
+        recon: Option<&Frame>,
         coded: &CodedFrame,
         (me_ms, total_ms): (f64, f64),
     ) -> FrameStats {
@@ -293,7 +299,9 @@ impl Encoder {
             bits_header: coded.bits.header,
             bits_motion: coded.bits.motion,
             bits_residual: coded.bits.residual,
-            quality: FrameQuality::measure_as(source, recon, &self.config.quality()),
+            // Without a reconstruction no metric is asked for: a record
+            // of unknowns, as the measurement of none would give.
+            quality: FrameQuality::measure_as(source, recon.unwrap_or(source), &self.config.quality()),
             prediction_psnr_y: psnr_from_mse(
                 coded.prediction_sse as f64 / (self.seq.width * self.seq.height) as f64,
             ),

@@ -28,7 +28,7 @@
 //!     let frame = Frame::filled(40, 24, 60 + 20 * t as u8, 128, 128).unwrap();
 //!     let coded = encoder.encode(&frame).unwrap();
 //!     stream.extend_from_slice(&coded.bytes);
-//!     recon.push(coded.recon);
+//!     recon.extend(coded.recon);
 //! }
 //! stream.extend_from_slice(&Encoder::trailer());
 //! let (_, decoded) = decoder::decode(&stream).unwrap();
@@ -105,8 +105,9 @@ pub enum EncodeError {
 pub struct EncodedFrame {
     /// The frame's bytes in the stream (start code to end).
     pub bytes: Vec<u8>,
-    /// What the decoder will output for it (visible size).
-    pub recon: Frame,
+    /// What the decoder will output for it (visible size); `None` where
+    /// [`EncoderConfig::reconstruction`] is off.
+    pub recon: Option<Frame>,
     /// Rate, quality and time.
     pub stats: FrameStats,
 }
@@ -193,7 +194,9 @@ pub fn encode_sequence<W: Write>(
         out.write_all(&coded.bytes)?;
         summary.push(&coded.stats);
         on_frame(&coded)?;
-        encoder.recycle(coded.recon);
+        if let Some(recon) = coded.recon {
+            encoder.recycle(recon);
+        }
         // A read error comes after the frames before it are out.
         have = read?;
         std::mem::swap(&mut frame, &mut next);

@@ -293,22 +293,17 @@ impl Plane {
     /// included.
     #[inline]
     pub fn prefetch_rows(&self, x: isize, y: isize, rows: usize) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            let pad = self.pad as isize;
-            let cx = (x + pad).clamp(0, self.stride as isize - 1) as usize;
-            let total_rows = self.data.len() / self.stride;
-            let top = (y + pad).clamp(0, total_rows as isize - 1) as usize;
-            for r in top..(top + rows).min(total_rows) {
-                let at = &self.data[r * self.stride + cx];
-                // SAFETY: a prefetch reads nothing architecturally and never
-                // faults; the address is inside the buffer anyway.
-                unsafe { _mm_prefetch::<_MM_HINT_T0>(std::ptr::from_ref(at).cast()) };
-            }
+        let pad = self.pad as isize;
+        let cx = (x + pad).clamp(0, self.stride as isize - 1) as usize;
+        let total_rows = self.data.len() / self.stride;
+        let top = (y + pad).clamp(0, total_rows as isize - 1) as usize;
+        let end = (top + rows).min(total_rows);
+        // One slice, stepped by the stride: no bounds check a row.
+        let first = top * self.stride + cx;
+        let last = (end - 1) * self.stride + cx;
+        for sample in self.data[first..=last].iter().step_by(self.stride) {
+            crate::cpu::prefetch(sample);
         }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = (x, y, rows);
     }
 
     /// The `N`-wide block at (x, y) inside the picture, into `out` (rows

@@ -146,6 +146,12 @@ impl WavefrontFrame<'_> {
                     self.bring_in(w, above, x, r - 1);
                 }
             }
+            // The record this macroblock's decision is stored in two on
+            // is in no cache (one a macroblock, a frame's worth apart):
+            // storing it stalled on its first line.
+            if let Some(ahead) = decided.get(r * cols + c + 2) {
+                crate::codec::cpu::prefetch(ahead);
+            }
             let d = self.commit(w, decide, (c, r), shared);
             if c + 1 == lead {
                 let start = RowStart {

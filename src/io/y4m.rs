@@ -1,13 +1,14 @@
 //! YUV4MPEG2 (`.y4m`) reading and writing, frame by frame in constant memory.
 //!
-//! Frames are decoded by the [`y4m`] crate. The header is first read and
-//! checked here, so that every 8-bit 4:2:0 variant ffmpeg writes is accepted
-//! (`C420`, `C420jpeg`, `C420mpeg2`, `C420paldv`, no `C` tag, `Ip`, `I?`, any
-//! `A` tag, `X` extensions), anything else is refused with a message naming
+//! The header is read and checked here (and by the [`y4m`] crate), so
+//! that every 8-bit 4:2:0 variant ffmpeg writes is accepted (`C420`,
+//! `C420jpeg`, `C420mpeg2`, `C420paldv`, no `C` tag, `Ip`, `I?`, any `A`
+//! tag, `X` extensions), anything else is refused with a message naming
 //! what was found and how to convert it, and the picture size is checked
 //! against [`MAX_DIMENSION`](crate::codec::MAX_DIMENSION) before any buffer
-//! is allocated. A frame cut short by the end of the input is an error naming
-//! the frame, never mistaken for the end of the stream.
+//! is allocated. Frames are read row by row into the frame given. A frame
+//! cut short by the end of the input is an error naming the frame, never
+//! mistaken for the end of the stream.
 //!
 //! ```
 //! use mocomp::codec::Frame;
@@ -29,8 +30,6 @@
 use std::fmt;
 use std::io::{self, BufRead, BufReader, Cursor, Read, Write};
 use std::path::Path;
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Arc;
 
 use crate::codec::picture::{check_size, Frame, PictureError};
 use crate::codec::syntax::{ChromaSiting as Siting, ColourRange, SequenceHeader, Vui};
@@ -367,25 +366,43 @@ pub enum Y4mError {
 /// can be told from the end between frames.
 struct Counting<R> {
     inner: R,
-    count: Arc<AtomicU64>,
+    count: u64,
 }
 
 impl<R: Read> Read for Counting<R> {
     fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
         let n = self.inner.read(buf)?;
-        self.count.fetch_add(n as u64, Ordering::Relaxed);
+        self.count += n as u64;
         Ok(n)
     }
 }
 
-type Inner<R> = std::io::Chain<Cursor<Vec<u8>>, Counting<BufReader<R>>>;
+impl<R: BufRead> BufRead for Counting<R> {
+    fn fill_buf(&mut self) -> io::Result<&[u8]> {
+        self.inner.fill_buf()
+    }
+
+    fn consume(&mut self, n: usize) {
+        self.count += n as u64;
+        self.inner.consume(n);
+    }
+}
+
+/// The input's buffer: rows are read through it, so that each lands in
+/// the frame from a buffer still in cache (a frame's worth read whole
+/// first went through memory twice).
+const READ_BUFFER: usize = 64 << 10;
+
+/// A `FRAME` line's longest (its parameters are not used).
+const MAX_FRAME_LINE: usize = 1024;
 
 /// Reads a Y4M stream frame by frame; one frame's worth of memory whatever
 /// the stream's length.
 pub struct Y4mReader<R: Read> {
-    decoder: y4m::Decoder<Inner<R>>,
+    reader: Counting<BufReader<R>>,
     info: Y4mInfo,
-    consumed: Arc<AtomicU64>,
+    /// The `FRAME` line being read.
+    line: Vec<u8>,
     frames_read: usize,
 }
 
@@ -399,7 +416,7 @@ impl Y4mReader<Box<dyn Read + Send>> {
 impl<R: Read> Y4mReader<R> {
     /// Reads and checks the stream header.
     pub fn new(reader: R) -> Result<Self, Y4mError> {
-        let mut reader = BufReader::new(reader);
+        let mut reader = BufReader::with_capacity(READ_BUFFER, reader);
         let mut line = Vec::with_capacity(128);
         (&mut reader)
             .take(MAX_HEADER_LEN as u64)
@@ -415,24 +432,22 @@ impl<R: Read> Y4mReader<R> {
             });
         }
         let info = Y4mInfo::parse(&line[..line.len() - 1])?;
-        let consumed = Arc::new(AtomicU64::new(0));
-        let counted = Counting {
-            inner: reader,
-            count: consumed.clone(),
-        };
-        // The header was checked above; the decoder re-reads it from memory.
+        // The y4m crate checks the header too (from memory): what it
+        // refuses is refused here.
         let limits = y4m::Limits {
             bytes: info.frame_bytes() as usize,
         };
-        let decoder =
-            y4m::Decoder::new_with_limits(Cursor::new(line).chain(counted), limits).map_err(|e| match e {
-                y4m::Error::IoError(e) => Y4mError::Io(e),
-                other => Y4mError::BadHeader(other.to_string()),
-            })?;
+        y4m::Decoder::new_with_limits(Cursor::new(line), limits).map_err(|e| match e {
+            y4m::Error::IoError(e) => Y4mError::Io(e),
+            other => Y4mError::BadHeader(other.to_string()),
+        })?;
         Ok(Y4mReader {
-            decoder,
+            reader: Counting {
+                inner: reader,
+                count: 0,
+            },
             info,
-            consumed,
+            line: Vec::with_capacity(64),
             frames_read: 0,
         })
     }
@@ -457,29 +472,32 @@ impl<R: Read> Y4mReader<R> {
     /// buffers; returns `false` at the end of the stream.
     pub fn read_frame_into(&mut self, frame: &mut Frame) -> Result<bool, Y4mError> {
         check_frame_size(&self.info, frame)?;
-        let start = self.consumed.load(Ordering::Relaxed);
+        let start = self.reader.count;
         let index = self.frames_read;
-        let data = match self.decoder.read_frame() {
-            Ok(data) => data,
-            Err(y4m::Error::EOF) => {
-                let got = self.consumed.load(Ordering::Relaxed) - start;
-                if got == 0 {
-                    return Ok(false);
-                }
-                return Err(Y4mError::Truncated {
-                    frame: index,
-                    got,
-                    expected: self.info.frame_bytes() + 6,
-                });
-            }
-            Err(y4m::Error::IoError(e)) => return Err(Y4mError::Io(e)),
-            Err(_) => return Err(Y4mError::BadFrameHeader { frame: index }),
+        let truncated = |reader: &Counting<BufReader<R>>, info: &Y4mInfo| Y4mError::Truncated {
+            frame: index,
+            got: reader.count - start,
+            expected: info.frame_bytes() + 6,
         };
-        let planes = [data.get_y_plane(), data.get_u_plane(), data.get_v_plane()];
-        for (plane, src) in frame.planes_mut().iter_mut().zip(planes) {
-            let w = plane.width();
-            for (dst, src_row) in plane.rows_mut().zip(src.chunks_exact(w)) {
-                dst.copy_from_slice(src_row);
+        self.line.clear();
+        (&mut self.reader)
+            .take(MAX_FRAME_LINE as u64)
+            .read_until(b'\n', &mut self.line)?;
+        match frame_line(&self.line) {
+            FrameLine::End => return Ok(false),
+            FrameLine::Cut => return Err(truncated(&self.reader, &self.info)),
+            FrameLine::Bad => return Err(Y4mError::BadFrameHeader { frame: index }),
+            FrameLine::Frame => {}
+        }
+        for plane in frame.planes_mut() {
+            for row in plane.rows_mut() {
+                match self.reader.read_exact(row) {
+                    Ok(()) => {}
+                    Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => {
+                        return Err(truncated(&self.reader, &self.info))
+                    }
+                    Err(e) => return Err(Y4mError::Io(e)),
+                }
             }
             plane.extend_border();
         }
@@ -494,6 +512,36 @@ impl<R: Read> Y4mReader<R> {
             frames.push(f);
         }
         Ok(frames)
+    }
+}
+
+/// What a `FRAME` line read up to its newline (or the end of the input)
+/// is.
+#[derive(Debug, PartialEq, Eq)]
+enum FrameLine {
+    /// Nothing: the stream ended between frames.
+    End,
+    /// `FRAME`, with parameters or none.
+    Frame,
+    /// The input ended inside a line that was becoming a `FRAME` line.
+    Cut,
+    /// Anything else.
+    Bad,
+}
+
+fn frame_line(line: &[u8]) -> FrameLine {
+    const FRAME: &[u8] = b"FRAME";
+    let Some(text) = line.strip_suffix(b"\n") else {
+        let begun = FRAME.starts_with(line) || line.starts_with(FRAME);
+        return match line.len() {
+            0 => FrameLine::End,
+            n if begun && n < MAX_FRAME_LINE => FrameLine::Cut,
+            _ => FrameLine::Bad,
+        };
+    };
+    match text.strip_prefix(FRAME) {
+        Some([] | [b' ', ..]) => FrameLine::Frame,
+        _ => FrameLine::Bad,
     }
 }
 
@@ -598,5 +646,32 @@ fn check_frame_size(info: &Y4mInfo, frame: &Frame) -> Result<(), Y4mError> {
 impl From<PictureError> for Y4mError {
     fn from(e: PictureError) -> Y4mError {
         Y4mError::Size(e)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{frame_line, FrameLine, MAX_FRAME_LINE};
+
+    #[test]
+    fn frame_lines_are_told_from_ends_cuts_and_garbage() {
+        let cases: [(&[u8], FrameLine); 10] = [
+            (b"", FrameLine::End),
+            (b"FRAME\n", FrameLine::Frame),
+            (b"FRAME Ip XA=1\n", FrameLine::Frame),
+            (b"FRA", FrameLine::Cut),
+            (b"FRAME", FrameLine::Cut),
+            (b"FRAME Ip", FrameLine::Cut),
+            (b"FRAMES\n", FrameLine::Bad),
+            (b"JUNK\n", FrameLine::Bad),
+            (b"JUN", FrameLine::Bad),
+            (b"\n", FrameLine::Bad),
+        ];
+        for (line, want) in cases {
+            assert_eq!(frame_line(line), want, "{:?}", String::from_utf8_lossy(line));
+        }
+        // A line as long as the reader takes, with no newline: not a frame.
+        let long = [b"FRAME ".as_slice(), &[b'x'; MAX_FRAME_LINE - 6]].concat();
+        assert_eq!(frame_line(&long), FrameLine::Bad);
     }
 }

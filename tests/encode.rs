@@ -215,6 +215,29 @@ fn without_the_reconstruction_the_stream_and_statistics_are_the_same() {
 }
 
 #[test]
+fn taking_the_source_s_buffer_codes_the_same_stream() {
+    // 96x64 is its own coded size (its buffers are taken); 90x60 is not
+    // (copied). Every preset: the encoder keeps the taken frame as the
+    // next one's previous source.
+    for (w, h) in [(96, 64), (90, 60)] {
+        let frames = scene(w, h, 4, 7.25, -5.5);
+        for preset in EncoderPreset::ALL {
+            let config = EncoderConfig::new().qp(30).preset(preset);
+            let (want, _, _) = encode(&frames, config);
+            let mut enc = Encoder::new(w, h, (25, 1), config).unwrap();
+            let mut stream = enc.header();
+            for f in &frames {
+                let mut taken = f.clone();
+                stream.extend_from_slice(&enc.encode_taking(&mut taken).unwrap().bytes);
+                assert_eq!((taken.width(), taken.height()), (w, h));
+            }
+            stream.extend_from_slice(&Encoder::trailer());
+            assert!(stream == want, "{w}x{h}, {}: another stream", preset.name());
+        }
+    }
+}
+
+#[test]
 fn block_vectors_follow_a_known_translation() {
     // The camera moves (3, -1) px per frame: content at x in frame t is at
     // x - (3, -1) in frame t-1, so the vector is (-12, 4) quarter-pels.

@@ -132,6 +132,38 @@ impl Encoder {
 
     /// Codes the next frame.
     pub fn encode(&mut self, source: &Frame) -> Result<EncodedFrame, EncodeError> {
+        self.check_size(source)?;
+        let start = Instant::now();
+        let (cw, ch) = (self.seq.coded_width(), self.seq.coded_height());
+        let src = pad_to_coded(source, self.spare_source.take(), cw, ch)?;
+        self.encode_coded(Some(source), src, start)
+    }
+
+    /// Codes the next frame as [`Encoder::encode`] does (the same stream),
+    /// taking `source`'s buffer where it is laid out as the frames the
+    /// encoder keeps (a width and height that are multiples of 16,
+    /// [`Frame::new`]'s borders) and leaving a frame of the same size in
+    /// its place, its samples unspecified: the copy into the coded size is
+    /// saved (the encode loop reads the next frame into the frame left).
+    pub fn encode_taking(&mut self, source: &mut Frame) -> Result<EncodedFrame, EncodeError> {
+        self.check_size(source)?;
+        if !self.holds_coded_layout(source) {
+            return self.encode(source);
+        }
+        let start = Instant::now();
+        let spare = match self.spare_source.take() {
+            Some(f) => f,
+            None => Frame::new(source.width(), source.height())?,
+        };
+        let mut src = std::mem::replace(source, spare);
+        // As the copy would leave them, whatever the caller's were.
+        for plane in src.planes_mut() {
+            plane.extend_border();
+        }
+        self.encode_coded(None, src, start)
+    }
+
+    fn check_size(&self, source: &Frame) -> Result<(), EncodeError> {
         if (source.width(), source.height()) != (self.seq.width, self.seq.height) {
             return Err(EncodeError::FrameSize {
                 got_w: source.width(),
@@ -140,9 +172,35 @@ impl Encoder {
                 height: self.seq.height,
             });
         }
-        let start = Instant::now();
+        Ok(())
+    }
+
+    /// Whether `frame` is laid out as the coded-size frames the encoder
+    /// keeps ([`Frame::new`] at the coded size).
+    fn holds_coded_layout(&self, frame: &Frame) -> bool {
         let (cw, ch) = (self.seq.coded_width(), self.seq.coded_height());
-        let src = pad_to_coded(source, self.spare_source.take(), cw, ch)?;
+        let chroma = Frame::chroma_size(cw, ch);
+        let pads = [
+            Plane::DEFAULT_PAD,
+            Plane::DEFAULT_PAD.div_ceil(2),
+            Plane::DEFAULT_PAD.div_ceil(2),
+        ];
+        let sizes = [(cw, ch), chroma, chroma];
+        (0..3).all(|p| {
+            let plane = frame.plane(p);
+            (plane.width(), plane.height()) == sizes[p] && plane.pad() == pads[p]
+        })
+    }
+
+    /// Codes `src` (coded size, borders extended), the frame `source`
+    /// (visible size; `None` where `src` is that size already).
+    fn encode_coded(
+        &mut self,
+        source: Option<&Frame>,
+        src: Frame,
+        start: Instant,
+    ) -> Result<EncodedFrame, EncodeError> {
+        let (cw, ch) = (self.seq.coded_width(), self.seq.coded_height());
         let recon = match self.spare_recon.take() {
             Some(f) => f,
             None => Frame::new(cw, ch)?,
@@ -176,7 +234,7 @@ impl Encoder {
         // The quality measurements are not coding time: some cost more than
         // the coding.
         let coding_ms = start.elapsed().as_secs_f64() * 1e3;
-        let stats = self.frame_stats(source, recon.as_ref(), &coded, (me_ms, coding_ms));
+        let stats = self.frame_stats(source.unwrap_or(&src), recon.as_ref(), &coded, (me_ms, coding_ms));
         let recon = recon.filter(|_| self.config.reconstruction);
         if intra {
             self.references.clear();

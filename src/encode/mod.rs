@@ -181,7 +181,7 @@ pub fn encode_sequence<W: Write>(
         // the encoder's threads would otherwise wait for.
         let read_next = wanted(summary.frames() + 1);
         let (coded, read) = rayon::join(
-            || encoder.encode(&frame),
+            || encoder.encode_taking(&mut frame),
             || {
                 if read_next {
                     source.next_frame(&mut next)

@@ -17,7 +17,7 @@ use crate::me::Metric;
 
 use super::config::ModeDecision;
 use super::intra4x4::{self, IntraBlockSearch};
-use super::macroblock::{Coded, MbCoder, MbSource};
+use super::macroblock::{prefetch_ahead, prefetch_ahead_displaced, Coded, MbCoder, MbSource};
 use super::partition::{PartitionSearch, SatdCache};
 use crate::codec::intra4x4::LumaIntra;
 use crate::codec::modes::{MbMode, ModeCoder, VectorSyntax};
@@ -406,13 +406,13 @@ impl InterFrameCoder<'_> {
         let cols = self.seq.mb_cols();
         let (mb_x, mb_y) = (index % cols, index / cols);
         let source = MbSource::load(self.src, mb_x, mb_y);
-        MbSource::prefetch_ahead(self.src, mb_x, mb_y);
+        prefetch_ahead(self.src, mb_x, mb_y);
         let mvp = if self.syntax.any() {
             mv_prediction(env.decided, mb_x, mb_y, cols)
         } else {
             Mv::ZERO
         };
-        MbSource::prefetch_ahead_displaced(self.references[0], mb_x, mb_y, mvp);
+        prefetch_ahead_displaced(self.references[0], mb_x, mb_y, mvp);
         let skip_pred = predict_inter(&self.inter_context(), mb_x, mb_y, RefMv::previous(mvp));
         let lambda = self.coder.lambda;
         let skip_bits = self.mode_bits_at(env, (mb_x, mb_y), &MbMode::Skip);

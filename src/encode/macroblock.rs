@@ -45,48 +45,49 @@ impl MbSource {
         s
     }
 
-    /// Asks for the source rows of the next four macroblocks in the row
-    /// to be brought into cache while these are decided (x264's
-    /// `prefetch_fenc`): a macroblock reads 16 short rows a frame's stride
-    /// apart, which the processor does not foresee.
-    #[inline]
-    pub fn prefetch_ahead(frame: &Frame, mb_x: usize, mb_y: usize) {
-        MbSource::prefetch_ahead_displaced(frame, mb_x, mb_y, Mv::ZERO);
-    }
-
-    /// The same for a reference, displaced by `mv` (quarter pels) with
-    /// the interpolation filter's reach (x264's `prefetch_ref` at the
-    /// predicted vector): the next macroblocks' predictions mostly read
-    /// there. Asked at every fourth macroblock, for the two cache lines
-    /// each row of the next four may straddle: asked at every macroblock,
-    /// the hints cost 2 % of ultrafast's time at 1080p.
-    #[inline]
-    pub fn prefetch_ahead_displaced(frame: &Frame, mb_x: usize, mb_y: usize, mv: Mv) {
-        if mb_x % 4 != 0 {
-            return;
-        }
-        let (x, y) = (
-            (mb_x * MB) as isize + (mv.x >> 2) as isize,
-            (mb_y * MB) as isize + (mv.y >> 2) as isize,
-        );
-        let (reach, chroma_reach) = if mv == Mv::ZERO { (0, 0) } else { (3, 1) };
-        let four = 4 * MB as isize;
-        for at in [x + four - reach, x + 2 * four - 1 + reach] {
-            frame.y().prefetch_rows(at, y - reach, MB + 2 * reach as usize);
-        }
-        for p in 1..3 {
-            let (cx, cy) = (x / 2, y / 2 - chroma_reach);
-            let rows = MB / 2 + 2 * chroma_reach as usize;
-            for at in [cx + four / 2 - chroma_reach, cx + four - 1 + chroma_reach] {
-                frame.plane(p).prefetch_rows(at, cy, rows);
-            }
-        }
-    }
-
     /// Squared error of a prediction (or reconstruction), luma and chroma.
     pub fn ssd(&self, p: &MbSamples) -> u64 {
         let d = squared_difference_sum;
         d(&self.luma, &p.luma) + d(&self.chroma[0], &p.chroma[0]) + d(&self.chroma[1], &p.chroma[1])
+    }
+}
+
+/// Asks for the rows of the next four macroblocks in the row of `frame`
+/// (a source, a reconstruction being written) to be brought into cache
+/// while these are decided (x264's `prefetch_fenc`): a macroblock reads
+/// 16 short rows a frame's stride apart, which the processor does not
+/// foresee.
+#[inline]
+pub(crate) fn prefetch_ahead(frame: &Frame, mb_x: usize, mb_y: usize) {
+    prefetch_ahead_displaced(frame, mb_x, mb_y, Mv::ZERO);
+}
+
+/// [`prefetch_ahead`] for a reference, displaced by `mv` (quarter pels) with
+/// the interpolation filter's reach (x264's `prefetch_ref` at the
+/// predicted vector): the next macroblocks' predictions mostly read
+/// there. Asked at every fourth macroblock, for the two cache lines
+/// each row of the next four may straddle: asked at every macroblock,
+/// the hints cost 2 % of ultrafast's time at 1080p.
+#[inline]
+pub(crate) fn prefetch_ahead_displaced(frame: &Frame, mb_x: usize, mb_y: usize, mv: Mv) {
+    if mb_x % 4 != 0 {
+        return;
+    }
+    let (x, y) = (
+        (mb_x * MB) as isize + (mv.x >> 2) as isize,
+        (mb_y * MB) as isize + (mv.y >> 2) as isize,
+    );
+    let (reach, chroma_reach) = if mv == Mv::ZERO { (0, 0) } else { (3, 1) };
+    let four = 4 * MB as isize;
+    for at in [x + four - reach, x + 2 * four - 1 + reach] {
+        frame.y().prefetch_rows(at, y - reach, MB + 2 * reach as usize);
+    }
+    for p in 1..3 {
+        let (cx, cy) = (x / 2, y / 2 - chroma_reach);
+        let rows = MB / 2 + 2 * chroma_reach as usize;
+        for at in [cx + four / 2 - chroma_reach, cx + four - 1 + chroma_reach] {
+            frame.plane(p).prefetch_rows(at, cy, rows);
+        }
     }
 }
 

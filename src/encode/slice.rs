@@ -12,7 +12,7 @@ use super::wavefront::{self, WavefrontFrame};
 
 use super::config::ModeDecision;
 use super::intra4x4::IntraBlockSearch;
-use super::macroblock::{MbCoder, MbSource};
+use super::macroblock::{prefetch_ahead, MbCoder, MbSource};
 use super::motion::{BlockMotion, FrameMotion, LazySearch};
 use super::partition::SatdCache;
 use super::{rate, rdo};
@@ -166,7 +166,7 @@ pub(crate) fn code_intra(
     let decided = frame.decide(recon, &|env, index| {
         let (mb_x, mb_y) = (index % cols, index / cols);
         let s = MbSource::load(src, mb_x, mb_y);
-        MbSource::prefetch_ahead(src, mb_x, mb_y);
+        prefetch_ahead(src, mb_x, mb_y);
         let best = best_intra(
             coder,
             &s,

@@ -17,7 +17,7 @@ use std::cell::RefCell;
 use std::sync::{Mutex, OnceLock};
 
 use super::analyse::{Choice, MbEnv};
-use super::macroblock::MbSource;
+use super::macroblock::prefetch_ahead;
 use super::partition::SatdCache;
 use super::slice::kind_index;
 use crate::codec::entropy::Context;
@@ -155,7 +155,7 @@ impl WavefrontFrame<'_> {
             }
             // And the reconstruction's rows the next macroblocks are
             // written into (a frame's worth of stores a frame).
-            MbSource::prefetch_ahead(&w.recon, c, r);
+            prefetch_ahead(&w.recon, c, r);
             let d = self.commit(w, decide, (c, r), shared);
             if c + 1 == lead {
                 let start = RowStart {

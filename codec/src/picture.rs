@@ -287,12 +287,15 @@ impl Plane {
             .map(move |r| &mut r[pad..pad + w])
     }
 
-    /// Asks the processor to bring `rows` rows of the samples from (x, y)
-    /// to the cache line after them into cache (a hint: nothing is read,
+    /// Asks the processor to bring into cache the line holding column `x`
+    /// of each of `rows` rows from row `y` (a hint: nothing is read,
     /// nothing can fault). Positions are clamped into the buffer, borders
-    /// included.
+    /// included; no row asks for nothing.
     #[inline]
     pub fn prefetch_rows(&self, x: isize, y: isize, rows: usize) {
+        if rows == 0 {
+            return;
+        }
         let pad = self.pad as isize;
         let cx = (x + pad).clamp(0, self.stride as isize - 1) as usize;
         let total_rows = self.data.len() / self.stride;
@@ -792,6 +795,8 @@ mod tests {
                 (1000, 1000, 40),
                 (19, 11, 1),
                 (5, -3, 30),
+                (0, -1000, 0),
+                (3, 4, 0),
             ] {
                 p.prefetch_rows(x, y, rows);
             }

@@ -387,8 +387,8 @@ pub struct EncoderConfig {
     pub early_pskip: bool,
     /// Whether [`super::Encoder::encode`] gives back each frame's
     /// reconstruction ([`super::EncodedFrame::recon`]; on by default). It
-    /// is a copy of the visible picture a frame (2 % of ultrafast's time
-    /// at 1080p), which a caller that keeps only the stream and its
+    /// is a copy of the visible picture a frame (2 % of ultrafast's
+    /// profile on dog_1080p), which a caller that keeps only the stream and its
     /// statistics does without, as x264 writes its reconstruction only
     /// when asked to (`--dump-yuv`).
     pub reconstruction: bool,

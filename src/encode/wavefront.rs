@@ -75,15 +75,19 @@ struct Worker {
     /// The row the worker decided last: when that is the row above, its
     /// state already holds the neighbours there (one worker: every row).
     last_row: Option<usize>,
+    /// The rows its reconstruction holds whole: those it decided, and
+    /// those above them (brought in macroblock by macroblock).
+    held: Vec<bool>,
 }
 
-/// A frame's decided macroblocks (raster order), and a reconstruction:
-/// of them all when one worker decided every row (its own copy then holds
-/// every macroblock: no need to write them again), else one worker's.
+/// A frame's decided macroblocks (raster order), and the reconstruction
+/// of the worker that holds the most rows whole (one worker holds them
+/// all; two taking turns, every row but maybe the last).
 pub(super) struct DecidedFrame {
     mbs: Vec<OnceLock<Decided>>,
     recon: Frame,
-    complete: bool,
+    /// The rows `recon` holds whole: the others are written from `mbs`.
+    held: Vec<bool>,
 }
 
 impl WavefrontFrame<'_> {
@@ -123,6 +127,7 @@ impl WavefrontFrame<'_> {
                 .expect("a reconstruction per worker"),
             satd8: RefCell::default(),
             last_row: None,
+            held: vec![false; rows],
         };
         let lead = self.lead.clamp(2.min(cols), cols);
         let mut workers = wavefront(cols, rows, lead, &new_worker, &|w: &mut Worker, c, r| {
@@ -138,6 +143,12 @@ impl WavefrontFrame<'_> {
             let above_is_own = r > 0 && w.last_row == Some(r - 1);
             if c + 1 == cols {
                 w.last_row = Some(r);
+                // The row above was brought in whole by the time this row
+                // reached its end (or was the worker's own).
+                w.held[r] = true;
+                if r > 0 {
+                    w.held[r - 1] = true;
+                }
             }
             if r > 0 && !above_is_own {
                 // The neighbours of the row above this macroblock reads
@@ -166,20 +177,23 @@ impl WavefrontFrame<'_> {
             }
             let _ = decided[r * cols + c].set(d);
         });
-        let complete = workers.len() == 1;
-        let recon = match workers.pop() {
-            Some(w) => w.recon,
+        let fullest = (0..workers.len()).max_by_key(|&i| workers[i].held.iter().filter(|&&h| h).count());
+        let (recon, held) = match fullest.map(|i| workers.swap_remove(i)) {
+            Some(w) => (w.recon, w.held),
             // No worker took a row (a frame has one at least).
-            None => recons
-                .into_inner()
-                .ok()
-                .and_then(|mut r| r.pop())
-                .expect("the reconstruction given"),
+            None => (
+                recons
+                    .into_inner()
+                    .ok()
+                    .and_then(|mut r| r.pop())
+                    .expect("the reconstruction given"),
+                vec![false; rows],
+            ),
         };
         Ok(DecidedFrame {
             mbs: decided,
             recon,
-            complete,
+            held,
         })
     }
 
@@ -262,7 +276,7 @@ pub(super) fn collect(decided: DecidedFrame, cols: usize) -> (FrameSummary, Fram
     let mut recon = decided.recon;
     for (i, d) in decided.mbs.into_iter().enumerate() {
         let d = d.into_inner().expect("every macroblock decided");
-        if !decided.complete {
+        if !decided.held[i / cols] {
             let samples = d.samples.as_ref().expect("kept with several workers");
             write_mb(samples, &mut recon, i % cols, i / cols);
         }

@@ -206,13 +206,24 @@ impl Encoder {
             None => Frame::new(cw, ch)?,
         };
         let intra = self.config.gop > 0 && self.index % self.config.gop == 0;
-        // Every source, I frames' too: each is the next one's previous.
-        let camera = match self.config.predictor {
-            Predictor::Block(_) | Predictor::Obmc(_) => self.camera.next(src.y())?,
-            _ => Mv::ZERO,
-        };
-        let (coded, me_ms) = match (self.references.first(), &self.prev_source, intra) {
-            (Some(_), Some(_), false) => self.code_p_frame(&src, recon, camera)?,
+        let inter = !intra && self.prev_source.is_some();
+        // The camera's motion beside the weights' statistics: two passes
+        // over the frame that nothing else waits on, each on one thread.
+        let tracker = &mut self.camera;
+        let (camera, weights) = rayon::join(
+            // Every source, I frames' too: each is the next one's previous.
+            || match self.config.predictor {
+                Predictor::Block(_) | Predictor::Obmc(_) => tracker.next(src.y()),
+                _ => Ok(Mv::ZERO),
+            },
+            || match self.references.first() {
+                Some(reference) if inter && self.config.weightp => weights::estimate(&src, reference),
+                _ => Weights::NONE,
+            },
+        );
+        let camera = camera?;
+        let (coded, me_ms) = match (self.references.first(), inter) {
+            (Some(_), true) => self.code_p_frame(&src, recon, camera, weights)?,
             _ => {
                 let i = slice::code_intra(
                     &self.seq,
@@ -267,21 +278,17 @@ impl Encoder {
         Ok(out)
     }
 
-    /// A P frame: the reference weighted, motion analysed, the
+    /// A P frame: the reference weighted by `weights`, motion analysed, the
     /// macroblocks decided and coded; with the motion analysis' time, ms.
     fn code_p_frame(
         &mut self,
         src: &Frame,
         recon: Frame,
         camera: Mv,
+        weights: Weights,
     ) -> Result<(CodedFrame, f64), EncodeError> {
         let (Some(unweighted), Some(prev)) = (self.references.first(), &self.prev_source) else {
             return Err(EncodeError::Config("a P frame without a reference".into()));
-        };
-        let weights = if self.config.weightp {
-            weights::estimate(src, unweighted)
-        } else {
-            Weights::NONE
         };
         let weighted = weights.any().then(|| {
             // Every sample of `out` is written, borders included.

@@ -445,6 +445,52 @@ impl Plane {
         })
     }
 
+    /// Whether [`Plane::reshape`] can give the plane the size `width x
+    /// height` (a valid size whose rows fit its stride as they are).
+    pub fn reshapes_to(&self, width: usize, height: usize) -> bool {
+        check_size(width, height).is_ok()
+            && (width + 2 * self.pad).div_ceil(STRIDE_ALIGN) * STRIDE_ALIGN == self.stride
+    }
+
+    /// Gives the plane the size `width x height` in its own buffer, border
+    /// and stride kept: a sample inside both sizes stays where it was, the
+    /// others are unspecified, the border is not extended. The buffer keeps
+    /// its capacity, so a plane made smaller and then larger again does not
+    /// allocate (an encoder lends its coded-size frames out to be read at
+    /// the picture's size, and takes them back without a copy). Returns
+    /// false, changing nothing, where [`Plane::reshapes_to`] is false.
+    pub fn reshape(&mut self, width: usize, height: usize) -> bool {
+        if !self.reshapes_to(width, height) {
+            return false;
+        }
+        self.data.resize(self.stride * (height + 2 * self.pad), 0);
+        (self.width, self.height) = (width, height);
+        true
+    }
+
+    /// Fills the plane beyond its top-left `width x height` with that
+    /// part's right column and bottom row repeated (a picture padded to
+    /// whole macroblocks); the border is not extended. Panics if the part
+    /// is empty or larger than the plane.
+    pub fn repeat_edges_beyond(&mut self, width: usize, height: usize) {
+        assert!(
+            (1..=self.width).contains(&width) && (1..=self.height).contains(&height),
+            "edges of {width}x{height} in a {}x{} plane",
+            self.width,
+            self.height
+        );
+        for y in 0..height {
+            let row = self.row_mut(y);
+            let last = row[width - 1];
+            row[width..].fill(last);
+        }
+        let (last, w) = (self.index(0, height as isize - 1), self.width);
+        for y in height..self.height {
+            let at = self.index(0, y as isize);
+            self.data.copy_within(last..last + w, at);
+        }
+    }
+
     /// Sets every pixel, border included.
     pub fn fill(&mut self, value: u8) {
         self.data.fill(value);
@@ -625,6 +671,26 @@ impl Frame {
         self.planes
     }
 
+    /// Gives the frame the size `width x height` in its own buffers, as
+    /// [`Plane::reshape`] does each plane (chroma at half the size): all
+    /// three or, returning false, none.
+    pub fn reshape(&mut self, width: usize, height: usize) -> bool {
+        let (cw, ch) = Frame::chroma_size(width, height);
+        let sizes = [(width, height), (cw, ch), (cw, ch)];
+        if !self
+            .planes
+            .iter()
+            .zip(sizes)
+            .all(|(p, (w, h))| p.reshapes_to(w, h))
+        {
+            return false;
+        }
+        for (p, (w, h)) in self.planes.iter_mut().zip(sizes) {
+            p.reshape(w, h);
+        }
+        true
+    }
+
     /// Extends the border of every plane.
     pub fn extend_borders(&mut self) {
         for p in &mut self.planes {
@@ -644,6 +710,53 @@ mod tests {
     use super::*;
 
     type Result = std::result::Result<(), PictureError>;
+
+    #[test]
+    fn a_reshaped_plane_keeps_its_samples_in_place_and_its_buffer() -> Result {
+        // 90x60 and 96x64 share a stride (90 + 2 * 96 and 96 + 2 * 96 round
+        // up to the same multiple of 64); 200 wide does not.
+        let mut p = Plane::from_fn(96, 64, |x, y| (x * 3 + y * 5) as u8)?;
+        let buffer = p.data().as_ptr();
+        assert!(!p.reshapes_to(200, 64) && !p.reshape(200, 64) && p.width() == 96);
+        assert!(!p.reshape(0, 10));
+        assert!(p.reshape(90, 60));
+        assert_eq!((p.width(), p.height()), (90, 60));
+        assert!(p.reshape(96, 64));
+        assert_eq!(p.data().as_ptr(), buffer, "grown back within its capacity");
+        for (x, y) in [(0, 0), (89, 59), (95, 0), (0, 63), (95, 63)] {
+            // Inside both sizes kept; outside 90x60, kept here too (nothing
+            // wrote there), though the contract leaves it unspecified.
+            assert_eq!(p.get(x, y), (x * 3 + y * 5) as u8, "({x}, {y})");
+        }
+        Ok(())
+    }
+
+    #[test]
+    fn edges_are_repeated_beyond_the_picture() -> Result {
+        let mut p = Plane::from_fn(
+            96,
+            64,
+            |x, y| if x < 90 && y < 60 { (x + 2 * y) as u8 } else { 0 },
+        )?;
+        p.repeat_edges_beyond(90, 60);
+        for y in 0..64 {
+            for x in 0..96 {
+                assert_eq!(p.get(x, y), (x.min(89) + 2 * y.min(59)) as u8, "({x}, {y})");
+            }
+        }
+        Ok(())
+    }
+
+    #[test]
+    fn a_frame_reshapes_all_its_planes_or_none() -> Result {
+        let mut f = Frame::new(96, 64)?;
+        assert!(f.reshape(90, 60));
+        assert_eq!((f.u().width(), f.u().height()), (45, 30));
+        // Luma 200 wide changes the stride: nothing changes.
+        assert!(!f.reshape(200, 60));
+        assert_eq!((f.width(), f.height(), f.v().width()), (90, 60, 45));
+        Ok(())
+    }
 
     #[test]
     fn blocks_read_and_written_are_the_pixels_at_their_place() -> Result {

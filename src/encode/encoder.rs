@@ -140,22 +140,37 @@ impl Encoder {
     }
 
     /// Codes the next frame as [`Encoder::encode`] does (the same stream),
-    /// taking `source`'s buffer where it is laid out as the frames the
-    /// encoder keeps (a width and height that are multiples of 16,
-    /// [`Frame::new`]'s borders) and leaving a frame of the same size in
-    /// its place, its samples unspecified: the copy into the coded size is
-    /// saved (the encode loop reads the next frame into the frame left).
+    /// taking `source`'s buffer where it can hold the coded size as it is
+    /// laid out ([`Frame::new`]'s borders, rows wide enough for the coded
+    /// width) and leaving a frame of the same size in its place, its
+    /// samples unspecified: the copy into the coded size is saved (the
+    /// encode loop reads the next frame into the frame left). A picture
+    /// smaller than its whole macroblocks is padded in place, so it is
+    /// taken only where no quality is measured (which compares the
+    /// picture alone).
     pub fn encode_taking(&mut self, source: &mut Frame) -> Result<EncodedFrame, EncodeError> {
         self.check_size(source)?;
-        if !self.holds_coded_layout(source) {
+        if !self.can_take(source) {
             return self.encode(source);
         }
         let start = Instant::now();
+        let (w, h) = (source.width(), source.height());
+        let (cw, ch) = (self.seq.coded_width(), self.seq.coded_height());
         let spare = match self.spare_source.take() {
             Some(f) => f,
-            None => Frame::new(source.width(), source.height())?,
+            None => Frame::new(cw, ch)?,
         };
         let mut src = std::mem::replace(source, spare);
+        // The frame left is a coded one, whose rows fit the picture's size.
+        let lent = source.reshape(w, h);
+        debug_assert!(lent, "a coded frame reshapes to the picture's size");
+        if (w, h) != (cw, ch) {
+            src.reshape(cw, ch);
+            let visible = [(w, h), Frame::chroma_size(w, h), Frame::chroma_size(w, h)];
+            for (plane, (pw, ph)) in src.planes_mut().iter_mut().zip(visible) {
+                plane.repeat_edges_beyond(pw, ph);
+            }
+        }
         // As the copy would leave them, whatever the caller's were.
         for plane in src.planes_mut() {
             plane.extend_border();
@@ -175,9 +190,11 @@ impl Encoder {
         Ok(())
     }
 
-    /// Whether `frame` is laid out as the coded-size frames the encoder
-    /// keeps ([`Frame::new`] at the coded size).
-    fn holds_coded_layout(&self, frame: &Frame) -> bool {
+    /// Whether `frame` (the picture's size) can become one of the
+    /// coded-size frames the encoder keeps ([`Frame::new`] at the coded
+    /// size) in its own buffer: the same borders, and no quality measured
+    /// against it where it has to grow.
+    fn can_take(&self, frame: &Frame) -> bool {
         let (cw, ch) = (self.seq.coded_width(), self.seq.coded_height());
         let chroma = Frame::chroma_size(cw, ch);
         let pads = [
@@ -186,10 +203,13 @@ impl Encoder {
             Plane::DEFAULT_PAD.div_ceil(2),
         ];
         let sizes = [(cw, ch), chroma, chroma];
-        (0..3).all(|p| {
-            let plane = frame.plane(p);
-            (plane.width(), plane.height()) == sizes[p] && plane.pad() == pads[p]
-        })
+        let coded = (frame.width(), frame.height()) == (cw, ch);
+        (coded || self.config.metrics.is_none())
+            && (0..3).all(|p| {
+                let plane = frame.plane(p);
+                let (pw, ph) = sizes[p];
+                plane.pad() == pads[p] && plane.reshapes_to(pw, ph)
+            })
     }
 
     /// Codes `src` (coded size, borders extended), the frame `source`

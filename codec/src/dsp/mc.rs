@@ -269,6 +269,23 @@ unsafe fn luma_16x16<const AVX2: bool>(
 ) {
     const N: usize = N16;
     const B: usize = TAPS_BEFORE;
+    #[cfg(target_arch = "x86_64")]
+    if AVX2 && fx != 0 {
+        let rows = if fy == 0 { N } else { N + 7 };
+        let first = if fy == 0 { B } else { 0 };
+        let mut tmp = [[0i16; N]; N + 7];
+        // SAFETY: the caller's contract: AVX2 only where the CPU has it.
+        unsafe { x86::hpass16_rows(data, stride, first, &LUMA_TAPS[fx], &mut tmp[..rows]) };
+        if fy == 0 {
+            for (r, acc) in tmp[..N].iter().enumerate() {
+                round16(acc, &mut out[r * N..(r + 1) * N]);
+            }
+        } else {
+            // SAFETY: the caller's contract: AVX2 only where the CPU has it.
+            unsafe { x86::vpass16_avx2(&tmp, &LUMA_TAPS[fy], out) };
+        }
+        return;
+    }
     if fy == 0 {
         for r in 0..N {
             let acc = hpass16(row23(data, stride, r + B), &LUMA_TAPS[fx]);
@@ -360,6 +377,75 @@ mod x86 {
                 )
             };
             upper = lower;
+        }
+    }
+
+    /// The `pshufb` masks of [`hpass16_rows`], for the pairs of taps 0-1,
+    /// 2-3, 4-5 and 6-7: output i (of 8 a 128-bit lane) needs samples
+    /// i + k and i + k + 1 for the pair of taps k, k + 1. The upper lane
+    /// holds the row from sample 7 on (its outputs 8-15: offsets one
+    /// further), so that no load reads past the row's 23 samples.
+    const HPASS_SHUFFLES: [[u8; 32]; 4] = {
+        let mut masks = [[0u8; 32]; 4];
+        let mut p = 0;
+        while p < 4 {
+            let mut j = 0;
+            while j < 32 {
+                let lane_base = if j < 16 { 0 } else { 1 };
+                let jj = j % 16;
+                masks[p][j] = (lane_base + 2 * p + jj / 2 + jj % 2) as u8;
+                j += 1;
+            }
+            p += 1;
+        }
+        masks
+    };
+
+    /// The horizontal 8-tap pass of `out.len()` rows of a 16x16
+    /// prediction, from row `first` of `data` on (each row 16 + 7
+    /// samples), at full precision as the scalar [`super::hpass16`].
+    ///
+    /// # Safety
+    /// AVX2 is there.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn hpass16_rows(
+        data: &[u8],
+        stride: usize,
+        first: usize,
+        taps: &[i32; 8],
+        out: &mut [[i16; N16]],
+    ) {
+        let Some(last) = (first + out.len()).checked_sub(1) else {
+            return;
+        };
+        assert!(
+            data.len() >= last * stride + N16 + 7,
+            "rows {first}..={last} of 23 samples past the slice"
+        );
+        // The taps in pairs, one signed byte each (each fits: -11..=58),
+        // for `pmaddubsw` against pairs of neighbouring samples.
+        let pair = |k: usize| _mm256_set1_epi16(((taps[k + 1] << 8) | (taps[k] & 0xff)) as i16);
+        let coef = [pair(0), pair(2), pair(4), pair(6)];
+        // SAFETY: each mask is 32 bytes; unaligned loads.
+        let masks = HPASS_SHUFFLES.map(|m| unsafe { _mm256_loadu_si256(m.as_ptr() as *const __m256i) });
+        for (r, o) in out.iter_mut().enumerate() {
+            let at = (first + r) * stride;
+            // SAFETY: bytes at..at + 16 and at + 7..at + 23 lie in `data`
+            // (asserted above); unaligned loads.
+            let row = unsafe {
+                let p = data.as_ptr().add(at);
+                _mm256_loadu2_m128i(p.add(7) as *const __m128i, p as *const __m128i)
+            };
+            let mut acc = _mm256_setzero_si256();
+            for (m, c) in masks.iter().zip(&coef) {
+                // Each pair's sum lies within -2805..=14790 (no
+                // saturation), every partial total within 255 times the
+                // negative and the positive taps' sums, -6120..=20400.
+                acc = _mm256_add_epi16(acc, _mm256_maddubs_epi16(_mm256_shuffle_epi8(row, *m), *c));
+            }
+            // SAFETY: `o` is 16 i16 = 32 bytes; unaligned store.
+            unsafe { _mm256_storeu_si256(o.as_mut_ptr() as *mut __m256i, acc) };
         }
     }
 

@@ -80,6 +80,25 @@ struct Worker {
     held: Vec<bool>,
 }
 
+impl Worker {
+    /// Row `r` decided to its end: the row above was brought in whole by
+    /// then (or was the worker's own).
+    fn finish_row(&mut self, r: usize) {
+        self.last_row = Some(r);
+        self.held[r] = true;
+        if r > 0 {
+            self.held[r - 1] = true;
+        }
+    }
+}
+
+/// The worker whose reconstruction holds the most rows whole.
+fn fullest(mut workers: Vec<Worker>) -> Option<Worker> {
+    let rows_held = |w: &Worker| w.held.iter().filter(|&&h| h).count();
+    let best = (0..workers.len()).max_by_key(|&i| rows_held(&workers[i]))?;
+    Some(workers.swap_remove(best))
+}
+
 /// A frame's decided macroblocks (raster order), and the reconstruction
 /// of the worker that holds the most rows whole (one worker holds them
 /// all; two taking turns, every row but maybe the last).
@@ -130,7 +149,7 @@ impl WavefrontFrame<'_> {
             held: vec![false; rows],
         };
         let lead = self.lead.clamp(2.min(cols), cols);
-        let mut workers = wavefront(cols, rows, lead, &new_worker, &|w: &mut Worker, c, r| {
+        let workers = wavefront(cols, rows, lead, &new_worker, &|w: &mut Worker, c, r| {
             if c == 0 {
                 let start = if r == 0 {
                     &first
@@ -142,13 +161,7 @@ impl WavefrontFrame<'_> {
             }
             let above_is_own = r > 0 && w.last_row == Some(r - 1);
             if c + 1 == cols {
-                w.last_row = Some(r);
-                // The row above was brought in whole by the time this row
-                // reached its end (or was the worker's own).
-                w.held[r] = true;
-                if r > 0 {
-                    w.held[r - 1] = true;
-                }
+                w.finish_row(r);
             }
             if r > 0 && !above_is_own {
                 // The neighbours of the row above this macroblock reads
@@ -177,8 +190,7 @@ impl WavefrontFrame<'_> {
             }
             let _ = decided[r * cols + c].set(d);
         });
-        let fullest = (0..workers.len()).max_by_key(|&i| workers[i].held.iter().filter(|&&h| h).count());
-        let (recon, held) = match fullest.map(|i| workers.swap_remove(i)) {
+        let (recon, held) = match fullest(workers) {
             Some(w) => (w.recon, w.held),
             // No worker took a row (a frame has one at least).
             None => (

@@ -463,7 +463,10 @@ impl Plane {
         if !self.reshapes_to(width, height) {
             return false;
         }
-        self.data.resize(self.stride * (height + 2 * self.pad), 0);
+        let len = self.stride * (height + 2 * self.pad);
+        // Grown to the size asked, not doubled as a `Vec` grows.
+        self.data.reserve_exact(len.saturating_sub(self.data.len()));
+        self.data.resize(len, 0);
         (self.width, self.height) = (width, height);
         true
     }

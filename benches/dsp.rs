@@ -219,6 +219,7 @@ fn analysis_tables(c: &mut Criterion) {
     let bytes = ndarray::Array2::from_shape_vec((288, 352), a[..288 * 352].to_vec()).unwrap();
     let quarter = ndarray::Array2::from_shape_fn((72, 88), |(y, x)| (x as f32 - y as f32) * 0.25);
     let mut pairs = vec![0f32; 2 * 288 * 352];
+    let mut upsampled = vec![0f32; 288 * 352];
     levels(c, "imgproc", &IMGPROC, |g, t, l| {
         bench(g, "filter_rows_32_rows", l, || {
             (t.filter_rows)(black_box(&src[..352 * 32]), 352, &kernel, &mut dst)
@@ -233,7 +234,7 @@ fn analysis_tables(c: &mut Criterion) {
             (t.downsample_binomial_u8)(black_box(bytes.view()), &mut scratch, &mut half)
         });
         bench(g, "upsample_1_level_to_cif", l, || {
-            (t.upsample_levels)(black_box(&half), 288, 352, 1, 2.0)
+            (t.upsample_levels)(black_box(&half), (288, 352), 1, 2.0, &mut upsampled)
         });
         bench(g, "upsample_pair_2_levels_to_cif", l, || {
             (t.upsample_levels_pair)(black_box(&quarter), &quarter, (288, 352), 2, 4.0, 0, &mut pairs)

@@ -191,6 +191,31 @@ fn bytes_in_and_pairs_out_give_the_same_flow() {
 }
 
 #[test]
+fn a_field_written_over_is_the_field_computed_anew() {
+    // A frame loop keeps its field: written over, whatever it held (another
+    // size, other motion, pixels marked invalid), it is the flow a new
+    // field gets, validity included.
+    let (i1, i2, _) = translated(320, 240, -4.25, 2.5);
+    let (b1, b2) = (i1.mapv(|x| x.round() as u8), i2.mapv(|x| x.round() as u8));
+    for p in [DisPreset::Ultrafast, DisPreset::Fast, DisPreset::Medium] {
+        let mut dis = Dis::new(preset(p));
+        let want = dis.compute_luma(Luma::U8(b1.view()), Luma::U8(b2.view()), None);
+        let holey = Array2::from_shape_fn((240, 320), |(y, x)| (x + y) % 7 != 0);
+        let stale = Flow::from_parts(
+            Array2::from_elem((240, 320), 9.0),
+            Array2::from_elem((240, 320), -9.0),
+            holey,
+        );
+        for mut kept in [stale, Flow::zeros(3, 2)] {
+            for round in 0..2 {
+                dis.compute_luma_into(Luma::U8(b1.view()), Luma::U8(b2.view()), None, &mut kept);
+                assert!(kept == want, "{p:?}, written over {round} times");
+            }
+        }
+    }
+}
+
+#[test]
 fn an_initial_flow_seeds_motion_out_of_reach() {
     // 120 px: beyond the coarsest level's reach on a 384x288 picture.
     let (i1, i2, gt) = translated(384, 288, 120.0, -9.5);

@@ -387,6 +387,16 @@ impl FlowEstimator {
         }
     }
 
+    /// [`FlowEstimator::compute_luma`] written over `out`, whose buffers DIS
+    /// keeps where they have the pictures' size (a frame loop's field, as
+    /// OpenCV's `calc` reuses its output); the other methods replace it.
+    pub fn compute_luma_into(&mut self, a: Luma<'_>, b: Luma<'_>, out: &mut Flow) {
+        match self {
+            FlowEstimator::Dis(dis) => dis.compute_luma_into(a, b, None, out),
+            other => *out = other.compute_luma(a, b),
+        }
+    }
+
     /// [`FlowEstimator::compute_luma`] written into `out` as (u, v) pairs
     /// row by row (`2 h w` floats, OpenCV's layout), NaN where not valid:
     /// DIS writes its last upsampling there directly. Panics if the

@@ -63,6 +63,23 @@ impl Flow {
         Flow { u, v, valid }
     }
 
+    /// Its components, to be written over whole, every pixel marked valid:
+    /// the field made `width x height`, its buffers kept where it is that
+    /// size already (as OpenCV's `calc` reuses its output), for a method
+    /// that writes a new field into the one a frame loop keeps.
+    pub(crate) fn overwrite_all_valid(
+        &mut self,
+        width: usize,
+        height: usize,
+    ) -> (&mut Array2<f32>, &mut Array2<f32>) {
+        if self.u.dim() == (height, width) {
+            self.valid.fill(true);
+        } else {
+            *self = Flow::zeros(width, height);
+        }
+        (&mut self.u, &mut self.v)
+    }
+
     /// A field whose motion at (x, y) is `f(x, y)`, all valid.
     pub fn from_fn(width: usize, height: usize, mut f: impl FnMut(usize, usize) -> (f32, f32)) -> Flow {
         let mut u = Array2::zeros((height, width));

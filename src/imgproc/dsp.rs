@@ -28,9 +28,10 @@ pub type HalveFn = fn(ArrayView2<'_, f32>, &mut Vec<f32>, &mut Array2<f32>);
 /// [`super::pyramid::downsample_binomial_u8_into`].
 pub type HalveU8Fn = fn(ArrayView2<'_, u8>, &mut Vec<f32>, &mut Array2<f32>);
 
-/// Linear upsampling by levels: `(src, h, w, levels, scale)`, as
-/// [`super::pyramid::upsample_levels`].
-pub type UpsampleFn = fn(&Array2<f32>, usize, usize, usize, f32) -> Array2<f32>;
+/// Linear upsampling by levels: `(src, (h, w), levels, scale, out)`, the
+/// `h x w` field written over `out`, as
+/// [`super::pyramid::upsample_levels_into`].
+pub type UpsampleFn = fn(&Array2<f32>, (usize, usize), usize, f32, &mut [f32]);
 
 /// Both components of a field upsampled into (u, v) pairs: `(u, v, (h, w),
 /// levels, scale, y0, out)`, output rows `y0..` (as many as `out` holds),
@@ -95,7 +96,7 @@ mod avx2 {
             => super::downsample_binomial_body;
         fn downsample_binomial_u8(src: ArrayView2<'_, u8>, tmp: &mut Vec<f32>, out: &mut Array2<f32>)
             => super::downsample_binomial_u8_body;
-        fn upsample_levels(src: &Array2<f32>, h: usize, w: usize, levels: usize, scale: f32) -> Array2<f32>
+        fn upsample_levels(src: &Array2<f32>, size: (usize, usize), levels: usize, scale: f32, out: &mut [f32])
             => super::upsample_levels_body;
         fn upsample_levels_pair(
             u: &Array2<f32>, v: &Array2<f32>, size: (usize, usize), levels: usize, scale: f32, y0: usize,

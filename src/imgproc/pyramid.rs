@@ -291,7 +291,21 @@ fn upsample_row(src: &[f32], cols: &[(usize, usize, f32)], levels: usize, ts: &[
 /// samples (edges repeat), every value multiplied by `scale`: a flow of a
 /// coarse level brought to a finer one in one pass.
 pub fn upsample_levels(src: &Array2<f32>, h: usize, w: usize, levels: usize, scale: f32) -> Array2<f32> {
-    (super::dsp::imgproc().upsample_levels)(src, h, w, levels, scale)
+    // Zeroed by the allocator: fresh pages on a first call, a clearing
+    // pass where it hands back used memory (then [`upsample_levels_into`]
+    // a kept field is cheaper).
+    let mut out = Array2::zeros((h, w));
+    upsample_levels_into(src, levels, scale, &mut out);
+    out
+}
+
+/// [`upsample_levels`] written over `out`, whose size is the field's
+/// (`h x w`): a caller that keeps its field from frame to frame allocates
+/// and clears nothing. Panics unless `out` is in standard layout.
+pub fn upsample_levels_into(src: &Array2<f32>, levels: usize, scale: f32, out: &mut Array2<f32>) {
+    let (h, w) = out.dim();
+    let out = out.as_slice_mut().expect("upsample_levels_into: standard layout");
+    (super::dsp::imgproc().upsample_levels)(src, (h, w), levels, scale, out)
 }
 
 /// [`upsample_levels`] of the two components of a field at once, written
@@ -372,32 +386,29 @@ pub(crate) fn upsample_levels_pair_body(
 #[inline(always)]
 pub(crate) fn upsample_levels_body(
     src: &Array2<f32>,
-    h: usize,
-    w: usize,
+    (h, w): (usize, usize),
     levels: usize,
     scale: f32,
-) -> Array2<f32> {
+    out: &mut [f32],
+) {
+    assert_eq!(out.len(), h * w, "upsample_levels: output size");
     let (sh, sw) = src.dim();
     let s = src.as_standard_layout();
     let s = s.as_slice().expect("standard");
     let (cols, rows) = (linear_taps(w, sw, levels), linear_taps(h, sh, levels));
-    // Rows first: (sh, w). Both buffers are filled by extension, not
-    // zeroed first: at full size the zeroing would cost a pass of its own.
+    // Rows first: (sh, w), then each output row one straight loop that
+    // vectorises.
     let ts = interval_weights(levels);
     let mut tmp = vec![0f32; sh * w];
     for (src_row, dst) in s.chunks_exact(sw).zip(tmp.chunks_exact_mut(w.max(1))) {
         upsample_row(src_row, &cols, levels, &ts, dst);
     }
-    // The output zeroed by the allocator (fresh pages), then each row one
-    // straight loop that vectorises (an `extend` per row did not).
-    let mut out = vec![0f32; h * w];
     for (&(a, b, t), dst) in rows.iter().zip(out.chunks_exact_mut(w.max(1))) {
         let (ra, rb) = (&tmp[a * w..][..w], &tmp[b * w..][..w]);
         for ((o, &p), &q) in dst.iter_mut().zip(ra).zip(rb) {
             *o = scale * (p + t * (q - p));
         }
     }
-    Array2::from_shape_vec((h, w), out).expect("h x w samples")
 }
 
 /// Half-size picture (sizes rounded up) through the binomial filter

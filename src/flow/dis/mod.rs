@@ -32,7 +32,7 @@ use ndarray::Array2;
 use super::refine::{RefineParams, Refiner};
 use super::Flow;
 use crate::imgproc::pyramid::{
-    parallel_worth, upsample2, upsample_levels, upsample_levels_interleaved, Pyramid,
+    parallel_worth, upsample2, upsample_levels_interleaved, upsample_levels_into, Pyramid,
 };
 use crate::imgproc::Luma;
 
@@ -316,18 +316,29 @@ impl Dis {
     /// As [`Dis::compute_from`], from 8-bit or float pictures without
     /// converting them first.
     pub fn compute_luma(&mut self, i1: Luma<'_>, i2: Luma<'_>, initial: Option<&Flow>) -> Flow {
+        let mut out = Flow::zeros(0, 0);
+        self.compute_luma_into(i1, i2, initial, &mut out);
+        out
+    }
+
+    /// As [`Dis::compute_luma`], written over `out` (any size; its buffers
+    /// are kept where it has the pictures' size, as OpenCV's `calc` keeps
+    /// its output): a frame loop then allocates and clears no field (the
+    /// clearing was 8 % of ultrafast's time on 640x360).
+    pub fn compute_luma_into(&mut self, i1: Luma<'_>, i2: Luma<'_>, initial: Option<&Flow>, out: &mut Flow) {
         let (h0, w0) = i1.dim();
         let (u, v, finest) = self.coarse_to_fine(i1, i2, initial);
         if finest == 0 {
-            return Flow::from_uv(u, v);
+            *out = Flow::from_uv(u, v);
+            return;
         }
         let f = (1usize << finest) as f32;
-        let (u, v) = both(
+        let (ou, ov) = out.overwrite_all_valid(w0, h0);
+        both(
             parallel_worth(w0 * h0),
-            || upsample_levels(&u, h0, w0, finest, f),
-            || upsample_levels(&v, h0, w0, finest, f),
+            || upsample_levels_into(&u, finest, f, ou),
+            || upsample_levels_into(&v, finest, f, ov),
         );
-        Flow::from_uv(u, v)
     }
 
     /// The flow from `i1` to `i2` written into `out` as (u, v) pairs row by

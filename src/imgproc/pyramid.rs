@@ -292,8 +292,8 @@ fn upsample_row(src: &[f32], cols: &[(usize, usize, f32)], levels: usize, ts: &[
 /// coarse level brought to a finer one in one pass.
 pub fn upsample_levels(src: &Array2<f32>, h: usize, w: usize, levels: usize, scale: f32) -> Array2<f32> {
     // Zeroed by the allocator: fresh pages on a first call, a clearing
-    // pass where it hands back used memory (then [`upsample_levels_into`]
-    // a kept field is cheaper).
+    // pass where it hands back used memory. A caller that keeps its field
+    // calls [`upsample_levels_into`] and pays neither.
     let mut out = Array2::zeros((h, w));
     upsample_levels_into(src, levels, scale, &mut out);
     out

@@ -166,7 +166,10 @@ impl Encoder {
         debug_assert!(lent, "a coded frame reshapes to the picture's size");
         if (w, h) != (cw, ch) {
             let grown = src.reshape(cw, ch);
-            debug_assert!(grown, "`can_take` checked that the picture grows to the coded size");
+            debug_assert!(
+                grown,
+                "`can_take` checked that the picture grows to the coded size"
+            );
             let visible = [(w, h), Frame::chroma_size(w, h), Frame::chroma_size(w, h)];
             for (plane, (pw, ph)) in src.planes_mut().iter_mut().zip(visible) {
                 plane.repeat_edges_beyond(pw, ph);

@@ -21,7 +21,7 @@ pub fn value_error(message: impl Into<String>) -> PyErr {
 }
 
 /// What `obj` is, for error messages: dtype and shape of an array, else its type.
-fn describe(obj: &Bound<'_, PyAny>) -> String {
+pub fn describe(obj: &Bound<'_, PyAny>) -> String {
     match obj.cast::<PyUntypedArray>() {
         Ok(a) => format!("a {} array of shape {:?}", a.dtype(), a.shape()),
         Err(_) => format!(

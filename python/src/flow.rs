@@ -7,11 +7,11 @@ use mocomp::flow::warp::warp_bilinear;
 use mocomp::flow::{FlowEstimator, FlowMethod, FlowOptions, Preset};
 use mocomp::io::flo;
 use ndarray::{Array2, Array3, Axis};
-use numpy::{PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3};
+use numpy::{PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{flow_from_py, flow_to_py, new_flow_array, value_error, with_threads, LumaArg};
+use crate::arrays::{describe, flow_from_py, flow_to_py, new_flow_array, value_error, with_threads, LumaArg};
 
 /// Dense optical flow from `img1` to `img2`: `img1(p) ~ img2(p + flow(p))`.
 ///
@@ -80,7 +80,7 @@ pub fn flow<'py>(
         let Some(runner) = last.as_mut() else {
             unreachable!("set above")
         };
-        runner.calc(py, img1, img2, threads)
+        runner.calc(py, img1, img2, None, threads)
     })
 }
 
@@ -110,13 +110,15 @@ impl FlowRunner {
 
     /// The flow from `img1` to `img2`, the GIL released while it runs. The
     /// pictures are read in place (uint8 or float32 luma) and the flow is
-    /// written straight into the new array: no conversion or copy around
-    /// the estimator.
+    /// written straight into `out` when given (float32 H x W x 2,
+    /// C-contiguous, writeable), else into a new array: no conversion or
+    /// copy around the estimator.
     fn calc<'py>(
         &mut self,
         py: Python<'py>,
         img1: &Bound<'py, PyAny>,
         img2: &Bound<'py, PyAny>,
+        out: Option<&Bound<'py, PyAny>>,
         threads: Option<usize>,
     ) -> PyResult<Bound<'py, PyArray3<f32>>> {
         let (arg1, arg2) = (LumaArg::extract("img1", img1)?, LumaArg::extract("img2", img2)?);
@@ -129,15 +131,39 @@ impl FlowRunner {
             )));
         }
         let (h, w) = a.dim();
-        let out = new_flow_array(py, h, w);
+        let out = match out {
+            Some(array) => flow_out_array(array, h, w)?,
+            None => new_flow_array(py, h, w),
+        };
         {
-            let mut writer = out.readwrite();
-            let dst = writer.as_slice_mut()?;
+            let mut writer = out
+                .try_readwrite()
+                .map_err(|e| value_error(format!("flow: {e}")))?;
+            let dst = writer
+                .as_slice_mut()
+                .map_err(|_| value_error("flow: the array must be C-contiguous"))?;
             let estimator = &mut self.estimator;
             py.detach(|| with_threads(threads, || estimator.compute_interleaved(a, b, dst)))?;
         }
         Ok(out)
     }
+}
+
+/// `array` as the float32 H x W x 2 array a flow of `h` x `w` is written
+/// into (as OpenCV's `calc(I0, I1, flow)` takes one): kept from call to
+/// call, it spares a new allocation per frame pair.
+fn flow_out_array<'py>(array: &Bound<'py, PyAny>, h: usize, w: usize) -> PyResult<Bound<'py, PyArray3<f32>>> {
+    let expected = format!("a float32 array {h} x {w} x 2");
+    let out = array
+        .cast::<PyArray3<f32>>()
+        .map_err(|_| value_error(format!("flow: expected {expected}, got {}", describe(array))))?;
+    if out.shape() != [h, w, 2] {
+        return Err(value_error(format!(
+            "flow: expected {expected}, got shape {:?}",
+            out.shape()
+        )));
+    }
+    Ok(out.clone())
 }
 
 thread_local! {
@@ -150,8 +176,9 @@ thread_local! {
 /// checked once and the buffers kept between calls.
 ///
 /// DenseFlow(method="dis", preset="medium", threads=None, **options), the
-/// options as `flow` takes them; `calc(img1, img2)` (or calling the object)
-/// returns the flow from img1 to img2 as `flow` does.
+/// options as `flow` takes them; `calc(img1, img2, flow=None)` (or calling
+/// the object) returns the flow from img1 to img2 as `flow` does, written
+/// into `flow` when one is passed.
 #[pyclass(name = "DenseFlow", module = "mocomp")]
 pub struct DenseFlow {
     runner: FlowRunner,
@@ -208,23 +235,30 @@ impl DenseFlow {
         })
     }
 
-    /// The flow from `img1` to `img2`: float32 H x W x 2.
+    /// The flow from `img1` to `img2`: float32 H x W x 2. Given `flow` (a
+    /// float32 H x W x 2 C-contiguous array, as OpenCV's `calc(I0, I1,
+    /// flow)`), the flow is written into it and it is returned; a frame
+    /// loop that passes the last result back allocates nothing per pair.
+    #[pyo3(signature = (img1, img2, flow=None))]
     fn calc<'py>(
         &mut self,
         py: Python<'py>,
         img1: &Bound<'py, PyAny>,
         img2: &Bound<'py, PyAny>,
+        flow: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray3<f32>>> {
-        self.runner.calc(py, img1, img2, self.threads)
+        self.runner.calc(py, img1, img2, flow, self.threads)
     }
 
+    #[pyo3(signature = (img1, img2, flow=None))]
     fn __call__<'py>(
         &mut self,
         py: Python<'py>,
         img1: &Bound<'py, PyAny>,
         img2: &Bound<'py, PyAny>,
+        flow: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray3<f32>>> {
-        self.calc(py, img1, img2)
+        self.calc(py, img1, img2, flow)
     }
 
     /// The method's name: "dis", "lk", "hs" or "tvl1".

@@ -119,6 +119,33 @@ def test_a_dense_flow_object_gives_what_flow_gives_call_after_call(synth_frames)
         mocomp.DenseFlow().calc(img, img[:10])
 
 
+def test_dense_flow_writes_into_the_array_it_is_given(synth_frames):
+    # As OpenCV's calc(I0, I1, flow): the flow lands in the caller's array,
+    # which is returned; stale content is overwritten everywhere, for DIS
+    # (written in place) and for a method that fills a field first.
+    for method in ("dis", "lk"):
+        estimator = mocomp.DenseFlow(method=method, preset="fast", threads=1)
+        a, b, c = (synth_frames[k][0] for k in range(3))
+        out = np.full(a.shape + (2,), 1e6, np.float32)
+        got = estimator.calc(a, b, out)
+        assert got is out
+        assert np.array_equal(out, mocomp.flow(a, b, method=method, preset="fast"))
+        assert estimator(b, c, flow=out) is out
+        assert np.array_equal(out, mocomp.flow(b, c, method=method, preset="fast"))
+    estimator = mocomp.DenseFlow(preset="ultrafast")
+    h, w = a.shape
+    with pytest.raises(ValueError, match=f"{h} x {w} x 2"):
+        estimator.calc(a, b, np.zeros((h, w - 1, 2), np.float32))
+    with pytest.raises(ValueError, match="float32"):
+        estimator.calc(a, b, np.zeros((h, w, 2), np.float64))
+    with pytest.raises(ValueError, match="C-contiguous"):
+        estimator.calc(a, b, np.zeros((w, h, 2), np.float32).transpose(1, 0, 2))
+    frozen = np.zeros((h, w, 2), np.float32)
+    frozen.flags.writeable = False
+    with pytest.raises(ValueError):
+        estimator.calc(a, b, frozen)
+
+
 def test_flo_round_trip_keeps_values_and_unknowns(tmp_path):
     f = np.random.default_rng(3).normal(size=(7, 9, 2)).astype(np.float32)
     f[2, 3] = np.nan

@@ -131,11 +131,20 @@ pub(crate) mod x86 {
             sdx = _mm256_add_ps(sdx, _mm256_mul_ps(e, _mm256_loadu_ps(gx.as_ptr().add(8 * r))));
             sdy = _mm256_add_ps(sdy, _mm256_mul_ps(e, _mm256_loadu_ps(gy.as_ptr().add(8 * r))));
         }
-        let lanes = |v: __m256| {
-            let mut out = [0f32; 8];
-            _mm256_storeu_ps(out.as_mut_ptr(), v);
-            out
-        };
-        [sd, sd2, sdx, sdy].map(|v| lanes(v).iter().sum())
+        [sd, sd2, sdx, sdy].map(|v| sum_lanes_in_order(v))
+    }
+
+    /// The eight lanes of `v` added first to last, as the scalar loop adds
+    /// its columns. Written out rather than `iter().sum()`: some builds (the
+    /// Python extension's) left that a call, four per residual.
+    #[inline(always)]
+    unsafe fn sum_lanes_in_order(v: __m256) -> f32 {
+        let mut l = [0f32; 8];
+        _mm256_storeu_ps(l.as_mut_ptr(), v);
+        let mut total = l[0];
+        for x in &l[1..] {
+            total += x;
+        }
+        total
     }
 }

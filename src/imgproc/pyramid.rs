@@ -468,10 +468,12 @@ fn downsample_binomial_samples<T: Copy + Into<f32>>(
     for (y, dst) in tmp.chunks_exact_mut(w).enumerate() {
         let c = 2 * y as isize;
         let r = |k: isize| &s[at(c + k, h) * w..][..w];
-        let (ra, rb, rc, re) = (r(-1), r(0), r(1), r(2));
-        for x in 0..w {
-            let (a, b, c, e): (f32, f32, f32, f32) = (ra[x].into(), rb[x].into(), rc[x].into(), re[x].into());
-            dst[x] = 0.125 * (a + e) + 0.375 * (b + c);
+        // Zipped slices, not indices: no bounds check left in the loop, so
+        // it vectorises in every build (indexed, one build of the Python
+        // extension left it scalar at 2.4 times the time).
+        for ((((d, &a), &b), &c), &e) in dst.iter_mut().zip(r(-1)).zip(r(0)).zip(r(1)).zip(r(2)) {
+            let (a, b, c, e): (f32, f32, f32, f32) = (a.into(), b.into(), c.into(), e.into());
+            *d = 0.125 * (a + e) + 0.375 * (b + c);
         }
     }
     let tap = |row: &[f32], x: usize| {
@@ -493,8 +495,8 @@ fn downsample_binomial_samples<T: Copy + Into<f32>>(
     // straight loops over four contiguous slices (the same sums as `tap`).
     let (mut even, mut odd) = (vec![0f32; nw + 1], vec![0f32; nw + 1]);
     for (row, dst) in tmp.chunks_exact(w).zip(o.chunks_exact_mut(nw)) {
-        for (k, pair) in row.chunks_exact(2).enumerate() {
-            (even[k], odd[k]) = (pair[0], pair[1]);
+        for ((e, o), pair) in even.iter_mut().zip(odd.iter_mut()).zip(row.chunks_exact(2)) {
+            (*e, *o) = (pair[0], pair[1]);
         }
         if w % 2 == 1 {
             even[w / 2] = row[w - 1];

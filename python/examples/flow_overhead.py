@@ -6,7 +6,9 @@ and against OpenCV-python's DIS, one thread each, in one run.
 Times are medians over RUNS calls (default 9) of the flow alone: for the
 CLI, `mocomp flow --threads 1 --runs RUNS --json` (its own median); for
 Python, the call to mocomp.flow and to a mocomp.DenseFlow object's calc
-(reading the arrays and making the returned one included); for OpenCV,
+(reading the arrays included), the latter writing into the flow array of
+the call before as a frame loop does (`calc(a, b, flow)`, as OpenCV's); for
+OpenCV,
 DISOpticalFlow.calc on the same luma (cv2.setNumThreads(1)).
 
 One tool's time alone drifts by up to 1.5x between minutes on a 2-core
@@ -69,7 +71,8 @@ def cli_ms(preset):
 def paired_round(k, preset, estimator):
     """(CLI, mocomp.flow, DenseFlow.calc) ms, the CLI first in even rounds."""
     py = lambda: median_ms(lambda: mocomp.flow(a, b, preset=preset, threads=1))
-    obj = lambda: median_ms(lambda: estimator.calc(a, b))
+    out = estimator.calc(a, b)
+    obj = lambda: median_ms(lambda: estimator.calc(a, b, out))
     if k % 2 == 0:
         c = cli_ms(preset)
         return c, py(), obj()
@@ -90,5 +93,6 @@ for preset in ("ultrafast", "fast", "medium"):
     cv_ms = float("nan")
     if preset in cv_presets:
         dis = cv2.DISOpticalFlow_create(cv_presets[preset])
-        cv_ms = median_ms(lambda: dis.calc(a, b, None))
+        cv_out = dis.calc(a, b, None)
+        cv_ms = median_ms(lambda: dis.calc(a, b, cv_out))
     print(f"| {preset} | {cli:.2f} | {py:.2f} | {py_ratio} | {obj:.2f} | {obj_ratio} | {cv_ms:.2f} |")

@@ -84,7 +84,7 @@ def stabilize_path(
     coverage: float = 0.75,
     max_zoom: float = 1.5,
     model: Literal["translation", "similarity"] = "similarity",
-    source: Literal["flow", "blocks", "matches"] = "flow",
+    source: Literal["flow", "blocks", "matches"] = "blocks",
     preset: Literal["ultrafast", "fast", "medium", "accurate"] = "ultrafast",
     threads: Optional[int] = None,
 ) -> dict[str, Any]: ...

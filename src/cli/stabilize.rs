@@ -49,10 +49,11 @@ pub struct Args {
     /// Camera model: translation or similarity.
     #[arg(long, default_value = "similarity")]
     pub model: Model,
-    /// Motion from flow (DIS), blocks or matches.
-    #[arg(long, default_value = "flow")]
+    /// Motion from blocks (flow where they fit no motion), flow (DIS) or
+    /// matches.
+    #[arg(long, default_value = "blocks")]
     pub source: Source,
-    /// Flow preset (with --source flow).
+    /// Flow preset (with --source flow, and the blocks' fallback).
     #[arg(long, default_value = "ultrafast")]
     pub preset: Preset,
     /// Print the quality figures (cropping, distortion, stability) of the

@@ -165,37 +165,17 @@ impl MotionTrack {
             small = halved(&small);
             scale *= 2.0;
         }
-        if let Some(prev) = self.previous.take() {
-            let mut motion = self.fit(&small, &prev, false)?;
-            if motion.is_none() && self.fallback.is_some() {
-                motion = self.fit(&small, &prev, true)?;
+        if let Some(prev) = &self.previous {
+            // Blocks fail where flow does not (a fish tank's flat water, a
+            // shake beyond the search's range): only there is flow computed.
+            let mut motion = fit(&mut self.source, &self.params, &small, prev)?;
+            if let (None, Some(flow)) = (motion, self.fallback.as_mut()) {
+                motion = fit(flow, &self.params, &small, prev)?;
             }
             self.motions.push(motion.map(|m| to_full_size(&m, scale)));
         }
         self.previous = Some(small);
         Ok(())
-    }
-
-    /// The motion from `small` to `prev` by the source (or the fallback),
-    /// `None` where too few points follow any one camera motion: a cut (or
-    /// a picture without texture), where the path goes straight on. Blocks
-    /// fail so where flow does not: on a fish tank's flat water, or where
-    /// the shake leaves the search's range; only there is flow computed.
-    fn fit(
-        &mut self,
-        small: &Plane,
-        prev: &Plane,
-        fallback: bool,
-    ) -> Result<Option<Transform>, StabilizeError> {
-        let source = match (&mut self.fallback, fallback) {
-            (Some(flow), true) => flow,
-            _ => &mut self.source,
-        };
-        let points = source.between(small, prev)?;
-        Ok(estimate(&points, &self.params)
-            .ok()
-            .filter(|f| f.inlier_count as f64 >= Self::MIN_INLIER_SHARE * points.len() as f64)
-            .map(|f| f.transform))
     }
 
     /// The widest picture the motion is found on.
@@ -209,6 +189,23 @@ impl MotionTrack {
     pub fn motions(&self) -> &[Option<Transform>] {
         &self.motions
     }
+}
+
+/// The motion from `small` to `prev` by `source`, `None` where fewer than
+/// [`MotionTrack::MIN_INLIER_SHARE`] of its points follow any one camera
+/// motion: a cut (or a picture without texture), where the path goes
+/// straight on.
+fn fit(
+    source: &mut PairCorrespondences,
+    params: &GlobalParams,
+    small: &Plane,
+    prev: &Plane,
+) -> Result<Option<Transform>, StabilizeError> {
+    let points = source.between(small, prev)?;
+    Ok(estimate(&points, params)
+        .ok()
+        .filter(|f| f.inlier_count as f64 >= MotionTrack::MIN_INLIER_SHARE * points.len() as f64)
+        .map(|f| f.transform))
 }
 
 /// `plane` at half size, each pixel the rounded mean of a 2x2 block

@@ -135,7 +135,7 @@ fn pixel_table(c: &mut Criterion) {
     let pair: [u8; 32] = a[..32].try_into().unwrap();
     let mut out = [0u8; 256];
     let mut sums = vec![0u16; reference.data().len()];
-    let mut bounds = [0u32; 33];
+    let mut bounds = [0u16; 33];
     levels(c, "pixel", &PIXEL, |g, t, l| {
         for size in [8, 16, 32] {
             bench(g, &format!("sad_{size}x{size}"), l, || {

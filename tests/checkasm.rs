@@ -441,15 +441,22 @@ fn pixel_kernels() {
         for n in [0, 1, 15, 16, 17, 33, 129] {
             let rows = [&sums[..], &sums[3..], &sums[170..], &sums[1001..]];
             for current in [[0, 0, 0, 0], [65535, 1, 30000, 40000], [12345, 54321, 0, 255]] {
-                let (mut x, mut y) = (vec![0u32; n], vec![0u32; n]);
+                let (mut x, mut y) = (vec![0u16; n], vec![0u16; n]);
                 let least_x = ads(rows, current, &mut x);
                 let least_y = (s.ads)(rows, current, &mut y);
                 assert_eq!(x, y, "{isa} ads of {n}");
                 assert_eq!(least_x, least_y, "{isa} ads' least of {n}");
                 assert_eq!(
                     least_y,
-                    y.iter().copied().min().unwrap_or(u32::MAX),
+                    y.iter().copied().min().unwrap_or(u16::MAX),
                     "{isa} least of {n}"
+                );
+                // The exact sum, capped where it passes u16's range.
+                let exact =
+                    |i: usize| -> u32 { (0..4).map(|q| u32::from(rows[q][i].abs_diff(current[q]))).sum() };
+                assert!(
+                    (0..n).all(|i| u32::from(y[i]) == exact(i).min(u32::from(u16::MAX))),
+                    "{isa} ads of {n} against the exact sums"
                 );
             }
         }

@@ -208,7 +208,7 @@ pub type AbsCountFn = fn(&[u8], usize, (usize, usize), u8) -> (u64, u64);
 /// The quadrants' absolute differences of sums along a row of positions:
 /// `(rows, current, out)` ([`super::sea::ads`], x264's `ads4`); returns
 /// the least of them.
-pub type AdsFn = fn([&[u16]; 4], [u16; 4], &mut [u32]) -> u32;
+pub type AdsFn = fn([&[u16]; 4], [u16; 4], &mut [u16]) -> u16;
 
 /// The SADs of a 16x16 block against the 16 blocks one column apart along
 /// a row of a reference: `(a, sa, b, sb, out)`, `out[k]` the SAD of `a`
@@ -517,7 +517,7 @@ mod avx2 {
             => super::x86_halfpel::patch18_avx2;
         fn box_sums(data: &[u8], stride: usize, rows: usize, side: usize, out: &mut [u16])
             => crate::me::sea::box_sums;
-        fn ads(rows: [&[u16]; 4], current: [u16; 4], out: &mut [u32]) -> u32 => crate::me::sea::ads;
+        fn ads(rows: [&[u16]; 4], current: [u16; 4], out: &mut [u16]) -> u16 => crate::me::sea::ads;
     }
 }
 

@@ -349,8 +349,8 @@ pub(crate) fn full_pel(s: &SearchContext<'_>, neighbours: &Neighbours) -> Candid
 /// its rows.
 #[derive(Default)]
 struct WindowBounds {
-    all: Vec<u32>,
-    row_least: Vec<u32>,
+    all: Vec<u16>,
+    row_least: Vec<u16>,
 }
 
 thread_local! {
@@ -472,7 +472,7 @@ fn eliminate(
     let (metric, samples) = (s.cfg.full_pel_metric(), (b * b / 4) as u32);
     let rows = RowBounds {
         sums,
-        current: current_sums(s.block, s.cur.stride(), b),
+        current: current_sums(s.block, s.cur.stride(), b, super::dsp::pixel()),
         ads: super::dsp::pixel().ads,
     };
     let (x_lo, y_lo) = (*xs.start(), *ys.start());
@@ -489,7 +489,7 @@ fn eliminate(
         s.reference.stride(),
     );
     // The first position of the least bound, found from the rows' least.
-    let min = bounds.row_least.iter().fold(u32::MAX, |m, &d| m.min(d));
+    let min = bounds.row_least.iter().fold(u16::MAX, |m, &d| m.min(d));
     let least_row = bounds.row_least.iter().position(|&d| d == min).unwrap_or(0);
     let line = &bounds.all[least_row * width..(least_row + 1) * width];
     let least_col = line.iter().position(|&d| d == min).unwrap_or(0);
@@ -533,10 +533,10 @@ impl Survivors {
     /// Evaluates the positions of window row `row` (bounds `line`) whose
     /// bound does not exceed the best so far, in runs of 16: most runs hold
     /// none (their count, a vector operation, is taken first).
-    fn evaluate_row(&self, w: &mut Walk<'_, '_>, row: usize, line: &[u32]) {
+    fn evaluate_row(&self, w: &mut Walk<'_, '_>, row: usize, line: &[u16]) {
         let s = w.s;
         let dy = self.corner.1 + row as i32;
-        let limit_of = |best: u64| max_diff(self.metric, best, self.samples).min(u64::from(u32::MAX)) as u32;
+        let limit_of = |best: u64| max_diff(self.metric, best, self.samples).min(u64::from(u16::MAX)) as u16;
         let mut start = 0;
         while start < line.len() {
             let first = start;
@@ -582,7 +582,7 @@ impl Survivors {
                 let dx = self.corner.0 + (first + j) as i32;
                 // The rate term only where the distortion's bound leaves room.
                 let rate = s.rate(Mv::full_pel(dx, dy));
-                if super::sea::bound_for(self.metric, d, self.samples) + rate > best {
+                if super::sea::bound_for(self.metric, u32::from(d), self.samples) + rate > best {
                     continue;
                 }
                 w.try_inside(dx, dy, at + j, rate);

@@ -15,7 +15,7 @@ median over rounds of each thread count's time and of the rounds' paired
 2-thread / 1-thread ratios (a pair of runs seconds apart sees the same
 machine; single times drift by 1.5x between minutes on a shared 2-vCPU
 machine). The results themselves are equal for any thread count
-(`cargo test --test dis`, `--test me`, `--test flow`).
+(`cargo test --test integration` with `dis::`, `me::`, `flow::`).
 """
 import argparse
 import json

@@ -4,7 +4,8 @@
 # (fuzz/corpus/TARGET, kept between runs, not committed) and its seeds
 # (fuzz/seeds/TARGET). Builds the targets with libFuzzer's coverage
 # instrumentation on the stable toolchain, as `cargo fuzz build -O -s
-# none -a` does (debug assertions and overflow checks on), so cargo-fuzz
+# none -a` does (debug assertions and overflow checks on; codegen units
+# left at cargo's default, so the build uses every core), so cargo-fuzz
 # need not be installed. A crash, a mismatch
 # (the encoder target) or a non-finite field (the motion target) stops the
 # run with libFuzzer's report and a non-zero exit; the input is saved in
@@ -20,7 +21,7 @@ triple=$(rustc -vV | sed -n 's/^host: //p')
 export RUSTFLAGS="-Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4 \
 -Cllvm-args=-sanitizer-coverage-inline-8bit-counters -Cllvm-args=-sanitizer-coverage-pc-table \
 -Cllvm-args=-sanitizer-coverage-trace-compares --cfg fuzzing -Cllvm-args=-simplifycfg-branch-fold-threshold=0 \
--Cllvm-args=-sanitizer-coverage-stack-depth -Cdebug-assertions -Ccodegen-units=1"
+-Cllvm-args=-sanitizer-coverage-stack-depth -Cdebug-assertions"
 cargo build --release --target "$triple" --bins --config 'profile.release.debug="line-tables-only"'
 jobs=${JOBS:-$(nproc)}
 declare -A max_len=([decoder]=8192 [y4m]=4096 [flo]=4096 [encoder]=512 [motion]=256)

@@ -3,7 +3,7 @@
 //! (camera motion, occluding layers, a lighting change) run on procedural
 //! texture, whose ground truth is computed in closed form.
 
-mod common;
+use crate::common;
 
 use common::{translated, visible_epe};
 use mocomp::flow::dis::{dis_flow, Dis, DisParams, DisPreset};

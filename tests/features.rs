@@ -2,7 +2,7 @@
 //! translations of a rendered scene and the benchmark generator's rotation
 //! and zoom, layered motion and lighting change, on procedural texture.
 
-mod common;
+use crate::common;
 
 use common::translated;
 use mocomp::features::{match_pictures, Match, MatchParams};

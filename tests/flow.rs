@@ -1,7 +1,7 @@
 //! Dense flow against motion known independently: translations rendered
 //! analytically, and the synthetic sample's exact flow.
 
-mod common;
+use crate::common;
 
 use common::translated;
 use mocomp::flow::hs::{horn_schunck, HsParams};

@@ -2,7 +2,7 @@
 //! a rendered scene, and the benchmark generator's layered motion and
 //! lighting change on procedural texture.
 
-mod common;
+use crate::common;
 
 use common::{translated, visible_epe};
 use mocomp::flow::tvl1::{tvl1, Tvl1Params};

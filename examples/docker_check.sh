@@ -5,13 +5,14 @@
 # build stage's WORKDIR and RUN lines in a fresh clone (COPY . .), the
 # final stage's COPY --from=build source found where the build put it, and
 # its CMD run. The clone's build directory is kept in target/docker-check
-# between runs (CARGO_TARGET_DIR), the one difference from `docker build`.
+# between runs (CARGO_TARGET_DIR; DOCKER_CHECK_TARGET_DIR puts it
+# elsewhere), the one difference from `docker build`.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 w=$(mktemp -d)
 trap 'rm -rf "$w"' EXIT
 git clone --quiet "$root" "$w/src"
-export CARGO_TARGET_DIR=$root/target/docker-check
+export CARGO_TARGET_DIR=${DOCKER_CHECK_TARGET_DIR:-$root/target/docker-check}
 python3 - "$root/Dockerfile" "$w" <<'PY'
 import json, os, re, shlex, subprocess, sys
 dockerfile, w = sys.argv[1], sys.argv[2]

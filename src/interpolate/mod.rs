@@ -12,6 +12,14 @@
 //!    moving hand seldom moves at a constant speed.
 //! 3. Both frames are read along those flows (bicubic) and blended, each
 //!    by its nearness in time and by whether the pixel is seen in it.
+//! 4. Where the two reads disagree about as much as the frames do in
+//!    place, the flow has not followed the motion (bubbles, spray, blur:
+//!    a forward-backward check passes on a field that is consistently
+//!    wrong), and the frames' plain average is blended in, weighed against
+//!    the reads by the two disagreements over a window of a few pixels
+//!    ([`InterpolateParams::fallback_cells`]). minterpolate's overlapped
+//!    blocks blur such places the same way; a per-pixel flow alone puts
+//!    sharp content in the wrong place.
 //!
 //! Where too few pixels pass the forward-backward check and the luma
 //! histogram changed (a scene cut), the nearer frame is repeated instead.
@@ -35,6 +43,7 @@ use crate::codec::{Frame, Plane};
 use crate::flow::consistency::inconsistent;
 use crate::flow::warp::{bilinear_clamped, sample_bicubic};
 use crate::flow::{Flow, FlowEstimator, FlowOptions, Preset};
+use crate::imgproc::pyramid::blur;
 use crate::raster::plane_to_array;
 use splat::{intermediate, Intermediate, Side};
 
@@ -50,16 +59,24 @@ pub struct InterpolateParams {
     /// ([`histogram_change`]); below it (fast motion within one shot) the
     /// flows are used as they are.
     pub cut_histogram: f64,
+    /// Where the two frames read along the flows disagree (motion the flow
+    /// cannot follow: bubbles, spray, blur), the frames' plain average is
+    /// blended in ([`fallback_shares`]); the window over which the two
+    /// are compared, in cells of [`FALLBACK_CELL`] pixels (Gaussian
+    /// sigma). 0 turns the fallback off.
+    pub fallback_cells: f32,
 }
 
 impl Default for InterpolateParams {
     /// DIS fast; a cut below 40 % consistent pixels with 30 % of the
-    /// histogram moved.
+    /// histogram moved; the fallback compared over a window of 4 pixels'
+    /// sigma.
     fn default() -> InterpolateParams {
         InterpolateParams {
             preset: Preset::Fast,
             cut_below: 0.4,
             cut_histogram: 0.3,
+            fallback_cells: 1.0,
         }
     }
 }
@@ -200,6 +217,12 @@ impl Interpolator {
                 )));
             }
         }
+        if !(0.0..=16.0).contains(&params.fallback_cells) {
+            return Err(InterpolateError::Params(format!(
+                "fallback window {} must be between 0 and 16 cells",
+                params.fallback_cells
+            )));
+        }
         let options = FlowOptions {
             preset: params.preset,
             fine_on_small: true,
@@ -257,8 +280,10 @@ impl Interpolator {
         let mid = intermediate(&side(0), &side(1), t as f32);
         let half = halve(&mid);
         // Luma as the flows saw it (converted once, in `pair`).
-        let y = blend(&motion.luma[0], &motion.luma[1], &mid, t as f32);
-        let chroma = |p: &Plane, q: &Plane| blend(&plane_to_array(p), &plane_to_array(q), &half, t as f32);
+        let window = self.params.fallback_cells;
+        let y = blend(&motion.luma[0], &motion.luma[1], &mid, t as f32, window);
+        let chroma =
+            |p: &Plane, q: &Plane| blend(&plane_to_array(p), &plane_to_array(q), &half, t as f32, window);
         let (u, v) = (chroma(f0.u(), f1.u()), chroma(f0.v(), f1.v()));
         Frame::from_planes(y, u, v).expect("planes of one frame's sizes")
     }
@@ -289,28 +314,176 @@ pub fn histogram_change(a: &Plane, b: &Plane) -> f64 {
     1.0 - common
 }
 
+/// The side of the square cells over which [`fallback_shares`] sums its
+/// measures before smoothing them.
+pub const FALLBACK_CELL: usize = 4;
+
+/// One pixel at time `t`: both frames read along the intermediate flows
+/// and blended (`mc`), the frames' plain average in place (`plain`).
+#[derive(Clone, Copy, Default)]
+struct Read {
+    mc: f32,
+    plain: f32,
+}
+
+/// What [`fallback_shares`] weighs the two reads of a pixel by: the squared
+/// difference of the two frames' reads along the flows where both frames
+/// see the pixel (times `both`, the share seen in both) and the squared
+/// difference of the frames in place (`apart`); summed over cells.
+#[derive(Clone, Copy, Default)]
+struct Disagreement {
+    reads: f32,
+    both: f32,
+    apart: f32,
+}
+
 /// One plane at time `t`: both frames read along the intermediate flows
-/// (bicubic), weighted by nearness in time and by visibility; rows in
-/// parallel.
-fn blend(a: &Array2<f32>, b: &Array2<f32>, mid: &Intermediate, t: f32) -> Plane {
+/// (bicubic), weighted by nearness in time and by visibility, then the
+/// frames' plain average blended in where the reads disagree (over a
+/// window of `window` cells, [`fallback_shares`]; 0: not at all); bands
+/// of a cell's rows in parallel.
+fn blend(a: &Array2<f32>, b: &Array2<f32>, mid: &Intermediate, t: f32, window: f32) -> Plane {
     let (h, w) = a.dim();
+    let c = FALLBACK_CELL;
+    let cw = w.div_ceil(c);
+    let mut reads = vec![Read::default(); w * h];
+    let mut cells = vec![Disagreement::default(); cw * h.div_ceil(c)];
+    reads
+        .par_chunks_mut(w * c)
+        .zip(cells.par_chunks_mut(cw))
+        .enumerate()
+        .for_each(|(band, (rows, cells))| {
+            for (i, read) in rows.iter_mut().enumerate() {
+                let at = [band * c + i / w, i % w];
+                let (r, d) = read_at(a, b, mid, t, at);
+                *read = r;
+                let cell = &mut cells[at[1] / c];
+                cell.reads += d.reads;
+                cell.both += d.both;
+                cell.apart += d.apart;
+            }
+        });
+    let shares = (window > 0.0).then(|| fallback_shares(&cells, cw, window));
     let mut packed = vec![0u8; w * h];
     packed.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        for (x, out) in row.iter_mut().enumerate() {
-            let (fx, fy) = (x as f32, y as f32);
-            let at = [y, x];
-            let s0 = sample_bicubic(a, fx + mid.to0.0[at], fy + mid.to0.1[at]);
-            let s1 = sample_bicubic(b, fx + mid.to1.0[at], fy + mid.to1.1[at]);
-            let (w0, w1) = ((1.0 - t) * mid.seen0[at], t * mid.seen1[at]);
-            let value = if w0 + w1 > 1e-6 {
-                (w0 * s0 + w1 * s1) / (w0 + w1)
-            } else {
-                (1.0 - t) * s0 + t * s1
-            };
-            *out = (value + 0.5).clamp(0.0, 255.0) as u8;
+        let reads = &reads[y * w..(y + 1) * w];
+        let Some(shares) = &shares else {
+            for (out, r) in row.iter_mut().zip(reads) {
+                *out = (r.mc + 0.5).clamp(0.0, 255.0) as u8;
+            }
+            return;
+        };
+        let share_row = shares_of_row(shares, cw, y);
+        for (x, (out, r)) in row.iter_mut().zip(reads).enumerate() {
+            let share = share_row.at(x);
+            *out = (r.mc + share * (r.plain - r.mc) + 0.5).clamp(0.0, 255.0) as u8;
         }
     });
     Plane::from_packed(w, h, &packed).expect("a plane's own size")
+}
+
+/// The shares of cells along one pixel row, between the centres of the
+/// cell rows either side (as bilinear interpolation between cell centres,
+/// the vertical half done once a row).
+struct ShareRow(Vec<f32>);
+
+impl ShareRow {
+    /// The share at pixel column `x`: linear between the centres of the
+    /// cells either side, the edge cells' beyond their centres.
+    #[inline]
+    fn at(&self, x: usize) -> f32 {
+        let c = FALLBACK_CELL;
+        let pos = (x as f32 + 0.5) / c as f32 - 0.5;
+        let last = self.0.len() - 1;
+        let left = (pos.max(0.0) as usize).min(last);
+        let right = (left + 1).min(last);
+        let frac = (pos - left as f32).clamp(0.0, 1.0);
+        self.0[left] + frac * (self.0[right] - self.0[left])
+    }
+}
+
+/// [`ShareRow`] of pixel row `y` from the cells' shares (`cw` a row).
+fn shares_of_row(shares: &[f32], cw: usize, y: usize) -> ShareRow {
+    let c = FALLBACK_CELL;
+    let rows = shares.len() / cw;
+    let pos = (y as f32 + 0.5) / c as f32 - 0.5;
+    let top = (pos.max(0.0) as usize).min(rows - 1);
+    let bottom = (top + 1).min(rows - 1);
+    let frac = (pos - top as f32).clamp(0.0, 1.0);
+    let (a, b) = (
+        &shares[top * cw..(top + 1) * cw],
+        &shares[bottom * cw..(bottom + 1) * cw],
+    );
+    ShareRow(a.iter().zip(b).map(|(&p, &q)| p + frac * (q - p)).collect())
+}
+
+/// [`Read`] and [`Disagreement`] of pixel `at`.
+#[inline]
+fn read_at(
+    a: &Array2<f32>,
+    b: &Array2<f32>,
+    mid: &Intermediate,
+    t: f32,
+    at: [usize; 2],
+) -> (Read, Disagreement) {
+    let (fx, fy) = (at[1] as f32, at[0] as f32);
+    let s0 = sample_bicubic(a, fx + mid.to0.0[at], fy + mid.to0.1[at]);
+    let s1 = sample_bicubic(b, fx + mid.to1.0[at], fy + mid.to1.1[at]);
+    let (w0, w1) = ((1.0 - t) * mid.seen0[at], t * mid.seen1[at]);
+    let mc = if w0 + w1 > 1e-6 {
+        (w0 * s0 + w1 * s1) / (w0 + w1)
+    } else {
+        (1.0 - t) * s0 + t * s1
+    };
+    let both = mid.seen0[at].min(mid.seen1[at]);
+    let apart = a[at] - b[at];
+    let read = Read {
+        mc,
+        plain: (1.0 - t) * a[at] + t * b[at],
+    };
+    let disagreement = Disagreement {
+        reads: both * (s0 - s1) * (s0 - s1),
+        both,
+        apart: apart * apart,
+    };
+    (read, disagreement)
+}
+
+/// Per cell of [`FALLBACK_CELL`] pixels (`cells` in raster order, `cw` a
+/// row): how much of the frames' plain average to take instead of the
+/// reads along the flows. Each is an estimate with an error: where both
+/// frames see a pixel, the reads' mean errs by about half their
+/// difference, and the plain average by about half the frames' difference
+/// in place, so the two are weighed as two independent estimates are for
+/// the least squared error, each by the other's mean squared difference
+/// over a Gaussian window of `window` cells. Where the flow is right the
+/// reads agree to the noise and the share is near 0; where it cannot
+/// follow the motion (bubbles, spray) they differ as much as the frames
+/// do, and the plain average, blurred but never off by a whole
+/// displacement, takes half or more. Cells no pixel of which both frames
+/// see (occlusions, where the reads differ by right) keep the reads.
+fn fallback_shares(cells: &[Disagreement], cw: usize, window: f32) -> Vec<f32> {
+    let grid = |f: fn(&Disagreement) -> f32| {
+        let values = Array2::from_shape_vec((cells.len() / cw, cw), cells.iter().map(f).collect());
+        blur(&values.expect("whole rows of cells"), window)
+    };
+    let (reads, both, apart) = (grid(|d| d.reads), grid(|d| d.both), grid(|d| d.apart));
+    let pixels = (FALLBACK_CELL * FALLBACK_CELL) as f32;
+    ndarray::Zip::from(&reads)
+        .and(&both)
+        .and(&apart)
+        .map_collect(|&d, &m, &a| {
+            // `both` sums shares of pixels: under a hundredth of a pixel's
+            // worth is none.
+            if m < 0.01 {
+                return 0.0;
+            }
+            let reads_err = d / m;
+            let plain_err = a / pixels;
+            reads_err / (reads_err + plain_err + 1e-3)
+        })
+        .into_raw_vec_and_offset()
+        .0
 }
 
 /// The intermediate flows and visibility at 4:2:0 chroma size: 2x2 means,
@@ -379,6 +552,69 @@ mod tests {
         assert!(second_difference(&ahead, &motion((-3.0, -1.0), None, true), 1).is_none());
         let other = Flow::from_fn(4, 6, |_, _| (2.0, 1.0));
         assert!(second_difference(&other, &motion((-3.0, -1.0), None, false), 1).is_none());
+    }
+
+    /// Cells of `n` 4x4 rows and columns, each as given.
+    fn cells(n: usize, reads: f32, both: f32, apart: f32) -> Vec<Disagreement> {
+        vec![Disagreement { reads, both, apart }; n * n]
+    }
+
+    #[test]
+    fn the_plain_average_is_weighed_against_the_reads_by_their_disagreement() {
+        let pixels = (FALLBACK_CELL * FALLBACK_CELL) as f32;
+        // Reads that agree: none of the plain average.
+        let agree = fallback_shares(&cells(6, 0.0, pixels, 100.0 * pixels), 6, 1.0);
+        assert!(agree.iter().all(|&s| s < 1e-4), "{agree:?}");
+        // Reads that differ as much as the frames do: half of it.
+        let alike = fallback_shares(&cells(6, 100.0 * pixels, pixels, 100.0 * pixels), 6, 1.0);
+        assert!(alike.iter().all(|&s| (s - 0.5).abs() < 1e-4), "{alike:?}");
+        // Four times as much: 0.8; frames alike in place: all of it.
+        let worse = fallback_shares(&cells(6, 400.0 * pixels, pixels, 100.0 * pixels), 6, 1.0);
+        assert!(worse.iter().all(|&s| (s - 0.8).abs() < 1e-4), "{worse:?}");
+        let still = fallback_shares(&cells(6, 400.0 * pixels, pixels, 0.0), 6, 1.0);
+        assert!(still.iter().all(|&s| s > 0.99), "{still:?}");
+        // Seen by one frame only (occluded): the reads are kept.
+        let occluded = fallback_shares(&cells(6, 0.0, 0.0, 100.0 * pixels), 6, 1.0);
+        assert!(occluded.iter().all(|&s| s == 0.0), "{occluded:?}");
+    }
+
+    #[test]
+    fn a_wrong_flow_over_a_still_scene_falls_back_to_the_frames() {
+        // Texture that no displacement matches, the same in both frames,
+        // and flows both ways that agree with each other but are wrong.
+        let (w, h) = (64, 48);
+        let texture = Plane::from_fn(w, h, |x, y| ((x * 7919 + y * 104_729) % 251) as u8).unwrap();
+        let grey = Plane::from_fn(w / 2, h / 2, |_, _| 128).unwrap();
+        let frame = Frame::from_planes(texture.clone(), grey.clone(), grey).unwrap();
+        let flow = |(u, v): (f32, f32)| Flow::from_fn(w, h, |_, _| (u, v));
+        let wrong = PairMotion {
+            luma: [plane_to_array(&texture), plane_to_array(&texture)],
+            flow: [flow((6.0, -4.0)), flow((-6.0, 4.0))],
+            occluded: [Array2::from_elem((h, w), false), Array2::from_elem((h, w), false)],
+            acceleration: [None, None],
+            cut: false,
+            consistent: 1.0,
+        };
+        let error = |fallback_cells: f32| {
+            let params = InterpolateParams {
+                fallback_cells,
+                ..InterpolateParams::default()
+            };
+            let made = Interpolator::new(&params)
+                .unwrap()
+                .at(&wrong, &frame, &frame, 0.5);
+            crate::metrics::mse(made.y(), frame.y())
+        };
+        let (with, without) = (error(1.0), error(0.0));
+        assert!(
+            with < 1.0 && without > 1000.0,
+            "MSE {with} with the fallback, {without} without"
+        );
+        assert!(Interpolator::new(&InterpolateParams {
+            fallback_cells: -1.0,
+            ..InterpolateParams::default()
+        })
+        .is_err());
     }
 
     #[test]

@@ -61,9 +61,9 @@ pub struct InterpolateParams {
     pub cut_histogram: f64,
     /// Where the two frames read along the flows disagree (motion the flow
     /// cannot follow: bubbles, spray, blur), the frames' plain average is
-    /// blended in ([`fallback_shares`]); the window over which the two
-    /// are compared, in cells of [`FALLBACK_CELL`] pixels (Gaussian
-    /// sigma). 0 turns the fallback off.
+    /// blended in, weighed against the reads as two estimates with those
+    /// errors; the window over which the two are compared, in cells of
+    /// [`FALLBACK_CELL`] pixels (Gaussian sigma). 0 turns the fallback off.
     pub fallback_cells: f32,
 }
 
@@ -314,8 +314,8 @@ pub fn histogram_change(a: &Plane, b: &Plane) -> f64 {
     1.0 - common
 }
 
-/// The side of the square cells over which [`fallback_shares`] sums its
-/// measures before smoothing them.
+/// The side of the square cells over which the interpolation's fallback
+/// sums its measures before smoothing them.
 pub const FALLBACK_CELL: usize = 4;
 
 /// One pixel at time `t`: both frames read along the intermediate flows

@@ -1,5 +1,12 @@
 use std::process::ExitCode;
 
+// The encoder allocates per macroblock (the candidates' residuals, 1.5 KB
+// each): with mimalloc instead of glibc's allocator, 28 sequences' encodes
+// took 0.969x their time at ultrafast and 0.984x at medium, streams
+// unchanged; peak memory rose (dog_1080p, medium, 2 threads: 59 -> 97 MB).
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() -> ExitCode {
     // Any panic is a bug; say so on one line instead of a backtrace dump.
     std::panic::set_hook(Box::new(|info| {

@@ -329,12 +329,14 @@ struct Read {
 /// What [`fallback_shares`] weighs the two reads of a pixel by: the squared
 /// difference of the two frames' reads along the flows where both frames
 /// see the pixel (times `both`, the share seen in both) and the squared
-/// difference of the frames in place (`apart`); summed over cells.
+/// difference of the frames in place (`apart`); summed over cells, with
+/// their `pixels` (fewer in the last row and column of cells).
 #[derive(Clone, Copy, Default)]
 struct Disagreement {
     reads: f32,
     both: f32,
     apart: f32,
+    pixels: f32,
 }
 
 /// One plane at time `t`: both frames read along the intermediate flows
@@ -361,6 +363,7 @@ fn blend(a: &Array2<f32>, b: &Array2<f32>, mid: &Intermediate, t: f32, window: f
                 cell.reads += d.reads;
                 cell.both += d.both;
                 cell.apart += d.apart;
+                cell.pixels += 1.0;
             }
         });
     let shares = (window > 0.0).then(|| fallback_shares(&cells, cw, window));
@@ -445,6 +448,7 @@ fn read_at(
         reads: both * (s0 - s1) * (s0 - s1),
         both,
         apart: apart * apart,
+        pixels: 1.0,
     };
     (read, disagreement)
 }
@@ -467,19 +471,20 @@ fn fallback_shares(cells: &[Disagreement], cw: usize, window: f32) -> Vec<f32> {
         let values = Array2::from_shape_vec((cells.len() / cw, cw), cells.iter().map(f).collect());
         blur(&values.expect("whole rows of cells"), window)
     };
-    let (reads, both, apart) = (grid(|d| d.reads), grid(|d| d.both), grid(|d| d.apart));
-    let pixels = (FALLBACK_CELL * FALLBACK_CELL) as f32;
+    let (reads, both) = (grid(|d| d.reads), grid(|d| d.both));
+    let (apart, pixels) = (grid(|d| d.apart), grid(|d| d.pixels));
     ndarray::Zip::from(&reads)
         .and(&both)
         .and(&apart)
-        .map_collect(|&d, &m, &a| {
+        .and(&pixels)
+        .map_collect(|&d, &m, &a, &n| {
             // `both` sums shares of pixels: under a hundredth of a pixel's
             // worth is none.
             if m < 0.01 {
                 return 0.0;
             }
             let reads_err = d / m;
-            let plain_err = a / pixels;
+            let plain_err = a / n;
             reads_err / (reads_err + plain_err + 1e-3)
         })
         .into_raw_vec_and_offset()
@@ -556,7 +561,16 @@ mod tests {
 
     /// Cells of `n` 4x4 rows and columns, each as given.
     fn cells(n: usize, reads: f32, both: f32, apart: f32) -> Vec<Disagreement> {
-        vec![Disagreement { reads, both, apart }; n * n]
+        let pixels = (FALLBACK_CELL * FALLBACK_CELL) as f32;
+        vec![
+            Disagreement {
+                reads,
+                both,
+                apart,
+                pixels
+            };
+            n * n
+        ]
     }
 
     #[test]
@@ -581,8 +595,9 @@ mod tests {
     #[test]
     fn a_wrong_flow_over_a_still_scene_falls_back_to_the_frames() {
         // Texture that no displacement matches, the same in both frames,
-        // and flows both ways that agree with each other but are wrong.
-        let (w, h) = (64, 48);
+        // and flows both ways that agree with each other but are wrong;
+        // sides that leave the last cells part-filled.
+        let (w, h) = (66, 50);
         let texture = Plane::from_fn(w, h, |x, y| ((x * 7919 + y * 104_729) % 251) as u8).unwrap();
         let grey = Plane::from_fn(w / 2, h / 2, |_, _| 128).unwrap();
         let frame = Frame::from_planes(texture.clone(), grey.clone(), grey).unwrap();

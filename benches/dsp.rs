@@ -11,7 +11,7 @@ use mocomp::codec::cpu;
 use mocomp::codec::dsp::ipred::{Edges, Edges8, Intra4x4Mode, IntraMode, Neighbours, IPRED};
 use mocomp::codec::dsp::itx::ITX;
 use mocomp::codec::dsp::lf::LF;
-use mocomp::codec::dsp::mc::MC;
+use mocomp::codec::dsp::mc::{LUMA_TAPS, MC};
 use mocomp::codec::dsp::PerLevel;
 use mocomp::codec::residual::{BlockClass, ResidualCoder};
 use mocomp::codec::Plane;
@@ -58,10 +58,10 @@ fn codec_tables(c: &mut Criterion) {
     let mut out = vec![0u8; 64 * 64];
     levels(c, "mc", &MC, |g, t, l| {
         bench(g, "luma_16x16_hv", l, || {
-            (t.luma)(black_box(&src), 80, (1, 3), (16, 16), &mut out, 16)
+            (t.luma)(&LUMA_TAPS, black_box(&src), 80, (1, 3), (16, 16), &mut out, 16)
         });
         bench(g, "luma_8x8_h", l, || {
-            (t.luma)(black_box(&src), 80, (2, 0), (8, 8), &mut out, 8)
+            (t.luma)(&LUMA_TAPS, black_box(&src), 80, (2, 0), (8, 8), &mut out, 8)
         });
         bench(g, "chroma_8x8", l, || {
             (t.chroma)(black_box(&src), 80, (3, 5), (8, 8), &mut out, 8)

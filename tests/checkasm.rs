@@ -13,7 +13,7 @@ use mocomp::codec::cpu::{self, CpuLevel};
 use mocomp::codec::dsp::ipred::{Edges, Edges8, Intra4x4Mode, IntraMode, IpredDsp, Neighbours, IPRED};
 use mocomp::codec::dsp::itx::{ItxDsp, ITX};
 use mocomp::codec::dsp::lf::{LfDsp, LF};
-use mocomp::codec::dsp::mc::{McDsp, MC};
+use mocomp::codec::dsp::mc::{McDsp, LUMA_TAPS, MC, SMOOTH_LUMA_TAPS};
 use mocomp::codec::dsp::PerLevel;
 use mocomp::codec::residual::{BlockClass, ResidualCoder};
 use mocomp::codec::Plane;
@@ -79,10 +79,12 @@ fn motion_compensation() {
         for data in sample_sets(80 * 80, 1) {
             for (fx, fy) in (0..4).flat_map(|x| (0..4).map(move |y| (x, y))) {
                 for (w, h) in [(16, 16), (8, 8), (4, 4), (16, 8), (3, 5), (64, 64)] {
-                    let (mut a, mut b) = (vec![0u8; 64 * 64], vec![0u8; 64 * 64]);
-                    luma(&data[1..], 80, (fx, fy), (w, h), &mut a, 64);
-                    (s.luma)(&data[1..], 80, (fx, fy), (w, h), &mut b, 64);
-                    assert_eq!(a, b, "{isa} luma {w}x{h} phase ({fx}, {fy})");
+                    for taps in [&LUMA_TAPS, &SMOOTH_LUMA_TAPS] {
+                        let (mut a, mut b) = (vec![0u8; 64 * 64], vec![0u8; 64 * 64]);
+                        luma(taps, &data[1..], 80, (fx, fy), (w, h), &mut a, 64);
+                        (s.luma)(taps, &data[1..], 80, (fx, fy), (w, h), &mut b, 64);
+                        assert_eq!(a, b, "{isa} luma {w}x{h} phase ({fx}, {fy}) {taps:?}");
+                    }
                 }
             }
             for (fx, fy) in (0..8).flat_map(|x| (0..8).map(move |y| (x, y))) {

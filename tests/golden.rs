@@ -36,15 +36,17 @@ fn stream(sample: &str, frames: usize, config: EncoderConfig) -> Vec<u8> {
 
 #[test]
 fn streams_are_the_pinned_ones() {
+    // Block frames' hashes taken again when their headers gained the
+    // luma filter bit and the encoder its per-frame choice of filter.
     let cases: [(&str, &str, u8, &str, u64); 8] = [
-        ("synth_qcif.y4m", "zero", 30, "fast", 0x8cfbbd03219c0814),
-        ("synth_qcif.y4m", "block", 27, "fast", 0x30615f99b2bc25b4),
-        ("synth_qcif.y4m", "block:esa", 22, "full", 0x0cd0d2745f407a5c),
-        ("synth_qcif.y4m", "flow-block:lk", 32, "fast", 0xe161c9e6eefe2ccd),
+        ("synth_qcif.y4m", "zero", 30, "fast", 0xf3b11299e119e972),
+        ("synth_qcif.y4m", "block", 27, "fast", 0x84133c77301c2e6e),
+        ("synth_qcif.y4m", "block:esa", 22, "full", 0xe777e7fc1fc9b6d5),
+        ("synth_qcif.y4m", "flow-block:lk", 32, "fast", 0x3d095858a647676d),
         ("synth_qcif.y4m", "dense-lk", 32, "fast", 0x12fe5b56e8e719c5),
         ("tree_qcif.y4m", "obmc", 27, "fast", 0x831daff166248e04),
-        ("tree_qcif.y4m", "block:hexbs", 37, "fast", 0x952a1c875c82e6f4),
-        ("tree_qcif.y4m", "flow-block:dis", 30, "fast", 0x7e75a0ad4e9dd2d7),
+        ("tree_qcif.y4m", "block:hexbs", 37, "fast", 0xd74978fb7803bdd5),
+        ("tree_qcif.y4m", "flow-block:dis", 30, "fast", 0xbc656df1d3844a80),
     ];
     let print = std::env::var("MOCOMP_GOLDEN").is_ok_and(|v| v == "print");
     let mut wrong = Vec::new();

@@ -1,9 +1,11 @@
 //! Sub-pixel interpolation for motion compensation (normative).
 //!
-//! * Luma: quarter-pel, HEVC's separable 8-tap filters (H.265 8.5.3.3.3.1).
-//!   A horizontal pass keeps full precision (gain 64), a vertical pass
-//!   divides by 64, and the result is rounded `(v + 32) >> 6` and clipped
-//!   to 0..=255. Integer positions are plain copies.
+//! * Luma: quarter-pel, separable 8-tap filters, one of two that each P
+//!   frame's header picks ([`LumaFilter`]): HEVC's (H.265 8.5.3.3.3.1) or
+//!   H.264's 6-tap shape. A horizontal pass keeps full precision (gain
+//!   64), a vertical pass divides by 64, and the result is rounded
+//!   `(v + 32) >> 6` and clipped to 0..=255. Integer positions are plain
+//!   copies.
 //! * Chroma: bilinear at 1/8 pel (as H.264 8.4.2.2.2):
 //!   `((8-fx)(8-fy) A + fx(8-fy) B + (8-fx)fy C + fx fy D + 32) >> 6`.
 //!   A luma vector in quarter-pel units is the chroma vector in eighth-pel
@@ -16,18 +18,61 @@
 //! block size plus 8 (checked).
 //!
 //! ```
-//! use mocomp_codec::interp::predict_luma;
+//! use mocomp_codec::interp::{predict_luma, LumaFilter};
 //! use mocomp_codec::picture::Plane;
 //! let reference = Plane::from_fn(32, 32, |x, _| (x * 4) as u8).unwrap();
 //! let mut out = [0u8; 16];
 //! // Half a pixel to the right of (8, 8) on a ramp of slope 4: +2.
-//! predict_luma(&reference, 8, 8, 2, 0, 4, 4, &mut out, 4);
+//! predict_luma(LumaFilter::Sharp, &reference, 8, 8, 2, 0, 4, 4, &mut out, 4);
 //! assert_eq!(out[0], 34);
 //! ```
 
 use crate::dsp::mc::{mc, McDsp, TAPS_BEFORE};
-pub use crate::dsp::mc::{LUMA_TAPS, MAX_BLOCK};
+pub use crate::dsp::mc::{LumaTaps, LUMA_TAPS, MAX_BLOCK, SMOOTH_LUMA_TAPS};
 use crate::picture::Plane;
+
+/// The luma interpolation filter of a P frame (its header's `luma_filter`
+/// bit, FORMAT.md section 3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum LumaFilter {
+    /// HEVC's 8-tap filter ([`LUMA_TAPS`]): the sharper, for clean
+    /// detailed pictures.
+    #[default]
+    Sharp,
+    /// H.264's 6-tap shape ([`SMOOTH_LUMA_TAPS`]): the better prediction
+    /// where the camera adds noise and blur.
+    Smooth,
+}
+
+impl LumaFilter {
+    /// Both, in the order of their header codes.
+    pub const ALL: [LumaFilter; 2] = [LumaFilter::Sharp, LumaFilter::Smooth];
+
+    /// Its taps.
+    pub fn taps(self) -> &'static LumaTaps {
+        match self {
+            LumaFilter::Sharp => &LUMA_TAPS,
+            LumaFilter::Smooth => &SMOOTH_LUMA_TAPS,
+        }
+    }
+
+    /// Its header code.
+    pub fn code(self) -> u64 {
+        match self {
+            LumaFilter::Sharp => 0,
+            LumaFilter::Smooth => 1,
+        }
+    }
+
+    /// The filter of a header code (one bit).
+    pub fn from_code(code: u64) -> LumaFilter {
+        if code == 0 {
+            LumaFilter::Sharp
+        } else {
+            LumaFilter::Smooth
+        }
+    }
+}
 
 /// Samples the 8-tap filter reads before and after the block.
 const BEFORE: isize = TAPS_BEFORE as isize;
@@ -69,10 +114,12 @@ fn check_block(reference: &Plane, w: usize, h: usize, out: &[u8], out_stride: us
 }
 
 /// Luma prediction of the `w x h` block at (x, y) displaced by the
-/// quarter-pel vector (mvx, mvy), into `out` (row stride `out_stride`),
-/// by the motion compensation kernels of the CPU level in force.
+/// quarter-pel vector (mvx, mvy) through `filter`, into `out` (row stride
+/// `out_stride`), by the motion compensation kernels of the CPU level in
+/// force.
 #[allow(clippy::too_many_arguments)]
 pub fn predict_luma(
+    filter: LumaFilter,
     reference: &Plane,
     x: isize,
     y: isize,
@@ -83,12 +130,20 @@ pub fn predict_luma(
     out: &mut [u8],
     out_stride: usize,
 ) {
-    predict_luma_with(mc(), reference, (x, y), (mvx, mvy), (w, h), out, out_stride);
+    predict_luma_with(
+        (mc(), filter),
+        reference,
+        (x, y),
+        (mvx, mvy),
+        (w, h),
+        out,
+        out_stride,
+    );
 }
 
 /// [`predict_luma`] with the kernels of `dsp`.
 pub fn predict_luma_with(
-    dsp: &McDsp,
+    (dsp, filter): (&McDsp, LumaFilter),
     reference: &Plane,
     (x, y): (isize, isize),
     (mvx, mvy): (i32, i32),
@@ -103,6 +158,7 @@ pub fn predict_luma_with(
     let py = clamp_into_border(y + (mvy >> 2) as isize, h, height, pad, BEFORE, AFTER);
     let origin = reference.index(px - BEFORE, py - BEFORE);
     (dsp.luma)(
+        filter.taps(),
         &reference.data()[origin..],
         reference.stride(),
         (fx, fy),
@@ -167,7 +223,14 @@ mod tests {
     /// The luma equations written directly: every sample read through
     /// `pixel_clamped` (an infinitely extended picture), no border, no
     /// separable pass.
-    fn reference_luma(p: &Plane, x: isize, y: isize, mvx: i32, mvy: i32, w: usize, h: usize) -> Vec<u8> {
+    fn reference_luma(
+        filter: LumaFilter,
+        p: &Plane,
+        (x, y): (isize, isize),
+        (mvx, mvy): (i32, i32),
+        (w, h): (usize, usize),
+    ) -> Vec<u8> {
+        let taps = filter.taps();
         let (ix, iy) = (x + (mvx >> 2) as isize, y + (mvy >> 2) as isize);
         let (fx, fy) = ((mvx & 3) as usize, (mvy & 3) as usize);
         let mut out = Vec::with_capacity(w * h);
@@ -178,24 +241,24 @@ mod tests {
                     sample(0, 0)
                 } else if fy == 0 {
                     ((0..8)
-                        .map(|k| i64::from(LUMA_TAPS[fx][k]) * sample(k as isize - 3, 0))
+                        .map(|k| i64::from(taps[fx][k]) * sample(k as isize - 3, 0))
                         .sum::<i64>()
                         + 32)
                         >> 6
                 } else if fx == 0 {
                     ((0..8)
-                        .map(|k| i64::from(LUMA_TAPS[fy][k]) * sample(0, k as isize - 3))
+                        .map(|k| i64::from(taps[fy][k]) * sample(0, k as isize - 3))
                         .sum::<i64>()
                         + 32)
                         >> 6
                 } else {
                     let hpass = |dy: isize| {
                         (0..8)
-                            .map(|k| i64::from(LUMA_TAPS[fx][k]) * sample(k as isize - 3, dy))
+                            .map(|k| i64::from(taps[fx][k]) * sample(k as isize - 3, dy))
                             .sum::<i64>()
                     };
                     let v = (0..8)
-                        .map(|k| i64::from(LUMA_TAPS[fy][k]) * hpass(k as isize - 3))
+                        .map(|k| i64::from(taps[fy][k]) * hpass(k as isize - 3))
                         .sum::<i64>()
                         >> 6;
                     (v + 32) >> 6
@@ -231,21 +294,30 @@ mod tests {
     }
 
     #[test]
-    fn taps_sum_to_64_and_half_pel_is_symmetric() -> Result<(), PictureError> {
-        for t in LUMA_TAPS {
-            assert_eq!(t.iter().sum::<i32>(), 64);
+    fn taps_sum_to_64_and_half_pel_is_symmetric() {
+        for filter in LumaFilter::ALL {
+            let taps = filter.taps();
+            for t in taps {
+                assert_eq!(t.iter().sum::<i32>(), 64);
+            }
+            let half = taps[2];
+            assert_eq!(
+                half,
+                [half[7], half[6], half[5], half[4], half[3], half[2], half[1], half[0]]
+            );
+            // The quarter and three-quarter filters mirror each other.
+            let (q, tq) = (taps[1], taps[3]);
+            for k in 0..8 {
+                assert_eq!(q[k], tq[7 - k], "{filter:?}");
+            }
+            assert_eq!(LumaFilter::from_code(filter.code()), filter);
         }
-        let half = LUMA_TAPS[2];
-        assert_eq!(
-            half,
-            [half[7], half[6], half[5], half[4], half[3], half[2], half[1], half[0]]
-        );
-        // The quarter and three-quarter filters mirror each other.
-        let (q, tq) = (LUMA_TAPS[1], LUMA_TAPS[3]);
+        // H.264's quarter-pel sample: the mean of the whole sample and the
+        // half-pel one, here without the rounding between.
+        let (whole, half) = (SMOOTH_LUMA_TAPS[0], SMOOTH_LUMA_TAPS[2]);
         for k in 0..8 {
-            assert_eq!(q[k], tq[7 - k]);
+            assert_eq!(2 * SMOOTH_LUMA_TAPS[1][k], whole[k] + half[k]);
         }
-        Ok(())
     }
 
     #[test]
@@ -258,9 +330,11 @@ mod tests {
                     for level in crate::cpu::available() {
                         let (dsp, scalar) = (MC.at(level), MC.at(CpuLevel::Scalar));
                         let at = ((x, y), (mvx, mvy), (w, h));
-                        predict_luma_with(dsp, &p, at.0, at.1, at.2, &mut a, w);
-                        predict_luma_with(scalar, &p, at.0, at.1, at.2, &mut b, w);
-                        assert_eq!(a[..w * h], b[..w * h], "{level:?} mv ({mvx},{mvy}) {w}x{h}");
+                        for f in LumaFilter::ALL {
+                            predict_luma_with((dsp, f), &p, at.0, at.1, at.2, &mut a, w);
+                            predict_luma_with((scalar, f), &p, at.0, at.1, at.2, &mut b, w);
+                            assert_eq!(a[..w * h], b[..w * h], "{level:?} {f:?} mv ({mvx},{mvy}) {w}x{h}");
+                        }
                         predict_chroma_with(dsp, &p, at.0, at.1, at.2, &mut a, w);
                         predict_chroma_with(scalar, &p, at.0, at.1, at.2, &mut b, w);
                         assert_eq!(
@@ -282,12 +356,14 @@ mod tests {
         for mvy in -9..=9 {
             for mvx in -9..=9 {
                 for (x, y, w, h) in [(0, 0, 16, 16), (21, 13, 16, 16), (5, 7, 4, 8), (33, 25, 8, 4)] {
-                    predict_luma(&p, x, y, mvx, mvy, w, h, &mut out, w);
-                    assert_eq!(
-                        out[..w * h],
-                        reference_luma(&p, x, y, mvx, mvy, w, h)[..],
-                        "luma mv ({mvx},{mvy}) at ({x},{y})"
-                    );
+                    for f in LumaFilter::ALL {
+                        predict_luma(f, &p, x, y, mvx, mvy, w, h, &mut out, w);
+                        assert_eq!(
+                            out[..w * h],
+                            reference_luma(f, &p, (x, y), (mvx, mvy), (w, h))[..],
+                            "{f:?} luma mv ({mvx},{mvy}) at ({x},{y})"
+                        );
+                    }
                 }
             }
         }
@@ -311,16 +387,20 @@ mod tests {
     fn integer_vectors_copy_and_flat_pictures_stay_flat() -> Result<(), PictureError> {
         let p = noise_plane(40, 40, 1)?;
         let mut out = [0u8; 64];
-        predict_luma(&p, 8, 8, 4 * 3, 4 * -2, 8, 8, &mut out, 8);
-        for r in 0..8 {
-            for c in 0..8 {
-                assert_eq!(out[r * 8 + c], p.get(11 + c, 6 + r));
+        for f in LumaFilter::ALL {
+            predict_luma(f, &p, 8, 8, 4 * 3, 4 * -2, 8, 8, &mut out, 8);
+            for r in 0..8 {
+                for c in 0..8 {
+                    assert_eq!(out[r * 8 + c], p.get(11 + c, 6 + r));
+                }
             }
         }
         let flat = Plane::filled(20, 20, 173)?;
         for phase in 0..16 {
-            predict_luma(&flat, 2, 2, phase % 4 + 4, phase / 4 - 8, 8, 8, &mut out, 8);
-            assert!(out.iter().all(|&v| v == 173));
+            for f in LumaFilter::ALL {
+                predict_luma(f, &flat, 2, 2, phase % 4 + 4, phase / 4 - 8, 8, 8, &mut out, 8);
+                assert!(out.iter().all(|&v| v == 173));
+            }
             predict_chroma(&flat, 2, 2, phase % 8, phase / 2 - 3, 8, 8, &mut out, 8);
             assert!(out.iter().all(|&v| v == 173));
         }
@@ -335,8 +415,10 @@ mod tests {
         ) {
             let p = noise_plane(45, 38, 11)?;
             let mut out = vec![0u8; size * size];
-            predict_luma(&p, x, y, mvx, mvy, size, size, &mut out, size);
-            prop_assert_eq!(&out, &reference_luma(&p, x, y, mvx, mvy, size, size));
+            for f in LumaFilter::ALL {
+                predict_luma(f, &p, x, y, mvx, mvy, size, size, &mut out, size);
+                prop_assert_eq!(&out, &reference_luma(f, &p, (x, y), (mvx, mvy), (size, size)));
+            }
             let c = noise_plane(23, 19, 5)?;
             let cs = (size / 2).max(2);
             let mut out = vec![0u8; cs * cs];

@@ -21,7 +21,7 @@
 //! assert!((0..16).all(|n| w[n] + w[n + 16] == 64));
 //! ```
 
-use crate::interp::{predict_chroma, predict_luma};
+use crate::interp::{predict_chroma, predict_luma, LumaFilter};
 use crate::mv::Mv;
 use crate::picture::Plane;
 
@@ -84,7 +84,19 @@ pub fn predict_block(
                 if chroma {
                     predict_chroma(reference, px, py, mv.x, mv.y, half, half, &mut preds[k], half);
                 } else {
-                    predict_luma(reference, px, py, mv.x, mv.y, half, half, &mut preds[k], half);
+                    // OBMC frames interpolate with the sharp filter (FORMAT.md section 3).
+                    predict_luma(
+                        LumaFilter::Sharp,
+                        reference,
+                        px,
+                        py,
+                        mv.x,
+                        mv.y,
+                        half,
+                        half,
+                        &mut preds[k],
+                        half,
+                    );
                 }
             }
             for v in 0..half {
@@ -168,7 +180,7 @@ mod tests {
         let around = [[Some(mv); 3]; 3];
         let (mut obmc, mut plain) = ([0u8; 256], [0u8; 256]);
         predict_block(&p, false, 16, 16, 16, mv, &around, &mut obmc, 16);
-        predict_luma(&p, 16, 16, mv.x, mv.y, 16, 16, &mut plain, 16);
+        predict_luma(LumaFilter::Sharp, &p, 16, 16, mv.x, mv.y, 16, 16, &mut plain, 16);
         assert_eq!(obmc, plain);
         // Missing neighbours lend the block's own vector.
         let alone = [[None; 3]; 3];

@@ -8,7 +8,7 @@
 
 use crate::deblock::{deblock_frame, MbEdgeInfo};
 use crate::dsp::itx::itx;
-use crate::interp::{predict_chroma, predict_luma};
+use crate::interp::{predict_chroma, predict_luma, LumaFilter};
 use crate::intra::{self, Neighbours};
 use crate::intra4x4::{self, Intra4x4Mode, LumaIntra};
 use crate::intra8x8;
@@ -51,6 +51,8 @@ pub struct InterContext<'a> {
     pub references: &'a [&'a Frame],
     /// The frame's motion tool.
     pub tool: MotionTool,
+    /// The luma interpolation filter of block frames.
+    pub luma_filter: LumaFilter,
     /// Every macroblock's vectors (`None` for intra), for OBMC.
     pub vectors: &'a [MbVectors],
     /// The whole reference warped by the grid, for grid frames.
@@ -226,7 +228,7 @@ pub fn predict_inter(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mv: RefMv
 /// macroblock (mb_x, mb_y), and of its chroma, with vector `mv`, into the
 /// same place of `pred`.
 fn predict_rect(
-    reference: &Frame,
+    (reference, filter): (&Frame, LumaFilter),
     (mb_x, mb_y): (usize, usize),
     (bx, by, w, h): (usize, usize, usize, usize),
     mv: Mv,
@@ -234,6 +236,7 @@ fn predict_rect(
 ) {
     let (x, y) = ((mb_x * MB + bx) as isize, (mb_y * MB + by) as isize);
     predict_luma(
+        filter,
         reference.y(),
         x,
         y,
@@ -287,7 +290,13 @@ pub fn predict_inter_blocks(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mv
             for &(k, bx, by, w, h) in rects {
                 let m = mvs[k];
                 let reference = ctx.references[usize::from(m.ref_idx)];
-                predict_rect(reference, (mb_x, mb_y), (bx, by, w, h), m.mv, &mut pred);
+                predict_rect(
+                    (reference, ctx.luma_filter),
+                    (mb_x, mb_y),
+                    (bx, by, w, h),
+                    m.mv,
+                    &mut pred,
+                );
             }
         }
         MotionTool::Obmc => {
@@ -481,6 +490,7 @@ pub fn reconstruct_frame(
                 let ctx = InterContext {
                     references: &list,
                     tool: header.tool,
+                    luma_filter: header.luma_filter,
                     vectors: &vectors,
                     warped: warped.as_ref(),
                     mb_cols: cols,

@@ -28,7 +28,7 @@
 //! assert_eq!(g.pixel_motion(16, 0), Mv::new(16, 0));
 //! ```
 
-use crate::interp::{predict_chroma, predict_luma, MAX_BLOCK};
+use crate::interp::{predict_chroma, predict_luma, LumaFilter, MAX_BLOCK};
 use crate::mv::Mv;
 use crate::picture::{check_size, Frame, PictureError, Plane};
 
@@ -139,7 +139,10 @@ pub fn warp_frame(reference: &Frame, grid: &MotionGrid, out: &mut Frame) {
         }
         let row = out.plane_mut(0).row_mut(y);
         for_runs(&motion, longest_run(reference.y()), |start, len, mv| {
+            // Grid frames interpolate with the sharp filter (FORMAT.md
+            // section 3).
             predict_luma(
+                LumaFilter::Sharp,
                 reference.y(),
                 start as isize,
                 y as isize,
@@ -282,6 +285,7 @@ mod tests {
                     for bx in (0..w).step_by(16) {
                         let mut buf = [0u8; 16 * 8];
                         predict_luma(
+                            LumaFilter::Sharp,
                             reference.y(),
                             bx as isize,
                             by as isize,

@@ -6,6 +6,7 @@
 use mocomp_codec::deblock::{deblock_frame, MbEdgeInfo};
 use mocomp_codec::decoder::{decode, DecodeError};
 use mocomp_codec::entropy::RangeEncoder;
+use mocomp_codec::interp::LumaFilter;
 use mocomp_codec::intra::IntraMode;
 use mocomp_codec::intra4x4::{Intra4x4Mode, LumaIntra, CODING_ORDER};
 use mocomp_codec::modes::{MbMode, ModeCoder, VectorSyntax};
@@ -171,6 +172,7 @@ fn i_header(qp: u8) -> FrameHeader {
         refs: 1,
         deblock: false,
         weights: Weights::NONE,
+        luma_filter: LumaFilter::Sharp,
     }
 }
 
@@ -182,6 +184,7 @@ fn p_header(qp: u8, tool: MotionTool) -> FrameHeader {
         refs: 1,
         deblock: false,
         weights: Weights::NONE,
+        luma_filter: LumaFilter::Sharp,
     }
 }
 
@@ -432,6 +435,7 @@ fn code_frame(
                 let ctx = InterContext {
                     references: &list,
                     tool: header.tool,
+                    luma_filter: header.luma_filter,
                     vectors: &vectors,
                     warped: warped.as_ref(),
                     mb_cols: cols,
@@ -561,6 +565,12 @@ fn coded_stream(width: usize, height: usize, qp: u8) -> (Vec<u8>, Vec<Frame>) {
                 ]),
                 3 | 4 => Weights([Some(PlaneWeight { scale: 40, offset: 3 }), None, None]),
                 _ => Weights::NONE,
+            },
+            // The last block frame interpolates with the smooth filter.
+            luma_filter: if t == 4 {
+                LumaFilter::Smooth
+            } else {
+                LumaFilter::Sharp
             },
         };
         let g = matches!(tool, MotionTool::Grid(_)).then(|| grid.clone());

@@ -8,8 +8,8 @@ use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::encode::{
-    encode_sequence, EncodeError, EncoderConfig, EncoderPreset, FlowMethod, FrameSource, FrameStats,
-    ModeDecision, Partitions, SequenceInfo, Summary, DEFAULT_IPRATIO,
+    encode_sequence, EncodeError, EncoderConfig, EncoderPreset, FilterChoice, FlowMethod, FrameSource,
+    FrameStats, ModeDecision, Partitions, SequenceInfo, Summary, DEFAULT_IPRATIO,
 };
 use crate::io::y4m::{Y4mReader, Y4mWriter};
 use crate::io::OutputFile;
@@ -129,6 +129,11 @@ pub struct ToolArgs {
     /// (no 8x8 intra either).
     #[arg(long = "no-8x8dct")]
     pub no_8x8dct: bool,
+    /// Luma interpolation of `block` P frames: auto (each frame the filter
+    /// that predicted the frame before better), sharp (HEVC's 8-tap) or
+    /// smooth (H.264's 6-tap shape) [default: auto].
+    #[arg(long, value_name = "auto|sharp|smooth")]
+    pub luma_filter: Option<FilterChoice>,
     /// P frames' macroblock partitions, as x264's --partitions: all, none,
     /// or a list of p8x8 (16x8, 8x16 and 8x8 inter partitions), i8x8
     /// (intra luma in 8x8 blocks, with the 8x8 transform on) and i4x4
@@ -164,6 +169,7 @@ impl ToolArgs {
         o.extend(self.partitions.map(|p| ("partitions", p.to_string())));
         o.extend(self.refs.map(|n| ("refs", n.to_string())));
         o.extend(self.subpel_rd.map(|b| ("subpel-rd", on(b))));
+        o.extend(self.luma_filter.map(|f| ("luma-filter", f.name().to_string())));
         o
     }
 

@@ -874,6 +874,7 @@ mod tests {
             decision: ModeDecision::Full,
             deblock: true,
             weights: Weights::NONE,
+            luma_filter: crate::codec::interp::LumaFilter::Sharp,
             partitions,
             subpel_rd: false,
             fast_pskip,

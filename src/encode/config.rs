@@ -3,6 +3,7 @@
 use std::fmt;
 use std::str::FromStr;
 
+use crate::codec::interp::LumaFilter;
 use crate::codec::modes::MAX_REFS;
 use crate::codec::transform::MAX_QP;
 pub use crate::flow::FlowMethod;
@@ -238,6 +239,42 @@ impl FromStr for ModeDecision {
     }
 }
 
+/// Which luma interpolation filter block P frames predict with (FORMAT.md
+/// section 3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum FilterChoice {
+    /// Each frame the filter that predicted the frame before better
+    /// (sharp for the first): camera noise and blur favour the smooth one,
+    /// clean detail the sharp one.
+    #[default]
+    Auto,
+    /// Always this one.
+    Fixed(LumaFilter),
+}
+
+impl FilterChoice {
+    /// `auto`, `sharp` or `smooth`.
+    pub fn name(self) -> &'static str {
+        match self {
+            FilterChoice::Auto => "auto",
+            FilterChoice::Fixed(LumaFilter::Sharp) => "sharp",
+            FilterChoice::Fixed(LumaFilter::Smooth) => "smooth",
+        }
+    }
+}
+
+impl FromStr for FilterChoice {
+    type Err = String;
+    fn from_str(s: &str) -> Result<FilterChoice, String> {
+        match s {
+            "auto" => Ok(FilterChoice::Auto),
+            "sharp" => Ok(FilterChoice::Fixed(LumaFilter::Sharp)),
+            "smooth" => Ok(FilterChoice::Fixed(LumaFilter::Smooth)),
+            _ => Err(format!("unknown luma filter '{s}' (auto, sharp or smooth)")),
+        }
+    }
+}
+
 /// A point of speed against compression, as x264's `--preset` (its names,
 /// fastest first): each sets the coding tools' options (the predictor's
 /// search pattern stays the predictor's own); options given after it
@@ -385,6 +422,8 @@ pub struct EncoderConfig {
     /// skip holds (x264's rule below `--subme 3`, which probes beside any
     /// skipped neighbour of four). Needs `fast_pskip`.
     pub early_pskip: bool,
+    /// The luma interpolation filter of `block` P frames.
+    pub luma_filter: FilterChoice,
     /// Whether [`super::Encoder::encode`] gives back each frame's
     /// reconstruction ([`super::EncodedFrame::recon`]; on by default). It
     /// is a copy of the visible picture a frame (2 % of ultrafast's
@@ -498,6 +537,7 @@ impl Default for EncoderConfig {
             subpel_rd: false,
             fast_pskip: true,
             early_pskip: true,
+            luma_filter: FilterChoice::Auto,
             reconstruction: true,
         }
     }
@@ -695,6 +735,12 @@ impl EncoderConfig {
     /// How many references P frames may predict from (x264's `--ref`).
     pub fn refs(mut self, refs: u8) -> EncoderConfig {
         self.refs = refs;
+        self
+    }
+
+    /// The luma interpolation filter of `block` P frames.
+    pub fn luma_filter(mut self, choice: FilterChoice) -> EncoderConfig {
+        self.luma_filter = choice;
         self
     }
 

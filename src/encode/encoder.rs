@@ -6,7 +6,8 @@
 use std::time::Instant;
 
 use super::camera::CameraMotion;
-use super::config::{EncoderConfig, Predictor};
+use super::config::{EncoderConfig, FilterChoice, Predictor};
+use super::filter::FilterChooser;
 use super::macroblock::MbCoder;
 use super::motion::MotionAnalyser;
 use super::slice::{self, CodedFrame};
@@ -48,6 +49,8 @@ pub struct Encoder {
     spare_weighted: Option<Frame>,
     /// Contexts carried from frame to frame, as the decoder carries them.
     entropy: EntropyState,
+    /// The luma filter of the next block P frame.
+    filter: FilterChooser,
     index: usize,
 }
 
@@ -96,6 +99,7 @@ impl Encoder {
             spare_source: None,
             spare_weighted: None,
             entropy: EntropyState::new(),
+            filter: FilterChooser::default(),
             index: 0,
         })
     }
@@ -341,8 +345,11 @@ impl Encoder {
         // Weights apply to reference 0 alone (FORMAT.md section 12).
         let mut references = vec![reference];
         references.extend(&self.references[1..]);
+        let block = tool == MotionTool::Block;
+        let luma_filter = self.filter.next(self.config.luma_filter);
         let inputs = slice::InterInputs {
-            references,
+            references: references.clone(),
+            luma_filter,
             motion,
             tool,
             decision: self.config.decision,
@@ -354,6 +361,9 @@ impl Encoder {
             early_pskip: self.config.early_pskip,
         };
         let coded = slice::code_inter(&self.seq, &self.coder, src, inputs, &mut self.entropy, recon)?;
+        if block && self.config.luma_filter == FilterChoice::Auto {
+            self.filter.learn(src, &references, &coded.vectors, self.index);
+        }
         if self.analyser.searches_in_decision() {
             let mvs = coded
                 .vectors

@@ -41,6 +41,7 @@ mod camera;
 mod config;
 pub mod dsp;
 mod encoder;
+mod filter;
 mod intra4x4;
 mod intra8x8;
 mod macroblock;
@@ -58,8 +59,8 @@ mod weights;
 use std::io::Write;
 
 pub use config::{
-    EncoderConfig, EncoderPreset, FlowMethod, ModeDecision, Partitions, Predictor, SearchSettings,
-    DEFAULT_GRID, DEFAULT_IPRATIO, DEFAULT_REFINE,
+    EncoderConfig, EncoderPreset, FilterChoice, FlowMethod, ModeDecision, Partitions, Predictor,
+    SearchSettings, DEFAULT_GRID, DEFAULT_IPRATIO, DEFAULT_REFINE,
 };
 pub use encoder::Encoder;
 pub use params::OPTIONS;

@@ -23,7 +23,7 @@ use crate::metrics::{Metric, Metrics};
 
 /// Every option [`EncoderConfig::set`] takes, with what its value is
 /// (names as `mocomp encode` spells them; `_` may stand for `-`).
-pub const OPTIONS: [(&str, &str); 23] = [
+pub const OPTIONS: [(&str, &str); 24] = [
     ("qp", "quantisation parameter, 0..=51"),
     ("gop", "I-frame period (0: only the first frame)"),
     (
@@ -62,6 +62,10 @@ pub const OPTIONS: [(&str, &str); 23] = [
         "fast P-skip probed before the motion search beside skipped neighbours, on|off",
     ),
     ("8x8dct", "the 8x8 transform (and 8x8 intra), on|off"),
+    (
+        "luma-filter",
+        "block P frames' luma interpolation: auto (per frame), sharp, smooth",
+    ),
     (
         "partitions",
         "P frames' partitions: all, none, or a list of p8x8, i8x8, i4x4",
@@ -130,6 +134,7 @@ impl EncoderConfig {
             "subpel-rd" => self.subpel_rd = switch(value).map_err(bad)?,
             "fast-pskip" => self.fast_pskip = switch(value).map_err(bad)?,
             "early-pskip" => self.early_pskip = switch(value).map_err(bad)?,
+            "luma-filter" => self.luma_filter = parse(value).map_err(bad)?,
             "8x8dct" | "dct8x8" => self.transform_8x8 = switch(value).map_err(bad)?,
             "partitions" => self.partitions = parse::<Partitions>(value).map_err(bad)?,
             "metrics" => self.metrics = parse::<Metrics>(value).map_err(bad)?,
@@ -227,6 +232,7 @@ mod tests {
             ("fast-pskip", "off"),
             ("early-pskip", "on"),
             ("8x8dct", "off"),
+            ("luma-filter", "smooth"),
             ("partitions", "p8x8,i4x4"),
             ("metrics", "ms-ssim"),
             ("ssim", "off"),
@@ -256,6 +262,7 @@ mod tests {
             ("rdoq", "maybe", "not on or off"),
             ("ipratio", "-1", "positive"),
             ("grid", "5", "4, 8 or 16"),
+            ("luma-filter", "soft", "auto, sharp or smooth"),
             ("colour", "red", "unknown option 'colour'"),
         ] {
             let err = c.clone().set(k, v).unwrap_err();

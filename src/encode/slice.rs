@@ -17,6 +17,7 @@ use super::motion::{BlockMotion, FrameMotion, LazySearch};
 use super::partition::SatdCache;
 use super::{rate, rdo};
 use crate::codec::deblock::{FrameDeblocker, MbEdgeInfo};
+use crate::codec::interp::LumaFilter;
 use crate::codec::intra4x4::LumaIntra;
 use crate::codec::modes::{MbMode, ModeCoder, VectorSyntax};
 use crate::codec::mv::Mv;
@@ -149,6 +150,7 @@ pub(crate) fn code_intra(
         refs: 1,
         deblock,
         weights: Weights::NONE,
+        luma_filter: LumaFilter::Sharp,
     };
     let (modes, residual) = state.coders(seq, FrameType::Intra);
     let frame = WavefrontFrame {
@@ -252,6 +254,8 @@ pub(crate) struct InterInputs<'a> {
     pub deblock: bool,
     /// The weights `reference` was weighted with (already applied).
     pub weights: Weights,
+    /// The luma interpolation filter of block frames.
+    pub luma_filter: LumaFilter,
     /// Inter macroblocks may be split (block frames).
     pub partitions: bool,
     /// Sub-pel RD refinement of 16x16 inter vectors (block frames).
@@ -349,6 +353,11 @@ impl<'a> InterFrameCoder<'a> {
             refs: inputs.references.len() as u8,
             deblock: inputs.deblock,
             weights: inputs.weights,
+            // Block frames choose; the others interpolate sharp.
+            luma_filter: match inputs.tool {
+                MotionTool::Block => inputs.luma_filter,
+                _ => LumaFilter::Sharp,
+            },
         };
         let obmc = inputs.tool == MotionTool::Obmc;
         // Block frames are decided on a wavefront with coders of their own
@@ -400,6 +409,7 @@ impl<'a> InterFrameCoder<'a> {
         InterContext {
             references: &self.references,
             tool: self.tool,
+            luma_filter: self.frame.syntax.header.luma_filter,
             vectors: &self.context,
             warped: self.warped.as_ref(),
             mb_cols: self.seq.mb_cols(),
@@ -560,6 +570,7 @@ fn recode(
     let ctx = InterContext {
         references: &[reference],
         tool: frame.syntax.header.tool,
+        luma_filter: frame.syntax.header.luma_filter,
         vectors: &vectors,
         warped: None,
         mb_cols: cols,

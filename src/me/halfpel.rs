@@ -16,7 +16,7 @@ use super::dsp::{
     average_rows, copy_rows, fill_halfpel, pixel, HalfpelBand, PixelDsp, PATCH18_PHASE, PATCH18_ROWS,
     PATCH18_STRIDE,
 };
-use crate::codec::interp::predict_luma;
+use crate::codec::interp::{predict_luma, LumaFilter};
 use crate::codec::mv::Mv;
 use crate::codec::Plane;
 
@@ -293,7 +293,9 @@ pub fn block_or_predicted<'a>(
         return found;
     }
     if !halfpel.is_some_and(|h| h.predict(reference, x, y, mv.x, mv.y, b, scratch)) {
-        predict_luma(reference, x, y, mv.x, mv.y, b, b, scratch, b);
+        // The planes' filter: the search ranks with the sharp one whatever
+        // the frame predicts with.
+        predict_luma(LumaFilter::Sharp, reference, x, y, mv.x, mv.y, b, b, scratch, b);
     }
     (scratch, b)
 }
@@ -375,7 +377,7 @@ mod tests {
             for mvx in -9..=9 {
                 for (x, y) in [(0, 0), (16, 16), (48, 32)] {
                     assert!(hp.predict(&r, x, y, mvx, mvy, 16, &mut a));
-                    predict_luma(&r, x, y, mvx, mvy, 16, 16, &mut b, 16);
+                    predict_luma(LumaFilter::Sharp, &r, x, y, mvx, mvy, 16, 16, &mut b, 16);
                     let in_place = hp.block_in_place(&r, (x, y), (mvx, mvy), 16);
                     if mvx % 2 == 0 && mvy % 2 == 0 {
                         assert_eq!(a, b, "half-pel ({mvx}, {mvy}) at ({x}, {y})");
@@ -401,7 +403,7 @@ mod tests {
         for (p, (mvx, mvy)) in [(2, 0), (0, 2), (2, 2)].into_iter().enumerate() {
             for y in -16..21 + 16 {
                 for x in -16..37 + 16 {
-                    predict_luma(&r, x, y, mvx, mvy, 1, 1, &mut one, 1);
+                    predict_luma(LumaFilter::Sharp, &r, x, y, mvx, mvy, 1, 1, &mut one, 1);
                     assert_eq!(
                         hp.phase_at(&r, [(2, 0), (0, 2), (2, 2)][p], x, y).0[0],
                         one[0],

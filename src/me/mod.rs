@@ -47,7 +47,7 @@ use std::str::FromStr;
 
 use rayon::prelude::*;
 
-use crate::codec::interp::predict_luma;
+use crate::codec::interp::{predict_luma, LumaFilter};
 use crate::codec::mv::{mvd_bits, Mv};
 use crate::codec::mvpred::predict_in_grid;
 use crate::codec::Plane;
@@ -477,6 +477,7 @@ impl<'a> SearchContext<'a> {
         let b = self.cfg.block;
         let mut scratch = [0u8; 32 * 32];
         predict_luma(
+            LumaFilter::Sharp,
             self.reference,
             self.x,
             self.y,

@@ -5,13 +5,28 @@
 
 use super::PerLevel;
 
-/// Luma filter taps for phases 0, 1/4, 1/2, 3/4; each sums to 64. Tap `k`
-/// applies to the sample at offset `k - 3`.
-pub const LUMA_TAPS: [[i32; 8]; 4] = [
+/// A luma filter's taps for phases 0, 1/4, 1/2, 3/4; each sums to 64.
+/// Tap `k` applies to the sample at offset `k - 3`.
+pub type LumaTaps = [[i32; 8]; 4];
+
+/// The sharp luma filter: HEVC's 8-tap DCT-based interpolation.
+pub const LUMA_TAPS: LumaTaps = [
     [0, 0, 0, 64, 0, 0, 0, 0],
     [-1, 4, -10, 58, 17, -5, 1, 0],
     [-1, 4, -11, 40, 40, -11, 4, -1],
     [0, 1, -5, 17, 58, -10, 4, -1],
+];
+
+/// The smooth luma filter: H.264's 6-tap half-pel filter (1, -5, 20, 20,
+/// -5, 1) / 32, and its quarter-pel positions as the mean of the half-pel
+/// and the nearest whole sample, here in one filter (no rounding between).
+/// It passes less of the highest frequencies than [`LUMA_TAPS`]: the
+/// better prediction of camera noise and motion blur.
+pub const SMOOTH_LUMA_TAPS: LumaTaps = [
+    [0, 0, 0, 64, 0, 0, 0, 0],
+    [0, 1, -5, 52, 20, -5, 1, 0],
+    [0, 2, -10, 40, 40, -10, 2, 0],
+    [0, 1, -5, 20, 52, -5, 1, 0],
 ];
 
 /// Largest block the kernels accept, per side.
@@ -20,11 +35,13 @@ pub const MAX_BLOCK: usize = 64;
 /// Samples the 8-tap filter reads before the block (and 4 after).
 pub const TAPS_BEFORE: usize = 3;
 
-/// A luma prediction: `(src, stride, (fx, fy), (w, h), out, out_stride)`,
-/// the `w x h` block at quarter-pel phase (fx, fy) whose samples start
+/// A luma prediction: `(taps, src, stride, (fx, fy), (w, h), out,
+/// out_stride)`, the `w x h` block at quarter-pel phase (fx, fy) of the
+/// filter `taps` (every product of a sample and a tap, and every partial
+/// sum, fits 16 bits; [`LUMA_TAPS`] and [`SMOOTH_LUMA_TAPS`] do) whose samples start
 /// [`TAPS_BEFORE`] rows above and columns left of `src[0]`'s block corner
 /// (the slice holds the block and the filter's reach: h + 7 rows of w + 7).
-pub type LumaFn = fn(&[u8], usize, (usize, usize), (usize, usize), &mut [u8], usize);
+pub type LumaFn = fn(&LumaTaps, &[u8], usize, (usize, usize), (usize, usize), &mut [u8], usize);
 
 /// A chroma prediction: `(src, stride, (fx, fy), (w, h), out, out_stride)`,
 /// the `w x h` block at eighth-pel phase (fx, fy) whose top-left integer
@@ -66,6 +83,7 @@ pub fn mc() -> &'static McDsp {
 }
 
 fn luma_scalar(
+    taps: &LumaTaps,
     src: &[u8],
     stride: usize,
     phase: (usize, usize),
@@ -74,13 +92,13 @@ fn luma_scalar(
     os: usize,
 ) {
     // SAFETY: AVX2 off.
-    unsafe { luma_body::<false>(src, stride, phase, size, out, os) }
+    unsafe { luma_body::<false>(taps, src, stride, phase, size, out, os) }
 }
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     crate::compiled_for! { "avx2":
-        fn luma(src: &[u8], stride: usize, phase: (usize, usize), size: (usize, usize), out: &mut [u8], os: usize)
+        fn luma(taps: &super::LumaTaps, src: &[u8], stride: usize, phase: (usize, usize), size: (usize, usize), out: &mut [u8], os: usize)
             => super::luma_body::<true>;
         fn chroma_any(src: &[u8], stride: usize, phase: (usize, usize), size: (usize, usize), out: &mut [u8], os: usize)
             => super::chroma_body;
@@ -117,6 +135,7 @@ mod avx2 {
 /// `AVX2` is true only where the CPU has AVX2.
 #[inline(always)]
 unsafe fn luma_body<const AVX2: bool>(
+    taps: &LumaTaps,
     data: &[u8],
     stride: usize,
     (fx, fy): (usize, usize),
@@ -129,7 +148,7 @@ unsafe fn luma_body<const AVX2: bool>(
         // The macroblock case, with sizes the compiler knows.
         let mut block = [0u8; 256];
         // SAFETY: this function's contract passes on.
-        luma_16x16::<AVX2>(data, stride, fx, fy, &mut block);
+        luma_16x16::<AVX2>(taps, data, stride, fx, fy, &mut block);
         for r in 0..16 {
             out[r * out_stride..][..16].copy_from_slice(&block[r * 16..][..16]);
         }
@@ -148,7 +167,7 @@ unsafe fn luma_body<const AVX2: bool>(
             }
         }
         (_, 0) => {
-            let taps = &LUMA_TAPS[fx];
+            let taps = &taps[fx];
             let mut acc = [0i32; MAX_BLOCK];
             for r in 0..h {
                 let src = (r + B) * stride;
@@ -157,7 +176,7 @@ unsafe fn luma_body<const AVX2: bool>(
             }
         }
         (0, _) => {
-            let taps = &LUMA_TAPS[fy];
+            let taps = &taps[fy];
             let mut acc = [0i32; MAX_BLOCK];
             for r in 0..h {
                 let src = r * stride + B;
@@ -169,16 +188,17 @@ unsafe fn luma_body<const AVX2: bool>(
                 round_into(&acc[..w], 6, &mut out[r * out_stride..r * out_stride + w]);
             }
         }
-        _ => luma_2d(data, stride, (fx, fy), (w, h), out, out_stride),
+        _ => luma_2d(taps, data, stride, (fx, fy), (w, h), out, out_stride),
     }
 }
 
 /// A two-dimensional luma phase of a `w x h` block whose taps start at
 /// `data[0]`: a horizontal pass over h + 7 rows at full precision (it fits
-/// 16 bits: -6120..=22440), then vertical. Inlined into both of
+/// 16 bits: -6120..=22440 with either filter), then vertical. Inlined into both of
 /// [`luma_body`]'s instances.
 #[inline(always)]
 fn luma_2d(
+    taps: &LumaTaps,
     data: &[u8],
     stride: usize,
     (fx, fy): (usize, usize),
@@ -196,7 +216,7 @@ fn luma_2d(
         large.resize(w * rows, 0);
         &mut large
     };
-    let (th, tv) = (&LUMA_TAPS[fx], &LUMA_TAPS[fy]);
+    let (th, tv) = (&taps[fx], &taps[fy]);
     let mut acc = [0i32; MAX_BLOCK];
     for r in 0..rows {
         let src = r * stride;
@@ -234,7 +254,8 @@ fn row23(data: &[u8], stride: usize, r: usize) -> &[u8; N16 + 7] {
 
 /// The horizontal 8-tap filter of 16 samples, full precision, in 16-bit
 /// lanes (twice as many a vector as 32-bit ones): every product and
-/// partial sum of 8-bit samples with these taps lies within -4080..=20400.
+/// partial sum of 8-bit samples with either filter's taps lies within
+/// -6120..=22440.
 #[inline(always)]
 fn hpass16(r: &[u8; N16 + 7], taps: &[i32; 8]) -> [i16; N16] {
     let mut acc = [0i16; N16];
@@ -261,6 +282,7 @@ fn round16<T: Copy + Into<i32>>(acc: &[T; N16], o: &mut [u8]) {
 /// closures: closures do not inherit the caller's target features.)
 #[inline(always)]
 unsafe fn luma_16x16<const AVX2: bool>(
+    taps: &LumaTaps,
     data: &[u8],
     stride: usize,
     fx: usize,
@@ -275,20 +297,20 @@ unsafe fn luma_16x16<const AVX2: bool>(
         let first = if fy == 0 { B } else { 0 };
         let mut tmp = [[0i16; N]; N + 7];
         // SAFETY: the caller's contract: AVX2 only where the CPU has it.
-        unsafe { x86::hpass16_rows(data, stride, first, &LUMA_TAPS[fx], &mut tmp[..rows]) };
+        unsafe { x86::hpass16_rows(data, stride, first, &taps[fx], &mut tmp[..rows]) };
         if fy == 0 {
             for (r, acc) in tmp[..N].iter().enumerate() {
                 round16(acc, &mut out[r * N..(r + 1) * N]);
             }
         } else {
             // SAFETY: the caller's contract: AVX2 only where the CPU has it.
-            unsafe { x86::vpass16_avx2(&tmp, &LUMA_TAPS[fy], out) };
+            unsafe { x86::vpass16_avx2(&tmp, &taps[fy], out) };
         }
         return;
     }
     if fy == 0 {
         for r in 0..N {
-            let acc = hpass16(row23(data, stride, r + B), &LUMA_TAPS[fx]);
+            let acc = hpass16(row23(data, stride, r + B), &taps[fx]);
             round16(&acc, &mut out[r * N..(r + 1) * N]);
         }
         return;
@@ -304,10 +326,10 @@ unsafe fn luma_16x16<const AVX2: bool>(
                 *t = i16::from(v) << 6;
             }
         } else {
-            *t = hpass16(src, &LUMA_TAPS[fx]);
+            *t = hpass16(src, &taps[fx]);
         }
     }
-    let tv = &LUMA_TAPS[fy];
+    let tv = &taps[fy];
     #[cfg(target_arch = "x86_64")]
     if AVX2 {
         // SAFETY: the caller's contract: AVX2 only where the CPU has it.
@@ -441,7 +463,7 @@ mod x86 {
             for (m, c) in masks.iter().zip(&coef) {
                 // Each pair's sum lies within -2805..=14790 (no
                 // saturation), every partial total within 255 times the
-                // negative and the positive taps' sums, -6120..=20400.
+                // negative and the positive taps' sums, -6120..=22440.
                 acc = _mm256_add_epi16(acc, _mm256_maddubs_epi16(_mm256_shuffle_epi8(row, *m), *c));
             }
             // SAFETY: `o` is 16 i16 = 32 bytes; unaligned store.

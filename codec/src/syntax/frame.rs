@@ -9,6 +9,7 @@ use super::sequence::SequenceHeader;
 use crate::bits::{BitReader, BitWriter};
 use crate::consts::{FRAME_START, SEQUENCE_HEADER_LEN, STREAM_END};
 use crate::entropy::{RangeDecoder, RangeEncoder};
+use crate::interp::LumaFilter;
 use crate::modes::{ModeCoder, VectorSyntax, MAX_REFS};
 use crate::mv::Mv;
 use crate::mvpred::predict_in_grid;
@@ -55,6 +56,9 @@ pub struct FrameHeader {
     /// How the reference's planes are weighted before prediction (P
     /// frames; none in I frames).
     pub weights: Weights,
+    /// The luma interpolation filter of block P frames (sharp in the
+    /// others).
+    pub luma_filter: LumaFilter,
 }
 
 /// Everything one coded frame says.
@@ -201,6 +205,13 @@ fn write_frame_header(h: &FrameHeader) -> Vec<u8> {
     if h.frame_type == FrameType::Inter {
         h.weights.write(&mut w);
     }
+    assert!(
+        block_p || h.luma_filter == LumaFilter::Sharp,
+        "only block P frames choose the luma filter"
+    );
+    if block_p {
+        w.put(h.luma_filter.code(), 1);
+    }
     w.put(u64::from(h.deblock), 1);
     w.align();
     w.into_bytes()
@@ -223,6 +234,7 @@ fn write_frame_header(h: &FrameHeader) -> Vec<u8> {
 ///     refs: 1,
 ///     deblock: true,
 ///     weights: mocomp_codec::weight::Weights::NONE,
+///     luma_filter: mocomp_codec::interp::LumaFilter::Sharp,
 /// };
 /// let kind = MbKind::Intra { luma: LumaIntra::Whole(IntraMode::Dc), chroma: IntraMode::Dc };
 /// let frame = FrameSyntax { header, grid: None, mbs: vec![CodedMb::without_residual(kind); 2] };
@@ -433,6 +445,11 @@ fn read_frame_header(payload: &[u8]) -> Result<(FrameHeader, usize), SyntaxError
         FrameType::Inter => Weights::read(&mut r)?.map_err(|what| invalid(what, pos))?,
         FrameType::Intra => Weights::NONE,
     };
+    let luma_filter = if frame_type == FrameType::Inter && tool == MotionTool::Block {
+        LumaFilter::from_code(r.get(1)?)
+    } else {
+        LumaFilter::Sharp
+    };
     let deblock = r.get(1)? == 1;
     let pos = r.position();
     let pad = (8 - pos % 8) % 8;
@@ -447,6 +464,7 @@ fn read_frame_header(payload: &[u8]) -> Result<(FrameHeader, usize), SyntaxError
             refs,
             deblock,
             weights,
+            luma_filter,
         },
         r.position() / 8,
     ))
@@ -530,6 +548,7 @@ mod tests {
             refs: 1,
             deblock: false,
             weights: Weights::NONE,
+            luma_filter: LumaFilter::Sharp,
         };
         let inter = FrameHeader {
             frame_type: FrameType::Inter,
@@ -573,6 +592,11 @@ mod tests {
         out.push(FrameHeader {
             weights: weighted,
             refs: 3,
+            ..inter
+        });
+        out.push(FrameHeader {
+            luma_filter: LumaFilter::Smooth,
+            deblock: true,
             ..inter
         });
         out

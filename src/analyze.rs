@@ -14,6 +14,7 @@ use std::io::Read;
 use serde::Serialize;
 
 use crate::codec::decoder::{DecodeError, Decoder};
+use crate::codec::interp::LumaFilter;
 use crate::codec::intra::IntraMode;
 use crate::codec::intra4x4::{Intra4x4Mode, LumaIntra};
 use crate::codec::partition::{MbVectors, Split};
@@ -78,6 +79,9 @@ pub struct FrameAnalysis {
     pub tool: &'static str,
     /// Whether the deblocking filter ran.
     pub deblock: bool,
+    /// The luma interpolation filter, `sharp` or `smooth` (block P
+    /// frames choose; the others are sharp).
+    pub luma_filter: &'static str,
     /// Bytes in the stream (start code and length included).
     pub bytes: usize,
     /// Bits by category, as the encoder's statistics count them.
@@ -156,6 +160,10 @@ impl<R: Read> Analyzer<R> {
                 MotionTool::Grid(_) => "grid",
             },
             deblock: h.deblock,
+            luma_filter: match h.luma_filter {
+                LumaFilter::Sharp => "sharp",
+                LumaFilter::Smooth => "smooth",
+            },
             bytes,
             bits,
             grid: syntax.grid.clone(),

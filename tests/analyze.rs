@@ -265,6 +265,11 @@ fn the_command_writes_csv_json_and_overlays_of_the_right_size() {
     assert_eq!(v["frames"].as_array().unwrap().len(), 3);
     assert_eq!(v["frames"][1]["mbs"].as_array().unwrap().len(), 99);
     assert_eq!(v["frames"][0]["type"], "I");
+    assert!(v["frames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|f| f["luma_filter"] == "sharp" || f["luma_filter"] == "smooth"));
     let overlay = Y4mReader::open(Path::new(&p("ov.y4m")))
         .unwrap()
         .read_all()

@@ -175,6 +175,7 @@ def encode(
     fast_pskip: Optional[bool] = None,
     early_pskip: Optional[bool] = None,
     dct8x8: Optional[bool] = None,
+    luma_filter: Optional[Literal["auto", "sharp", "smooth"]] = None,
     partitions: Optional[Union[bool, str]] = None,
     metrics: Optional[str] = None,
     ssim: Optional[bool] = None,

@@ -27,6 +27,9 @@ def test_analysis_agrees_with_the_encoder_and_the_decoder(synth_frames):
         # One reference: index 0 wherever there is a vector, -1 for intra.
         assert np.array_equal(f["refs"], np.where(intra, -1, 0))
     assert (frames[0]["kind"] == 2).all() and frames[0]["grid"] is None
+    assert all(f["luma_filter"] in ("sharp", "smooth") for f in frames)
+    smooth, _ = mocomp.encode(source, qp=26, luma_filter="smooth")
+    assert [f["luma_filter"] for f in mocomp.analyze(smooth)] == ["sharp", "smooth", "smooth"]
     # The sample pans: the P frames' vectors are mostly not zero.
     moving = np.abs(frames[2]["vectors"]).sum(-1)[frames[2]["has_vector"]] > 0
     assert moving.mean() > 0.5

@@ -90,7 +90,7 @@ impl Encoder {
             intra_coder: MbCoder::new(config.intra_qp(), config.lambda_scale, config.rdoq)
                 .intra4x4(config.i_frame_partitions.i4x4)
                 .intra8x8(config.i_frame_intra8x8()),
-            analyser: MotionAnalyser::new(config.predictor, config.qp, config.partitions.p8x8, config.refs),
+            analyser: MotionAnalyser::new(config.predictor, config.qp, config.partitions.p8x8),
             references: Vec::new(),
             prev_source: None,
             camera: CameraMotion::default(),

@@ -65,37 +65,33 @@ pub(crate) struct MotionAnalyser {
     blocks: bool,
     /// The flow predictors' estimator.
     flow: Option<FlowEstimator>,
-    /// `block` frames' macroblocks searched from the mode decision
-    /// ([`LazySearch`]): with one reference (older references' searches
-    /// take the frame-level search's field as their temporal candidates).
-    lazy: bool,
 }
 
 impl MotionAnalyser {
-    /// `partitions`: flow predictors give 8x8 blocks' vectors too; `refs`:
-    /// the references a P frame may have.
-    pub fn new(predictor: Predictor, qp: u8, partitions: bool, refs: u8) -> MotionAnalyser {
+    /// `partitions`: flow predictors give 8x8 blocks' vectors too.
+    pub fn new(predictor: Predictor, qp: u8, partitions: bool) -> MotionAnalyser {
         MotionAnalyser {
             predictor,
             qp,
             prior: None,
             blocks: partitions,
             flow: None,
-            lazy: refs == 1,
         }
     }
 
     /// Whether `block` frames' macroblocks are searched from the mode
-    /// decision ([`LazySearch`]).
+    /// decision ([`LazySearch`]): their vectors into the previous frame
+    /// (older references' are searched over the frame beforehand, the
+    /// decided field of the frame before as their temporal candidates).
     pub fn searches_in_decision(&self) -> bool {
-        self.lazy && matches!(self.predictor, Predictor::Block(_))
+        matches!(self.predictor, Predictor::Block(_))
     }
 
     /// The decided vectors of a P frame of `width x height` (one per
     /// macroblock, raster order): the next frame's co-located candidates
     /// when the mode decision searches ([`LazySearch`]).
     pub fn remember(&mut self, width: usize, height: usize, vectors: Vec<Mv>) {
-        if self.lazy {
+        if self.searches_in_decision() {
             self.prior = MotionField::from_vectors(width, height, MB, vectors);
         }
     }
@@ -123,19 +119,7 @@ impl MotionAnalyser {
                 older: Vec::new(),
                 lazy: None,
             }),
-            Predictor::Block(s) if self.lazy => self.decision_search(reference, s, camera),
-            Predictor::Block(s) => {
-                let halfpel = self.planes(reference);
-                let mb = self.search(source.y(), reference.y(), s, halfpel.as_ref(), camera);
-                let older = self.search_older(source.y(), older, s, camera);
-                FrameMotion::Vectors(BlockMotion {
-                    mb,
-                    blocks: None,
-                    halfpel,
-                    older,
-                    lazy: None,
-                })
-            }
+            Predictor::Block(s) => self.decision_search(source.y(), reference, older, s, camera),
             Predictor::Obmc(s) => FrameMotion::Vectors(BlockMotion {
                 mb: self.search(source.y(), reference.y(), s, None, camera),
                 blocks: None,
@@ -190,7 +174,14 @@ impl MotionAnalyser {
 
     /// `block` frames' motion when the decision searches ([`LazySearch`]):
     /// the search made ready against `reference`, no vectors yet.
-    fn decision_search(&self, reference: &Frame, s: SearchSettings, camera: Mv) -> FrameMotion {
+    fn decision_search(
+        &self,
+        cur: &Plane,
+        reference: &Frame,
+        older: &[Frame],
+        s: SearchSettings,
+        camera: Mv,
+    ) -> FrameMotion {
         let cfg = self.search_config(s);
         // The partitions' search reads the planes too, further out. Without
         // it, each searched macroblock filters the half-pel patch it needs
@@ -210,7 +201,7 @@ impl MotionAnalyser {
                 mb: Vec::new(),
                 blocks: None,
                 halfpel: None,
-                older: Vec::new(),
+                older: self.search_older(cur, older, s, camera),
                 lazy: Some(Box::new(LazySearch {
                     search,
                     prior: self.prior.clone(),

@@ -40,8 +40,9 @@ pub struct FrameStats {
     /// Macroblocks intra-coded.
     pub intra_mbs: usize,
     /// Motion estimation or flow time before the macroblock decision, ms
-    /// (`block` frames with one reference search inside the decision:
-    /// then only the reference's half-pel planes are counted here).
+    /// (`block` frames search the previous frame inside the decision:
+    /// only its half-pel planes and the older references' searches are
+    /// counted here).
     pub me_ms: f64,
     /// Time to code the frame, ms (the quality measurements not included).
     pub total_ms: f64,

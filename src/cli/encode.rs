@@ -129,9 +129,9 @@ pub struct ToolArgs {
     /// (no 8x8 intra either).
     #[arg(long = "no-8x8dct")]
     pub no_8x8dct: bool,
-    /// Luma interpolation of `block` P frames: auto (each frame the filter
-    /// that predicted the frame before better), sharp (HEVC's 8-tap) or
-    /// smooth (H.264's 6-tap shape) [default: auto].
+    /// Luma interpolation of `block` P frames: auto (per frame, from how
+    /// the two filters predicted the frames before), sharp (HEVC's 8-tap)
+    /// or smooth (H.264's 6-tap shape) [default: auto].
     #[arg(long, value_name = "auto|sharp|smooth")]
     pub luma_filter: Option<FilterChoice>,
     /// P frames' macroblock partitions, as x264's --partitions: all, none,

@@ -243,9 +243,9 @@ impl FromStr for ModeDecision {
 /// section 3).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum FilterChoice {
-    /// Each frame the filter that predicted the frame before better
-    /// (sharp for the first): camera noise and blur favour the smooth one,
-    /// clean detail the sharp one.
+    /// Per frame, from how the two predicted the frames before (sharp
+    /// for the first; `filter.rs` says how): camera noise and blur favour
+    /// the smooth one, clean detail the sharp one.
     #[default]
     Auto,
     /// Always this one.

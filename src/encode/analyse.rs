@@ -461,7 +461,7 @@ impl InterFrameCoder<'_> {
             candidates.push(self.inter_candidate(mb, RefMv::previous(mv), mb.mvp, pred));
         }
         for ref_idx in 1..self.syntax.refs() {
-            candidates.push(self.older_reference_candidate(mb, ref_idx, env));
+            candidates.extend(self.older_reference_candidate(mb, ref_idx, env));
         }
         mb.inter_satd = candidates.iter().map(|c| c.satd).min().unwrap_or(u32::MAX);
         mb.inter_estimate = candidates
@@ -509,19 +509,58 @@ impl InterFrameCoder<'_> {
         }
     }
 
-    /// The 16x16 candidate into older reference `ref_idx`, with motion
-    /// analysis' vector.
+    /// The 16x16 candidate into older reference `ref_idx`, searched now
+    /// from its predicted vector, the vectors the left, top and top-right
+    /// macroblocks found into it, the vector into the previous frame
+    /// scaled by the distance and the previous frame's field scaled
+    /// alike.
     pub(super) fn older_reference_candidate(
         &self,
         mb: &MbAnalysis,
         ref_idx: u8,
         env: &MbEnv<'_>,
-    ) -> InterCandidate {
-        let at = (mb.mb_x, mb.mb_y, self.seq.mb_cols());
-        let mvp = mv_prediction_into(env.decided, at, ref_idx);
-        let mv = RefMv::new(self.older[usize::from(ref_idx) - 1][mb.index], ref_idx);
+    ) -> Option<InterCandidate> {
+        let older = self.lazy.as_ref()?.older.get(usize::from(ref_idx) - 1)?;
+        let (cols, x, y) = (self.seq.mb_cols(), mb.mb_x, mb.mb_y);
+        let mvp = mv_prediction_into(env.decided, (x, y, cols), ref_idx);
+        let prior = |x: usize, y: usize| {
+            let p = older.prior.as_ref()?;
+            (x < p.cols() && y < p.rows()).then(|| p.vector(x, y))
+        };
+        let scaled = Mv::new(
+            mb.searched.x.saturating_mul(older.distance),
+            mb.searched.y.saturating_mul(older.distance),
+        );
+        let found = &older.found;
+        let mut neighbours = [Mv::ZERO; 6];
+        let mut n = 0;
+        for mv in [
+            (x > 0).then(|| found.vector(x - 1, y)),
+            (y > 0).then(|| found.vector(x, y - 1)),
+            (y > 0 && x + 1 < cols).then(|| found.vector(x + 1, y - 1)),
+            Some(scaled),
+            prior(x, y),
+            prior(x + 1, y),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            neighbours[n] = mv;
+            n += 1;
+        }
+        let candidates = Neighbours::list(mvp, &neighbours[..n]);
+        let reference = self.references.get(usize::from(ref_idx))?.y();
+        // Refined every time: x264's half-pel threshold (sub-pel only
+        // where 7/8 of the full-pel cost is within the previous frame's)
+        // took medium with three references from -1.99 % to -1.51 %
+        // BD-rate on the development set's mean for 0.93-0.99x the time.
+        let best = older
+            .search
+            .search(self.src.y(), reference, (x, y), mvp, &candidates);
+        found.set(x, y, best.mv);
+        let mv = RefMv::new(best.mv, ref_idx);
         let pred = predict_inter(&self.inter_context(), mb.mb_x, mb.mb_y, mv);
-        self.inter_candidate(mb, mv, mvp, pred)
+        Some(self.inter_candidate(mb, mv, mvp, pred))
     }
 
     /// The macroblock split into partitions (block frames): the 8x8 split
@@ -867,7 +906,6 @@ mod tests {
                 mb,
                 blocks: None,
                 halfpel,
-                older: Vec::new(),
                 lazy,
             }),
             tool: MotionTool::Block,
@@ -946,6 +984,7 @@ mod tests {
         let lazy = Box::new(LazySearch {
             search: FrameSearch::new(reference.y(), &cfg, None).unwrap(),
             prior: None,
+            older: Vec::new(),
         });
         let decided = decide_motion(&src, &reference, Vec::new(), Some(lazy), (false, true, false));
         // The first macroblock searches from zero alone and finds the

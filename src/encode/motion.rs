@@ -14,6 +14,7 @@ use crate::codec::warp::MotionGrid;
 use crate::codec::{Frame, Plane};
 use crate::flow::{Flow, FlowEstimator};
 use crate::me::halfpel::HalfPel;
+use crate::me::pipeline::SharedGrid;
 use crate::me::{self, lambda_for_qp, FrameSearch, MeConfig, Metric, MotionField};
 use crate::raster::plane_to_array;
 
@@ -35,8 +36,6 @@ pub(crate) struct BlockMotion {
     /// The reference's half-pel planes, when partitions are analysed (the
     /// search made them; the partitions' search reads them again).
     pub halfpel: Option<HalfPel>,
-    /// Per older reference (index 1, 2, ...), one vector per macroblock.
-    pub older: Vec<Vec<Mv>>,
     /// The search itself, when the mode decision searches the macroblocks
     /// it needs one for (then `mb` is empty).
     pub lazy: Option<Box<LazySearch>>,
@@ -48,6 +47,23 @@ pub(crate) struct LazySearch {
     pub search: FrameSearch<'static>,
     /// The previous P frame's decided vectors: the co-located candidates.
     pub prior: Option<MotionField>,
+    /// The searches into the older references (index 1, 2, ...).
+    pub older: Vec<OlderSearch>,
+}
+
+/// The search into an older reference, run from the mode decision for the
+/// macroblocks that get that far (x264 searches every reference there).
+pub(crate) struct OlderSearch {
+    /// EPZS without its window.
+    pub search: FrameSearch<'static>,
+    /// The previous P frame's decided vectors scaled by this reference's
+    /// distance: the co-located candidates.
+    pub prior: Option<MotionField>,
+    /// Frames back (2 for reference index 1).
+    pub distance: i32,
+    /// The vector each searched macroblock found (zero where none was
+    /// searched): the candidates of the macroblocks below and right.
+    pub found: SharedGrid,
 }
 
 /// How far beyond the picture the half-pel planes kept for the partition
@@ -80,9 +96,7 @@ impl MotionAnalyser {
     }
 
     /// Whether `block` frames' macroblocks are searched from the mode
-    /// decision ([`LazySearch`]): their vectors into the previous frame
-    /// (older references' are searched over the frame beforehand, the
-    /// decided field of the frame before as their temporal candidates).
+    /// decision ([`LazySearch`]), into every reference.
     pub fn searches_in_decision(&self) -> bool {
         matches!(self.predictor, Predictor::Block(_))
     }
@@ -116,15 +130,13 @@ impl MotionAnalyser {
                 mb: vec![Mv::ZERO; cols * rows],
                 blocks: None,
                 halfpel: self.planes(reference),
-                older: Vec::new(),
                 lazy: None,
             }),
-            Predictor::Block(s) => self.decision_search(source.y(), reference, older, s, camera),
+            Predictor::Block(s) => self.decision_search(reference, older, s, camera),
             Predictor::Obmc(s) => FrameMotion::Vectors(BlockMotion {
                 mb: self.search(source.y(), reference.y(), s, None, camera),
                 blocks: None,
                 halfpel: None,
-                older: Vec::new(),
                 lazy: None,
             }),
             Predictor::FlowBlock { flow, refine } => {
@@ -161,7 +173,6 @@ impl MotionAnalyser {
                     mb: vectors.into_iter().map(|v| v[0].unwrap_or_default().mv).collect(),
                     blocks,
                     halfpel: self.planes(reference),
-                    older: Vec::new(),
                     lazy: None,
                 })
             }
@@ -176,7 +187,6 @@ impl MotionAnalyser {
     /// the search made ready against `reference`, no vectors yet.
     fn decision_search(
         &self,
-        cur: &Plane,
         reference: &Frame,
         older: &[Frame],
         s: SearchSettings,
@@ -201,10 +211,10 @@ impl MotionAnalyser {
                 mb: Vec::new(),
                 blocks: None,
                 halfpel: None,
-                older: self.search_older(cur, older, s, camera),
                 lazy: Some(Box::new(LazySearch {
                     search,
                     prior: self.prior.clone(),
+                    older: self.older_searches(older, s, camera),
                 })),
             },
             // The configuration was checked when the encoder was made: this
@@ -213,7 +223,6 @@ impl MotionAnalyser {
                 mb: vec![Mv::ZERO; cols * rows],
                 blocks: None,
                 halfpel: None,
-                older: Vec::new(),
                 lazy: None,
             },
         })
@@ -265,11 +274,11 @@ impl MotionAnalyser {
         cfg
     }
 
-    /// Per older reference, the vector of every macroblock: EPZS without
-    /// its window (the frame-level search gives each block its
-    /// neighbours' vectors into the same reference as candidates), the
-    /// reference-0 field scaled by the frame distance as the temporal one.
-    fn search_older(&self, cur: &Plane, older: &[Frame], s: SearchSettings, camera: Mv) -> Vec<Vec<Mv>> {
+    /// The search into each older reference: EPZS without its window
+    /// (the decided neighbours' vectors into the same reference and the
+    /// previous frame's field scaled by the distance as candidates), the
+    /// window centred on the camera's motion over that distance.
+    fn older_searches(&self, older: &[Frame], s: SearchSettings, camera: Mv) -> Vec<OlderSearch> {
         let cfg = self.search_config(SearchSettings {
             method: me::Method::Epzs,
             window: 0,
@@ -279,19 +288,22 @@ impl MotionAnalyser {
             .iter()
             .zip(2..)
             .map(|(reference, distance)| {
-                let steady = self.prior.as_ref().map(|f| f.scaled(distance));
-                // As in `search`: the configuration and frames are the
-                // encoder's own.
                 let centre = Mv::new(
                     camera.x.saturating_mul(distance),
                     camera.y.saturating_mul(distance),
                 );
-                match me::estimate_with_planes(cur, reference.y(), &cfg, steady.as_ref(), None, centre) {
-                    Ok(field) => field.vectors().to_vec(),
-                    Err(_) => vec![Mv::ZERO; (cur.width() / MB) * (cur.height() / MB)],
-                }
+                // As in `decision_search`: the configuration was checked.
+                let search = FrameSearch::per_block(reference.y(), &cfg).ok()?;
+                Some(OlderSearch {
+                    search: search.centred_on(centre),
+                    prior: self.prior.as_ref().map(|f| f.scaled(distance)),
+                    distance,
+                    found: SharedGrid::new(reference.width() / MB, reference.height() / MB),
+                })
             })
-            .collect()
+            // None fails: all or none, so that index i is reference i + 1.
+            .collect::<Option<Vec<_>>>()
+            .unwrap_or_default()
     }
 
     /// Flow from `cur` to `prev`: `cur(x) ~ prev(x + flow(x))`, which is the

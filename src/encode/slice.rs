@@ -291,8 +291,6 @@ pub(super) struct InterFrameCoder<'a> {
     pub(super) early_pskip: bool,
     /// A vector per 8x8 block, when motion analysis has one (flows).
     pub(super) blocks: Option<Vec<Mv>>,
-    /// Motion analysis' vectors per macroblock into each older reference.
-    pub(super) older: Vec<Vec<Mv>>,
     /// The reference's half-pel planes, for the partitions' search.
     pub(super) halfpel: Option<HalfPel>,
     /// The reference warped by the grid, for grid frames.
@@ -326,7 +324,6 @@ impl<'a> InterFrameCoder<'a> {
                 mb: searched,
                 blocks,
                 halfpel,
-                older,
                 lazy,
             },
             grid,
@@ -340,7 +337,6 @@ impl<'a> InterFrameCoder<'a> {
                     mb: vec![Mv::ZERO; n],
                     blocks: None,
                     halfpel: None,
-                    older: Vec::new(),
                     lazy: None,
                 };
                 (none, Some(g), Some(out))
@@ -372,7 +368,6 @@ impl<'a> InterFrameCoder<'a> {
             coder,
             src,
             references: inputs.references,
-            older,
             tool: inputs.tool,
             decision: inputs.decision,
             syntax: vector_syntax(&header),

@@ -44,7 +44,8 @@ impl SharedGrid {
         predict_in_grid(self.cols, col, row, |c, r| Some(self.vector(c, r)))
     }
 
-    fn set(&self, col: usize, row: usize, mv: Mv) {
+    /// Publishes the vector of block (col, row).
+    pub fn set(&self, col: usize, row: usize, mv: Mv) {
         let v = u64::from(mv.x as u32) | (u64::from(mv.y as u32) << 32);
         self.cells[row * self.cols + col].store(v, Ordering::Relaxed);
     }

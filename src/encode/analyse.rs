@@ -260,28 +260,21 @@ impl InterFrameCoder<'_> {
             let p = lazy.prior.as_ref()?;
             (x < p.cols() && y < p.rows()).then(|| p.vector(x, y))
         };
-        let left = (x > 0).then(|| decided(mb.index - 1)).flatten();
-        let top = (y > 0).then(|| decided(mb.index - cols)).flatten();
-        let top_right = (y > 0 && x + 1 < cols)
-            .then(|| decided(mb.index - cols + 1))
-            .flatten();
-        let mut neighbours = [Mv::ZERO; 6];
-        let mut n = 0;
-        for mv in [
-            left,
-            top,
-            top_right,
-            prior(x, y),
-            prior(x + 1, y),
-            prior(x, y + 1),
-        ]
-        .into_iter()
-        .flatten()
-        {
-            neighbours[n] = mv;
-            n += 1;
-        }
-        let candidates = Neighbours::list(mb.mvp, &neighbours[..n]);
+        let candidates = Neighbours::list(
+            mb.mvp,
+            [
+                (x > 0).then(|| decided(mb.index - 1)).flatten(),
+                (y > 0).then(|| decided(mb.index - cols)).flatten(),
+                (y > 0 && x + 1 < cols)
+                    .then(|| decided(mb.index - cols + 1))
+                    .flatten(),
+                prior(x, y),
+                prior(x + 1, y),
+                prior(x, y + 1),
+            ]
+            .into_iter()
+            .flatten(),
+        );
         let (src, reference) = (self.src.y(), self.references[0].y());
         lazy.search.search(src, reference, (x, y), mb.mvp, &candidates).mv
     }
@@ -532,23 +525,19 @@ impl InterFrameCoder<'_> {
             mb.searched.y.saturating_mul(older.distance),
         );
         let found = &older.found;
-        let mut neighbours = [Mv::ZERO; 6];
-        let mut n = 0;
-        for mv in [
-            (x > 0).then(|| found.vector(x - 1, y)),
-            (y > 0).then(|| found.vector(x, y - 1)),
-            (y > 0 && x + 1 < cols).then(|| found.vector(x + 1, y - 1)),
-            Some(scaled),
-            prior(x, y),
-            prior(x + 1, y),
-        ]
-        .into_iter()
-        .flatten()
-        {
-            neighbours[n] = mv;
-            n += 1;
-        }
-        let candidates = Neighbours::list(mvp, &neighbours[..n]);
+        let candidates = Neighbours::list(
+            mvp,
+            [
+                (x > 0).then(|| found.vector(x - 1, y)),
+                (y > 0).then(|| found.vector(x, y - 1)),
+                (y > 0 && x + 1 < cols).then(|| found.vector(x + 1, y - 1)),
+                Some(scaled),
+                prior(x, y),
+                prior(x + 1, y),
+            ]
+            .into_iter()
+            .flatten(),
+        );
         let reference = self.references.get(usize::from(ref_idx))?.y();
         // Refined every time: x264's half-pel threshold (sub-pel only
         // where 7/8 of the full-pel cost is within the previous frame's)
@@ -559,7 +548,7 @@ impl InterFrameCoder<'_> {
             .search(self.src.y(), reference, (x, y), mvp, &candidates);
         found.set(x, y, best.mv);
         let mv = RefMv::new(best.mv, ref_idx);
-        let pred = predict_inter(&self.inter_context(), mb.mb_x, mb.mb_y, mv);
+        let pred = predict_inter(&self.inter_context(), x, y, mv);
         Some(self.inter_candidate(mb, mv, mvp, pred))
     }
 

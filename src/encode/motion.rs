@@ -62,7 +62,8 @@ pub(crate) struct OlderSearch {
     /// Frames back (2 for reference index 1).
     pub distance: i32,
     /// The vector each searched macroblock found (zero where none was
-    /// searched): the candidates of the macroblocks below and right.
+    /// searched): candidates of the macroblocks below and right, which
+    /// the wavefront lets read it only once it is written.
     pub found: SharedGrid,
 }
 
@@ -275,9 +276,8 @@ impl MotionAnalyser {
     }
 
     /// The search into each older reference: EPZS without its window
-    /// (the decided neighbours' vectors into the same reference and the
-    /// previous frame's field scaled by the distance as candidates), the
-    /// window centred on the camera's motion over that distance.
+    /// (its candidates: `older_reference_candidate` in `analyse.rs`),
+    /// the window centred on the camera's motion over that distance.
     fn older_searches(&self, older: &[Frame], s: SearchSettings, camera: Mv) -> Vec<OlderSearch> {
         let cfg = self.search_config(SearchSettings {
             method: me::Method::Epzs,

@@ -47,9 +47,9 @@ impl Neighbours {
     /// The predicted vector `mvp`, then `others` (at most six), then zero
     /// (x264's candidates: a still background is found even where the
     /// neighbours' vectors drifted).
-    pub(crate) fn list(mvp: Mv, others: &[Mv]) -> Neighbours {
+    pub(crate) fn list(mvp: Mv, others: impl IntoIterator<Item = Mv>) -> Neighbours {
         let mut n = Neighbours::single(mvp);
-        for &mv in others.iter().take(6) {
+        for mv in others.into_iter().take(6) {
             n.push(mv);
         }
         n.push(Mv::ZERO);

@@ -40,9 +40,8 @@ pub struct FrameStats {
     /// Macroblocks intra-coded.
     pub intra_mbs: usize,
     /// Motion estimation or flow time before the macroblock decision, ms
-    /// (`block` frames search the previous frame inside the decision:
-    /// only its half-pel planes and the older references' searches are
-    /// counted here).
+    /// (`block` frames search every reference inside the decision: only
+    /// the previous frame's half-pel planes are counted here).
     pub me_ms: f64,
     /// Time to code the frame, ms (the quality measurements not included).
     pub total_ms: f64,

@@ -70,7 +70,8 @@ pub(crate) struct Sweeps {
     /// Samples per block row, padding included.
     pub(super) stride: usize,
     w: usize,
-    h: usize,
+    /// Picture rows.
+    pub(super) h: usize,
     /// Per block (`2 c + first`): weights to the left, right, upper and
     /// lower neighbour; the folded right-hand sides; the reciprocal
     /// diagonals; the coupling (in that order, as [`coefficient_sources`] reads

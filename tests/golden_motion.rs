@@ -116,7 +116,7 @@ fn flows_vectors_matches_and_metrics_are_the_pinned_ones() {
         (
             "synth_qcif.y4m",
             [
-                0xef44888b583a53f9,
+                0xe5c1d001d0f6a715,
                 0x11f1d4bcf10788b8,
                 0xa2fb325df39cca87,
                 0x036c795b6b600177,
@@ -125,7 +125,7 @@ fn flows_vectors_matches_and_metrics_are_the_pinned_ones() {
         (
             "tree_qcif.y4m",
             [
-                0xaf60f6294f0aec60,
+                0x37574881266b7aa3,
                 0x9bb4fee41451bfa5,
                 0xe9545a0776768122,
                 0xcb1d65653d1b8f5e,

@@ -100,6 +100,12 @@ pub struct DisParams {
     /// beyond the pyramid's reach, where the pictures have corners to
     /// match. Used when no initial flow is given.
     pub seed_matches: bool,
+    /// The finest level whose patches try the matches' field (0: every
+    /// level; the coarsest level always does). Where the coarser levels
+    /// have found the motion already, a match's vector, exact at its
+    /// corner and spread to the pixels around it, pulls full-size patches
+    /// off it at motion boundaries (the accurate preset: 1).
+    pub seed_finest: usize,
     /// Variational refinement after each level (`iterations: 0` turns it off).
     pub refine: RefineParams,
 }
@@ -137,6 +143,7 @@ impl DisParams {
             damping_falls: true,
             global_search: false,
             seed_matches: false,
+            seed_finest: 0,
             refine: RefineParams::default(),
         };
         match preset {
@@ -155,12 +162,27 @@ impl DisParams {
                 iterations: 25,
                 ..base
             },
+            // Refined as DeepFlow refines (ten fixed-point iterations of
+            // ten sweeps; a stiffer smoothness term, less gradient
+            // constancy), the patches less damped and the matches tried
+            // from half size up: on the README's seven pairs EPE 0.288
+            // against 0.426 (fish_1160) and 0.151 against 0.205
+            // (smile_360p), where DeepFlow had 0.305 and 0.158.
             DisPreset::Accurate => DisParams {
                 finest: 0,
                 min_side: 0,
                 stride: 3,
                 iterations: 25,
+                damping: 2.0,
                 seed_matches: true,
+                seed_finest: 1,
+                refine: RefineParams {
+                    iterations: 10,
+                    sor_iterations: 10,
+                    alpha: 40.0,
+                    gamma: 5.0,
+                    ..RefineParams::default()
+                },
                 ..base
             },
         }
@@ -391,6 +413,12 @@ impl Dis {
             }
             _ => None,
         };
+        // The caller's start at every level, the matches' from `seed_finest`.
+        let hinted_from = if initial.is_some() {
+            finest
+        } else {
+            p.seed_finest.max(finest).min(top)
+        };
         let hints = initial
             .or(seed.as_ref())
             .map(|f| hint_pyramid(f, &self.p1.levels, finest));
@@ -401,7 +429,10 @@ impl Dis {
                 u = upsample2(&u, h, w, 2.0);
                 v = upsample2(&v, h, w, 2.0);
             }
-            let hint = hints.as_ref().map(|hs| &hs[level - finest]);
+            let hint = hints
+                .as_ref()
+                .filter(|_| level >= hinted_from)
+                .map(|hs| &hs[level - finest]);
             let patch = p.patch.min(w).min(h);
             let exhaustive = p.global_search && level == top;
             let padded = search::Padded::new(a2.as_slice().expect("standard"), w, h, patch + 2);

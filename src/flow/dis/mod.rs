@@ -120,7 +120,9 @@ pub enum DisPreset {
     /// Half-size flow, denser patches, more steps.
     Medium,
     /// Full-size flow, started from feature matches as well (motion
-    /// beyond the pyramid's reach); several times slower than `Medium`.
+    /// beyond the pyramid's reach) and refined as DeepFlow refines (ten
+    /// fixed-point iterations of ten sweeps a level); many times slower
+    /// than `Medium`.
     Accurate,
 }
 

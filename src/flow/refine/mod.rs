@@ -562,6 +562,9 @@ const PIPELINE_PIXELS: usize = 1 << 15;
 /// sweep over a picture larger than the cache read its nine coefficient
 /// arrays from memory again.
 fn sweep_pipelined(kernel: BandFn, sweeps: &mut Sweeps, omega: f32, n: usize, rows: usize) {
+    if n == 0 {
+        return;
+    }
     let (h, rows) = (sweeps.h as isize, rows.max(1) as isize);
     let mut top = 0isize;
     // Until the last sweep's black rows start below the picture.
@@ -842,6 +845,44 @@ mod tests {
         for bands in [2, 3, 7, 43, 200] {
             assert!(run(bands) == one, "{bands} bands refine otherwise than one");
         }
+    }
+
+    #[test]
+    fn a_level_large_enough_to_pipeline_refines_as_in_bands() {
+        // One band pipelines the sweeps of a level this large; bands sweep
+        // it whole, each sweep after the other.
+        let (h, w) = (150, 230);
+        assert!(w * h >= PIPELINE_PIXELS);
+        let f =
+            |x: f32, y: f32| 128.0 + 60.0 * (x / 7.0).sin() * (y / 5.0).cos() + 25.0 * ((x - y) / 9.0).cos();
+        let i1 = Array2::from_shape_fn((h, w), |(y, x)| f(x as f32, y as f32));
+        let i2 = Array2::from_shape_fn((h, w), |(y, x)| f(x as f32 - 1.1, y as f32 - 0.6));
+        let run = |bands: usize| {
+            let mut u = Array2::from_shape_fn((h, w), |(y, x)| 0.4 + 0.003 * (x as f32 - y as f32));
+            let mut v = u.mapv(|x| 0.5 * x);
+            let cut = Cut {
+                bands,
+                parallel: bands > 1,
+            };
+            let p = RefineParams {
+                iterations: 3,
+                sor_iterations: 7,
+                ..RefineParams::default()
+            };
+            Refiner::default().refine_cut(band_body, cut, &i1, &i2, &mut u, &mut v, &p);
+            (u, v)
+        };
+        let (pipelined, whole) = (run(1), run(4));
+        assert!(
+            pipelined == whole,
+            "pipelined sweeps refine otherwise than whole ones"
+        );
+        let moved = pipelined
+            .0
+            .indexed_iter()
+            .map(|((y, x), &u)| (u - 0.4 - 0.003 * (x as f32 - y as f32)).abs())
+            .fold(0f32, f32::max);
+        assert!(moved > 0.1, "the refinement should move the flow (moved {moved})");
     }
 
     #[test]

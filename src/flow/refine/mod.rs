@@ -547,8 +547,10 @@ const PIPELINE_ROWS: usize = 8;
 /// The smallest level whose sweeps are pipelined: below it the system (44
 /// bytes a pixel) stays in a core's cache from sweep to sweep, and the
 /// pipeline's shorter runs cost more than they save (criterion's
-/// `refine_half_kept`, one thread: CIF's half-size level, 25,344 pixels,
-/// 1.06x the time pipelined; 720p's, 230,400 pixels, 0.84x).
+/// `refine_half_kept`, one thread, one run each on the AMD EPYC of the
+/// README: CIF's half-size level, 25,344 pixels, 1.06x the time
+/// pipelined; 720p's, 230,400 pixels, 0.84x; the machine's noise is of
+/// that size, so the threshold is set from the cache, not from these).
 const PIPELINE_PIXELS: usize = 1 << 15;
 
 /// `n` red-black SOR sweeps, the same as `n` calls of [`sweep`] to the bit,

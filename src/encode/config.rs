@@ -301,10 +301,11 @@ pub enum EncoderPreset {
     #[default]
     Medium,
     /// A search range of 32, a window of 4 pels, full-pel positions
-    /// compared by SATD, three references, sub-pel RD refinement, 4x4
-    /// intra in P frames, and fast P-skip after the search only.
+    /// compared by SATD, three references, sub-pel RD refinement and 4x4
+    /// intra in P frames.
     Slow,
-    /// Five references.
+    /// Five references, and fast P-skip after the search only (every
+    /// macroblock searched).
     Slower,
 }
 

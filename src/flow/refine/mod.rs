@@ -19,14 +19,16 @@
 //! Pixels whose warped position leaves the picture get no data term: the
 //! smoothness term fills them from their neighbours.
 
+mod assemble;
 mod sweeps;
 mod system;
 
 use ndarray::Array2;
 use rayon::prelude::*;
 
-use self::sweeps::{coefficient_sources, gather_rows, sweep_band, unfold_rows, Block, Sweeps, BLOCKS};
-use self::system::{data_rows, fold_rows, smoothness_rows, Linearised, Padded, System};
+use self::assemble::{assemble_band, Terms};
+use self::sweeps::{increment_row, sweep_band, Block, Sweeps, BLOCKS};
+use self::system::{Linearised, Padded};
 
 /// Settings of the variational refinement.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -82,10 +84,13 @@ impl RefineParams {
 }
 
 /// One piece of a fixed-point iteration for the kernels of a CPU level
-/// ([`crate::flow::dsp`]): the whole linearisation, or one band of rows of
-/// a term, the output arrays cut to the band (`base`: the band's first
-/// sample in them). Each row is computed alike whatever the bands, so the
+/// ([`crate::flow::dsp`]): the whole linearisation, or one band of the
+/// system's assembly or of a block's sweep, the output arrays cut to the
+/// band (`base`: the band's first sample in them). Each row is computed alike whatever the bands, so the
 /// result is the same for any number of threads.
+// One value per band, moved into the kernel: its size (the assembly's 36
+// slices) costs a copy of a few hundred bytes per band, nothing beside the band.
+#[allow(clippy::large_enum_variant)]
 pub(crate) enum Band<'a> {
     /// The derivatives around the flow `[u, v]` (padded), with scratch.
     Linearise {
@@ -95,46 +100,12 @@ pub(crate) enum Band<'a> {
         scratch: &'a mut [f32],
         g: &'a Padded,
     },
-    /// The data terms into `[a11, a12, a22, b1, b2]`.
-    Data {
-        out: [&'a mut [f32]; 5],
+    /// The system's rows of a band, assembled into the blocks'
+    /// coefficients (block `j`'s coefficient `i` at `9 j + i`).
+    Assemble {
+        out: [&'a mut [f32]; 36],
         base: usize,
-        lin: &'a Linearised,
-        increment: [&'a [f32]; 2],
-        p: &'a RefineParams,
-        g: &'a Padded,
-    },
-    /// The smoothness weights into `[right, down]`.
-    Smoothness {
-        out: [&'a mut [f32]; 2],
-        base: usize,
-        flow: [&'a [f32]; 4],
-        p: &'a RefineParams,
-        g: &'a Padded,
-    },
-    /// The fold of `[b1, b2, a11, a22]` in place.
-    Fold {
-        out: [&'a mut [f32]; 4],
-        base: usize,
-        weights: [&'a [f32]; 2],
-        flow: [&'a [f32]; 2],
-        g: &'a Padded,
-    },
-    /// A block's coefficients gathered from the folded system.
-    Gather {
-        out: [&'a mut [f32]; 9],
-        base: usize,
-        src: [(&'a [f32], usize); 9],
-        block: Block,
-        stride: usize,
-        g: &'a Padded,
-    },
-    /// The increment back from the blocks into `[du, dv]`.
-    Unfold {
-        out: [&'a mut [f32]; 2],
-        base: usize,
-        sweeps: &'a Sweeps,
-        g: &'a Padded,
+        terms: Terms<'a>,
     },
     /// A block's SOR update.
     Sweep {
@@ -159,37 +130,7 @@ pub(crate) fn band_body(band: Band<'_>) {
             scratch,
             g,
         } => lin.compute(pictures[0], pictures[1], flow[0], flow[1], scratch, g),
-        Band::Data {
-            out,
-            base,
-            lin,
-            increment,
-            p,
-            g,
-        } => data_rows(out, base, lin, increment, p, g),
-        Band::Smoothness {
-            out,
-            base,
-            flow,
-            p,
-            g,
-        } => smoothness_rows(out, base, flow, p, g),
-        Band::Fold {
-            out,
-            base,
-            weights,
-            flow,
-            g,
-        } => fold_rows(out, base, weights, flow, g),
-        Band::Gather {
-            out,
-            base,
-            src,
-            block,
-            stride,
-            g,
-        } => gather_rows(out, base, src, block, stride, g),
-        Band::Unfold { out, base, sweeps, g } => unfold_rows(out, base, sweeps, g),
+        Band::Assemble { out, base, terms } => assemble_band(out, base, terms),
         Band::Sweep {
             out,
             base,
@@ -256,9 +197,6 @@ pub struct Refiner {
     scratch: Vec<f32>,
     u: Vec<f32>,
     v: Vec<f32>,
-    du: Vec<f32>,
-    dv: Vec<f32>,
-    sys: Option<System>,
     sweeps: Option<Sweeps>,
 }
 
@@ -373,21 +311,12 @@ impl Refiner {
             let g = Padded { w, h };
             let n = g.len();
             self.lin = Some(Linearised::new(n));
-            self.sys = Some(System::new(n));
             self.sweeps = Some(Sweeps::new(w, h));
-            for b in [
-                &mut self.scratch,
-                &mut self.u,
-                &mut self.v,
-                &mut self.du,
-                &mut self.dv,
-            ] {
+            for b in [&mut self.scratch, &mut self.u, &mut self.v] {
                 *b = vec![0f32; n];
             }
             self.g = Some(g);
         } else {
-            self.du.fill(0.0);
-            self.dv.fill(0.0);
             let sw = self.sweeps.as_mut().expect("sized with g");
             for b in 0..4 {
                 sw.du[b].fill(0.0);
@@ -407,16 +336,20 @@ impl Refiner {
         }
     }
 
-    /// The flow plus the increment, back from the padded grid.
+    /// The flow plus the increment, out of the blocks.
     fn store(&self, us: &mut [f32], vs: &mut [f32]) {
-        let g = self.g.as_ref().expect("prepared");
+        let (Some(g), Some(sweeps)) = (&self.g, &self.sweeps) else {
+            unreachable!("prepared")
+        };
         let w = g.w;
+        let mut row = [vec![0f32; w], vec![0f32; w]];
         for y in 0..g.h {
-            let row = g.at(0, y)..g.at(0, y) + w;
-            for (o, &d) in us[y * w..(y + 1) * w].iter_mut().zip(&self.du[row.clone()]) {
+            let [du, dv] = &mut row;
+            increment_row([du, dv], sweeps.layout, [&sweeps.du, &sweeps.dv], y);
+            for (o, &d) in us[y * w..(y + 1) * w].iter_mut().zip(&row[0]) {
                 *o += d;
             }
-            for (o, &d) in vs[y * w..(y + 1) * w].iter_mut().zip(&self.dv[row]) {
+            for (o, &d) in vs[y * w..(y + 1) * w].iter_mut().zip(&row[1]) {
                 *o += d;
             }
         }
@@ -435,65 +368,21 @@ impl Refiner {
         });
     }
 
-    /// One fixed-point iteration: the robust weights at the current
-    /// increment, the fold, the SOR sweeps and the increment back.
+    /// One fixed-point iteration: the system at the current increment
+    /// (robust weights and fold), then the SOR sweeps.
     fn iterate(&mut self, kernel: BandFn, p: &RefineParams, cut: Cut) {
         let Refiner {
             g: Some(g),
             lin: Some(lin),
-            sys: Some(sys),
             sweeps: Some(sweeps),
             u,
             v,
-            du,
-            dv,
             ..
         } = self
         else {
             unreachable!("prepared")
         };
-        let (flow, increment) = ([&u[..], &v[..]], [&du[..], &dv[..]]);
-        let band = cut.rows(g.h + 2, g.stride());
-        let System {
-            a11,
-            a12,
-            a22,
-            b1,
-            b2,
-            right,
-            down,
-        } = sys;
-        for_bands([a11, a12, a22, b1, b2], band, cut.parallel, |out, base| {
-            kernel(Band::Data {
-                out,
-                base,
-                lin,
-                increment,
-                p,
-                g,
-            })
-        });
-        let flow4 = [flow[0], flow[1], increment[0], increment[1]];
-        for_bands([&mut *right, &mut *down], band, cut.parallel, |out, base| {
-            kernel(Band::Smoothness {
-                out,
-                base,
-                flow: flow4,
-                p,
-                g,
-            })
-        });
-        let weights = [&right[..], &down[..]];
-        for_bands([b1, b2, a11, a22], band, cut.parallel, |out, base| {
-            kernel(Band::Fold {
-                out,
-                base,
-                weights,
-                flow,
-                g,
-            })
-        });
-        gather(kernel, sweeps, sys, g, cut);
+        assemble(kernel, sweeps, (lin, [u, v]), p, g, cut);
         if !cut.parallel && g.w * g.h >= PIPELINE_PIXELS {
             sweep_pipelined(kernel, sweeps, p.omega, p.sor_iterations, PIPELINE_ROWS);
         } else {
@@ -501,39 +390,46 @@ impl Refiner {
                 sweep(kernel, sweeps, p.omega, cut);
             }
         }
-        let sweeps = &*sweeps;
-        for_bands([du, dv], band, cut.parallel, |out, base| {
-            kernel(Band::Unfold { out, base, sweeps, g })
-        });
     }
 }
 
-/// Every block's coefficients from the folded system.
-fn gather(kernel: BandFn, sweeps: &mut Sweeps, sys: &System, g: &Padded, cut: Cut) {
-    let src = coefficient_sources(sys, g.stride());
-    let stride = sweeps.stride;
-    let band = cut.rows(g.h.div_ceil(2) + 2, stride);
-    for (c, first) in BLOCKS {
-        let block = sweeps.block(c, first);
-        let out = sweeps.coefficients[block.index].each_mut().map(|a| &mut a[..]);
-        for_bands(out, band, cut.parallel, |out, base| {
-            kernel(Band::Gather {
-                out,
-                base,
-                src,
-                block,
-                stride,
-                g,
-            })
-        });
-    }
+/// The system around the flow `[u, v]` plus the sweeps' increment,
+/// assembled into the blocks' coefficients in bands of block rows.
+fn assemble(
+    kernel: BandFn,
+    sweeps: &mut Sweeps,
+    (lin, flow): (&Linearised, [&[f32]; 2]),
+    p: &RefineParams,
+    g: &Padded,
+    cut: Cut,
+) {
+    let Sweeps {
+        layout,
+        coefficients,
+        du,
+        dv,
+    } = sweeps;
+    let terms = Terms {
+        lin,
+        flow,
+        increment: [du, dv],
+        p,
+        g,
+        layout: *layout,
+    };
+    let mut all = coefficients.iter_mut().flatten();
+    let out: [&mut [f32]; 36] = std::array::from_fn(|_| &mut all.next().expect("36 arrays")[..]);
+    let band = cut.rows(g.h.div_ceil(2) + 2, layout.stride);
+    for_bands(out, band, cut.parallel, |out, base| {
+        kernel(Band::Assemble { out, base, terms })
+    });
 }
 
 /// One red-black SOR sweep: each colour's two blocks, each block's run in
 /// bands.
 fn sweep(kernel: BandFn, sweeps: &mut Sweeps, omega: f32, cut: Cut) {
     for (c, first) in BLOCKS {
-        let run = sweeps.run(sweeps.block(c, first));
+        let run = sweeps.layout.run(sweeps.layout.block(c, first));
         if !run.is_empty() {
             let band = run.len().div_ceil(cut.bands);
             update_block(kernel, sweeps, omega, (c, first), run, (band, cut.parallel));
@@ -567,7 +463,7 @@ fn sweep_pipelined(kernel: BandFn, sweeps: &mut Sweeps, omega: f32, n: usize, ro
     if n == 0 {
         return;
     }
-    let (h, rows) = (sweeps.h as isize, rows.max(1) as isize);
+    let (h, rows) = (sweeps.layout.h as isize, rows.max(1) as isize);
     let mut top = 0isize;
     // Until the last sweep's black rows start below the picture.
     while top - 2 * (n as isize - 1) - 1 < h {
@@ -584,18 +480,18 @@ fn sweep_pipelined(kernel: BandFn, sweeps: &mut Sweeps, omega: f32, n: usize, ro
 fn update_rows(kernel: BandFn, sweeps: &mut Sweeps, omega: f32, c: usize, lines: std::ops::Range<isize>) {
     let (lo, hi) = (
         lines.start.max(0) as usize,
-        lines.end.clamp(0, sweeps.h as isize) as usize,
+        lines.end.clamp(0, sweeps.layout.h as isize) as usize,
     );
     if lo >= hi {
         return;
     }
     for first in 0..2 {
-        let block = sweeps.block(c, first);
+        let block = sweeps.layout.block(c, first);
         // Block row r holds picture row 2 r + q.
         let r0 = lo.saturating_sub(block.q).div_ceil(2);
         let r1 = hi.saturating_sub(block.q).div_ceil(2).min(block.rows);
         if r0 < r1 && block.len > 0 {
-            let run = sweeps.at(r0, 0)..sweeps.at(r1 - 1, block.len);
+            let run = sweeps.layout.at(r0, 0)..sweeps.layout.at(r1 - 1, block.len);
             let len = run.len();
             update_block(kernel, sweeps, omega, (c, first), run, (len, false));
         }
@@ -612,8 +508,8 @@ fn update_block(
     run: std::ops::Range<usize>,
     (band, parallel): (usize, bool),
 ) {
-    let stride = sweeps.stride;
-    let block = sweeps.block(c, first);
+    let stride = sweeps.layout.stride;
+    let block = sweeps.layout.block(c, first);
     let j = block.index;
     let (lr, ud) = (2 * (1 - c) + 1 - first, 2 * (1 - c) + first);
     let (mut du, mut dv) = (
@@ -648,6 +544,7 @@ fn update_block(
 
 #[cfg(test)]
 mod tests {
+    use super::system::plain::System;
     use super::*;
 
     /// Red-black SOR written plainly over the full padded grid: the
@@ -676,61 +573,96 @@ mod tests {
         (du, dv)
     }
 
+    /// The system's coefficients placed in the blocks pixel by pixel.
+    fn fill_blocks(sweeps: &mut Sweeps, sys: &System, g: &Padded) {
+        let s = g.stride();
+        for (x, y) in (0..g.h).flat_map(|y| (0..g.w).map(move |x| (x, y))) {
+            let (b, start) = sweeps.layout.row_blocks(y)[x % 2];
+            let (i, k) = (g.at(x, y), start + x / 2);
+            let values = [
+                sys.right[i - 1],
+                sys.right[i],
+                sys.down[i - s],
+                sys.down[i],
+                sys.b1[i],
+                sys.b2[i],
+                sys.a11[i],
+                sys.a22[i],
+                sys.a12[i],
+            ];
+            for (array, value) in sweeps.coefficients[b.index].iter_mut().zip(values) {
+                array[k] = value;
+            }
+        }
+    }
+
+    /// The increment `[du, dv]` (padded) placed in the blocks pixel by pixel.
+    fn put_increment(sweeps: &mut Sweeps, [du, dv]: [&[f32]; 2], g: &Padded) {
+        for (x, y) in (0..g.h).flat_map(|y| (0..g.w).map(move |x| (x, y))) {
+            let (b, start) = sweeps.layout.row_blocks(y)[x % 2];
+            sweeps.du[b.index][start + x / 2] = du[g.at(x, y)];
+            sweeps.dv[b.index][start + x / 2] = dv[g.at(x, y)];
+        }
+    }
+
+    /// The increment out of the blocks, on the padded grid.
+    fn unfold(sweeps: &Sweeps, g: &Padded) -> (Vec<f32>, Vec<f32>) {
+        let (mut du, mut dv) = (vec![0f32; g.len()], vec![0f32; g.len()]);
+        for y in 0..g.h {
+            let row = g.at(0, y)..g.at(0, y) + g.w;
+            let (ru, rv) = (&mut du[row.clone()], &mut dv[row]);
+            increment_row([ru, rv], sweeps.layout, [&sweeps.du, &sweeps.dv], y);
+        }
+        (du, dv)
+    }
+
+    /// Numbers in [-1, 1] from a seed (xorshift).
+    fn numbers(seed: u32) -> impl FnMut() -> f32 {
+        let mut seed = seed;
+        move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            (seed % 2001) as f32 / 1000.0 - 1.0
+        }
+    }
+
+    /// Odd and even sizes, single rows and columns: each block's rows and
+    /// samples per row differ with the parities.
+    const SIZES: [(usize, usize); 8] = [(1, 1), (1, 6), (7, 1), (2, 3), (5, 4), (6, 6), (53, 37), (44, 36)];
+
     #[test]
     fn split_sweeps_equal_plain_red_black_sor() {
-        // Odd and even sizes, single rows and columns: each block's rows and
-        // samples per row differ with the parities.
-        for (w, h) in [(1, 1), (1, 6), (7, 1), (2, 3), (5, 4), (6, 6), (53, 37), (44, 36)] {
+        for (w, h) in SIZES {
             let g = Padded { w, h };
             let mut sys = System::new(g.len());
-            let mut seed = 0x2545_f491u32 ^ (w * 131 + h) as u32;
-            let mut next = move || {
-                seed ^= seed << 13;
-                seed ^= seed >> 17;
-                seed ^= seed << 5;
-                (seed % 2001) as f32 / 1000.0 - 1.0
-            };
-            let (mut u, mut v) = (vec![0f32; g.len()], vec![0f32; g.len()]);
+            let mut next = numbers(0x2545_f491u32 ^ (w * 131 + h) as u32);
             for (x, y) in (0..h).flat_map(|y| (0..w).map(move |x| (x, y))) {
                 let i = g.at(x, y);
-                sys.a11[i] = 2.0 + next();
-                sys.a22[i] = 2.0 + next();
                 sys.a12[i] = 0.5 * next();
                 sys.b1[i] = next();
                 sys.b2[i] = next();
                 // The smoothness term's zero weights past the last column and row.
                 sys.right[i] = if x + 1 < w { 1.0 + next() } else { 0.0 };
                 sys.down[i] = if y + 1 < h { 1.0 + next() } else { 0.0 };
-                (u[i], v[i]) = (3.0 * next(), 3.0 * next());
+                // Folded: the reciprocal diagonals with the four weights.
+                let sum = sys.right[i - 1] + sys.right[i] + sys.down[i - g.stride()] + sys.down[i];
+                sys.a11[i] = 1.0 / (2.0 + next() + sum);
+                sys.a22[i] = 1.0 / (2.0 + next() + sum);
             }
             let mut sweeps = Sweeps::new(w, h);
-            let System {
-                b1,
-                b2,
-                a11,
-                a22,
-                right,
-                down,
-                ..
-            } = &mut sys;
-            fold_rows([b1, b2, a11, a22], 0, [right, down], [&u, &v], &g);
+            fill_blocks(&mut sweeps, &sys, &g);
             // Bands of a few rows each, as threads would take them.
             let cut = Cut {
                 bands: 3,
                 parallel: true,
             };
-            gather(band_body, &mut sweeps, &sys, &g, cut);
             let (pu, pv) = plain_sweeps(&sys, &g, 1.6, 4);
-            let unfold = |sweeps: &Sweeps| {
-                let (mut du, mut dv) = (vec![0f32; g.len()], vec![0f32; g.len()]);
-                unfold_rows([&mut du, &mut dv], 0, sweeps, &g);
-                (du, dv)
-            };
             let start = (sweeps.du.clone(), sweeps.dv.clone());
             for _ in 0..4 {
                 sweep(band_body, &mut sweeps, 1.6, cut);
             }
-            let (du, dv) = unfold(&sweeps);
+            let (du, dv) = unfold(&sweeps, &g);
             assert!(du == pu && dv == pv, "{w}x{h}: split and plain sweeps differ");
             assert!(
                 du.iter().any(|&d| d.abs() > 0.01),
@@ -741,8 +673,59 @@ mod tests {
                 (sweeps.du, sweeps.dv) = start.clone();
                 sweep_pipelined(band_body, &mut sweeps, 1.6, 4, rows);
                 assert!(
-                    unfold(&sweeps) == (pu.clone(), pv.clone()),
+                    unfold(&sweeps, &g) == (pu.clone(), pv.clone()),
                     "{w}x{h}: sweeps pipelined {rows} rows a step differ from plain ones"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn the_assembled_system_is_the_plain_one_in_any_bands() {
+        let f =
+            |x: f32, y: f32| 128.0 + 60.0 * (x / 5.0).sin() * (y / 7.0).cos() + 20.0 * ((x + y) / 3.0).cos();
+        let p = RefineParams::default();
+        for (w, h) in SIZES {
+            let g = Padded { w, h };
+            let mut next = numbers(0x9e37_79b9u32 ^ (w * 17 + h) as u32);
+            let i1: Vec<f32> = (0..w * h).map(|i| f((i % w) as f32, (i / w) as f32)).collect();
+            let i2: Vec<f32> = (0..w * h)
+                .map(|i| f((i % w) as f32 - 0.7, (i / w) as f32 + 0.4))
+                .collect();
+            let mut flow = [
+                vec![0f32; g.len()],
+                vec![0f32; g.len()],
+                vec![0f32; g.len()],
+                vec![0f32; g.len()],
+            ];
+            for (x, y) in (0..h).flat_map(|y| (0..w).map(move |x| (x, y))) {
+                for (k, a) in flow.iter_mut().enumerate() {
+                    // Flow within 2 px, the increment within 0.3.
+                    a[g.at(x, y)] = if k < 2 { 2.0 } else { 0.3 } * next();
+                }
+            }
+            let [u, v, du, dv] = &flow;
+            let mut lin = Linearised::new(g.len());
+            lin.compute(&i1, &i2, u, v, &mut vec![0f32; g.len()], &g);
+            let plain = System::of(&lin, [u, v], [du, dv], &p, &g);
+            let mut expected = Sweeps::new(w, h);
+            fill_blocks(&mut expected, &plain, &g);
+            // (A picture of a row or two has no gradient to speak of.)
+            assert!(
+                w * h < 20 || expected.coefficients[0][4].iter().any(|&c| c.abs() > 1e-3),
+                "{w}x{h}: the system should not be zero"
+            );
+            for bands in [1, 2, 3, 7, 50] {
+                let mut sweeps = Sweeps::new(w, h);
+                put_increment(&mut sweeps, [du, dv], &g);
+                let cut = Cut {
+                    bands,
+                    parallel: bands > 1,
+                };
+                assemble(band_body, &mut sweeps, (&lin, [u, v]), &p, &g, cut);
+                assert!(
+                    sweeps.coefficients == expected.coefficients,
+                    "{w}x{h}, {bands} bands: the assembly differs from the plain system"
                 );
             }
         }
@@ -766,9 +749,9 @@ mod tests {
         };
         for n in [1, 2, 5, 10, 40] {
             let mut whole = Sweeps::new(g.w, g.h);
-            gather(band_body, &mut whole, &sys, &g, one);
+            fill_blocks(&mut whole, &sys, &g);
             let mut pipelined = Sweeps::new(g.w, g.h);
-            gather(band_body, &mut pipelined, &sys, &g, one);
+            fill_blocks(&mut pipelined, &sys, &g);
             for _ in 0..n {
                 sweep(band_body, &mut whole, 1.6, one);
             }

@@ -1,11 +1,9 @@
 //! The red-black SOR sweeps of the refinement over a split layout of the
 //! pixels (see [`Sweeps`]), in runs that bands of threads can share.
 
-use super::system::{band_rows, Padded, System};
-
 /// `dst[k] = src[2 k]` for every `k` of `dst`.
 #[inline(always)]
-fn every_other(dst: &mut [f32], src: &[f32]) {
+pub(super) fn every_other(dst: &mut [f32], src: &[f32]) {
     let pairs = dst.len().min(src.len() / 2);
     // Both cut to length first: a plain indexed loop without bounds checks
     // (over two-sample chunks it cost the fast preset 5 % more
@@ -22,7 +20,7 @@ fn every_other(dst: &mut [f32], src: &[f32]) {
 /// The SOR updates of a run of one colour's samples: each pixel's increment
 /// `(du, dv)` from the weights to its four neighbours (left, right, up,
 /// down), the neighbours' `du` and `dv`, `c_u`, `c_v`, the reciprocal
-/// diagonals and the coupling `a12` (see [`super::system::fold_rows`]). Every slice
+/// diagonals and the coupling `a12` (see [`super::system::fold_row`]). Every slice
 /// cut to the run's length first, so that the loop runs without bounds
 /// checks and vectorises.
 #[inline(always)]
@@ -67,37 +65,26 @@ pub(super) fn sweep_run(
 /// padding on each side and a block one padding row above and below, all
 /// zero, as are the weights towards them.
 pub(crate) struct Sweeps {
-    /// Samples per block row, padding included.
-    pub(super) stride: usize,
-    w: usize,
-    /// Picture rows.
-    pub(super) h: usize,
+    /// Where each pixel's samples are.
+    pub(super) layout: Layout,
     /// Per block (`2 c + first`): weights to the left, right, upper and
     /// lower neighbour; the folded right-hand sides; the reciprocal
-    /// diagonals; the coupling (in that order, as [`coefficient_sources`] reads
-    /// them from the system).
+    /// diagonals; the coupling (in that order: see
+    /// [`super::assemble::assemble_band`]).
     pub(super) coefficients: [[Vec<f32>; 9]; 4],
     /// Per block: the increment.
     pub(super) du: [Vec<f32>; 4],
     pub(super) dv: [Vec<f32>; 4],
 }
 
-/// Where each of a block's coefficients comes from, in the order of
-/// [`Sweeps::coefficients`]: the system's array and how many samples before
-/// the pixel (the left neighbour's weight to the right, the upper
-/// neighbour's weight below, `s` the grid's stride).
-pub(super) fn coefficient_sources(sys: &System, s: usize) -> [(&[f32], usize); 9] {
-    [
-        (&sys.right, 1),
-        (&sys.right, 0),
-        (&sys.down, s),
-        (&sys.down, 0),
-        (&sys.b1, 0),
-        (&sys.b2, 0),
-        (&sys.a11, 0),
-        (&sys.a22, 0),
-        (&sys.a12, 0),
-    ]
+/// The geometry of the four blocks of [`Sweeps`] for a `w x h` picture.
+#[derive(Clone, Copy)]
+pub(crate) struct Layout {
+    /// Samples per block row, padding included.
+    pub(super) stride: usize,
+    pub(super) w: usize,
+    /// Picture rows.
+    pub(super) h: usize,
 }
 
 /// A block of [`Sweeps`]: its index, the parity `q` of its rows, its row
@@ -116,17 +103,26 @@ pub(super) const BLOCKS: [(usize, usize); 4] = [(0, 0), (0, 1), (1, 0), (1, 1)];
 
 impl Sweeps {
     pub(super) fn new(w: usize, h: usize) -> Sweeps {
-        let stride = w.div_ceil(2) + 2;
-        let n = stride * (h.div_ceil(2) + 2);
-        let z = || std::array::from_fn(|_| vec![0f32; n]);
-        Sweeps {
-            stride,
+        let layout = Layout {
+            stride: w.div_ceil(2) + 2,
             w,
             h,
+        };
+        let n = layout.len();
+        let z = || std::array::from_fn(|_| vec![0f32; n]);
+        Sweeps {
+            layout,
             coefficients: std::array::from_fn(|_| std::array::from_fn(|_| vec![0f32; n])),
             du: z(),
             dv: z(),
         }
+    }
+}
+
+impl Layout {
+    /// Samples per block, padding included.
+    pub(super) fn len(&self) -> usize {
+        self.stride * (self.h.div_ceil(2) + 2)
     }
 
     pub(super) fn block(&self, c: usize, first: usize) -> Block {
@@ -154,53 +150,36 @@ impl Sweeps {
         }
         self.at(0, 0)..self.at(b.rows - 1, b.len)
     }
+
+    /// The blocks that hold picture row `y`, with where the row starts in
+    /// them: its pixels `x = first + 2 k` are the samples `k` from there.
+    pub(super) fn row_blocks(&self, y: usize) -> [(Block, usize); 2] {
+        std::array::from_fn(|first| (self.block((y + first) % 2, first), self.at(y / 2, 0)))
+    }
 }
 
-/// Copies the increment back to the rows of the padded full grid that a
-/// band holds: `out` is `[du, dv]` cut to the band, which starts at sample
-/// `base`.
+/// Picture row `y` of the increment out of the blocks into `[du, dv]`
+/// (`w` samples each).
 #[inline(always)]
-pub(super) fn unfold_rows(out: [&mut [f32]; 2], base: usize, sweeps: &Sweeps, g: &Padded) {
-    let [du, dv] = out;
-    for y in band_rows(base, du.len(), g.stride(), g.h) {
-        let row = g.at(0, y) - base..g.at(0, y) - base + g.w;
-        for first in 0..2 {
-            // Row y is row y / 2 of the blocks whose rows have its parity.
-            let b = sweeps.block((y + first) % 2, first);
-            let split = sweeps.at(y / 2, 0);
-            let (su, sv) = (&sweeps.du[b.index][split..], &sweeps.dv[b.index][split..]);
-            for (d, &v) in du[row.clone()].iter_mut().skip(first).step_by(2).zip(su) {
-                *d = v;
-            }
-            for (d, &v) in dv[row.clone()].iter_mut().skip(first).step_by(2).zip(sv) {
-                *d = v;
-            }
+pub(super) fn increment_row(
+    mut out: [&mut [f32]; 2],
+    layout: Layout,
+    increment: [&[Vec<f32>; 4]; 2],
+    y: usize,
+) {
+    for (b, start) in layout.row_blocks(y) {
+        for (row, blocks) in out.iter_mut().zip(increment) {
+            every_other_into(&mut row[b.first..], &blocks[b.index][start..start + b.len]);
         }
     }
 }
 
-/// Gathers a block's coefficients from the folded system for the block
-/// rows of a band: `out` is the block's nine coefficient arrays cut to
-/// the band, which starts at sample `base`; `src` the system's arrays and
-/// offsets of [`coefficient_sources`].
+/// `dst[2 k] = src[k]` for every `k` of `src` (`dst` at least
+/// `2 src.len() - 1` long).
 #[inline(always)]
-pub(super) fn gather_rows(
-    out: [&mut [f32]; 9],
-    base: usize,
-    src: [(&[f32], usize); 9],
-    b: Block,
-    stride: usize,
-    g: &Padded,
-) {
-    let mut out = out;
-    for r in band_rows(base, out[0].len(), stride, b.rows) {
-        // This block's pixels of row y, x = first + 2k, are samples k of
-        // its row r.
-        let i = g.at(b.first, b.q + 2 * r);
-        let o = (r + 1) * stride + 1 - base;
-        for (dst, (src, back)) in out.iter_mut().zip(src) {
-            every_other(&mut dst[o..o + b.len], &src[i - back..]);
-        }
+fn every_other_into(dst: &mut [f32], src: &[f32]) {
+    for (d, &s) in dst.iter_mut().step_by(2).zip(src) {
+        *d = s;
     }
 }
 

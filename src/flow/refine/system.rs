@@ -130,171 +130,205 @@ fn derivatives(f: &[f32], g: &Padded, dx: &mut [f32], dy: &mut [f32]) {
     }
 }
 
-/// The linear system of one fixed-point iteration, per pixel:
-/// `[a11 a12; a12 a22] dw + smoothness = [b1; b2]`.
-pub(crate) struct System {
-    pub(super) a11: Vec<f32>,
-    pub(super) a12: Vec<f32>,
-    pub(super) a22: Vec<f32>,
-    pub(super) b1: Vec<f32>,
-    pub(super) b2: Vec<f32>,
-    /// Smoothness weights of the edge to the right and the edge below
-    /// (zero on the border, so border pixels have fewer neighbours).
-    pub(super) right: Vec<f32>,
-    pub(super) down: Vec<f32>,
-}
-
-impl System {
-    pub(super) fn new(n: usize) -> System {
-        let z = || vec![0f32; n];
-        System {
-            a11: z(),
-            a12: z(),
-            a22: z(),
-            b1: z(),
-            b2: z(),
-            right: z(),
-            down: z(),
-        }
-    }
-}
-
-/// The data terms with the robust weights at the current increment, for
-/// the rows of a band: `out` is `[a11, a12, a22, b1, b2]` cut to the band,
-/// which starts at sample `base` of the grid.
+/// The data terms of one row with the robust weights at the current
+/// increment: `out` is `[a11, a12, a22, b1, b2]` of the row's `w` pixels,
+/// `start` the row's first sample in the padded grid, `[du, dv]` the
+/// row's increment.
 #[inline(always)]
-pub(super) fn data_rows(
+pub(super) fn data_row(
     out: [&mut [f32]; 5],
-    base: usize,
     l: &Linearised,
+    start: usize,
     [du, dv]: [&[f32]; 2],
     p: &RefineParams,
-    g: &Padded,
 ) {
-    let n = g.w;
     let [a11, a12, a22, b1, b2] = out;
-    for y in band_rows(base, a11.len(), g.stride(), g.h) {
-        // Every slice cut to the row's length, so that the loop runs
-        // without bounds checks and vectorises.
-        let r = g.at(0, y)..g.at(0, y) + n;
-        let o = r.start - base..r.end - base;
-        let (ix, iy, iz) = (&l.ix[r.clone()], &l.iy[r.clone()], &l.iz[r.clone()]);
-        let (ixx, ixy, iyy) = (&l.ixx[r.clone()], &l.ixy[r.clone()], &l.iyy[r.clone()]);
-        let (ixz, iyz, inside) = (&l.ixz[r.clone()], &l.iyz[r.clone()], &l.inside[r.clone()]);
-        let (du, dv) = (&du[r.clone()], &dv[r]);
-        let (a11, a12, a22) = (&mut a11[o.clone()], &mut a12[o.clone()], &mut a22[o.clone()]);
-        let (b1, b2) = (&mut b1[o.clone()], &mut b2[o]);
-        for k in 0..n {
-            let (ix, iy) = (ix[k], iy[k]);
-            let n1 = ix * ix + iy * iy + ZETA2;
-            let r = iz[k] + ix * du[k] + iy * dv[k];
-            let wd = inside[k] * p.delta / (r * r / n1 + EPS2).sqrt() / n1;
-            let (ixx, ixy, iyy) = (ixx[k], ixy[k], iyy[k]);
-            let (n2, n3) = (ixx * ixx + ixy * ixy + ZETA2, ixy * ixy + iyy * iyy + ZETA2);
-            let rx = ixz[k] + ixx * du[k] + ixy * dv[k];
-            let ry = iyz[k] + ixy * du[k] + iyy * dv[k];
-            let wg = inside[k] * p.gamma / (rx * rx / n2 + ry * ry / n3 + EPS2).sqrt();
-            let (g2, g3) = (wg / n2, wg / n3);
-            a11[k] = wd * ix * ix + g2 * ixx * ixx + g3 * ixy * ixy + ZETA2;
-            a12[k] = wd * ix * iy + g2 * ixx * ixy + g3 * ixy * iyy;
-            a22[k] = wd * iy * iy + g2 * ixy * ixy + g3 * iyy * iyy + ZETA2;
-            b1[k] = -(wd * iz[k] * ix + g2 * ixx * ixz[k] + g3 * ixy * iyz[k]);
-            b2[k] = -(wd * iz[k] * iy + g2 * ixy * ixz[k] + g3 * iyy * iyz[k]);
-        }
+    let n = a11.len();
+    // Every slice cut to the row's length, so that the loop runs without
+    // bounds checks and vectorises.
+    let r = start..start + n;
+    let (ix, iy, iz) = (&l.ix[r.clone()], &l.iy[r.clone()], &l.iz[r.clone()]);
+    let (ixx, ixy, iyy) = (&l.ixx[r.clone()], &l.ixy[r.clone()], &l.iyy[r.clone()]);
+    let (ixz, iyz, inside) = (&l.ixz[r.clone()], &l.iyz[r.clone()], &l.inside[r]);
+    let (du, dv) = (&du[..n], &dv[..n]);
+    let (a12, a22, b1, b2) = (&mut a12[..n], &mut a22[..n], &mut b1[..n], &mut b2[..n]);
+    for k in 0..n {
+        let (ix, iy) = (ix[k], iy[k]);
+        let n1 = ix * ix + iy * iy + ZETA2;
+        let r = iz[k] + ix * du[k] + iy * dv[k];
+        let wd = inside[k] * p.delta / (r * r / n1 + EPS2).sqrt() / n1;
+        let (ixx, ixy, iyy) = (ixx[k], ixy[k], iyy[k]);
+        let (n2, n3) = (ixx * ixx + ixy * ixy + ZETA2, ixy * ixy + iyy * iyy + ZETA2);
+        let rx = ixz[k] + ixx * du[k] + ixy * dv[k];
+        let ry = iyz[k] + ixy * du[k] + iyy * dv[k];
+        let wg = inside[k] * p.gamma / (rx * rx / n2 + ry * ry / n3 + EPS2).sqrt();
+        let (g2, g3) = (wg / n2, wg / n3);
+        a11[k] = wd * ix * ix + g2 * ixx * ixx + g3 * ixy * ixy + ZETA2;
+        a12[k] = wd * ix * iy + g2 * ixx * ixy + g3 * ixy * iyy;
+        a22[k] = wd * iy * iy + g2 * ixy * ixy + g3 * iyy * iyy + ZETA2;
+        b1[k] = -(wd * iz[k] * ix + g2 * ixx * ixz[k] + g3 * ixy * iyz[k]);
+        b2[k] = -(wd * iz[k] * iy + g2 * ixy * ixz[k] + g3 * iyy * iyz[k]);
     }
 }
 
-/// The robust smoothness weights of the flow `w + dw` (forward
-/// differences) for the rows of a band: `out` is `[right, down]` cut to
-/// the band, which starts at sample `base`; `flow` is `[u, v, du, dv]`.
+/// A row's flow `w` and increment `dw` with those of the row below (the
+/// row itself for the last row, whose differences below are then zero).
+#[derive(Clone, Copy)]
+pub(super) struct FlowRows<'a> {
+    /// `[u, v]` of the row and of the row below, `w` samples each.
+    pub(super) flow: [[&'a [f32]; 2]; 2],
+    /// `[du, dv]` likewise.
+    pub(super) increment: [[&'a [f32]; 2]; 2],
+    /// Whether there is a row below.
+    pub(super) below: bool,
+}
+
+/// The robust smoothness weights of one row of the flow `w + dw` (forward
+/// differences): `right` (`w` samples, 0 for the last column, which has
+/// no edge to the right) and `down` (0 on the last row).
 #[inline(always)]
-pub(super) fn smoothness_rows(
-    out: [&mut [f32]; 2],
-    base: usize,
-    flow: [&[f32]; 4],
-    p: &RefineParams,
-    g: &Padded,
-) {
-    let (s, n) = (g.stride(), g.w);
-    let [right, down] = out;
-    let [u, v, du, dv] = flow;
-    for y in band_rows(base, right.len(), s, g.h) {
-        // The last row and column have no edge below / to the right:
-        // their differences there are zero and their weights too.
-        let below = if y + 1 < g.h { s } else { 0 };
-        let start = g.at(0, y);
-        // The row and its neighbours to the right and below, each
-        // `n - 1` long (the last pixel is done after the loop).
-        let m = n - 1;
-        let (uc, dc) = (&u[start..start + m], &du[start..start + m]);
-        let (vc, ec) = (&v[start..start + m], &dv[start..start + m]);
-        let (ur, dur) = (&u[start + 1..start + 1 + m], &du[start + 1..start + 1 + m]);
-        let (vr, dvr) = (&v[start + 1..start + 1 + m], &dv[start + 1..start + 1 + m]);
-        let (ub, dub) = (
-            &u[start + below..start + below + m],
-            &du[start + below..start + below + m],
-        );
-        let (vb, dvb) = (
-            &v[start + below..start + below + m],
-            &dv[start + below..start + below + m],
-        );
-        let o = start - base;
-        let (r_out, d_out) = (&mut right[o..o + m], &mut down[o..o + m]);
-        let keep_down = if below != 0 { 1.0 } else { 0.0 };
-        for k in 0..m {
-            let (uk, vk) = (uc[k] + dc[k], vc[k] + ec[k]);
-            let (ux, vx) = (ur[k] + dur[k] - uk, vr[k] + dvr[k] - vk);
-            let (uy, vy) = (ub[k] + dub[k] - uk, vb[k] + dvb[k] - vk);
-            let weight = p.alpha / (ux * ux + uy * uy + vx * vx + vy * vy + EPS2).sqrt();
-            r_out[k] = weight;
-            d_out[k] = weight * keep_down;
-        }
-        let i = start + m;
-        let (uy, vy) = (
-            u[i + below] + du[i + below] - u[i] - du[i],
-            v[i + below] + dv[i + below] - v[i] - dv[i],
-        );
-        right[i - base] = 0.0;
-        down[i - base] = keep_down * p.alpha / (uy * uy + vy * vy + EPS2).sqrt();
+pub(super) fn smoothness_row([right, down]: [&mut [f32]; 2], rows: FlowRows<'_>, p: &RefineParams) {
+    let n = right.len();
+    let [[u, v], [ub, vb]] = rows.flow;
+    let [[du, dv], [dub, dvb]] = rows.increment;
+    // The row and its neighbours to the right and below, each `n - 1`
+    // long (the last pixel is done after the loop).
+    let m = n - 1;
+    let (uc, dc, vc, ec) = (&u[..m], &du[..m], &v[..m], &dv[..m]);
+    let (ur, dur, vr, dvr) = (&u[1..n], &du[1..n], &v[1..n], &dv[1..n]);
+    let (ub, dub, vb, dvb) = (&ub[..m], &dub[..m], &vb[..m], &dvb[..m]);
+    let (r_out, d_out) = (&mut right[..m], &mut down[..m]);
+    let keep_down = if rows.below { 1.0 } else { 0.0 };
+    for k in 0..m {
+        let (uk, vk) = (uc[k] + dc[k], vc[k] + ec[k]);
+        let (ux, vx) = (ur[k] + dur[k] - uk, vr[k] + dvr[k] - vk);
+        let (uy, vy) = (ub[k] + dub[k] - uk, vb[k] + dvb[k] - vk);
+        let weight = p.alpha / (ux * ux + uy * uy + vx * vx + vy * vy + EPS2).sqrt();
+        r_out[k] = weight;
+        d_out[k] = weight * keep_down;
     }
+    let [[u, v], [ub, vb]] = rows.flow;
+    let [[du, dv], [dub, dvb]] = rows.increment;
+    let (uy, vy) = (ub[m] + dub[m] - u[m] - du[m], vb[m] + dvb[m] - v[m] - dv[m]);
+    right[m] = 0.0;
+    down[m] = keep_down * p.alpha / (uy * uy + vy * vy + EPS2).sqrt();
 }
 
-/// Folds what the sweeps do not change into per-pixel constants for the
-/// rows of a band, in place: `b` becomes `c = b + sum_n e_n (w_n - w)`
-/// (the neighbours' current flow) and `a11`, `a22` the reciprocals of
+/// Folds what the sweeps do not change into per-pixel constants for one
+/// row, in place: `b` becomes `c = b + sum_n e_n (w_n - w)` (the
+/// neighbours' current flow) and `a11`, `a22` the reciprocals of
 /// `a + sum_n e_n`, so that a sweep's update is
 /// `du = (c_u + sum_n e_n du_n - a12 dv) / (a11 + sum_n e_n)`. `out` is
-/// `[b1, b2, a11, a22]` cut to the band at sample `base`; `weights` is
-/// `[right, down]`, `flow` is `[u, v]`.
+/// `[b1, b2, a11, a22]` of the row's `w` pixels; `weights` the weights to
+/// the left, right, upper and lower neighbours; `[u, v]` the flow on the
+/// padded grid, `i` the row's first pixel there.
 #[inline(always)]
-pub(super) fn fold_rows(
-    out: [&mut [f32]; 4],
-    base: usize,
-    weights: [&[f32]; 2],
-    flow: [&[f32]; 2],
-    g: &Padded,
-) {
-    let (s, n) = (g.stride(), g.w);
+pub(super) fn fold_row(out: [&mut [f32]; 4], weights: [&[f32]; 4], [u, v]: [&[f32]; 2], i: usize, s: usize) {
     let [b1, b2, a11, a22] = out;
-    let ([right, down], [u, v]) = (weights, flow);
-    for y in band_rows(base, b1.len(), s, g.h) {
-        let i = g.at(0, y);
-        let (el, er) = (&right[i - 1..i - 1 + n], &right[i..i + n]);
-        let (eu, ed) = (&down[i - s..i - s + n], &down[i..i + n]);
-        let (uc, ul, ur) = (&u[i..i + n], &u[i - 1..i - 1 + n], &u[i + 1..i + 1 + n]);
-        let (uu, ud) = (&u[i - s..i - s + n], &u[i + s..i + s + n]);
-        let (vc, vl, vr) = (&v[i..i + n], &v[i - 1..i - 1 + n], &v[i + 1..i + 1 + n]);
-        let (vu, vd) = (&v[i - s..i - s + n], &v[i + s..i + s + n]);
-        let o = i - base..i - base + n;
-        let (b1, b2) = (&mut b1[o.clone()], &mut b2[o.clone()]);
-        let (a11, a22) = (&mut a11[o.clone()], &mut a22[o]);
-        for k in 0..n {
-            let (l, r, up, d) = (el[k], er[k], eu[k], ed[k]);
-            b1[k] += l * (ul[k] - uc[k]) + r * (ur[k] - uc[k]) + up * (uu[k] - uc[k]) + d * (ud[k] - uc[k]);
-            b2[k] += l * (vl[k] - vc[k]) + r * (vr[k] - vc[k]) + up * (vu[k] - vc[k]) + d * (vd[k] - vc[k]);
-            let sum = l + r + up + d;
-            a11[k] = 1.0 / (a11[k] + sum);
-            a22[k] = 1.0 / (a22[k] + sum);
+    let n = b1.len();
+    let [el, er, eu, ed] = weights.map(|e| &e[..n]);
+    let (uc, ul, ur) = (&u[i..i + n], &u[i - 1..i - 1 + n], &u[i + 1..i + 1 + n]);
+    let (uu, ud) = (&u[i - s..i - s + n], &u[i + s..i + s + n]);
+    let (vc, vl, vr) = (&v[i..i + n], &v[i - 1..i - 1 + n], &v[i + 1..i + 1 + n]);
+    let (vu, vd) = (&v[i - s..i - s + n], &v[i + s..i + s + n]);
+    let (b2, a11, a22) = (&mut b2[..n], &mut a11[..n], &mut a22[..n]);
+    for k in 0..n {
+        let (l, r, up, d) = (el[k], er[k], eu[k], ed[k]);
+        b1[k] += l * (ul[k] - uc[k]) + r * (ur[k] - uc[k]) + up * (uu[k] - uc[k]) + d * (ud[k] - uc[k]);
+        b2[k] += l * (vl[k] - vc[k]) + r * (vr[k] - vc[k]) + up * (vu[k] - vc[k]) + d * (vd[k] - vc[k]);
+        let sum = l + r + up + d;
+        a11[k] = 1.0 / (a11[k] + sum);
+        a22[k] = 1.0 / (a22[k] + sum);
+    }
+}
+
+/// The system of a fixed-point iteration over the whole grid, a term to an
+/// array, as it was computed before the assembly went row by row: the
+/// reference for [`super::assemble`] and a source of made-up systems for
+/// the sweeps' tests.
+#[cfg(test)]
+pub(super) mod plain {
+    use super::*;
+
+    /// Per pixel: `[a11 a12; a12 a22] dw + smoothness = [b1; b2]`, folded
+    /// ([`fold_row`]); the smoothness weights of the edge to the right
+    /// and of the edge below.
+    pub(in super::super) struct System {
+        pub(in super::super) a11: Vec<f32>,
+        pub(in super::super) a12: Vec<f32>,
+        pub(in super::super) a22: Vec<f32>,
+        pub(in super::super) b1: Vec<f32>,
+        pub(in super::super) b2: Vec<f32>,
+        pub(in super::super) right: Vec<f32>,
+        pub(in super::super) down: Vec<f32>,
+    }
+
+    impl System {
+        pub(in super::super) fn new(n: usize) -> System {
+            let z = || vec![0f32; n];
+            System {
+                a11: z(),
+                a12: z(),
+                a22: z(),
+                b1: z(),
+                b2: z(),
+                right: z(),
+                down: z(),
+            }
+        }
+
+        /// The folded system around the flow `[u, v]` plus the increment
+        /// `[du, dv]` (all padded), each term over the whole grid before
+        /// the next.
+        pub(in super::super) fn of(
+            l: &Linearised,
+            [u, v]: [&[f32]; 2],
+            [du, dv]: [&[f32]; 2],
+            p: &RefineParams,
+            g: &Padded,
+        ) -> System {
+            let (w, s) = (g.w, g.stride());
+            let mut sys = System::new(g.len());
+            let rows = |y: usize| g.at(0, y)..g.at(0, y) + w;
+            for y in 0..g.h {
+                let r = rows(y);
+                let System {
+                    a11,
+                    a12,
+                    a22,
+                    b1,
+                    b2,
+                    ..
+                } = &mut sys;
+                let out = [a11, a12, a22, b1, b2].map(|a| &mut a[r.clone()]);
+                data_row(out, l, r.start, [&du[r.clone()], &dv[r.clone()]], p);
+            }
+            for y in 0..g.h {
+                let (r, below) = (rows(y), y + 1 < g.h);
+                let b = if below { rows(y + 1) } else { rows(y) };
+                let rows = FlowRows {
+                    flow: [[&u[r.clone()], &v[r.clone()]], [&u[b.clone()], &v[b.clone()]]],
+                    increment: [[&du[r.clone()], &dv[r.clone()]], [&du[b.clone()], &dv[b]]],
+                    below,
+                };
+                smoothness_row([&mut sys.right[r.clone()], &mut sys.down[r]], rows, p);
+            }
+            for y in 0..g.h {
+                let i = g.at(0, y);
+                let System {
+                    a11,
+                    a22,
+                    b1,
+                    b2,
+                    right,
+                    down,
+                    ..
+                } = &mut sys;
+                let weights = [&right[i - 1..], &right[i..], &down[i - s..], &down[i..]];
+                let out = [b1, b2, a11, a22].map(|a| &mut a[i..i + w]);
+                fold_row(out, weights, [u, v], i, s);
+            }
+            sys
         }
     }
 }

@@ -7,7 +7,7 @@
 //! the blocks before each iteration: about 200 bytes of memory traffic a
 //! pixel, against the 90 that the assembly reads and writes.
 
-use super::sweeps::{every_other, increment_row, Layout};
+use super::sweeps::{deinterleave, increment_row, Layout};
 use super::system::{band_rows, data_row, fold_row, smoothness_row, FlowRows, Linearised, Padded};
 use super::RefineParams;
 
@@ -131,12 +131,15 @@ impl Scratch {
     fn scatter(&self, out: &mut [&mut [f32]; 36], base: usize, t: Terms<'_>, y: usize) {
         let [a11, a12, a22, b1, b2] = &self.data;
         let (up, down) = (&self.down[(y + 1) % 2], &self.down[y % 2]);
+        let w = t.g.w;
         let sources: [&[f32]; 9] = [&self.right, &self.right[1..], up, down, b1, b2, a11, a22, a12];
-        for (b, start) in t.layout.row_blocks(y) {
-            let o = start - base;
-            for (i, src) in sources.iter().enumerate() {
-                every_other(&mut out[9 * b.index + i][o..o + b.len], &src[b.first..]);
-            }
+        // The row's even pixels go to the first block, its odd ones to the second.
+        let [(even, start), (odd, _)] = t.layout.row_blocks(y);
+        let o = start - base;
+        for (i, src) in sources.iter().enumerate() {
+            let (e, d) = (9 * even.index + i, 9 * odd.index + i);
+            let [e, d] = out.get_disjoint_mut([e, d]).expect("two blocks");
+            deinterleave(&src[..w], &mut e[o..], &mut d[o..]);
         }
     }
 }

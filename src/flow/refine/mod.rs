@@ -382,10 +382,21 @@ impl Refiner {
         else {
             unreachable!("prepared")
         };
-        assemble(kernel, sweeps, (lin, [u, v]), p, g, cut);
+        let terms = (&*lin, [&u[..], &v[..]]);
         if !cut.parallel && g.w * g.h >= PIPELINE_PIXELS {
-            sweep_pipelined(kernel, sweeps, p.omega, p.sor_iterations, PIPELINE_ROWS);
+            // The system assembled a few rows ahead of the first sweep, so
+            // that it reads them from the cache.
+            let mut assembled = 0;
+            let ahead = |sweeps: &mut Sweeps, rows: usize| {
+                let upto = rows.div_ceil(2).min(g.h.div_ceil(2));
+                if upto > assembled {
+                    assemble(kernel, sweeps, terms, (p, g), cut, assembled..upto);
+                    assembled = upto;
+                }
+            };
+            sweep_pipelined(kernel, sweeps, p.omega, (p.sor_iterations, PIPELINE_ROWS), ahead);
         } else {
+            assemble(kernel, sweeps, terms, (p, g), cut, 0..g.h.div_ceil(2));
             for _ in 0..p.sor_iterations {
                 sweep(kernel, sweeps, p.omega, cut);
             }
@@ -394,14 +405,15 @@ impl Refiner {
 }
 
 /// The system around the flow `[u, v]` plus the sweeps' increment,
-/// assembled into the blocks' coefficients in bands of block rows.
+/// assembled into the blocks' coefficients of the block rows `blocks`
+/// (picture rows `2 blocks.start..2 blocks.end`), in bands.
 fn assemble(
     kernel: BandFn,
     sweeps: &mut Sweeps,
     (lin, flow): (&Linearised, [&[f32]; 2]),
-    p: &RefineParams,
-    g: &Padded,
+    (p, g): (&RefineParams, &Padded),
     cut: Cut,
+    blocks: std::ops::Range<usize>,
 ) {
     let Sweeps {
         layout,
@@ -417,11 +429,17 @@ fn assemble(
         g,
         layout: *layout,
     };
+    // Block row r's samples start at (r + 1) stride (a padding row first).
+    let samples = (blocks.start + 1) * layout.stride..(blocks.end + 1) * layout.stride;
     let mut all = coefficients.iter_mut().flatten();
-    let out: [&mut [f32]; 36] = std::array::from_fn(|_| &mut all.next().expect("36 arrays")[..]);
-    let band = cut.rows(g.h.div_ceil(2) + 2, layout.stride);
+    let out: [&mut [f32]; 36] = std::array::from_fn(|_| &mut all.next().expect("36 arrays")[samples.clone()]);
+    let band = cut.rows(blocks.len(), layout.stride);
     for_bands(out, band, cut.parallel, |out, base| {
-        kernel(Band::Assemble { out, base, terms })
+        kernel(Band::Assemble {
+            out,
+            base: samples.start + base,
+            terms,
+        })
     });
 }
 
@@ -458,8 +476,16 @@ const PIPELINE_PIXELS: usize = 1 << 15;
 /// changed, so every update reads what it would in whole sweeps. The
 /// `2 n + rows` rows in flight stay in the cache over all `n` sweeps: each
 /// sweep over a picture larger than the cache read its nine coefficient
-/// arrays from memory again.
-fn sweep_pipelined(kernel: BandFn, sweeps: &mut Sweeps, omega: f32, n: usize, rows: usize) {
+/// arrays from memory again. Before each step, `ahead(sweeps, end)` is to
+/// make the coefficients of the picture rows before `end` ready: the first
+/// sweep has not yet changed any pixel from row `end - 1` down.
+fn sweep_pipelined(
+    kernel: BandFn,
+    sweeps: &mut Sweeps,
+    omega: f32,
+    (n, rows): (usize, usize),
+    mut ahead: impl FnMut(&mut Sweeps, usize),
+) {
     if n == 0 {
         return;
     }
@@ -467,6 +493,9 @@ fn sweep_pipelined(kernel: BandFn, sweeps: &mut Sweeps, omega: f32, n: usize, ro
     let mut top = 0isize;
     // Until the last sweep's black rows start below the picture.
     while top - 2 * (n as isize - 1) - 1 < h {
+        // The rows the first sweep's red update reads, and the one below
+        // (whose increment their smoothness weights read).
+        ahead(sweeps, (top + rows + 1) as usize);
         for s in 0..n as isize {
             let red = top - 2 * s;
             update_rows(kernel, sweeps, omega, 0, red..red + rows);
@@ -671,7 +700,7 @@ mod tests {
             // The sweeps pipelined down the picture, steps of any height.
             for rows in [1, 2, 3, 8, 64] {
                 (sweeps.du, sweeps.dv) = start.clone();
-                sweep_pipelined(band_body, &mut sweeps, 1.6, 4, rows);
+                sweep_pipelined(band_body, &mut sweeps, 1.6, (4, rows), |_, _| {});
                 assert!(
                     unfold(&sweeps, &g) == (pu.clone(), pv.clone()),
                     "{w}x{h}: sweeps pipelined {rows} rows a step differ from plain ones"
@@ -722,7 +751,7 @@ mod tests {
                     bands,
                     parallel: bands > 1,
                 };
-                assemble(band_body, &mut sweeps, (&lin, [u, v]), &p, &g, cut);
+                assemble(band_body, &mut sweeps, (&lin, [u, v]), (&p, &g), cut, 0..h.div_ceil(2));
                 assert!(
                     sweeps.coefficients == expected.coefficients,
                     "{w}x{h}, {bands} bands: the assembly differs from the plain system"
@@ -755,7 +784,7 @@ mod tests {
             for _ in 0..n {
                 sweep(band_body, &mut whole, 1.6, one);
             }
-            sweep_pipelined(band_body, &mut pipelined, 1.6, n, PIPELINE_ROWS);
+            sweep_pipelined(band_body, &mut pipelined, 1.6, (n, PIPELINE_ROWS), |_, _| {});
             assert!(
                 whole.du == pipelined.du && whole.dv == pipelined.dv,
                 "{n} sweeps pipelined differ from whole ones"

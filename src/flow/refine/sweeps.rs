@@ -1,19 +1,34 @@
 //! The red-black SOR sweeps of the refinement over a split layout of the
 //! pixels (see [`Sweeps`]), in runs that bands of threads can share.
 
-/// `dst[k] = src[2 k]` for every `k` of `dst`.
+/// A picture row's samples split into its even and its odd pixels:
+/// `even[k] = row[2 k]`, `odd[k] = row[2 k + 1]` (`even` holds
+/// `ceil(w / 2)` samples, `odd` `w / 2`).
 #[inline(always)]
-pub(super) fn every_other(dst: &mut [f32], src: &[f32]) {
-    let pairs = dst.len().min(src.len() / 2);
-    // Both cut to length first: a plain indexed loop without bounds checks
-    // (over two-sample chunks it cost the fast preset 5 % more
-    // instructions on CIF).
-    let (d, s) = (&mut dst[..pairs], &src[..2 * pairs]);
-    for k in 0..pairs {
-        d[k] = s[2 * k];
+pub(super) fn deinterleave(row: &[f32], even: &mut [f32], odd: &mut [f32]) {
+    let w = row.len();
+    // Pairs zipped with both halves cut to length: a loop without bounds
+    // checks that vectorises with shuffles (one sample at a time, a
+    // strided loop, it took 4 % of the accurate preset's time).
+    let (even, odd) = (&mut even[..w.div_ceil(2)], &mut odd[..w / 2]);
+    for ((pair, e), o) in row.chunks_exact(2).zip(even.iter_mut()).zip(odd.iter_mut()) {
+        (*e, *o) = (pair[0], pair[1]);
     }
-    if pairs < dst.len() {
-        dst[pairs] = src[2 * pairs];
+    if w % 2 == 1 {
+        even[w / 2] = row[w - 1];
+    }
+}
+
+/// The inverse of [`deinterleave`].
+#[inline(always)]
+fn interleave(row: &mut [f32], even: &[f32], odd: &[f32]) {
+    let w = row.len();
+    let (even, odd) = (&even[..w.div_ceil(2)], &odd[..w / 2]);
+    for ((pair, &e), &o) in row.chunks_exact_mut(2).zip(even).zip(odd) {
+        (pair[0], pair[1]) = (e, o);
+    }
+    if w % 2 == 1 {
+        row[w - 1] = even[w / 2];
     }
 }
 
@@ -161,25 +176,11 @@ impl Layout {
 /// Picture row `y` of the increment out of the blocks into `[du, dv]`
 /// (`w` samples each).
 #[inline(always)]
-pub(super) fn increment_row(
-    mut out: [&mut [f32]; 2],
-    layout: Layout,
-    increment: [&[Vec<f32>; 4]; 2],
-    y: usize,
-) {
-    for (b, start) in layout.row_blocks(y) {
-        for (row, blocks) in out.iter_mut().zip(increment) {
-            every_other_into(&mut row[b.first..], &blocks[b.index][start..start + b.len]);
-        }
-    }
-}
-
-/// `dst[2 k] = src[k]` for every `k` of `src` (`dst` at least
-/// `2 src.len() - 1` long).
-#[inline(always)]
-fn every_other_into(dst: &mut [f32], src: &[f32]) {
-    for (d, &s) in dst.iter_mut().step_by(2).zip(src) {
-        *d = s;
+pub(super) fn increment_row(out: [&mut [f32]; 2], layout: Layout, increment: [&[Vec<f32>; 4]; 2], y: usize) {
+    // Row y's even pixels are in the first block, its odd ones in the second.
+    let [(even, start), (odd, _)] = layout.row_blocks(y);
+    for (row, blocks) in out.into_iter().zip(increment) {
+        interleave(row, &blocks[even.index][start..], &blocks[odd.index][start..]);
     }
 }
 

@@ -7,7 +7,7 @@
 //! the blocks before each iteration: about 200 bytes of memory traffic a
 //! pixel, against the 90 that the assembly reads and writes.
 
-use super::sweeps::{deinterleave, increment_row, Layout};
+use super::sweeps::{deinterleave, increment_row, Layout, COEFFICIENTS};
 use super::system::{band_rows, data_row, fold_row, smoothness_row, FlowRows, Linearised, Padded};
 use super::RefineParams;
 
@@ -38,13 +38,13 @@ struct Scratch {
 }
 
 /// Assembles the rows of a band into the blocks: `out` is the blocks'
-/// coefficients (block `j`'s coefficient `i` at `9 j + i`, in the order of
+/// coefficients (block `j`'s coefficient `i` at `7 j + i`, in the order of
 /// [`super::sweeps::Sweeps::coefficients`]) cut to the band, which starts
 /// at sample `base` of the blocks. The band's picture rows are those of
 /// its block rows; each row's coefficients are computed alike whatever
 /// the bands.
 #[inline(always)]
-pub(super) fn assemble_band(mut out: [&mut [f32]; 36], base: usize, t: Terms<'_>) {
+pub(super) fn assemble_band(mut out: [&mut [f32]; 4 * COEFFICIENTS], base: usize, t: Terms<'_>) {
     let (w, h) = (t.g.w, t.g.h);
     let blocks = band_rows(base, out[0].len(), t.layout.stride, h.div_ceil(2));
     let rows = 2 * blocks.start..(2 * blocks.end).min(h);
@@ -128,16 +128,16 @@ impl Scratch {
 
     /// Row `y`'s coefficients into the two blocks that hold it.
     #[inline(always)]
-    fn scatter(&self, out: &mut [&mut [f32]; 36], base: usize, t: Terms<'_>, y: usize) {
+    fn scatter(&self, out: &mut [&mut [f32]; 4 * COEFFICIENTS], base: usize, t: Terms<'_>, y: usize) {
         let [a11, a12, a22, b1, b2] = &self.data;
-        let (up, down) = (&self.down[(y + 1) % 2], &self.down[y % 2]);
         let w = t.g.w;
-        let sources: [&[f32]; 9] = [&self.right, &self.right[1..], up, down, b1, b2, a11, a22, a12];
+        let down = &self.down[y % 2];
+        let sources: [&[f32]; COEFFICIENTS] = [&self.right[1..], down, b1, b2, a11, a22, a12];
         // The row's even pixels go to the first block, its odd ones to the second.
         let [(even, start), (odd, _)] = t.layout.row_blocks(y);
         let o = start - base;
         for (i, src) in sources.iter().enumerate() {
-            let (e, d) = (9 * even.index + i, 9 * odd.index + i);
+            let (e, d) = (COEFFICIENTS * even.index + i, COEFFICIENTS * odd.index + i);
             let [e, d] = out.get_disjoint_mut([e, d]).expect("two blocks");
             deinterleave(&src[..w], &mut e[o..], &mut d[o..]);
         }

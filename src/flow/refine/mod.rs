@@ -27,7 +27,7 @@ use ndarray::Array2;
 use rayon::prelude::*;
 
 use self::assemble::{assemble_band, Terms};
-use self::sweeps::{increment_row, sweep_band, Block, Sweeps, BLOCKS};
+use self::sweeps::{increment_row, sweep_band, Block, Sweeps, BLOCKS, COEFFICIENTS};
 use self::system::{Linearised, Padded};
 
 /// Settings of the variational refinement.
@@ -88,7 +88,7 @@ impl RefineParams {
 /// system's assembly or of a block's sweep, the output arrays cut to the
 /// band (`base`: the band's first sample in them). Each row is computed alike whatever the bands, so the
 /// result is the same for any number of threads.
-// One value per band, moved into the kernel: its size (the assembly's 36
+// One value per band, moved into the kernel: its size (the assembly's 28
 // slices) costs a copy of a few hundred bytes per band, nothing beside the band.
 #[allow(clippy::large_enum_variant)]
 pub(crate) enum Band<'a> {
@@ -103,7 +103,7 @@ pub(crate) enum Band<'a> {
     /// The system's rows of a band, assembled into the blocks'
     /// coefficients (block `j`'s coefficient `i` at `9 j + i`).
     Assemble {
-        out: [&'a mut [f32]; 36],
+        out: [&'a mut [f32]; 4 * COEFFICIENTS],
         base: usize,
         terms: Terms<'a>,
     },
@@ -112,8 +112,8 @@ pub(crate) enum Band<'a> {
         out: [&'a mut [f32]; 2],
         base: usize,
         omega: f32,
-        coefficients: [&'a [f32]; 9],
-        neighbours: [[&'a [f32]; 2]; 2],
+        coefficients: [&'a [f32]; COEFFICIENTS],
+        neighbours: [[&'a [f32]; 3]; 2],
         block: Block,
         stride: usize,
     },
@@ -432,7 +432,8 @@ fn assemble(
     // Block row r's samples start at (r + 1) stride (a padding row first).
     let samples = (blocks.start + 1) * layout.stride..(blocks.end + 1) * layout.stride;
     let mut all = coefficients.iter_mut().flatten();
-    let out: [&mut [f32]; 36] = std::array::from_fn(|_| &mut all.next().expect("36 arrays")[samples.clone()]);
+    let out: [&mut [f32]; 4 * COEFFICIENTS] =
+        std::array::from_fn(|_| &mut all.next().expect("every block's arrays")[samples.clone()]);
     let band = cut.rows(blocks.len(), layout.stride);
     for_bands(out, band, cut.parallel, |out, base| {
         kernel(Band::Assemble {
@@ -545,9 +546,11 @@ fn update_block(
         std::mem::take(&mut sweeps.du[j]),
         std::mem::take(&mut sweeps.dv[j]),
     );
+    // With the weights to the right (coefficient 0) and below (1).
+    let (u, v, e) = (&sweeps.du, &sweeps.dv, &sweeps.coefficients);
     let neighbours = [
-        [&sweeps.du[lr][..], &sweeps.dv[lr][..]],
-        [&sweeps.du[ud][..], &sweeps.dv[ud][..]],
+        [&u[lr][..], &v[lr][..], &e[lr][0][..]],
+        [&u[ud][..], &v[ud][..], &e[ud][1][..]],
     ];
     let coefficients = sweeps.coefficients[j].each_ref().map(|a| &a[..]);
     let start = run.start;
@@ -604,14 +607,11 @@ mod tests {
 
     /// The system's coefficients placed in the blocks pixel by pixel.
     fn fill_blocks(sweeps: &mut Sweeps, sys: &System, g: &Padded) {
-        let s = g.stride();
         for (x, y) in (0..g.h).flat_map(|y| (0..g.w).map(move |x| (x, y))) {
             let (b, start) = sweeps.layout.row_blocks(y)[x % 2];
             let (i, k) = (g.at(x, y), start + x / 2);
             let values = [
-                sys.right[i - 1],
                 sys.right[i],
-                sys.down[i - s],
                 sys.down[i],
                 sys.b1[i],
                 sys.b2[i],
@@ -741,7 +741,7 @@ mod tests {
             fill_blocks(&mut expected, &plain, &g);
             // (A picture of a row or two has no gradient to speak of.)
             assert!(
-                w * h < 20 || expected.coefficients[0][4].iter().any(|&c| c.abs() > 1e-3),
+                w * h < 20 || expected.coefficients[0][2].iter().any(|&c| c.abs() > 1e-3),
                 "{w}x{h}: the system should not be zero"
             );
             for bands in [1, 2, 3, 7, 50] {
@@ -751,7 +751,14 @@ mod tests {
                     bands,
                     parallel: bands > 1,
                 };
-                assemble(band_body, &mut sweeps, (&lin, [u, v]), (&p, &g), cut, 0..h.div_ceil(2));
+                assemble(
+                    band_body,
+                    &mut sweeps,
+                    (&lin, [u, v]),
+                    (&p, &g),
+                    cut,
+                    0..h.div_ceil(2),
+                );
                 assert!(
                     sweeps.coefficients == expected.coefficients,
                     "{w}x{h}, {bands} bands: the assembly differs from the plain system"

@@ -78,19 +78,24 @@ pub(super) fn sweep_run(
 /// and four samples one by one; the flat loops took DIS fast on CIF to
 /// 0.88x the time of the row loops). Every row has one sample of
 /// padding on each side and a block one padding row above and below, all
-/// zero, as are the weights towards them.
+/// zero, as are the weights towards them. A pixel's weights to its left
+/// and upper neighbours are theirs to the right and below, read where
+/// their increments are read: each weight is stored once.
 pub(crate) struct Sweeps {
     /// Where each pixel's samples are.
     pub(super) layout: Layout,
-    /// Per block (`2 c + first`): weights to the left, right, upper and
+    /// Per block (`2 c + first`): the weights to the right and to the
     /// lower neighbour; the folded right-hand sides; the reciprocal
     /// diagonals; the coupling (in that order: see
     /// [`super::assemble::assemble_band`]).
-    pub(super) coefficients: [[Vec<f32>; 9]; 4],
+    pub(super) coefficients: [[Vec<f32>; COEFFICIENTS]; 4],
     /// Per block: the increment.
     pub(super) du: [Vec<f32>; 4],
     pub(super) dv: [Vec<f32>; 4],
 }
+
+/// A pixel's coefficients in [`Sweeps`].
+pub(super) const COEFFICIENTS: usize = 7;
 
 /// The geometry of the four blocks of [`Sweeps`] for a `w x h` picture.
 #[derive(Clone, Copy)]
@@ -185,16 +190,17 @@ pub(super) fn increment_row(out: [&mut [f32]; 2], layout: Layout, increment: [&[
 }
 
 /// One band of a block's update: `[du, dv]` cut to the band, which starts
-/// at sample `base` of the block; `coefficients` the block's nine arrays;
-/// `lr` the increments `[du, dv]` of the block holding the left and right
-/// neighbours, `ud` of the block holding those above and below.
+/// at sample `base` of the block; `coefficients` the block's arrays;
+/// `lr` the increments `[du, dv]` and the weights to the right of the
+/// block holding the left and right neighbours, `ud` the increments and
+/// the weights below of the block holding those above and below.
 #[inline(always)]
 pub(super) fn sweep_band(
     [du, dv]: [&mut [f32]; 2],
     base: usize,
     omega: f32,
-    coefficients: [&[f32]; 9],
-    [lr, ud]: [[&[f32]; 2]; 2],
+    coefficients: [&[f32]; COEFFICIENTS],
+    [lr, ud]: [[&[f32]; 3]; 2],
     b: Block,
     stride: usize,
 ) {
@@ -203,7 +209,9 @@ pub(super) fn sweep_band(
         base + b.q * stride - stride,
         base + b.q * stride,
     );
-    let [el, er, eu, ed, cu, cv, iu, iv, a12] = coefficients.map(|a| &a[base..]);
+    let [er, ed, cu, cv, iu, iv, a12] = coefficients.map(|a| &a[base..]);
+    // The left neighbour's weight to the right, the upper one's below.
+    let (el, eu) = (&lr[2][left..], &ud[2][up..]);
     sweep_run(
         omega,
         du,

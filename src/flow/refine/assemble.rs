@@ -135,10 +135,15 @@ impl Scratch {
         let sources: [&[f32]; COEFFICIENTS] = [&self.right[1..], down, b1, b2, a11, a22, a12];
         // The row's even pixels go to the first block, its odd ones to the second.
         let [(even, start), (odd, _)] = t.layout.row_blocks(y);
+        let (lo, hi) = out.split_at_mut(COEFFICIENTS * even.index.max(odd.index));
+        let first = &mut lo[COEFFICIENTS * even.index.min(odd.index)..][..COEFFICIENTS];
+        let (e, d) = if even.index < odd.index {
+            (first, &mut hi[..COEFFICIENTS])
+        } else {
+            (&mut hi[..COEFFICIENTS], first)
+        };
         let o = start - base;
-        for (i, src) in sources.iter().enumerate() {
-            let (e, d) = (COEFFICIENTS * even.index + i, COEFFICIENTS * odd.index + i);
-            let [e, d] = out.get_disjoint_mut([e, d]).expect("two blocks");
+        for ((src, e), d) in sources.iter().zip(e).zip(d) {
             deinterleave(&src[..w], &mut e[o..], &mut d[o..]);
         }
     }

@@ -16,7 +16,7 @@ its height, 1 degree and zoom 1.01. A `--pair DIR` is a ready pair
 Per pair and preset (ultrafast, fast, medium) both tools run `--repeats`
 calls after a warm-up and report their median (OpenCV through
 cv2.DISOpticalFlow_create(preset), cv2.setNumThreads(1); mocomp through
-`mocomp flow --preset P --threads 1 --runs N`), one tool right after the
+`mocomp flow --preset P --threads 1 --warmup 1 --runs N`), one tool right after the
 other, which goes first alternating; this is done `--rounds` times. The
 time ratio is the median over rounds of each round's ratio (a pair of runs
 seconds apart sees the same machine: single times here drift by 1.5x
@@ -114,7 +114,7 @@ def run_mocomp(pair, binary, repeats, preset):
     flo = os.path.join(pair, "est", "mocomp_%s.flo" % preset)
     out = subprocess.run([binary, "flow", os.path.join(pair, "frame1.png"),
                           os.path.join(pair, "frame2.png"), "--preset", preset, "--threads", "1",
-                          "--runs", str(repeats), "--json", "-o", flo],
+                          "--warmup", "1", "--runs", str(repeats), "--json", "-o", flo],
                          check=True, capture_output=True, text=True).stdout
     return json.loads(out.strip().splitlines()[-1])["ms"], flo
 

@@ -688,6 +688,10 @@ fn flow_by_dense_inverse_search_and_the_benchmark_generator() {
     );
     let read = |f: &str| std::fs::read(dir.path().join(f)).unwrap();
     assert_ne!(read("fine.flo"), read("plain.flo"));
+    // Untimed calls first, then two timed ones: the estimator's kept
+    // buffers leave the last call's flow as a lone call's.
+    let warm = fast(&["--warmup", "2", "--runs", "2"], "warm.flo");
+    assert!(warm == plain && read("warm.flo") == read("plain.flo"));
     assert!(
         fine < plain && full < plain && (fine - full).abs() < 0.25 * full,
         "fine {fine}, plain {plain}, full {full}"

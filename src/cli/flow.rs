@@ -105,6 +105,11 @@ pub struct Args {
     /// OpenCV peer script does, median of 5).
     #[arg(long, default_value_t = 1)]
     pub runs: usize,
+    /// Compute the flow this many times first, untimed (the buffers'
+    /// allocations and first touches of memory; the OpenCV peer script
+    /// makes one such call before it times).
+    #[arg(long, default_value_t = 0)]
+    pub warmup: usize,
     /// Print one JSON object instead of text.
     #[arg(long)]
     pub json: bool,
@@ -220,6 +225,9 @@ pub fn run(args: &Args) -> Result<()> {
     let mut times = Vec::with_capacity(args.runs);
     // One field written over run after run, as a frame loop keeps it.
     let mut flow = Flow::zeros(1, 1);
+    for _ in 0..args.warmup {
+        pool.install(|| estimator.compute_luma_into((&p1).into(), (&p2).into(), &mut flow));
+    }
     for _ in 0..args.runs {
         let start = Instant::now();
         pool.install(|| estimator.compute_luma_into((&p1).into(), (&p2).into(), &mut flow));

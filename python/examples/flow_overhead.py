@@ -3,8 +3,9 @@ and against OpenCV-python's DIS, one thread each, in one run.
 
     python python/examples/flow_overhead.py PAIR.y4m [RUNS] [MOCOMP_BINARY] [ROUNDS]
 
-Times are medians over RUNS calls (default 9) of the flow alone: for the
-CLI, `mocomp flow --threads 1 --runs RUNS --json` (its own median); for
+Times are medians over RUNS calls (default 9) of the flow alone, each
+tool's after a warm-up call: for the CLI, `mocomp flow --threads 1
+--warmup 1 --runs RUNS --json` (its own median); for
 Python, the call to mocomp.flow and to a mocomp.DenseFlow object's calc
 (reading the arrays included), the latter writing into the flow array of
 the call before as a frame loop does (`calc(a, b, flow)`, as OpenCV's); for
@@ -62,7 +63,7 @@ print("|---|---:|---:|---:|---:|---:|---:|")
 def cli_ms(preset):
     cli = subprocess.run(
         [binary, "flow", str(src), "--frames", "0:1", "--preset", preset, "--threads", "1",
-         "--runs", str(runs), "--json"],
+         "--warmup", "1", "--runs", str(runs), "--json"],
         check=True, capture_output=True, text=True,
     )
     return json.loads(cli.stdout)["ms"]
@@ -84,7 +85,7 @@ def spread(ratios):
     return f"{statistics.median(ratios):.3f} ({min(ratios):.3f}-{max(ratios):.3f})"
 
 
-for preset in ("ultrafast", "fast", "medium"):
+for preset in ("ultrafast", "fast", "medium", "accurate"):
     estimator = mocomp.DenseFlow(preset=preset, threads=1)
     rounds = [paired_round(k, preset, estimator) for k in range(n_rounds)]
     cli, py, obj = (statistics.median(r[k] for r in rounds) for k in range(3))

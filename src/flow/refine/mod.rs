@@ -383,7 +383,8 @@ impl Refiner {
             unreachable!("prepared")
         };
         let terms = (&*lin, [&u[..], &v[..]]);
-        if !cut.parallel && g.w * g.h >= PIPELINE_PIXELS {
+        let pixels = g.w * g.h;
+        if pixels >= PIPELINE_PIXELS && (!cut.parallel || pixels >= PARALLEL_PIPELINE_PIXELS) {
             // The system assembled a few rows ahead of the first sweep, so
             // that it reads them from the cache.
             let mut assembled = 0;
@@ -394,7 +395,18 @@ impl Refiner {
                     assembled = upto;
                 }
             };
-            sweep_pipelined(kernel, sweeps, p.omega, (p.sor_iterations, PIPELINE_ROWS), ahead);
+            let rows = if cut.parallel {
+                PARALLEL_PIPELINE_ROWS
+            } else {
+                PIPELINE_ROWS
+            };
+            sweep_pipelined(
+                kernel,
+                sweeps,
+                (p.omega, cut.parallel),
+                (p.sor_iterations, rows),
+                ahead,
+            );
         } else {
             assemble(kernel, sweeps, terms, (p, g), cut, 0..g.h.div_ceil(2));
             for _ in 0..p.sor_iterations {
@@ -459,6 +471,20 @@ fn sweep(kernel: BandFn, sweeps: &mut Sweeps, omega: f32, cut: Cut) {
 /// Picture rows a colour's update takes at a time in [`sweep_pipelined`].
 const PIPELINE_ROWS: usize = 8;
 
+/// [`PIPELINE_ROWS`] on several threads, where each step's two blocks a
+/// colour are shared out (fewer steps, fewer hand-overs: fish_1160's
+/// accurate call on two threads, medians of seven alternating runs, 305 ms
+/// with 16 rows, 306 with 32, 351 with 8; single runs each, this machine's
+/// noise is about 10 %).
+const PARALLEL_PIPELINE_ROWS: usize = 16;
+
+/// The smallest level whose sweeps are pipelined on several threads;
+/// below it they sweep whole, in bands (each step's hand-over between the
+/// threads costs more than the cache saves there: on two threads fish_1160's
+/// medium preset, whose finest refined level has 272,020 pixels, took
+/// 1.07x the time pipelined, medians of five alternating runs).
+const PARALLEL_PIPELINE_PIXELS: usize = 1 << 19;
+
 /// The smallest level whose sweeps are pipelined: below it the system (44
 /// bytes a pixel) stays in a core's cache from sweep to sweep, and the
 /// pipeline's shorter runs cost more than they save (criterion's
@@ -479,11 +505,13 @@ const PIPELINE_PIXELS: usize = 1 << 15;
 /// sweep over a picture larger than the cache read its nine coefficient
 /// arrays from memory again. Before each step, `ahead(sweeps, end)` is to
 /// make the coefficients of the picture rows before `end` ready: the first
-/// sweep has not yet changed any pixel from row `end - 1` down.
+/// sweep has not yet changed any pixel from row `end - 1` down. Where
+/// `parallel`, each colour's update of a step runs its two blocks on two
+/// threads.
 fn sweep_pipelined(
     kernel: BandFn,
     sweeps: &mut Sweeps,
-    omega: f32,
+    (omega, parallel): (f32, bool),
     (n, rows): (usize, usize),
     mut ahead: impl FnMut(&mut Sweeps, usize),
 ) {
@@ -499,15 +527,23 @@ fn sweep_pipelined(
         ahead(sweeps, (top + rows + 1) as usize);
         for s in 0..n as isize {
             let red = top - 2 * s;
-            update_rows(kernel, sweeps, omega, 0, red..red + rows);
-            update_rows(kernel, sweeps, omega, 1, red - 1..red - 1 + rows);
+            update_rows(kernel, sweeps, (omega, parallel), 0, red..red + rows);
+            update_rows(kernel, sweeps, (omega, parallel), 1, red - 1..red - 1 + rows);
         }
         top += rows;
     }
 }
 
-/// Colour `c`'s update of the picture rows `lines` (cut to the picture).
-fn update_rows(kernel: BandFn, sweeps: &mut Sweeps, omega: f32, c: usize, lines: std::ops::Range<isize>) {
+/// Colour `c`'s update of the picture rows `lines` (cut to the picture):
+/// its two blocks, on two threads where `parallel` (a colour's pixels read
+/// only the other colour's, so the blocks are independent).
+fn update_rows(
+    kernel: BandFn,
+    sweeps: &mut Sweeps,
+    (omega, parallel): (f32, bool),
+    c: usize,
+    lines: std::ops::Range<isize>,
+) {
     let (lo, hi) = (
         lines.start.max(0) as usize,
         lines.end.clamp(0, sweeps.layout.h as isize) as usize,
@@ -515,16 +551,63 @@ fn update_rows(kernel: BandFn, sweeps: &mut Sweeps, omega: f32, c: usize, lines:
     if lo >= hi {
         return;
     }
-    for first in 0..2 {
-        let block = sweeps.layout.block(c, first);
+    let layout = sweeps.layout;
+    let runs: [std::ops::Range<usize>; 2] = std::array::from_fn(|first| {
+        let block = layout.block(c, first);
         // Block row r holds picture row 2 r + q.
         let r0 = lo.saturating_sub(block.q).div_ceil(2);
         let r1 = hi.saturating_sub(block.q).div_ceil(2).min(block.rows);
         if r0 < r1 && block.len > 0 {
-            let run = sweeps.layout.at(r0, 0)..sweeps.layout.at(r1 - 1, block.len);
+            layout.at(r0, 0)..layout.at(r1 - 1, block.len)
+        } else {
+            0..0
+        }
+    });
+    if parallel && runs.iter().all(|r| !r.is_empty()) {
+        return update_colour(kernel, sweeps, omega, c, runs);
+    }
+    for (first, run) in runs.into_iter().enumerate() {
+        if !run.is_empty() {
             let len = run.len();
             update_block(kernel, sweeps, omega, (c, first), run, (len, false));
         }
+    }
+}
+
+/// Colour `c`'s two blocks updated over their samples `runs`, one on each
+/// of two threads.
+fn update_colour(
+    kernel: BandFn,
+    sweeps: &mut Sweeps,
+    omega: f32,
+    c: usize,
+    runs: [std::ops::Range<usize>; 2],
+) {
+    let mut taken: [(Vec<f32>, Vec<f32>); 2] = std::array::from_fn(|first| {
+        let j = 2 * c + first;
+        (
+            std::mem::take(&mut sweeps.du[j]),
+            std::mem::take(&mut sweeps.dv[j]),
+        )
+    });
+    let shared = &*sweeps;
+    let update = |first: usize, (du, dv): &mut (Vec<f32>, Vec<f32>)| {
+        let run = runs[first].clone();
+        let (coefficients, neighbours) = sweep_inputs(shared, c, first);
+        kernel(Band::Sweep {
+            out: [&mut du[run.clone()], &mut dv[run.clone()]],
+            base: run.start,
+            omega,
+            coefficients,
+            neighbours,
+            block: shared.layout.block(c, first),
+            stride: shared.layout.stride,
+        })
+    };
+    let [a, b] = &mut taken;
+    rayon::join(|| update(0, a), || update(1, b));
+    for (first, (du, dv)) in taken.into_iter().enumerate() {
+        (sweeps.du[2 * c + first], sweeps.dv[2 * c + first]) = (du, dv);
     }
 }
 
@@ -538,22 +621,14 @@ fn update_block(
     run: std::ops::Range<usize>,
     (band, parallel): (usize, bool),
 ) {
-    let stride = sweeps.layout.stride;
     let block = sweeps.layout.block(c, first);
     let j = block.index;
-    let (lr, ud) = (2 * (1 - c) + 1 - first, 2 * (1 - c) + first);
     let (mut du, mut dv) = (
         std::mem::take(&mut sweeps.du[j]),
         std::mem::take(&mut sweeps.dv[j]),
     );
-    // With the weights to the right (coefficient 0) and below (1).
-    let (u, v, e) = (&sweeps.du, &sweeps.dv, &sweeps.coefficients);
-    let neighbours = [
-        [&u[lr][..], &v[lr][..], &e[lr][0][..]],
-        [&u[ud][..], &v[ud][..], &e[ud][1][..]],
-    ];
-    let coefficients = sweeps.coefficients[j].each_ref().map(|a| &a[..]);
-    let start = run.start;
+    let (coefficients, neighbours) = sweep_inputs(sweeps, c, first);
+    let (start, stride) = (run.start, sweeps.layout.stride);
     for_bands(
         [&mut du[run.clone()], &mut dv[run]],
         band,
@@ -572,6 +647,21 @@ fn update_block(
     );
     sweeps.du[j] = du;
     sweeps.dv[j] = dv;
+}
+
+/// Block `(c, first)`'s coefficients, and the increments and weights of
+/// the blocks of its neighbours: left and right (with their weights to the
+/// right, coefficient 0), up and down (with those below, coefficient 1).
+fn sweep_inputs(sweeps: &Sweeps, c: usize, first: usize) -> ([&[f32]; COEFFICIENTS], [[&[f32]; 3]; 2]) {
+    let (lr, ud) = (2 * (1 - c) + 1 - first, 2 * (1 - c) + first);
+    let (u, v, e) = (&sweeps.du, &sweeps.dv, &sweeps.coefficients);
+    (
+        e[2 * c + first].each_ref().map(|a| &a[..]),
+        [
+            [&u[lr][..], &v[lr][..], &e[lr][0][..]],
+            [&u[ud][..], &v[ud][..], &e[ud][1][..]],
+        ],
+    )
 }
 
 #[cfg(test)]
@@ -697,13 +787,14 @@ mod tests {
                 du.iter().any(|&d| d.abs() > 0.01),
                 "{w}x{h}: the sweeps should move"
             );
-            // The sweeps pipelined down the picture, steps of any height.
-            for rows in [1, 2, 3, 8, 64] {
+            // The sweeps pipelined down the picture, steps of any height,
+            // a colour's two blocks on one thread and on two.
+            for (rows, parallel) in [1, 2, 3, 8, 64].into_iter().flat_map(|r| [(r, false), (r, true)]) {
                 (sweeps.du, sweeps.dv) = start.clone();
-                sweep_pipelined(band_body, &mut sweeps, 1.6, (4, rows), |_, _| {});
+                sweep_pipelined(band_body, &mut sweeps, (1.6, parallel), (4, rows), |_, _| {});
                 assert!(
                     unfold(&sweeps, &g) == (pu.clone(), pv.clone()),
-                    "{w}x{h}: sweeps pipelined {rows} rows a step differ from plain ones"
+                    "{w}x{h}: sweeps pipelined {rows} rows a step (parallel {parallel}) differ from plain ones"
                 );
             }
         }
@@ -786,16 +877,18 @@ mod tests {
         for n in [1, 2, 5, 10, 40] {
             let mut whole = Sweeps::new(g.w, g.h);
             fill_blocks(&mut whole, &sys, &g);
-            let mut pipelined = Sweeps::new(g.w, g.h);
-            fill_blocks(&mut pipelined, &sys, &g);
             for _ in 0..n {
                 sweep(band_body, &mut whole, 1.6, one);
             }
-            sweep_pipelined(band_body, &mut pipelined, 1.6, (n, PIPELINE_ROWS), |_, _| {});
-            assert!(
-                whole.du == pipelined.du && whole.dv == pipelined.dv,
-                "{n} sweeps pipelined differ from whole ones"
-            );
+            for (parallel, rows) in [(false, PIPELINE_ROWS), (true, PARALLEL_PIPELINE_ROWS)] {
+                let mut pipelined = Sweeps::new(g.w, g.h);
+                fill_blocks(&mut pipelined, &sys, &g);
+                sweep_pipelined(band_body, &mut pipelined, (1.6, parallel), (n, rows), |_, _| {});
+                assert!(
+                    whole.du == pipelined.du && whole.dv == pipelined.dv,
+                    "{n} sweeps pipelined (parallel {parallel}) differ from whole ones"
+                );
+            }
             assert!(
                 whole.du.iter().flatten().any(|&d| d.abs() > 0.1),
                 "the sweeps should move"

@@ -25,6 +25,7 @@ pub(crate) struct Terms<'a> {
 }
 
 /// The rows in flight, `w` samples each (rows held by parity, `y % 2`).
+#[derive(Default)]
 struct Scratch {
     /// `[du, dv]` of a row and of the row below.
     increment: [[Vec<f32>; 2]; 2],
@@ -51,12 +52,19 @@ pub(super) fn assemble_band(mut out: [&mut [f32]; 4 * COEFFICIENTS], base: usize
     if rows.is_empty() {
         return;
     }
-    let mut s = Scratch::new(w);
+    // Taken out of the thread's slot and put back, so that the rows are
+    // computed here, in the kernel's own build (a closure would be
+    // compiled apart, without its CPU features).
+    let mut s = SCRATCH.take();
+    s.size(w);
     s.load_increment(t, rows.start);
     if rows.start > 0 {
         // The weights below of the row above: the fold's weights up.
         s.load_increment(t, rows.start - 1);
         s.smoothness(t, rows.start - 1);
+    } else {
+        // The first row has no edge above.
+        s.down[1].fill(0.0);
     }
     for y in rows {
         if y + 1 < h {
@@ -67,18 +75,26 @@ pub(super) fn assemble_band(mut out: [&mut [f32]; 4 * COEFFICIENTS], base: usize
         s.fold(t, y);
         s.scatter(&mut out, base, t, y);
     }
+    SCRATCH.set(s);
+}
+
+thread_local! {
+    /// Each thread's rows in flight, kept from band to band (the pipelined
+    /// sweeps assemble a few rows at a time, hundreds of bands a level).
+    static SCRATCH: std::cell::Cell<Scratch> = std::cell::Cell::new(Scratch::default());
 }
 
 impl Scratch {
     #[inline(always)]
-    fn new(w: usize) -> Scratch {
-        let z = || vec![0f32; w];
-        Scratch {
-            increment: std::array::from_fn(|_| [z(), z()]),
-            right: vec![0f32; w + 1],
-            down: [z(), z()],
-            data: std::array::from_fn(|_| z()),
+    /// Rows of `w` samples (what they hold is written before it is read,
+    /// but for the zero before the weights to the right).
+    fn size(&mut self, w: usize) {
+        let rows = self.increment.iter_mut().flatten();
+        for row in rows.chain(&mut self.down).chain(&mut self.data) {
+            row.resize(w, 0.0);
         }
+        self.right.resize(w + 1, 0.0);
+        self.right[0] = 0.0;
     }
 
     #[inline(always)]

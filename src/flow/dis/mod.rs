@@ -299,9 +299,10 @@ pub struct Dis {
     params: DisParams,
     p1: Pyramid,
     p2: Pyramid,
-    /// One per level, so that a second pair of the same size allocates
-    /// nothing in the refinement.
-    refiners: Vec<Refiner>,
+    /// One for every level, its buffers those of the finest (reserved
+    /// first), so that a second pair of the same size allocates nothing in
+    /// the refinement.
+    refiner: Refiner,
 }
 
 impl Dis {
@@ -315,7 +316,7 @@ impl Dis {
             params,
             p1: Pyramid::default(),
             p2: Pyramid::default(),
-            refiners: Vec::new(),
+            refiner: Refiner::default(),
         }
     }
 
@@ -401,7 +402,10 @@ impl Dis {
         let (p1, p2) = (&mut self.p1, &mut self.p2);
         both(parallel_worth(w0 * h0), || build(p1, i1), || build(p2, i2));
         let top = self.p1.levels.len() - 1;
-        self.refiners.resize_with(top + 1, Refiner::default);
+        if p.refine.iterations > 0 {
+            let (h, w) = self.p1.levels[finest].dim();
+            self.refiner.reserve(w, h);
+        }
         let (mut u, mut v) = (
             Array2::zeros(self.p1.levels[top].dim()),
             Array2::zeros(self.p1.levels[top].dim()),
@@ -456,7 +460,7 @@ impl Dis {
             let sparse = search::search_level(&input, patch);
             densify::densify(a1, &padded, &sparse, &mut u, &mut v);
             if p.refine.iterations > 0 {
-                self.refiners[level].refine(a1, a2, &mut u, &mut v, &p.refine);
+                self.refiner.refine(a1, a2, &mut u, &mut v, &p.refine);
             }
         }
         (u, v, finest)

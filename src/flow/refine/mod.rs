@@ -308,20 +308,36 @@ impl Refiner {
     /// Sizes the buffers for a `w x h` picture; the increments start at 0.
     fn prepare(&mut self, w: usize, h: usize) {
         if self.g.as_ref().map(|g| (g.w, g.h)) != Some((w, h)) {
+            // In the buffers of the last size where they are large enough
+            // (a pyramid's levels, coarse to fine, after `reserve`).
             let g = Padded { w, h };
             let n = g.len();
-            self.lin = Some(Linearised::new(n));
-            self.sweeps = Some(Sweeps::new(w, h));
+            self.lin.get_or_insert_with(|| Linearised::new(0)).resize(n);
+            self.sweeps.get_or_insert_with(|| Sweeps::new(0, 0)).resize(w, h);
             for b in [&mut self.scratch, &mut self.u, &mut self.v] {
-                *b = vec![0f32; n];
+                b.resize(n, 0.0);
             }
+            // The flow's border is read by the fold (with zero weights).
+            g.zero_border(&mut self.u);
+            g.zero_border(&mut self.v);
             self.g = Some(g);
-        } else {
-            let sw = self.sweeps.as_mut().expect("sized with g");
-            for b in 0..4 {
-                sw.du[b].fill(0.0);
-                sw.dv[b].fill(0.0);
-            }
+        }
+        let sw = self.sweeps.as_mut().expect("sized with g");
+        for b in 0..4 {
+            sw.du[b].fill(0.0);
+            sw.dv[b].fill(0.0);
+        }
+    }
+
+    /// Room for pictures up to `w x h` without a new allocation: one
+    /// refiner then serves every level of a pyramid, its buffers those of
+    /// the largest.
+    pub fn reserve(&mut self, w: usize, h: usize) {
+        let n = Padded { w, h }.len();
+        self.lin.get_or_insert_with(|| Linearised::new(0)).reserve(n);
+        self.sweeps.get_or_insert_with(|| Sweeps::new(0, 0)).reserve(w, h);
+        for b in [&mut self.scratch, &mut self.u, &mut self.v] {
+            b.reserve(n.saturating_sub(b.len()));
         }
     }
 
@@ -958,6 +974,34 @@ mod tests {
         // Bands of one row, of a few rows and of uneven sizes.
         for bands in [2, 3, 7, 43, 200] {
             assert!(run(bands) == one, "{bands} bands refine otherwise than one");
+        }
+    }
+
+    #[test]
+    fn a_refiner_kept_across_sizes_refines_as_a_new_one() {
+        // Larger and smaller than reserved, as a pyramid's levels and the
+        // next pair's: the buffers of one size must leave nothing behind
+        // for the next (the padding read as zero weights and flow).
+        let f =
+            |x: f32, y: f32| 128.0 + 60.0 * (x / 5.0).sin() * (y / 7.0).cos() + 25.0 * ((x - y) / 4.0).cos();
+        let mut kept = Refiner::default();
+        kept.reserve(30, 41);
+        for (h, w) in [(41, 30), (15, 20), (41, 30), (57, 33), (9, 64), (41, 30)] {
+            let i1 = Array2::from_shape_fn((h, w), |(y, x)| f(x as f32, y as f32));
+            let i2 = Array2::from_shape_fn((h, w), |(y, x)| f(x as f32 - 0.9, y as f32 + 0.7));
+            let start = Array2::from_shape_fn((h, w), |(y, x)| 0.3 + 0.02 * (x as f32 - y as f32));
+            let run = |r: &mut Refiner| {
+                let (mut u, mut v) = (start.clone(), start.mapv(|x| -0.5 * x));
+                r.refine(&i1, &i2, &mut u, &mut v, &RefineParams::default());
+                (u, v)
+            };
+            let (again, new) = (run(&mut kept), run(&mut Refiner::default()));
+            assert!(again == new, "{w}x{h}: a kept refiner differs from a new one");
+            let moved = (&new.0 - &start).iter().fold(0f32, |m, d| m.max(d.abs()));
+            assert!(
+                moved > 0.1,
+                "{w}x{h}: the refinement should move the flow ({moved})"
+            );
         }
     }
 

@@ -123,11 +123,7 @@ pub(super) const BLOCKS: [(usize, usize); 4] = [(0, 0), (0, 1), (1, 0), (1, 1)];
 
 impl Sweeps {
     pub(super) fn new(w: usize, h: usize) -> Sweeps {
-        let layout = Layout {
-            stride: w.div_ceil(2) + 2,
-            w,
-            h,
-        };
+        let layout = Layout::of(w, h);
         let n = layout.len();
         let z = || std::array::from_fn(|_| vec![0f32; n]);
         Sweeps {
@@ -137,9 +133,55 @@ impl Sweeps {
             dv: z(),
         }
     }
+
+    /// Every array.
+    fn arrays(&mut self) -> impl Iterator<Item = &mut Vec<f32>> {
+        let coefficients = self.coefficients.iter_mut().flatten();
+        coefficients.chain(&mut self.du).chain(&mut self.dv)
+    }
+
+    /// Room for a `w x h` picture without a new allocation.
+    pub(super) fn reserve(&mut self, w: usize, h: usize) {
+        let n = Layout::of(w, h).len();
+        for a in self.arrays() {
+            a.reserve(n.saturating_sub(a.len()));
+        }
+    }
+
+    /// Sized for a `w x h` picture, the increment zero, the coefficients'
+    /// padding zero (the rest is written before the sweeps read it).
+    pub(super) fn resize(&mut self, w: usize, h: usize) {
+        self.layout = Layout::of(w, h);
+        let n = self.layout.len();
+        for a in self.arrays() {
+            a.resize(n, 0.0);
+        }
+        let (layout, s) = (self.layout, self.layout.stride);
+        for (c, first) in BLOCKS {
+            let b = layout.block(c, first);
+            for a in &mut self.coefficients[b.index] {
+                // The rows above and below, and each row's sample before
+                // and samples after its pixels.
+                a[..s].fill(0.0);
+                a[(b.rows + 1) * s..].fill(0.0);
+                for r in 1..=b.rows {
+                    a[r * s] = 0.0;
+                    a[r * s + 1 + b.len..(r + 1) * s].fill(0.0);
+                }
+            }
+        }
+    }
 }
 
 impl Layout {
+    pub(super) fn of(w: usize, h: usize) -> Layout {
+        Layout {
+            stride: w.div_ceil(2) + 2,
+            w,
+            h,
+        }
+    }
+
     /// Samples per block, padding included.
     pub(super) fn len(&self) -> usize {
         self.stride * (self.h.div_ceil(2) + 2)

@@ -30,6 +30,17 @@ impl Padded {
     pub(super) fn at(&self, x: usize, y: usize) -> usize {
         (y + 1) * (self.w + 2) + x + 1
     }
+
+    /// Zeroes the border of the field `a`.
+    pub(super) fn zero_border(&self, a: &mut [f32]) {
+        let s = self.stride();
+        a[..s].fill(0.0);
+        a[(self.h + 1) * s..].fill(0.0);
+        for y in 1..=self.h {
+            a[y * s] = 0.0;
+            a[y * s + s - 1] = 0.0;
+        }
+    }
 }
 
 /// The rows `0..h` of a grid with `stride` samples a row and one padding
@@ -55,6 +66,36 @@ pub(crate) struct Linearised {
 }
 
 impl Linearised {
+    /// Every array, for sizing them.
+    fn arrays(&mut self) -> [&mut Vec<f32>; 9] {
+        [
+            &mut self.ix,
+            &mut self.iy,
+            &mut self.iz,
+            &mut self.ixx,
+            &mut self.ixy,
+            &mut self.iyy,
+            &mut self.ixz,
+            &mut self.iyz,
+            &mut self.inside,
+        ]
+    }
+
+    /// Room for `n` samples in every array without a new allocation.
+    pub(super) fn reserve(&mut self, n: usize) {
+        for a in self.arrays() {
+            a.reserve(n.saturating_sub(a.len()));
+        }
+    }
+
+    /// Arrays of `n` samples (their padding is never read, and the rest
+    /// is written before it is read).
+    pub(super) fn resize(&mut self, n: usize) {
+        for a in self.arrays() {
+            a.resize(n, 0.0);
+        }
+    }
+
     pub(super) fn new(n: usize) -> Linearised {
         let z = || vec![0f32; n];
         Linearised {

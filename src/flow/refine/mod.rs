@@ -176,7 +176,7 @@ fn for_bands<const N: usize>(
 }
 
 /// Refines the flow `(u, v)` from `i1` to `i2` in place (a one-off
-/// [`Refiner`]; keep one to refine pictures of the same size again).
+/// [`Refiner`]; keep one to refine more pictures without allocating).
 pub fn refine(
     i1: &Array2<f32>,
     i2: &Array2<f32>,
@@ -188,8 +188,9 @@ pub fn refine(
 }
 
 /// The variational refinement with its buffers, kept from one call to the
-/// next for pictures of the same size (a per-level refiner in a pyramid
-/// does not allocate after the first pair).
+/// next: pictures no larger than the largest so far (or than
+/// [`Refiner::reserve`]'s) allocate nothing, so one refiner serves every
+/// level of a pyramid.
 #[derive(Default)]
 pub struct Refiner {
     g: Option<Padded>,

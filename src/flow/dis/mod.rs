@@ -427,7 +427,7 @@ impl Dis {
         };
         let hints = initial
             .or(seed.as_ref())
-            .map(|f| hint_pyramid(f, &self.p1.levels, finest));
+            .map(|f| hint_pyramid(f, &self.p1.levels, hinted_from));
         for level in (finest..=top).rev() {
             let (a1, a2) = (&self.p1.levels[level], &self.p2.levels[level]);
             let (h, w) = a1.dim();
@@ -438,7 +438,7 @@ impl Dis {
             let hint = hints
                 .as_ref()
                 .filter(|_| level >= hinted_from)
-                .map(|hs| &hs[level - finest]);
+                .map(|hs| &hs[level - hinted_from]);
             let patch = p.patch.min(w).min(h);
             let exhaustive = p.global_search && level == top;
             let padded = search::Padded::new(a2.as_slice().expect("standard"), w, h, patch + 2);

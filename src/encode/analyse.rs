@@ -910,7 +910,7 @@ mod tests {
         // The state after an I frame: P frames' contexts start from it.
         let mut state = EntropyState::new();
         let recon = Frame::new(SIZE, SIZE).unwrap();
-        let coded = code_inter(&seq, &coder, src, inputs, &mut state, recon).unwrap();
+        let coded = code_inter(&seq, &coder, src, inputs, (&mut state, recon), |_| ()).unwrap();
         let vectors = frame_vectors(&seq, &coded.syntax);
         coded.syntax.mbs.iter().map(|m| m.kind).zip(vectors).collect()
     }

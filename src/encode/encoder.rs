@@ -360,10 +360,22 @@ impl Encoder {
             fast_pskip: self.config.fast_pskip,
             early_pskip: self.config.early_pskip,
         };
-        let coded = slice::code_inter(&self.seq, &self.coder, src, inputs, &mut self.entropy, recon)?;
-        if block && self.config.luma_filter == FilterChoice::Auto {
-            self.filter.learn(src, &references, &coded.vectors, self.index);
-        }
+        // Which filter the next frame takes, learnt while this one is
+        // written.
+        let learn = block && self.config.luma_filter == FilterChoice::Auto;
+        let (filter, index) = (&mut self.filter, self.index);
+        let coded = slice::code_inter(
+            &self.seq,
+            &self.coder,
+            src,
+            inputs,
+            (&mut self.entropy, recon),
+            |vectors| {
+                if learn {
+                    filter.learn(src, &references, vectors, index);
+                }
+            },
+        )?;
         if self.analyser.searches_in_decision() {
             let mvs = coded
                 .vectors

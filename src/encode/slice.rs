@@ -196,17 +196,24 @@ pub(crate) fn code_intra(
         kinds: sum.kinds,
         vectors: sum.vectors,
     };
-    frame.write_and_finish(seq, state);
+    frame.write_and_finish(seq, state, |_| ());
     Ok(frame)
 }
 
 impl CodedFrame {
     /// Writes the frame (its macroblocks decided) and finishes its
     /// reconstruction at once: the range coder on one thread, the
-    /// deblocking on others.
-    fn write_and_finish(&mut self, seq: &SequenceHeader, state: &mut EntropyState) {
-        let (written, ()) = rayon::join(
-            || write_frame(seq, &self.syntax, state),
+    /// deblocking on others, and `beside` (given the frame's vectors)
+    /// after the range coder (work for the next frame that the frame's
+    /// threads would otherwise wait on, one after the other).
+    fn write_and_finish(
+        &mut self,
+        seq: &SequenceHeader,
+        state: &mut EntropyState,
+        beside: impl FnOnce(&[MbVectors]) + Send,
+    ) {
+        let ((written, ()), ()) = rayon::join(
+            || rayon::join(|| write_frame(seq, &self.syntax, state), || beside(&self.vectors)),
             || finish_recon(seq, &self.syntax, &self.vectors, &mut self.recon),
         );
         (self.bytes, self.bits) = written;
@@ -488,8 +495,13 @@ impl<'a> InterFrameCoder<'a> {
         self.frame.syntax.mbs.push(coded);
     }
 
-    /// The coded frame, written; `state` updated.
-    fn finish(self, state: &mut EntropyState) -> Result<CodedFrame, PictureError> {
+    /// The coded frame, written; `state` updated; `beside` run with its
+    /// vectors as it is written.
+    fn finish(
+        self,
+        state: &mut EntropyState,
+        beside: impl FnOnce(&[MbVectors]) + Send,
+    ) -> Result<CodedFrame, PictureError> {
         let mut frame = self.frame;
         if frame.vectors.is_empty() {
             // Decided in raster order: the frame's own record.
@@ -499,6 +511,7 @@ impl<'a> InterFrameCoder<'a> {
             MbSink::Write(writer) => {
                 (frame.bytes, frame.bits) = writer.finish(state);
                 finish_recon(self.seq, &frame.syntax, &frame.vectors, &mut frame.recon);
+                beside(&frame.vectors);
             }
             MbSink::Adapt(_) => {
                 // Decisions saw neighbours' searched vectors; code the
@@ -514,7 +527,7 @@ impl<'a> InterFrameCoder<'a> {
                         &mut frame,
                     )?;
                 }
-                frame.write_and_finish(self.seq, state);
+                frame.write_and_finish(self.seq, state, beside);
             }
         }
         Ok(frame)
@@ -522,14 +535,15 @@ impl<'a> InterFrameCoder<'a> {
 }
 
 /// A P frame predicted as `inputs` say, reconstructed into `recon` (coded
-/// size, contents all overwritten) and written, `state` updated.
+/// size, contents all overwritten) and written, `state` updated; `beside`
+/// runs with the frame's decided vectors while the frame is written.
 pub(crate) fn code_inter(
     seq: &SequenceHeader,
     coder: &MbCoder,
     src: &Frame,
     inputs: InterInputs<'_>,
-    state: &mut EntropyState,
-    recon: Frame,
+    (state, recon): (&mut EntropyState, Frame),
+    beside: impl FnOnce(&[MbVectors]) + Send,
 ) -> Result<CodedFrame, PictureError> {
     let mut frame_coder = InterFrameCoder::new(seq, coder, src, inputs, state, recon)?;
     if frame_coder.tool == MotionTool::Block {
@@ -545,7 +559,7 @@ pub(crate) fn code_inter(
             frame_coder.commit(mb);
         }
     }
-    frame_coder.finish(state)
+    frame_coder.finish(state, beside)
 }
 
 /// Codes every macroblock's residual again, keeping the decisions, against

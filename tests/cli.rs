@@ -1198,6 +1198,10 @@ fn presets_differ_options_override_them_and_every_stream_decodes() {
     );
     assert_ne!(encode("mo.mcv", &["--subpel-rd", "on"]), streams[2]);
     rejects("--subpel-rd", "yes", "expected on or off");
+    // Chroma motion estimation is no preset's (its effect on a sample
+    // with colour: tests/encode.rs).
+    assert_eq!(encode("co.mcv", &["--chroma-me", "off"]), streams[2]);
+    rejects("--chroma-me", "1", "expected on or off");
     // Fast P-skip is every preset's: without it the stream changes (at
     // QP 34, where some macroblock skips early on this sample).
     assert_ne!(

@@ -365,6 +365,24 @@ fn a_camera_moving_past_the_search_range_is_followed() {
 }
 
 #[test]
+fn chroma_motion_estimation_changes_vectors_and_the_decoder_follows() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/synth_cif.y4m");
+    let frames = mocomp::io::y4m::Y4mReader::open(&path)
+        .unwrap()
+        .read_all()
+        .unwrap();
+    let frames = &frames[..4];
+    let (off, _, _) = encode(frames, EncoderConfig::new().qp(27));
+    let (on, recon, _) = encode(frames, EncoderConfig::new().qp(27).chroma_me(true));
+    assert_ne!(on, off);
+    assert_eq!(decoder::decode(&on).unwrap().1, recon);
+    use mocomp::encode::EncoderPreset;
+    assert!(EncoderPreset::ALL
+        .iter()
+        .all(|&p| !EncoderConfig::new().chroma_me(true).preset(p).chroma_me));
+}
+
+#[test]
 fn subpel_rd_refinement_saves_bytes_and_the_decoder_follows() {
     // The bundled CIF sample (a textured scene panning by fractions of a
     // pel, objects moving otherwise): the search's SATD-ranked quarter-pel

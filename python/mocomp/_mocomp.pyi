@@ -172,6 +172,7 @@ def encode(
     weightp: Optional[bool] = None,
     refs: Optional[int] = None,
     subpel_rd: Optional[bool] = None,
+    chroma_me: Optional[bool] = None,
     fast_pskip: Optional[bool] = None,
     early_pskip: Optional[bool] = None,
     dct8x8: Optional[bool] = None,

@@ -116,6 +116,11 @@ pub struct ToolArgs {
     /// only; the slow preset has it on) [default: the preset's].
     #[arg(long, value_name = "on|off", value_parser = on_off)]
     pub subpel_rd: Option<bool>,
+    /// Chroma priced beside luma in the search's sub-pel steps, on or off,
+    /// as x264's chroma motion estimation (`block` only) [default: the
+    /// preset's].
+    #[arg(long, value_name = "on|off", value_parser = on_off)]
+    pub chroma_me: Option<bool>,
     /// No fast P-skip (x264's --no-fast-pskip): every P-frame macroblock
     /// tries its other modes even where skipping it would code no level.
     #[arg(long)]
@@ -169,6 +174,7 @@ impl ToolArgs {
         o.extend(self.partitions.map(|p| ("partitions", p.to_string())));
         o.extend(self.refs.map(|n| ("refs", n.to_string())));
         o.extend(self.subpel_rd.map(|b| ("subpel-rd", on(b))));
+        o.extend(self.chroma_me.map(|b| ("chroma-me", on(b))));
         o.extend(self.luma_filter.map(|f| ("luma-filter", f.name().to_string())));
         o
     }

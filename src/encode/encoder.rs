@@ -357,6 +357,7 @@ impl Encoder {
             weights,
             partitions: self.config.partitions.p8x8,
             subpel_rd: self.config.subpel_rd,
+            chroma_me: self.config.chroma_me,
             fast_pskip: self.config.fast_pskip,
             early_pskip: self.config.early_pskip,
         };

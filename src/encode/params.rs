@@ -23,7 +23,7 @@ use crate::metrics::{Metric, Metrics};
 
 /// Every option [`EncoderConfig::set`] takes, with what its value is
 /// (names as `mocomp encode` spells them; `_` may stand for `-`).
-pub const OPTIONS: [(&str, &str); 24] = [
+pub const OPTIONS: [(&str, &str); 25] = [
     ("qp", "quantisation parameter, 0..=51"),
     ("gop", "I-frame period (0: only the first frame)"),
     (
@@ -53,6 +53,10 @@ pub const OPTIONS: [(&str, &str); 24] = [
     ("weightp", "weighted prediction, on|off"),
     ("refs", "references P frames may predict from, 1..=8 (block)"),
     ("subpel-rd", "sub-pel RD refinement (x264's subme 8), on|off"),
+    (
+        "chroma-me",
+        "chroma in the sub-pel search's cost (x264's), on|off",
+    ),
     (
         "fast-pskip",
         "skip before the other modes where skip codes no level, on|off",
@@ -132,6 +136,7 @@ impl EncoderConfig {
             "weightp" => self.weightp = switch(value).map_err(bad)?,
             "refs" => self.refs = parse(value).map_err(bad)?,
             "subpel-rd" => self.subpel_rd = switch(value).map_err(bad)?,
+            "chroma-me" => self.chroma_me = switch(value).map_err(bad)?,
             "fast-pskip" => self.fast_pskip = switch(value).map_err(bad)?,
             "early-pskip" => self.early_pskip = switch(value).map_err(bad)?,
             "luma-filter" => self.luma_filter = parse(value).map_err(bad)?,
@@ -229,6 +234,7 @@ mod tests {
             ("weightp", "no"),
             ("refs", "3"),
             ("subpel-rd", "1"),
+            ("chroma-me", "on"),
             ("fast-pskip", "off"),
             ("early-pskip", "on"),
             ("8x8dct", "off"),

@@ -267,6 +267,8 @@ pub(crate) struct InterInputs<'a> {
     pub partitions: bool,
     /// Sub-pel RD refinement of 16x16 inter vectors (block frames).
     pub subpel_rd: bool,
+    /// Chroma in the 16x16 searches' sub-pel cost ([`super::EncoderConfig::chroma_me`]).
+    pub chroma_me: bool,
     /// x264's fast P-skip (see [`super::EncoderConfig::fast_pskip`]).
     pub fast_pskip: bool,
     /// Fast P-skip before the search too ([`super::EncoderConfig::early_pskip`]).
@@ -292,6 +294,8 @@ pub(super) struct InterFrameCoder<'a> {
     pub(super) partitions: bool,
     /// Sub-pel RD refinement of 16x16 inter vectors (block frames).
     pub(super) subpel_rd: bool,
+    /// Chroma in the 16x16 searches' sub-pel cost.
+    pub(super) chroma_me: bool,
     /// x264's fast P-skip (see [`super::EncoderConfig::fast_pskip`]).
     pub(super) fast_pskip: bool,
     /// Fast P-skip before the search too ([`super::EncoderConfig::early_pskip`]).
@@ -383,6 +387,7 @@ impl<'a> InterFrameCoder<'a> {
             lazy,
             partitions: inputs.partitions && inputs.tool == MotionTool::Block,
             subpel_rd: inputs.subpel_rd,
+            chroma_me: inputs.chroma_me,
             fast_pskip: inputs.fast_pskip,
             early_pskip: inputs.early_pskip,
             halfpel,

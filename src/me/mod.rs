@@ -406,6 +406,20 @@ pub(crate) struct SearchContext<'a> {
     capped: Option<CappedFn>,
     /// The reference's quadrant sums, for successive elimination.
     sums: Option<&'a sea::QuadrantSums>,
+    /// The block's chroma, priced beside its luma in the sub-pel steps.
+    chroma: Option<ChromaBlock<'a>>,
+}
+
+/// A 16x16 block's two 8x8 chroma blocks and the reference's chroma
+/// planes: x264's chroma motion estimation (`--chroma-me`, from its
+/// `--subme 5`), the sub-pel steps' cost the sum of the three planes'.
+#[derive(Clone, Copy)]
+pub(crate) struct ChromaBlock<'a> {
+    /// Cb and Cr of the block being searched.
+    pub source: &'a [[u8; 64]; 2],
+    /// Cb and Cr of the reference (as predicted from: weighted where the
+    /// luma is).
+    pub reference: [&'a Plane; 2],
 }
 
 impl<'a> SearchContext<'a> {
@@ -437,6 +451,7 @@ impl<'a> SearchContext<'a> {
             capped: (cfg.block == 16 && cfg.full_pel_metric() == Metric::Satd)
                 .then(|| dsp::pixel().satd_16x16_capped),
             sums: None,
+            chroma: None,
         }
     }
 
@@ -502,7 +517,8 @@ impl<'a> SearchContext<'a> {
     /// `best` of the full-pel search with its cost in the measure of the
     /// sub-pel steps, which compare against it.
     fn in_sub_pel_measure(&self, best: Candidate) -> Candidate {
-        if !self.cfg.full_pel_sad || self.cfg.subpel == Subpel::None || self.cfg.metric == Metric::Sad {
+        let same_measure = !self.cfg.full_pel_sad || self.cfg.metric == Metric::Sad;
+        if self.cfg.subpel == Subpel::None || (same_measure && self.chroma.is_none()) {
             return best;
         }
         let mut scratch = [0u8; 32 * 32];
@@ -529,11 +545,37 @@ impl<'a> SearchContext<'a> {
         let b = self.cfg.block;
         let (samples, stride) =
             halfpel::block_or_predicted(self.halfpel, self.reference, (self.x, self.y), mv, b, scratch);
-        u64::from(
-            self.cfg
-                .metric
-                .cost(self.block, self.cur.stride(), samples, stride, b, b),
-        ) + self.rate(mv)
+        let luma = self
+            .cfg
+            .metric
+            .cost(self.block, self.cur.stride(), samples, stride, b, b);
+        u64::from(luma) + self.chroma_cost(mv) + self.rate(mv)
+    }
+
+    /// The chroma blocks' distortion at quarter-pel `mv` (the decoder's
+    /// eighth-pel chroma prediction), 0 without chroma.
+    fn chroma_cost(&self, mv: Mv) -> u64 {
+        let Some(chroma) = &self.chroma else {
+            return 0;
+        };
+        let (x, y) = (self.x / 2, self.y / 2);
+        let mut pred = [0u8; 64];
+        (0..2)
+            .map(|p| {
+                crate::codec::interp::predict_chroma(
+                    chroma.reference[p],
+                    x,
+                    y,
+                    mv.x,
+                    mv.y,
+                    8,
+                    8,
+                    &mut pred,
+                    8,
+                );
+                u64::from(self.cfg.metric.cost(&chroma.source[p], 8, &pred, 8, 8, 8))
+            })
+            .sum()
     }
 }
 
@@ -737,22 +779,25 @@ impl<'p> FrameSearch<'p> {
 
     /// The best vector of the block (col, row) of `cur` (same size as the
     /// reference): `candidates` and the method's pattern at full pel, then
-    /// the sub-pel refinement, the rate priced against `mvp`.
+    /// the sub-pel refinement, the rate priced against `mvp`, the chroma
+    /// priced too where given (16x16 blocks).
     pub(crate) fn search(
         &self,
-        cur: &Plane,
-        reference: &Plane,
+        (cur, reference): (&Plane, &Plane),
         (col, row): (usize, usize),
         mvp: Mv,
         candidates: &search::Neighbours,
+        chroma: Option<ChromaBlock<'_>>,
     ) -> Candidate {
         let block = self.cfg.block;
+        debug_assert!(chroma.is_none() || block == 16, "chroma blocks are 8x8");
         let s = SearchContext {
             mvp,
             lambda_q8: self.lambda_q8,
             halfpel: self.halfpel(),
             sums: self.sums.as_ref(),
             origin: self.centre,
+            chroma: chroma.filter(|_| block == 16),
             ..SearchContext::new(cur, reference, (col * block, row * block), &self.cfg)
         };
         let best = search::full_pel(&s, candidates);
@@ -794,11 +839,11 @@ pub(crate) fn estimate_with_planes(
             Mv::ZERO
         };
         frame.search(
-            cur,
-            reference,
+            (cur, reference),
             (col, row),
             mvp,
             &search::Neighbours::of(grid, prior, col, row),
+            None,
         )
     };
     if lambda_q8 > 0 || cfg.method.uses_neighbours() {
@@ -866,4 +911,61 @@ pub fn search_around(
         &s,
         if at_seed.beats(&full) { at_seed } else { full },
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::codec::interp::predict_chroma;
+
+    /// A chroma plane of noise (an LCG), borders extended.
+    fn noise_plane(w: usize, h: usize, seed: u32) -> Plane {
+        let mut p = Plane::new(w, h).unwrap();
+        let mut state = seed;
+        for y in 0..h {
+            for v in p.row_mut(y).iter_mut() {
+                state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                *v = (state >> 24) as u8;
+            }
+        }
+        p.extend_border();
+        p
+    }
+
+    /// Flat luma, and chroma moved by a half pel of luma both ways: the
+    /// luma says nothing, so the search keeps the predicted vector; priced
+    /// with its chroma, it finds the chroma's motion.
+    #[test]
+    fn chroma_in_the_sub_pel_cost_finds_motion_the_luma_cannot_show() {
+        let (w, h) = (64, 64);
+        let mut luma = Plane::filled(w, h, 128).unwrap();
+        luma.extend_border();
+        let reference = [noise_plane(w / 2, h / 2, 1), noise_plane(w / 2, h / 2, 2)];
+        let motion = Mv::new(2, -2);
+        let (col, row) = (1, 1);
+        let mut source = [[0u8; 64]; 2];
+        for p in 0..2 {
+            let (x, y) = ((col * 8) as isize, (row * 8) as isize);
+            predict_chroma(&reference[p], x, y, motion.x, motion.y, 8, 8, &mut source[p], 8);
+        }
+        let cfg = MeConfig {
+            subpel: Subpel::Quarter,
+            metric: Metric::Satd,
+            lambda: lambda_for_qp(Metric::Satd, 27),
+            ..MeConfig::new(Method::Epzs, 16, 16)
+        };
+        let search = FrameSearch::new(&luma, &cfg, None).unwrap();
+        let chroma = ChromaBlock {
+            source: &source,
+            reference: [&reference[0], &reference[1]],
+        };
+        let found = |c: Option<ChromaBlock<'_>>| {
+            let candidates = search::Neighbours::list(Mv::ZERO, []);
+            search
+                .search((&luma, &luma), (col, row), Mv::ZERO, &candidates, c)
+                .mv
+        };
+        assert_eq!(found(None), Mv::ZERO);
+        assert_eq!(found(Some(chroma)), motion);
+    }
 }

@@ -1202,6 +1202,13 @@ fn presets_differ_options_override_them_and_every_stream_decodes() {
     // with colour: tests/encode.rs).
     assert_eq!(encode("co.mcv", &["--chroma-me", "off"]), streams[2]);
     rejects("--chroma-me", "1", "expected on or off");
+    // Prices adapt from medium: off there, the stream changes; on in
+    // ultrafast too.
+    assert_ne!(encode("ap.mcv", &["--adaptive-pricing", "off"]), streams[2]);
+    assert_ne!(
+        encode("apu.mcv", &["--preset", "ultrafast", "--adaptive-pricing", "on"]),
+        streams[0]
+    );
     // Fast P-skip is every preset's: without it the stream changes (at
     // QP 34, where some macroblock skips early on this sample).
     assert_ne!(

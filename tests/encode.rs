@@ -383,6 +383,35 @@ fn chroma_motion_estimation_changes_vectors_and_the_decoder_follows() {
 }
 
 #[test]
+fn pricing_without_adapting_changes_decisions_and_the_decoder_follows() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/synth_cif.y4m");
+    let frames = mocomp::io::y4m::Y4mReader::open(&path)
+        .unwrap()
+        .read_all()
+        .unwrap();
+    let frames = &frames[..4];
+    use mocomp::encode::EncoderPreset;
+    let ultrafast = EncoderConfig::new().qp(22).preset(EncoderPreset::Ultrafast);
+    assert!(!ultrafast.adaptive_pricing);
+    let (frozen, recon, _) = encode(frames, ultrafast);
+    let (adapting, _, _) = encode(frames, ultrafast.adaptive_pricing(true));
+    assert_ne!(frozen, adapting);
+    assert_eq!(decoder::decode(&frozen).unwrap().1, recon);
+    // The I frame adapts either way: the first frame's bytes are equal.
+    let (one_frozen, _, _) = encode(&frames[..1], ultrafast);
+    let (one_adapting, _, _) = encode(&frames[..1], ultrafast.adaptive_pricing(true));
+    assert_eq!(one_frozen, one_adapting);
+    // From medium (RDOQ prices every level) the prices adapt.
+    for p in EncoderPreset::ALL {
+        let on = EncoderConfig::new()
+            .adaptive_pricing(false)
+            .preset(p)
+            .adaptive_pricing;
+        assert_eq!(on, p >= EncoderPreset::Medium, "{p:?}");
+    }
+}
+
+#[test]
 fn subpel_rd_refinement_saves_bytes_and_the_decoder_follows() {
     // The bundled CIF sample (a textured scene panning by fractions of a
     // pel, objects moving otherwise): the search's SATD-ranked quarter-pel

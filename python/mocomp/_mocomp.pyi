@@ -173,6 +173,7 @@ def encode(
     refs: Optional[int] = None,
     subpel_rd: Optional[bool] = None,
     chroma_me: Optional[bool] = None,
+    adaptive_pricing: Optional[bool] = None,
     fast_pskip: Optional[bool] = None,
     early_pskip: Optional[bool] = None,
     dct8x8: Optional[bool] = None,

@@ -78,6 +78,8 @@ def test_every_encoder_option_by_keyword_as_the_command_line_names_it(synth_fram
     assert mocomp.encode(source, qp=30, subpel_rd=False)[0] == on
     assert "chroma-me" in names
     assert mocomp.encode(source, qp=30, chroma_me=False)[0] == on
+    assert mocomp.encode(source, qp=30, adaptive_pricing=True)[0] == on
+    assert mocomp.encode(source, qp=30, adaptive_pricing=False)[0] != on
     # Fast P-skip is on in every preset; off, the stream changes.
     assert mocomp.encode(source, qp=30, fast_pskip=False)[0] != on
     # Search options follow the predictor, as on the command line.

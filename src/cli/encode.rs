@@ -121,6 +121,11 @@ pub struct ToolArgs {
     /// preset's].
     #[arg(long, value_name = "on|off", value_parser = on_off)]
     pub chroma_me: Option<bool>,
+    /// The mode decision's residual prices adapting through each P frame,
+    /// on or off (off: priced with the contexts the frame starts from)
+    /// [default: the preset's].
+    #[arg(long, value_name = "on|off", value_parser = on_off)]
+    pub adaptive_pricing: Option<bool>,
     /// No fast P-skip (x264's --no-fast-pskip): every P-frame macroblock
     /// tries its other modes even where skipping it would code no level.
     #[arg(long)]
@@ -175,6 +180,7 @@ impl ToolArgs {
         o.extend(self.refs.map(|n| ("refs", n.to_string())));
         o.extend(self.subpel_rd.map(|b| ("subpel-rd", on(b))));
         o.extend(self.chroma_me.map(|b| ("chroma-me", on(b))));
+        o.extend(self.adaptive_pricing.map(|b| ("adaptive-pricing", on(b))));
         o.extend(self.luma_filter.map(|f| ("luma-filter", f.name().to_string())));
         o
     }

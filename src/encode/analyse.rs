@@ -918,6 +918,7 @@ mod tests {
             partitions,
             subpel_rd: false,
             chroma_me: false,
+            adaptive_pricing: true,
             fast_pskip,
             early_pskip,
         };

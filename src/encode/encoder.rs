@@ -358,6 +358,7 @@ impl Encoder {
             partitions: self.config.partitions.p8x8,
             subpel_rd: self.config.subpel_rd,
             chroma_me: self.config.chroma_me,
+            adaptive_pricing: self.config.adaptive_pricing,
             fast_pskip: self.config.fast_pskip,
             early_pskip: self.config.early_pskip,
         };

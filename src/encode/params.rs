@@ -23,7 +23,7 @@ use crate::metrics::{Metric, Metrics};
 
 /// Every option [`EncoderConfig::set`] takes, with what its value is
 /// (names as `mocomp encode` spells them; `_` may stand for `-`).
-pub const OPTIONS: [(&str, &str); 25] = [
+pub const OPTIONS: [(&str, &str); 26] = [
     ("qp", "quantisation parameter, 0..=51"),
     ("gop", "I-frame period (0: only the first frame)"),
     (
@@ -56,6 +56,10 @@ pub const OPTIONS: [(&str, &str); 25] = [
     (
         "chroma-me",
         "chroma in the sub-pel search's cost (x264's), on|off",
+    ),
+    (
+        "adaptive-pricing",
+        "P frames' residual prices adapt through the frame, on|off",
     ),
     (
         "fast-pskip",
@@ -137,6 +141,7 @@ impl EncoderConfig {
             "refs" => self.refs = parse(value).map_err(bad)?,
             "subpel-rd" => self.subpel_rd = switch(value).map_err(bad)?,
             "chroma-me" => self.chroma_me = switch(value).map_err(bad)?,
+            "adaptive-pricing" => self.adaptive_pricing = switch(value).map_err(bad)?,
             "fast-pskip" => self.fast_pskip = switch(value).map_err(bad)?,
             "early-pskip" => self.early_pskip = switch(value).map_err(bad)?,
             "luma-filter" => self.luma_filter = parse(value).map_err(bad)?,
@@ -235,6 +240,7 @@ mod tests {
             ("refs", "3"),
             ("subpel-rd", "1"),
             ("chroma-me", "on"),
+            ("adaptive-pricing", "off"),
             ("fast-pskip", "off"),
             ("early-pskip", "on"),
             ("8x8dct", "off"),

@@ -164,6 +164,8 @@ pub(crate) fn code_intra(
         // more bits on the development set's mean (30 frames) than raster
         // order; after half a row, 0.25 %, with two workers still busy.
         lead: cols / 2,
+        // Untrained at an I frame's start: they adapt.
+        adapt: true,
     };
     let decided = frame.decide(recon, &|env, index| {
         let (mb_x, mb_y) = (index % cols, index / cols);
@@ -269,6 +271,9 @@ pub(crate) struct InterInputs<'a> {
     pub subpel_rd: bool,
     /// Chroma in the 16x16 searches' sub-pel cost ([`super::EncoderConfig::chroma_me`]).
     pub chroma_me: bool,
+    /// The decision's residual prices adapt through the frame
+    /// ([`super::EncoderConfig::adaptive_pricing`]).
+    pub adaptive_pricing: bool,
     /// x264's fast P-skip (see [`super::EncoderConfig::fast_pskip`]).
     pub fast_pskip: bool,
     /// Fast P-skip before the search too ([`super::EncoderConfig::early_pskip`]).
@@ -296,6 +301,8 @@ pub(super) struct InterFrameCoder<'a> {
     pub(super) subpel_rd: bool,
     /// Chroma in the 16x16 searches' sub-pel cost.
     pub(super) chroma_me: bool,
+    /// The decision's residual prices adapt through the frame.
+    pub(super) adaptive_pricing: bool,
     /// x264's fast P-skip (see [`super::EncoderConfig::fast_pskip`]).
     pub(super) fast_pskip: bool,
     /// Fast P-skip before the search too ([`super::EncoderConfig::early_pskip`]).
@@ -388,6 +395,7 @@ impl<'a> InterFrameCoder<'a> {
             partitions: inputs.partitions && inputs.tool == MotionTool::Block,
             subpel_rd: inputs.subpel_rd,
             chroma_me: inputs.chroma_me,
+            adaptive_pricing: inputs.adaptive_pricing,
             fast_pskip: inputs.fast_pskip,
             early_pskip: inputs.early_pskip,
             halfpel,
@@ -452,6 +460,7 @@ impl<'a> InterFrameCoder<'a> {
             // HEVC's two: as good as raster order on the development set
             // (-0.1 %), the contexts being trained by the frames before.
             lead: 2,
+            adapt: self.adaptive_pricing,
         }
         .decide(recon, &|env, index| {
             let mut mb = self.analyse_skip(index, env);

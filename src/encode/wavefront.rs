@@ -57,6 +57,10 @@ pub(super) struct WavefrontFrame<'a> {
     /// How many macroblocks of the row above a row's pricing contexts have
     /// seen (at least 2).
     pub(super) lead: usize,
+    /// Whether the residual pricing contexts adapt to the decided
+    /// macroblocks (else they stay the frame's first: only the neighbours'
+    /// coded blocks are recorded).
+    pub(super) adapt: bool,
 }
 
 /// The pricing contexts a row starts from.
@@ -247,8 +251,12 @@ impl WavefrontFrame<'_> {
         w.decided[index] = d.vectors;
         w.modes.commit(c, r, self.inter_frame, self.syntax, &d.mode);
         if d.coded.kind != MbKind::Skip {
-            w.residual
-                .commit(c, r, d.coded.kind.residual_syntax(), d.coded.residual());
+            let syntax = d.coded.kind.residual_syntax();
+            if self.adapt {
+                w.residual.commit(c, r, syntax, d.coded.residual());
+            } else {
+                w.residual.record(c, r, syntax, d.coded.residual());
+            }
         }
         d
     }

@@ -364,13 +364,18 @@ fn a_camera_moving_past_the_search_range_is_followed() {
     }
 }
 
-#[test]
-fn chroma_motion_estimation_changes_vectors_and_the_decoder_follows() {
+/// The frames of the bundled `synth_cif` sample.
+fn synth_cif() -> Vec<Frame> {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/synth_cif.y4m");
-    let frames = mocomp::io::y4m::Y4mReader::open(&path)
+    mocomp::io::y4m::Y4mReader::open(&path)
         .unwrap()
         .read_all()
-        .unwrap();
+        .unwrap()
+}
+
+#[test]
+fn chroma_motion_estimation_changes_vectors_and_the_decoder_follows() {
+    let frames = synth_cif();
     let frames = &frames[..4];
     let (off, _, _) = encode(frames, EncoderConfig::new().qp(27));
     let (on, recon, _) = encode(frames, EncoderConfig::new().qp(27).chroma_me(true));
@@ -384,11 +389,7 @@ fn chroma_motion_estimation_changes_vectors_and_the_decoder_follows() {
 
 #[test]
 fn pricing_without_adapting_changes_decisions_and_the_decoder_follows() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/synth_cif.y4m");
-    let frames = mocomp::io::y4m::Y4mReader::open(&path)
-        .unwrap()
-        .read_all()
-        .unwrap();
+    let frames = synth_cif();
     let frames = &frames[..4];
     use mocomp::encode::EncoderPreset;
     let ultrafast = EncoderConfig::new().qp(22).preset(EncoderPreset::Ultrafast);
@@ -416,11 +417,7 @@ fn subpel_rd_refinement_saves_bytes_and_the_decoder_follows() {
     // The bundled CIF sample (a textured scene panning by fractions of a
     // pel, objects moving otherwise): the search's SATD-ranked quarter-pel
     // vectors are not always the cheapest to code.
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/synth_cif.y4m");
-    let frames = mocomp::io::y4m::Y4mReader::open(&path)
-        .unwrap()
-        .read_all()
-        .unwrap();
+    let frames = synth_cif();
     let psnr =
         |stats: &[FrameStats]| stats.iter().map(|s| s.quality.psnr.y).sum::<f64>() / stats.len() as f64;
     for qp in [22u8, 27, 32] {

@@ -122,8 +122,8 @@ pub struct ToolArgs {
     #[arg(long, value_name = "on|off", value_parser = on_off)]
     pub chroma_me: Option<bool>,
     /// The mode decision's residual prices adapting through each P frame,
-    /// on or off (off: priced with the contexts the frame starts from)
-    /// [default: the preset's].
+    /// on or off (off: priced with the contexts the frame starts from;
+    /// `block` only) [default: the preset's: on from medium].
     #[arg(long, value_name = "on|off", value_parser = on_off)]
     pub adaptive_pricing: Option<bool>,
     /// No fast P-skip (x264's --no-fast-pskip): every P-frame macroblock

@@ -414,10 +414,12 @@ pub struct EncoderConfig {
     pub subpel_rd: bool,
     /// The mode decision's residual prices follow the contexts as they
     /// adapt through a P frame's macroblocks (the row above's at a row's
-    /// start, the wavefront's rule). Off, every macroblock of a P frame is
-    /// priced with the contexts the frame starts from (trained by the
-    /// frames before): the decision skips adapting them, a third of the
-    /// residual entropy work of the fastest presets.
+    /// start, the wavefront's rule). Off, every macroblock of a `block` P
+    /// frame is priced with the contexts the frame starts from (trained by
+    /// the frames before): the decision skips adapting them, about a fifth
+    /// of ultrafast's residual entropy work where residual abounds
+    /// (diver_vga). I frames, and the raster-order decisions of the other
+    /// predictors, adapt either way.
     pub adaptive_pricing: bool,
     /// Chroma priced beside luma in the 16x16 search's sub-pel steps, as
     /// x264's chroma motion estimation (on from its `--subme 5`; off with
@@ -672,11 +674,12 @@ impl EncoderConfig {
         // for 1.044x (the 28 sequences, one run).
         self.chroma_me = false;
         // P frames priced with the contexts they start from below medium
-        // (whose RDOQ prices every level): against adapting, the whole of
-        // every frame frozen (the 28 sequences, one run each) ultrafast
-        // +0.05 % for 0.93-0.95x its encode time, superfast +0.27 % for
-        // 0.96x, veryfast -0.04 % for 0.97x, fast +0.26 % for 0.95x;
-        // medium +1.9 % for 0.98x.
+        // (whose RDOQ prices every level): against adapting (the 28
+        // sequences, one run each) ultrafast -0.03 % for 0.963x its encode
+        // time, superfast +0.18 % for 0.960x, veryfast +0.18 % for 0.923x,
+        // faster +0.00 % for 0.960x, fast +0.21 % for 0.994x (0.979x its
+        // instructions on three sequences); medium +1.9 % for 0.98x (I
+        // frames frozen too in that run).
         self.adaptive_pricing = preset >= Medium;
         self.decision = if preset >= Fast {
             ModeDecision::Full

@@ -228,6 +228,10 @@ impl EncoderCase {
         if predictor.starts_with("dense") {
             maybe(&mut b, "grid", &|b| b.pick(&[4, 8, 16]).to_string());
         }
+        maybe(&mut b, "adaptive-pricing", &on);
+        if predictor.starts_with("block") {
+            maybe(&mut b, "chroma-me", &on);
+        }
         EncoderCase {
             frames: frames(&mut b, w, h, n),
             preset,

@@ -9,7 +9,8 @@ turn (`mocomp encode --preset PRESET --qp Q --threads 1 --frames FRAMES
 --metrics psnr --json`, then the variant's ARGs), the first FRAMES (30)
 frames, one thread, the variants interleaved per sequence and QP so that
 the machine's drift falls on all alike. Printed per sequence: each
-variant's BD-rate against the first (luma PSNR, cubic, `mocomp bdrate`);
+variant's BD-rate against the first (luma PSNR, cubic, `mocomp bdrate`;
+PSNR=yuv takes the PSNR of Y, U and V weighted 6:1:1 instead);
 over the set: the mean BD-rate and the ratio of the summed `encode_ms`
 (the encoder's own time, reading and start-up left out) and of the wall
 time. OUT gets one CSV of points per sequence.
@@ -72,6 +73,8 @@ def main():
     seqs = sys.argv[split + 1:]
     qps = [int(q) for q in os.environ.get("QPS", "22 27 32 37").split()]
     frames = os.environ.get("FRAMES", "30")
+    # The CSV's quality column (named as `mocomp bdrate` reads it).
+    quality = {"y": "psnr_y", "yuv": "psnr_yuv"}[os.environ.get("PSNR", "y")]
     os.makedirs(out, exist_ok=True)
     names = [v[0] for v in variants]
     encode_ms = dict.fromkeys(names, 0.0)
@@ -86,7 +89,7 @@ def main():
                 encode_ms[vname] += summary["encode_ms"]
                 wall[vname] += seconds
                 rows.append(dict(codec=vname, q=qp, bytes=summary["bytes"], frames=summary["frames"],
-                                 kbps=summary["kbps"], psnr_y=summary["psnr_y"]))
+                                 kbps=summary["kbps"], psnr_y=summary[quality]))
         path = os.path.join(out, f"{name}.csv")
         with open(path, "w", newline="") as f:
             writer = csv.DictWriter(f, fieldnames=["codec", "q", "bytes", "frames", "kbps", "psnr_y"])

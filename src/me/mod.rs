@@ -918,16 +918,13 @@ mod tests {
     use super::*;
     use crate::codec::interp::predict_chroma;
 
-    /// A chroma plane of noise (an LCG), borders extended.
+    /// A chroma plane of noise (a hash of the position), borders extended.
     fn noise_plane(w: usize, h: usize, seed: u32) -> Plane {
-        let mut p = Plane::new(w, h).unwrap();
-        let mut state = seed;
-        for y in 0..h {
-            for v in p.row_mut(y).iter_mut() {
-                state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-                *v = (state >> 24) as u8;
-            }
-        }
+        let mut p = Plane::from_fn(w, h, |x, y| {
+            let v = (x as u32).wrapping_mul(2_654_435_761) ^ (y as u32).wrapping_mul(40_503) ^ seed;
+            (v.wrapping_mul(2_246_822_519) >> 24) as u8
+        })
+        .unwrap();
         p.extend_border();
         p
     }

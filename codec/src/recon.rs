@@ -18,7 +18,7 @@ use crate::partition::{MbVectors, RefMv};
 use crate::picture::{Frame, PictureError, Plane};
 use crate::residual::MbResidual;
 use crate::syntax::{mb_vectors, FrameSyntax, FrameType, MbKind, MotionTool, SequenceHeader, MB};
-use crate::transform::Block4;
+use crate::transform::{dequantize, dequantize_chroma_dc, inverse_4x4, Block4};
 use crate::transform8x8::Block8;
 use crate::warp::warp_frame;
 
@@ -380,11 +380,34 @@ pub fn reconstruct_samples(pred: &MbSamples, residual: &MbResidual, qp: u8) -> M
     }
     let cqp = chroma_qp(qp);
     for (p, plane) in out.chroma.iter_mut().enumerate() {
-        for (i, levels) in residual.chroma[p].iter().enumerate() {
-            add_block(levels, cqp, plane, 8, ((i % 2) * 4, (i / 2) * 4));
-        }
+        add_chroma_plane(&residual.chroma[p], cqp, plane);
     }
     out
+}
+
+/// Adds a chroma plane's four blocks of levels to its prediction `out`
+/// (8x8), clipping: each block's position (0, 0) holds one of the plane's
+/// DC levels ([`dequantize_chroma_dc`]), the rest its AC levels
+/// (FORMAT.md section 10.1).
+pub fn add_chroma_plane(blocks: &[Block4; 4], qp: u8, out: &mut [u8; 64]) {
+    let dc = dequantize_chroma_dc(blocks.each_ref().map(|b| b[0][0]), qp);
+    for (k, levels) in blocks.iter().enumerate() {
+        let mut d = *levels;
+        d[0][0] = 0;
+        if dc[k] == 0 && d.as_flattened().iter().all(|&v| v == 0) {
+            continue;
+        }
+        dequantize(&mut d, qp);
+        d[0][0] = dc[k];
+        let r = inverse_4x4(&d);
+        let (x0, y0) = ((k % 2) * 4, (k / 2) * 4);
+        for (y, row) in r.iter().enumerate() {
+            for (x, v) in row.iter().enumerate() {
+                let at = (y0 + y) * 8 + x0 + x;
+                out[at] = (i32::from(out[at]) + v).clamp(0, 255) as u8;
+            }
+        }
+    }
 }
 
 /// Writes macroblock-shaped `samples` to macroblock (mb_x, mb_y) of `recon`.

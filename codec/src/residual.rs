@@ -12,6 +12,12 @@
 //! * per 4x4 block of a flagged quadrant or plane, a coded-block flag whose
 //!   context counts the coded blocks left and above (the fourth flag of a
 //!   group whose first three are 0 is implied);
+//! * per flagged chroma plane, first its DC levels as H.264 codes them:
+//!   the 2x2 Hadamard transform of its four blocks' DC coefficients
+//!   ([`crate::transform::quantize_chroma_dc`]), held in the blocks'
+//!   position 0, a flag then one 4-position block in contexts of their
+//!   own; its blocks' flags and scans then cover their AC levels
+//!   (positions 1 to 15; the fourth flag implied only without DC levels);
 //! * per coded block, the significance map in zig-zag order (a
 //!   `significant` bin per position, each followed when set by a `last`
 //!   bin, both with a context per position), then the levels from the last
@@ -71,7 +77,9 @@ pub struct MbResidual {
     /// Luma 4x4 blocks, index `by * 4 + bx` (all zero when `luma8` holds
     /// the luma).
     pub luma: [Block4; 16],
-    /// Chroma 4x4 blocks, `[plane][by * 2 + bx]`, plane 0 = Cb.
+    /// Chroma 4x4 blocks, `[plane][by * 2 + bx]`, plane 0 = Cb: their AC
+    /// levels, and in position 0 of block k the plane's DC level k (of the
+    /// 2x2 Hadamard transform of the blocks' DC coefficients).
     pub chroma: [[Block4; 4]; 2],
     /// The luma in the 8x8 transform's blocks (quadrant `qy * 2 + qx`),
     /// when the macroblock uses it. An inter macroblock says so only when
@@ -157,7 +165,17 @@ const CLASS8: usize = CBP + 2 * CBP_CONTEXTS;
 /// The transform-size flag of inter macroblocks: neighbours left and
 /// above that use the 8x8 transform.
 const T8_FLAG: usize = CLASS8 + 2 * CLASS8_CONTEXTS;
-const CONTEXTS: usize = T8_FLAG + 3;
+// The chroma DC blocks' classes (of intra and of inter macroblocks): a
+// coded flag per plane, then a 4-position scan.
+const DC_CBF: usize = 0; // 2: Cb, Cr
+const DC_SIG: usize = 2; // 3
+const DC_LAST: usize = DC_SIG + 3; // 3
+const DC_GT1: usize = DC_LAST + 3; // 5
+const DC_ABS: usize = DC_GT1 + 5; // 5
+/// Contexts of one chroma DC class.
+pub const CHROMA_DC_CONTEXTS: usize = DC_ABS + 5;
+const CHROMA_DC: usize = T8_FLAG + 3;
+const CONTEXTS: usize = CHROMA_DC + 2 * CHROMA_DC_CONTEXTS;
 
 /// The anti-diagonal of each scan position of an 8x8 block: its
 /// significance context (its last context is half of it).
@@ -222,6 +240,62 @@ pub const SCAN4: ScanContexts<16> = ScanContexts {
     gt1: GT1,
     abs: ABS,
 };
+
+/// The chroma blocks' AC levels (scan positions 1 to 15: position 0 holds
+/// one of the plane's DC levels, coded apart): the 4x4 blocks' contexts
+/// of those positions.
+pub const SCAN4_AC: ScanContexts<15> = ScanContexts {
+    sig: consecutive(SIG + 1),
+    last: consecutive(LAST + 1),
+    gt1: GT1,
+    abs: ABS,
+};
+
+/// The zig-zag scan's positions 1 to 15: a chroma block's AC levels.
+pub const ZIGZAG_AC: [usize; 15] = {
+    let mut z = [0usize; 15];
+    let mut i = 0;
+    while i < 15 {
+        z[i] = ZIGZAG[i + 1];
+        i += 1;
+    }
+    z
+};
+
+/// A chroma plane's DC levels in block order, as one 4-position scan.
+pub const SCAN_DC: ScanContexts<4> = ScanContexts {
+    sig: consecutive(DC_SIG),
+    last: consecutive(DC_LAST),
+    gt1: DC_GT1,
+    abs: DC_ABS,
+};
+
+/// The DC scan's order: the blocks' (0 to 3).
+const BLOCK_ORDER: [usize; 4] = [0, 1, 2, 3];
+
+/// The first context of the chroma DC blocks of intra (`true`) or inter
+/// macroblocks.
+pub fn chroma_dc_base(intra: bool) -> usize {
+    CHROMA_DC + usize::from(intra) * CHROMA_DC_CONTEXTS
+}
+
+/// The context of plane `p`'s (0 Cb, 1 Cr) DC coded flag in intra
+/// (`true`) or inter macroblocks.
+pub fn chroma_dc_flag_context(intra: bool, p: usize) -> usize {
+    chroma_dc_base(intra) + DC_CBF + p
+}
+
+/// A chroma plane's DC levels (each block's position 0), in block order.
+#[inline]
+pub fn chroma_dc_levels(blocks: &[Block4; 4]) -> [i32; 4] {
+    [blocks[0][0][0], blocks[1][0][0], blocks[2][0][0], blocks[3][0][0]]
+}
+
+/// Whether a chroma block has AC levels (any beside position 0).
+#[inline]
+fn has_ac(b: &Block4) -> bool {
+    b.as_flattened()[1..].iter().any(|&v| v != 0)
+}
 
 /// The 8x8 blocks' contexts: significance by the position's anti-diagonal,
 /// last by pairs of anti-diagonals.
@@ -323,6 +397,9 @@ struct Edges {
     /// Per chroma plane, blocks left of rows 0..2, above columns 0..2.
     chroma_left: [[bool; 2]; 2],
     chroma_above: [[bool; 2]; 2],
+    /// The same blocks' AC coded flags.
+    ac_left: [[bool; 2]; 2],
+    ac_above: [[bool; 2]; 2],
     /// The macroblocks left and above use the 8x8 transform.
     t8_left: bool,
     t8_above: bool,
@@ -401,30 +478,56 @@ fn cbp_base(intra: bool) -> usize {
     CBP + usize::from(intra) * CBP_CONTEXTS
 }
 
+/// Where a group of four blocks sits: its blocks' indices, the width of
+/// the rows they are counted in, the coded flags across the macroblock's
+/// left and top edges.
+struct Group<'a> {
+    blocks: [usize; 4],
+    width: usize,
+    left: &'a [bool],
+    above: &'a [bool],
+}
+
 /// A group of four blocks (quadrant or chroma plane) whose pattern bit is
-/// set: flags (the last implied when the others are 0) and blocks.
-#[allow(clippy::too_many_arguments)]
+/// set: flags (the last implied when the others are 0 and `implied`) and
+/// blocks, each coded by `code`.
 fn code_group<B: Bins>(
     b: &mut B,
     cls: usize,
-    blocks: &[Block4],
-    flags: &[bool],
-    width: usize,
-    group: [usize; 4],
-    left: &[bool],
-    above: &[bool],
+    (blocks, flags): (&[Block4], &[bool]),
+    g: &Group<'_>,
+    implied: bool,
+    code: fn(&mut B, usize, &Block4),
 ) {
-    let mut any = false;
-    for (i, &k) in group.iter().enumerate() {
+    let mut any = !implied;
+    for (i, &k) in g.blocks.iter().enumerate() {
         let coded = flags[k];
         if i < 3 || any {
-            b.bin(cls + CBF + cbf_ctx(flags, width, k, left, above), coded);
+            b.bin(cls + CBF + cbf_ctx(flags, g.width, k, g.left, g.above), coded);
         }
         any |= coded;
         if coded {
-            code_block(b, cls, &blocks[k]);
+            code(b, cls, &blocks[k]);
         }
     }
+}
+
+/// A chroma plane whose pattern bit is set: its DC levels (a coded flag,
+/// then one 4-position block), then its blocks' AC levels as a group (the
+/// last flag implied only when no DC level was coded).
+fn code_chroma_plane<B: Bins>(b: &mut B, e: &Edges, intra: bool, p: usize, blocks: &[Block4; 4]) {
+    let dc = chroma_dc_levels(blocks);
+    let dc_coded = dc.iter().any(|&v| v != 0);
+    code_chroma_dc(b, intra, p, &dc);
+    let flags = blocks.each_ref().map(has_ac);
+    let group = Group {
+        blocks: [0, 1, 2, 3],
+        width: 2,
+        left: &e.ac_left[p],
+        above: &e.ac_above[p],
+    };
+    let cls = BlockClass::chroma(intra).first_context();
+    code_group(b, cls, (blocks, &flags), &group, !dc_coded, code_block_ac);
 }
 
 fn t8_ctx(e: &Edges) -> usize {
@@ -462,31 +565,18 @@ fn code_mb<B: Bins>(b: &mut B, e: &Edges, syntax: ResidualSyntax, res: &MbResidu
     let cls = BlockClass::luma(intra).first_context();
     for q in 0..4 {
         if cbp & (1 << q) != 0 && !res.transform_8x8() {
-            code_group(
-                b,
-                cls,
-                &res.luma,
-                &luma_flags,
-                4,
-                quadrant_blocks(q),
-                &e.luma_left,
-                &e.luma_above,
-            );
+            let group = Group {
+                blocks: quadrant_blocks(q),
+                width: 4,
+                left: &e.luma_left,
+                above: &e.luma_above,
+            };
+            code_group(b, cls, (&res.luma, &luma_flags), &group, true, code_block);
         }
     }
-    let cls = BlockClass::chroma(intra).first_context();
-    for (p, flags) in chroma_flags.iter().enumerate() {
+    for p in 0..2 {
         if cbp & (16 << p) != 0 {
-            code_group(
-                b,
-                cls,
-                &res.chroma[p],
-                flags,
-                2,
-                [0, 1, 2, 3],
-                &e.chroma_left[p],
-                &e.chroma_above[p],
-            );
+            code_chroma_plane(b, e, intra, p, &res.chroma[p]);
         }
     }
 }
@@ -496,6 +586,24 @@ fn code_mb<B: Bins>(b: &mut B, e: &Edges, syntax: ResidualSyntax, res: &MbResidu
 /// macroblock's syntax codes it).
 pub fn code_block<B: Bins>(b: &mut B, cls: usize, block: &Block4) {
     code_scan(b, cls, block.as_flattened(), &ZIGZAG, &SCAN4);
+}
+
+/// The bins of plane `p`'s (0 Cb, 1 Cr) DC levels `dc` (block order) in
+/// intra (`true`) or inter macroblocks: the coded flag, then the levels
+/// when any is non-zero.
+pub fn code_chroma_dc<B: Bins>(b: &mut B, intra: bool, p: usize, dc: &[i32; 4]) {
+    let coded = dc.iter().any(|&v| v != 0);
+    b.bin(chroma_dc_flag_context(intra, p), coded);
+    if coded {
+        code_scan(b, chroma_dc_base(intra), dc, &BLOCK_ORDER, &SCAN_DC);
+    }
+}
+
+/// The bins of a chroma block's AC levels (at least one non-zero; its
+/// position 0 is not coded here) in the class whose first context is
+/// `cls`.
+pub fn code_block_ac<B: Bins>(b: &mut B, cls: usize, block: &Block4) {
+    code_scan(b, cls, block.as_flattened(), &ZIGZAG_AC, &SCAN4_AC);
 }
 
 /// The bins of an 8x8 block's levels (at least one non-zero) in the class
@@ -583,8 +691,11 @@ pub struct ResidualCoder {
     mb_rows: usize,
     /// Coded flags of the luma 4x4 blocks, `4 mb_cols` a row.
     luma: Vec<bool>,
-    /// Per plane, of the chroma 4x4 blocks, `2 mb_cols` a row.
+    /// Per plane, of the chroma 4x4 blocks, `2 mb_cols` a row: any level
+    /// (the DC level in its place included).
     chroma: [Vec<bool>; 2],
+    /// The same blocks' AC coded flags.
+    chroma_ac: [Vec<bool>; 2],
     /// Per macroblock, whether it used the 8x8 transform.
     t8: Vec<bool>,
 }
@@ -598,6 +709,10 @@ impl ResidualCoder {
             mb_rows,
             luma: vec![false; 16 * mb_cols * mb_rows],
             chroma: [
+                vec![false; 4 * mb_cols * mb_rows],
+                vec![false; 4 * mb_cols * mb_rows],
+            ],
+            chroma_ac: [
                 vec![false; 4 * mb_cols * mb_rows],
                 vec![false; 4 * mb_cols * mb_rows],
             ],
@@ -635,10 +750,12 @@ impl ResidualCoder {
         for p in 0..2 {
             for i in 0..2 {
                 if mb_x > 0 {
-                    e.chroma_left[p][i] = self.chroma[p][(2 * mb_y + i) * cw + 2 * mb_x - 1];
+                    let at = (2 * mb_y + i) * cw + 2 * mb_x - 1;
+                    (e.chroma_left[p][i], e.ac_left[p][i]) = (self.chroma[p][at], self.chroma_ac[p][at]);
                 }
                 if mb_y > 0 {
-                    e.chroma_above[p][i] = self.chroma[p][(2 * mb_y - 1) * cw + 2 * mb_x + i];
+                    let at = (2 * mb_y - 1) * cw + 2 * mb_x + i;
+                    (e.chroma_above[p][i], e.ac_above[p][i]) = (self.chroma[p][at], self.chroma_ac[p][at]);
                 }
             }
         }
@@ -664,7 +781,8 @@ impl ResidualCoder {
         let cw = 2 * self.mb_cols;
         for p in 0..2 {
             for (k, b) in res.chroma[p].iter().enumerate() {
-                self.chroma[p][(2 * mb_y + k / 2) * cw + 2 * mb_x + k % 2] = !is_zero(b);
+                let at = (2 * mb_y + k / 2) * cw + 2 * mb_x + k % 2;
+                (self.chroma[p][at], self.chroma_ac[p][at]) = (!is_zero(b), has_ac(b));
             }
         }
     }
@@ -778,31 +896,18 @@ impl ResidualCoder {
         let cls = BlockClass::luma(intra).first_context();
         for q in 0..4 {
             if cbp & (1 << q) != 0 && !t8 {
-                read_group(
-                    dec,
-                    c,
-                    cls,
-                    &mut out.luma,
-                    4,
-                    quadrant_blocks(q),
-                    &e.luma_left,
-                    &e.luma_above,
-                )?;
+                let group = Group {
+                    blocks: quadrant_blocks(q),
+                    width: 4,
+                    left: &e.luma_left,
+                    above: &e.luma_above,
+                };
+                read_group(dec, c, cls, &mut out.luma, &group, (true, read_block))?;
             }
         }
-        let cls = BlockClass::chroma(intra).first_context();
         for p in 0..2 {
             if cbp & (16 << p) != 0 {
-                read_group(
-                    dec,
-                    c,
-                    cls,
-                    &mut out.chroma[p],
-                    2,
-                    [0, 1, 2, 3],
-                    &e.chroma_left[p],
-                    &e.chroma_above[p],
-                )?;
+                read_chroma_plane(dec, c, (&e, intra, p), &mut out.chroma[p])?;
             }
         }
         self.record(mb_x, mb_y, syntax, &out);
@@ -810,36 +915,76 @@ impl ResidualCoder {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
+/// How [`read_group`] reads a coded block of the class whose first
+/// context is given.
+type ReadBlock = fn(&mut RangeDecoder<'_>, &mut [Context; CONTEXTS], usize) -> Result<Block4, ResidualError>;
+
+/// Reads what [`code_group`] writes into `blocks` (all zero where the
+/// group lies).
 fn read_group(
     dec: &mut RangeDecoder<'_>,
     c: &mut [Context; CONTEXTS],
     cls: usize,
     blocks: &mut [Block4],
-    width: usize,
-    group: [usize; 4],
-    left: &[bool],
-    above: &[bool],
+    g: &Group<'_>,
+    (implied, read): (bool, ReadBlock),
 ) -> Result<(), ResidualError> {
     // The coded flags so far (blocks not read yet have no levels).
     let mut flags = [false; 16];
     for (f, b) in flags.iter_mut().zip(blocks.iter()) {
         *f = !is_zero(b);
     }
-    let mut any = false;
-    for (i, &k) in group.iter().enumerate() {
+    let mut any = !implied;
+    for (i, &k) in g.blocks.iter().enumerate() {
         let coded = if i < 3 || any {
-            dec.decode(&mut c[cls + CBF + cbf_ctx(&flags, width, k, left, above)])
+            dec.decode(&mut c[cls + CBF + cbf_ctx(&flags, g.width, k, g.left, g.above)])
         } else {
             true
         };
         any |= coded;
         if coded {
-            blocks[k] = read_block(dec, c, cls)?;
+            blocks[k] = read(dec, c, cls)?;
             flags[k] = true;
         }
     }
     Ok(())
+}
+
+/// Reads what [`code_chroma_plane`] writes into `blocks` (all zero).
+fn read_chroma_plane(
+    dec: &mut RangeDecoder<'_>,
+    c: &mut [Context; CONTEXTS],
+    (e, intra, p): (&Edges, bool, usize),
+    blocks: &mut [Block4; 4],
+) -> Result<(), ResidualError> {
+    let base = chroma_dc_base(intra);
+    let dc_coded = dec.decode(&mut c[chroma_dc_flag_context(intra, p)]);
+    let mut dc = [0i32; 4];
+    if dc_coded {
+        read_scan(dec, c, base, (&BLOCK_ORDER, &SCAN_DC), &mut dc)?;
+    }
+    let group = Group {
+        blocks: [0, 1, 2, 3],
+        width: 2,
+        left: &e.ac_left[p],
+        above: &e.ac_above[p],
+    };
+    let cls = BlockClass::chroma(intra).first_context();
+    read_group(dec, c, cls, blocks, &group, (!dc_coded, read_block_ac))?;
+    for (b, level) in blocks.iter_mut().zip(dc) {
+        b[0][0] = level;
+    }
+    Ok(())
+}
+
+fn read_block_ac(
+    dec: &mut RangeDecoder<'_>,
+    c: &mut [Context; CONTEXTS],
+    cls: usize,
+) -> Result<Block4, ResidualError> {
+    let mut block = [[0i32; 4]; 4];
+    read_scan(dec, c, cls, (&ZIGZAG_AC, &SCAN4_AC), block.as_flattened_mut())?;
+    Ok(block)
 }
 
 fn read_block(
@@ -1105,6 +1250,69 @@ mod tests {
         assert!(
             cost(&coder, 0, 0, ResidualSyntax::Inter, &two) > cost(&coder, 0, 0, ResidualSyntax::Inter, &one)
         );
+    }
+
+    /// Bins of a plane's syntax: macroblock (0, 0) of a fresh coder with
+    /// `res`, minus the same without chroma.
+    fn chroma_bins(res: &MbResidual) -> u32 {
+        let coder = ResidualCoder::new(1, 1);
+        cost(&coder, 0, 0, ResidualSyntax::Inter, res)
+    }
+
+    #[test]
+    fn a_chroma_plane_codes_its_dc_levels_apart_from_its_ac() {
+        let coder = ResidualCoder::new(1, 1);
+        let ctx = |k: usize| coder.contexts[k];
+        // DC levels alone: the flag and one 4-position block, then four AC
+        // flags of 0 (none implied: the DC levels coded the plane).
+        let mut dc_only = MbResidual::default();
+        dc_only.chroma[0][2][0][0] = -3;
+        let mut dc_block = Pricer::new(&coder.contexts[..], 0);
+        code_scan(
+            &mut dc_block,
+            chroma_dc_base(false),
+            &[0, 0, -3, 0],
+            &BLOCK_ORDER,
+            &SCAN_DC,
+        );
+        let cls = BlockClass::chroma(false).first_context();
+        let ac_flags = 4 * ctx(cls + CBF).cost(false);
+        let base = cbp_base(false);
+        let pattern_cb = ctx(base + 4).cost(true) - ctx(base + 4).cost(false);
+        let empty = chroma_bins(&MbResidual::default());
+        assert_eq!(
+            chroma_bins(&dc_only),
+            empty + pattern_cb + ctx(chroma_dc_flag_context(false, 0)).cost(true) + dc_block.cost + ac_flags
+        );
+        // AC levels alone in the fourth block: no DC level, so its flag
+        // is implied after three of 0.
+        let mut ac_only = MbResidual::default();
+        ac_only.chroma[0][3][1][0] = 2;
+        let mut ac_block = Pricer::new(&coder.contexts[..], 0);
+        code_block_ac(&mut ac_block, cls, &ac_only.chroma[0][3]);
+        let three_zero_flags: u32 = [0usize, 1, 2]
+            .iter()
+            .map(|&k| ctx(cls + CBF + cbf_ctx(&[false; 4], 2, k, &[false; 2], &[false; 2])).cost(false))
+            .sum();
+        assert_eq!(
+            chroma_bins(&ac_only),
+            empty
+                + pattern_cb
+                + ctx(chroma_dc_flag_context(false, 0)).cost(false)
+                + three_zero_flags
+                + ac_block.cost
+        );
+        // Both round-trip, with the DC levels in position 0.
+        for res in [dc_only, ac_only] {
+            let mut enc = RangeEncoder::new();
+            ResidualCoder::new(1, 1).write(&mut enc, 0, 0, ResidualSyntax::Inter, &res);
+            let bytes = enc.finish();
+            let mut dec = RangeDecoder::new(&bytes);
+            assert_eq!(
+                ResidualCoder::new(1, 1).read(&mut dec, 0, 0, ResidualSyntax::Inter),
+                Ok(res)
+            );
+        }
     }
 
     fn block_strategy() -> impl Strategy<Value = Block4> {

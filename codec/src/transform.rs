@@ -170,6 +170,52 @@ pub(crate) fn quantize_levels(w: &mut [i32], mf: &[u32], (shift, offset): (u32, 
     }
 }
 
+/// The 2x2 Hadamard transform of a chroma plane's four values, in block
+/// order (`k = 2 row + column`): `H c H` with `H = [[1, 1], [1, -1]]`. It
+/// is its own inverse up to a factor of 4.
+#[inline]
+pub fn hadamard_2x2(c: [i32; 4]) -> [i32; 4] {
+    let (s01, d01) = (c[0] + c[1], c[0] - c[1]);
+    let (s23, d23) = (c[2] + c[3], c[2] - c[3]);
+    [s01 + s23, d01 + d23, s01 - s23, d01 - d23]
+}
+
+/// A chroma plane's DC levels (H.264 8.5.11, the encoder's side): the 2x2
+/// Hadamard transform of its four blocks' DC coefficients (`dc`, block
+/// order, as [`forward_4x4`] gives them), quantised with the DC position's
+/// multiplier one bit further down, `rounding` as [`quantize`]'s.
+pub fn quantize_chroma_dc(dc: [i32; 4], qp: u8, rounding: f64) -> [i32; 4] {
+    let q = Quantizer4x4::new(qp, rounding);
+    let (mf, shift) = (u64::from(q.multipliers[0]), q.shift + 1);
+    let offset = 2 * q.offset;
+    hadamard_2x2(dc).map(|f| {
+        let level = ((u64::from(f.unsigned_abs()) * mf + offset) >> shift) as i32;
+        if f < 0 {
+            -level
+        } else {
+            level
+        }
+    })
+}
+
+/// Normative: the DC coefficients of a chroma plane's four blocks from its
+/// DC levels (`levels`, block order; FORMAT.md section 10.1): the 2x2
+/// Hadamard transform of the levels, each scaled as the DC position is at
+/// `qp` and halved (rounding half up), clamped to the 16-bit range as
+/// [`dequantize`] clamps. The first level alone, `2 l`, gives every block
+/// the DC coefficient that a block's own DC level `l` dequantises to.
+pub fn dequantize_chroma_dc(levels: [i32; 4], qp: u8) -> [i32; 4] {
+    debug_assert!(qp <= MAX_QP);
+    let v = i64::from(DEQUANT[(qp % 6) as usize][0]);
+    // i64: levels are at most 2^15 in magnitude (the reader's bound), so
+    // their sums stay far inside it.
+    let l = levels.map(i64::from);
+    let (s01, d01) = (l[0] + l[1], l[0] - l[1]);
+    let (s23, d23) = (l[2] + l[3], l[2] - l[3]);
+    [s01 + s23, d01 + d23, s01 - s23, d01 - d23]
+        .map(|c| ((((c * v) << (qp / 6)) + 1) >> 1).clamp(-32768, 32767) as i32)
+}
+
 /// [`QUANT`] spread over the 16 positions of a block, row by row.
 const QUANT_BY_POSITION: [[u32; 16]; 6] = {
     let mut t = [[0u32; 16]; 6];
@@ -400,5 +446,53 @@ mod tests {
             }
             let _ = inverse_4x4(&c);
         }
+    }
+
+    #[test]
+    fn a_lone_first_chroma_dc_level_is_every_blocks_dc() {
+        for qp in 0..=MAX_QP {
+            for l in [-300, -7, -1, 1, 2, 5, 1000] {
+                let want = dequantize_level(l, qp, 0, 0);
+                assert_eq!(
+                    dequantize_chroma_dc([2 * l, 0, 0, 0], qp),
+                    [want; 4],
+                    "qp {qp} level {l}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn chroma_dc_levels_rebuild_the_blocks_means() {
+        // Four blocks of constant residuals: the DC path alone rebuilds
+        // each within half a quantiser step (plus the inverse's rounding).
+        let planes = [[3, 3, 3, 3], [-20, 14, 0, 7], [100, -100, 55, -1], [1, 0, 0, 0]];
+        for qp in [0u8, 12, 22, 28, 34, 40, 51] {
+            let cqp = chroma_qp(qp);
+            for means in planes {
+                let dc = means.map(|m| forward_4x4(&[[m; 4]; 4])[0][0]);
+                let levels = quantize_chroma_dc(dc, cqp, 0.5);
+                let coeffs = dequantize_chroma_dc(levels, cqp);
+                for k in 0..4 {
+                    let mut d = [[0; 4]; 4];
+                    d[0][0] = coeffs[k];
+                    let back = inverse_4x4(&d);
+                    let bound = qstep(cqp) / 2.0 + 1.0;
+                    for v in back.as_flattened() {
+                        assert!(
+                            f64::from((v - means[k]).abs()) <= bound,
+                            "qp {cqp} means {means:?} block {k}: {v} for {}",
+                            means[k]
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_2x2_hadamard_is_its_own_inverse_up_to_four() {
+        let c = [5, -3, 11, 0];
+        assert_eq!(hadamard_2x2(hadamard_2x2(c)), c.map(|v| 4 * v));
     }
 }

@@ -10,7 +10,7 @@ use crate::codec::mv::Mv;
 use crate::codec::recon::{add_luma8, chroma_qp, reconstruct_samples, MbSamples};
 use crate::codec::residual::{BlockClass, MbResidual, ResidualCoder, ResidualSyntax};
 use crate::codec::syntax::MB;
-use crate::codec::transform::Block4;
+use crate::codec::transform::{dequantize, dequantize_chroma_dc, inverse_4x4, quantize_chroma_dc, Block4};
 use crate::codec::transform8x8::Block8;
 use crate::codec::Frame;
 use crate::metrics::squared_difference_sum;
@@ -362,7 +362,12 @@ impl MbCoder {
     }
 
     /// The chroma levels of `src - pred` into `residual`, as
-    /// [`MbCoder::code`] quantises them.
+    /// [`MbCoder::code`] quantises them: per plane, the AC levels of its
+    /// four blocks ([`MbCoder::chroma_ac`]), then its DC levels in the
+    /// blocks' position 0 (FORMAT.md section 10.1): the plane zeroed in an
+    /// inter macroblock where its levels are few and all of them ±1 (as
+    /// x264 zeroes chroma, the DC levels scored as first positions), else
+    /// each DC level weighed by rate and distortion ([`ChromaDcTrial`]).
     #[inline(always)]
     fn code_chroma(
         &self,
@@ -372,11 +377,11 @@ impl MbCoder {
         residual_coder: &ResidualCoder,
         residual: &mut MbResidual,
     ) {
-        let coded = |blocks: &[Block4]| blocks.iter().any(|b| b.as_flattened().iter().any(|&v| v != 0));
         let cqp = chroma_qp(self.qp);
         let rounding = if intra { ROUND_INTRA } else { ROUND_INTER };
-        let mut chroma_rate = None;
+        let mut rates = None;
         for p in 0..2 {
+            let blocks = &mut residual.chroma[p];
             let mut diffs = [[[0i32; 4]; 4]; 4];
             (self.dsp.quantize_blocks)(
                 &src.chroma[p],
@@ -385,22 +390,67 @@ impl MbCoder {
                 cqp,
                 rounding,
                 &mut diffs,
-                &mut residual.chroma[p],
+                blocks,
             );
-            let cheap = |blocks: &[Block4; 4]| (self.dsp.decimate_score)(blocks) < 4;
-            if !intra && cheap(&residual.chroma[p]) {
-                residual.chroma[p] = [[[0; 4]; 4]; 4];
-                continue;
+            self.chroma_ac(blocks, &diffs, intra, (&mut rates, residual_coder));
+            // A block's DC coefficient is the sum of its residual.
+            let dc = diffs.each_ref().map(|d| d.as_flattened().iter().sum());
+            let mut levels = quantize_chroma_dc(dc, cqp, rounding);
+            let dc_score = |l: &[i32; 4]| -> u32 {
+                l.iter()
+                    .map(|v| match v.unsigned_abs() {
+                        0 => 0,
+                        1 => 3,
+                        _ => 999,
+                    })
+                    .sum()
+            };
+            if !intra && dc_score(&levels) + (self.dsp.decimate_score)(blocks) < 4 {
+                *blocks = [[[0; 4]; 4]; 4];
+                levels = [0; 4];
             }
-            if self.rdoq && coded(&residual.chroma[p]) {
-                let rate = chroma_rate
-                    .get_or_insert_with(|| rate::block_pricer(residual_coder, BlockClass::chroma(intra)));
-                for (block, diff) in residual.chroma[p].iter_mut().zip(&diffs) {
-                    (self.dsp.rdoq_4x4)(diff, block, cqp, self.lambda, rate);
-                }
-                if !intra && cheap(&residual.chroma[p]) {
-                    residual.chroma[p] = [[[0; 4]; 4]; 4];
-                }
+            if levels != [0; 4] {
+                let (ac_rate, dc_rate) = chroma_rates(&mut rates, residual_coder, intra);
+                levels = ChromaDcTrial::new(&diffs, blocks, cqp, (ac_rate, dc_rate)).choose(
+                    p,
+                    levels,
+                    self.lambda,
+                );
+            }
+            for (b, level) in blocks.iter_mut().zip(levels) {
+                b[0][0] = level;
+            }
+        }
+    }
+
+    /// A chroma plane's AC levels (`blocks` as quantised, their position 0
+    /// cleared here): zeroed in an inter macroblock where few and small
+    /// (x264's chroma AC decimation), else weighed by RDOQ priced by
+    /// `ac_rate`.
+    #[inline(always)]
+    fn chroma_ac(
+        &self,
+        blocks: &mut [Block4; 4],
+        residuals: &[Block4; 4],
+        intra: bool,
+        (rates, coder): (&mut Option<ChromaRates>, &ResidualCoder),
+    ) {
+        for b in blocks.iter_mut() {
+            b[0][0] = 0;
+        }
+        let cheap = |blocks: &[Block4; 4]| (self.dsp.decimate_score)(blocks) < 4;
+        let coded = |blocks: &[Block4; 4]| blocks.iter().any(|b| b.as_flattened().iter().any(|&v| v != 0));
+        if !intra && cheap(blocks) {
+            *blocks = [[[0; 4]; 4]; 4];
+        } else if self.rdoq && coded(blocks) {
+            // The residual keeps its DC, which no AC basis function
+            // correlates with: the AC choices see it as a constant.
+            let rate = &chroma_rates(rates, coder, intra).0;
+            for (block, residual) in blocks.iter_mut().zip(residuals) {
+                (self.dsp.rdoq_4x4)(residual, block, chroma_qp(self.qp), self.lambda, rate);
+            }
+            if !intra && cheap(blocks) {
+                *blocks = [[[0; 4]; 4]; 4];
             }
         }
     }
@@ -467,6 +517,113 @@ impl MbCoder {
             }
             _ => coded,
         }
+    }
+}
+
+/// The prices of a chroma plane's AC and DC levels.
+type ChromaRates = (BlockPricer, rate::ChromaDcPricer);
+
+/// `rates`, made from `coder`'s present state when not made yet.
+fn chroma_rates<'r>(
+    rates: &'r mut Option<ChromaRates>,
+    coder: &ResidualCoder,
+    intra: bool,
+) -> &'r ChromaRates {
+    rates.get_or_insert_with(|| {
+        (
+            rate::chroma_ac_pricer(coder, intra),
+            rate::chroma_dc_pricer(coder, intra),
+        )
+    })
+}
+
+/// A chroma plane's DC levels weighed by rate and distortion, its AC
+/// levels decided (x264 and JM zero small chroma DC levels of inter
+/// macroblocks by rules; this weighs each as RDOQ weighs AC levels).
+struct ChromaDcTrial<'a> {
+    /// The blocks' residual samples.
+    residuals: &'a [Block4; 4],
+    /// The blocks' AC levels dequantised (position 0 zero).
+    ac: [Block4; 4],
+    qp: u8,
+    ac_rate: &'a BlockPricer,
+    dc_rate: &'a rate::ChromaDcPricer,
+    /// Whether the plane has AC levels (else its DC levels alone code it).
+    has_ac: bool,
+}
+
+impl<'a> ChromaDcTrial<'a> {
+    fn new(
+        residuals: &'a [Block4; 4],
+        blocks: &[Block4; 4],
+        qp: u8,
+        (ac_rate, dc_rate): (&'a BlockPricer, &'a rate::ChromaDcPricer),
+    ) -> ChromaDcTrial<'a> {
+        let ac = blocks.each_ref().map(|b| {
+            let mut d = *b;
+            d[0][0] = 0;
+            dequantize(&mut d, qp);
+            d
+        });
+        let has_ac = ac.iter().any(|d| d.as_flattened().iter().any(|&v| v != 0));
+        ChromaDcTrial {
+            residuals,
+            ac,
+            qp,
+            ac_rate,
+            dc_rate,
+            has_ac,
+        }
+    }
+
+    /// The squared error of the plane's reconstruction with DC `levels`.
+    fn error(&self, levels: [i32; 4]) -> i64 {
+        let dc = dequantize_chroma_dc(levels, self.qp);
+        (0..4)
+            .map(|k| {
+                let mut d = self.ac[k];
+                d[0][0] = dc[k];
+                let r = inverse_4x4(&d);
+                let res = &self.residuals[k];
+                (0..16)
+                    .map(|i| i64::from(res[i / 4][i % 4] - r[i / 4][i % 4]).pow(2))
+                    .sum::<i64>()
+            })
+            .sum()
+    }
+
+    /// The bits of plane `p`'s DC `levels`: with no AC levels, a plane of
+    /// DC levels also codes its pattern bit (about a bit) and four AC
+    /// flags of 0.
+    fn bits(&self, p: usize, levels: &[i32; 4]) -> f64 {
+        let mut cost = self.dc_rate.cost(p, levels);
+        if !self.has_ac && *levels != [0; 4] {
+            cost += 256 + 4 * self.ac_rate.flag_prices().0;
+        }
+        f64::from(cost) / 256.0
+    }
+
+    /// The DC levels of plane `p` that cost least, from `levels` (the
+    /// quantiser's): each lowered toward zero in turn where that pays,
+    /// then all of them against none.
+    fn choose(&self, p: usize, mut levels: [i32; 4], lambda: f64) -> [i32; 4] {
+        let cost = |l: &[i32; 4]| self.error(*l) as f64 + lambda * self.bits(p, l);
+        let mut best = cost(&levels);
+        for k in (0..4).rev() {
+            if levels[k] == 0 {
+                continue;
+            }
+            let mut lowered = levels;
+            lowered[k] -= lowered[k].signum();
+            let c = cost(&lowered);
+            if c < best {
+                (levels, best) = (lowered, c);
+            }
+        }
+        if levels != [0; 4] && cost(&[0; 4]) <= best {
+            levels = [0; 4];
+        }
+        levels
     }
 }
 

@@ -9,8 +9,8 @@
 use crate::codec::entropy::{cost_table, Context, Pricer, BYPASS_COST};
 use crate::codec::modes::{MbMode, ModeCoder, VectorSyntax};
 use crate::codec::residual::{
-    class8_base, code_block, level_contexts, magnitude_bins, BlockClass, MbResidual, ResidualCoder,
-    ResidualSyntax, ScanContexts, SCAN4, SCAN8, ZIGZAG,
+    chroma_dc_base, chroma_dc_flag_context, class8_base, code_block, level_contexts, magnitude_bins,
+    BlockClass, MbResidual, ResidualCoder, ResidualSyntax, ScanContexts, SCAN4, SCAN8, SCAN_DC, ZIGZAG,
 };
 use crate::codec::transform::Block4;
 use crate::codec::transform8x8::{Block8, ZIGZAG8};
@@ -218,7 +218,57 @@ pub fn block_pricer(coder: &ResidualCoder, class: BlockClass) -> BlockPricer {
     }
 }
 
+/// The [`BlockPricer`] of the chroma blocks' AC levels of intra (`true`)
+/// or inter macroblocks in `coder`'s present state: a block's position 0
+/// holds a DC level coded apart, so no bin of the scan's first position is
+/// priced.
+pub fn chroma_ac_pricer(coder: &ResidualCoder, intra: bool) -> BlockPricer {
+    let mut pricer = block_pricer(coder, BlockClass::chroma(intra));
+    let first = pricer.prices.zero_run[1];
+    for run in &mut pricer.prices.zero_run[1..] {
+        *run -= first;
+    }
+    pricer
+}
+
+/// The prices of a chroma plane's DC levels (its coded flag and its
+/// 4-position block) in intra or inter macroblocks.
+#[derive(Debug, Clone)]
+pub struct ChromaDcPricer {
+    prices: ScanPrices<4>,
+    /// Per plane (Cb, Cr), the coded flag's prices (0, 1).
+    flag: [[u32; 2]; 2],
+}
+
+/// The [`ChromaDcPricer`] of intra (`true`) or inter macroblocks in
+/// `coder`'s present state.
+pub fn chroma_dc_pricer(coder: &ResidualCoder, intra: bool) -> ChromaDcPricer {
+    let contexts = coder.contexts();
+    let base = chroma_dc_base(intra);
+    let table = cost_table();
+    ChromaDcPricer {
+        prices: ScanPrices::new(contexts, base, &SCAN_DC),
+        flag: std::array::from_fn(|p| contexts[chroma_dc_flag_context(intra, p)].costs_in(table)),
+    }
+}
+
+impl ChromaDcPricer {
+    /// The bits (1/256) of plane `p`'s DC `levels` (block order).
+    pub fn cost(&self, p: usize, levels: &[i32; 4]) -> u32 {
+        let mask = (0..4).filter(|&k| levels[k] != 0).fold(0u64, |m, k| m | 1 << k);
+        if mask == 0 {
+            return self.flag[p][0];
+        }
+        self.flag[p][1] + self.prices.cost(mask, |k| levels[k])
+    }
+}
+
 impl BlockPricer {
+    /// The prices (1/256 bit) of a coded flag of 0 and of 1.
+    pub fn flag_prices(&self) -> (u32, u32) {
+        self.flag
+    }
+
     /// What [`block_cost`] gives for `block` in the state the pricer was
     /// made from.
     pub fn block_cost(&self, block: &Block4) -> u32 {
@@ -272,7 +322,7 @@ impl Block8Pricer {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::codec::residual::code_block8;
+    use crate::codec::residual::{chroma_dc_levels, code_block8, code_block_ac, code_chroma_dc};
 
     fn lcg(seed: u32) -> impl FnMut(u32) -> i32 {
         let mut seed = seed;
@@ -317,6 +367,47 @@ mod tests {
                 }
             }
             // Adapt, so that later rounds price other states.
+            coder.commit(round % 4, round / 4 % 4, ResidualSyntax::of_4x4(intra), &res);
+        }
+    }
+
+    #[test]
+    fn the_chroma_pricers_price_as_the_bins_coded() {
+        let mut next = lcg(11);
+        let mut coder = ResidualCoder::new(4, 4);
+        for round in 0..200 {
+            let mut res = MbResidual::default();
+            for b in res.chroma.iter_mut().flatten() {
+                for v in b.as_flattened_mut() {
+                    *v = match next(8) {
+                        0 => next(5) - 2,
+                        1 => next(61) - 30,
+                        _ => 0,
+                    };
+                }
+            }
+            let intra = round % 3 == 0;
+            let (ac, dc) = (chroma_ac_pricer(&coder, intra), chroma_dc_pricer(&coder, intra));
+            let class = BlockClass::chroma(intra);
+            let flag = &coder.contexts()[class.coded_flag_context(1)];
+            for (p, plane) in res.chroma.iter().enumerate() {
+                let levels = chroma_dc_levels(plane);
+                let mut bins = Pricer::new(coder.contexts(), 0);
+                code_chroma_dc(&mut bins, intra, p, &levels);
+                assert_eq!(dc.cost(p, &levels), bins.cost, "DC {levels:?}");
+                for b in plane {
+                    let mut only_ac = *b;
+                    only_ac[0][0] = 0;
+                    let want = if is_zero(&only_ac) {
+                        0
+                    } else {
+                        let mut bins = Pricer::new(coder.contexts(), flag.cost(true));
+                        code_block_ac(&mut bins, class.first_context(), &only_ac);
+                        bins.cost.saturating_sub(flag.cost(false))
+                    };
+                    assert_eq!(ac.block_cost(&only_ac), want, "AC {only_ac:?}");
+                }
+            }
             coder.commit(round % 4, round / 4 % 4, ResidualSyntax::of_4x4(intra), &res);
         }
     }

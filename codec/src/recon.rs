@@ -392,19 +392,30 @@ pub fn reconstruct_samples(pred: &MbSamples, residual: &MbResidual, qp: u8) -> M
 pub fn add_chroma_plane(blocks: &[Block4; 4], qp: u8, out: &mut [u8; 64]) {
     let dc = dequantize_chroma_dc(blocks.each_ref().map(|b| b[0][0]), qp);
     for (k, levels) in blocks.iter().enumerate() {
-        let mut d = *levels;
-        d[0][0] = 0;
-        if dc[k] == 0 && d.as_flattened().iter().all(|&v| v == 0) {
-            continue;
-        }
-        dequantize(&mut d, qp);
-        d[0][0] = dc[k];
-        let r = inverse_4x4(&d);
-        let (x0, y0) = ((k % 2) * 4, (k / 2) * 4);
-        for (y, row) in r.iter().enumerate() {
-            for (x, v) in row.iter().enumerate() {
-                let at = (y0 + y) * 8 + x0 + x;
-                out[at] = (i32::from(out[at]) + v).clamp(0, 255) as u8;
+        let mut ac = *levels;
+        ac[0][0] = 0;
+        let at = ((k % 2) * 4, (k / 2) * 4);
+        match (ac.as_flattened().iter().any(|&v| v != 0), dc[k]) {
+            (false, 0) => {}
+            // The inverse transform of a DC coefficient alone is that
+            // coefficient in every place.
+            (false, d) => {
+                let add = (d + 32) >> 6;
+                for y in 0..4 {
+                    for v in &mut out[(at.1 + y) * 8 + at.0..][..4] {
+                        *v = (i32::from(*v) + add).clamp(0, 255) as u8;
+                    }
+                }
+            }
+            (true, 0) => add_block(&ac, qp, out, 8, at),
+            (true, d) => {
+                dequantize(&mut ac, qp);
+                ac[0][0] = d;
+                for (y, row) in inverse_4x4(&ac).iter().enumerate() {
+                    for (v, r) in out[(at.1 + y) * 8 + at.0..][..4].iter_mut().zip(row) {
+                        *v = (i32::from(*v) + r).clamp(0, 255) as u8;
+                    }
+                }
             }
         }
     }

@@ -185,6 +185,9 @@ pub fn hadamard_2x2(c: [i32; 4]) -> [i32; 4] {
 /// order, as [`forward_4x4`] gives them), quantised with the DC position's
 /// multiplier one bit further down, `rounding` as [`quantize`]'s.
 pub fn quantize_chroma_dc(dc: [i32; 4], qp: u8, rounding: f64) -> [i32; 4] {
+    if dc == [0; 4] {
+        return dc;
+    }
     let q = Quantizer4x4::new(qp, rounding);
     let (mf, shift) = (u64::from(q.multipliers[0]), q.shift + 1);
     let offset = 2 * q.offset;

@@ -390,7 +390,16 @@ pub fn reconstruct_samples(pred: &MbSamples, residual: &MbResidual, qp: u8) -> M
 /// DC levels ([`dequantize_chroma_dc`]), the rest its AC levels
 /// (FORMAT.md section 10.1).
 pub fn add_chroma_plane(blocks: &[Block4; 4], qp: u8, out: &mut [u8; 64]) {
-    let dc = dequantize_chroma_dc(blocks.each_ref().map(|b| b[0][0]), qp);
+    // Most planes have no level at all.
+    if blocks.as_flattened().as_flattened().iter().all(|&v| v == 0) {
+        return;
+    }
+    let levels = blocks.each_ref().map(|b| b[0][0]);
+    let dc = if levels == [0; 4] {
+        levels
+    } else {
+        dequantize_chroma_dc(levels, qp)
+    };
     for (k, levels) in blocks.iter().enumerate() {
         let mut ac = *levels;
         ac[0][0] = 0;

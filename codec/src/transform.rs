@@ -185,12 +185,15 @@ pub fn hadamard_2x2(c: [i32; 4]) -> [i32; 4] {
 /// order, as [`forward_4x4`] gives them), quantised with the DC position's
 /// multiplier one bit further down, `rounding` as [`quantize`]'s.
 pub fn quantize_chroma_dc(dc: [i32; 4], qp: u8, rounding: f64) -> [i32; 4] {
-    if dc == [0; 4] {
-        return dc;
-    }
     let q = Quantizer4x4::new(qp, rounding);
     let (mf, shift) = (u64::from(q.multipliers[0]), q.shift + 1);
     let offset = 2 * q.offset;
+    // No transformed value exceeds the sum of magnitudes: most planes
+    // quantise to nothing.
+    let bound: u64 = dc.iter().map(|v| u64::from(v.unsigned_abs())).sum();
+    if (bound * mf + offset) >> shift == 0 {
+        return [0; 4];
+    }
     hadamard_2x2(dc).map(|f| {
         let level = ((u64::from(f.unsigned_abs()) * mf + offset) >> shift) as i32;
         if f < 0 {

@@ -10,7 +10,7 @@ use crate::codec::mv::Mv;
 use crate::codec::recon::{add_luma8, chroma_qp, reconstruct_samples, MbSamples};
 use crate::codec::residual::{BlockClass, MbResidual, ResidualCoder, ResidualSyntax};
 use crate::codec::syntax::MB;
-use crate::codec::transform::{dequantize, dequantize_chroma_dc, inverse_4x4, quantize_chroma_dc, Block4};
+use crate::codec::transform::{dequantize_chroma_dc, quantize_chroma_dc, Block4};
 use crate::codec::transform8x8::Block8;
 use crate::codec::Frame;
 use crate::metrics::squared_difference_sum;
@@ -379,7 +379,7 @@ impl MbCoder {
     ) {
         let cqp = chroma_qp(self.qp);
         let rounding = if intra { ROUND_INTRA } else { ROUND_INTER };
-        let mut rates = None;
+        let (mut ac_rate, mut dc_rate) = (None, None);
         for p in 0..2 {
             let blocks = &mut residual.chroma[p];
             let mut diffs = [[[0i32; 4]; 4]; 4];
@@ -392,10 +392,10 @@ impl MbCoder {
                 &mut diffs,
                 blocks,
             );
-            self.chroma_ac(blocks, &diffs, intra, (&mut rates, residual_coder));
+            self.chroma_ac(blocks, &diffs, intra, (&mut ac_rate, residual_coder));
             // A block's DC coefficient is the sum of its residual.
-            let dc = diffs.each_ref().map(|d| d.as_flattened().iter().sum());
-            let mut levels = quantize_chroma_dc(dc, cqp, rounding);
+            let sums = diffs.each_ref().map(|d| d.as_flattened().iter().sum());
+            let mut levels = quantize_chroma_dc(sums, cqp, rounding);
             let dc_score = |l: &[i32; 4]| -> u32 {
                 l.iter()
                     .map(|v| match v.unsigned_abs() {
@@ -410,12 +410,13 @@ impl MbCoder {
                 levels = [0; 4];
             }
             if levels != [0; 4] {
-                let (ac_rate, dc_rate) = chroma_rates(&mut rates, residual_coder, intra);
-                levels = ChromaDcTrial::new(&diffs, blocks, cqp, (ac_rate, dc_rate)).choose(
-                    p,
-                    levels,
-                    self.lambda,
-                );
+                let trial = ChromaDcTrial {
+                    sums,
+                    qp: cqp,
+                    rate: dc_rate.get_or_insert_with(|| rate::chroma_dc_pricer(residual_coder, intra)),
+                    has_ac: blocks.iter().any(|b| b.as_flattened().iter().any(|&v| v != 0)),
+                };
+                levels = trial.choose(p, levels, self.lambda);
             }
             for (b, level) in blocks.iter_mut().zip(levels) {
                 b[0][0] = level;
@@ -433,7 +434,7 @@ impl MbCoder {
         blocks: &mut [Block4; 4],
         residuals: &[Block4; 4],
         intra: bool,
-        (rates, coder): (&mut Option<ChromaRates>, &ResidualCoder),
+        (rate, coder): (&mut Option<BlockPricer>, &ResidualCoder),
     ) {
         for b in blocks.iter_mut() {
             b[0][0] = 0;
@@ -445,7 +446,7 @@ impl MbCoder {
         } else if self.rdoq && coded(blocks) {
             // The residual keeps its DC, which no AC basis function
             // correlates with: the AC choices see it as a constant.
-            let rate = &chroma_rates(rates, coder, intra).0;
+            let rate = rate.get_or_insert_with(|| rate::chroma_ac_pricer(coder, intra));
             for (block, residual) in blocks.iter_mut().zip(residuals) {
                 (self.dsp.rdoq_4x4)(residual, block, chroma_qp(self.qp), self.lambda, rate);
             }
@@ -520,74 +521,31 @@ impl MbCoder {
     }
 }
 
-/// The prices of a chroma plane's AC and DC levels.
-type ChromaRates = (BlockPricer, rate::ChromaDcPricer);
-
-/// `rates`, made from `coder`'s present state when not made yet.
-fn chroma_rates<'r>(
-    rates: &'r mut Option<ChromaRates>,
-    coder: &ResidualCoder,
-    intra: bool,
-) -> &'r ChromaRates {
-    rates.get_or_insert_with(|| {
-        (
-            rate::chroma_ac_pricer(coder, intra),
-            rate::chroma_dc_pricer(coder, intra),
-        )
-    })
-}
-
 /// A chroma plane's DC levels weighed by rate and distortion, its AC
 /// levels decided (x264 and JM zero small chroma DC levels of inter
 /// macroblocks by rules; this weighs each as RDOQ weighs AC levels).
 struct ChromaDcTrial<'a> {
-    /// The blocks' residual samples.
-    residuals: &'a [Block4; 4],
-    /// The blocks' AC levels dequantised (position 0 zero).
-    ac: [Block4; 4],
+    /// Each block's DC coefficient (the sum of its residual).
+    sums: [i32; 4],
     qp: u8,
-    ac_rate: &'a BlockPricer,
-    dc_rate: &'a rate::ChromaDcPricer,
+    rate: &'a rate::ChromaDcPricer,
     /// Whether the plane has AC levels (else its DC levels alone code it).
     has_ac: bool,
 }
 
-impl<'a> ChromaDcTrial<'a> {
-    fn new(
-        residuals: &'a [Block4; 4],
-        blocks: &[Block4; 4],
-        qp: u8,
-        (ac_rate, dc_rate): (&'a BlockPricer, &'a rate::ChromaDcPricer),
-    ) -> ChromaDcTrial<'a> {
-        let ac = blocks.each_ref().map(|b| {
-            let mut d = *b;
-            d[0][0] = 0;
-            dequantize(&mut d, qp);
-            d
-        });
-        let has_ac = ac.iter().any(|d| d.as_flattened().iter().any(|&v| v != 0));
-        ChromaDcTrial {
-            residuals,
-            ac,
-            qp,
-            ac_rate,
-            dc_rate,
-            has_ac,
-        }
-    }
-
-    /// The squared error of the plane's reconstruction with DC `levels`.
-    fn error(&self, levels: [i32; 4]) -> i64 {
+impl ChromaDcTrial<'_> {
+    /// What DC `levels` add to the plane's squared error over none. A DC
+    /// coefficient `d` moves every sample of its block by about `d / 64`
+    /// (the AC levels' samples sum to about zero), so the block's error
+    /// changes by `16 (d / 64)^2 - 2 (d / 64) s` for its residual's sum
+    /// `s` (the transform's rounding left out: this only chooses).
+    fn error(&self, levels: [i32; 4]) -> f64 {
         let dc = dequantize_chroma_dc(levels, self.qp);
-        (0..4)
-            .map(|k| {
-                let mut d = self.ac[k];
-                d[0][0] = dc[k];
-                let r = inverse_4x4(&d);
-                let res = &self.residuals[k];
-                (0..16)
-                    .map(|i| i64::from(res[i / 4][i % 4] - r[i / 4][i % 4]).pow(2))
-                    .sum::<i64>()
+        dc.iter()
+            .zip(self.sums)
+            .map(|(&d, s)| {
+                let shift = f64::from(d) / 64.0;
+                16.0 * shift * shift - 2.0 * shift * f64::from(s)
             })
             .sum()
     }
@@ -596,9 +554,9 @@ impl<'a> ChromaDcTrial<'a> {
     /// DC levels also codes its pattern bit (about a bit) and four AC
     /// flags of 0.
     fn bits(&self, p: usize, levels: &[i32; 4]) -> f64 {
-        let mut cost = self.dc_rate.cost(p, levels);
+        let mut cost = self.rate.cost(p, levels);
         if !self.has_ac && *levels != [0; 4] {
-            cost += 256 + 4 * self.ac_rate.flag_prices().0;
+            cost += 256 + 4 * self.rate.ac_flag_prices().0;
         }
         f64::from(cost) / 256.0
     }
@@ -607,7 +565,7 @@ impl<'a> ChromaDcTrial<'a> {
     /// quantiser's): each lowered toward zero in turn where that pays,
     /// then all of them against none.
     fn choose(&self, p: usize, mut levels: [i32; 4], lambda: f64) -> [i32; 4] {
-        let cost = |l: &[i32; 4]| self.error(*l) as f64 + lambda * self.bits(p, l);
+        let cost = |l: &[i32; 4]| self.error(*l) + lambda * self.bits(p, l);
         let mut best = cost(&levels);
         for k in (0..4).rev() {
             if levels[k] == 0 {

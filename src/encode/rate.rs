@@ -238,6 +238,9 @@ pub struct ChromaDcPricer {
     prices: ScanPrices<4>,
     /// Per plane (Cb, Cr), the coded flag's prices (0, 1).
     flag: [[u32; 2]; 2],
+    /// A chroma block's AC coded flag's prices (0, 1), one coded
+    /// neighbour.
+    ac_flag: [u32; 2],
 }
 
 /// The [`ChromaDcPricer`] of intra (`true`) or inter macroblocks in
@@ -249,10 +252,17 @@ pub fn chroma_dc_pricer(coder: &ResidualCoder, intra: bool) -> ChromaDcPricer {
     ChromaDcPricer {
         prices: ScanPrices::new(contexts, base, &SCAN_DC),
         flag: std::array::from_fn(|p| contexts[chroma_dc_flag_context(intra, p)].costs_in(table)),
+        ac_flag: contexts[BlockClass::chroma(intra).coded_flag_context(1)].costs_in(table),
     }
 }
 
 impl ChromaDcPricer {
+    /// The prices (1/256 bit) of a chroma block's AC coded flag of 0 and
+    /// of 1, with one coded neighbour.
+    pub fn ac_flag_prices(&self) -> (u32, u32) {
+        (self.ac_flag[0], self.ac_flag[1])
+    }
+
     /// The bits (1/256) of plane `p`'s DC `levels` (block order).
     pub fn cost(&self, p: usize, levels: &[i32; 4]) -> u32 {
         let mask = (0..4).filter(|&k| levels[k] != 0).fold(0u64, |m, k| m | 1 << k);
@@ -264,11 +274,6 @@ impl ChromaDcPricer {
 }
 
 impl BlockPricer {
-    /// The prices (1/256 bit) of a coded flag of 0 and of 1.
-    pub fn flag_prices(&self) -> (u32, u32) {
-        self.flag
-    }
-
     /// What [`block_cost`] gives for `block` in the state the pricer was
     /// made from.
     pub fn block_cost(&self, block: &Block4) -> u32 {

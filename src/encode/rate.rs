@@ -337,23 +337,29 @@ mod tests {
         }
     }
 
+    /// Sparse levels, one in `odds` non-zero: small ones, some past the
+    /// unary part.
+    fn sparse_levels<'b>(
+        blocks: impl Iterator<Item = &'b mut Block4>,
+        next: &mut impl FnMut(u32) -> i32,
+        odds: u32,
+    ) {
+        for v in blocks.flat_map(|b| b.as_flattened_mut()) {
+            *v = match next(odds) {
+                0 => next(5) - 2,
+                1 => next(61) - 30,
+                _ => 0,
+            };
+        }
+    }
+
     #[test]
     fn the_block_pricer_prices_as_block_cost() {
         let mut next = lcg(5);
         let mut coder = ResidualCoder::new(4, 4);
         for round in 0..200 {
-            // Sparse blocks with small levels, some large ones past the
-            // unary part.
             let mut res = MbResidual::default();
-            for b in res.luma.iter_mut().chain(res.chroma.iter_mut().flatten()) {
-                for v in b.as_flattened_mut() {
-                    *v = match next(10) {
-                        0 => next(5) - 2,
-                        1 => next(61) - 30,
-                        _ => 0,
-                    };
-                }
-            }
+            sparse_levels(res.luma.iter_mut().chain(res.chroma.iter_mut().flatten()), &mut next, 10);
             let intra = round % 3 == 0;
             for class in [BlockClass::luma(intra), BlockClass::chroma(intra)] {
                 let pricer = block_pricer(&coder, class);
@@ -382,15 +388,7 @@ mod tests {
         let mut coder = ResidualCoder::new(4, 4);
         for round in 0..200 {
             let mut res = MbResidual::default();
-            for b in res.chroma.iter_mut().flatten() {
-                for v in b.as_flattened_mut() {
-                    *v = match next(8) {
-                        0 => next(5) - 2,
-                        1 => next(61) - 30,
-                        _ => 0,
-                    };
-                }
-            }
+            sparse_levels(res.chroma.iter_mut().flatten(), &mut next, 8);
             let intra = round % 3 == 0;
             let (ac, dc) = (chroma_ac_pricer(&coder, intra), chroma_dc_pricer(&coder, intra));
             let class = BlockClass::chroma(intra);

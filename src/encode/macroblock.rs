@@ -642,6 +642,58 @@ mod tests {
         assert!(!coder.codes_nothing(&s, &off));
     }
 
+    /// A plane whose blocks are constant residuals `means` (block order):
+    /// its residual sums and the quantiser's DC levels at `qp`.
+    fn dc_plane(means: [i32; 4], qp: u8) -> ([i32; 4], [i32; 4]) {
+        let sums = means.map(|m| 16 * m);
+        (sums, quantize_chroma_dc(sums, qp, ROUND_INTER))
+    }
+
+    /// The squared error of the plane rebuilt from DC `levels` against
+    /// constant blocks `means`, through the decoder's reconstruction.
+    fn rebuilt_error(means: [i32; 4], levels: [i32; 4], qp: u8) -> i64 {
+        let mut blocks = [[[0; 4]; 4]; 4];
+        for (b, l) in blocks.iter_mut().zip(levels) {
+            b[0][0] = l;
+        }
+        let mut out = [128u8; 64];
+        crate::codec::recon::add_chroma_plane(&blocks, qp, &mut out);
+        (0..64)
+            .map(|i| i64::from(i32::from(out[i]) - 128 - means[(i / 32) * 2 + (i % 8) / 4]).pow(2))
+            .sum()
+    }
+
+    #[test]
+    fn the_chroma_dc_trial_weighs_error_against_bits() {
+        let coder = ResidualCoder::new(1, 1);
+        let rate = rate::chroma_dc_pricer(&coder, false);
+        let qp = 26;
+        let (sums, levels) = dc_plane([9, 7, -6, 8], qp);
+        assert_ne!(levels, [0; 4]);
+        let trial = ChromaDcTrial {
+            sums,
+            qp,
+            rate: &rate,
+            has_ac: false,
+        };
+        // Bits free: nothing is lowered that rebuilds the plane better.
+        let free = trial.choose(0, levels, 0.0);
+        assert!(rebuilt_error([9, 7, -6, 8], free, qp) <= rebuilt_error([9, 7, -6, 8], levels, qp));
+        assert!(rebuilt_error([9, 7, -6, 8], free, qp) < rebuilt_error([9, 7, -6, 8], [0; 4], qp) / 4);
+        // Bits dear: none of it.
+        assert_eq!(trial.choose(0, levels, 1e9), [0; 4]);
+        // The estimate of the error follows the reconstruction's: between
+        // the quantiser's levels and none, the same change within the
+        // transform's rounding (half a sample a sample at most).
+        let estimated = trial.error(levels) - trial.error([0; 4]);
+        let rebuilt = rebuilt_error([9, 7, -6, 8], levels, qp) - rebuilt_error([9, 7, -6, 8], [0; 4], qp);
+        let sum_abs: i32 = [9, 7, -6, 8].iter().map(|m: &i32| m.abs()).sum();
+        assert!(
+            (estimated - rebuilt as f64).abs() <= 16.0 * f64::from(sum_abs) + 64.0,
+            "estimated {estimated}, rebuilt {rebuilt}"
+        );
+    }
+
     proptest! {
         /// What the probe says codes nothing, the coder codes as the
         /// prediction itself: skipping it loses nothing the inter

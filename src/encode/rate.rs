@@ -359,7 +359,11 @@ mod tests {
         let mut coder = ResidualCoder::new(4, 4);
         for round in 0..200 {
             let mut res = MbResidual::default();
-            sparse_levels(res.luma.iter_mut().chain(res.chroma.iter_mut().flatten()), &mut next, 10);
+            sparse_levels(
+                res.luma.iter_mut().chain(res.chroma.iter_mut().flatten()),
+                &mut next,
+                10,
+            );
             let intra = round % 3 == 0;
             for class in [BlockClass::luma(intra), BlockClass::chroma(intra)] {
                 let pricer = block_pricer(&coder, class);

@@ -18,7 +18,7 @@ use crate::partition::{MbVectors, RefMv};
 use crate::picture::{Frame, PictureError, Plane};
 use crate::residual::MbResidual;
 use crate::syntax::{mb_vectors, FrameSyntax, FrameType, MbKind, MotionTool, SequenceHeader, MB};
-use crate::transform::{dequantize, dequantize_chroma_dc, inverse_4x4, Block4};
+use crate::transform::{dequantize, dequantize_chroma_dc, dequantize_luma_dc, inverse_4x4, Block4};
 use crate::transform8x8::Block8;
 use crate::warp::warp_frame;
 
@@ -372,6 +372,10 @@ pub fn reconstruct_samples(pred: &MbSamples, residual: &MbResidual, qp: u8) -> M
     let mut out = pred.clone();
     match &residual.luma8 {
         Some(b8) => add_luma8(b8, qp, &mut out.luma),
+        // Only intra 16x16 macroblocks have luma DC levels apart.
+        None if residual.luma_dc != [0; 16] => {
+            add_luma_with_dc(&residual.luma, &residual.luma_dc, qp, &mut out.luma)
+        }
         None => {
             for (i, levels) in residual.luma.iter().enumerate() {
                 add_block(levels, qp, &mut out.luma, MB, ((i % 4) * 4, (i / 4) * 4));
@@ -400,10 +404,31 @@ pub fn add_chroma_plane(blocks: &[Block4; 4], qp: u8, out: &mut [u8; 64]) {
     } else {
         dequantize_chroma_dc(levels, qp)
     };
+    add_blocks_with_dc(blocks, &dc, qp, out, 2);
+}
+
+/// Adds an intra 16x16 macroblock's luma to its prediction `out`,
+/// clipping: its sixteen blocks' AC levels (`blocks`, position 0 unused)
+/// and their DC coefficients from its luma DC levels `dc_levels`
+/// ([`dequantize_luma_dc`]; FORMAT.md section 10.1).
+pub fn add_luma_with_dc(blocks: &[Block4; 16], dc_levels: &[i32; 16], qp: u8, out: &mut [u8; 256]) {
+    let dc = if *dc_levels == [0; 16] {
+        [0; 16]
+    } else {
+        dequantize_luma_dc(*dc_levels, qp)
+    };
+    add_blocks_with_dc(blocks, &dc, qp, out, 4);
+}
+
+/// Adds 4x4 blocks (`per_row` a row, filling `out` of that many blocks
+/// across) to `out`: each block's AC levels (its position 0 not read),
+/// dequantised at `qp`, with its dequantised DC coefficient `dc[k]`.
+fn add_blocks_with_dc(blocks: &[Block4], dc: &[i32], qp: u8, out: &mut [u8], per_row: usize) {
+    let stride = 4 * per_row;
     for (k, levels) in blocks.iter().enumerate() {
         let mut ac = *levels;
         ac[0][0] = 0;
-        let at = ((k % 2) * 4, (k / 2) * 4);
+        let at = ((k % per_row) * 4, (k / per_row) * 4);
         match (ac.as_flattened().iter().any(|&v| v != 0), dc[k]) {
             (false, 0) => {}
             // The inverse transform of a DC coefficient alone is that
@@ -411,17 +436,17 @@ pub fn add_chroma_plane(blocks: &[Block4; 4], qp: u8, out: &mut [u8; 64]) {
             (false, d) => {
                 let add = (d + 32) >> 6;
                 for y in 0..4 {
-                    for v in &mut out[(at.1 + y) * 8 + at.0..][..4] {
+                    for v in &mut out[(at.1 + y) * stride + at.0..][..4] {
                         *v = (i32::from(*v) + add).clamp(0, 255) as u8;
                     }
                 }
             }
-            (true, 0) => add_block(&ac, qp, out, 8, at),
+            (true, 0) => add_block(&ac, qp, out, stride, at),
             (true, d) => {
                 dequantize(&mut ac, qp);
                 ac[0][0] = d;
                 for (y, row) in inverse_4x4(&ac).iter().enumerate() {
-                    for (v, r) in out[(at.1 + y) * 8 + at.0..][..4].iter_mut().zip(row) {
+                    for (v, r) in out[(at.1 + y) * stride + at.0..][..4].iter_mut().zip(row) {
                         *v = (i32::from(*v) + r).clamp(0, 255) as u8;
                     }
                 }

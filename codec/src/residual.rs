@@ -18,6 +18,13 @@
 //!   position 0, a flag then one 4-position block in contexts of their
 //!   own; its blocks' flags and scans then cover their AC levels
 //!   (positions 1 to 15; the fourth flag implied only without DC levels);
+//! * in an intra 16x16 macroblock, likewise its luma DC levels: the 4x4
+//!   Hadamard transform of its sixteen blocks' DC coefficients
+//!   ([`crate::transform::quantize_luma_dc`], held in
+//!   [`MbResidual::luma_dc`]), a flag then one 16-position block in
+//!   contexts of their own, right after the coded block pattern; its
+//!   quadrants' pattern bits, blocks' flags and scans then cover the
+//!   blocks' AC levels (the fourth flag of a quadrant implied as ever);
 //! * per coded block, the significance map in zig-zag order (a
 //!   `significant` bin per position, each followed when set by a `last`
 //!   bin, both with a context per position), then the levels from the last
@@ -85,6 +92,11 @@ pub struct MbResidual {
     /// when the macroblock uses it. An inter macroblock says so only when
     /// it has luma levels: `Some` must hold at least one.
     pub luma8: Option<Box<[Block8; 4]>>,
+    /// An intra 16x16 macroblock's luma DC levels (of the 4x4 Hadamard
+    /// transform of its sixteen blocks' DC coefficients, raster order of
+    /// the blocks), its luma blocks then holding their AC levels alone
+    /// (position 0 zero). Zero in every other macroblock.
+    pub luma_dc: [i32; 16],
 }
 
 // (An OR of every level rather than a search for the first non-zero one:
@@ -108,6 +120,7 @@ impl MbResidual {
     /// Whether every level is zero.
     pub fn is_empty(&self) -> bool {
         self.luma.iter().all(is_zero)
+            && self.luma_dc == [0; 16]
             && self.chroma.iter().flatten().all(is_zero)
             && self.luma8.as_deref().is_none_or(|b| b.iter().all(is_zero8))
     }
@@ -175,7 +188,18 @@ const DC_ABS: usize = DC_GT1 + 5; // 5
 /// Contexts of one chroma DC class.
 pub const CHROMA_DC_CONTEXTS: usize = DC_ABS + 5;
 const CHROMA_DC: usize = T8_FLAG + 3;
-const CONTEXTS: usize = CHROMA_DC + 2 * CHROMA_DC_CONTEXTS;
+// Intra 16x16 luma DC: its coded flag and one 16-position block.
+const DC16_CBF: usize = 0; // 1
+const DC16_SIG: usize = 1; // 15: scan position
+const DC16_LAST: usize = DC16_SIG + 15; // 15: scan position
+const DC16_GT1: usize = DC16_LAST + 15; // 5
+const DC16_ABS: usize = DC16_GT1 + 5; // 5
+/// Contexts of the intra 16x16 luma DC levels.
+pub const LUMA_DC_CONTEXTS: usize = DC16_ABS + 5;
+const LUMA_DC: usize = CHROMA_DC + 2 * CHROMA_DC_CONTEXTS;
+// Intra 16x16 luma AC: a block class of its own.
+const LUMA_AC16: usize = LUMA_DC + LUMA_DC_CONTEXTS;
+const CONTEXTS: usize = LUMA_AC16 + CLASS_CONTEXTS;
 
 /// The anti-diagonal of each scan position of an 8x8 block: its
 /// significance context (its last context is half of it).
@@ -273,6 +297,22 @@ pub const SCAN_DC: ScanContexts<4> = ScanContexts {
 /// The DC scan's order: the blocks' (0 to 3).
 const BLOCK_ORDER: [usize; 4] = [0, 1, 2, 3];
 
+/// An intra 16x16 macroblock's luma DC levels, scanned as a 4x4 block
+/// ([`ZIGZAG`] over the blocks' raster order), relative to
+/// [`LUMA_DC_BASE`].
+pub const SCAN_LUMA_DC: ScanContexts<16> = ScanContexts {
+    sig: consecutive(DC16_SIG),
+    last: consecutive(DC16_LAST),
+    gt1: DC16_GT1,
+    abs: DC16_ABS,
+};
+
+/// The first context of the intra 16x16 luma DC levels.
+pub const LUMA_DC_BASE: usize = LUMA_DC;
+
+/// The context of the intra 16x16 luma DC coded flag.
+pub const LUMA_DC_FLAG_CONTEXT: usize = LUMA_DC + DC16_CBF;
+
 /// The first context of the chroma DC blocks of intra (`true`) or inter
 /// macroblocks.
 pub fn chroma_dc_base(intra: bool) -> usize {
@@ -333,6 +373,9 @@ pub fn magnitude_bins(m: u32) -> (u32, bool, u32) {
 pub struct BlockClass {
     chroma: bool,
     intra: bool,
+    /// An intra 16x16 macroblock's luma blocks, whose DC levels are coded
+    /// apart (their own contexts, as H.264's Intra16x16ACLevel).
+    dc_apart: bool,
 }
 
 impl BlockClass {
@@ -344,17 +387,37 @@ impl BlockClass {
 
     /// Luma blocks of an intra (`true`) or inter macroblock.
     pub fn luma(intra: bool) -> BlockClass {
-        BlockClass { chroma: false, intra }
+        BlockClass {
+            chroma: false,
+            intra,
+            dc_apart: false,
+        }
+    }
+
+    /// The luma blocks of an intra 16x16 macroblock (their AC levels).
+    pub fn luma_ac16() -> BlockClass {
+        BlockClass {
+            chroma: false,
+            intra: true,
+            dc_apart: true,
+        }
     }
 
     /// Chroma blocks of an intra (`true`) or inter macroblock.
     pub fn chroma(intra: bool) -> BlockClass {
-        BlockClass { chroma: true, intra }
+        BlockClass {
+            chroma: true,
+            intra,
+            dc_apart: false,
+        }
     }
 
     /// The class's first context (of [`CLASS_CONTEXTS`], in the coder's
     /// [`ResidualCoder::contexts`]).
     pub fn first_context(self) -> usize {
+        if self.dc_apart {
+            return LUMA_AC16;
+        }
         (usize::from(self.chroma) * 2 + usize::from(self.intra)) * CLASS_CONTEXTS
     }
 }
@@ -365,8 +428,10 @@ impl BlockClass {
 pub enum ResidualSyntax {
     /// Inter: luma in 4x4 transforms, or in 8x8 ones by a flag.
     Inter,
-    /// Intra 16x16 or in 4x4 blocks: luma in 4x4 transforms.
+    /// Intra in 4x4 blocks: luma in 4x4 transforms.
     Intra,
+    /// Intra 16x16: luma DC levels apart, then the 4x4 blocks' AC levels.
+    Intra16x16,
     /// Intra in 8x8 blocks: luma in 8x8 transforms, no flag.
     Intra8x8,
 }
@@ -530,6 +595,15 @@ fn code_chroma_plane<B: Bins>(b: &mut B, e: &Edges, intra: bool, p: usize, block
     code_group(b, cls, (blocks, &flags), &group, !dc_coded, code_block_ac);
 }
 
+/// The class of a macroblock's luma 4x4 blocks under `syntax`.
+fn luma_class(syntax: ResidualSyntax) -> BlockClass {
+    if syntax == ResidualSyntax::Intra16x16 {
+        BlockClass::luma_ac16()
+    } else {
+        BlockClass::luma(syntax.intra())
+    }
+}
+
 fn t8_ctx(e: &Edges) -> usize {
     T8_FLAG + usize::from(e.t8_left) + usize::from(e.t8_above)
 }
@@ -555,6 +629,9 @@ fn code_mb<B: Bins>(b: &mut B, e: &Edges, syntax: ResidualSyntax, res: &MbResidu
     let cb = cbp & 16 != 0;
     b.bin(base + 4 + chroma_cbp_ctx(e, 0, false), cb);
     b.bin(base + 4 + chroma_cbp_ctx(e, 1, cb), cbp & 32 != 0);
+    if syntax == ResidualSyntax::Intra16x16 {
+        code_luma_dc(b, &res.luma_dc);
+    }
     if let Some(b8) = &res.luma8 {
         for (q, block) in b8.iter().enumerate() {
             if cbp & (1 << q) != 0 {
@@ -562,7 +639,7 @@ fn code_mb<B: Bins>(b: &mut B, e: &Edges, syntax: ResidualSyntax, res: &MbResidu
             }
         }
     }
-    let cls = BlockClass::luma(intra).first_context();
+    let cls = luma_class(syntax).first_context();
     for q in 0..4 {
         if cbp & (1 << q) != 0 && !res.transform_8x8() {
             let group = Group {
@@ -571,7 +648,12 @@ fn code_mb<B: Bins>(b: &mut B, e: &Edges, syntax: ResidualSyntax, res: &MbResidu
                 left: &e.luma_left,
                 above: &e.luma_above,
             };
-            code_group(b, cls, (&res.luma, &luma_flags), &group, true, code_block);
+            let code = if syntax == ResidualSyntax::Intra16x16 {
+                code_block_ac
+            } else {
+                code_block
+            };
+            code_group(b, cls, (&res.luma, &luma_flags), &group, true, code);
         }
     }
     for p in 0..2 {
@@ -596,6 +678,17 @@ pub fn code_chroma_dc<B: Bins>(b: &mut B, intra: bool, p: usize, dc: &[i32; 4]) 
     b.bin(chroma_dc_flag_context(intra, p), coded);
     if coded {
         code_scan(b, chroma_dc_base(intra), dc, &BLOCK_ORDER, &SCAN_DC);
+    }
+}
+
+/// The bins of an intra 16x16 macroblock's luma DC levels `dc` (raster
+/// order of its blocks): the coded flag, then the levels when any is
+/// non-zero.
+pub fn code_luma_dc<B: Bins>(b: &mut B, dc: &[i32; 16]) {
+    let coded = dc.iter().any(|&v| v != 0);
+    b.bin(LUMA_DC_FLAG_CONTEXT, coded);
+    if coded {
+        code_scan(b, LUMA_DC_BASE, dc, &ZIGZAG, &SCAN_LUMA_DC);
     }
 }
 
@@ -848,6 +941,16 @@ impl ResidualCoder {
             syntax != ResidualSyntax::Intra8x8 || res.luma.iter().all(is_zero),
             "8x8 intra luma is in 8x8 transform blocks"
         );
+        debug_assert!(
+            if syntax == ResidualSyntax::Intra16x16 {
+                res.luma8.is_none()
+                    && res.luma.iter().all(|b| b[0][0] == 0)
+                    && res.luma_dc.iter().all(|v| v.unsigned_abs() <= MAX_LEVEL)
+            } else {
+                res.luma_dc == [0; 16]
+            },
+            "luma DC levels apart are intra 16x16's, whose blocks hold AC levels alone"
+        );
         let e = self.edges(mb_x, mb_y);
         let mut w = Writer::new(enc, &mut self.contexts[..]);
         code_mb(&mut w, &e, syntax, res);
@@ -877,13 +980,16 @@ impl ResidualCoder {
         let t8 = cbp != 0
             && match syntax {
                 ResidualSyntax::Inter => dec.decode(&mut c[t8_ctx(&e)]),
-                ResidualSyntax::Intra => false,
+                ResidualSyntax::Intra | ResidualSyntax::Intra16x16 => false,
                 ResidualSyntax::Intra8x8 => true,
             };
         let cb = dec.decode(&mut c[base + 4 + chroma_cbp_ctx(&e, 0, false)]);
         let cr = dec.decode(&mut c[base + 4 + chroma_cbp_ctx(&e, 1, cb)]);
         cbp |= u32::from(cb) << 4 | u32::from(cr) << 5;
         let mut out = MbResidual::default();
+        if syntax == ResidualSyntax::Intra16x16 && dec.decode(&mut c[LUMA_DC_FLAG_CONTEXT]) {
+            read_scan(dec, c, LUMA_DC_BASE, (&ZIGZAG, &SCAN_LUMA_DC), &mut out.luma_dc)?;
+        }
         if t8 {
             let mut b8 = Box::new([[[0; 8]; 8]; 4]);
             for (q, block) in b8.iter_mut().enumerate() {
@@ -893,7 +999,7 @@ impl ResidualCoder {
             }
             out.luma8 = Some(b8);
         }
-        let cls = BlockClass::luma(intra).first_context();
+        let cls = luma_class(syntax).first_context();
         for q in 0..4 {
             if cbp & (1 << q) != 0 && !t8 {
                 let group = Group {
@@ -902,7 +1008,12 @@ impl ResidualCoder {
                     left: &e.luma_left,
                     above: &e.luma_above,
                 };
-                read_group(dec, c, cls, &mut out.luma, &group, (true, read_block))?;
+                let read: ReadBlock = if syntax == ResidualSyntax::Intra16x16 {
+                    read_block_ac
+                } else {
+                    read_block
+                };
+                read_group(dec, c, cls, &mut out.luma, &group, (true, read))?;
             }
         }
         for p in 0..2 {
@@ -1315,6 +1426,66 @@ mod tests {
         }
     }
 
+    #[test]
+    fn an_intra16x16_macroblock_codes_its_luma_dc_apart() {
+        let coder = ResidualCoder::new(1, 1);
+        let ctx = |k: usize| coder.contexts[k];
+        let cost16 = |res: &MbResidual| cost(&coder, 0, 0, ResidualSyntax::Intra16x16, res);
+        // Nothing coded: the pattern's bins and the DC flag of 0.
+        let empty = cost16(&MbResidual::default());
+        let intra_empty = cost(&coder, 0, 0, ResidualSyntax::Intra, &MbResidual::default());
+        assert_eq!(empty, intra_empty + ctx(LUMA_DC_FLAG_CONTEXT).cost(false));
+        // DC levels alone: the flag and one 16-position block in zig-zag
+        // order, no quadrant coded.
+        let mut dc_only = MbResidual::default();
+        dc_only.luma_dc[0] = 9;
+        dc_only.luma_dc[4] = -1;
+        let mut dc_block = Pricer::new(&coder.contexts[..], 0);
+        code_scan(
+            &mut dc_block,
+            LUMA_DC_BASE,
+            &dc_only.luma_dc,
+            &ZIGZAG,
+            &SCAN_LUMA_DC,
+        );
+        assert_eq!(
+            cost16(&dc_only),
+            intra_empty + ctx(LUMA_DC_FLAG_CONTEXT).cost(true) + dc_block.cost
+        );
+        // AC levels alone in block 5 (quadrant 0): its scan leaves out
+        // position 0, the blocks' flags are the AC ones (the fourth
+        // implied after three of 0, as for any quadrant).
+        let mut ac_only = MbResidual::default();
+        ac_only.luma[5][1][0] = 2;
+        let cls = BlockClass::luma_ac16().first_context();
+        let mut ac_block = Pricer::new(&coder.contexts[..], 0);
+        code_block_ac(&mut ac_block, cls, &ac_only.luma[5]);
+        let flags = coded_flags(&ac_only.luma);
+        let three_zero_flags: u32 = [0usize, 1, 4]
+            .iter()
+            .map(|&k| ctx(cls + CBF + cbf_ctx(&flags, 4, k, &[false; 4], &[false; 4])).cost(false))
+            .sum();
+        let base = cbp_base(true);
+        let pattern_q0 = ctx(base).cost(true) - ctx(base).cost(false);
+        assert_eq!(
+            cost16(&ac_only),
+            empty + pattern_q0 + three_zero_flags + ac_block.cost
+        );
+        // All round-trip; the DC levels are read back apart.
+        let mut both = ac_only.clone();
+        both.luma_dc = dc_only.luma_dc;
+        for res in [dc_only, ac_only, both] {
+            let mut enc = RangeEncoder::new();
+            ResidualCoder::new(1, 1).write(&mut enc, 0, 0, ResidualSyntax::Intra16x16, &res);
+            let bytes = enc.finish();
+            let mut dec = RangeDecoder::new(&bytes);
+            assert_eq!(
+                ResidualCoder::new(1, 1).read(&mut dec, 0, 0, ResidualSyntax::Intra16x16),
+                Ok(res)
+            );
+        }
+    }
+
     fn block_strategy() -> impl Strategy<Value = Block4> {
         // Mostly zeros, as after quantisation.
         proptest::collection::vec(
@@ -1334,15 +1505,17 @@ mod tests {
         let syntax = prop_oneof![
             Just(ResidualSyntax::Inter),
             Just(ResidualSyntax::Intra),
-            Just(ResidualSyntax::Intra8x8)
+            Just(ResidualSyntax::Intra8x8),
+            Just(ResidualSyntax::Intra16x16)
         ];
         (
             proptest::collection::vec(block_strategy(), 24),
             any::<u32>(),
             syntax,
             any::<bool>(),
+            block_strategy(),
         )
-            .prop_map(|(blocks, empty_mask, syntax, t8)| {
+            .prop_map(|(blocks, empty_mask, syntax, t8, dc)| {
                 let mut res = MbResidual::default();
                 for (i, b) in blocks.into_iter().enumerate() {
                     if empty_mask & (1 << i) == 0 {
@@ -1357,9 +1530,19 @@ mod tests {
                 // 8x8 intra ones always do.
                 let t8 = match syntax {
                     ResidualSyntax::Inter => t8,
-                    ResidualSyntax::Intra => false,
+                    ResidualSyntax::Intra | ResidualSyntax::Intra16x16 => false,
                     ResidualSyntax::Intra8x8 => true,
                 };
+                // Intra 16x16 luma: DC levels apart (none when the mask
+                // says so), AC levels in the blocks.
+                if syntax == ResidualSyntax::Intra16x16 {
+                    for b in &mut res.luma {
+                        b[0][0] = 0;
+                    }
+                    if empty_mask & (1 << 24) == 0 {
+                        res.luma_dc.copy_from_slice(dc.as_flattened());
+                    }
+                }
                 if t8 && res.luma_coded().iter().any(|&c| c) {
                     let mut b8 = Box::new([[[0; 8]; 8]; 4]);
                     for (k, b) in res.luma.iter().enumerate() {
@@ -1408,9 +1591,14 @@ mod tests {
         fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..64)) {
             let mut coder = ResidualCoder::new(2, 2);
             let mut dec = RangeDecoder::new(&bytes);
-            let syntaxes = [ResidualSyntax::Inter, ResidualSyntax::Intra, ResidualSyntax::Intra8x8];
-            for i in 0..4 {
-                let _ = coder.read(&mut dec, i % 2, i / 2, syntaxes[i % 3]);
+            let syntaxes = [
+                ResidualSyntax::Inter,
+                ResidualSyntax::Intra,
+                ResidualSyntax::Intra8x8,
+                ResidualSyntax::Intra16x16,
+            ];
+            for (i, syntax) in syntaxes.into_iter().enumerate() {
+                let _ = coder.read(&mut dec, i % 2, i / 2, syntax);
             }
         }
     }

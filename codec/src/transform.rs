@@ -222,6 +222,70 @@ pub fn dequantize_chroma_dc(levels: [i32; 4], qp: u8) -> [i32; 4] {
         .map(|c| ((((c * v) << (qp / 6)) + 1) >> 1).clamp(-32768, 32767) as i32)
 }
 
+/// The 4x4 Hadamard transform of a macroblock's sixteen values in raster
+/// order of its 4x4 blocks (`k = 4 row + column`): `H c H` with `H` the
+/// 4x4 matrix of rows `[1, 1, 1, 1]`, `[1, 1, -1, -1]`, `[1, -1, -1, 1]`,
+/// `[1, -1, 1, -1]` (H.264 8.5.10). It is its own inverse up to a factor
+/// of 16.
+#[inline]
+pub fn hadamard_4x4(c: [i64; 16]) -> [i64; 16] {
+    let mut tmp = [0i64; 16];
+    for r in 0..4 {
+        let row = &c[4 * r..4 * r + 4];
+        let (s01, d01) = (row[0] + row[1], row[0] - row[1]);
+        let (s23, d23) = (row[2] + row[3], row[2] - row[3]);
+        tmp[4 * r..4 * r + 4].copy_from_slice(&[s01 + s23, s01 - s23, d01 - d23, d01 + d23]);
+    }
+    let mut out = [0i64; 16];
+    for col in 0..4 {
+        let at = |r: usize| tmp[4 * r + col];
+        let (s01, d01) = (at(0) + at(1), at(0) - at(1));
+        let (s23, d23) = (at(2) + at(3), at(2) - at(3));
+        for (r, v) in [s01 + s23, s01 - s23, d01 - d23, d01 + d23]
+            .into_iter()
+            .enumerate()
+        {
+            out[4 * r + col] = v;
+        }
+    }
+    out
+}
+
+/// An intra 16x16 macroblock's luma DC levels (H.264 8.5.10, the encoder's
+/// side): the 4x4 Hadamard transform of its sixteen blocks' DC
+/// coefficients (`dc`, raster order of the blocks, as [`forward_4x4`]
+/// gives them), quantised with the DC position's multiplier two bits
+/// further down, `rounding` as [`quantize`]'s.
+pub fn quantize_luma_dc(dc: [i32; 16], qp: u8, rounding: f64) -> [i32; 16] {
+    let q = Quantizer4x4::new(qp, rounding);
+    let (mf, shift) = (q.multipliers[0] as i64, q.shift + 2);
+    let offset = 4 * q.offset as i64;
+    hadamard_4x4(dc.map(i64::from)).map(|f| {
+        let level = ((f.abs() * mf + offset) >> shift) as i32;
+        if f < 0 {
+            -level
+        } else {
+            level
+        }
+    })
+}
+
+/// Normative: the DC coefficients of an intra 16x16 macroblock's sixteen
+/// luma blocks from its luma DC levels (`levels`, raster order of the
+/// blocks; FORMAT.md section 10.1): the 4x4 Hadamard transform of the
+/// levels, each scaled as the DC position is at `qp` and divided by 4
+/// (rounding half up), clamped to the 16-bit range as [`dequantize`]
+/// clamps. The first level alone, `4 l`, gives every block the DC
+/// coefficient that a block's own DC level `l` dequantises to.
+pub fn dequantize_luma_dc(levels: [i32; 16], qp: u8) -> [i32; 16] {
+    debug_assert!(qp <= MAX_QP);
+    let v = i64::from(DEQUANT[(qp % 6) as usize][0]);
+    // i64: levels are at most 2^15 in magnitude (the reader's bound), so
+    // sixteen of them scaled stay far inside it.
+    hadamard_4x4(levels.map(i64::from))
+        .map(|c| ((((c * v) << (qp / 6)) + 2) >> 2).clamp(-32768, 32767) as i32)
+}
+
 /// [`QUANT`] spread over the 16 positions of a block, row by row.
 const QUANT_BY_POSITION: [[u32; 16]; 6] = {
     let mut t = [[0u32; 16]; 6];
@@ -494,6 +558,65 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_lone_first_luma_dc_level_is_every_blocks_dc() {
+        for qp in 0..=MAX_QP {
+            for l in [-300, -7, -1, 1, 2, 5, 1000] {
+                let want = dequantize_level(l, qp, 0, 0);
+                let mut levels = [0; 16];
+                levels[0] = 4 * l;
+                assert_eq!(dequantize_luma_dc(levels, qp), [want; 16], "qp {qp} level {l}");
+            }
+        }
+    }
+
+    #[test]
+    fn luma_dc_levels_rebuild_the_blocks_means() {
+        // Sixteen blocks of constant residuals: the DC path alone rebuilds
+        // each block's mean. Each level's rounding (half a level) reaches a
+        // block through the inverse Hadamard at a quarter of a quantiser
+        // step, so no block is off by more than sixteen of them (2 steps,
+        // plus the inverse's rounding), and on average by far less.
+        let mut seed = 7u32;
+        let mut next = |n: i32| {
+            seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
+            (seed >> 8) as i32 % n
+        };
+        for qp in [0u8, 12, 22, 28, 34, 40, 51] {
+            let (mut squared, mut count) = (0.0, 0.0);
+            for round in 0..40 {
+                let means: [i32; 16] = std::array::from_fn(|k| match round {
+                    0 => 3,
+                    1 => k as i32 * 9 - 70,
+                    _ => next(241) - 120,
+                });
+                let dc = means.map(|m| forward_4x4(&[[m; 4]; 4])[0][0]);
+                let coeffs = dequantize_luma_dc(quantize_luma_dc(dc, qp, 0.5), qp);
+                for k in 0..16 {
+                    let mut d = [[0; 4]; 4];
+                    d[0][0] = coeffs[k];
+                    let v = inverse_4x4(&d)[0][0];
+                    let err = f64::from(v - means[k]);
+                    assert!(
+                        err.abs() <= 2.0 * qstep(qp) + 1.0,
+                        "qp {qp} round {round} block {k}: {v} for {}",
+                        means[k]
+                    );
+                    squared += err * err;
+                    count += 1.0;
+                }
+            }
+            let rms = (squared / count).sqrt();
+            assert!(rms <= 0.5 * qstep(qp) + 1.0, "qp {qp}: rms error {rms}");
+        }
+    }
+
+    #[test]
+    fn the_4x4_hadamard_is_its_own_inverse_up_to_sixteen() {
+        let c: [i64; 16] = std::array::from_fn(|k| (k as i64 * 37 % 23) - 11);
+        assert_eq!(hadamard_4x4(hadamard_4x4(c)), c.map(|v| 16 * v));
     }
 
     #[test]

@@ -21,7 +21,7 @@ use mocomp_codec::syntax::{
     read_frame, write_frame, write_stream, CodedMb, EntropyState, FrameHeader, FrameSyntax, FrameType,
     MbKind, MotionTool, SequenceHeader, SEQUENCE_HEADER_LEN,
 };
-use mocomp_codec::transform::{dequantize, forward_4x4, inverse_4x4, quantize};
+use mocomp_codec::transform::{dequantize, forward_4x4, inverse_4x4, quantize, quantize_luma_dc};
 use mocomp_codec::transform8x8::{dequantize_8x8, forward_8x8, inverse_8x8, quantize_8x8};
 use mocomp_codec::warp::{warp_frame, MotionGrid};
 use mocomp_codec::weight::{PlaneWeight, Weights};
@@ -198,12 +198,15 @@ fn plane_is(p: &Plane, f: impl Fn(usize, usize) -> u8) {
 
 #[test]
 fn hand_built_intra_frame() {
-    // One macroblock, DC with no neighbours: 128. A DC level of 1 in luma
-    // block 0 at QP 28: dequantised 1 * 16 << 4 = 256, inverse transform
-    // (256 + 32) >> 6 = 4 everywhere in the block: 132.
+    // One macroblock, DC with no neighbours: 128. A first luma DC level of
+    // 4 at QP 28 (the 4x4 Hadamard of [4, 0, ...] is 4 everywhere): each
+    // block's DC coefficient (4 * 16 << 4 + 2) >> 2 = 256, inverse
+    // transform (256 + 32) >> 6 = 4 everywhere; an AC level of 1 in block
+    // 5's position (0, 1) adds its basis function there.
     let s = seq(16, 16, 1);
     let mut residual = MbResidual::default();
-    residual.luma[0][0][0] = 1;
+    residual.luma_dc[0] = 4;
+    residual.luma[5][0][1] = 1;
     let mb = CodedMb::new(intra_dc(), residual);
     let frame = FrameSyntax {
         header: i_header(28),
@@ -214,18 +217,29 @@ fn hand_built_intra_frame() {
     let (header, frames) = decode(&bytes).unwrap();
     assert_eq!(header, s);
     assert_eq!(frames.len(), 1);
-    plane_is(frames[0].y(), |x, y| if x < 4 && y < 4 { 132 } else { 128 });
+    // Block 5's AC level dequantises to 13 << 4 = 208; with its DC of 256
+    // the inverse gives columns of 4 + (+-208 or +-104) / 64 rounded.
+    let mut ac = [[0; 4]; 4];
+    ac[0][1] = 1;
+    dequantize(&mut ac, 28);
+    ac[0][0] = 256;
+    let block5 = inverse_4x4(&ac);
+    plane_is(frames[0].y(), |x, y| {
+        if (4..8).contains(&x) && (4..8).contains(&y) {
+            (128 + block5[y - 4][x - 4]) as u8
+        } else {
+            132
+        }
+    });
     plane_is(frames[0].u(), |_, _| 128);
     plane_is(frames[0].v(), |_, _| 128);
 }
 
-/// An I frame of two macroblocks: left 128, right 132 (a DC level in every
-/// luma block of the right one).
+/// An I frame of two macroblocks: left 128, right 132 (a first luma DC
+/// level that adds 4 to every block of the right one).
 fn two_tone_intra() -> FrameSyntax {
     let mut residual = MbResidual::default();
-    for b in &mut residual.luma {
-        b[0][0] = 1;
-    }
+    residual.luma_dc[0] = 4;
     let right = CodedMb::new(intra_dc(), residual);
     FrameSyntax {
         header: i_header(28),
@@ -482,8 +496,17 @@ fn code_frame(
             }
             for k in (0..16).filter(|_| !in_blocks && residual.luma8.is_none()) {
                 let mut c = forward_4x4(&block(source.y(), &pred.luma, 16, k % 4, k / 4));
+                let dc = c[0][0];
                 quantize(&mut c, header.qp, 1.0 / 3.0);
+                // Intra 16x16: the blocks' DC coefficients coded apart.
+                if intra {
+                    residual.luma_dc[k] = dc;
+                    c[0][0] = 0;
+                }
                 residual.luma[k] = c;
+            }
+            if intra && !in_blocks {
+                residual.luma_dc = quantize_luma_dc(residual.luma_dc, header.qp, 1.0 / 3.0);
             }
             for p in 0..2 {
                 for k in 0..4 {

@@ -141,8 +141,8 @@ pub(super) fn best_intra(
     };
     let mut candidates = Vec::with_capacity(3);
     if whole {
-        let luma_levels = coder.luma_residual(s, &pred, true, residual_coder);
-        let coded = code(&pred, luma_levels, ResidualSyntax::Intra);
+        let luma_levels = coder.intra16x16_luma(s, &pred, residual_coder);
+        let coded = code(&pred, luma_levels, ResidualSyntax::Intra16x16);
         candidates.push(choice(LumaIntra::Whole(luma), pred.clone(), coded));
     }
     if let Some(b) = blocks8 {

@@ -219,11 +219,22 @@ pub fn block_pricer(coder: &ResidualCoder, class: BlockClass) -> BlockPricer {
 }
 
 /// The [`BlockPricer`] of the chroma blocks' AC levels of intra (`true`)
-/// or inter macroblocks in `coder`'s present state: a block's position 0
-/// holds a DC level coded apart, so no bin of the scan's first position is
-/// priced.
+/// or inter macroblocks in `coder`'s present state.
 pub fn chroma_ac_pricer(coder: &ResidualCoder, intra: bool) -> BlockPricer {
-    let mut pricer = block_pricer(coder, BlockClass::chroma(intra));
+    ac_pricer(coder, BlockClass::chroma(intra))
+}
+
+/// The [`BlockPricer`] of an intra 16x16 macroblock's luma blocks' AC
+/// levels in `coder`'s present state.
+pub fn luma_ac_pricer(coder: &ResidualCoder) -> BlockPricer {
+    ac_pricer(coder, BlockClass::luma_ac16())
+}
+
+/// The [`BlockPricer`] of `class`'s blocks whose position 0 holds a DC
+/// level coded apart (or none): no bin of the scan's first position is
+/// priced.
+fn ac_pricer(coder: &ResidualCoder, class: BlockClass) -> BlockPricer {
+    let mut pricer = block_pricer(coder, class);
     let first = pricer.prices.zero_run[1];
     for run in &mut pricer.prices.zero_run[1..] {
         *run -= first;

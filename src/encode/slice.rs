@@ -647,6 +647,7 @@ fn recode(
         } else {
             let coded = match mb.kind.residual_syntax() {
                 ResidualSyntax::Intra => coder.code(&s, &pred, true, &residual_coder, mb_x, mb_y),
+                ResidualSyntax::Intra16x16 => coder.code_intra16x16(&s, &pred, &residual_coder, (mb_x, mb_y)),
                 ResidualSyntax::Intra8x8 => {
                     coder.code_intra8x8(&s, &pred, luma8, &residual_coder, (mb_x, mb_y))
                 }

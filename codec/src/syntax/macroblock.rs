@@ -52,6 +52,10 @@ impl MbKind {
                 luma: LumaIntra::Blocks8(_),
                 ..
             } => ResidualSyntax::Intra8x8,
+            MbKind::Intra {
+                luma: LumaIntra::Whole(_),
+                ..
+            } => ResidualSyntax::Intra16x16,
             MbKind::Intra { .. } => ResidualSyntax::Intra,
             _ => ResidualSyntax::Inter,
         }
@@ -82,6 +86,7 @@ static NO_RESIDUAL: MbResidual = MbResidual {
     luma: [[[0; 4]; 4]; 16],
     chroma: [[[[0; 4]; 4]; 4]; 2],
     luma8: None,
+    luma_dc: [0; 16],
 };
 
 impl CodedMb {

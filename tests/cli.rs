@@ -1198,6 +1198,13 @@ fn presets_differ_options_override_them_and_every_stream_decodes() {
     );
     assert_ne!(encode("mo.mcv", &["--subpel-rd", "on"]), streams[2]);
     rejects("--subpel-rd", "yes", "expected on or off");
+    // The splits' margin is slower's: on in slow or medium, the stream
+    // changes.
+    assert_ne!(
+        encode("sm.mcv", &["--preset", "slow", "--split-margin", "on"]),
+        streams[3]
+    );
+    assert_ne!(encode("mm.mcv", &["--split-margin", "on"]), streams[2]);
     // Chroma motion estimation is no preset's (its effect on a sample
     // with colour: tests/encode.rs).
     assert_eq!(encode("co.mcv", &["--chroma-me", "off"]), streams[2]);

@@ -116,6 +116,11 @@ pub struct ToolArgs {
     /// only; the slow preset has it on) [default: the preset's].
     #[arg(long, value_name = "on|off", value_parser = on_off)]
     pub subpel_rd: Option<bool>,
+    /// Splits (16x8, 8x16, 8x8) searched and coded where their estimate is
+    /// within 5/4 of the whole macroblock's, on or off (off: only below
+    /// it; the slower preset has it on) [default: the preset's].
+    #[arg(long, value_name = "on|off", value_parser = on_off)]
+    pub split_margin: Option<bool>,
     /// Chroma priced beside luma in the search's sub-pel steps, on or off,
     /// as x264's chroma motion estimation (`block` only) [default: the
     /// preset's].
@@ -179,6 +184,7 @@ impl ToolArgs {
         o.extend(self.partitions.map(|p| ("partitions", p.to_string())));
         o.extend(self.refs.map(|n| ("refs", n.to_string())));
         o.extend(self.subpel_rd.map(|b| ("subpel-rd", on(b))));
+        o.extend(self.split_margin.map(|b| ("split-margin", on(b))));
         o.extend(self.chroma_me.map(|b| ("chroma-me", on(b))));
         o.extend(self.adaptive_pricing.map(|b| ("adaptive-pricing", on(b))));
         o.extend(self.luma_filter.map(|f| ("luma-filter", f.name().to_string())));

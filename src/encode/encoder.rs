@@ -357,6 +357,7 @@ impl Encoder {
             weights,
             partitions: self.config.partitions.p8x8,
             subpel_rd: self.config.subpel_rd,
+            split_margin: self.config.split_margin,
             chroma_me: self.config.chroma_me,
             adaptive_pricing: self.config.adaptive_pricing,
             fast_pskip: self.config.fast_pskip,

@@ -23,7 +23,7 @@ use crate::metrics::{Metric, Metrics};
 
 /// Every option [`EncoderConfig::set`] takes, with what its value is
 /// (names as `mocomp encode` spells them; `_` may stand for `-`).
-pub const OPTIONS: [(&str, &str); 26] = [
+pub const OPTIONS: [(&str, &str); 27] = [
     ("qp", "quantisation parameter, 0..=51"),
     ("gop", "I-frame period (0: only the first frame)"),
     (
@@ -53,6 +53,10 @@ pub const OPTIONS: [(&str, &str); 26] = [
     ("weightp", "weighted prediction, on|off"),
     ("refs", "references P frames may predict from, 1..=8 (block)"),
     ("subpel-rd", "sub-pel RD refinement (x264's subme 8), on|off"),
+    (
+        "split-margin",
+        "splits searched and coded within 5/4 of the 16x16 estimate, on|off",
+    ),
     (
         "chroma-me",
         "chroma in the sub-pel search's cost (x264's), on|off",
@@ -140,6 +144,7 @@ impl EncoderConfig {
             "weightp" => self.weightp = switch(value).map_err(bad)?,
             "refs" => self.refs = parse(value).map_err(bad)?,
             "subpel-rd" => self.subpel_rd = switch(value).map_err(bad)?,
+            "split-margin" => self.split_margin = switch(value).map_err(bad)?,
             "chroma-me" => self.chroma_me = switch(value).map_err(bad)?,
             "adaptive-pricing" => self.adaptive_pricing = switch(value).map_err(bad)?,
             "fast-pskip" => self.fast_pskip = switch(value).map_err(bad)?,
@@ -239,6 +244,7 @@ mod tests {
             ("weightp", "no"),
             ("refs", "3"),
             ("subpel-rd", "1"),
+            ("split-margin", "on"),
             ("chroma-me", "on"),
             ("adaptive-pricing", "off"),
             ("fast-pskip", "off"),

@@ -269,6 +269,8 @@ pub(crate) struct InterInputs<'a> {
     pub partitions: bool,
     /// Sub-pel RD refinement of 16x16 inter vectors (block frames).
     pub subpel_rd: bool,
+    /// Splits within a margin of the 16x16 estimate ([`super::EncoderConfig::split_margin`]).
+    pub split_margin: bool,
     /// Chroma in the 16x16 searches' sub-pel cost ([`super::EncoderConfig::chroma_me`]).
     pub chroma_me: bool,
     /// The decision's residual prices adapt through the frame
@@ -299,6 +301,8 @@ pub(super) struct InterFrameCoder<'a> {
     pub(super) partitions: bool,
     /// Sub-pel RD refinement of 16x16 inter vectors (block frames).
     pub(super) subpel_rd: bool,
+    /// Splits within a margin of the 16x16 estimate.
+    pub(super) split_margin: bool,
     /// Chroma in the 16x16 searches' sub-pel cost.
     pub(super) chroma_me: bool,
     /// The decision's residual prices adapt through the frame.
@@ -394,6 +398,7 @@ impl<'a> InterFrameCoder<'a> {
             lazy,
             partitions: inputs.partitions && inputs.tool == MotionTool::Block,
             subpel_rd: inputs.subpel_rd,
+            split_margin: inputs.split_margin,
             chroma_me: inputs.chroma_me,
             adaptive_pricing: inputs.adaptive_pricing,
             fast_pskip: inputs.fast_pskip,

@@ -194,14 +194,30 @@ pub fn quantize_chroma_dc(dc: [i32; 4], qp: u8, rounding: f64) -> [i32; 4] {
     if (bound * mf + offset) >> shift == 0 {
         return [0; 4];
     }
-    hadamard_2x2(dc).map(|f| {
-        let level = ((u64::from(f.unsigned_abs()) * mf + offset) >> shift) as i32;
-        if f < 0 {
-            -level
-        } else {
-            level
-        }
-    })
+    hadamard_2x2(dc).map(|f| quantize_dc(i64::from(f), mf as i64, (offset as i64, shift)))
+}
+
+/// `sign(f) ((|f| mf + offset) >> shift)`: one value of a DC transform
+/// quantised.
+#[inline]
+fn quantize_dc(f: i64, mf: i64, (offset, shift): (i64, u32)) -> i32 {
+    let level = ((f.abs() * mf + offset) >> shift) as i32;
+    if f < 0 {
+        -level
+    } else {
+        level
+    }
+}
+
+/// Normative: one value `c` of a DC transform of levels scaled as the DC
+/// position is at `qp`, divided by `2^down` (rounding half up) and clamped
+/// to the 16-bit range as [`dequantize`] clamps. `c` is a sum of at most
+/// sixteen levels of at most 2^15 (the reader's bound): no overflow.
+#[inline]
+fn dequantize_dc(c: i64, qp: u8, down: u32) -> i32 {
+    debug_assert!(qp <= MAX_QP);
+    let v = i64::from(DEQUANT[(qp % 6) as usize][0]);
+    ((((c * v) << (qp / 6)) + (1 << (down - 1))) >> down).clamp(-32768, 32767) as i32
 }
 
 /// Normative: the DC coefficients of a chroma plane's four blocks from its
@@ -211,15 +227,10 @@ pub fn quantize_chroma_dc(dc: [i32; 4], qp: u8, rounding: f64) -> [i32; 4] {
 /// [`dequantize`] clamps. The first level alone, `2 l`, gives every block
 /// the DC coefficient that a block's own DC level `l` dequantises to.
 pub fn dequantize_chroma_dc(levels: [i32; 4], qp: u8) -> [i32; 4] {
-    debug_assert!(qp <= MAX_QP);
-    let v = i64::from(DEQUANT[(qp % 6) as usize][0]);
-    // i64: levels are at most 2^15 in magnitude (the reader's bound), so
-    // their sums stay far inside it.
     let l = levels.map(i64::from);
     let (s01, d01) = (l[0] + l[1], l[0] - l[1]);
     let (s23, d23) = (l[2] + l[3], l[2] - l[3]);
-    [s01 + s23, d01 + d23, s01 - s23, d01 - d23]
-        .map(|c| ((((c * v) << (qp / 6)) + 1) >> 1).clamp(-32768, 32767) as i32)
+    [s01 + s23, d01 + d23, s01 - s23, d01 - d23].map(|c| dequantize_dc(c, qp, 1))
 }
 
 /// The 4x4 Hadamard transform of a macroblock's sixteen values in raster
@@ -260,14 +271,7 @@ pub fn quantize_luma_dc(dc: [i32; 16], qp: u8, rounding: f64) -> [i32; 16] {
     let q = Quantizer4x4::new(qp, rounding);
     let (mf, shift) = (q.multipliers[0] as i64, q.shift + 2);
     let offset = 4 * q.offset as i64;
-    hadamard_4x4(dc.map(i64::from)).map(|f| {
-        let level = ((f.abs() * mf + offset) >> shift) as i32;
-        if f < 0 {
-            -level
-        } else {
-            level
-        }
-    })
+    hadamard_4x4(dc.map(i64::from)).map(|f| quantize_dc(f, mf, (offset, shift)))
 }
 
 /// Normative: the DC coefficients of an intra 16x16 macroblock's sixteen
@@ -278,12 +282,7 @@ pub fn quantize_luma_dc(dc: [i32; 16], qp: u8, rounding: f64) -> [i32; 16] {
 /// clamps. The first level alone, `4 l`, gives every block the DC
 /// coefficient that a block's own DC level `l` dequantises to.
 pub fn dequantize_luma_dc(levels: [i32; 16], qp: u8) -> [i32; 16] {
-    debug_assert!(qp <= MAX_QP);
-    let v = i64::from(DEQUANT[(qp % 6) as usize][0]);
-    // i64: levels are at most 2^15 in magnitude (the reader's bound), so
-    // sixteen of them scaled stay far inside it.
-    hadamard_4x4(levels.map(i64::from))
-        .map(|c| ((((c * v) << (qp / 6)) + 2) >> 2).clamp(-32768, 32767) as i32)
+    hadamard_4x4(levels.map(i64::from)).map(|c| dequantize_dc(c, qp, 2))
 }
 
 /// [`QUANT`] spread over the 16 positions of a block, row by row.

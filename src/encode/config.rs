@@ -676,7 +676,8 @@ impl EncoderConfig {
         self.subpel_rd = preset >= Slow;
         // Splits within 5/4 of the 16x16 estimate in slower: in medium
         // -1.53 % on the 28 sequences' mean for 1.20x its encode time
-        // (testsrc2_qcif -5.2 %, face_360p -4.7 %: edges of moving objects),
+        // (cup_vga_30 -4.9 %, plant_qvga and face_360p -4.0 %,
+        // testsrc2_qcif -3.7 %: edges of moving objects),
         // in slow -0.85 % for 1.11x, which would take slow to x264 slow's
         // time; 1.1 instead of 5/4, medium -1.35 % for 1.18x.
         self.split_margin = preset >= Slower;

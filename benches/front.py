@@ -104,12 +104,13 @@ def annexb_bytes_without_sei(path):
     return len(data) - sei
 
 
-def encode_x264(binary, seq, preset, qp, out, threads=1, measure=True):
+def encode_x264(binary, seq, preset, qp, out, threads=1, measure=True, extra=()):
     """Times x264 alone (no --psnr); the PSNR is measured after, on its
-    decoded output (not when `measure` is false: the time alone)."""
+    decoded output (not when `measure` is false: the time alone). `extra`:
+    x264 options after the front's own."""
     cmd = ["x264", "--preset", preset, "--tune", "psnr", "--qp", str(qp), "--bframes", "0",
            "--keyint", "infinite", "--scenecut", "0", "--threads", str(threads),
-           "--frames", str(FRAMES), "-o", out, seq]
+           "--frames", str(FRAMES), *extra, "-o", out, seq]
     _, seconds = timed(cmd)
     if not measure:
         return None, None, None, seconds
@@ -131,12 +132,12 @@ def quality_of(binary, seq, decoded):
     return quality["frames"], quality["psnr_y"]
 
 
-def encode_mocomp(binary, seq, preset, qp, out, threads=1, measure=True):
+def encode_mocomp(binary, seq, preset, qp, out, threads=1, measure=True, extra=()):
     """Times mocomp alone (--metrics none, as x264 without --psnr); the
     PSNR is measured after, on the stream decoded (not when `measure` is
-    false: the time alone)."""
+    false: the time alone). `extra`: options after MOCOMP_ARGS."""
     cmd = [binary, "encode", seq, "-o", out, "--preset", preset, "--qp", str(qp), "--threads", str(threads),
-           "--frames", str(FRAMES), "--metrics", "none", "--json", "--quiet"] + MOCOMP_ARGS
+           "--frames", str(FRAMES), "--metrics", "none", "--json", "--quiet"] + MOCOMP_ARGS + list(extra)
     log, seconds = timed(cmd)
     summary = json.loads(log.strip().splitlines()[-1])
     if not measure:

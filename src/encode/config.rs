@@ -678,8 +678,9 @@ impl EncoderConfig {
         // -1.53 % on the 28 sequences' mean for 1.20x its encode time
         // (cup_vga_30 -4.9 %, plant_qvga and face_360p -4.0 %,
         // testsrc2_qcif -3.7 %: edges of moving objects),
-        // in slow -0.85 % for 1.11x, which would take slow to x264 slow's
-        // time; 1.1 instead of 5/4, medium -1.35 % for 1.18x.
+        // in slow -0.85 % for 1.11x, which would take slow from 0.83-0.89x
+        // of x264 slow's time to 0.92-0.99x (a margin too thin to spend);
+        // 1.1 instead of 5/4, medium -1.35 % for 1.18x.
         self.split_margin = preset >= Slower;
         // Chroma in the sub-pel cost (x264's from its subme 5) in no
         // preset: medium -0.05 % on the set's mean for 1.045x its encode

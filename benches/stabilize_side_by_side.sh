@@ -10,6 +10,10 @@
 # and the shake's truth: cropping ratio, distortion, stability (Liu et al.
 # 2013) and residual jitter (px/frame). Time is the whole process (both
 # passes), the median of RUNS runs with GNU time, interleaved.
+# A third row per input checks the scorer itself: the shaken input shaken
+# again (up to 8 px and 1 degree, seed 2: a similarity, whose distortion is
+# 1) and padded back to its size, scored against it; a distortion well
+# under 1 there is the scorer's error on that footage, not a stabiliser's.
 # Prints a Markdown table, a row per input and tool.
 # Needs the peers' setup (ffmpeg with vid.stab, GNU time) and a release build.
 # Env: BIN=target/release/mocomp  RUNS=3  SHAKE_T=12  SHAKE_R=1.5  ARGS=""  THREADS=""
@@ -41,10 +45,20 @@ for in in "$@"; do
     seconds bash -c 'vidstab shaken.y4m vidstab.y4m' >> vidstab.t
     seconds bash -c 'ours shaken.y4m ours.y4m' >> ours.t
   done
-  for tool in vidstab ours; do
-    s=$(median < $tool.t)
+  "$BIN" shake shaken.y4m -o again.y4m --translation 8 --rotation 1 --seed 2 >/dev/null
+  size=$(head -1 shaken.y4m | sed 's/.* W\([0-9]*\) H\([0-9]*\).*/\1:\2/')
+  ffmpeg -hide_banner -loglevel error -nostdin -y -i again.y4m -vf "pad=$size:(ow-iw)/2:(oh-ih)/2" \
+    -pix_fmt yuv420p -strict -1 check.y4m
+  for tool in vidstab ours check; do
     score=$("$BIN" stabscore shaken.y4m $tool.y4m --shake truth.csv --json)
     field() { sed "s/.*\"$1\":\([0-9.e+-]*\|null\).*/\1/; s/null/nan/" <<< "$score"; }
+    if [ $tool = check ]; then
+      # Its time, stability and jitter are not a stabiliser's.
+      printf "| %s | %s | scorer on a known similarity | - | - | %.4f | %.4f | - | - | - |\n" "$name" "$(field frames)" \
+        "$(field cropping)" "$(field distortion)"
+      continue
+    fi
+    s=$(median < $tool.t)
     frames=$(field frames)
     label=$([ $tool = ours ] && echo "mocomp $ARGS" || echo "vid.stab (optzoom=1)")
     printf "| %s | %s | %s | %.2f | %.1f | %.4f | %.4f | %.4f | %.3f | %.2f |\n" "$name" "$frames" "$label" "$s" \

@@ -213,6 +213,64 @@ fn quality_of_a_known_zoom() {
     assert!(r.distortion > 0.99, "{r:?}");
 }
 
+/// A plain surface, lit unevenly, with a faint grain and one small dark
+/// disc (a coin on a table): little for a flow to follow away from the
+/// disc.
+fn plain_surface(w: usize, h: usize) -> Frame {
+    let grain = |x: usize, y: usize| {
+        // A hash of the position, -2 to 2, summed over a 3x3
+        // neighbourhood and divided by four: a grain of a few grey levels.
+        let at = |x: usize, y: usize| ((x.wrapping_mul(7919) ^ y.wrapping_mul(104_729)) % 5) as i32 - 2;
+        (0..9).map(|k| at(x + k % 3, y + k / 3)).sum::<i32>() / 4
+    };
+    let (cx, cy, r) = (w as f64 * 0.62, h as f64 * 0.45, h as f64 * 0.07);
+    let luma = mocomp::codec::Plane::from_fn(w, h, |x, y| {
+        let d = ((x as f64 - cx).powi(2) + (y as f64 - cy).powi(2)).sqrt();
+        // The disc's edge a pixel wide, its face a little lighter towards
+        // the rim; the light falls off downwards and to the sides.
+        let inside = (r + 0.5 - d).clamp(0.0, 1.0);
+        let shade = 20.0 * (x as f64 / w as f64 - 0.5).powi(2) + 15.0 * (y as f64 / h as f64);
+        let disc = 140.0 + shade - 50.0 * inside + 10.0 * inside * (d / r).min(1.0);
+        (disc + f64::from(grain(x, y))).round() as u8
+    })
+    .unwrap();
+    let grey = mocomp::codec::Plane::from_fn(w / 2, h / 2, |_, _| 128).unwrap();
+    Frame::from_planes(luma, grey.clone(), grey).unwrap()
+}
+
+#[test]
+fn quality_of_a_known_rotation_over_a_plain_surface() {
+    // Output = input turned by half a degree and zoomed by 1.05 about
+    // the centre: a similarity, so no distortion, and cropping 1 / 1.05.
+    // The scene gives the scorer's flow little to follow: with DIS's fast
+    // preset it measured cropping 0.967 and distortion 0.978 here (and
+    // 0.939 on a real coin on a table shaken by a known similarity).
+    let (w, h) = (320, 240);
+    let picture = plain_surface(w, h);
+    let c = Centre::new(w, h);
+    let (s, a) = (1.0 / 1.05, 0.5f64.to_radians());
+    let turn = c.to_pixels(&Transform([
+        s * a.cos(),
+        -s * a.sin(),
+        0.0,
+        s * a.sin(),
+        s * a.cos(),
+        0.0,
+        0.0,
+        0.0,
+        1.0,
+    ]));
+    let out = mocomp::stabilize::apply(&picture, &turn);
+    let mut meter = QualityMeter::new();
+    for _ in 0..4 {
+        meter.push(picture.y(), out.y()).unwrap();
+    }
+    let r = meter.finish(w, h, None);
+    assert_eq!((r.frames, r.fitted), (4, 4));
+    assert!((r.cropping - 1.0 / 1.05).abs() < 0.01, "{r:?}");
+    assert!(r.distortion > 0.99, "{r:?}");
+}
+
 #[test]
 fn bad_settings_are_refused() {
     for params in [

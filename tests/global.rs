@@ -300,3 +300,46 @@ fn an_object_moving_against_the_camera_is_outside_the_inliers() {
         in_object.len()
     );
 }
+
+#[test]
+fn flat_places_weigh_little_so_their_guessed_vectors_do_not_bias_the_fit() {
+    // The left half textured, the right half flat: a dense flow's vectors
+    // there are the smoothness term's guess, here the camera's shift
+    // (3, -2) off by (0.5, 0.4), within RANSAC's threshold of it.
+    let (w, h) = (320, 240);
+    let (textured, _) = warped_pair(w, h, &Transform::IDENTITY);
+    let picture = Plane::from_fn(w, h, |x, y| if x < w / 2 { textured.get(x, y) } else { 128 }).unwrap();
+    let truth = Transform([1.0, 0.0, 3.0, 0.0, 1.0, -2.0, 0.0, 0.0, 1.0]);
+    let mut points = Vec::new();
+    for y in (4..h).step_by(8) {
+        for x in (4..w).step_by(8) {
+            let (x, y) = (x as f64, y as f64);
+            let off = if x < (w / 2) as f64 {
+                (0.0, 0.0)
+            } else {
+                (0.5, 0.4)
+            };
+            points.push(Correspondence::new((x, y), (x + 3.0 + off.0, y - 2.0 + off.1)));
+        }
+    }
+    let params = GlobalParams::new(Model::Similarity);
+    let error = |points: &[Correspondence]| {
+        let fit = estimate(points, &params).unwrap();
+        corner_error(&fit.transform, &truth, w as f64, h as f64)
+    };
+    let unweighted = error(&points);
+    sources::weigh_by_texture(&mut points, &plane_to_array(&picture));
+    // Well inside either half: flat places weigh nothing.
+    let weight_at = |x: f64| points.iter().find(|c| c.from == (x, 124.0)).unwrap().weight;
+    assert!(
+        weight_at(76.0) > 0.1 && weight_at(252.0) < 1e-3,
+        "{} {}",
+        weight_at(76.0),
+        weight_at(252.0)
+    );
+    let weighted = error(&points);
+    assert!(
+        unweighted > 0.2 && weighted < 0.02,
+        "corners {unweighted:.3} px off unweighted, {weighted:.3} weighted"
+    );
+}

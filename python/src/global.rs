@@ -121,7 +121,7 @@ pub fn global_motion<'py>(
             second.height()
         )));
     }
-    let mut correspondences = PairCorrespondences::new(source, preset);
+    let mut correspondences = PairCorrespondences::new(source, preset).weighted_by_texture();
     let pairs = py
         .detach(|| with_threads(threads, || correspondences.between(&first, &second)))?
         .map_err(|e| value_error(e.to_string()))?;

@@ -58,7 +58,7 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let name = args.input.display().to_string();
     let mut reader = Y4mReader::open(&args.input).with_context(|| name.clone())?;
-    let mut source = PairCorrespondences::new(args.source, args.preset);
+    let mut source = PairCorrespondences::new(args.source, args.preset).weighted_by_texture();
     let (w, h) = (reader.info().width, reader.info().height);
     let (mut prev, mut cur) = (Frame::new(w, h)?, Frame::new(w, h)?);
     if !reader.read_frame_into(&mut prev).with_context(|| name.clone())? {

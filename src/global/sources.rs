@@ -132,8 +132,7 @@ pub fn from_flow(flow: &Flow, step: usize) -> Vec<Correspondence> {
 
 /// The texture (the structure tensor's smaller eigenvalue, as
 /// [`min_eigen`] gives it) at which a flow correspondence weighs half of
-/// one on a richly textured place ([`weigh_by_texture`]); results moved
-/// little between 10 and 200 on the clips measured.
+/// one on a richly textured place ([`weigh_by_texture`]).
 pub const TEXTURE_HALF_WEIGHT: f32 = 10.0;
 
 /// Weighs each correspondence by the texture of the first picture where it

@@ -19,6 +19,7 @@ Usage: python3 benches/global_truth.py CLIP.y4m [...]
 Env: BIN=target/release/mocomp  SHAKE_T=12  SHAKE_R=1.5
      SOURCES="flow blocks matches"  MODELS="similarity affine homography"
      FLOW_PRESETS="fast medium" (DIS presets tried with the flow source)
+     THRESHOLD (globalmotion's --threshold, pixels; its default if unset)
 Prints a Markdown table: a row per clip, source and model, with the
 median and 90th percentile over pairs of the corner error, and the share
 of pairs fitted.
@@ -38,6 +39,7 @@ SHAKE_R = os.environ.get("SHAKE_R", "1.5")
 SOURCES = os.environ.get("SOURCES", "flow blocks matches").split()
 MODELS = os.environ.get("MODELS", "similarity affine homography").split()
 FLOW_PRESETS = os.environ.get("FLOW_PRESETS", "fast medium").split()
+THRESHOLD = os.environ.get("THRESHOLD")
 
 
 def matmul(a, b):
@@ -116,7 +118,8 @@ def main():
                 for model in MODELS:
                     fits_csv = os.path.join(tmp, "g.csv")
                     subprocess.run([BIN, "globalmotion", shaken, "--model", model, "--source", source,
-                                    *(["--preset", preset] if preset else []), "--csv", fits_csv],
+                                    *(["--preset", preset] if preset else []),
+                                    *(["--threshold", THRESHOLD] if THRESHOLD else []), "--csv", fits_csv],
                                    check=True, capture_output=True)
                     errors = []
                     with open(fits_csv) as f:

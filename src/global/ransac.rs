@@ -1,13 +1,13 @@
 //! RANSAC over minimal samples, then iteratively reweighted least squares.
 
 use super::model::{fit, Correspondence, Transform};
-use super::{GlobalError, GlobalMotion, GlobalParams};
+use super::{GlobalError, GlobalMotion, GlobalParams, Refinement};
 
 /// The model of `params` that most of `points` follow: the RANSAC sample
 /// whose model has the lowest truncated squared error (MSAC: inliers cost
 /// their squared distance, the rest the threshold's square), refitted to
-/// its inliers and refined by reweighted least squares (Cauchy weights at
-/// the threshold's scale, points beyond three thresholds left out).
+/// its inliers and refined by reweighted least squares (Cauchy weights;
+/// [`Refinement`] says at which scale).
 pub fn estimate(points: &[Correspondence], params: &GlobalParams) -> Result<GlobalMotion, GlobalError> {
     check(params)?;
     let model = params.model;
@@ -121,34 +121,37 @@ fn samples_for(w: f64, s: usize) -> usize {
     ((1.0f64 - 0.999).ln() / (1.0 - clean).ln()).ceil() as usize
 }
 
-/// Reweighted least squares from `start`.
+/// Refits to the inliers before reweighting at their scale, at most (they
+/// settle in two or three).
+const MAX_REFITS: usize = 8;
+
+/// Cauchy's tuning constant, in units of the inliers' scale (95 %
+/// efficiency where their distances are normal).
+const CAUCHY_TUNING: f64 = 2.385;
+
+/// `start` refitted to its inliers, then reweighted least squares with
+/// Cauchy weights, as `p.refinement` says: at the inliers' own scale
+/// after their refits settle (LO-RANSAC's local step), or at the
+/// threshold's out to three thresholds after one refit.
 fn refine(points: &[Correspondence], p: &GlobalParams, start: Transform) -> Transform {
-    let mut t = start;
-    let inlier_weights = |t: &Transform| -> Vec<f64> {
-        points
-            .iter()
-            .map(|c| {
-                if c.residual(t) <= p.threshold {
-                    c.weight
-                } else {
-                    0.0
-                }
-            })
-            .collect()
+    let refits = match p.refinement {
+        Refinement::InlierScale => MAX_REFITS,
+        Refinement::ThresholdScale => 1,
     };
-    if let Some(refit) = fit(p.model, points, &inlier_weights(&t)) {
-        t = refit;
-    }
+    let mut t = refit_to_inliers(points, p, start, refits);
     for _ in 0..p.refinements {
+        let (c, reach) = match p.refinement {
+            Refinement::InlierScale => match inlier_scale(points, p, &t) {
+                Some(scale) => (CAUCHY_TUNING * scale, p.threshold),
+                None => break,
+            },
+            Refinement::ThresholdScale => (p.threshold, 3.0 * p.threshold),
+        };
         let weights: Vec<f64> = points
             .iter()
-            .map(|c| {
-                let r = c.residual(&t) / p.threshold;
-                if r <= 3.0 {
-                    c.weight / (1.0 + r * r)
-                } else {
-                    0.0
-                }
+            .map(|q| match q.residual(&t) {
+                r if r <= reach => q.weight / (1.0 + (r / c) * (r / c)),
+                _ => 0.0,
             })
             .collect();
         let Some(next) = fit(p.model, points, &weights) else {
@@ -166,6 +169,62 @@ fn refine(points: &[Correspondence], p: &GlobalParams, start: Transform) -> Tran
         }
     }
     t
+}
+
+/// The points within the threshold of `t`, weighed as given (0 elsewhere).
+fn inlier_weights(points: &[Correspondence], p: &GlobalParams, t: &Transform) -> Vec<f64> {
+    points
+        .iter()
+        .map(|c| {
+            if c.residual(t) <= p.threshold {
+                c.weight
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+/// `start` refitted to its inliers, again to the new inliers, until they
+/// are the same twice or `rounds` refits are done.
+fn refit_to_inliers(
+    points: &[Correspondence],
+    p: &GlobalParams,
+    start: Transform,
+    rounds: usize,
+) -> Transform {
+    let mut t = start;
+    let mut weights = inlier_weights(points, p, &t);
+    for _ in 0..rounds {
+        let Some(next) = fit(p.model, points, &weights) else {
+            break;
+        };
+        t = next;
+        let again = inlier_weights(points, p, &t);
+        if again == weights {
+            break;
+        }
+        weights = again;
+    }
+    t
+}
+
+/// The inliers' scale: their median distance to `t` times 1.4826 (a
+/// normal distribution's standard deviation), at least 2 % of the
+/// threshold (exact correspondences would give 0).
+fn inlier_scale(points: &[Correspondence], p: &GlobalParams, t: &Transform) -> Option<f64> {
+    let mut distances: Vec<f64> = points
+        .iter()
+        .filter(|c| c.weight > 0.0)
+        .map(|c| c.residual(t))
+        .filter(|&r| r <= p.threshold)
+        .collect();
+    if distances.is_empty() {
+        return None;
+    }
+    let mid = distances.len() / 2;
+    let (_, median, _) = distances.select_nth_unstable_by(mid, f64::total_cmp);
+    Some((1.4826 * *median).max(0.02 * p.threshold))
 }
 
 /// The inlier mask over every input point (non-finite ones are outliers)

@@ -22,7 +22,7 @@ use crate::flow::consistency::inconsistent;
 use crate::flow::warp::sample_bilinear;
 use crate::flow::{Flow, FlowEstimator, FlowOptions, Preset};
 use crate::global::sources::from_flow;
-use crate::global::{estimate, GlobalParams, Model, Transform};
+use crate::global::{estimate, GlobalParams, Model, Refinement, Transform};
 use crate::imgproc::domain::domain_transform;
 use crate::imgproc::pyramid::blur;
 use crate::raster::plane_to_array;
@@ -350,7 +350,11 @@ fn patch_difference(
 /// One direction's score: the residual against the camera's homography
 /// over the tolerance (doubled where the flow fails its check).
 fn direction_score(flow: &Flow, occluded: &Array2<bool>, p: &SegmentParams) -> (Array2<f32>, Transform) {
-    let camera = estimate(&from_flow(flow, 8), &GlobalParams::new(Model::Homography))
+    let params = GlobalParams {
+        refinement: Refinement::ThresholdScale,
+        ..GlobalParams::new(Model::Homography)
+    };
+    let camera = estimate(&from_flow(flow, 8), &params)
         .map(|f| f.transform)
         .unwrap_or(Transform::IDENTITY);
     let (w, h) = (flow.width(), flow.height());

@@ -1569,7 +1569,7 @@ fn globalmotion_finds_the_bundled_scenes_camera_from_each_source() {
     use mocomp::global::{estimate, sources, GlobalParams, Model, Transform};
     let dir = tempfile::tempdir().unwrap();
     let input = sample("synth_qcif.y4m");
-    for (source, bound) in [("flow", 0.5), ("blocks", 0.5), ("matches", 1.5)] {
+    for (source, bound) in [("auto", 0.5), ("flow", 0.5), ("blocks", 0.5), ("matches", 1.5)] {
         let csv = dir.path().join(format!("{source}.csv"));
         mocomp()
             .args([
@@ -1595,6 +1595,9 @@ fn globalmotion_finds_the_bundled_scenes_camera_from_each_source() {
                 (format!("{}", k + 1).as_str(), "affine"),
                 "{source}"
             );
+            // What the points came from: auto's blocks fit this scene.
+            let from = if source == "auto" { "blocks" } else { source };
+            assert_eq!(f.last(), Some(&from), "{source}");
             let m: Vec<f64> = f[2..11].iter().map(|v| v.parse().unwrap()).collect();
             let found = Transform(m.try_into().unwrap());
             let gt =

@@ -6,6 +6,7 @@
 use mocomp::codec::Plane;
 use mocomp::features::{match_pictures, MatchParams};
 use mocomp::flow::{FlowEstimator, FlowMethod, FlowOptions, Preset};
+use mocomp::global::sources::{PairCorrespondences, Source};
 use mocomp::global::{estimate, sources, Correspondence, GlobalError, GlobalParams, Model, Transform};
 use mocomp::me::{self, MeConfig, Method, Subpel};
 use mocomp::raster::plane_to_array;
@@ -370,4 +371,62 @@ fn flat_places_weigh_little_so_their_guessed_vectors_do_not_bias_the_fit() {
         unweighted > 0.2 && weighted < 0.02,
         "corners {unweighted:.3} px off unweighted, {weighted:.3} weighted"
     );
+}
+
+/// Two windows of one random texture (detail at 3, 8 and 24 px, no
+/// period a block search could lock onto at a wrong shift), the second's
+/// content moved by whole pixels `(dx, dy)`.
+fn panned_pair(w: usize, h: usize, dx: i64, dy: i64) -> (Plane, Plane) {
+    let mut r = Random(77);
+    let margin = 64;
+    let (bw, bh) = (w + 2 * margin, h + 2 * margin);
+    let mut big = vec![128.0f64; bw * bh];
+    for (cell, amplitude) in [(3usize, 30.0), (8, 40.0), (24, 50.0)] {
+        let (gw, gh) = (bw / cell + 2, bh / cell + 2);
+        let grid: Vec<f64> = (0..gw * gh).map(|_| r.unit() - 0.5).collect();
+        for y in 0..bh {
+            for x in 0..bw {
+                let (fx, fy) = (x as f64 / cell as f64, y as f64 / cell as f64);
+                let (ix, iy) = (fx as usize, fy as usize);
+                let (ax, ay) = (fx - ix as f64, fy - iy as f64);
+                let g = |i: usize, j: usize| grid[j * gw + i];
+                let v = (g(ix, iy) * (1.0 - ax) + g(ix + 1, iy) * ax) * (1.0 - ay)
+                    + (g(ix, iy + 1) * (1.0 - ax) + g(ix + 1, iy + 1) * ax) * ay;
+                big[y * bw + x] += amplitude * v;
+            }
+        }
+    }
+    let window = |ox: i64, oy: i64| {
+        Plane::from_fn(w, h, |x, y| {
+            let (bx, by) = ((x as i64 + ox) as usize, (y as i64 + oy) as usize);
+            big[by * bw + bx].round().clamp(0.0, 255.0) as u8
+        })
+        .unwrap()
+    };
+    let m = margin as i64;
+    (window(m, m), window(m - dx, m - dy))
+}
+
+#[test]
+fn auto_takes_flow_where_the_blocks_fit_no_motion() {
+    // A pan of 44 px, beyond the block search's range of 32: no block
+    // finds it, while DIS's pyramid does. On a small shift the blocks fit.
+    let params = GlobalParams::new(Model::Translation);
+    for (dx, expected) in [(44, Source::Flow), (5, Source::Blocks)] {
+        let truth = Transform([1.0, 0.0, dx as f64, 0.0, 1.0, -3.0, 0.0, 0.0, 1.0]);
+        let (first, second) = panned_pair(320, 240, dx, -3);
+        let mut auto = PairCorrespondences::new(Source::Auto, Preset::Medium);
+        let pair = auto.fit(&first, &second, &params).unwrap();
+        assert_eq!(pair.source, expected, "shift {dx}");
+        let fit = pair.camera().expect("the camera's motion");
+        let e = corner_error(&fit.transform, &truth, 320.0, 240.0);
+        assert!(e < 0.25, "shift {dx}: corners {e:.3} px off");
+        if expected == Source::Flow {
+            // The blocks alone: nothing most of them follow.
+            let blocks = PairCorrespondences::new(Source::Blocks, Preset::Medium)
+                .fit(&first, &second, &params)
+                .unwrap();
+            assert!(blocks.camera().is_none(), "{:?}", blocks.fit);
+        }
+    }
 }

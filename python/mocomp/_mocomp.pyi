@@ -70,9 +70,9 @@ def global_motion(
     img1: Picture,
     img2: Picture,
     model: Literal["translation", "similarity", "affine", "homography"] = "affine",
-    source: Literal["flow", "blocks", "matches"] = "flow",
-    threshold: float = 1.0,
-    preset: Literal["ultrafast", "fast", "medium", "accurate"] = "fast",
+    source: Literal["auto", "flow", "blocks", "matches"] = "auto",
+    threshold: Optional[float] = None,
+    preset: Literal["ultrafast", "fast", "medium", "accurate"] = "medium",
     threads: Optional[int] = None,
 ) -> dict[str, Any]: ...
 def warp(img: Picture, flow: Flow) -> Picture: ...
@@ -84,7 +84,7 @@ def stabilize_path(
     coverage: float = 0.75,
     max_zoom: float = 1.5,
     model: Literal["translation", "similarity"] = "similarity",
-    source: Literal["flow", "blocks", "matches"] = "blocks",
+    source: Literal["auto", "flow", "blocks", "matches"] = "auto",
     preset: Literal["ultrafast", "fast", "medium", "accurate"] = "ultrafast",
     threads: Optional[int] = None,
 ) -> dict[str, Any]: ...

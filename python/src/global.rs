@@ -88,14 +88,17 @@ pub fn estimate_global<'py>(
 /// The camera's motion from `img1` to `img2`.
 ///
 /// img1, img2: uint8 H x W (or H x W x 3 RGB); one size.
-/// model: as estimate_global. source: "flow" (DIS at `preset`, sampled
-/// every 8 pixels), "blocks" (16x16 EPZS vectors, quarter-pel) or
-/// "matches" (feature matches). threshold: inlier distance, pixels.
+/// model: as estimate_global. source: "auto" (block vectors; flow where
+/// fewer than a quarter of them follow the model), "flow" (DIS at
+/// `preset`, sampled every 8 pixels, weighed by texture), "blocks" (16x16
+/// EPZS vectors, quarter-pel) or "matches" (feature matches).
+/// threshold: inlier distance, pixels (default: 2 for matches, else 1).
 ///
 /// Returns a dict: matrix (float64 3 x 3, img1 to img2), inliers and
-/// points (counts), rms (the inliers' distance to the model, pixels).
+/// points (counts), rms (the inliers' distance to the model, pixels),
+/// source (what the points came from: with "auto", "blocks" or "flow").
 #[pyfunction]
-#[pyo3(signature = (img1, img2, model="affine", source="flow", threshold=1.0, preset="fast", threads=None))]
+#[pyo3(signature = (img1, img2, model="affine", source="auto", threshold=None, preset="medium", threads=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn global_motion<'py>(
     py: Python<'py>,
@@ -103,12 +106,12 @@ pub fn global_motion<'py>(
     img2: &Bound<'py, PyAny>,
     model: &str,
     source: &str,
-    threshold: f64,
+    threshold: Option<f64>,
     preset: &str,
     threads: Option<usize>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let p = params(model, threshold)?;
     let source = source.parse::<Source>().map_err(value_error)?;
+    let p = params(model, threshold.unwrap_or(source.threshold()))?;
     let preset = preset.parse::<Preset>().map_err(value_error)?;
     // Padded for the block search's range of 32.
     let (first, second) = (luma_plane("img1", img1, 64)?, luma_plane("img2", img2, 64)?);
@@ -122,16 +125,20 @@ pub fn global_motion<'py>(
         )));
     }
     let mut correspondences = PairCorrespondences::new(source, preset).weighted_by_texture();
-    let pairs = py
-        .detach(|| with_threads(threads, || correspondences.between(&first, &second)))?
+    let pair = py
+        .detach(|| with_threads(threads, || correspondences.fit(&first, &second, &p)))?
         .map_err(|e| value_error(e.to_string()))?;
-    let fit = py
-        .detach(|| estimate(&pairs, &p))
-        .map_err(|e| value_error(e.to_string()))?;
+    let Some(fit) = &pair.fit else {
+        return Err(value_error(format!(
+            "no {model} model fits the {} correspondences",
+            pair.points
+        )));
+    };
     let out = PyDict::new(py);
-    out.set_item("matrix", matrix(py, &fit))?;
+    out.set_item("matrix", matrix(py, fit))?;
     out.set_item("inliers", fit.inlier_count)?;
-    out.set_item("points", pairs.len())?;
+    out.set_item("points", pair.points)?;
     out.set_item("rms", fit.rms)?;
+    out.set_item("source", pair.source.name())?;
     Ok(out)
 }

@@ -37,14 +37,15 @@ fn zoom(value: Option<&Bound<'_, PyAny>>) -> PyResult<Zoom> {
 /// l1: the L1-optimal path (Grundmann et al. 2011) instead.
 /// zoom: "auto" or None (the least fixed zoom hiding the border in a share
 /// `coverage` of frames), "adaptive" (per frame) or a number (1: none).
-/// model: "similarity" or "translation"; source: "blocks" (flow where they
-/// fit no motion), "flow", "matches"; preset: the flow preset.
+/// model: "similarity" or "translation"; source: "auto" (block vectors,
+/// flow where they fit no motion), "blocks", "flow", "matches"; preset:
+/// the flow preset.
 ///
 /// Returns a dict: warps (float64 N x 3 x 3, each output pixel to its
 /// input pixel: warp_matrix(frame, warps[i]) is the stabilised frame), zoom (N,),
 /// cuts (frame indices that begin a new shot).
 #[pyfunction]
-#[pyo3(signature = (frames, smoothing=10, l1=false, zoom=None, coverage=0.75, max_zoom=1.5, model="similarity", source="blocks", preset="ultrafast", threads=None))]
+#[pyo3(signature = (frames, smoothing=10, l1=false, zoom=None, coverage=0.75, max_zoom=1.5, model="similarity", source="auto", preset="ultrafast", threads=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn stabilize_path<'py>(
     py: Python<'py>,

@@ -32,10 +32,12 @@ def test_estimate_global_recovers_an_affine_map_and_its_outliers():
 def test_global_motion_of_a_shifted_picture_from_each_source():
     img = textured(160, 224)
     shifted = np.roll(img, (3, -5), axis=(0, 1))  # content moves 5 left, 3 down
-    for source in ("flow", "blocks", "matches"):
+    for source in ("auto", "flow", "blocks", "matches"):
         out = mocomp.global_motion(img, shifted, model="translation", source=source, threads=1)
         assert out["matrix"][0, 2] == pytest.approx(-5.0, abs=0.2), source
         assert out["matrix"][1, 2] == pytest.approx(3.0, abs=0.2), source
         assert out["inliers"] > out["points"] // 2 > 10, (source, out)
+        # Blocks fit a textured picture: auto needs no flow.
+        assert out["source"] == ("blocks" if source == "auto" else source)
     with pytest.raises(ValueError, match="source"):
         mocomp.global_motion(img, shifted, source="sift")

@@ -11,8 +11,8 @@ use serde_json::json;
 
 use crate::codec::Frame;
 use crate::flow::Preset;
-use crate::global::sources::{PairCorrespondences, Source};
-use crate::global::{estimate, GlobalMotion, GlobalParams, Model};
+use crate::global::sources::{PairCorrespondences, PairFit, Source};
+use crate::global::{GlobalParams, Model};
 use crate::io::{y4m::Y4mReader, OutputFile};
 
 #[derive(Debug, clap::Args)]
@@ -22,17 +22,19 @@ pub struct Args {
     /// Camera model: translation, similarity, affine, homography.
     #[arg(long, default_value = "affine")]
     pub model: Model,
-    /// What the model is fitted to: flow (DIS at --preset, every 8
-    /// pixels), blocks (16x16 EPZS vectors, quarter-pel, the worst tenth
-    /// left out) or matches (feature matches).
-    #[arg(long, default_value = "flow")]
+    /// What the model is fitted to: auto (block vectors; flow where fewer
+    /// than a quarter of them follow the model), flow (DIS at --preset,
+    /// every 8 pixels, weighed by texture), blocks (16x16 EPZS vectors,
+    /// quarter-pel, the worst tenth left out) or matches (feature matches).
+    #[arg(long, default_value = "auto")]
     pub source: Source,
-    /// Flow preset (with --source flow).
-    #[arg(long, default_value = "fast")]
+    /// Flow preset (with --source flow, and auto's).
+    #[arg(long, default_value = "medium")]
     pub preset: Preset,
-    /// A correspondence within this many pixels of the model is an inlier.
-    #[arg(long, default_value_t = 1.0)]
-    pub threshold: f64,
+    /// A correspondence within this many pixels of the model is an inlier
+    /// [default: 2 with --source matches, else 1].
+    #[arg(long)]
+    pub threshold: Option<f64>,
     /// Write one row per frame pair: frame,model,h11..h33,inliers,points,rms.
     #[arg(long, value_name = "FILE")]
     pub csv: Option<PathBuf>,
@@ -41,19 +43,13 @@ pub struct Args {
     pub json: bool,
 }
 
-/// What one pair gave: the frame it ends on, the fit, the points it had.
-struct Pair {
-    frame: usize,
-    fit: Option<GlobalMotion>,
-    points: usize,
-}
-
 pub fn run(args: &Args) -> Result<()> {
+    let threshold = args.threshold.unwrap_or(args.source.threshold());
     let params = GlobalParams {
-        threshold: args.threshold,
+        threshold,
         ..GlobalParams::new(args.model)
     };
-    if !(args.threshold > 0.0 && args.threshold.is_finite()) {
+    if !(threshold > 0.0 && threshold.is_finite()) {
         bail!("--threshold must be a positive number of pixels");
     }
     let name = args.input.display().to_string();
@@ -66,12 +62,7 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let (mut pairs, start) = (Vec::new(), Instant::now());
     while reader.read_frame_into(&mut cur).with_context(|| name.clone())? {
-        let points = source.between(prev.y(), cur.y())?;
-        pairs.push(Pair {
-            frame: pairs.len() + 1,
-            fit: estimate(&points, &params).ok(),
-            points: points.len(),
-        });
+        pairs.push(source.fit(prev.y(), cur.y(), &params)?);
         std::mem::swap(&mut prev, &mut cur);
     }
     let ms = start.elapsed().as_secs_f64() * 1000.0 / pairs.len().max(1) as f64;
@@ -81,34 +72,40 @@ pub fn run(args: &Args) -> Result<()> {
     report(args, &name, &pairs, ms)
 }
 
-fn write_csv(path: &Path, pairs: &[Pair]) -> Result<()> {
+/// One row per pair (frame t: the pair ending on it), `source` last: what
+/// the correspondences came from (with auto, blocks or flow).
+fn write_csv(path: &Path, pairs: &[PairFit]) -> Result<()> {
     let mut out = OutputFile::create(path).with_context(|| path.display().to_string())?;
     writeln!(
         out,
-        "frame,model,h11,h12,h13,h21,h22,h23,h31,h32,h33,inliers,points,rms"
+        "frame,model,h11,h12,h13,h21,h22,h23,h31,h32,h33,inliers,points,rms,source"
     )?;
-    for p in pairs {
+    for (i, p) in pairs.iter().enumerate() {
+        let (frame, source) = (i + 1, p.source.name());
         match &p.fit {
             Some(f) => {
                 let m = f.transform.0.map(|v| format!("{v:.9}")).join(",");
                 writeln!(
                     out,
-                    "{},{},{m},{},{},{:.4}",
-                    p.frame, f.model, f.inlier_count, p.points, f.rms
+                    "{frame},{},{m},{},{},{:.4},{source}",
+                    f.model, f.inlier_count, p.points, f.rms
                 )?;
             }
-            None => writeln!(out, "{},,,,,,,,,,,0,{},", p.frame, p.points)?,
+            None => writeln!(out, "{frame},,,,,,,,,,,0,{},,{source}", p.points)?,
         }
     }
     out.commit().with_context(|| path.display().to_string())
 }
 
 /// Each pair's shift and rotation, as text; or everything as JSON.
-fn report(args: &Args, name: &str, pairs: &[Pair], ms: f64) -> Result<()> {
+fn report(args: &Args, name: &str, pairs: &[PairFit], ms: f64) -> Result<()> {
     if args.json {
         let rows: Vec<_> = pairs
             .iter()
-            .map(|p| json!({"frame": p.frame, "points": p.points, "fit": p.fit}))
+            .enumerate()
+            .map(
+                |(i, p)| json!({"frame": i + 1, "points": p.points, "source": p.source.name(), "fit": p.fit}),
+            )
             .collect();
         outln!(
             "{}",
@@ -117,21 +114,21 @@ fn report(args: &Args, name: &str, pairs: &[Pair], ms: f64) -> Result<()> {
         return Ok(());
     }
     outln!(
-        "{name}: {} frame pairs, {} model from {:?}, {ms:.1} ms a pair",
+        "{name}: {} frame pairs, {} model from {}, {ms:.1} ms a pair",
         pairs.len(),
         args.model,
-        args.source
+        args.source.name()
     )?;
-    outln!("frame     dx       dy   rotation   scale  inliers")?;
-    for p in pairs {
+    outln!("frame     dx       dy   rotation   scale  inliers  source")?;
+    for (i, p) in pairs.iter().enumerate() {
+        let (frame, source) = (i + 1, p.source.name());
         let Some(f) = &p.fit else {
-            outln!("{:5}  no model ({} correspondences)", p.frame, p.points)?;
+            outln!("{frame:5}  no model ({} correspondences, {source})", p.points)?;
             continue;
         };
         let m = &f.transform.0;
         outln!(
-            "{:5} {:7.2}  {:7.2}  {:7.3}°  {:6.4}  {}/{}",
-            p.frame,
+            "{frame:5} {:7.2}  {:7.2}  {:7.3}°  {:6.4}  {}/{}  {source}",
             m[2],
             m[5],
             m[3].atan2(m[0]).to_degrees(),

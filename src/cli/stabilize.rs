@@ -49,11 +49,11 @@ pub struct Args {
     /// Camera model: translation or similarity.
     #[arg(long, default_value = "similarity")]
     pub model: Model,
-    /// Motion from blocks (flow where they fit no motion), flow (DIS) or
-    /// matches.
-    #[arg(long, default_value = "blocks")]
+    /// Motion from auto (block vectors, flow where they fit no motion),
+    /// blocks, flow (DIS) or matches.
+    #[arg(long, default_value = "auto")]
     pub source: Source,
-    /// Flow preset (with --source flow, and the blocks' fallback).
+    /// Flow preset (with --source flow, and auto's).
     #[arg(long, default_value = "ultrafast")]
     pub preset: Preset,
     /// Print the quality figures (cropping, distortion, stability) of the

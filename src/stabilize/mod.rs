@@ -27,7 +27,7 @@ pub mod shake;
 use crate::codec::{Frame, Plane};
 use crate::flow::Preset;
 use crate::global::sources::{PairCorrespondences, Source};
-use crate::global::{estimate, GlobalError, GlobalParams, Model, Transform};
+use crate::global::{GlobalError, GlobalParams, Model, Transform};
 use crate::imgproc::warp::{warp_frame, warp_frame_onto, Border};
 use path::{adaptive_zoom, chain, gaussian, least_zoom, zoom_in, Centre, Pose};
 
@@ -72,13 +72,13 @@ pub struct StabilizeParams {
     /// it sizes its zoom from the shifts alone, 10 % trimmed at each end
     /// of each axis.
     pub coverage: f64,
-    /// Where the motion comes from. With [`Source::Blocks`] (the
-    /// default) a pair where the blocks fit no motion is tried again with
-    /// flow: on nine still-camera clips under a known shake (README) blocks
-    /// left less jitter than flow on seven and took less time, but a fish
+    /// Where the motion comes from. [`Source::Auto`] (the default): block
+    /// vectors, a pair where they fit no motion tried again with flow: on
+    /// nine still-camera clips under a known shake (README) blocks left
+    /// less jitter than flow on seven and took less time, but a fish
     /// tank's flat water left most of its pairs unfitted.
     pub source: Source,
-    /// The flow preset with [`Source::Flow`] (and the blocks' fallback).
+    /// The flow preset with [`Source::Flow`] (and [`Source::Auto`]'s).
     pub preset: Preset,
     /// Inlier threshold of the global fit, pixels.
     pub threshold: f64,
@@ -95,7 +95,7 @@ impl Default for StabilizeParams {
             zoom: Zoom::Auto,
             max_zoom: 1.5,
             coverage: 0.75,
-            source: Source::Blocks,
+            source: Source::Auto,
             preset: Preset::Ultrafast,
             threshold: 1.0,
         }
@@ -129,8 +129,6 @@ pub struct Plan {
 /// Frame-to-frame camera motion of a sequence fed one frame at a time.
 pub struct MotionTrack {
     source: PairCorrespondences,
-    /// Flow, where the blocks fit no motion (see [`MotionTrack::push`]).
-    fallback: Option<PairCorrespondences>,
     params: GlobalParams,
     previous: Option<Plane>,
     motions: Vec<Option<Transform>>,
@@ -142,8 +140,6 @@ impl MotionTrack {
         check(params)?;
         Ok(MotionTrack {
             source: PairCorrespondences::new(params.source, params.preset),
-            fallback: (params.source == Source::Blocks)
-                .then(|| PairCorrespondences::new(Source::Flow, params.preset)),
             params: GlobalParams {
                 threshold: params.threshold,
                 ..GlobalParams::new(params.model)
@@ -166,13 +162,11 @@ impl MotionTrack {
             scale *= 2.0;
         }
         if let Some(prev) = &self.previous {
-            // Blocks fail where flow does not (a fish tank's flat water, a
-            // shake beyond the search's range): only there is flow computed.
-            let mut motion = fit(&mut self.source, &self.params, &small, prev)?;
-            if let (None, Some(flow)) = (motion, self.fallback.as_mut()) {
-                motion = fit(flow, &self.params, &small, prev)?;
-            }
-            self.motions.push(motion.map(|m| to_full_size(&m, scale)));
+            // A fit that too few points follow is a cut (or a picture
+            // without texture), where the path goes straight on.
+            let pair = self.source.fit(&small, prev, &self.params)?;
+            let motion = pair.camera().map(|f| to_full_size(&f.transform, scale));
+            self.motions.push(motion);
         }
         self.previous = Some(small);
         Ok(())
@@ -180,32 +174,11 @@ impl MotionTrack {
 
     /// The widest picture the motion is found on.
     pub const MOTION_WIDTH: usize = 320;
-    /// The least share of correspondences that must follow the fitted
-    /// motion for it to count (a cut gives a few per cent).
-    pub const MIN_INLIER_SHARE: f64 = 0.25;
-
     /// `M_t` for t = 1.. (frame t to frame t - 1, pixel coordinates),
     /// `None` where frame t starts a new shot.
     pub fn motions(&self) -> &[Option<Transform>] {
         &self.motions
     }
-}
-
-/// The motion from `small` to `prev` by `source`, `None` where fewer than
-/// [`MotionTrack::MIN_INLIER_SHARE`] of its points follow any one camera
-/// motion: a cut (or a picture without texture), where the path goes
-/// straight on.
-fn fit(
-    source: &mut PairCorrespondences,
-    params: &GlobalParams,
-    small: &Plane,
-    prev: &Plane,
-) -> Result<Option<Transform>, StabilizeError> {
-    let points = source.between(small, prev)?;
-    Ok(estimate(&points, params)
-        .ok()
-        .filter(|f| f.inlier_count as f64 >= MotionTrack::MIN_INLIER_SHARE * points.len() as f64)
-        .map(|f| f.transform))
 }
 
 /// `plane` at half size, each pixel the rounded mean of a 2x2 block

@@ -19,11 +19,10 @@
 //! scene, pixels (0 for a perfectly still output).
 
 use super::path::{Centre, Pose};
-use super::MotionTrack;
 use crate::codec::Plane;
 use crate::flow::Preset;
 use crate::global::sources::{PairCorrespondences, Source};
-use crate::global::{estimate, GlobalError, GlobalParams, Model, Transform};
+use crate::global::{GlobalError, GlobalParams, Model, Transform};
 
 /// The figures.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -94,14 +93,7 @@ impl QualityMeter {
         // A fit that few points follow (a cut) counts as none, as the
         // stabiliser's own.
         let fit = |source: &mut PairCorrespondences, params: &GlobalParams, a: &Plane, b: &Plane| {
-            let points = source.between(a, b)?;
-            let share = |f: &crate::global::GlobalMotion| f.inlier_count as f64 / points.len().max(1) as f64;
-            Ok::<_, GlobalError>(
-                estimate(&points, params)
-                    .ok()
-                    .filter(|f| share(f) >= MotionTrack::MIN_INLIER_SHARE)
-                    .map(|f| f.transform),
-            )
+            Ok::<_, GlobalError>(source.fit(a, b, params)?.camera().map(|f| f.transform))
         };
         let io = fit(&mut self.source, &self.params, input, output)?;
         self.input_to_output.push(io);

@@ -69,7 +69,7 @@ def estimate_global(
 def global_motion(
     img1: Picture,
     img2: Picture,
-    model: Literal["translation", "similarity", "affine", "homography"] = "affine",
+    model: Literal["translation", "similarity", "affine", "homography"] = "similarity",
     source: Literal["auto", "flow", "blocks", "matches"] = "auto",
     threshold: Optional[float] = None,
     preset: Literal["ultrafast", "fast", "medium", "accurate"] = "medium",

@@ -88,7 +88,8 @@ pub fn estimate_global<'py>(
 /// The camera's motion from `img1` to `img2`.
 ///
 /// img1, img2: uint8 H x W (or H x W x 3 RGB); one size.
-/// model: as estimate_global. source: "auto" (block vectors; flow where
+/// model: as estimate_global (default "similarity": a camera that pans,
+/// turns and zooms). source: "auto" (block vectors; flow where
 /// fewer than a quarter of them follow the model), "flow" (DIS at
 /// `preset`, sampled every 8 pixels, weighed by texture), "blocks" (16x16
 /// EPZS vectors, quarter-pel) or "matches" (feature matches).
@@ -98,7 +99,7 @@ pub fn estimate_global<'py>(
 /// points (counts), rms (the inliers' distance to the model, pixels),
 /// source (what the points came from: with "auto", "blocks" or "flow").
 #[pyfunction]
-#[pyo3(signature = (img1, img2, model="affine", source="auto", threshold=None, preset="medium", threads=None))]
+#[pyo3(signature = (img1, img2, model="similarity", source="auto", threshold=None, preset="medium", threads=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn global_motion<'py>(
     py: Python<'py>,

@@ -19,8 +19,9 @@ use crate::io::{y4m::Y4mReader, OutputFile};
 pub struct Args {
     /// Input Y4M (`-` for standard input).
     pub input: PathBuf,
-    /// Camera model: translation, similarity, affine, homography.
-    #[arg(long, default_value = "affine")]
+    /// Camera model: translation, similarity (a camera that pans, turns
+    /// and zooms), affine, homography.
+    #[arg(long, default_value = "similarity")]
     pub model: Model,
     /// What the model is fitted to: auto (block vectors; flow where fewer
     /// than a quarter of them follow the model), flow (DIS at --preset,

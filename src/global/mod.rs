@@ -63,7 +63,7 @@ pub enum Refinement {
     InlierScale,
     /// The threshold's, out to three thresholds, after one refit to the
     /// inliers: a broader fit, which [`crate::segment`]'s tolerances were
-    /// tuned with (its IoU on real footage fell by up to 0.05 at the
+    /// tuned with (its IoU on real footage fell by up to 0.06 at the
     /// inliers' scale).
     ThresholdScale,
 }

@@ -215,7 +215,6 @@ fn refit_to_inliers(
 fn inlier_scale(points: &[Correspondence], p: &GlobalParams, t: &Transform) -> Option<f64> {
     let mut distances: Vec<f64> = points
         .iter()
-        .filter(|c| c.weight > 0.0)
         .map(|c| c.residual(t))
         .filter(|&r| r <= p.threshold)
         .collect();

@@ -41,7 +41,7 @@ pub struct GlobalParams {
     /// with 99.9 % confidence).
     pub max_samples: usize,
     /// Reweighted least-squares rounds after RANSAC (0: the RANSAC model
-    /// refitted to its inliers only).
+    /// refitted to its inliers only, as [`Refinement`] refits).
     pub refinements: usize,
     /// The reweighting's scale.
     pub refinement: Refinement,
@@ -69,7 +69,8 @@ pub enum Refinement {
 }
 
 impl GlobalParams {
-    /// `model` with a threshold of 1 pixel, 1000 samples, 10 refinements.
+    /// `model` with a threshold of 1 pixel, 1000 samples, 10 refinements
+    /// at the inliers' scale.
     pub fn new(model: Model) -> GlobalParams {
         GlobalParams {
             model,

@@ -26,7 +26,8 @@ pub enum Source {
     /// range). Under a known shake over eleven real still-camera clips
     /// (`benches/global_truth.py`) blocks were within 0.25 px of the
     /// truth (median corner error) on all but a fish tank's flat water,
-    /// where flow was, in a quarter or less of DIS fast's time.
+    /// where flow was; in a quarter or less of DIS fast's time on the two
+    /// clips timed (talk_vga, face_360p).
     Auto,
 }
 

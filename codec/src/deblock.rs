@@ -9,6 +9,8 @@
 //! the frame reads the samples before it, so encoder and decoder both
 //! filter the whole frame at the end.
 
+use std::ops::Range;
+
 use crate::dsp::lf::{lf, Edge};
 use crate::partition::MbVectors;
 use crate::picture::{Frame, Plane};
@@ -92,7 +94,7 @@ impl MbEdgeInfo {
 
 /// The boundary strength of the edge between luma 4x4 blocks `p` (left or
 /// above) and `q`, in block units, on a picture `mb_cols` macroblocks wide
-/// (the definition [`Strengths::of`] is tested against).
+/// (the definition [`Strengths::set_row`] is tested against).
 #[cfg(test)]
 fn strength(info: &[MbEdgeInfo], mb_cols: usize, p: (usize, usize), q: (usize, usize)) -> u8 {
     let mb = |(bx, by): (usize, usize)| &info[(by / 4) * mb_cols + bx / 4];
@@ -147,31 +149,36 @@ struct Strengths {
 }
 
 impl Strengths {
-    fn of(info: &[MbEdgeInfo], mb_cols: usize, (cols, rows): (usize, usize)) -> Strengths {
-        let mut s = Strengths {
+    /// All strengths 0, for a picture of `cols x rows` luma 4x4 blocks.
+    fn zero((cols, rows): (usize, usize)) -> Strengths {
+        Strengths {
             cols,
             vertical: vec![0; cols * rows],
             horizontal: vec![0; cols * rows],
-        };
-        for (i, m) in info.iter().enumerate() {
-            let (mx, my) = (i % mb_cols, i / mb_cols);
-            let left = (mx > 0).then(|| &info[i - 1]);
-            let above = (my > 0).then(|| &info[i - mb_cols]);
-            let masks = EdgeMasks::of(m, left, above);
-            // Most of a P frame: no edge of the macroblock filtered, and
-            // the strengths are 0 already.
-            if masks.all_zero() {
-                continue;
-            }
-            let [vertical, horizontal] = masks.strengths();
+        }
+    }
+
+    /// The strengths of the edges left of and above the blocks of
+    /// macroblock row `my`, whose records are `row`, below `above` (row
+    /// `my - 1`'s; none for the top row).
+    fn set_row(&mut self, my: usize, row: &[MbEdgeInfo], above: Option<&[MbEdgeInfo]>) {
+        let cols = self.cols;
+        for (mx, m) in row.iter().enumerate() {
+            let left = mx.checked_sub(1).map(|l| &row[l]);
+            let masks = EdgeMasks::of(m, left, above.map(|a| &a[mx]));
             let corner = 4 * my * cols + 4 * mx;
+            // Most of a P frame: no edge of the macroblock filtered.
+            let [vertical, horizontal] = if masks.all_zero() {
+                [[0; 16]; 2]
+            } else {
+                masks.strengths()
+            };
             for y in 0..4 {
                 let at = corner + y * cols;
-                s.vertical[at..at + 4].copy_from_slice(&vertical[4 * y..4 * y + 4]);
-                s.horizontal[at..at + 4].copy_from_slice(&horizontal[4 * y..4 * y + 4]);
+                self.vertical[at..at + 4].copy_from_slice(&vertical[4 * y..4 * y + 4]);
+                self.horizontal[at..at + 4].copy_from_slice(&horizontal[4 * y..4 * y + 4]);
             }
         }
-        s
     }
 }
 
@@ -299,42 +306,50 @@ fn differs(a: Option<crate::partition::RefMv>, b: Option<crate::partition::RefMv
     }
 }
 
-/// Filters one plane: `sub` is 1 for luma and 2 for chroma (a chroma
-/// sample covers 2x2 luma samples; chroma edges lie on every other luma
-/// edge, each chroma row taking the strength of the luma row it covers).
-/// The strength is one per piece of edge along a 4x4 luma block (4 luma
-/// lines, 2 chroma ones); the kernel takes a macroblock's length of edge,
-/// four pieces, at once.
+/// Filters macroblock rows `rows` of one plane: `sub` is 1 for luma and
+/// 2 for chroma (a chroma sample covers 2x2 luma samples; chroma edges
+/// lie on every other luma edge, each chroma row taking the strength of
+/// the luma row it covers). The strength is one per piece of edge along
+/// a 4x4 luma block (4 luma lines, 2 chroma ones); the kernel takes a
+/// macroblock's length of edge, four pieces, at once.
 ///
 /// A line across a vertical edge is filtered only by the vertical edges
-/// of its own row, so the picture's order (every vertical edge left to
-/// right, then every horizontal one top to bottom) is kept by going left
-/// to right within each macroblock row, and top to bottom within each
-/// macroblock column.
-fn filter_plane(plane: &mut Plane, strengths: &Strengths, qp: u8, sub: usize) {
+/// of its own row, and a horizontal edge reads and writes no further
+/// than 4 lines either side, inside its macroblock row and the bottom of
+/// the one above. So the picture's order (every vertical edge left to
+/// right, then every horizontal one top to bottom) is kept by filtering
+/// macroblock rows top to bottom, each row's vertical edges left to
+/// right and then its horizontal ones (its top edge first) top to bottom
+/// in each macroblock column.
+fn filter_plane(plane: &mut Plane, strengths: &Strengths, qp: u8, sub: usize, rows: Range<usize>) {
     if !Edge::filters_at(qp) {
         return;
     }
     if sub == 1 {
-        filter_plane_sized::<1>(plane, strengths, qp);
+        filter_plane_sized::<1>(plane, strengths, qp, rows);
     } else {
-        filter_plane_sized::<2>(plane, strengths, qp);
+        filter_plane_sized::<2>(plane, strengths, qp, rows);
     }
 }
 
 /// [`filter_plane`] with the plane's subsampling known when compiled.
-fn filter_plane_sized<const SUB: usize>(plane: &mut Plane, strengths: &Strengths, qp: u8) {
+fn filter_plane_sized<const SUB: usize>(
+    plane: &mut Plane,
+    strengths: &Strengths,
+    qp: u8,
+    rows: Range<usize>,
+) {
     let filter_mb_edge = lf().filter_mb_edge;
     let layout = Layout::of(plane);
     let data = plane.data_mut();
-    each_edge::<SUB>(layout, strengths, |at, bs| {
+    each_edge::<SUB>(layout, strengths, rows, |at, bs| {
         filter_mb_edge(data, at, bs, qp, SUB == 1)
     });
 }
 
-/// Both chroma planes' edges, each edge of the two at once (a plane's
-/// edge fills half of the kernel's lanes).
-fn filter_chroma_planes(u: &mut Plane, v: &mut Plane, strengths: &Strengths, qp: u8) {
+/// Both chroma planes' edges of macroblock rows `rows`, each edge of the
+/// two at once (a plane's edge fills half of the kernel's lanes).
+fn filter_chroma_planes(u: &mut Plane, v: &mut Plane, strengths: &Strengths, qp: u8, rows: Range<usize>) {
     if !Edge::filters_at(qp) {
         return;
     }
@@ -342,7 +357,9 @@ fn filter_chroma_planes(u: &mut Plane, v: &mut Plane, strengths: &Strengths, qp:
     let layout = Layout::of(u);
     assert!(layout == Layout::of(v), "chroma planes laid out alike");
     let (u, v) = (u.data_mut(), v.data_mut());
-    each_edge::<2>(layout, strengths, |at, bs| filter_chroma_edge(u, v, at, bs, qp));
+    each_edge::<2>(layout, strengths, rows, |at, bs| {
+        filter_chroma_edge(u, v, at, bs, qp)
+    });
 }
 
 /// A plane's size, row stride and the index of its sample (0, 0).
@@ -365,19 +382,22 @@ impl Layout {
     }
 }
 
-/// Each macroblock's length of edge of a plane with subsampling `SUB`
-/// known when compiled (the strengths' positions from shifts), in the
-/// order of filtering, to `edge` as the kernels take it: `((first, step,
-/// line_step), strengths)`. An edge of four 0 strengths, most of a still
-/// or skipped picture's, is passed over.
+/// Each macroblock's length of edge in macroblock rows `rows` of a plane
+/// with subsampling `SUB` known when compiled (the strengths' positions
+/// from shifts), in the order of filtering ([`filter_plane`]), to `edge`
+/// as the kernels take it: `((first, step, line_step), strengths)`. An
+/// edge of four 0 strengths, most of a still or skipped picture's, is
+/// passed over.
 fn each_edge<const SUB: usize>(
     l: Layout,
     strengths: &Strengths,
+    rows: Range<usize>,
     mut edge: impl FnMut((usize, usize, usize), [u8; 4]),
 ) {
     let (piece, mb) = (4 / SUB, 16 / SUB);
     let cols = strengths.cols;
-    for y0 in (0..l.height).step_by(mb) {
+    let (top, bottom) = ((rows.start * mb).min(l.height), (rows.end * mb).min(l.height));
+    for y0 in (top..bottom).step_by(mb) {
         for x in (4..l.width).step_by(4) {
             let bx = x * SUB / 4;
             let bs = std::array::from_fn(|k| strengths.vertical[((y0 + k * piece) * SUB / 4) * cols + bx]);
@@ -385,13 +405,14 @@ fn each_edge<const SUB: usize>(
                 edge((l.origin + y0 * l.stride + x, 1, l.stride), bs);
             }
         }
-    }
-    for x0 in (0..l.width).step_by(mb) {
-        for y in (4..l.height).step_by(4) {
-            let row = (y * SUB / 4) * cols;
-            let bs = std::array::from_fn(|k| strengths.horizontal[row + (x0 + k * piece) * SUB / 4]);
-            if bs != [0; 4] {
-                edge((l.origin + y * l.stride + x0, l.stride, 1), bs);
+        for x0 in (0..l.width).step_by(mb) {
+            // The picture's top is no edge.
+            for y in (y0.max(4)..y0 + mb).step_by(4) {
+                let row = (y * SUB / 4) * cols;
+                let bs = std::array::from_fn(|k| strengths.horizontal[row + (x0 + k * piece) * SUB / 4]);
+                if bs != [0; 4] {
+                    edge((l.origin + y * l.stride + x0, l.stride, 1), bs);
+                }
             }
         }
     }
@@ -399,9 +420,12 @@ fn each_edge<const SUB: usize>(
 
 /// The deblocking of one frame, plane by plane: the planes are filtered
 /// independently of each other, so a caller may filter them at once on
-/// several threads.
+/// several threads. The strengths may be given a macroblock row at a time
+/// ([`FrameDeblocker::progressive`]) and the rows filtered as they come:
+/// the same samples as the whole frame's filter.
 pub struct FrameDeblocker {
     strengths: Strengths,
+    mb_cols: usize,
     qp: u8,
 }
 
@@ -409,28 +433,71 @@ impl FrameDeblocker {
     /// The filter of a frame of coded size `width x height`, coded at `qp`
     /// with macroblocks `info` in raster order.
     pub fn new(info: &[MbEdgeInfo], (width, height): (usize, usize), qp: u8) -> FrameDeblocker {
-        let mb_cols = width / 16;
-        assert_eq!(info.len(), mb_cols * (height / 16), "one record per macroblock");
+        let mut out = FrameDeblocker::progressive((width, height), qp);
+        assert_eq!(
+            info.len(),
+            out.mb_cols * (height / 16),
+            "one record per macroblock"
+        );
+        let mut above = None;
+        for (my, row) in info.chunks_exact(out.mb_cols.max(1)).enumerate() {
+            out.set_row(my, row, above);
+            above = Some(row);
+        }
+        out
+    }
+
+    /// The filter of a frame of coded size `width x height` coded at `qp`,
+    /// its macroblocks' records to be given row by row
+    /// ([`Self::set_row`]).
+    pub fn progressive((width, height): (usize, usize), qp: u8) -> FrameDeblocker {
         FrameDeblocker {
-            strengths: Strengths::of(info, mb_cols, (width / 4, height / 4)),
+            strengths: Strengths::zero((width / 4, height / 4)),
+            mb_cols: width / 16,
             qp,
         }
+    }
+
+    /// Macroblock row `my`'s records `row` (raster order), below `above`
+    /// (row `my - 1`'s; none for the top row).
+    pub fn set_row(&mut self, my: usize, row: &[MbEdgeInfo], above: Option<&[MbEdgeInfo]>) {
+        assert_eq!(row.len(), self.mb_cols, "one record per macroblock of the row");
+        assert!(
+            4 * (my + 1) * self.strengths.cols <= self.strengths.vertical.len(),
+            "row {my} in the frame"
+        );
+        self.strengths.set_row(my, row, above);
     }
 
     /// Deblocks plane `index` (0 luma, 1 and 2 chroma) of the frame in
     /// place. Borders are not extended.
     pub fn filter(&self, plane: &mut Plane, index: usize) {
+        self.filter_rows(plane, index, 0..usize::MAX);
+    }
+
+    /// Deblocks macroblock rows `rows` of plane `index` in place, their
+    /// records given: the whole frame's filter where every row is
+    /// filtered once, top to bottom. A row's filter changes the three
+    /// lines above it, and reads the row's own samples as reconstructed
+    /// (so the row below must have been predicted from them first).
+    pub fn filter_rows(&self, plane: &mut Plane, index: usize, rows: Range<usize>) {
         if index == 0 {
-            filter_plane(plane, &self.strengths, self.qp, 1);
+            filter_plane(plane, &self.strengths, self.qp, 1, rows);
         } else {
-            filter_plane(plane, &self.strengths, chroma_qp(self.qp), 2);
+            filter_plane(plane, &self.strengths, chroma_qp(self.qp), 2, rows);
         }
     }
 
     /// Deblocks both chroma planes in place, the same as [`Self::filter`]
     /// on each, in about half the time where the kernel takes both.
     pub fn filter_chroma(&self, u: &mut Plane, v: &mut Plane) {
-        filter_chroma_planes(u, v, &self.strengths, chroma_qp(self.qp));
+        self.filter_chroma_rows(u, v, 0..usize::MAX);
+    }
+
+    /// [`Self::filter_chroma`] of macroblock rows `rows` (as
+    /// [`Self::filter_rows`]).
+    pub fn filter_chroma_rows(&self, u: &mut Plane, v: &mut Plane, rows: Range<usize>) {
+        filter_chroma_planes(u, v, &self.strengths, chroma_qp(self.qp), rows);
     }
 }
 
@@ -459,16 +526,14 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_frames_strengths_are_each_edges_by_the_definition() {
-        // Macroblocks of every kind, mostly plain inter ones in runs.
-        let (cols, rows) = (23, 17);
-        let mut seed = 17u32;
+    /// Macroblocks of every kind, mostly plain inter ones in runs.
+    fn random_info(cols: usize, rows: usize, seed: u32) -> Vec<MbEdgeInfo> {
+        let mut seed = seed;
         let mut next = |n: u32| {
             seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
             (seed >> 16) % n
         };
-        let info: Vec<MbEdgeInfo> = (0..cols * rows)
+        (0..cols * rows)
             .map(|_| {
                 let mv = |k: u32| Mv::new([0, 4, -3, 9][k as usize], [0, 0, 5, -4][k as usize]);
                 let shared = next(4);
@@ -499,8 +564,117 @@ mod tests {
                 }
                 m
             })
+            .collect()
+    }
+
+    /// A picture of 4x4 blocks a few levels apart (steps the filter
+    /// smooths), with a little noise.
+    fn blocky_frame(width: usize, height: usize, seed: u32) -> Frame {
+        let mut f = Frame::new(width, height).unwrap();
+        let mut seed = seed;
+        let mut next = |n: u32| {
+            seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
+            (seed >> 16) % n
+        };
+        let levels: Vec<u32> = (0..(width / 4 + 1) * (height / 4 + 1))
+            .map(|_| 90 + next(24))
             .collect();
-        let s = Strengths::of(&info, cols, (4 * cols, 4 * rows));
+        for (p, plane) in f.planes_mut().iter_mut().enumerate() {
+            let sub = if p == 0 { 1 } else { 2 };
+            for y in 0..plane.height() {
+                for x in 0..plane.width() {
+                    let block = (y * sub / 4) * (width / 4 + 1) + x * sub / 4;
+                    plane.set(x, y, (levels[block] + next(3)) as u8);
+                }
+            }
+        }
+        f
+    }
+
+    /// The filter in the picture's order, as FORMAT.md states it: every
+    /// vertical edge of a plane left to right, then every horizontal one
+    /// top to bottom.
+    fn deblock_in_picture_order(frame: &mut Frame, d: &FrameDeblocker) {
+        let s = &d.strengths;
+        for (p, plane) in frame.planes_mut().iter_mut().enumerate() {
+            let (sub, qp) = if p == 0 { (1, d.qp) } else { (2, chroma_qp(d.qp)) };
+            if !Edge::filters_at(qp) {
+                continue;
+            }
+            let l = Layout::of(plane);
+            let data = plane.data_mut();
+            let (piece, mb) = (4 / sub, 16 / sub);
+            // Four pieces down a vertical edge, along a horizontal one.
+            let down = |y: usize, x: usize| -> [u8; 4] {
+                std::array::from_fn(|k| s.vertical[((y + k * piece) * sub / 4) * s.cols + x * sub / 4])
+            };
+            let along = |y: usize, x: usize| -> [u8; 4] {
+                std::array::from_fn(|k| s.horizontal[(y * sub / 4) * s.cols + (x + k * piece) * sub / 4])
+            };
+            for y0 in (0..l.height).step_by(mb) {
+                for x in (4..l.width).step_by(4) {
+                    (lf().filter_mb_edge)(
+                        data,
+                        (l.origin + y0 * l.stride + x, 1, l.stride),
+                        down(y0, x),
+                        qp,
+                        sub == 1,
+                    );
+                }
+            }
+            for y in (4..l.height).step_by(4) {
+                for x0 in (0..l.width).step_by(mb) {
+                    (lf().filter_mb_edge)(
+                        data,
+                        (l.origin + y * l.stride + x0, l.stride, 1),
+                        along(y, x0),
+                        qp,
+                        sub == 1,
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn rows_deblocked_as_they_come_are_the_pictures_order() {
+        let (cols, rows) = (7, 6);
+        for (seed, qp) in [(3, 36), (5, 44), (11, 28)] {
+            let info = random_info(cols, rows, seed);
+            let source = blocky_frame(16 * cols, 16 * rows, seed);
+            let whole = FrameDeblocker::new(&info, (16 * cols, 16 * rows), qp);
+            let mut expected = source.clone();
+            deblock_in_picture_order(&mut expected, &whole);
+            assert_ne!(expected, source, "the filter changed nothing to compare");
+            let mut at_once = source.clone();
+            deblock_frame(&mut at_once, &info, qp);
+            assert_eq!(at_once, expected);
+            // Records given a row at a time, rows filtered in runs of
+            // 1, 2 and 3 as soon as their records are in.
+            for run in 1..=3 {
+                let mut d = FrameDeblocker::progressive((16 * cols, 16 * rows), qp);
+                let mut out = source.clone();
+                let mut done = 0;
+                for my in 0..rows {
+                    let above = my.checked_sub(1).map(|a| &info[a * cols..my * cols]);
+                    d.set_row(my, &info[my * cols..(my + 1) * cols], above);
+                    if my + 1 - done == run || my + 1 == rows {
+                        let [y, u, v] = out.planes_mut();
+                        d.filter_rows(y, 0, done..my + 1);
+                        d.filter_chroma_rows(u, v, done..my + 1);
+                        done = my + 1;
+                    }
+                }
+                assert_eq!(out, expected, "runs of {run} rows, seed {seed}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_frames_strengths_are_each_edges_by_the_definition() {
+        let (cols, rows) = (23, 17);
+        let info = random_info(cols, rows, 17);
+        let s = FrameDeblocker::new(&info, (16 * cols, 16 * rows), 30).strengths;
         for by in 0..4 * rows {
             for bx in 0..4 * cols {
                 let at = by * 4 * cols + bx;

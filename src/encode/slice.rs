@@ -53,6 +53,8 @@ pub(crate) struct CodedFrame {
     /// Each macroblock's vectors (none for intra), as
     /// [`crate::codec::recon::frame_vectors`] gives them.
     pub vectors: Vec<MbVectors>,
+    /// Whether `recon` is deblocked already (as it was decided).
+    pub deblocked: bool,
 }
 
 /// The squared luma error of `pred` against `src` over the visible part of
@@ -166,6 +168,7 @@ pub(crate) fn code_intra(
         lead: cols / 2,
         // Untrained at an I frame's start: they adapt.
         adapt: true,
+        deblock: deblock.then_some((header.qp, header.tool)),
     };
     let decided = frame.decide(recon, &|env, index| {
         let (mb_x, mb_y) = (index % cols, index / cols);
@@ -197,6 +200,7 @@ pub(crate) fn code_intra(
         prediction_sse: sum.prediction_sse,
         kinds: sum.kinds,
         vectors: sum.vectors,
+        deblocked: sum.deblocked,
     };
     frame.write_and_finish(seq, state, |_| ());
     Ok(frame)
@@ -216,7 +220,7 @@ impl CodedFrame {
     ) {
         let ((written, ()), ()) = rayon::join(
             || rayon::join(|| write_frame(seq, &self.syntax, state), || beside(&self.vectors)),
-            || finish_recon(seq, &self.syntax, &self.vectors, &mut self.recon),
+            || finish_recon(seq, &self.syntax, &self.vectors, &mut self.recon, self.deblocked),
         );
         (self.bytes, self.bits) = written;
     }
@@ -224,10 +228,17 @@ impl CodedFrame {
 
 /// The reconstruction of `syntax` as the decoder's: deblocked when the
 /// header says so (after every macroblock, whose intra prediction read the
-/// samples before it; the three planes at once), borders extended.
-fn finish_recon(seq: &SequenceHeader, syntax: &FrameSyntax, vectors: &[MbVectors], recon: &mut Frame) {
+/// samples before it; the three planes at once) unless `deblocked`
+/// already, borders extended.
+fn finish_recon(
+    seq: &SequenceHeader,
+    syntax: &FrameSyntax,
+    vectors: &[MbVectors],
+    recon: &mut Frame,
+    deblocked: bool,
+) {
     let header = &syntax.header;
-    let deblocker = header.deblock.then(|| {
+    let deblocker = (header.deblock && !deblocked).then(|| {
         debug_assert_eq!(vectors, frame_vectors(seq, syntax));
         let info = MbEdgeInfo::of_frame(syntax, vectors);
         FrameDeblocker::new(&info, (recon.width(), recon.height()), header.qp)
@@ -421,6 +432,7 @@ impl<'a> InterFrameCoder<'a> {
                 prediction_sse: 0,
                 kinds: [0; 3],
                 vectors: Vec::new(),
+                deblocked: false,
             },
         })
     }
@@ -466,6 +478,10 @@ impl<'a> InterFrameCoder<'a> {
             // (-0.1 %), the contexts being trained by the frames before.
             lead: 2,
             adapt: self.adaptive_pricing,
+            deblock: {
+                let header = &self.frame.syntax.header;
+                header.deblock.then_some((header.qp, header.tool))
+            },
         }
         .decide(recon, &|env, index| {
             let mut mb = self.analyse_skip(index, env);
@@ -479,6 +495,7 @@ impl<'a> InterFrameCoder<'a> {
         self.frame.prediction_sse = sum.prediction_sse;
         self.frame.kinds = sum.kinds;
         self.frame.vectors = sum.vectors;
+        self.frame.deblocked = sum.deblocked;
         Ok(())
     }
 
@@ -529,7 +546,13 @@ impl<'a> InterFrameCoder<'a> {
         match self.sink {
             MbSink::Write(writer) => {
                 (frame.bytes, frame.bits) = writer.finish(state);
-                finish_recon(self.seq, &frame.syntax, &frame.vectors, &mut frame.recon);
+                finish_recon(
+                    self.seq,
+                    &frame.syntax,
+                    &frame.vectors,
+                    &mut frame.recon,
+                    frame.deblocked,
+                );
                 beside(&frame.vectors);
             }
             MbSink::Adapt(_) => {

@@ -20,12 +20,13 @@ use super::analyse::{Choice, MbEnv};
 use super::macroblock::prefetch_ahead;
 use super::partition::SatdCache;
 use super::slice::kind_index;
+use crate::codec::deblock::{FrameDeblocker, MbEdgeInfo};
 use crate::codec::entropy::Context;
 use crate::codec::modes::{MbMode, ModeCoder, VectorSyntax};
 use crate::codec::partition::MbVectors;
 use crate::codec::recon::{write_mb, MbSamples};
 use crate::codec::residual::ResidualCoder;
-use crate::codec::syntax::{mb_mode, mb_vectors, CodedMb, MbKind, SequenceHeader};
+use crate::codec::syntax::{mb_mode, mb_vectors, CodedMb, MbKind, MotionTool, SequenceHeader};
 use crate::codec::{Frame, PictureError};
 use crate::me::pipeline::wavefront;
 
@@ -61,6 +62,11 @@ pub(super) struct WavefrontFrame<'a> {
     /// macroblocks (else they stay the frame's first: only the neighbours'
     /// coded blocks are recorded).
     pub(super) adapt: bool,
+    /// The deblocking of the frame (its QP and motion tool), if any: one
+    /// worker deblocks each row as soon as the row below is decided,
+    /// while the rows are in its caches (several workers leave it to the
+    /// frame's end, [`DecidedFrame::deblocked`]).
+    pub(super) deblock: Option<(u8, MotionTool)>,
 }
 
 /// The pricing contexts a row starts from.
@@ -82,6 +88,9 @@ struct Worker {
     /// The rows its reconstruction holds whole: those it decided, and
     /// those above them (brought in macroblock by macroblock).
     held: Vec<bool>,
+    /// Its reconstruction's deblocking row by row (one worker only), with
+    /// the records of the last row decided.
+    deblocking: Option<(FrameDeblocker, Vec<MbEdgeInfo>)>,
 }
 
 impl Worker {
@@ -111,6 +120,8 @@ pub(super) struct DecidedFrame {
     recon: Frame,
     /// The rows `recon` holds whole: the others are written from `mbs`.
     held: Vec<bool>,
+    /// Whether `recon` is deblocked already (one worker did every row).
+    pub(super) deblocked: bool,
 }
 
 impl WavefrontFrame<'_> {
@@ -151,6 +162,10 @@ impl WavefrontFrame<'_> {
             satd8: RefCell::default(),
             last_row: None,
             held: vec![false; rows],
+            deblocking: self.deblock.filter(|_| !shared).map(|(qp, _)| {
+                let size = (self.seq.coded_width(), self.seq.coded_height());
+                (FrameDeblocker::progressive(size, qp), Vec::new())
+            }),
         };
         let lead = self.lead.clamp(2.min(cols), cols);
         let workers = wavefront(cols, rows, lead, &new_worker, &|w: &mut Worker, c, r| {
@@ -168,12 +183,7 @@ impl WavefrontFrame<'_> {
                 w.finish_row(r);
             }
             if r > 0 && !above_is_own {
-                // The neighbours of the row above this macroblock reads
-                // that the worker has not brought in yet.
-                for x in (if c == 0 { 0 } else { c + 1 })..(c + 2).min(cols) {
-                    let above = decided[(r - 1) * cols + x].get().expect("wavefront order");
-                    self.bring_in(w, above, x, r - 1);
-                }
+                self.bring_in_above(w, &decided, (c, r));
             }
             // The record this macroblock's decision is stored in two on
             // is in no cache (one a macroblock, a frame's worth apart):
@@ -193,9 +203,12 @@ impl WavefrontFrame<'_> {
                 let _ = starts[r].set(start);
             }
             let _ = decided[r * cols + c].set(d);
+            if c + 1 == cols {
+                self.deblock_behind(w, &decided[r * cols..(r + 1) * cols], r);
+            }
         });
-        let (recon, held) = match fullest(workers) {
-            Some(w) => (w.recon, w.held),
+        let (recon, held, deblocked) = match fullest(workers) {
+            Some(w) => (w.recon, w.held, w.deblocking.is_some()),
             // No worker took a row (a frame has one at least).
             None => (
                 recons
@@ -204,12 +217,14 @@ impl WavefrontFrame<'_> {
                     .and_then(|mut r| r.pop())
                     .expect("the reconstruction given"),
                 vec![false; rows],
+                false,
             ),
         };
         Ok(DecidedFrame {
             mbs: decided,
             recon,
             held,
+            deblocked,
         })
     }
 
@@ -261,6 +276,42 @@ impl WavefrontFrame<'_> {
         d
     }
 
+    /// The neighbours in the row above that macroblock (c, r) reads and
+    /// the worker has not brought in yet.
+    fn bring_in_above(&self, w: &mut Worker, decided: &[OnceLock<Decided>], (c, r): (usize, usize)) {
+        let cols = self.seq.mb_cols();
+        for x in (if c == 0 { 0 } else { c + 1 })..(c + 2).min(cols) {
+            let above = decided[(r - 1) * cols + x].get().expect("wavefront order");
+            self.bring_in(w, above, x, r - 1);
+        }
+    }
+
+    /// Row `r` decided (its macroblocks `row`): the row above deblocked
+    /// (the rows below read nothing of it before the filter: intra reads
+    /// only the row above), and the last row too at the frame's end. A
+    /// row's filter reads and changes no row below it
+    /// ([`FrameDeblocker::filter_rows`]).
+    fn deblock_behind(&self, w: &mut Worker, row: &[OnceLock<Decided>], r: usize) {
+        let Some((deblocker, above)) = &mut w.deblocking else {
+            return;
+        };
+        let tool = self.deblock.map_or(MotionTool::Block, |(_, tool)| tool);
+        let info: Vec<MbEdgeInfo> = row
+            .iter()
+            .map(|d| {
+                let d = d.get().expect("the row decided");
+                MbEdgeInfo::of(&d.coded.kind, d.coded.residual(), tool, d.vectors)
+            })
+            .collect();
+        deblocker.set_row(r, &info, (r > 0).then_some(&above[..]));
+        *above = info;
+        let last = r + 1 == self.seq.mb_rows();
+        let rows = r.saturating_sub(1)..if last { r + 1 } else { r };
+        let [y, u, v] = w.recon.planes_mut();
+        deblocker.filter_rows(y, 0, rows.clone());
+        deblocker.filter_chroma_rows(u, v, rows);
+    }
+
     /// Records macroblock (x, y), decided by another row, in the worker's
     /// state as a neighbour (a worker's coders adapt only to its own row).
     fn bring_in(&self, w: &mut Worker, d: &Decided, x: usize, y: usize) {
@@ -282,6 +333,8 @@ pub(super) struct FrameSummary {
     pub(super) prediction_sse: u64,
     pub(super) kinds: [usize; 3],
     pub(super) vectors: Vec<MbVectors>,
+    /// Whether the reconstruction is deblocked already.
+    pub(super) deblocked: bool,
 }
 
 /// The frame's reconstruction (every macroblock of `decided` written into
@@ -292,6 +345,7 @@ pub(super) fn collect(decided: DecidedFrame, cols: usize) -> (FrameSummary, Fram
         prediction_sse: 0,
         kinds: [0; 3],
         vectors: Vec::with_capacity(decided.mbs.len()),
+        deblocked: decided.deblocked,
     };
     let mut recon = decided.recon;
     for (i, d) in decided.mbs.into_iter().enumerate() {

@@ -396,7 +396,10 @@ fn each_edge<const SUB: usize>(
 ) {
     let (piece, mb) = (4 / SUB, 16 / SUB);
     let cols = strengths.cols;
-    let (top, bottom) = ((rows.start * mb).min(l.height), (rows.end * mb).min(l.height));
+    let (top, bottom) = (
+        rows.start.saturating_mul(mb).min(l.height),
+        rows.end.saturating_mul(mb).min(l.height),
+    );
     for y0 in (top..bottom).step_by(mb) {
         for x in (4..l.width).step_by(4) {
             let bx = x * SUB / 4;

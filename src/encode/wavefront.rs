@@ -88,9 +88,17 @@ struct Worker {
     /// The rows its reconstruction holds whole: those it decided, and
     /// those above them (brought in macroblock by macroblock).
     held: Vec<bool>,
-    /// Its reconstruction's deblocking row by row (one worker only), with
-    /// the records of the last row decided.
-    deblocking: Option<(FrameDeblocker, Vec<MbEdgeInfo>)>,
+    /// Its reconstruction's deblocking row by row (one worker only).
+    deblocking: Option<RowDeblocking>,
+}
+
+/// One worker's deblocking of its reconstruction as rows are decided.
+struct RowDeblocking {
+    deblocker: FrameDeblocker,
+    tool: MotionTool,
+    /// The records of the row decided last, and the buffer of the next.
+    above: Vec<MbEdgeInfo>,
+    row: Vec<MbEdgeInfo>,
 }
 
 impl Worker {
@@ -150,23 +158,7 @@ impl WavefrontFrame<'_> {
             .collect::<Result<Vec<_>, _>>()?;
         let shared = recons.len() > 1;
         let recons = Mutex::new(recons);
-        let new_worker = || Worker {
-            decided: vec![[None; 4]; cols * rows],
-            modes: self.modes.clone(),
-            residual: self.residual.clone(),
-            recon: recons
-                .lock()
-                .ok()
-                .and_then(|mut r| r.pop())
-                .expect("a reconstruction per worker"),
-            satd8: RefCell::default(),
-            last_row: None,
-            held: vec![false; rows],
-            deblocking: self.deblock.filter(|_| !shared).map(|(qp, _)| {
-                let size = (self.seq.coded_width(), self.seq.coded_height());
-                (FrameDeblocker::progressive(size, qp), Vec::new())
-            }),
-        };
+        let new_worker = || self.new_worker(&recons, shared);
         let lead = self.lead.clamp(2.min(cols), cols);
         let workers = wavefront(cols, rows, lead, &new_worker, &|w: &mut Worker, c, r| {
             if c == 0 {
@@ -226,6 +218,34 @@ impl WavefrontFrame<'_> {
             held,
             deblocked,
         })
+    }
+
+    /// A worker's state: the frame's first coders, one of `recons`, and
+    /// the deblocking of its rows where it is the only worker.
+    fn new_worker(&self, recons: &Mutex<Vec<Frame>>, shared: bool) -> Worker {
+        let (cols, rows) = (self.seq.mb_cols(), self.seq.mb_rows());
+        Worker {
+            decided: vec![[None; 4]; cols * rows],
+            modes: self.modes.clone(),
+            residual: self.residual.clone(),
+            recon: recons
+                .lock()
+                .ok()
+                .and_then(|mut r| r.pop())
+                .expect("a reconstruction per worker"),
+            satd8: RefCell::default(),
+            last_row: None,
+            held: vec![false; rows],
+            deblocking: self.deblock.filter(|_| !shared).map(|(qp, tool)| {
+                let size = (self.seq.coded_width(), self.seq.coded_height());
+                RowDeblocking {
+                    deblocker: FrameDeblocker::progressive(size, qp),
+                    tool,
+                    above: Vec::with_capacity(cols),
+                    row: Vec::with_capacity(cols),
+                }
+            }),
+        }
     }
 
     /// Macroblock (c, r) decided from the worker's state, and committed to
@@ -292,24 +312,21 @@ impl WavefrontFrame<'_> {
     /// row's filter reads and changes no row below it
     /// ([`FrameDeblocker::filter_rows`]).
     fn deblock_behind(&self, w: &mut Worker, row: &[OnceLock<Decided>], r: usize) {
-        let Some((deblocker, above)) = &mut w.deblocking else {
+        let Some(d) = &mut w.deblocking else {
             return;
         };
-        let tool = self.deblock.map_or(MotionTool::Block, |(_, tool)| tool);
-        let info: Vec<MbEdgeInfo> = row
-            .iter()
-            .map(|d| {
-                let d = d.get().expect("the row decided");
-                MbEdgeInfo::of(&d.coded.kind, d.coded.residual(), tool, d.vectors)
-            })
-            .collect();
-        deblocker.set_row(r, &info, (r > 0).then_some(&above[..]));
-        *above = info;
+        d.row.clear();
+        d.row.extend(row.iter().map(|m| {
+            let m = m.get().expect("the row decided");
+            MbEdgeInfo::of(&m.coded.kind, m.coded.residual(), d.tool, m.vectors)
+        }));
+        d.deblocker.set_row(r, &d.row, (r > 0).then_some(&d.above[..]));
+        std::mem::swap(&mut d.above, &mut d.row);
         let last = r + 1 == self.seq.mb_rows();
         let rows = r.saturating_sub(1)..if last { r + 1 } else { r };
         let [y, u, v] = w.recon.planes_mut();
-        deblocker.filter_rows(y, 0, rows.clone());
-        deblocker.filter_chroma_rows(u, v, rows);
+        d.deblocker.filter_rows(y, 0, rows.clone());
+        d.deblocker.filter_chroma_rows(u, v, rows);
     }
 
     /// Records macroblock (x, y), decided by another row, in the worker's

@@ -68,7 +68,7 @@ fn tools(c: &mut Criterion) {
     // The encoder's guess of the weights (every plane's statistics of the
     // source and of the reference), here of a frame from a darker copy.
     g.bench_function("estimate_weights", |b| {
-        b.iter(|| mocomp::encode::estimate_weights(black_box(&frame), black_box(&out)))
+        b.iter(|| mocomp::encode::estimate_weights(black_box(&frame), black_box(&out), usize::MAX))
     });
     g.finish();
 }

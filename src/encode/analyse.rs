@@ -906,6 +906,8 @@ mod tests {
         let halfpel = partitions
             .then(|| HalfPel::new(reference.y(), PARTITION_MARGIN))
             .flatten();
+        // The state at a stream's start: priced and written from it.
+        let pricing = EntropyState::new();
         let inputs = InterInputs {
             references: vec![reference],
             motion: FrameMotion::Vectors(BlockMotion {
@@ -926,8 +928,8 @@ mod tests {
             adaptive_pricing: true,
             fast_pskip,
             early_pskip,
+            pricing: &pricing,
         };
-        // The state after an I frame: P frames' contexts start from it.
         let mut state = EntropyState::new();
         let recon = Frame::new(SIZE, SIZE).unwrap();
         let coded = code_inter(&seq, &coder, src, inputs, (&mut state, recon), |_| ()).unwrap();

@@ -49,8 +49,16 @@ pub struct Encoder {
     spare_weighted: Option<Frame>,
     /// Contexts carried from frame to frame, as the decoder carries them.
     entropy: EntropyState,
-    /// The luma filter of the next block P frame.
+    /// The contexts before the last frame was written: block P frames are
+    /// priced from them (two frames back), as a frame thread, started
+    /// while the frame before is decided, has them.
+    pricing: EntropyState,
+    /// What the coded frames say of the luma filters.
     filter: FilterChooser,
+    /// The chooser as it stood a frame earlier, which gives the next block
+    /// P frame's filter (a frame thread starts before the frame before it
+    /// is learnt from).
+    lagged_filter: FilterChooser,
     index: usize,
 }
 
@@ -99,7 +107,9 @@ impl Encoder {
             spare_source: None,
             spare_weighted: None,
             entropy: EntropyState::new(),
+            pricing: EntropyState::new(),
             filter: FilterChooser::default(),
+            lagged_filter: FilterChooser::default(),
             index: 0,
         })
     }
@@ -245,11 +255,14 @@ impl Encoder {
                 _ => Ok(Mv::ZERO),
             },
             || match self.references.first() {
-                Some(reference) if inter && self.config.weightp => weights::estimate(&src, reference),
+                Some(reference) if inter && self.config.weightp => {
+                    weights::estimate(&src, reference, weight_rows(&self.seq))
+                }
                 _ => Weights::NONE,
             },
         );
         let camera = camera?;
+        let before = self.entropy.clone();
         let (coded, me_ms) = match (self.references.first(), inter) {
             (Some(_), true) => self.code_p_frame(&src, recon, camera, weights)?,
             _ => {
@@ -284,6 +297,7 @@ impl Encoder {
         let bytes = coded.bytes;
         self.references.insert(0, coded.recon);
         self.spare_source = self.prev_source.replace(src);
+        self.pricing = before;
         self.index += 1;
         Ok(EncodedFrame { bytes, recon, stats })
     }
@@ -346,7 +360,8 @@ impl Encoder {
         let mut references = vec![reference];
         references.extend(&self.references[1..]);
         let block = tool == MotionTool::Block;
-        let luma_filter = self.filter.next(self.config.luma_filter);
+        let luma_filter = self.lagged_filter.next(self.config.luma_filter);
+        self.lagged_filter = self.filter;
         let inputs = slice::InterInputs {
             references: references.clone(),
             luma_filter,
@@ -362,6 +377,7 @@ impl Encoder {
             adaptive_pricing: self.config.adaptive_pricing,
             fast_pskip: self.config.fast_pskip,
             early_pskip: self.config.early_pskip,
+            pricing: &self.pricing,
         };
         // Which filter the next frame takes, learnt while this one is
         // written.
@@ -426,6 +442,13 @@ impl Encoder {
             total_ms,
         }
     }
+}
+
+/// How many of the reference's luma rows a P frame's weights are measured
+/// on: its top half, whole macroblock rows (the rows a frame thread has
+/// when it starts the next frame).
+fn weight_rows(seq: &SequenceHeader) -> usize {
+    (seq.mb_rows() / 2).max(1) * crate::codec::consts::MB
 }
 
 /// `frame` at the coded size: the right column and bottom row repeated

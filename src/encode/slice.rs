@@ -291,6 +291,9 @@ pub(crate) struct InterInputs<'a> {
     pub fast_pskip: bool,
     /// Fast P-skip before the search too ([`super::EncoderConfig::early_pskip`]).
     pub early_pskip: bool,
+    /// The contexts block frames are priced from (the stream's two frames
+    /// back: see [`super::Encoder`]'s `pricing`).
+    pub pricing: &'a EntropyState,
 }
 
 /// A P frame's mode decision: one analysis context over the frame, one
@@ -391,7 +394,9 @@ impl<'a> InterFrameCoder<'a> {
         let obmc = inputs.tool == MotionTool::Obmc;
         // Block frames are decided on a wavefront with coders of their own
         // and written once decided ([`super::wavefront`]).
-        let sink = if obmc || inputs.tool == MotionTool::Block {
+        let sink = if inputs.tool == MotionTool::Block {
+            MbSink::Adapt(Box::new(inputs.pricing.coders(seq, FrameType::Inter)))
+        } else if obmc {
             MbSink::Adapt(Box::new(state.coders(seq, FrameType::Inter)))
         } else {
             MbSink::Write(Box::new(FrameWriter::new(seq, &header, grid.as_ref(), state)))

@@ -37,11 +37,15 @@ const MIN_SHIFT: f64 = 1.5;
 /// development set within 0.7 %).
 const CUT_ABOVE: f64 = 0.5;
 
-/// The weights of `source` predicted from `reference` (both coded size).
-pub fn estimate(source: &Frame, reference: &Frame) -> Weights {
+/// The weights of `source` predicted from `reference` (both coded size),
+/// measured on their top `luma_rows` rows (chroma: half as many; the whole
+/// frame where it has fewer): an encoder's frame threads start a frame once
+/// the reference's top half is final (ARCHITECTURE.md, "Frame threads").
+pub fn estimate(source: &Frame, reference: &Frame, luma_rows: usize) -> Weights {
     let mut out = Weights::NONE;
     for (i, slot) in out.0.iter_mut().enumerate() {
-        *slot = plane_weight(source.plane(i), reference.plane(i));
+        let rows = if i == 0 { luma_rows } else { luma_rows.div_ceil(2) };
+        *slot = plane_weight(source.plane(i), reference.plane(i), rows);
     }
     out
 }
@@ -58,8 +62,9 @@ struct PlaneStats {
 }
 
 impl PlaneStats {
-    fn of(p: &Plane) -> PlaneStats {
-        let (w, h) = (p.width(), p.height());
+    /// The top `rows` rows of `p` (all where it has fewer).
+    fn of(p: &Plane, rows: usize) -> PlaneStats {
+        let (w, h) = (p.width(), p.height().min(rows));
         let cols = w.div_ceil(8);
         let mut block_sums = vec![0u32; cols * h.div_ceil(8)];
         let group_sums = crate::me::dsp::pixel().group_sums;
@@ -75,7 +80,7 @@ impl PlaneStats {
         // sample lies strictly between them): interpolated from the sums
         // of |v - cut| at the integers either side (one pass).
         let cut = mean.floor().clamp(0.0, 254.0) as u8;
-        let [at_cut, above_cut] = abs_differences(p, cut);
+        let [at_cut, above_cut] = abs_differences(p, h, cut);
         let frac = mean - f64::from(cut);
         let deviation = ((1.0 - frac) * at_cut as f64 + frac * above_cut as f64) / n;
         // Row by row: a block's place without two integer divisions per
@@ -104,21 +109,24 @@ impl PlaneStats {
     }
 }
 
-/// sum |v - c| over a plane for `c` and `c + 1`, in one pass: the
+/// sum |v - c| over a plane's top `h` rows for `c` and `c + 1`, in one pass: the
 /// second differs from the first by one for every sample, up for those at
 /// or below `c`, down for the rest.
-fn abs_differences(p: &Plane, c: u8) -> [u64; 2] {
-    let (w, h) = (p.width(), p.height());
+fn abs_differences(p: &Plane, h: usize, c: u8) -> [u64; 2] {
+    let w = p.width();
     let data = &p.data()[p.index(0, 0)..];
     let (at_c, at_or_below) = (crate::me::dsp::pixel().abs_count)(data, p.stride(), (w, h), c);
     let n = (w * h) as u64;
     [at_c, at_c + 2 * at_or_below - n]
 }
 
-fn plane_weight(source: &Plane, reference: &Plane) -> Option<PlaneWeight> {
+fn plane_weight(source: &Plane, reference: &Plane, rows: usize) -> Option<PlaneWeight> {
     // Two planes' passes at once: they are work the frame's threads would
     // otherwise wait for.
-    let (s, r) = rayon::join(|| PlaneStats::of(source), || PlaneStats::of(reference));
+    let (s, r) = rayon::join(
+        || PlaneStats::of(source, rows),
+        || PlaneStats::of(reference, rows),
+    );
     let scale = if r.deviation > 0.5 {
         (f64::from(WEIGHT_ONE) * s.deviation / r.deviation)
             .round()
@@ -197,7 +205,7 @@ mod tests {
     fn a_change_of_light_is_found_and_no_change_gives_no_weight() {
         let dark = textured(64, 48, 1.0, 0.0);
         let bright = textured(64, 48, 1.25, 12.0);
-        let w = estimate(&bright, &dark);
+        let w = estimate(&bright, &dark, usize::MAX);
         let y = w.0[0].expect("a luma weight");
         assert!((y.scale as i32 - 80).abs() <= 1, "{y:?}");
         // The weighted reference matches the frame to within rounding.
@@ -209,7 +217,7 @@ mod tests {
             .max();
         assert!(worst <= Some(2), "{worst:?}");
         assert_eq!((w.0[1], w.0[2]), (None, None));
-        assert_eq!(estimate(&dark, &dark), Weights::NONE);
+        assert_eq!(estimate(&dark, &dark, usize::MAX), Weights::NONE);
     }
 
     /// A flat, noisy picture (a lit tank seen by a lab camera): faint
@@ -233,11 +241,11 @@ mod tests {
         // The light flickers by 7 levels between frames whose block means
         // vary little (fish_1160: a weight 40 % of the bits).
         let (before, after) = (faint(128, 96, 0.0, 1, 0), faint(128, 96, 7.0, 2, 0));
-        let y = estimate(&after, &before).0[0].expect("the flicker's weight");
+        let y = estimate(&after, &before, usize::MAX).0[0].expect("the flicker's weight");
         assert!((i32::from(y.offset) - 7).abs() <= 2, "{y:?}");
         // Other content brightened alike is a cut: no weight.
         let other = textured(128, 96, 1.0, 7.0);
-        assert_eq!(estimate(&other, &before).0[0], None);
+        assert_eq!(estimate(&other, &before, usize::MAX).0[0], None);
     }
 
     #[test]
@@ -251,7 +259,7 @@ mod tests {
                 titled.plane_mut(0).set(x, y, 250);
             }
         }
-        let y = estimate(&plain(1.0), &titled).0[0].expect("the change of light");
+        let y = estimate(&plain(1.0), &titled, usize::MAX).0[0].expect("the change of light");
         assert_eq!((i32::from(y.scale), y.offset), (WEIGHT_ONE, 1), "{y:?}");
     }
 

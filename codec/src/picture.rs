@@ -380,26 +380,60 @@ impl Plane {
     /// Replicates the edge pixels into the border: left and right first, then
     /// the top and bottom rows (corners take the corner pixel).
     pub fn extend_border(&mut self) {
+        self.extend_border_rows(0..self.height);
+    }
+
+    /// [`Plane::extend_border`] as far as picture rows `rows` go: their
+    /// left and right borders, the top border with the first row, the
+    /// bottom one with the last. Rows extended in runs, top to bottom,
+    /// leave the border [`Plane::extend_border`] leaves (a picture that
+    /// arrives a band of rows at a time). Panics beyond the picture.
+    pub fn extend_border_rows(&mut self, rows: std::ops::Range<usize>) {
         let (pad, w, h, stride) = (self.pad, self.width, self.height, self.stride);
-        if pad == 0 {
+        assert!(rows.end <= h, "rows {rows:?} of a plane {h} tall");
+        if pad == 0 || rows.is_empty() {
             return;
         }
-        for row in self.data[pad * stride..(pad + h) * stride].chunks_exact_mut(stride) {
+        let band = (pad + rows.start) * stride..(pad + rows.end) * stride;
+        for row in self.data[band].chunks_exact_mut(stride) {
             let (left, right) = (row[pad], row[pad + w - 1]);
             row[..pad].fill(left);
             row[pad + w..pad + w + pad].fill(right);
         }
         let row_len = w + 2 * pad;
-        let (top, rest) = self.data.split_at_mut(pad * stride);
-        let first = &rest[..row_len];
-        for r in top.chunks_exact_mut(stride) {
-            r[..row_len].copy_from_slice(first);
+        if rows.start == 0 {
+            let (top, rest) = self.data.split_at_mut(pad * stride);
+            let first = &rest[..row_len];
+            for r in top.chunks_exact_mut(stride) {
+                r[..row_len].copy_from_slice(first);
+            }
         }
-        let (above, bottom) = self.data.split_at_mut((pad + h) * stride);
-        let last = &above[(pad + h - 1) * stride..(pad + h - 1) * stride + row_len];
-        for r in bottom.chunks_exact_mut(stride) {
-            r[..row_len].copy_from_slice(last);
+        if rows.end == h {
+            let (above, bottom) = self.data.split_at_mut((pad + h) * stride);
+            let last = &above[(pad + h - 1) * stride..(pad + h - 1) * stride + row_len];
+            for r in bottom.chunks_exact_mut(stride) {
+                r[..row_len].copy_from_slice(last);
+            }
         }
+    }
+
+    /// The bytes of [`Plane::data`] that hold picture rows `rows` with
+    /// their left and right borders, and the top border with the first
+    /// row, the bottom one with the last: what
+    /// [`Plane::extend_border_rows`] of the same rows writes, in order.
+    pub fn rows_span(&self, rows: std::ops::Range<usize>) -> std::ops::Range<usize> {
+        let (pad, h, stride) = (self.pad, self.height, self.stride);
+        assert!(
+            rows.start <= rows.end && rows.end <= h,
+            "rows {rows:?} of a plane {h} tall"
+        );
+        let first = if rows.start == 0 { 0 } else { pad + rows.start };
+        let end = if rows.end == h {
+            2 * pad + h
+        } else {
+            pad + rows.end
+        };
+        first * stride..end * stride
     }
 
     /// The top-left `width x height` of this plane as a new plane with a
@@ -731,6 +765,29 @@ mod tests {
             // wrote there), though the contract leaves it unspecified.
             assert_eq!(p.get(x, y), (x * 3 + y * 5) as u8, "({x}, {y})");
         }
+        Ok(())
+    }
+
+    #[test]
+    fn borders_extended_a_band_of_rows_at_a_time_are_the_whole_planes() -> Result {
+        let mut whole = Plane::from_fn(37, 23, |x, y| (x * 7 + y * 13 + x * y) as u8)?;
+        let mut banded = whole.clone();
+        whole.extend_border();
+        let mut spans = Vec::new();
+        for rows in [0..1, 1..8, 8..8, 8..22, 22..23] {
+            if !rows.is_empty() {
+                spans.push(banded.rows_span(rows.clone()));
+            }
+            banded.extend_border_rows(rows);
+        }
+        assert_eq!(whole.data(), banded.data(), "every border sample");
+        // The spans are the plane's rows in order, every one once.
+        assert_eq!(spans.first().map(|s| s.start), Some(0));
+        assert!(spans.windows(2).all(|w| w[0].end == w[1].start), "{spans:?}");
+        assert_eq!(
+            spans.last().map(|s| s.end),
+            Some(whole.stride() * (23 + 2 * whole.pad()))
+        );
         Ok(())
     }
 

@@ -6,7 +6,7 @@
 //! up to rounding and lets every motion tool use it unchanged).
 
 use crate::bits::{BitError, BitReader, BitWriter};
-use crate::picture::{Frame, Plane};
+use crate::picture::Frame;
 
 pub use crate::consts::{MAX_OFFSET, WEIGHT_ONE};
 
@@ -49,11 +49,34 @@ impl Weights {
     /// (weighting commutes with the border's replication), into `out`
     /// (same size and padding).
     pub fn apply_into(&self, reference: &Frame, out: &mut Frame) {
+        self.apply_rows(reference, out, 0..reference.height());
+    }
+
+    /// [`Weights::apply_into`] over the luma rows `luma_rows` (chroma: the
+    /// rows under them) of `reference`, whose borders there are extended
+    /// ([`crate::picture::Plane::extend_border_rows`]): the same samples of `out`
+    /// as the whole frame's, borders included, when the rows come in runs
+    /// from the top (a reference that arrives a band at a time). Luma rows
+    /// start and end on even rows, or at the bottom.
+    pub fn apply_rows(&self, reference: &Frame, out: &mut Frame, luma_rows: std::ops::Range<usize>) {
         for (i, w) in self.0.iter().enumerate() {
             let (src, dst) = (reference.plane(i), out.plane_mut(i));
+            assert_eq!(
+                (src.width(), src.height(), src.pad(), src.stride()),
+                (dst.width(), dst.height(), dst.pad(), dst.stride()),
+                "same geometry"
+            );
+            let rows = if i == 0 {
+                luma_rows.clone()
+            } else {
+                let h = src.height();
+                (luma_rows.start / 2).min(h)..luma_rows.end.div_ceil(2).min(h)
+            };
+            let span = src.rows_span(rows);
+            let (from, to) = (&src.data()[span.clone()], &mut dst.data_mut()[span]);
             match w {
-                Some(w) => weigh_plane(src, dst, *w),
-                None => dst.copy_from(src),
+                Some(w) => weigh_samples(from, to, *w),
+                None => to.copy_from_slice(from),
             }
         }
     }
@@ -92,16 +115,6 @@ impl Weights {
     }
 }
 
-/// `dst = table[src]` over the whole padded buffer.
-fn weigh_plane(src: &Plane, dst: &mut Plane, w: PlaneWeight) {
-    assert_eq!(
-        (src.width(), src.height(), src.pad()),
-        (dst.width(), dst.height(), dst.pad()),
-        "same geometry"
-    );
-    weigh_samples(src.data(), dst.data_mut(), w);
-}
-
 /// [`PlaneWeight::apply`] of every sample of `src` into `dst`, in 16-bit
 /// lanes the compiler vectorises (a table lookup a sample cannot be):
 /// `s * scale + 32` stays below 2^16, the shifted value plus the offset
@@ -118,6 +131,44 @@ fn weigh_samples(src: &[u8], dst: &mut [u8], w: PlaneWeight) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_frame_weighted_a_band_of_rows_at_a_time_is_the_whole_frame() {
+        let mut reference = Frame::new(40, 30).unwrap();
+        for (p, k) in [(0, 9), (1, 4), (2, 11)] {
+            let plane = reference.plane_mut(p);
+            for y in 0..plane.height() {
+                for x in 0..plane.width() {
+                    plane.set(x, y, (x * k + y * 5) as u8);
+                }
+            }
+        }
+        reference.extend_borders();
+        let weights = Weights([
+            Some(PlaneWeight {
+                scale: 80,
+                offset: -7,
+            }),
+            None,
+            Some(PlaneWeight {
+                scale: 60,
+                offset: 12,
+            }),
+        ]);
+        let mut whole = Frame::new(40, 30).unwrap();
+        weights.apply_into(&reference, &mut whole);
+        let mut banded = Frame::new(40, 30).unwrap();
+        for rows in [0..2, 2..16, 16..30] {
+            weights.apply_rows(&reference, &mut banded, rows);
+        }
+        for p in 0..3 {
+            assert_eq!(
+                whole.plane(p).data(),
+                banded.plane(p).data(),
+                "plane {p}, borders too"
+            );
+        }
+    }
 
     #[test]
     fn a_plane_is_weighted_as_each_sample_alone() {

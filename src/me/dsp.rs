@@ -143,7 +143,61 @@ pub fn fill_halfpel(kernel: HalfpelFn, reference: &Plane, margin: usize, planes:
         jobs.into_par_iter().for_each(|band| kernel(reference, band));
     }
     for plane in [a, b, c] {
-        repeat_edges(plane, margin, &rows, &cols);
+        repeat_edges(plane, margin, (&rows, &cols), rows.clone());
+    }
+}
+
+/// [`fill_halfpel`]'s rows `rows` of the planes alone (counted from the
+/// margin's first row: `0..height + 2 * margin`), on the calling thread:
+/// the same samples as the whole planes' when runs of rows come from the
+/// top, for a reference that arrives a band at a time. Row `r` reads the
+/// reference's rows to `r - margin + REACH` (and its borders there); the
+/// rows beyond the last one filtered, copies of it, are written with it.
+pub fn fill_halfpel_rows(
+    kernel: HalfpelFn,
+    reference: &Plane,
+    margin: usize,
+    planes: &mut [Plane],
+    rows: std::ops::Range<usize>,
+) {
+    let (w, h) = (reference.width(), reference.height());
+    let filtered =
+        |len: usize| margin.saturating_sub(REACH)..(margin + len + REACH - 1).min(len + 2 * margin);
+    let (all, cols) = (filtered(h), filtered(w));
+    let band = rows.start.max(all.start)..rows.end.min(all.end);
+    let m = margin as isize;
+    // A run of the margin's rows alone writes nothing: those above the
+    // first filtered row come with it, those below the last with that.
+    if band.is_empty() {
+        return;
+    }
+    let [a, b, c] = planes else {
+        panic!("three half-pel planes");
+    };
+    let stride = a.stride();
+    assert!(
+        b.stride() == stride && c.stride() == stride,
+        "half-pel planes of one size"
+    );
+    let first_row = band.start as isize - m;
+    let len = band.len() * stride;
+    let at = |p: &mut Plane| p.index(-m, first_row);
+    let (sa, sb, sc) = (at(a), at(b), at(c));
+    let job = HalfpelBand {
+        origin: (cols.start as isize - m, first_row),
+        rows: band.len(),
+        span: cols.len(),
+        out: [
+            &mut a.data_mut()[sa..sa + len],
+            &mut b.data_mut()[sb..sb + len],
+            &mut c.data_mut()[sc..sc + len],
+        ],
+        out_x: cols.start,
+        stride,
+    };
+    kernel(reference, job);
+    for plane in [a, b, c] {
+        repeat_edges(plane, margin, (&all, &cols), band.clone());
     }
 }
 
@@ -153,29 +207,35 @@ pub fn fill_halfpel(kernel: HalfpelFn, reference: &Plane, margin: usize, planes:
 pub const REACH: usize = 4;
 
 /// Repeats the filtered `rows` x `cols` of a half-pel plane (counted from
-/// the margin's first) out to `margin` around the picture.
+/// the margin's first) out to `margin` around the picture, as far as the
+/// filtered rows `band` go: their ends, the rows above the first filtered
+/// row with it, those below the last with that.
 fn repeat_edges(
     plane: &mut Plane,
     margin: usize,
-    rows: &std::ops::Range<usize>,
-    cols: &std::ops::Range<usize>,
+    (rows, cols): (&std::ops::Range<usize>, &std::ops::Range<usize>),
+    band: std::ops::Range<usize>,
 ) {
     let m = margin as isize;
     let (span, filled_rows) = (plane.width() + 2 * margin, plane.height() + 2 * margin);
     let (first, stride) = (plane.index(-m, -m), plane.stride());
     let data = &mut plane.data_mut()[first..];
-    for r in rows.clone() {
+    for r in band.clone() {
         let row = &mut data[r * stride..r * stride + span];
         let (left, right) = (row[cols.start], row[cols.end - 1]);
         row[..cols.start].fill(left);
         row[cols.end..].fill(right);
     }
-    for r in 0..rows.start {
-        data.copy_within(rows.start * stride..rows.start * stride + span, r * stride);
+    if band.contains(&rows.start) {
+        for r in 0..rows.start {
+            data.copy_within(rows.start * stride..rows.start * stride + span, r * stride);
+        }
     }
-    for r in rows.end..filled_rows {
-        let last = (rows.end - 1) * stride;
-        data.copy_within(last..last + span, r * stride);
+    if band.contains(&(rows.end - 1)) {
+        for r in rows.end..filled_rows {
+            let last = (rows.end - 1) * stride;
+            data.copy_within(last..last + span, r * stride);
+        }
     }
 }
 

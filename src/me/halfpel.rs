@@ -13,8 +13,8 @@
 use std::cell::RefCell;
 
 use super::dsp::{
-    average_rows, copy_rows, fill_halfpel, pixel, HalfpelBand, PixelDsp, PATCH18_PHASE, PATCH18_ROWS,
-    PATCH18_STRIDE,
+    average_rows, copy_rows, fill_halfpel, fill_halfpel_rows, pixel, HalfpelBand, PixelDsp, PATCH18_PHASE,
+    PATCH18_ROWS, PATCH18_STRIDE,
 };
 use crate::codec::interp::{predict_luma, LumaFilter};
 use crate::codec::mv::Mv;
@@ -103,6 +103,40 @@ impl HalfPel {
             margin: margin as isize,
             dsp,
         })
+    }
+
+    /// Half-pel planes of `reference`'s size with none of their rows
+    /// filled: [`HalfPel::fill_rows`] fills them as the reference's rows
+    /// arrive (the reference of a frame thread, a band at a time).
+    pub fn unfilled(reference: &Plane, margin: usize) -> Option<HalfPel> {
+        let (w, h, pad) = (reference.width(), reference.height(), reference.pad());
+        if margin + FILTER_REACH > pad {
+            return None;
+        }
+        let planes = (0..3)
+            .map(|_| take_plane(w, h, pad))
+            .collect::<Option<Vec<_>>>()?;
+        Some(HalfPel {
+            store: Store::Planes(planes),
+            margin: margin as isize,
+            dsp: pixel(),
+        })
+    }
+
+    /// Fills the planes' rows `rows` (counted from the margin's first:
+    /// `0..height + 2 * margin`) as [`HalfPel::new`] fills them, from
+    /// `reference`'s rows to `rows.end - margin + 4` (their borders
+    /// extended): runs of rows from the top make the same planes.
+    pub fn fill_rows(&mut self, reference: &Plane, rows: std::ops::Range<usize>) {
+        if let Store::Planes(planes) = &mut self.store {
+            fill_halfpel_rows(
+                self.dsp.halfpel_planes,
+                reference,
+                self.margin as usize,
+                planes,
+                rows,
+            );
+        }
     }
 
     /// Fills this patch with the half-pel phases that the sub-pel steps
@@ -366,6 +400,37 @@ mod tests {
             (128.0 + 60.0 * (x * 0.31).sin() * (y * 0.23).cos() + 30.0 * ((x + 2.0 * y) * 0.11).sin()) as u8
         })
         .unwrap()
+    }
+
+    #[test]
+    fn planes_filled_a_band_at_a_time_are_the_whole_ones() {
+        for (w, h, margin) in [(64, 48, 32), (37, 21, 16), (40, 24, 2)] {
+            let r = textured(w, h);
+            let whole = HalfPel::new(&r, margin).unwrap();
+            let mut banded = HalfPel::unfilled(&r, margin).unwrap();
+            let end = h + 2 * margin;
+            for rows in [
+                0..3,
+                3..margin + 1,
+                margin + 1..margin + 9,
+                margin + 9..end - 2,
+                end - 2..end,
+            ] {
+                banded.fill_rows(&r, rows);
+            }
+            for (mvx, mvy) in [(2, 0), (0, 2), (2, 2)] {
+                let m = margin as isize;
+                for y in -m..h as isize + m {
+                    for x in -m..w as isize + m {
+                        assert_eq!(
+                            whole.phase_at(&r, (mvx, mvy), x, y).0[0],
+                            banded.phase_at(&r, (mvx, mvy), x, y).0[0],
+                            "{w}x{h} margin {margin}: phase ({mvx}, {mvy}) at ({x}, {y})"
+                        );
+                    }
+                }
+            }
+        }
     }
 
     #[test]

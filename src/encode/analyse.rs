@@ -226,7 +226,7 @@ impl MbAnalysis {
     }
 }
 
-impl InterFrameCoder<'_> {
+impl InterFrameCoder<'_, '_> {
     /// Decides macroblock `mb` (made by [`Self::analyse_skip`]) beyond
     /// skip: inter and intra where they can win. It works on the record in
     /// place: returned by value, the 1.7 KB record was copied out twice a
@@ -932,7 +932,7 @@ mod tests {
         };
         let mut state = EntropyState::new();
         let recon = Frame::new(SIZE, SIZE).unwrap();
-        let coded = code_inter(&seq, &coder, src, inputs, (&mut state, recon), |_| ()).unwrap();
+        let coded = code_inter(&seq, &coder, src, inputs, (&mut state, recon), |_, _| ()).unwrap();
         let vectors = frame_vectors(&seq, &coded.syntax);
         coded.syntax.mbs.iter().map(|m| m.kind).zip(vectors).collect()
     }

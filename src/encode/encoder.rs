@@ -10,10 +10,12 @@ use super::config::{EncoderConfig, FilterChoice, Predictor};
 use super::filter::FilterChooser;
 use super::macroblock::MbCoder;
 use super::motion::MotionAnalyser;
+use super::reference::GrowingReference;
 use super::slice::{self, CodedFrame};
 use super::stats::FrameStats;
 use super::weights;
 use super::{EncodeError, EncodedFrame};
+use crate::codec::interp::LumaFilter;
 use crate::codec::mv::Mv;
 use crate::codec::picture::Plane;
 use crate::codec::recon::{crop, crop_plane_into, holds_crop};
@@ -47,6 +49,8 @@ pub struct Encoder {
     spare_source: Option<Frame>,
     /// The last weighted reference, to weigh the next one into.
     spare_weighted: Option<Frame>,
+    /// The last reference brought in row by row, to bring the next into.
+    spare_plain: Option<Frame>,
     /// Contexts carried from frame to frame, as the decoder carries them.
     entropy: EntropyState,
     /// The contexts before the last frame was written: block P frames are
@@ -106,6 +110,7 @@ impl Encoder {
             spare_output: None,
             spare_source: None,
             spare_weighted: None,
+            spare_plain: None,
             entropy: EntropyState::new(),
             pricing: EntropyState::new(),
             filter: FilterChooser::default(),
@@ -322,12 +327,119 @@ impl Encoder {
 
     /// A P frame: the reference weighted by `weights`, motion analysed, the
     /// macroblocks decided and coded; with the motion analysis' time, ms.
+    /// On one thread, a block frame is decided row by row from its
+    /// reference brought in as the rows need it, as a frame thread decides
+    /// it (the same stream as the wavefront's from the whole reference).
     fn code_p_frame(
         &mut self,
         src: &Frame,
         recon: Frame,
         camera: Mv,
         weights: Weights,
+    ) -> Result<(CodedFrame, f64), EncodeError> {
+        let tool = match self.config.predictor {
+            Predictor::Obmc(_) => MotionTool::Obmc,
+            Predictor::Dense { grid, .. } => MotionTool::Grid(grid),
+            _ => MotionTool::Block,
+        };
+        let luma_filter = self.lagged_filter.next(self.config.luma_filter);
+        self.lagged_filter = self.filter;
+        let coded = if rayon::current_num_threads() == 1 && tool == MotionTool::Block {
+            self.code_p_rows(src, recon, camera, (weights, luma_filter))?
+        } else {
+            Err(recon)
+        };
+        let (coded, me_ms) = match coded {
+            Ok(coded) => coded,
+            Err(recon) => self.code_p_whole(src, recon, camera, (weights, luma_filter, tool))?,
+        };
+        if self.analyser.searches_in_decision() {
+            let mvs = coded
+                .vectors
+                .iter()
+                .map(|v| v[0].filter(|m| m.ref_idx == 0).map_or(Mv::ZERO, |m| m.mv))
+                .collect();
+            self.analyser.remember(src.width(), src.height(), mvs);
+        }
+        Ok((coded, me_ms))
+    }
+
+    /// A block P frame decided row by row ([`slice::code_inter_rows`]),
+    /// where its search allows (else `recon` back).
+    fn code_p_rows(
+        &mut self,
+        src: &Frame,
+        recon: Frame,
+        camera: Mv,
+        (weights, luma_filter): (Weights, LumaFilter),
+    ) -> Result<Result<(CodedFrame, f64), Frame>, EncodeError> {
+        let Some(from) = self.references.first() else {
+            return Err(EncodeError::Config("a P frame without a reference".into()));
+        };
+        let plain = match self.spare_plain.take() {
+            Some(f) => f,
+            None => Frame::new(from.width(), from.height())?,
+        };
+        let t = Instant::now();
+        let motion = self
+            .analyser
+            .analyse_growing(&plain, &self.references[1..], camera);
+        let me_ms = t.elapsed().as_secs_f64() * 1e3;
+        let Some(motion) = motion else {
+            self.spare_plain = Some(plain);
+            return Ok(Err(recon));
+        };
+        let weighted = match self.spare_weighted.take() {
+            Some(f) if weights.any() => Some(f),
+            _ if weights.any() => Some(Frame::new(from.width(), from.height())?),
+            spare => {
+                self.spare_weighted = spare;
+                None
+            }
+        };
+        let mut growing = GrowingReference::new(plain, weighted, weights);
+        let older: Vec<&Frame> = self.references[1..].iter().collect();
+        let inputs = inter_inputs(
+            &self.config,
+            &self.pricing,
+            motion,
+            MotionTool::Block,
+            (weights, luma_filter),
+        );
+        let learn = self.config.luma_filter == FilterChoice::Auto;
+        let (filter, index) = (&mut self.filter, self.index);
+        let refs = slice::RowReferences {
+            from,
+            growing: &mut growing,
+            older: &older,
+        };
+        let coded = slice::code_inter_rows(
+            &self.seq,
+            &self.coder,
+            src,
+            inputs,
+            refs,
+            (&mut self.entropy, recon),
+            |vectors, references| {
+                if learn {
+                    filter.learn(src, references, vectors, index);
+                }
+            },
+        )?;
+        let (plain, weighted) = growing.into_frames();
+        self.spare_plain = Some(plain);
+        self.spare_weighted = weighted.or(self.spare_weighted.take());
+        Ok(Ok((coded, me_ms)))
+    }
+
+    /// A P frame decided from the whole reference (weighted first) on the
+    /// pool's threads.
+    fn code_p_whole(
+        &mut self,
+        src: &Frame,
+        recon: Frame,
+        camera: Mv,
+        (weights, luma_filter, tool): (Weights, LumaFilter, MotionTool),
     ) -> Result<(CodedFrame, f64), EncodeError> {
         let (Some(unweighted), Some(prev)) = (self.references.first(), &self.prev_source) else {
             return Err(EncodeError::Config("a P frame without a reference".into()));
@@ -351,37 +463,12 @@ impl Encoder {
             .analyser
             .analyse(src, prev, reference, &self.references[1..], camera);
         let me_ms = t.elapsed().as_secs_f64() * 1e3;
-        let tool = match self.config.predictor {
-            Predictor::Obmc(_) => MotionTool::Obmc,
-            Predictor::Dense { grid, .. } => MotionTool::Grid(grid),
-            _ => MotionTool::Block,
-        };
+        let mut inputs = inter_inputs(&self.config, &self.pricing, motion, tool, (weights, luma_filter));
         // Weights apply to reference 0 alone (FORMAT.md section 12).
-        let mut references = vec![reference];
-        references.extend(&self.references[1..]);
-        let block = tool == MotionTool::Block;
-        let luma_filter = self.lagged_filter.next(self.config.luma_filter);
-        self.lagged_filter = self.filter;
-        let inputs = slice::InterInputs {
-            references: references.clone(),
-            luma_filter,
-            motion,
-            tool,
-            decision: self.config.decision,
-            deblock: self.config.deblock,
-            weights,
-            partitions: self.config.partitions.p8x8,
-            subpel_rd: self.config.subpel_rd,
-            split_margin: self.config.split_margin,
-            chroma_me: self.config.chroma_me,
-            adaptive_pricing: self.config.adaptive_pricing,
-            fast_pskip: self.config.fast_pskip,
-            early_pskip: self.config.early_pskip,
-            pricing: &self.pricing,
-        };
+        inputs.references = std::iter::once(reference).chain(&self.references[1..]).collect();
         // Which filter the next frame takes, learnt while this one is
         // written.
-        let learn = block && self.config.luma_filter == FilterChoice::Auto;
+        let learn = tool == MotionTool::Block && self.config.luma_filter == FilterChoice::Auto;
         let (filter, index) = (&mut self.filter, self.index);
         let coded = slice::code_inter(
             &self.seq,
@@ -389,20 +476,12 @@ impl Encoder {
             src,
             inputs,
             (&mut self.entropy, recon),
-            |vectors| {
+            |vectors, references| {
                 if learn {
-                    filter.learn(src, &references, vectors, index);
+                    filter.learn(src, references, vectors, index);
                 }
             },
         )?;
-        if self.analyser.searches_in_decision() {
-            let mvs = coded
-                .vectors
-                .iter()
-                .map(|v| v[0].filter(|m| m.ref_idx == 0).map_or(Mv::ZERO, |m| m.mv))
-                .collect();
-            self.analyser.remember(src.width(), src.height(), mvs);
-        }
         self.spare_weighted = weighted.or(self.spare_weighted.take());
         Ok((coded, me_ms))
     }
@@ -441,6 +520,33 @@ impl Encoder {
             me_ms,
             total_ms,
         }
+    }
+}
+
+/// A P frame's inputs under `config` (no references yet).
+fn inter_inputs<'r>(
+    config: &EncoderConfig,
+    pricing: &'r EntropyState,
+    motion: super::motion::FrameMotion,
+    tool: MotionTool,
+    (weights, luma_filter): (Weights, LumaFilter),
+) -> slice::InterInputs<'r> {
+    slice::InterInputs {
+        references: Vec::new(),
+        luma_filter,
+        motion,
+        tool,
+        decision: config.decision,
+        deblock: config.deblock,
+        weights,
+        partitions: config.partitions.p8x8,
+        subpel_rd: config.subpel_rd,
+        split_margin: config.split_margin,
+        chroma_me: config.chroma_me,
+        adaptive_pricing: config.adaptive_pricing,
+        fast_pskip: config.fast_pskip,
+        early_pskip: config.early_pskip,
+        pricing,
     }
 }
 

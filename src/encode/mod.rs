@@ -50,6 +50,7 @@ mod params;
 mod partition;
 pub mod rate;
 mod rdo;
+mod reference;
 mod slice;
 mod stats;
 mod transform8x8;

@@ -133,7 +133,7 @@ impl MotionAnalyser {
                 halfpel: self.planes(reference),
                 lazy: None,
             }),
-            Predictor::Block(s) => self.decision_search(reference, older, s, camera),
+            Predictor::Block(s) => self.decision_search(reference, older, s, camera, Self::planes),
             Predictor::Obmc(s) => FrameMotion::Vectors(BlockMotion {
                 mb: self.search(source.y(), reference.y(), s, None, camera),
                 blocks: None,
@@ -184,14 +184,42 @@ impl MotionAnalyser {
         }
     }
 
+    /// [`MotionAnalyser::analyse`] of a `block` frame whose `reference`
+    /// is brought in a band of rows at a time ([`super::reference`]): the
+    /// search made ready with half-pel planes to fill as the rows arrive.
+    /// `None` for other predictors, and for searches that read the whole
+    /// reference when they are made.
+    pub fn analyse_growing(&self, reference: &Frame, older: &[Frame], camera: Mv) -> Option<FrameMotion> {
+        let Predictor::Block(s) = self.predictor else {
+            return None;
+        };
+        let unfilled = |analyser: &Self, reference: &Frame| {
+            analyser
+                .blocks
+                .then(|| HalfPel::unfilled(reference.y(), PARTITION_MARGIN))
+                .flatten()
+        };
+        let motion = self.decision_search(reference, older, s, camera, unfilled);
+        match &motion {
+            FrameMotion::Vectors(BlockMotion { lazy: Some(lazy), .. })
+                if !lazy.search.needs_whole_reference() =>
+            {
+                Some(motion)
+            }
+            _ => None,
+        }
+    }
+
     /// `block` frames' motion when the decision searches ([`LazySearch`]):
-    /// the search made ready against `reference`, no vectors yet.
+    /// the search made ready against `reference` with half-pel planes
+    /// from `planes`, no vectors yet.
     fn decision_search(
         &self,
         reference: &Frame,
         older: &[Frame],
         s: SearchSettings,
         camera: Mv,
+        planes: impl Fn(&Self, &Frame) -> Option<HalfPel>,
     ) -> FrameMotion {
         let cfg = self.search_config(s);
         // The partitions' search reads the planes too, further out. Without
@@ -201,7 +229,7 @@ impl MotionAnalyser {
         // 0.994x its time in two runs over 28 sequences, for +0.5 % of its
         // instructions on eight, and 44 MiB of peak memory against 55 on
         // dog_1080p; the other presets below medium were not timed).
-        let search = match self.planes(reference) {
+        let search = match planes(self, reference) {
             Some(planes) => FrameSearch::owning(reference.y(), &cfg, planes),
             None => FrameSearch::per_block(reference.y(), &cfg),
         }

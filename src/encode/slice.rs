@@ -8,6 +8,7 @@
 use std::cell::RefCell;
 
 use super::analyse::{best_intra, MbAnalysis, MbEnv};
+use super::reference::GrowingReference;
 use super::wavefront::{self, WavefrontFrame};
 
 use super::config::ModeDecision;
@@ -298,12 +299,14 @@ pub(crate) struct InterInputs<'a> {
 
 /// A P frame's mode decision: one analysis context over the frame, one
 /// method per kind of candidate, macroblocks in raster order.
-pub(super) struct InterFrameCoder<'a> {
+pub(super) struct InterFrameCoder<'a, 'r> {
     pub(super) seq: &'a SequenceHeader,
     pub(super) coder: &'a MbCoder,
     pub(super) src: &'a Frame,
-    /// The frame's references, the previous reconstruction first.
-    pub(super) references: Vec<&'a Frame>,
+    /// The frame's references, the previous reconstruction first (none
+    /// between the rows of a frame decided row by row, whose first
+    /// reference grows: [`InterFrameCoder::with_references`]).
+    pub(super) references: Vec<&'r Frame>,
     pub(super) tool: MotionTool,
     pub(super) decision: ModeDecision,
     /// Motion analysis' vector per macroblock (zero for grid frames;
@@ -345,15 +348,15 @@ pub(super) struct InterFrameCoder<'a> {
     pub(super) frame: CodedFrame,
 }
 
-impl<'a> InterFrameCoder<'a> {
+impl<'a, 'r> InterFrameCoder<'a, 'r> {
     pub(super) fn new(
         seq: &'a SequenceHeader,
         coder: &'a MbCoder,
         src: &'a Frame,
-        inputs: InterInputs<'a>,
+        inputs: InterInputs<'r>,
         state: &EntropyState,
         recon: Frame,
-    ) -> Result<InterFrameCoder<'a>, PictureError> {
+    ) -> Result<InterFrameCoder<'a, 'r>, PictureError> {
         let n = seq.mb_cols() * seq.mb_rows();
         let (
             BlockMotion {
@@ -442,6 +445,37 @@ impl<'a> InterFrameCoder<'a> {
         })
     }
 
+    /// This coder deciding from `references` instead (the same frames: a
+    /// growing reference lent for a row, or none between rows).
+    pub(super) fn with_references<'s>(self, references: Vec<&'s Frame>) -> InterFrameCoder<'a, 's> {
+        InterFrameCoder {
+            references,
+            seq: self.seq,
+            coder: self.coder,
+            src: self.src,
+            tool: self.tool,
+            decision: self.decision,
+            searched: self.searched,
+            lazy: self.lazy,
+            partitions: self.partitions,
+            subpel_rd: self.subpel_rd,
+            split_margin: self.split_margin,
+            chroma_me: self.chroma_me,
+            adaptive_pricing: self.adaptive_pricing,
+            fast_pskip: self.fast_pskip,
+            early_pskip: self.early_pskip,
+            blocks: self.blocks,
+            halfpel: self.halfpel,
+            warped: self.warped,
+            syntax: self.syntax,
+            context: self.context,
+            decided: self.decided,
+            sink: self.sink,
+            residual_coder_at_start: self.residual_coder_at_start,
+            frame: self.frame,
+        }
+    }
+
     pub(super) fn inter_context(&self) -> InterContext<'_> {
         InterContext {
             references: &self.references,
@@ -463,17 +497,11 @@ impl<'a> InterFrameCoder<'a> {
         rdo::bits(rate::mode_cost(env.modes, at, true, self.syntax, mode))
     }
 
-    /// Decides every macroblock on a wavefront (block frames) into the
-    /// frame.
-    fn decide_on_wavefront(&mut self) -> Result<(), PictureError> {
-        let cols = self.seq.mb_cols();
-        // The reconstruction is lent to a worker (and comes back, complete
-        // or to be written); a macroblock-sized frame holds its place.
-        let recon = std::mem::replace(
-            &mut self.frame.recon,
-            Frame::new(crate::codec::consts::MB, crate::codec::consts::MB)?,
-        );
-        let decided = WavefrontFrame {
+    /// How the frame's macroblocks are decided on a wavefront (block
+    /// frames).
+    fn wavefront(&self) -> WavefrontFrame<'_> {
+        let header = &self.frame.syntax.header;
+        WavefrontFrame {
             seq: self.seq,
             modes: self.sink.modes(),
             residual: self.sink.residual(),
@@ -483,24 +511,61 @@ impl<'a> InterFrameCoder<'a> {
             // (-0.1 %), the contexts being trained by the frames before.
             lead: 2,
             adapt: self.adaptive_pricing,
-            deblock: {
-                let header = &self.frame.syntax.header;
-                header.deblock.then_some((header.qp, header.tool))
-            },
+            deblock: header.deblock.then_some((header.qp, header.tool)),
         }
-        .decide(recon, &|env, index| {
-            let mut mb = self.analyse_skip(index, env);
-            self.analyse_beyond_skip(&mut mb, env);
-            let sse = visible_luma_sse(&mb.source, &mb.best.pred, mb.mb_x, mb.mb_y, self.seq);
-            (mb.best, sse)
-        })?;
+    }
+
+    /// Macroblock `index`'s decision from `env`, and its prediction's
+    /// squared luma error.
+    fn decide_mb(&self, env: &MbEnv<'_>, index: usize) -> wavefront::Decision {
+        let mut mb = self.analyse_skip(index, env);
+        self.analyse_beyond_skip(&mut mb, env);
+        let sse = visible_luma_sse(&mb.source, &mb.best.pred, mb.mb_x, mb.mb_y, self.seq);
+        (mb.best, sse)
+    }
+
+    /// The reconstruction, lent to a wavefront's worker (it comes back,
+    /// complete or to be written): a macroblock-sized frame holds its
+    /// place.
+    fn lend_recon(&mut self) -> Result<Frame, PictureError> {
+        let mb = crate::codec::consts::MB;
+        Ok(std::mem::replace(&mut self.frame.recon, Frame::new(mb, mb)?))
+    }
+
+    /// Takes the decided macroblocks into the frame.
+    fn take_decided(&mut self, decided: wavefront::DecidedFrame) {
         let sum;
-        (sum, self.frame.recon) = wavefront::collect(decided, cols);
+        (sum, self.frame.recon) = wavefront::collect(decided, self.seq.mb_cols());
         self.frame.syntax.mbs = sum.mbs;
         self.frame.prediction_sse = sum.prediction_sse;
         self.frame.kinds = sum.kinds;
         self.frame.vectors = sum.vectors;
         self.frame.deblocked = sum.deblocked;
+    }
+
+    /// How many macroblock rows of the first reference, from its own on,
+    /// a row's decisions read: the search's window
+    /// ([`crate::me::FrameSearch::reach_below`]), the half-pel planes'
+    /// filter below that, and a macroblock more for the steps of the
+    /// partitions and sub-pel refinements around the searched vectors.
+    /// Every row without a search.
+    fn rows_reach(&self) -> usize {
+        const HALFPEL_FILTER: usize = 4;
+        let mb = crate::codec::consts::MB;
+        match &self.lazy {
+            Some(lazy) => (lazy.search.reach_below(mb) + HALFPEL_FILTER + mb).div_ceil(mb),
+            None => self.seq.mb_rows(),
+        }
+    }
+
+    /// Decides every macroblock on a wavefront (block frames) into the
+    /// frame.
+    fn decide_on_wavefront(&mut self) -> Result<(), PictureError> {
+        let recon = self.lend_recon()?;
+        let decided = self
+            .wavefront()
+            .decide(recon, &|env, index| self.decide_mb(env, index))?;
+        self.take_decided(decided);
         Ok(())
     }
 
@@ -537,12 +602,14 @@ impl<'a> InterFrameCoder<'a> {
     }
 
     /// The coded frame, written; `state` updated; `beside` run with its
-    /// vectors as it is written.
+    /// vectors and references as it is written.
     fn finish(
         self,
         state: &mut EntropyState,
-        beside: impl FnOnce(&[MbVectors]) + Send,
+        beside: impl FnOnce(&[MbVectors], &[&Frame]) + Send,
     ) -> Result<CodedFrame, PictureError> {
+        let references = &self.references;
+        let beside = |vectors: &[MbVectors]| beside(vectors, references);
         let mut frame = self.frame;
         if frame.vectors.is_empty() {
             // Decided in raster order: the frame's own record.
@@ -583,14 +650,15 @@ impl<'a> InterFrameCoder<'a> {
 
 /// A P frame predicted as `inputs` say, reconstructed into `recon` (coded
 /// size, contents all overwritten) and written, `state` updated; `beside`
-/// runs with the frame's decided vectors while the frame is written.
+/// runs with the frame's decided vectors and its references while the
+/// frame is written.
 pub(crate) fn code_inter(
     seq: &SequenceHeader,
     coder: &MbCoder,
     src: &Frame,
     inputs: InterInputs<'_>,
     (state, recon): (&mut EntropyState, Frame),
-    beside: impl FnOnce(&[MbVectors]) + Send,
+    beside: impl FnOnce(&[MbVectors], &[&Frame]) + Send,
 ) -> Result<CodedFrame, PictureError> {
     let mut frame_coder = InterFrameCoder::new(seq, coder, src, inputs, state, recon)?;
     if frame_coder.tool == MotionTool::Block {
@@ -606,6 +674,64 @@ pub(crate) fn code_inter(
             frame_coder.commit(mb);
         }
     }
+    frame_coder.finish(state, beside)
+}
+
+/// Where a block P frame decided row by row ([`code_inter_rows`]) takes
+/// its references from: the previous reconstruction (final as far as
+/// brought in), the reference it grows into, the older references.
+pub(crate) struct RowReferences<'f> {
+    pub from: &'f Frame,
+    pub growing: &'f mut GrowingReference,
+    pub older: &'f [&'f Frame],
+}
+
+/// [`code_inter`] of a block P frame whose search the decision runs
+/// ([`super::motion::MotionAnalyser::analyse_growing`]), decided a row at
+/// a time on this thread, as a frame thread decides it: before each row,
+/// the first reference is brought in as far as the row's searches reach
+/// (`inputs.references` is replaced). The same decisions as on a
+/// wavefront from the whole reference.
+pub(crate) fn code_inter_rows(
+    seq: &SequenceHeader,
+    coder: &MbCoder,
+    src: &Frame,
+    inputs: InterInputs<'_>,
+    refs: RowReferences<'_>,
+    (state, recon): (&mut EntropyState, Frame),
+    beside: impl FnOnce(&[MbVectors], &[&Frame]) + Send,
+) -> Result<CodedFrame, PictureError> {
+    let RowReferences { from, growing, older } = refs;
+    let first = InterInputs {
+        references: std::iter::once(growing.frame())
+            .chain(older.iter().copied())
+            .collect(),
+        ..inputs
+    };
+    let mut frame_coder =
+        InterFrameCoder::new(seq, coder, src, first, state, recon)?.with_references(Vec::new());
+    let reach = frame_coder.rows_reach();
+    let recon = frame_coder.lend_recon()?;
+    let mut rows = frame_coder.wavefront().row_by_row(recon);
+    for r in 0..seq.mb_rows() {
+        let planes = frame_coder.lazy.as_mut().and_then(|l| l.search.planes_mut());
+        growing.bring_in(from, r + reach, planes);
+        let row_coder = frame_coder.with_references(
+            std::iter::once(growing.frame())
+                .chain(older.iter().copied())
+                .collect(),
+        );
+        row_coder
+            .wavefront()
+            .decide_row(&mut rows, &|env, index| row_coder.decide_mb(env, index));
+        frame_coder = row_coder.with_references(Vec::new());
+    }
+    frame_coder.take_decided(rows.finish());
+    let frame_coder = frame_coder.with_references(
+        std::iter::once(growing.frame())
+            .chain(older.iter().copied())
+            .collect(),
+    );
     frame_coder.finish(state, beside)
 }
 

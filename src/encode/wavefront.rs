@@ -75,6 +75,15 @@ struct RowStart {
     residual: Vec<Context>,
 }
 
+/// What the workers share of a frame being decided: the decided
+/// macroblocks and each row's starting contexts.
+struct FrameRows<'f> {
+    decided: &'f [OnceLock<Decided>],
+    starts: &'f [OnceLock<RowStart>],
+    /// The first row's.
+    first: &'f RowStart,
+}
+
 /// One worker's copy of the frame's state, current where its rows read it.
 struct Worker {
     decided: Vec<MbVectors>,
@@ -159,45 +168,13 @@ impl WavefrontFrame<'_> {
         let shared = recons.len() > 1;
         let recons = Mutex::new(recons);
         let new_worker = || self.new_worker(&recons, shared);
-        let lead = self.lead.clamp(2.min(cols), cols);
-        let workers = wavefront(cols, rows, lead, &new_worker, &|w: &mut Worker, c, r| {
-            if c == 0 {
-                let start = if r == 0 {
-                    &first
-                } else {
-                    starts[r - 1].get().expect("row above started")
-                };
-                w.modes.set_contexts(&start.modes);
-                w.residual.set_contexts(&start.residual);
-            }
-            let above_is_own = r > 0 && w.last_row == Some(r - 1);
-            if c + 1 == cols {
-                w.finish_row(r);
-            }
-            if r > 0 && !above_is_own {
-                self.bring_in_above(w, &decided, (c, r));
-            }
-            // The record this macroblock's decision is stored in two on
-            // is in no cache (one a macroblock, a frame's worth apart):
-            // storing it stalled on its first line.
-            if let Some(ahead) = decided.get(r * cols + c + 2) {
-                crate::codec::cpu::prefetch(ahead);
-            }
-            // And the reconstruction's rows the next macroblocks are
-            // written into (a frame's worth of stores a frame).
-            prefetch_ahead(&w.recon, c, r);
-            let d = self.commit(w, decide, (c, r), shared);
-            if c + 1 == lead {
-                let start = RowStart {
-                    modes: w.modes.contexts().to_vec(),
-                    residual: w.residual.contexts().to_vec(),
-                };
-                let _ = starts[r].set(start);
-            }
-            let _ = decided[r * cols + c].set(d);
-            if c + 1 == cols {
-                self.deblock_behind(w, &decided[r * cols..(r + 1) * cols], r);
-            }
+        let rows_of = FrameRows {
+            decided: &decided,
+            starts: &starts,
+            first: &first,
+        };
+        let workers = wavefront(cols, rows, self.lead(), &new_worker, &|w: &mut Worker, c, r| {
+            self.step(w, &rows_of, decide, (c, r), shared);
         });
         let (recon, held, deblocked) = match fullest(workers) {
             Some(w) => (w.recon, w.held, w.deblocking.is_some()),
@@ -218,6 +195,63 @@ impl WavefrontFrame<'_> {
             held,
             deblocked,
         })
+    }
+
+    /// How many macroblocks of the row above a row waits for.
+    fn lead(&self) -> usize {
+        let cols = self.seq.mb_cols();
+        self.lead.clamp(2.min(cols), cols)
+    }
+
+    /// Macroblock (c, r) on worker `w`: its row's pricing contexts set at
+    /// the row's start, the neighbours above brought in, decided and
+    /// published; the row deblocked behind it at its end (one worker).
+    fn step(
+        &self,
+        w: &mut Worker,
+        frame: &FrameRows<'_>,
+        decide: &(dyn Fn(&MbEnv<'_>, usize) -> Decision + Sync),
+        (c, r): (usize, usize),
+        shared: bool,
+    ) {
+        let cols = self.seq.mb_cols();
+        if c == 0 {
+            let start = if r == 0 {
+                frame.first
+            } else {
+                frame.starts[r - 1].get().expect("row above started")
+            };
+            w.modes.set_contexts(&start.modes);
+            w.residual.set_contexts(&start.residual);
+        }
+        let above_is_own = r > 0 && w.last_row == Some(r - 1);
+        if c + 1 == cols {
+            w.finish_row(r);
+        }
+        if r > 0 && !above_is_own {
+            self.bring_in_above(w, frame.decided, (c, r));
+        }
+        // The record this macroblock's decision is stored in two on is in
+        // no cache (one a macroblock, a frame's worth apart): storing it
+        // stalled on its first line.
+        if let Some(ahead) = frame.decided.get(r * cols + c + 2) {
+            crate::codec::cpu::prefetch(ahead);
+        }
+        // And the reconstruction's rows the next macroblocks are written
+        // into (a frame's worth of stores a frame).
+        prefetch_ahead(&w.recon, c, r);
+        let d = self.commit(w, decide, (c, r), shared);
+        if c + 1 == self.lead() {
+            let start = RowStart {
+                modes: w.modes.contexts().to_vec(),
+                residual: w.residual.contexts().to_vec(),
+            };
+            let _ = frame.starts[r].set(start);
+        }
+        let _ = frame.decided[r * cols + c].set(d);
+        if c + 1 == cols {
+            self.deblock_behind(w, &frame.decided[r * cols..(r + 1) * cols], r);
+        }
     }
 
     /// A worker's state: the frame's first coders, one of `recons`, and
@@ -339,6 +373,70 @@ impl WavefrontFrame<'_> {
         if d.coded.kind != MbKind::Skip {
             w.residual
                 .record(x, y, d.coded.kind.residual_syntax(), d.coded.residual());
+        }
+    }
+}
+
+/// A frame decided a row at a time by one worker on the calling thread, in
+/// raster order: the same decisions as [`WavefrontFrame::decide`]'s on any
+/// number of threads. Between rows the caller may change what the rows
+/// after read (a frame thread brings in the reference's rows as the frame
+/// before finishes them).
+pub(super) struct RowByRow {
+    decided: Vec<OnceLock<Decided>>,
+    starts: Vec<OnceLock<RowStart>>,
+    first: RowStart,
+    worker: Worker,
+    /// Rows decided.
+    done: usize,
+}
+
+impl WavefrontFrame<'_> {
+    /// The frame's rows, none decided yet, to be reconstructed into
+    /// `recon` (coded size, any content).
+    pub(super) fn row_by_row(&self, recon: Frame) -> RowByRow {
+        let (cols, rows) = (self.seq.mb_cols(), self.seq.mb_rows());
+        RowByRow {
+            decided: (0..cols * rows).map(|_| OnceLock::new()).collect(),
+            starts: (0..rows).map(|_| OnceLock::new()).collect(),
+            first: RowStart {
+                modes: self.modes.contexts().to_vec(),
+                residual: self.residual.contexts().to_vec(),
+            },
+            worker: self.new_worker(&Mutex::new(vec![recon]), false),
+            done: 0,
+        }
+    }
+
+    /// Decides the next row of `rows` by `decide(env, index)`.
+    pub(super) fn decide_row(
+        &self,
+        rows: &mut RowByRow,
+        decide: &(dyn Fn(&MbEnv<'_>, usize) -> Decision + Sync),
+    ) {
+        let r = rows.done;
+        assert!(r < self.seq.mb_rows(), "a row beyond the frame");
+        let frame = FrameRows {
+            decided: &rows.decided,
+            starts: &rows.starts,
+            first: &rows.first,
+        };
+        for c in 0..self.seq.mb_cols() {
+            self.step(&mut rows.worker, &frame, decide, (c, r), false);
+        }
+        rows.done += 1;
+    }
+}
+
+impl RowByRow {
+    /// The decided frame; panics unless every row is decided.
+    pub(super) fn finish(self) -> DecidedFrame {
+        assert_eq!(self.done, self.worker.held.len(), "every row decided");
+        DecidedFrame {
+            mbs: self.decided,
+            deblocked: self.worker.deblocking.is_some(),
+            recon: self.worker.recon,
+            held: self.worker.held,
         }
     }
 }

@@ -772,6 +772,31 @@ impl<'p> FrameSearch<'p> {
         self
     }
 
+    /// The half-pel planes the search owns, to be filled as a reference
+    /// brought in a band at a time arrives ([`halfpel::HalfPel::fill_rows`]).
+    pub(crate) fn planes_mut(&mut self) -> Option<&mut halfpel::HalfPel> {
+        match &mut self.halfpel {
+            Some(Planes::Own(p)) => Some(p),
+            _ => None,
+        }
+    }
+
+    /// Whether the search was made from the whole reference (successive
+    /// elimination's sums): a reference brought in a band at a time must
+    /// be whole before such a search is made.
+    pub(crate) fn needs_whole_reference(&self) -> bool {
+        self.sums.is_some()
+    }
+
+    /// How far below a block's top row, in luma rows, the search of a
+    /// block `block` tall can read the reference: the window's lowest
+    /// full-pel position, the quarter-pel step beyond it and the 8-tap
+    /// filter's reach (4 rows) below that.
+    pub(crate) fn reach_below(&self, block: usize) -> usize {
+        let lowest = (self.centre.1 + self.cfg.range).max(0) as usize;
+        lowest + block + 1 + 4
+    }
+
     /// The reference's half-pel planes the search reads.
     pub(crate) fn halfpel(&self) -> Option<&halfpel::HalfPel> {
         self.halfpel.as_ref().and_then(Planes::get)

@@ -1,0 +1,97 @@
+//! A P frame's first reference brought in a band of macroblock rows at a
+//! time, as a frame thread has it while the frame before finishes its rows
+//! (x264's frame threads wait on the reference's rows the same way): the
+//! rows copied, their borders extended, weighted, their half-pel planes
+//! filled. Each step gives the whole frame's samples once every row is in
+//! (`Plane::extend_border_rows`, `Weights::apply_rows`,
+//! `HalfPel::fill_rows`), so a frame decided from it, each row once the
+//! rows it reads are in, is the frame decided from the whole reference.
+
+use crate::codec::consts::MB;
+use crate::codec::weight::Weights;
+use crate::codec::Frame;
+use crate::me::halfpel::HalfPel;
+
+/// How far below a sample the half-pel filter reads (`HalfPel::fill_rows`).
+const FILTER_BELOW: usize = 4;
+
+/// The previous reconstruction as it arrives, weighted for the frame.
+pub(super) struct GrowingReference {
+    /// The rows as they came (borders extended).
+    plain: Frame,
+    /// The rows weighted, where the frame weighs its reference.
+    weighted: Option<Frame>,
+    weights: Weights,
+    /// Macroblock rows in.
+    rows: usize,
+    /// Rows of the half-pel planes filled (from the margin's first).
+    halfpel_rows: usize,
+}
+
+impl GrowingReference {
+    /// A reference of `plain`'s size (coded, its content any) with no row
+    /// in yet, weighted by `weights` into `weighted` where any plane is
+    /// (same layout).
+    pub(super) fn new(plain: Frame, weighted: Option<Frame>, weights: Weights) -> GrowingReference {
+        GrowingReference {
+            weighted: weighted.filter(|_| weights.any()),
+            plain,
+            weights,
+            rows: 0,
+            halfpel_rows: 0,
+        }
+    }
+
+    /// What the frame predicts from: final to [`GrowingReference::rows`].
+    pub(super) fn frame(&self) -> &Frame {
+        self.weighted.as_ref().unwrap_or(&self.plain)
+    }
+
+    /// The frame's buffers, to be used again.
+    pub(super) fn into_frames(self) -> (Frame, Option<Frame>) {
+        (self.plain, self.weighted)
+    }
+
+    /// Brings in `from`'s macroblock rows to `upto` (`from` is the
+    /// reconstruction, coded size, final to there; its borders are not
+    /// read), and fills `halfpel` (the weighted luma's planes) as far as
+    /// the rows in reach.
+    pub(super) fn bring_in(&mut self, from: &Frame, upto: usize, halfpel: Option<&mut HalfPel>) {
+        let all = self.plain.height() / MB;
+        let upto = upto.min(all);
+        if upto > self.rows {
+            let luma = self.rows * MB..upto * MB;
+            for p in 0..3 {
+                let rows = if p == 0 {
+                    luma.clone()
+                } else {
+                    luma.start / 2..luma.end / 2
+                };
+                let (src, dst) = (from.plane(p), self.plain.plane_mut(p));
+                for y in rows.clone() {
+                    dst.row_mut(y).copy_from_slice(src.row(y));
+                }
+                dst.extend_border_rows(rows);
+            }
+            if let Some(weighted) = &mut self.weighted {
+                self.weights.apply_rows(&self.plain, weighted, luma);
+            }
+            self.rows = upto;
+        }
+        let Some(halfpel) = halfpel else {
+            return;
+        };
+        let margin = halfpel.margin();
+        let luma_in = self.rows * MB;
+        let end = if self.rows == all {
+            self.plain.height() + 2 * margin
+        } else {
+            (luma_in + margin).saturating_sub(FILTER_BELOW + 1)
+        };
+        if end > self.halfpel_rows {
+            let reference = self.weighted.as_ref().unwrap_or(&self.plain);
+            halfpel.fill_rows(reference.y(), self.halfpel_rows..end);
+            self.halfpel_rows = end;
+        }
+    }
+}

@@ -166,9 +166,21 @@ fn streams_are_the_same_for_any_number_of_threads() {
     // worker does: every preset, intra and inter frames, the decoder
     // following. 320x176: 20 x 11 macroblocks, rows enough for 8 workers.
     // One thread decides row by row from a reference brought in as the
-    // rows' searches reach: a fast rise too (the picture 11.5 px higher a
-    // frame, the windows centred as far below their blocks).
-    let scenes = [scene(320, 176, 5, 2.25, -1.5), scene(320, 176, 4, -1.0, -11.5)];
+    // rows' searches reach, weighted as it comes: a fast rise too (the
+    // picture 11.5 px higher a frame, the windows centred as far below
+    // their blocks), and a light that grows.
+    let brightening = Synth::new(
+        SceneSpec::new("brightening", 320, 176, 3)
+            .seed(5)
+            .camera(Motion::translation(2.25, -1.5))
+            .brightness(6.0),
+    )
+    .unwrap();
+    let scenes = [
+        scene(320, 176, 5, 2.25, -1.5),
+        (0..3).map(|t| brightening.frame(t)).collect(),
+        scene(320, 176, 4, -1.0, -11.5),
+    ];
     for (frames, preset) in scenes
         .iter()
         .flat_map(|f| EncoderPreset::ALL.into_iter().map(move |p| (f, p)))
@@ -182,6 +194,12 @@ fn streams_are_the_same_for_any_number_of_threads() {
             pool.install(|| encode(frames, config))
         };
         let (one, recon, _) = run(1);
+        if std::ptr::eq(frames, &scenes[1]) && preset == EncoderPreset::Medium {
+            // The light's change is weighted (the weights measured on the
+            // reference's top half, brought in first).
+            let syntax = frames_of(&seq_header(320, 176), &one);
+            assert!(syntax[1..].iter().any(|f| f.header.weights.any()), "no weights");
+        }
         for threads in [2, 8] {
             // The reconstructions too: the last frame's is no reference
             // that a later frame's stream would show wrong.

@@ -251,7 +251,9 @@ impl Encoder {
         let intra = self.config.gop > 0 && self.index % self.config.gop == 0;
         let inter = !intra && self.prev_source.is_some();
         // The camera's motion beside the weights' statistics: two passes
-        // over the frame that nothing else waits on, each on one thread.
+        // over the frame that nothing else waits on, each on one thread
+        // (one thread measures the weights on the reference's rows as they
+        // are brought in: `code_p_rows`).
         let tracker = &mut self.camera;
         let (camera, weights) = rayon::join(
             // Every source, I frames' too: each is the next one's previous.
@@ -260,10 +262,10 @@ impl Encoder {
                 _ => Ok(Mv::ZERO),
             },
             || match self.references.first() {
-                Some(reference) if inter && self.config.weightp => {
-                    weights::estimate(&src, reference, weight_rows(&self.seq))
+                Some(reference) if inter && rayon::current_num_threads() > 1 => {
+                    Some(weights_of(&self.config, &self.seq, &src, reference))
                 }
-                _ => Weights::NONE,
+                _ => None,
             },
         );
         let camera = camera?;
@@ -325,7 +327,8 @@ impl Encoder {
         Ok(out)
     }
 
-    /// A P frame: the reference weighted by `weights`, motion analysed, the
+    /// A P frame: the reference weighted by `weights` (measured first if
+    /// not yet), motion analysed, the
     /// macroblocks decided and coded; with the motion analysis' time, ms.
     /// On one thread, a block frame is decided row by row from its
     /// reference brought in as the rows need it, as a frame thread decides
@@ -335,7 +338,7 @@ impl Encoder {
         src: &Frame,
         recon: Frame,
         camera: Mv,
-        weights: Weights,
+        weights: Option<Weights>,
     ) -> Result<(CodedFrame, f64), EncodeError> {
         let tool = match self.config.predictor {
             Predictor::Obmc(_) => MotionTool::Obmc,
@@ -345,13 +348,20 @@ impl Encoder {
         let luma_filter = self.lagged_filter.next(self.config.luma_filter);
         self.lagged_filter = self.filter;
         let coded = if rayon::current_num_threads() == 1 && tool == MotionTool::Block {
-            self.code_p_rows(src, recon, camera, (weights, luma_filter))?
+            self.code_p_rows(src, recon, camera, luma_filter)?
         } else {
             Err(recon)
         };
         let (coded, me_ms) = match coded {
             Ok(coded) => coded,
-            Err(recon) => self.code_p_whole(src, recon, camera, (weights, luma_filter, tool))?,
+            Err(recon) => {
+                let weights = match (weights, self.references.first()) {
+                    (Some(w), _) => w,
+                    (None, Some(reference)) => weights_of(&self.config, &self.seq, src, reference),
+                    (None, None) => Weights::NONE,
+                };
+                self.code_p_whole(src, recon, camera, (weights, luma_filter, tool))?
+            }
         };
         if self.analyser.searches_in_decision() {
             let mvs = coded
@@ -365,13 +375,14 @@ impl Encoder {
     }
 
     /// A block P frame decided row by row ([`slice::code_inter_rows`]),
-    /// where its search allows (else `recon` back).
+    /// where its search allows (else `recon` back), its weights measured
+    /// on the reference's top half as soon as it is in.
     fn code_p_rows(
         &mut self,
         src: &Frame,
         recon: Frame,
         camera: Mv,
-        (weights, luma_filter): (Weights, LumaFilter),
+        luma_filter: LumaFilter,
     ) -> Result<Result<(CodedFrame, f64), Frame>, EncodeError> {
         let Some(from) = self.references.first() else {
             return Err(EncodeError::Config("a P frame without a reference".into()));
@@ -389,15 +400,16 @@ impl Encoder {
             self.spare_plain = Some(plain);
             return Ok(Err(recon));
         };
-        let weighted = match self.spare_weighted.take() {
-            Some(f) if weights.any() => Some(f),
-            _ if weights.any() => Some(Frame::new(from.width(), from.height())?),
-            spare => {
-                self.spare_weighted = spare;
-                None
-            }
-        };
-        let mut growing = GrowingReference::new(plain, weighted, weights);
+        let mut growing = GrowingReference::new(plain);
+        growing.bring_in(from, weight_rows(&self.seq) / crate::codec::consts::MB, None);
+        let weights = weights_of(&self.config, &self.seq, src, growing.plain());
+        if weights.any() {
+            let weighted = match self.spare_weighted.take() {
+                Some(f) => f,
+                None => Frame::new(from.width(), from.height())?,
+            };
+            growing.weigh(weights, weighted);
+        }
         let older: Vec<&Frame> = self.references[1..].iter().collect();
         let inputs = inter_inputs(
             &self.config,
@@ -547,6 +559,16 @@ fn inter_inputs<'r>(
         fast_pskip: config.fast_pskip,
         early_pskip: config.early_pskip,
         pricing,
+    }
+}
+
+/// The weights of a P frame `src` predicted from `reference` (their top
+/// halves), where `config` weighs.
+fn weights_of(config: &EncoderConfig, seq: &SequenceHeader, src: &Frame, reference: &Frame) -> Weights {
+    if config.weightp {
+        weights::estimate(src, reference, weight_rows(seq))
+    } else {
+        Weights::NONE
     }
 }
 

@@ -30,16 +30,34 @@ pub(super) struct GrowingReference {
 
 impl GrowingReference {
     /// A reference of `plain`'s size (coded, its content any) with no row
-    /// in yet, weighted by `weights` into `weighted` where any plane is
-    /// (same layout).
-    pub(super) fn new(plain: Frame, weighted: Option<Frame>, weights: Weights) -> GrowingReference {
+    /// in yet, not weighted.
+    pub(super) fn new(plain: Frame) -> GrowingReference {
         GrowingReference {
-            weighted: weighted.filter(|_| weights.any()),
             plain,
-            weights,
+            weighted: None,
+            weights: Weights::NONE,
             rows: 0,
             halfpel_rows: 0,
         }
+    }
+
+    /// Weighs the reference by `weights` into `weighted` (the plain one's
+    /// layout, its content any): the rows in now, and those brought in
+    /// after. Before any half-pel row is filled (they are the weighted
+    /// luma's).
+    pub(super) fn weigh(&mut self, weights: Weights, mut weighted: Frame) {
+        assert_eq!(self.halfpel_rows, 0, "weights after half-pel rows");
+        if self.rows > 0 {
+            weights.apply_rows(&self.plain, &mut weighted, 0..self.rows * MB);
+        }
+        self.weights = weights;
+        self.weighted = Some(weighted);
+    }
+
+    /// The rows as they came, unweighted: final to
+    /// [`GrowingReference::frame`]'s rows.
+    pub(super) fn plain(&self) -> &Frame {
+        &self.plain
     }
 
     /// What the frame predicts from: final to [`GrowingReference::rows`].

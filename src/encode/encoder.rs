@@ -10,6 +10,7 @@ use super::config::{EncoderConfig, FilterChoice, Predictor};
 use super::filter::FilterChooser;
 use super::macroblock::MbCoder;
 use super::motion::MotionAnalyser;
+use super::progress::FrameProgress;
 use super::reference::GrowingReference;
 use super::slice::{self, CodedFrame};
 use super::stats::FrameStats;
@@ -51,6 +52,13 @@ pub struct Encoder {
     spare_weighted: Option<Frame>,
     /// The last reference brought in row by row, to bring the next into.
     spare_plain: Option<Frame>,
+    /// The last frame's rows as it published them (one thread: P frames
+    /// bring their reference in from them, as a frame thread would).
+    last_rows: Option<FrameProgress>,
+    /// This frame's, where it published them as it decided them.
+    rows_now: Option<FrameProgress>,
+    /// The frame before's, to publish the next into.
+    spare_rows: Option<Frame>,
     /// Contexts carried from frame to frame, as the decoder carries them.
     entropy: EntropyState,
     /// The contexts before the last frame was written: block P frames are
@@ -111,6 +119,9 @@ impl Encoder {
             spare_source: None,
             spare_weighted: None,
             spare_plain: None,
+            last_rows: None,
+            rows_now: None,
+            spare_rows: None,
             entropy: EntropyState::new(),
             pricing: EntropyState::new(),
             filter: FilterChooser::default(),
@@ -301,12 +312,38 @@ impl Encoder {
         if self.references.len() == usize::from(self.seq.max_refs) {
             self.spare_recon = self.references.pop();
         }
+        self.publish_rows(&coded.recon)?;
         let bytes = coded.bytes;
         self.references.insert(0, coded.recon);
         self.spare_source = self.prev_source.replace(src);
         self.pricing = before;
         self.index += 1;
         Ok(EncodedFrame { bytes, recon, stats })
+    }
+
+    /// Keeps the frame's published rows for the next (one thread): those
+    /// it published as it decided them, or else `recon`'s (the coded
+    /// reconstruction, final) published whole.
+    fn publish_rows(&mut self, recon: &Frame) -> Result<(), PictureError> {
+        let rows_now = self.rows_now.take();
+        if rayon::current_num_threads() > 1 {
+            return Ok(());
+        }
+        let rows = match rows_now {
+            Some(rows) => rows,
+            None => {
+                let rows = FrameProgress::new(match self.spare_rows.take() {
+                    Some(f) => f,
+                    None => Frame::new(recon.width(), recon.height())?,
+                });
+                rows.publish(recon, usize::MAX);
+                rows
+            }
+        };
+        if let Some(old) = self.last_rows.replace(rows) {
+            self.spare_rows = Some(old.into_frame());
+        }
+        Ok(())
     }
 
     /// The visible part of a coded reconstruction, in the frame given back
@@ -384,12 +421,13 @@ impl Encoder {
         camera: Mv,
         luma_filter: LumaFilter,
     ) -> Result<Result<(CodedFrame, f64), Frame>, EncodeError> {
-        let Some(from) = self.references.first() else {
-            return Err(EncodeError::Config("a P frame without a reference".into()));
+        let Some(from) = self.last_rows.as_ref() else {
+            return Ok(Err(recon));
         };
+        let (cw, ch) = (self.seq.coded_width(), self.seq.coded_height());
         let plain = match self.spare_plain.take() {
             Some(f) => f,
-            None => Frame::new(from.width(), from.height())?,
+            None => Frame::new(cw, ch)?,
         };
         let t = Instant::now();
         let motion = self
@@ -401,15 +439,20 @@ impl Encoder {
             return Ok(Err(recon));
         };
         let mut growing = GrowingReference::new(plain);
-        growing.bring_in(from, weight_rows(&self.seq) / crate::codec::consts::MB, None);
+        let top = weight_rows(&self.seq) / crate::codec::consts::MB;
+        from.with_rows(top, |f| growing.bring_in(f, top, None));
         let weights = weights_of(&self.config, &self.seq, src, growing.plain());
         if weights.any() {
             let weighted = match self.spare_weighted.take() {
                 Some(f) => f,
-                None => Frame::new(from.width(), from.height())?,
+                None => Frame::new(cw, ch)?,
             };
             growing.weigh(weights, weighted);
         }
+        let publish = FrameProgress::new(match self.spare_rows.take() {
+            Some(f) => f,
+            None => Frame::new(cw, ch)?,
+        });
         let older: Vec<&Frame> = self.references[1..].iter().collect();
         let inputs = inter_inputs(
             &self.config,
@@ -424,6 +467,7 @@ impl Encoder {
             from,
             growing: &mut growing,
             older: &older,
+            publish: &publish,
         };
         let coded = slice::code_inter_rows(
             &self.seq,
@@ -440,6 +484,7 @@ impl Encoder {
         )?;
         let (plain, weighted) = growing.into_frames();
         self.spare_plain = Some(plain);
+        self.rows_now = Some(publish);
         self.spare_weighted = weighted.or(self.spare_weighted.take());
         Ok(Ok((coded, me_ms)))
     }

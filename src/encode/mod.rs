@@ -48,6 +48,7 @@ mod macroblock;
 mod motion;
 mod params;
 mod partition;
+mod progress;
 pub mod rate;
 mod rdo;
 mod reference;

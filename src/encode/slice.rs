@@ -8,6 +8,7 @@
 use std::cell::RefCell;
 
 use super::analyse::{best_intra, MbAnalysis, MbEnv};
+use super::progress::FrameProgress;
 use super::reference::GrowingReference;
 use super::wavefront::{self, WavefrontFrame};
 
@@ -678,20 +679,23 @@ pub(crate) fn code_inter(
 }
 
 /// Where a block P frame decided row by row ([`code_inter_rows`]) takes
-/// its references from: the previous reconstruction (final as far as
-/// brought in), the reference it grows into, the older references.
+/// its references from and publishes its own rows: the previous
+/// reconstruction's published rows, the reference it grows into, the
+/// older references; where its final rows go.
 pub(crate) struct RowReferences<'f> {
-    pub from: &'f Frame,
+    pub from: &'f FrameProgress,
     pub growing: &'f mut GrowingReference,
     pub older: &'f [&'f Frame],
+    pub publish: &'f FrameProgress,
 }
 
 /// [`code_inter`] of a block P frame whose search the decision runs
 /// ([`super::motion::MotionAnalyser::analyse_growing`]), decided a row at
 /// a time on this thread, as a frame thread decides it: before each row,
 /// the first reference is brought in as far as the row's searches reach
-/// (`inputs.references` is replaced). The same decisions as on a
-/// wavefront from the whole reference.
+/// (waiting for the rows to be published; `inputs.references` is
+/// replaced), and after it the rows final are published. The same
+/// decisions as on a wavefront from the whole reference.
 pub(crate) fn code_inter_rows(
     seq: &SequenceHeader,
     coder: &MbCoder,
@@ -701,7 +705,12 @@ pub(crate) fn code_inter_rows(
     (state, recon): (&mut EntropyState, Frame),
     beside: impl FnOnce(&[MbVectors], &[&Frame]) + Send,
 ) -> Result<CodedFrame, PictureError> {
-    let RowReferences { from, growing, older } = refs;
+    let RowReferences {
+        from,
+        growing,
+        older,
+        publish,
+    } = refs;
     let first = InterInputs {
         references: std::iter::once(growing.frame())
             .chain(older.iter().copied())
@@ -715,7 +724,7 @@ pub(crate) fn code_inter_rows(
     let mut rows = frame_coder.wavefront().row_by_row(recon);
     for r in 0..seq.mb_rows() {
         let planes = frame_coder.lazy.as_mut().and_then(|l| l.search.planes_mut());
-        growing.bring_in(from, r + reach, planes);
+        from.with_rows(r + reach, |f| growing.bring_in(f, r + reach, planes));
         let row_coder = frame_coder.with_references(
             std::iter::once(growing.frame())
                 .chain(older.iter().copied())
@@ -725,6 +734,7 @@ pub(crate) fn code_inter_rows(
             .wavefront()
             .decide_row(&mut rows, &|env, index| row_coder.decide_mb(env, index));
         frame_coder = row_coder.with_references(Vec::new());
+        publish.publish(rows.recon(), rows.final_rows());
     }
     frame_coder.take_decided(rows.finish());
     let frame_coder = frame_coder.with_references(

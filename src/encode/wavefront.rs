@@ -429,6 +429,25 @@ impl WavefrontFrame<'_> {
 }
 
 impl RowByRow {
+    /// How many macroblock rows of the reconstruction are final: written
+    /// and, where the frame is deblocked, filtered (a row's filter changes
+    /// the three lines above it, so a row is final once the row below it
+    /// is filtered: two rows behind the decisions, all at the end).
+    pub(super) fn final_rows(&self) -> usize {
+        let rows = self.worker.held.len();
+        if self.worker.deblocking.is_none() || self.done == rows {
+            self.done
+        } else {
+            self.done.saturating_sub(2)
+        }
+    }
+
+    /// The reconstruction so far: final to [`RowByRow::final_rows`],
+    /// borders not extended.
+    pub(super) fn recon(&self) -> &Frame {
+        &self.worker.recon
+    }
+
     /// The decided frame; panics unless every row is decided.
     pub(super) fn finish(self) -> DecidedFrame {
         assert_eq!(self.done, self.worker.held.len(), "every row decided");

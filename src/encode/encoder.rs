@@ -18,6 +18,7 @@ use super::weights;
 use super::{EncodeError, EncodedFrame};
 use crate::codec::interp::LumaFilter;
 use crate::codec::mv::Mv;
+use crate::codec::partition::MbVectors;
 use crate::codec::picture::Plane;
 use crate::codec::recon::{crop, crop_plane_into, holds_crop};
 use crate::codec::syntax::{EntropyState, FrameType, MotionTool, SequenceHeader, Vui, STREAM_END};
@@ -462,7 +463,6 @@ impl Encoder {
             (weights, luma_filter),
         );
         let learn = self.config.luma_filter == FilterChoice::Auto;
-        let (filter, index) = (&mut self.filter, self.index);
         let refs = slice::RowReferences {
             from,
             growing: &mut growing,
@@ -476,11 +476,7 @@ impl Encoder {
             inputs,
             refs,
             (&mut self.entropy, recon),
-            |vectors, references| {
-                if learn {
-                    filter.learn(src, references, vectors, index);
-                }
-            },
+            learner(&mut self.filter, learn, src, self.index),
         )?;
         let (plain, weighted) = growing.into_frames();
         self.spare_plain = Some(plain);
@@ -526,18 +522,13 @@ impl Encoder {
         // Which filter the next frame takes, learnt while this one is
         // written.
         let learn = tool == MotionTool::Block && self.config.luma_filter == FilterChoice::Auto;
-        let (filter, index) = (&mut self.filter, self.index);
         let coded = slice::code_inter(
             &self.seq,
             &self.coder,
             src,
             inputs,
             (&mut self.entropy, recon),
-            |vectors, references| {
-                if learn {
-                    filter.learn(src, references, vectors, index);
-                }
-            },
+            learner(&mut self.filter, learn, src, self.index),
         )?;
         self.spare_weighted = weighted.or(self.spare_weighted.take());
         Ok((coded, me_ms))
@@ -576,6 +567,21 @@ impl Encoder {
             intra_mbs: coded.kinds[2],
             me_ms,
             total_ms,
+        }
+    }
+}
+
+/// What runs beside a P frame's writing: the `index`-th frame `src`, its
+/// vectors and references, learnt from by `filter` where `learn`.
+fn learner<'f>(
+    filter: &'f mut FilterChooser,
+    learn: bool,
+    src: &'f Frame,
+    index: usize,
+) -> impl FnOnce(&[MbVectors], &[&Frame]) + Send + 'f {
+    move |vectors, references| {
+        if learn {
+            filter.learn(src, references, vectors, index);
         }
     }
 }

@@ -100,21 +100,11 @@ pub struct HalfpelBand<'a> {
 /// the area filtered before at 720p with a margin of 32, 28 % at CIF).
 pub fn fill_halfpel(kernel: HalfpelFn, reference: &Plane, margin: usize, planes: &mut [Plane], bands: usize) {
     use rayon::prelude::*;
-    let (w, h) = (reference.width(), reference.height());
-    let filtered =
-        |len: usize| margin.saturating_sub(REACH)..(margin + len + REACH - 1).min(len + 2 * margin);
-    let (rows, cols) = (filtered(h), filtered(w));
+    let (rows, cols) = filtered_region(reference, margin);
     let per_band = rows.len().div_ceil(bands.clamp(1, rows.len().max(1)));
     let m = margin as isize;
-    let [a, b, c] = planes else {
-        panic!("three half-pel planes");
-    };
     // The bands are cut from the planes: their stride, not the reference's.
-    let stride = a.stride();
-    assert!(
-        b.stride() == stride && c.stride() == stride,
-        "half-pel planes of one size"
-    );
+    let ([a, b, c], stride) = three_planes(planes);
     let first_row = rows.start as isize - m;
     let len = per_band * stride;
     let start = |p: &mut Plane| p.index(-m, first_row);
@@ -160,10 +150,7 @@ pub fn fill_halfpel_rows(
     planes: &mut [Plane],
     rows: std::ops::Range<usize>,
 ) {
-    let (w, h) = (reference.width(), reference.height());
-    let filtered =
-        |len: usize| margin.saturating_sub(REACH)..(margin + len + REACH - 1).min(len + 2 * margin);
-    let (all, cols) = (filtered(h), filtered(w));
+    let (all, cols) = filtered_region(reference, margin);
     let band = rows.start.max(all.start)..rows.end.min(all.end);
     let m = margin as isize;
     // A run of the margin's rows alone writes nothing: those above the
@@ -171,14 +158,7 @@ pub fn fill_halfpel_rows(
     if band.is_empty() {
         return;
     }
-    let [a, b, c] = planes else {
-        panic!("three half-pel planes");
-    };
-    let stride = a.stride();
-    assert!(
-        b.stride() == stride && c.stride() == stride,
-        "half-pel planes of one size"
-    );
+    let ([a, b, c], stride) = three_planes(planes);
     let first_row = band.start as isize - m;
     let len = band.len() * stride;
     let at = |p: &mut Plane| p.index(-m, first_row);
@@ -199,6 +179,28 @@ pub fn fill_halfpel_rows(
     for plane in [a, b, c] {
         repeat_edges(plane, margin, (&all, &cols), band.clone());
     }
+}
+
+/// The rows and columns of `reference`'s half-pel planes that the filter
+/// computes (from the margin's first): the picture and [`REACH`] around
+/// it, within `margin`.
+fn filtered_region(reference: &Plane, margin: usize) -> (std::ops::Range<usize>, std::ops::Range<usize>) {
+    let filtered =
+        |len: usize| margin.saturating_sub(REACH)..(margin + len + REACH - 1).min(len + 2 * margin);
+    (filtered(reference.height()), filtered(reference.width()))
+}
+
+/// The three half-pel planes and their stride (one for all).
+fn three_planes(planes: &mut [Plane]) -> ([&mut Plane; 3], usize) {
+    let [a, b, c] = planes else {
+        panic!("three half-pel planes");
+    };
+    let stride = a.stride();
+    assert!(
+        b.stride() == stride && c.stride() == stride,
+        "half-pel planes of one size"
+    );
+    ([a, b, c], stride)
 }
 
 /// How far from the picture the half-pel filter reads a sample that is

@@ -365,12 +365,12 @@ impl Encoder {
         Ok(out)
     }
 
-    /// A P frame: the reference weighted by `weights` (measured first if
-    /// not yet), motion analysed, the
-    /// macroblocks decided and coded; with the motion analysis' time, ms.
-    /// On one thread, a block frame is decided row by row from its
-    /// reference brought in as the rows need it, as a frame thread decides
-    /// it (the same stream as the wavefront's from the whole reference).
+    /// A P frame: the reference weighted by `weights` (measured here where
+    /// not yet), motion analysed, the macroblocks decided and coded; with
+    /// the motion analysis' time, ms. On one thread, a block frame is
+    /// decided row by row from its reference brought in as the rows need
+    /// it, as a frame thread decides it (the same stream as the
+    /// wavefront's from the whole reference).
     fn code_p_frame(
         &mut self,
         src: &Frame,

@@ -322,12 +322,13 @@ impl Encoder {
         Ok(EncodedFrame { bytes, recon, stats })
     }
 
-    /// Keeps the frame's published rows for the next (one thread): those
-    /// it published as it decided them, or else `recon`'s (the coded
-    /// reconstruction, final) published whole.
+    /// Keeps the frame's published rows for the next (one thread, block
+    /// frames: the frames that bring their reference in row by row):
+    /// those it published as it decided them, or else `recon`'s (the
+    /// coded reconstruction, final) published whole.
     fn publish_rows(&mut self, recon: &Frame) -> Result<(), PictureError> {
         let rows_now = self.rows_now.take();
-        if rayon::current_num_threads() > 1 {
+        if rayon::current_num_threads() > 1 || !matches!(self.config.predictor, Predictor::Block(_)) {
             return Ok(());
         }
         let rows = match rows_now {

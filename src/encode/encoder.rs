@@ -334,11 +334,13 @@ impl Encoder {
         let rows = match rows_now {
             Some(rows) => rows,
             None => {
-                let rows = FrameProgress::new(match self.spare_rows.take() {
+                let frame = match self.spare_rows.take() {
                     Some(f) => f,
                     None => Frame::new(recon.width(), recon.height())?,
-                });
-                rows.publish(recon, usize::MAX);
+                };
+                let prior = self.analyser.prior();
+                let rows = FrameProgress::new(frame, prior.is_some());
+                rows.publish_whole(recon, prior);
                 rows
             }
         };
@@ -434,7 +436,7 @@ impl Encoder {
         let t = Instant::now();
         let motion = self
             .analyser
-            .analyse_growing(&plain, &self.references[1..], camera);
+            .analyse_growing(&plain, &self.references[1..], camera, from.has_prior());
         let me_ms = t.elapsed().as_secs_f64() * 1e3;
         let Some(motion) = motion else {
             self.spare_plain = Some(plain);
@@ -442,7 +444,7 @@ impl Encoder {
         };
         let mut growing = GrowingReference::new(plain);
         let top = weight_rows(&self.seq) / crate::codec::consts::MB;
-        from.with_rows(top, |f| growing.bring_in(f, top, None));
+        from.with_rows(top, |f, _| growing.bring_in(f, top, None));
         let weights = weights_of(&self.config, &self.seq, src, growing.plain());
         if weights.any() {
             let weighted = match self.spare_weighted.take() {
@@ -451,10 +453,11 @@ impl Encoder {
             };
             growing.weigh(weights, weighted);
         }
-        let publish = FrameProgress::new(match self.spare_rows.take() {
+        let frame = match self.spare_rows.take() {
             Some(f) => f,
             None => Frame::new(cw, ch)?,
-        });
+        };
+        let publish = FrameProgress::new(frame, true);
         let older: Vec<&Frame> = self.references[1..].iter().collect();
         let inputs = inter_inputs(
             &self.config,

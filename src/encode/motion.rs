@@ -51,6 +51,22 @@ pub(crate) struct LazySearch {
     pub older: Vec<OlderSearch>,
 }
 
+impl LazySearch {
+    /// The co-located candidates of macroblock rows `rows` from `prior`
+    /// (the previous frame's, one per macroblock, final over `rows`), for
+    /// a frame whose search started with none of them in.
+    pub fn bring_in_prior(&mut self, prior: &[Mv], rows: std::ops::Range<usize>) {
+        if let Some(field) = &mut self.prior {
+            field.set_rows(prior, rows.clone(), 1);
+        }
+        for older in &mut self.older {
+            if let Some(field) = &mut older.prior {
+                field.set_rows(prior, rows.clone(), older.distance);
+            }
+        }
+    }
+}
+
 /// The search into an older reference, run from the mode decision for the
 /// macroblocks that get that far (x264 searches every reference there).
 pub(crate) struct OlderSearch {
@@ -111,6 +127,12 @@ impl MotionAnalyser {
         }
     }
 
+    /// The co-located candidates the next block frame searches with (the
+    /// last P frame's decided vectors, [`MotionAnalyser::remember`]).
+    pub fn prior(&self) -> Option<&[Mv]> {
+        self.prior.as_ref().map(MotionField::vectors)
+    }
+
     /// Motion of `source` (coded size) against `reference` (the previous
     /// reconstruction) and, for `block`, against the `older` ones (the
     /// frame before it first); flow predictors look at `prev_source`
@@ -133,7 +155,10 @@ impl MotionAnalyser {
                 halfpel: self.planes(reference),
                 lazy: None,
             }),
-            Predictor::Block(s) => self.decision_search(reference, older, s, camera, Self::planes),
+            Predictor::Block(s) => {
+                let prior = self.prior.as_ref();
+                self.decision_search(reference, older, (s, camera, prior), Self::planes)
+            }
             Predictor::Obmc(s) => FrameMotion::Vectors(BlockMotion {
                 mb: self.search(source.y(), reference.y(), s, None, camera),
                 blocks: None,
@@ -188,8 +213,16 @@ impl MotionAnalyser {
     /// is brought in a band of rows at a time ([`super::reference`]): the
     /// search made ready with half-pel planes to fill as the rows arrive.
     /// `None` for other predictors, and for searches that read the whole
-    /// reference when they are made.
-    pub fn analyse_growing(&self, reference: &Frame, older: &[Frame], camera: Mv) -> Option<FrameMotion> {
+    /// reference when they are made. The co-located candidates are zero
+    /// where `prior` (to be brought in as the rows are:
+    /// [`LazySearch::bring_in_prior`]), else none.
+    pub fn analyse_growing(
+        &self,
+        reference: &Frame,
+        older: &[Frame],
+        camera: Mv,
+        prior: bool,
+    ) -> Option<FrameMotion> {
         let Predictor::Block(s) = self.predictor else {
             return None;
         };
@@ -199,7 +232,8 @@ impl MotionAnalyser {
                 .then(|| HalfPel::unfilled(reference.y(), PARTITION_MARGIN))
                 .flatten()
         };
-        let motion = self.decision_search(reference, older, s, camera, unfilled);
+        let zero = prior.then(|| MotionField::new(reference.width(), reference.height(), MB));
+        let motion = self.decision_search(reference, older, (s, camera, zero.as_ref()), unfilled);
         match &motion {
             FrameMotion::Vectors(BlockMotion { lazy: Some(lazy), .. })
                 if !lazy.search.needs_whole_reference() =>
@@ -211,14 +245,14 @@ impl MotionAnalyser {
     }
 
     /// `block` frames' motion when the decision searches ([`LazySearch`]):
-    /// the search made ready against `reference` with half-pel planes
-    /// from `planes`, no vectors yet.
+    /// the search by `s` made ready against `reference` with half-pel
+    /// planes from `planes`, its window on `camera`, `prior` its
+    /// co-located candidates; no vectors yet.
     fn decision_search(
         &self,
         reference: &Frame,
         older: &[Frame],
-        s: SearchSettings,
-        camera: Mv,
+        (s, camera, prior): (SearchSettings, Mv, Option<&MotionField>),
         planes: impl Fn(&Self, &Frame) -> Option<HalfPel>,
     ) -> FrameMotion {
         let cfg = self.search_config(s);
@@ -242,8 +276,8 @@ impl MotionAnalyser {
                 halfpel: None,
                 lazy: Some(Box::new(LazySearch {
                     search,
-                    prior: self.prior.clone(),
-                    older: self.older_searches(older, s, camera),
+                    prior: prior.cloned(),
+                    older: self.older_searches(older, (s, camera, prior)),
                 })),
             },
             // The configuration was checked when the encoder was made: this
@@ -306,7 +340,11 @@ impl MotionAnalyser {
     /// The search into each older reference: EPZS without its window
     /// (its candidates: `older_reference_candidate` in `analyse.rs`),
     /// the window centred on the camera's motion over that distance.
-    fn older_searches(&self, older: &[Frame], s: SearchSettings, camera: Mv) -> Vec<OlderSearch> {
+    fn older_searches(
+        &self,
+        older: &[Frame],
+        (s, camera, prior): (SearchSettings, Mv, Option<&MotionField>),
+    ) -> Vec<OlderSearch> {
         let cfg = self.search_config(SearchSettings {
             method: me::Method::Epzs,
             window: 0,
@@ -324,7 +362,7 @@ impl MotionAnalyser {
                 let search = FrameSearch::per_block(reference.y(), &cfg).ok()?;
                 Some(OlderSearch {
                     search: search.centred_on(centre),
-                    prior: self.prior.as_ref().map(|f| f.scaled(distance)),
+                    prior: prior.map(|f| f.scaled(distance)),
                     distance,
                     found: SharedGrid::new(reference.width() / MB, reference.height() / MB),
                 })

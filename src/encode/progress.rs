@@ -2,10 +2,14 @@
 //! as the rows become final, for the frame after it (x264's frame threads
 //! broadcast a frame's finished rows the same way): the rows are copied
 //! out, so that no frame is written by one thread while another reads it.
+//! The rows' decided vectors go with them: the next frame's co-located
+//! search candidates.
 
 use std::sync::{Condvar, Mutex, MutexGuard, PoisonError};
 
 use crate::codec::consts::MB;
+use crate::codec::mv::Mv;
+use crate::codec::partition::MbVectors;
 use crate::codec::Frame;
 
 /// The final rows of a frame being coded.
@@ -20,16 +24,32 @@ struct Published {
     frame: Frame,
     /// Macroblock rows final.
     rows: usize,
+    /// The co-located candidates of the frame after, a vector per
+    /// macroblock (raster order), final to `rows`: a P frame's decided
+    /// vectors into its first reference (zero where none), an I frame's
+    /// those it was given; none before the first P frame.
+    prior: Option<Vec<Mv>>,
 }
 
 impl FrameProgress {
     /// Progress into `frame` (the coded size, its content any): no row
-    /// final yet.
-    pub(super) fn new(frame: Frame) -> FrameProgress {
+    /// final yet; with co-located candidates where `prior`.
+    pub(super) fn new(frame: Frame, prior: bool) -> FrameProgress {
+        let mbs = (frame.width() / MB) * (frame.height() / MB);
+        let prior = prior.then(|| vec![Mv::ZERO; mbs]);
         FrameProgress {
-            published: Mutex::new(Published { frame, rows: 0 }),
+            published: Mutex::new(Published {
+                frame,
+                rows: 0,
+                prior,
+            }),
             more: Condvar::new(),
         }
+    }
+
+    /// Whether the frame publishes co-located candidates.
+    pub(super) fn has_prior(&self) -> bool {
+        self.lock().prior.is_some()
     }
 
     /// The published frame's buffer, to be used again.
@@ -46,10 +66,50 @@ impl FrameProgress {
     }
 
     /// Publishes `from`'s macroblock rows to `upto` (final there; the
-    /// frame's size), and wakes whoever waits for them.
-    pub(super) fn publish(&self, from: &Frame, upto: usize) {
+    /// frame's size) with their `vectors` (raster order, at least to
+    /// `upto`), and wakes whoever waits for them.
+    pub(super) fn publish(&self, from: &Frame, vectors: &[MbVectors], upto: usize) {
         let mut published = self.lock();
         let rows = published.rows..upto.min(from.height() / MB);
+        if rows.is_empty() {
+            return;
+        }
+        let cols = from.width() / MB;
+        if let Some(prior) = &mut published.prior {
+            let mbs = rows.start * cols..rows.end * cols;
+            for (p, v) in prior[mbs.clone()].iter_mut().zip(&vectors[mbs]) {
+                *p = v[0].filter(|m| m.ref_idx == 0).map_or(Mv::ZERO, |m| m.mv);
+            }
+        }
+        Self::copy_rows(&mut published, from, rows);
+        drop(published);
+        self.more.notify_all();
+    }
+
+    /// Publishes the whole of `from` (final) with the co-located
+    /// candidates `prior` (one per macroblock, where the frame has them).
+    pub(super) fn publish_whole(&self, from: &Frame, prior: Option<&[Mv]>) {
+        let mut published = self.lock();
+        if let (Some(to), Some(from)) = (&mut published.prior, prior) {
+            to.copy_from_slice(from);
+        }
+        let rows = published.rows..from.height() / MB;
+        Self::copy_rows(&mut published, from, rows);
+        drop(published);
+        self.more.notify_all();
+    }
+
+    /// Gives up: every row counts as published, whatever it holds, so that
+    /// no one waits for a frame that failed (its error is reported in its
+    /// place).
+    pub(super) fn abandon(&self) {
+        let mut published = self.lock();
+        published.rows = published.frame.height() / MB;
+        drop(published);
+        self.more.notify_all();
+    }
+
+    fn copy_rows(published: &mut Published, from: &Frame, rows: std::ops::Range<usize>) {
         if rows.is_empty() {
             return;
         }
@@ -61,19 +121,18 @@ impl FrameProgress {
             }
         }
         published.rows = rows.end;
-        drop(published);
-        self.more.notify_all();
     }
 
-    /// `f` of the published frame once `rows` macroblock rows of it are
-    /// final (all it has, if fewer), waiting until they are.
-    pub(super) fn with_rows<R>(&self, rows: usize, f: impl FnOnce(&Frame) -> R) -> R {
+    /// `f` of the published frame and its co-located candidates once
+    /// `rows` macroblock rows of them are final (all it has, if fewer),
+    /// waiting until they are.
+    pub(super) fn with_rows<R>(&self, rows: usize, f: impl FnOnce(&Frame, Option<&[Mv]>) -> R) -> R {
         let mut published = self.lock();
         let rows = rows.min(published.frame.height() / MB);
         while published.rows < rows {
             published = self.more.wait(published).unwrap_or_else(PoisonError::into_inner);
         }
-        f(&published.frame)
+        f(&published.frame, published.prior.as_deref())
     }
 }
 
@@ -93,24 +152,61 @@ mod tests {
                 }
             }
         }
-        let progress = FrameProgress::new(Frame::new(w, h).unwrap());
+        let cols = w / MB;
+        // Macroblock i's vector (i, -i) into reference 0, but the 5th's
+        // into reference 1 and the 6th intra: zero candidates.
+        let vectors: Vec<MbVectors> = (0..cols * h / MB)
+            .map(|i| match i {
+                5 => {
+                    [Some(crate::codec::partition::RefMv {
+                        mv: Mv::new(9, 9),
+                        ref_idx: 1,
+                    }); 4]
+                }
+                6 => [None; 4],
+                _ => {
+                    [Some(crate::codec::partition::RefMv::previous(Mv::new(
+                        i as i32,
+                        -(i as i32),
+                    ))); 4]
+                }
+            })
+            .collect();
+        let progress = FrameProgress::new(Frame::new(w, h).unwrap(), true);
         std::thread::scope(|s| {
             let reader = s.spawn(|| {
-                progress.with_rows(2, |f| {
-                    // The two rows asked for are in, all three planes.
-                    (0..3).all(|p| {
+                progress.with_rows(2, |f, prior| {
+                    // The two rows asked for are in, all three planes, and
+                    // their vectors.
+                    let prior = prior.expect("a P frame's candidates");
+                    let samples = (0..3).all(|p| {
                         let rows = if p == 0 { 2 * MB } else { MB };
                         (0..rows).all(|y| f.plane(p).row(y) == recon.plane(p).row(y))
-                    })
+                    });
+                    let candidates = (0..2 * cols).all(|i| {
+                        let want = if i == 5 || i == 6 { 0 } else { i as i32 };
+                        prior[i] == Mv::new(want, -want)
+                    });
+                    samples && candidates
                 })
             });
             for upto in 1..=3 {
-                progress.publish(&recon, upto);
+                progress.publish(&recon, &vectors, upto);
                 std::thread::yield_now();
             }
             assert!(reader.join().unwrap(), "rows seen before they were published");
         });
         // More rows than the frame has: all of them, no wait.
-        assert!(progress.with_rows(10, |f| *f == recon));
+        assert!(progress.with_rows(10, |f, _| *f == recon));
+    }
+
+    #[test]
+    fn an_abandoned_frame_keeps_no_one_waiting() {
+        let progress = FrameProgress::new(Frame::new(32, 48).unwrap(), false);
+        std::thread::scope(|s| {
+            let reader = s.spawn(|| progress.with_rows(3, |_, prior| prior.is_none()));
+            progress.abandon();
+            assert!(reader.join().unwrap());
+        });
     }
 }

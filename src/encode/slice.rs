@@ -722,9 +722,20 @@ pub(crate) fn code_inter_rows(
     let reach = frame_coder.rows_reach();
     let recon = frame_coder.lend_recon()?;
     let mut rows = frame_coder.wavefront().row_by_row(recon);
+    let mut prior_rows = 0;
     for r in 0..seq.mb_rows() {
-        let planes = frame_coder.lazy.as_mut().and_then(|l| l.search.planes_mut());
-        from.with_rows(r + reach, |f| growing.bring_in(f, r + reach, planes));
+        let upto = (r + reach).min(seq.mb_rows());
+        let lazy = frame_coder.lazy.as_deref_mut();
+        from.with_rows(upto, |f, prior| {
+            let Some(lazy) = lazy else {
+                return growing.bring_in(f, upto, None);
+            };
+            growing.bring_in(f, upto, lazy.search.planes_mut());
+            if let Some(prior) = prior {
+                lazy.bring_in_prior(prior, prior_rows..upto);
+            }
+            prior_rows = upto;
+        });
         let row_coder = frame_coder.with_references(
             std::iter::once(growing.frame())
                 .chain(older.iter().copied())
@@ -734,7 +745,7 @@ pub(crate) fn code_inter_rows(
             .wavefront()
             .decide_row(&mut rows, &|env, index| row_coder.decide_mb(env, index));
         frame_coder = row_coder.with_references(Vec::new());
-        publish.publish(rows.recon(), rows.final_rows());
+        publish.publish(rows.recon(), rows.vectors(), rows.final_rows());
     }
     frame_coder.take_decided(rows.finish());
     let frame_coder = frame_coder.with_references(

@@ -448,6 +448,12 @@ impl RowByRow {
         &self.worker.recon
     }
 
+    /// The decided macroblocks' vectors (raster order; the rows not
+    /// decided yet hold none).
+    pub(super) fn vectors(&self) -> &[MbVectors] {
+        &self.worker.decided
+    }
+
     /// The decided frame; panics unless every row is decided.
     pub(super) fn finish(self) -> DecidedFrame {
         assert_eq!(self.done, self.worker.held.len(), "every row decided");

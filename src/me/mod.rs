@@ -287,6 +287,13 @@ pub enum MeError {
     Pictures(String),
 }
 
+/// `v` times `k`, kept within the codec's range.
+fn scale_mv(v: Mv, k: i32) -> Mv {
+    let limit = crate::codec::mv::MV_LIMIT;
+    let scale = |c: i32| c.saturating_mul(k).clamp(-limit, limit);
+    Mv::new(scale(v.x), scale(v.y))
+}
+
 /// One vector and its cost per block.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct MotionField {
@@ -364,15 +371,19 @@ impl MotionField {
     /// The field with every vector times `k` (kept within the codec's
     /// range): the motion over `k` frames of what moves steadily.
     pub fn scaled(&self, k: i32) -> MotionField {
-        let limit = crate::codec::mv::MV_LIMIT;
-        let scale = |v: i32| v.saturating_mul(k).clamp(-limit, limit);
         MotionField {
-            vectors: self
-                .vectors
-                .iter()
-                .map(|v| Mv::new(scale(v.x), scale(v.y)))
-                .collect(),
+            vectors: self.vectors.iter().map(|&v| scale_mv(v, k)).collect(),
             ..self.clone()
+        }
+    }
+
+    /// Block rows `rows` set to `vectors`' (one per block of the whole
+    /// field, raster order) times `k`, as [`MotionField::scaled`] scales
+    /// them: a field filled as the frame it comes from is decided.
+    pub(crate) fn set_rows(&mut self, vectors: &[Mv], rows: std::ops::Range<usize>, k: i32) {
+        let blocks = rows.start * self.cols..rows.end * self.cols;
+        for (to, &from) in self.vectors[blocks.clone()].iter_mut().zip(&vectors[blocks]) {
+            *to = scale_mv(from, k);
         }
     }
 

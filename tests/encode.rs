@@ -55,6 +55,26 @@ fn encode(frames: &[Frame], config: EncoderConfig) -> (Vec<u8>, Vec<Frame>, Vec<
     (stream, recon, stats)
 }
 
+/// [`encode`] through `push` and `flush`: frames back a frame late, two
+/// in flight on two threads.
+fn encode_pushed(frames: &[Frame], config: EncoderConfig) -> (Vec<u8>, Vec<Frame>, Vec<FrameStats>) {
+    let (w, h) = (frames[0].width(), frames[0].height());
+    let mut enc = Encoder::new(w, h, (25, 1), config).unwrap();
+    let mut stream = enc.header();
+    let (mut recon, mut stats) = (Vec::new(), Vec::new());
+    let pushed = frames.iter().map(|f| enc.push(f).unwrap()).collect::<Vec<_>>();
+    assert!(pushed[0].is_none(), "the first frame back at once");
+    for coded in pushed.into_iter().skip(1).chain([enc.flush().unwrap()]) {
+        let coded = coded.expect("every frame back a frame late");
+        stream.extend_from_slice(&coded.bytes);
+        recon.push(coded.recon.expect("a reconstruction by default"));
+        stats.push(coded.stats);
+    }
+    assert!(enc.flush().unwrap().is_none());
+    stream.extend_from_slice(&Encoder::trailer());
+    (stream, recon, stats)
+}
+
 fn all_predictors() -> Vec<Predictor> {
     let mut v: Vec<Predictor> = [
         "zero",
@@ -168,7 +188,9 @@ fn streams_are_the_same_for_any_number_of_threads() {
     // One thread decides row by row from a reference brought in as the
     // rows' searches reach, weighted as it comes: a fast rise too (the
     // picture 11.5 px higher a frame, the windows centred as far below
-    // their blocks), and a light that grows.
+    // their blocks), and a light that grows. Frames pushed on two threads
+    // are decided so too, two at once on frame threads, each waiting for
+    // the rows of the one before as it publishes them.
     let brightening = Synth::new(
         SceneSpec::new("brightening", 320, 176, 3)
             .seed(5)
@@ -191,9 +213,13 @@ fn streams_are_the_same_for_any_number_of_threads() {
                 .num_threads(threads)
                 .build()
                 .unwrap();
-            pool.install(|| encode(frames, config))
+            pool.install(|| (encode(frames, config), encode_pushed(frames, config)))
         };
-        let (one, recon, _) = run(1);
+        let ((one, recon, _), pushed) = run(1);
+        assert!(
+            pushed.0 == one && pushed.1 == recon,
+            "pushed frames differ on one thread"
+        );
         if std::ptr::eq(frames, &scenes[1]) && preset == EncoderPreset::Medium {
             // The light's change is weighted (the weights measured on the
             // reference's top half, brought in first).
@@ -203,13 +229,15 @@ fn streams_are_the_same_for_any_number_of_threads() {
         for threads in [2, 8] {
             // The reconstructions too: the last frame's is no reference
             // that a later frame's stream would show wrong.
-            let (stream, reconstructed, _) = run(threads);
-            assert!(
-                stream == one && reconstructed == recon,
-                "{} threads, preset {}: another stream or reconstruction than one thread's",
-                threads,
-                preset.name()
-            );
+            let (coded, pushed) = run(threads);
+            for (how, (stream, reconstructed, _)) in [("coded", coded), ("pushed", pushed)] {
+                assert!(
+                    stream == one && reconstructed == recon,
+                    "{} threads, preset {}, {how}: another stream or reconstruction than one thread's",
+                    threads,
+                    preset.name()
+                );
+            }
         }
         assert!(
             decoder::decode(&one).unwrap().1 == recon,

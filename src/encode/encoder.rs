@@ -3,15 +3,18 @@
 //! motion analysis, the frame's macroblocks ([`super::slice`]), the
 //! statistics, and the reconstructions kept as references.
 
+use std::borrow::Cow;
+use std::sync::mpsc::{self, Receiver};
+use std::sync::Arc;
 use std::time::Instant;
 
 use super::camera::CameraMotion;
 use super::config::{EncoderConfig, FilterChoice, Predictor};
 use super::filter::FilterChooser;
+use super::frame_thread::{FrameThreads, InFlight, RowFrame, RowFrameDone, Sequence, Written};
 use super::macroblock::MbCoder;
 use super::motion::MotionAnalyser;
 use super::progress::FrameProgress;
-use super::reference::GrowingReference;
 use super::slice::{self, CodedFrame};
 use super::stats::FrameStats;
 use super::weights;
@@ -36,8 +39,9 @@ pub struct Encoder {
     intra_coder: MbCoder,
     analyser: MotionAnalyser,
     /// The reconstructions since the last I frame, the latest first, at
-    /// most the configuration's references (coded size, borders extended).
-    references: Vec<Frame>,
+    /// most the configuration's references (coded size, borders
+    /// extended), of the frames finished (a frame thread may hold some).
+    references: Vec<Arc<Frame>>,
     /// The previous source, coded size (flow predictors read it).
     prev_source: Option<Frame>,
     /// The camera's motion from source to source (block searches centre
@@ -53,13 +57,18 @@ pub struct Encoder {
     spare_weighted: Option<Frame>,
     /// The last reference brought in row by row, to bring the next into.
     spare_plain: Option<Frame>,
-    /// The last frame's rows as it published them (one thread: P frames
-    /// bring their reference in from them, as a frame thread would).
-    last_rows: Option<FrameProgress>,
-    /// This frame's, where it published them as it decided them.
-    rows_now: Option<FrameProgress>,
-    /// The frame before's, to publish the next into.
+    /// The last frame's rows as it publishes them (frames decided row by
+    /// row bring their reference in from them).
+    last_rows: Option<Arc<FrameProgress>>,
+    /// A published frame's buffer, to publish the next into.
     spare_rows: Option<Frame>,
+    /// The frame pushed last, not returned yet ([`Encoder::push`]).
+    pending: Option<Pending>,
+    /// The threads of frames in flight, made at the first.
+    frame_threads: Option<FrameThreads>,
+    /// Where the frame in flight hands on the stream's state once
+    /// written, for the next frame thread.
+    handoff: Option<Receiver<Written>>,
     /// Contexts carried from frame to frame, as the decoder carries them.
     entropy: EntropyState,
     /// The contexts before the last frame was written: block P frames are
@@ -72,7 +81,51 @@ pub struct Encoder {
     /// P frame's filter (a frame thread starts before the frame before it
     /// is learnt from).
     lagged_filter: FilterChooser,
+    /// The frame after whose learning `lagged_filter` is the chooser
+    /// (in flight when the last P frame started).
+    lagged_after: Option<usize>,
+    /// The next frame's number.
     index: usize,
+}
+
+/// A frame started: its number, kind and camera motion, and when.
+struct FrameStart {
+    index: usize,
+    intra: bool,
+    inter: bool,
+    /// A block P frame that may be decided row by row.
+    rows: bool,
+    camera: Mv,
+    start: Instant,
+}
+
+/// The frame pushed last.
+enum Pending {
+    /// Coded.
+    Done(EncodedFrame),
+    /// On its frame thread, with its picture where it is measured against
+    /// and is not the coded one.
+    Running {
+        thread: InFlight,
+        frame: FrameStart,
+        source: Option<Frame>,
+    },
+}
+
+/// The kinds of spare coded-size frames.
+enum Spare {
+    Recon,
+    Plain,
+    Rows,
+}
+
+impl Drop for Encoder {
+    /// A frame still on its thread is waited for (its outcome dropped).
+    fn drop(&mut self) {
+        if let Some(Pending::Running { thread, .. }) = self.pending.take() {
+            thread.abandon();
+        }
+    }
 }
 
 impl Encoder {
@@ -121,12 +174,15 @@ impl Encoder {
             spare_weighted: None,
             spare_plain: None,
             last_rows: None,
-            rows_now: None,
             spare_rows: None,
+            pending: None,
+            frame_threads: None,
+            handoff: None,
             entropy: EntropyState::new(),
             pricing: EntropyState::new(),
             filter: FilterChooser::default(),
             lagged_filter: FilterChooser::default(),
+            lagged_after: None,
             index: 0,
         })
     }
@@ -163,11 +219,9 @@ impl Encoder {
 
     /// Codes the next frame.
     pub fn encode(&mut self, source: &Frame) -> Result<EncodedFrame, EncodeError> {
-        self.check_size(source)?;
-        let start = Instant::now();
-        let (cw, ch) = (self.seq.coded_width(), self.seq.coded_height());
-        let src = pad_to_coded(source, self.spare_source.take(), cw, ch)?;
-        self.encode_coded(Some(source), src, start)
+        self.nothing_pushed()?;
+        let (start, src) = self.padded(source)?;
+        self.code_now(Some(source), src, start)
     }
 
     /// Codes the next frame as [`Encoder::encode`] does (the same stream),
@@ -180,9 +234,77 @@ impl Encoder {
     /// taken only where no quality is measured (which compares the
     /// picture alone).
     pub fn encode_taking(&mut self, source: &mut Frame) -> Result<EncodedFrame, EncodeError> {
+        self.nothing_pushed()?;
+        match self.taken(source)? {
+            Some((start, src)) => self.code_now(None, src, start),
+            None => self.encode(source),
+        }
+    }
+
+    /// Starts coding the next frame and returns the frame pushed before it
+    /// once coded (none for the first): x264's API, a frame late, so that
+    /// with two threads two frames are in flight ([`super::frame_thread`]).
+    /// The same stream as [`Encoder::encode`]'s; [`Encoder::flush`] gives
+    /// the last frame. Not to be mixed with `encode` before a flush.
+    pub fn push(&mut self, source: &Frame) -> Result<Option<EncodedFrame>, EncodeError> {
+        let (start, src) = self.padded(source)?;
+        // The picture is measured against after this call returns.
+        let visible = (src.width(), src.height()) != (source.width(), source.height());
+        let kept = (visible && !self.config.metrics.is_none()).then(|| source.clone());
+        self.push_coded(kept, src, start)
+    }
+
+    /// [`Encoder::push`] taking `source`'s buffer as
+    /// [`Encoder::encode_taking`] does.
+    pub fn push_taking(&mut self, source: &mut Frame) -> Result<Option<EncodedFrame>, EncodeError> {
+        match self.taken(source)? {
+            Some((start, src)) => self.push_coded(None, src, start),
+            None => self.push(source),
+        }
+    }
+
+    /// The frame pushed last, once coded (none if every pushed frame was
+    /// returned).
+    pub fn flush(&mut self) -> Result<Option<EncodedFrame>, EncodeError> {
+        self.take_pending()
+    }
+
+    /// [`Encoder::code`] on this thread, nothing pushed before.
+    fn code_now(
+        &mut self,
+        source: Option<&Frame>,
+        src: Frame,
+        start: Instant,
+    ) -> Result<EncodedFrame, EncodeError> {
+        let (now, _) = self.code(source.map(Cow::Borrowed), src, start, false)?;
+        self.pending = Some(now);
+        self.take_pending()?
+            .ok_or_else(|| EncodeError::Config("a frame coded and not returned".into()))
+    }
+
+    fn nothing_pushed(&self) -> Result<(), EncodeError> {
+        match self.pending {
+            Some(_) => Err(EncodeError::Config(
+                "a frame pushed is not flushed: `encode` after `push`".into(),
+            )),
+            None => Ok(()),
+        }
+    }
+
+    /// `source` padded to the coded size, and when it started.
+    fn padded(&mut self, source: &Frame) -> Result<(Instant, Frame), EncodeError> {
+        self.check_size(source)?;
+        let start = Instant::now();
+        let (cw, ch) = (self.seq.coded_width(), self.seq.coded_height());
+        Ok((start, pad_to_coded(source, self.spare_source.take(), cw, ch)?))
+    }
+
+    /// `source`'s buffer as the coded frame, where it can be taken (see
+    /// [`Encoder::encode_taking`]), and when it started.
+    fn taken(&mut self, source: &mut Frame) -> Result<Option<(Instant, Frame)>, EncodeError> {
         self.check_size(source)?;
         if !self.can_take(source) {
-            return self.encode(source);
+            return Ok(None);
         }
         let start = Instant::now();
         let (w, h) = (source.width(), source.height());
@@ -210,7 +332,7 @@ impl Encoder {
         for plane in src.planes_mut() {
             plane.extend_border();
         }
-        self.encode_coded(None, src, start)
+        Ok(Some((start, src)))
     }
 
     fn check_size(&self, source: &Frame) -> Result<(), EncodeError> {
@@ -248,24 +370,109 @@ impl Encoder {
     }
 
     /// Codes `src` (coded size, borders extended), the frame `source`
-    /// (visible size; `None` where `src` is that size already).
-    fn encode_coded(
+    /// (visible size; `None` where `src` is that size already): a block P
+    /// frame decided row by row on a frame thread where `threads`, any
+    /// other frame now (after the frame pushed before it, which comes
+    /// back with it).
+    fn code(
         &mut self,
-        source: Option<&Frame>,
+        source: Option<Cow<'_, Frame>>,
         src: Frame,
         start: Instant,
-    ) -> Result<EncodedFrame, EncodeError> {
-        let (cw, ch) = (self.seq.coded_width(), self.seq.coded_height());
-        let recon = match self.spare_recon.take() {
-            Some(f) => f,
-            None => Frame::new(cw, ch)?,
+        threads: bool,
+    ) -> Result<(Pending, Option<EncodedFrame>), EncodeError> {
+        let (frame, weights) = self.start_frame(&src, start)?;
+        let src = match frame.rows {
+            true => match self.row_frame(&frame, src)? {
+                Ok(job) if threads => {
+                    let threads = match &self.frame_threads {
+                        Some(threads) => threads,
+                        None => self.frame_threads.insert(FrameThreads::new()?),
+                    };
+                    let thread = threads.start(frame.index, job);
+                    // The frame before finishes while this one starts.
+                    let earlier = self.take_pending()?;
+                    let source = source.map(Cow::into_owned);
+                    return Ok((
+                        Pending::Running {
+                            thread,
+                            frame,
+                            source,
+                        },
+                        earlier,
+                    ));
+                }
+                Ok(job) => {
+                    let earlier = self.take_pending()?;
+                    let done = job.run()?;
+                    let coded = self.finish_row(frame, source.as_deref(), done)?;
+                    return Ok((Pending::Done(coded), earlier));
+                }
+                Err(src) => src,
+            },
+            false => src,
         };
-        let intra = self.config.gop > 0 && self.index % self.config.gop == 0;
+        // Every other frame reads the whole of the frame before.
+        let earlier = self.take_pending()?;
+        let (coded, me_ms) = self.code_whole_frame(&frame, &src, weights)?;
+        let coded = self.finish_frame(frame, source.as_deref(), (coded, me_ms), src)?;
+        Ok((Pending::Done(coded), earlier))
+    }
+
+    /// [`Encoder::code`] for `push`: on frame threads with two threads.
+    fn push_coded(
+        &mut self,
+        source: Option<Frame>,
+        src: Frame,
+        start: Instant,
+    ) -> Result<Option<EncodedFrame>, EncodeError> {
+        let threads = rayon::current_num_threads() == 2;
+        let (now, earlier) = self.code(source.map(Cow::Owned), src, start, threads)?;
+        self.pending = Some(now);
+        Ok(earlier)
+    }
+
+    /// Whether the frame pushed last is on its frame thread.
+    fn in_flight(&self) -> bool {
+        matches!(self.pending, Some(Pending::Running { .. }))
+    }
+
+    /// The frame pushed last, finished (joined where on its thread).
+    fn take_pending(&mut self) -> Result<Option<EncodedFrame>, EncodeError> {
+        match self.pending.take() {
+            None => Ok(None),
+            Some(Pending::Done(coded)) => Ok(Some(coded)),
+            Some(Pending::Running {
+                thread,
+                frame,
+                source,
+            }) => {
+                let done = thread.wait()?;
+                self.finish_row(frame, source.as_ref(), done).map(Some)
+            }
+        }
+    }
+
+    /// The next frame's place in the sequence and its camera motion (and,
+    /// beside it, where a P frame reads the whole previous frame on
+    /// several threads, its weights).
+    fn start_frame(
+        &mut self,
+        src: &Frame,
+        start: Instant,
+    ) -> Result<(FrameStart, Option<Weights>), EncodeError> {
+        let index = self.index;
+        self.index += 1;
+        let intra = self.config.gop > 0 && index % self.config.gop == 0;
         let inter = !intra && self.prev_source.is_some();
-        // The camera's motion beside the weights' statistics: two passes
-        // over the frame that nothing else waits on, each on one thread
-        // (one thread measures the weights on the reference's rows as they
-        // are brought in: `code_p_rows`).
+        let threads = rayon::current_num_threads();
+        let rows = inter
+            && threads <= 2
+            && matches!(self.config.predictor, Predictor::Block(_))
+            && self.last_rows.is_some();
+        // Two passes over the frame that nothing else waits on, each on
+        // one thread (frames decided row by row measure their weights on
+        // the reference's rows as they come: `frame_thread`).
         let tracker = &mut self.camera;
         let (camera, weights) = rayon::join(
             // Every source, I frames' too: each is the next one's previous.
@@ -274,21 +481,162 @@ impl Encoder {
                 _ => Ok(Mv::ZERO),
             },
             || match self.references.first() {
-                Some(reference) if inter && rayon::current_num_threads() > 1 => {
-                    Some(weights_of(&self.config, &self.seq, &src, reference))
+                Some(reference) if inter && !rows && threads > 1 => {
+                    Some(weights_of(&self.config, &self.seq, src, reference))
                 }
                 _ => None,
             },
         );
-        let camera = camera?;
+        let frame = FrameStart {
+            index,
+            intra,
+            inter,
+            rows,
+            camera: camera?,
+            start,
+        };
+        Ok((frame, weights))
+    }
+
+    /// The work of a block P frame decided row by row
+    /// ([`super::frame_thread`]), from what the frame before publishes
+    /// (`src` back where its search needs the whole reference).
+    fn row_frame(&mut self, frame: &FrameStart, src: Frame) -> Result<Result<RowFrame, Frame>, EncodeError> {
+        let Some(from) = self.last_rows.clone() else {
+            return Ok(Err(src));
+        };
+        // The frame before is not among the references while in flight.
+        let in_flight = self.in_flight();
+        let older: Vec<Arc<Frame>> = match in_flight {
+            true => self
+                .references
+                .iter()
+                .take(usize::from(self.seq.max_refs) - 1)
+                .cloned()
+                .collect(),
+            false => self.references.iter().skip(1).cloned().collect(),
+        };
+        let plain = self.coded_frame(Spare::Plain)?;
+        let t = Instant::now();
+        let older_frames: Vec<&Frame> = older.iter().map(|f| &**f).collect();
+        let motion = self
+            .analyser
+            .analyse_growing(&plain, &older_frames, frame.camera, from.has_prior());
+        let me_ms = t.elapsed().as_secs_f64() * 1e3;
+        let Some(motion) = motion else {
+            self.spare_plain = Some(plain);
+            return Ok(Err(src));
+        };
+        let luma_filter = self.next_luma_filter(frame.index);
+        let publish = Arc::new(FrameProgress::new(self.coded_frame(Spare::Rows)?, true));
+        self.last_rows = Some(Arc::clone(&publish));
+        // Priced two frames back: the last finished where one is in flight.
+        let pricing = match in_flight {
+            true => self.entropy.clone(),
+            false => self.pricing.clone(),
+        };
+        let (after, next) = mpsc::channel();
+        let before = match self.handoff.take().filter(|_| in_flight) {
+            Some(before) => before,
+            None => {
+                let (now, before) = mpsc::channel();
+                let written = Written {
+                    entropy: self.entropy.clone(),
+                    filter: self.filter,
+                };
+                // The receiver is right here.
+                let _ = now.send(written);
+                before
+            }
+        };
+        self.handoff = Some(next);
+        Ok(Ok(RowFrame {
+            sequence: Sequence {
+                seq: self.seq,
+                config: self.config,
+                coder: self.coder,
+            },
+            index: frame.index,
+            src,
+            recon: self.coded_frame(Spare::Recon)?,
+            plain,
+            weighted: self.spare_weighted.take(),
+            motion,
+            me_ms,
+            from,
+            publish,
+            older,
+            pricing,
+            luma_filter,
+            before,
+            after,
+        }))
+    }
+
+    /// A spare coded-size frame of the kind asked, or a new one.
+    fn coded_frame(&mut self, spare: Spare) -> Result<Frame, PictureError> {
+        let kept = match spare {
+            Spare::Recon => self.spare_recon.take(),
+            Spare::Plain => self.spare_plain.take(),
+            Spare::Rows => self.spare_rows.take(),
+        };
+        match kept {
+            Some(f) => Ok(f),
+            None => Frame::new(self.seq.coded_width(), self.seq.coded_height()),
+        }
+    }
+
+    /// The luma filter of the P frame `index` (the chooser as it stood
+    /// when the P frame before started: it learns a frame late, as frame
+    /// threads do), the next one's set to the chooser once the frame
+    /// before this one is learnt from.
+    fn next_luma_filter(&mut self, index: usize) -> LumaFilter {
+        let filter = self.lagged_filter.next(self.config.luma_filter);
+        match self.in_flight() {
+            true => self.lagged_after = index.checked_sub(1),
+            false => self.lagged_filter = self.filter,
+        }
+        filter
+    }
+
+    /// Takes a row-by-row frame's outcome into the encoder's state.
+    fn finish_row(
+        &mut self,
+        frame: FrameStart,
+        source: Option<&Frame>,
+        done: RowFrameDone,
+    ) -> Result<EncodedFrame, EncodeError> {
+        self.pricing = done.before;
+        self.entropy = done.after.entropy;
+        self.filter = done.after.filter;
+        self.remember_vectors(&done.coded);
+        self.spare_plain = Some(done.plain);
+        self.spare_weighted = done.weighted.or(self.spare_weighted.take());
+        drop(done.older);
+        if let Ok(rows) = Arc::try_unwrap(done.from) {
+            self.spare_rows = Some(rows.into_frame());
+        }
+        self.finish_frame(frame, source, (done.coded, done.me_ms), done.src)
+    }
+
+    /// An I frame, or a P frame decided from the whole of the frame
+    /// before (on the pool's threads), with motion analysis' time; its
+    /// reconstruction published whole.
+    fn code_whole_frame(
+        &mut self,
+        frame: &FrameStart,
+        src: &Frame,
+        weights: Option<Weights>,
+    ) -> Result<(CodedFrame, f64), EncodeError> {
+        let recon = self.coded_frame(Spare::Recon)?;
         let before = self.entropy.clone();
-        let (coded, me_ms) = match (self.references.first(), inter) {
-            (Some(_), true) => self.code_p_frame(&src, recon, camera, weights)?,
+        let (coded, me_ms) = match (self.references.first(), frame.inter) {
+            (Some(_), true) => self.code_p_frame(frame, src, recon, weights)?,
             _ => {
                 let i = slice::code_intra(
                     &self.seq,
                     &self.intra_coder,
-                    &src,
+                    src,
                     self.config.deblock,
                     &mut self.entropy,
                     recon,
@@ -296,6 +644,20 @@ impl Encoder {
                 (i, 0.0)
             }
         };
+        self.pricing = before;
+        self.publish_whole(&coded.recon)?;
+        Ok((coded, me_ms))
+    }
+
+    /// The coded frame's statistics and visible reconstruction; its
+    /// reconstruction kept as a reference, `src` as the previous source.
+    fn finish_frame(
+        &mut self,
+        frame: FrameStart,
+        source: Option<&Frame>,
+        (coded, me_ms): (CodedFrame, f64),
+        src: Frame,
+    ) -> Result<EncodedFrame, EncodeError> {
         let measured = !self.config.metrics.is_none();
         let recon = if self.config.reconstruction || measured {
             Some(self.visible_recon(&coded.recon)?)
@@ -304,48 +666,42 @@ impl Encoder {
         };
         // The quality measurements are not coding time: some cost more than
         // the coding.
-        let coding_ms = start.elapsed().as_secs_f64() * 1e3;
-        let stats = self.frame_stats(source.unwrap_or(&src), recon.as_ref(), &coded, (me_ms, coding_ms));
+        let coding_ms = frame.start.elapsed().as_secs_f64() * 1e3;
+        let times = (me_ms, coding_ms);
+        let stats = self.frame_stats(frame.index, source.unwrap_or(&src), recon.as_ref(), &coded, times);
         let recon = recon.filter(|_| self.config.reconstruction);
-        if intra {
+        if frame.intra {
             self.references.clear();
         }
         if self.references.len() == usize::from(self.seq.max_refs) {
-            self.spare_recon = self.references.pop();
+            let oldest = self.references.pop();
+            // A frame thread may hold it still.
+            self.spare_recon = oldest.and_then(|f| Arc::try_unwrap(f).ok());
         }
-        self.publish_rows(&coded.recon)?;
         let bytes = coded.bytes;
-        self.references.insert(0, coded.recon);
+        self.references.insert(0, Arc::new(coded.recon));
         self.spare_source = self.prev_source.replace(src);
-        self.pricing = before;
-        self.index += 1;
+        if self.lagged_after == Some(frame.index) {
+            self.lagged_filter = self.filter;
+            self.lagged_after = None;
+        }
         Ok(EncodedFrame { bytes, recon, stats })
     }
 
-    /// Keeps the frame's published rows for the next (one thread, block
-    /// frames: the frames that bring their reference in row by row):
-    /// those it published as it decided them, or else `recon`'s (the
-    /// coded reconstruction, final) published whole.
-    fn publish_rows(&mut self, recon: &Frame) -> Result<(), PictureError> {
-        let rows_now = self.rows_now.take();
-        if rayon::current_num_threads() > 1 || !matches!(self.config.predictor, Predictor::Block(_)) {
+    /// Publishes a frame coded whole for the next, where the next may be
+    /// decided row by row (block frames, one or two threads).
+    fn publish_whole(&mut self, recon: &Frame) -> Result<(), PictureError> {
+        let threads = rayon::current_num_threads();
+        if threads > 2 || !matches!(self.config.predictor, Predictor::Block(_)) {
             return Ok(());
         }
-        let rows = match rows_now {
-            Some(rows) => rows,
-            None => {
-                let frame = match self.spare_rows.take() {
-                    Some(f) => f,
-                    None => Frame::new(recon.width(), recon.height())?,
-                };
-                let prior = self.analyser.prior();
-                let rows = FrameProgress::new(frame, prior.is_some());
-                rows.publish_whole(recon, prior);
-                rows
+        let prior = self.analyser.prior().map(<[Mv]>::to_vec);
+        let rows = FrameProgress::new(self.coded_frame(Spare::Rows)?, prior.is_some());
+        rows.publish_whole(recon, prior.as_deref());
+        if let Some(old) = self.last_rows.replace(Arc::new(rows)) {
+            if let Ok(old) = Arc::try_unwrap(old) {
+                self.spare_rows = Some(old.into_frame());
             }
-        };
-        if let Some(old) = self.last_rows.replace(rows) {
-            self.spare_rows = Some(old.into_frame());
         }
         Ok(())
     }
@@ -368,17 +724,14 @@ impl Encoder {
         Ok(out)
     }
 
-    /// A P frame: the reference weighted by `weights` (measured here where
-    /// not yet), motion analysed, the macroblocks decided and coded; with
-    /// the motion analysis' time, ms. On one thread, a block frame is
-    /// decided row by row from its reference brought in as the rows need
-    /// it, as a frame thread decides it (the same stream as the
-    /// wavefront's from the whole reference).
+    /// A P frame decided from the whole reference (weighted by `weights`,
+    /// measured here where not yet): motion analysed, the macroblocks
+    /// decided and coded; with the motion analysis' time, ms.
     fn code_p_frame(
         &mut self,
+        frame: &FrameStart,
         src: &Frame,
         recon: Frame,
-        camera: Mv,
         weights: Option<Weights>,
     ) -> Result<(CodedFrame, f64), EncodeError> {
         let tool = match self.config.predictor {
@@ -386,119 +739,42 @@ impl Encoder {
             Predictor::Dense { grid, .. } => MotionTool::Grid(grid),
             _ => MotionTool::Block,
         };
-        let luma_filter = self.lagged_filter.next(self.config.luma_filter);
-        self.lagged_filter = self.filter;
-        let coded = if rayon::current_num_threads() == 1 && tool == MotionTool::Block {
-            self.code_p_rows(src, recon, camera, luma_filter)?
-        } else {
-            Err(recon)
+        let luma_filter = self.next_luma_filter(frame.index);
+        let weights = match (weights, self.references.first()) {
+            (Some(w), _) => w,
+            (None, Some(reference)) => weights_of(&self.config, &self.seq, src, reference),
+            (None, None) => Weights::NONE,
         };
-        let (coded, me_ms) = match coded {
-            Ok(coded) => coded,
-            Err(recon) => {
-                let weights = match (weights, self.references.first()) {
-                    (Some(w), _) => w,
-                    (None, Some(reference)) => weights_of(&self.config, &self.seq, src, reference),
-                    (None, None) => Weights::NONE,
-                };
-                self.code_p_whole(src, recon, camera, (weights, luma_filter, tool))?
-            }
-        };
+        let coded = self.code_p_whole((frame, src), recon, (weights, luma_filter, tool))?;
+        self.remember_vectors(&coded.0);
+        Ok(coded)
+    }
+
+    /// A block P frame's decided vectors into its first reference: the
+    /// next block frame's co-located candidates.
+    fn remember_vectors(&mut self, coded: &CodedFrame) {
         if self.analyser.searches_in_decision() {
             let mvs = coded
                 .vectors
                 .iter()
                 .map(|v| v[0].filter(|m| m.ref_idx == 0).map_or(Mv::ZERO, |m| m.mv))
                 .collect();
-            self.analyser.remember(src.width(), src.height(), mvs);
+            let (cw, ch) = (self.seq.coded_width(), self.seq.coded_height());
+            self.analyser.remember(cw, ch, mvs);
         }
-        Ok((coded, me_ms))
-    }
-
-    /// A block P frame decided row by row ([`slice::code_inter_rows`]),
-    /// where its search allows (else `recon` back), its weights measured
-    /// on the reference's top half as soon as it is in.
-    fn code_p_rows(
-        &mut self,
-        src: &Frame,
-        recon: Frame,
-        camera: Mv,
-        luma_filter: LumaFilter,
-    ) -> Result<Result<(CodedFrame, f64), Frame>, EncodeError> {
-        let Some(from) = self.last_rows.as_ref() else {
-            return Ok(Err(recon));
-        };
-        let (cw, ch) = (self.seq.coded_width(), self.seq.coded_height());
-        let plain = match self.spare_plain.take() {
-            Some(f) => f,
-            None => Frame::new(cw, ch)?,
-        };
-        let t = Instant::now();
-        let motion = self
-            .analyser
-            .analyse_growing(&plain, &self.references[1..], camera, from.has_prior());
-        let me_ms = t.elapsed().as_secs_f64() * 1e3;
-        let Some(motion) = motion else {
-            self.spare_plain = Some(plain);
-            return Ok(Err(recon));
-        };
-        let mut growing = GrowingReference::new(plain);
-        let top = weight_rows(&self.seq) / crate::codec::consts::MB;
-        from.with_rows(top, |f, _| growing.bring_in(f, top, None));
-        let weights = weights_of(&self.config, &self.seq, src, growing.plain());
-        if weights.any() {
-            let weighted = match self.spare_weighted.take() {
-                Some(f) => f,
-                None => Frame::new(cw, ch)?,
-            };
-            growing.weigh(weights, weighted);
-        }
-        let frame = match self.spare_rows.take() {
-            Some(f) => f,
-            None => Frame::new(cw, ch)?,
-        };
-        let publish = FrameProgress::new(frame, true);
-        let older: Vec<&Frame> = self.references[1..].iter().collect();
-        let inputs = inter_inputs(
-            &self.config,
-            &self.pricing,
-            motion,
-            MotionTool::Block,
-            (weights, luma_filter),
-        );
-        let learn = self.config.luma_filter == FilterChoice::Auto;
-        let refs = slice::RowReferences {
-            from,
-            growing: &mut growing,
-            older: &older,
-            publish: &publish,
-        };
-        let coded = slice::code_inter_rows(
-            &self.seq,
-            &self.coder,
-            src,
-            inputs,
-            refs,
-            (&mut self.entropy, recon),
-            learner(&mut self.filter, learn, src, self.index),
-        )?;
-        let (plain, weighted) = growing.into_frames();
-        self.spare_plain = Some(plain);
-        self.rows_now = Some(publish);
-        self.spare_weighted = weighted.or(self.spare_weighted.take());
-        Ok(Ok((coded, me_ms)))
     }
 
     /// A P frame decided from the whole reference (weighted first) on the
     /// pool's threads.
     fn code_p_whole(
         &mut self,
-        src: &Frame,
+        (frame, src): (&FrameStart, &Frame),
         recon: Frame,
-        camera: Mv,
         (weights, luma_filter, tool): (Weights, LumaFilter, MotionTool),
     ) -> Result<(CodedFrame, f64), EncodeError> {
-        let (Some(unweighted), Some(prev)) = (self.references.first(), &self.prev_source) else {
+        let (index, camera) = (frame.index, frame.camera);
+        let (Some(unweighted), Some(prev)) = (self.references.first().map(|f| &**f), &self.prev_source)
+        else {
             return Err(EncodeError::Config("a P frame without a reference".into()));
         };
         let weighted = weights.any().then(|| {
@@ -516,13 +792,12 @@ impl Encoder {
         let t = Instant::now();
         // Older references: `block` only (the list holds one frame for the
         // other predictors).
-        let motion = self
-            .analyser
-            .analyse(src, prev, reference, &self.references[1..], camera);
+        let older: Vec<&Frame> = self.references[1..].iter().map(|f| &**f).collect();
+        let motion = self.analyser.analyse(src, prev, reference, &older, camera);
         let me_ms = t.elapsed().as_secs_f64() * 1e3;
         let mut inputs = inter_inputs(&self.config, &self.pricing, motion, tool, (weights, luma_filter));
         // Weights apply to reference 0 alone (FORMAT.md section 12).
-        inputs.references = std::iter::once(reference).chain(&self.references[1..]).collect();
+        inputs.references = std::iter::once(reference).chain(older.iter().copied()).collect();
         // Which filter the next frame takes, learnt while this one is
         // written.
         let learn = tool == MotionTool::Block && self.config.luma_filter == FilterChoice::Auto;
@@ -532,7 +807,7 @@ impl Encoder {
             src,
             inputs,
             (&mut self.entropy, recon),
-            learner(&mut self.filter, learn, src, self.index),
+            learner(&mut self.filter, learn, src, index),
         )?;
         self.spare_weighted = weighted.or(self.spare_weighted.take());
         Ok((coded, me_ms))
@@ -542,6 +817,7 @@ impl Encoder {
     /// quality (one record), the macroblocks' kinds and the times.
     fn frame_stats(
         &self,
+        index: usize,
         source: &Frame,
         recon: Option<&Frame>,
         coded: &CodedFrame,
@@ -549,7 +825,7 @@ impl Encoder {
     ) -> FrameStats {
         let header = &coded.syntax.header;
         FrameStats {
-            index: self.index,
+            index,
             frame_type: if header.frame_type == FrameType::Intra {
                 'I'
             } else {
@@ -577,7 +853,7 @@ impl Encoder {
 
 /// What runs beside a P frame's writing: the `index`-th frame `src`, its
 /// vectors and references, learnt from by `filter` where `learn`.
-fn learner<'f>(
+pub(super) fn learner<'f>(
     filter: &'f mut FilterChooser,
     learn: bool,
     src: &'f Frame,
@@ -591,7 +867,7 @@ fn learner<'f>(
 }
 
 /// A P frame's inputs under `config` (no references yet).
-fn inter_inputs<'r>(
+pub(super) fn inter_inputs<'r>(
     config: &EncoderConfig,
     pricing: &'r EntropyState,
     motion: super::motion::FrameMotion,
@@ -619,7 +895,12 @@ fn inter_inputs<'r>(
 
 /// The weights of a P frame `src` predicted from `reference` (their top
 /// halves), where `config` weighs.
-fn weights_of(config: &EncoderConfig, seq: &SequenceHeader, src: &Frame, reference: &Frame) -> Weights {
+pub(super) fn weights_of(
+    config: &EncoderConfig,
+    seq: &SequenceHeader,
+    src: &Frame,
+    reference: &Frame,
+) -> Weights {
     if config.weightp {
         weights::estimate(src, reference, weight_rows(seq))
     } else {
@@ -630,7 +911,7 @@ fn weights_of(config: &EncoderConfig, seq: &SequenceHeader, src: &Frame, referen
 /// How many of the reference's luma rows a P frame's weights are measured
 /// on: its top half, whole macroblock rows (the rows a frame thread has
 /// when it starts the next frame).
-fn weight_rows(seq: &SequenceHeader) -> usize {
+pub(super) fn weight_rows(seq: &SequenceHeader) -> usize {
     (seq.mb_rows() / 2).max(1) * crate::codec::consts::MB
 }
 

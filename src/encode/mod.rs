@@ -42,6 +42,7 @@ mod config;
 pub mod dsp;
 mod encoder;
 mod filter;
+mod frame_thread;
 mod intra4x4;
 mod intra8x8;
 mod macroblock;
@@ -178,13 +179,25 @@ pub fn encode_sequence<W: Write>(
     let mut frame = Frame::new(info.width, info.height)?;
     let mut next = Frame::new(info.width, info.height)?;
     let mut have = wanted(0) && source.next_frame(&mut frame)?;
+    let mut pushed = 0;
+    let mut take = |coded: EncodedFrame, encoder: &mut Encoder| -> Result<(), EncodeError> {
+        out.write_all(&coded.bytes)?;
+        summary.push(&coded.stats);
+        on_frame(&coded)?;
+        if let Some(recon) = coded.recon {
+            encoder.recycle(recon);
+        }
+        Ok(())
+    };
     while have {
         // The next frame is read while this one is coded, on another
         // thread where the pool has one: the copies of reading are work
-        // the encoder's threads would otherwise wait for.
-        let read_next = wanted(summary.frames() + 1);
-        let (coded, read) = rayon::join(
-            || encoder.encode_taking(&mut frame),
+        // the encoder's threads would otherwise wait for. Frames come
+        // back a frame late (two in flight on two threads).
+        pushed += 1;
+        let read_next = wanted(pushed);
+        let (earlier, read) = rayon::join(
+            || encoder.push_taking(&mut frame),
             || {
                 if read_next {
                     source.next_frame(&mut next)
@@ -193,16 +206,23 @@ pub fn encode_sequence<W: Write>(
                 }
             },
         );
-        let coded = coded?;
-        out.write_all(&coded.bytes)?;
-        summary.push(&coded.stats);
-        on_frame(&coded)?;
-        if let Some(recon) = coded.recon {
-            encoder.recycle(recon);
+        if let Some(coded) = earlier? {
+            take(coded, &mut encoder)?;
         }
         // A read error comes after the frames before it are out.
-        have = read?;
+        have = match read {
+            Ok(more) => more,
+            Err(e) => {
+                if let Some(coded) = encoder.flush()? {
+                    take(coded, &mut encoder)?;
+                }
+                return Err(e);
+            }
+        };
         std::mem::swap(&mut frame, &mut next);
+    }
+    if let Some(coded) = encoder.flush()? {
+        take(coded, &mut encoder)?;
     }
     out.write_all(&Encoder::trailer())?;
     out.flush()?;

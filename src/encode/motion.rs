@@ -143,7 +143,7 @@ impl MotionAnalyser {
         source: &Frame,
         prev_source: &Frame,
         reference: &Frame,
-        older: &[Frame],
+        older: &[&Frame],
         camera: Mv,
     ) -> FrameMotion {
         let cols = source.width() / MB;
@@ -219,7 +219,7 @@ impl MotionAnalyser {
     pub fn analyse_growing(
         &self,
         reference: &Frame,
-        older: &[Frame],
+        older: &[&Frame],
         camera: Mv,
         prior: bool,
     ) -> Option<FrameMotion> {
@@ -251,7 +251,7 @@ impl MotionAnalyser {
     fn decision_search(
         &self,
         reference: &Frame,
-        older: &[Frame],
+        older: &[&Frame],
         (s, camera, prior): (SearchSettings, Mv, Option<&MotionField>),
         planes: impl Fn(&Self, &Frame) -> Option<HalfPel>,
     ) -> FrameMotion {
@@ -342,7 +342,7 @@ impl MotionAnalyser {
     /// the window centred on the camera's motion over that distance.
     fn older_searches(
         &self,
-        older: &[Frame],
+        older: &[&Frame],
         (s, camera, prior): (SearchSettings, Mv, Option<&MotionField>),
     ) -> Vec<OlderSearch> {
         let cfg = self.search_config(SearchSettings {

@@ -604,7 +604,7 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
 
     /// The coded frame, written; `state` updated; `beside` run with its
     /// vectors and references as it is written.
-    fn finish(
+    pub(super) fn finish(
         self,
         state: &mut EntropyState,
         beside: impl FnOnce(&[MbVectors], &[&Frame]) + Send,
@@ -689,22 +689,21 @@ pub(crate) struct RowReferences<'f> {
     pub publish: &'f FrameProgress,
 }
 
-/// [`code_inter`] of a block P frame whose search the decision runs
-/// ([`super::motion::MotionAnalyser::analyse_growing`]), decided a row at
-/// a time on this thread, as a frame thread decides it: before each row,
-/// the first reference is brought in as far as the row's searches reach
-/// (waiting for the rows to be published; `inputs.references` is
-/// replaced), and after it the rows final are published. The same
-/// decisions as on a wavefront from the whole reference.
-pub(crate) fn code_inter_rows(
-    seq: &SequenceHeader,
-    coder: &MbCoder,
-    src: &Frame,
+/// The decisions of [`code_inter`] for a block P frame whose search the
+/// decision runs ([`super::motion::MotionAnalyser::analyse_growing`]),
+/// decided a row at a time on this thread, as a frame thread decides it:
+/// before each row, the first reference is brought in as far as the row's
+/// searches reach (waiting for the rows to be published;
+/// `inputs.references` is replaced), and after it the rows final are
+/// published. The same decisions as on a wavefront from the whole
+/// reference; the frame is written by [`InterFrameCoder::finish`] (once
+/// the frame before is: its contexts go on into this one's).
+pub(crate) fn decide_inter_rows<'a, 'r>(
+    (seq, coder, src): (&'a SequenceHeader, &'a MbCoder, &'a Frame),
     inputs: InterInputs<'_>,
-    refs: RowReferences<'_>,
-    (state, recon): (&mut EntropyState, Frame),
-    beside: impl FnOnce(&[MbVectors], &[&Frame]) + Send,
-) -> Result<CodedFrame, PictureError> {
+    refs: RowReferences<'r>,
+    recon: Frame,
+) -> Result<InterFrameCoder<'a, 'r>, PictureError> {
     let RowReferences {
         from,
         growing,
@@ -717,8 +716,10 @@ pub(crate) fn code_inter_rows(
             .collect(),
         ..inputs
     };
+    // Block frames are priced from `inputs.pricing`, not the state.
+    let unused = EntropyState::new();
     let mut frame_coder =
-        InterFrameCoder::new(seq, coder, src, first, state, recon)?.with_references(Vec::new());
+        InterFrameCoder::new(seq, coder, src, first, &unused, recon)?.with_references(Vec::new());
     let reach = frame_coder.rows_reach();
     let recon = frame_coder.lend_recon()?;
     let mut rows = frame_coder.wavefront().row_by_row(recon);
@@ -748,12 +749,12 @@ pub(crate) fn code_inter_rows(
         publish.publish(rows.recon(), rows.vectors(), rows.final_rows());
     }
     frame_coder.take_decided(rows.finish());
-    let frame_coder = frame_coder.with_references(
+    let growing: &'r GrowingReference = growing;
+    Ok(frame_coder.with_references(
         std::iter::once(growing.frame())
             .chain(older.iter().copied())
             .collect(),
-    );
-    frame_coder.finish(state, beside)
+    ))
 }
 
 /// Codes every macroblock's residual again, keeping the decisions, against

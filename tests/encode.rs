@@ -12,8 +12,8 @@ use mocomp::codec::syntax::{
 };
 use mocomp::codec::Frame;
 use mocomp::encode::{
-    encode_sequence, EncodeError, Encoder, EncoderConfig, EncoderPreset, FilterChoice, FrameSource,
-    FrameStats, ModeDecision, Partitions, Predictor, SequenceInfo,
+    encode_sequence, EncodeError, EncodedFrame, Encoder, EncoderConfig, EncoderPreset, FilterChoice,
+    FrameSource, FrameStats, ModeDecision, Partitions, Predictor, SequenceInfo,
 };
 use mocomp::metrics::Metrics;
 use mocomp::synth::{Motion, SceneSpec, Shape, Synth};
@@ -55,22 +55,27 @@ fn encode(frames: &[Frame], config: EncoderConfig) -> (Vec<u8>, Vec<Frame>, Vec<
     (stream, recon, stats)
 }
 
-/// [`encode`] through `push` and `flush`: frames back a frame late, two
-/// in flight on two threads.
+/// [`encode`] through `push` and `flush`: frames back late, two on their
+/// threads at once with two threads.
 fn encode_pushed(frames: &[Frame], config: EncoderConfig) -> (Vec<u8>, Vec<Frame>, Vec<FrameStats>) {
     let (w, h) = (frames[0].width(), frames[0].height());
     let mut enc = Encoder::new(w, h, (25, 1), config).unwrap();
     let mut stream = enc.header();
     let (mut recon, mut stats) = (Vec::new(), Vec::new());
-    let pushed = frames.iter().map(|f| enc.push(f).unwrap()).collect::<Vec<_>>();
-    assert!(pushed[0].is_none(), "the first frame back at once");
-    for coded in pushed.into_iter().skip(1).chain([enc.flush().unwrap()]) {
-        let coded = coded.expect("every frame back a frame late");
+    let mut back: Vec<EncodedFrame> = frames.iter().filter_map(|f| enc.push(f).unwrap()).collect();
+    while let Some(coded) = enc.flush().unwrap() {
+        back.push(coded);
+    }
+    assert!(
+        enc.encode(&frames[0]).is_ok(),
+        "encode after the frames are flushed"
+    );
+    for (i, coded) in back.into_iter().enumerate() {
+        assert_eq!(coded.stats.index, i, "frames back in order");
         stream.extend_from_slice(&coded.bytes);
         recon.push(coded.recon.expect("a reconstruction by default"));
         stats.push(coded.stats);
     }
-    assert!(enc.flush().unwrap().is_none());
     stream.extend_from_slice(&Encoder::trailer());
     (stream, recon, stats)
 }

@@ -4,6 +4,7 @@
 //! statistics, and the reconstructions kept as references.
 
 use std::borrow::Cow;
+use std::collections::VecDeque;
 use std::sync::mpsc::{self, Receiver};
 use std::sync::Arc;
 use std::time::Instant;
@@ -63,7 +64,9 @@ pub struct Encoder {
     /// A published frame's buffer, to publish the next into.
     spare_rows: Option<Frame>,
     /// The frame pushed last, not returned yet ([`Encoder::push`]).
-    pending: Option<Pending>,
+    /// The frames pushed and not returned yet, oldest first: at most two
+    /// on their threads ([`Encoder::push`]).
+    pending: VecDeque<Pending>,
     /// The threads of frames in flight, made at the first.
     frame_threads: Option<FrameThreads>,
     /// Where the frame in flight hands on the stream's state once
@@ -89,27 +92,21 @@ pub struct Encoder {
 }
 
 /// A frame started: its number, kind and camera motion, and when.
-struct FrameStart {
-    index: usize,
-    intra: bool,
-    inter: bool,
-    /// A block P frame that may be decided row by row.
-    rows: bool,
-    camera: Mv,
-    start: Instant,
+#[derive(Clone, Copy)]
+pub(super) struct FrameStart {
+    pub index: usize,
+    pub intra: bool,
+    pub inter: bool,
+    pub camera: Mv,
+    pub start: Instant,
 }
 
-/// The frame pushed last.
+/// A frame pushed and not returned.
 enum Pending {
-    /// Coded.
-    Done(EncodedFrame),
-    /// On its frame thread, with its picture where it is measured against
-    /// and is not the coded one.
-    Running {
-        thread: InFlight,
-        frame: FrameStart,
-        source: Option<Frame>,
-    },
+    /// Coded (boxed: a frame's statistics outweigh a thread's handle).
+    Done(Box<EncodedFrame>),
+    /// On its frame thread.
+    Running(InFlight),
 }
 
 /// The kinds of spare coded-size frames.
@@ -122,8 +119,10 @@ enum Spare {
 impl Drop for Encoder {
     /// A frame still on its thread is waited for (its outcome dropped).
     fn drop(&mut self) {
-        if let Some(Pending::Running { thread, .. }) = self.pending.take() {
-            thread.abandon();
+        for pending in self.pending.drain(..) {
+            if let Pending::Running(thread) = pending {
+                thread.abandon();
+            }
         }
     }
 }
@@ -175,7 +174,7 @@ impl Encoder {
             spare_plain: None,
             last_rows: None,
             spare_rows: None,
-            pending: None,
+            pending: VecDeque::new(),
             frame_threads: None,
             handoff: None,
             entropy: EntropyState::new(),
@@ -221,7 +220,8 @@ impl Encoder {
     pub fn encode(&mut self, source: &Frame) -> Result<EncodedFrame, EncodeError> {
         self.nothing_pushed()?;
         let (start, src) = self.padded(source)?;
-        self.code_now(Some(source), src, start)
+        let measured = self.measured_apart(source, &src).then_some(source);
+        self.code_now(measured, src, start)
     }
 
     /// Codes the next frame as [`Encoder::encode`] does (the same stream),
@@ -241,16 +241,16 @@ impl Encoder {
         }
     }
 
-    /// Starts coding the next frame and returns the frame pushed before it
-    /// once coded (none for the first): x264's API, a frame late, so that
-    /// with two threads two frames are in flight ([`super::frame_thread`]).
-    /// The same stream as [`Encoder::encode`]'s; [`Encoder::flush`] gives
-    /// the last frame. Not to be mixed with `encode` before a flush.
+    /// Starts coding the next frame and returns the oldest frame pushed
+    /// once it is coded, if one is (x264's API: with two threads two
+    /// frames are on their threads, [`super::frame_thread`], and frames
+    /// come back up to two calls late). The same stream as
+    /// [`Encoder::encode`]'s; [`Encoder::flush`] gives the frames left.
+    /// Not to be mixed with `encode` before they are flushed.
     pub fn push(&mut self, source: &Frame) -> Result<Option<EncodedFrame>, EncodeError> {
         let (start, src) = self.padded(source)?;
         // The picture is measured against after this call returns.
-        let visible = (src.width(), src.height()) != (source.width(), source.height());
-        let kept = (visible && !self.config.metrics.is_none()).then(|| source.clone());
+        let kept = self.measured_apart(source, &src).then(|| source.clone());
         self.push_coded(kept, src, start)
     }
 
@@ -263,10 +263,25 @@ impl Encoder {
         }
     }
 
-    /// The frame pushed last, once coded (none if every pushed frame was
-    /// returned).
+    /// The oldest frame pushed and not returned, once coded (waiting for
+    /// it); none when every frame is returned. Called until none after the
+    /// last push.
     pub fn flush(&mut self) -> Result<Option<EncodedFrame>, EncodeError> {
-        self.take_pending()
+        if let Some(Pending::Running(_)) = self.pending.front() {
+            self.finish_oldest()?;
+        }
+        match self.pending.pop_front() {
+            Some(Pending::Done(coded)) => Ok(Some(*coded)),
+            Some(Pending::Running(_)) => unreachable!("the oldest frame was finished"),
+            None => Ok(None),
+        }
+    }
+
+    /// Whether `source`, measured against, is another picture than its
+    /// coded form `src` (a size not of whole macroblocks).
+    fn measured_apart(&self, source: &Frame, src: &Frame) -> bool {
+        let visible = (src.width(), src.height()) != (source.width(), source.height());
+        visible && !self.config.metrics.is_none()
     }
 
     /// [`Encoder::code`] on this thread, nothing pushed before.
@@ -276,18 +291,17 @@ impl Encoder {
         src: Frame,
         start: Instant,
     ) -> Result<EncodedFrame, EncodeError> {
-        let (now, _) = self.code(source.map(Cow::Borrowed), src, start, false)?;
-        self.pending = Some(now);
-        self.take_pending()?
+        self.code(source.map(Cow::Borrowed), src, start, false)?;
+        self.flush()?
             .ok_or_else(|| EncodeError::Config("a frame coded and not returned".into()))
     }
 
     fn nothing_pushed(&self) -> Result<(), EncodeError> {
-        match self.pending {
-            Some(_) => Err(EncodeError::Config(
-                "a frame pushed is not flushed: `encode` after `push`".into(),
+        match self.pending.is_empty() {
+            false => Err(EncodeError::Config(
+                "frames pushed are not flushed: `encode` after `push`".into(),
             )),
-            None => Ok(()),
+            true => Ok(()),
         }
     }
 
@@ -370,56 +384,70 @@ impl Encoder {
     }
 
     /// Codes `src` (coded size, borders extended), the frame `source`
-    /// (visible size; `None` where `src` is that size already): a block P
-    /// frame decided row by row on a frame thread where `threads`, any
-    /// other frame now (after the frame pushed before it, which comes
-    /// back with it).
+    /// (visible size, where measured against apart from `src`) into the
+    /// queue of frames pushed: a block P frame decided row by row on a
+    /// frame thread where `threads` (once the frame two before it is
+    /// finished), any other frame now (once every frame before it is).
     fn code(
         &mut self,
         source: Option<Cow<'_, Frame>>,
         src: Frame,
         start: Instant,
         threads: bool,
-    ) -> Result<(Pending, Option<EncodedFrame>), EncodeError> {
-        let (frame, weights) = self.start_frame(&src, start)?;
-        let src = match frame.rows {
-            true => match self.row_frame(&frame, src)? {
-                Ok(job) if threads => {
-                    let threads = match &self.frame_threads {
-                        Some(threads) => threads,
-                        None => self.frame_threads.insert(FrameThreads::new()?),
-                    };
-                    let thread = threads.start(frame.index, job);
-                    // The frame before finishes while this one starts.
-                    let earlier = self.take_pending()?;
-                    let source = source.map(Cow::into_owned);
-                    return Ok((
-                        Pending::Running {
-                            thread,
-                            frame,
-                            source,
-                        },
-                        earlier,
-                    ));
-                }
-                Ok(job) => {
-                    let earlier = self.take_pending()?;
-                    let done = job.run()?;
-                    let coded = self.finish_row(frame, source.as_deref(), done)?;
-                    return Ok((Pending::Done(coded), earlier));
-                }
-                Err(src) => src,
-            },
-            false => src,
-        };
-        // Every other frame reads the whole of the frame before.
-        let earlier = self.take_pending()?;
-        let (coded, me_ms) = self.code_whole_frame(&frame, &src, weights)?;
-        let coded = self.finish_frame(frame, source.as_deref(), (coded, me_ms), src)?;
-        Ok((Pending::Done(coded), earlier))
+    ) -> Result<(), EncodeError> {
+        let rows = self.may_decide_rows();
+        if !rows {
+            self.finish_all()?;
+        }
+        let (frame, weights) = self.start_frame(&src, start, rows)?;
+        if !rows {
+            return self.code_whole(&frame, source.as_deref(), src, weights);
+        }
+        // The frame two before is finished before this one starts: its
+        // contexts price this one, it is among its references.
+        while self.running() > 1 {
+            self.finish_oldest()?;
+        }
+        match self.row_frame(&frame, (source.map(Cow::into_owned), src))? {
+            Ok(job) if threads => {
+                let threads = match &self.frame_threads {
+                    Some(threads) => threads,
+                    None => self.frame_threads.insert(FrameThreads::new()?),
+                };
+                let thread = threads.start(frame.index, job);
+                self.pending.push_back(Pending::Running(thread));
+                Ok(())
+            }
+            Ok(job) => {
+                let done = job.run()?;
+                let coded = self.finish_row(done);
+                self.pending.push_back(Pending::Done(Box::new(coded)));
+                Ok(())
+            }
+            Err((source, src)) => {
+                self.finish_all()?;
+                self.code_whole(&frame, source.as_ref(), src, weights)
+            }
+        }
     }
 
-    /// [`Encoder::code`] for `push`: on frame threads with two threads.
+    /// [`Encoder::code`] of a frame that reads the whole frame before it
+    /// (every frame before it finished).
+    fn code_whole(
+        &mut self,
+        frame: &FrameStart,
+        source: Option<&Frame>,
+        src: Frame,
+        weights: Option<Weights>,
+    ) -> Result<(), EncodeError> {
+        let (coded, me_ms) = self.code_whole_frame(frame, &src, weights)?;
+        let coded = self.finish_frame(*frame, source, (coded, me_ms), src)?;
+        self.pending.push_back(Pending::Done(Box::new(coded)));
+        Ok(())
+    }
+
+    /// [`Encoder::code`] for `push`: on frame threads with two threads;
+    /// the oldest frame back where it is coded.
     fn push_coded(
         &mut self,
         source: Option<Frame>,
@@ -427,49 +455,76 @@ impl Encoder {
         start: Instant,
     ) -> Result<Option<EncodedFrame>, EncodeError> {
         let threads = rayon::current_num_threads() == 2;
-        let (now, earlier) = self.code(source.map(Cow::Owned), src, start, threads)?;
-        self.pending = Some(now);
-        Ok(earlier)
-    }
-
-    /// Whether the frame pushed last is on its frame thread.
-    fn in_flight(&self) -> bool {
-        matches!(self.pending, Some(Pending::Running { .. }))
-    }
-
-    /// The frame pushed last, finished (joined where on its thread).
-    fn take_pending(&mut self) -> Result<Option<EncodedFrame>, EncodeError> {
-        match self.pending.take() {
-            None => Ok(None),
-            Some(Pending::Done(coded)) => Ok(Some(coded)),
-            Some(Pending::Running {
-                thread,
-                frame,
-                source,
-            }) => {
-                let done = thread.wait()?;
-                self.finish_row(frame, source.as_ref(), done).map(Some)
-            }
+        self.code(source.map(Cow::Owned), src, start, threads)?;
+        match self.pending.front() {
+            Some(Pending::Done(_)) if self.pending.len() > 1 || !threads => self.flush(),
+            _ => Ok(None),
         }
+    }
+
+    /// How many frames are on their threads.
+    fn running(&self) -> usize {
+        self.pending
+            .iter()
+            .filter(|p| matches!(p, Pending::Running(_)))
+            .count()
+    }
+
+    /// Whether the frame before is on its thread.
+    fn in_flight(&self) -> bool {
+        matches!(self.pending.back(), Some(Pending::Running(_)))
+    }
+
+    /// Waits for the oldest frame on its thread, if any, and takes its
+    /// outcome into the encoder's state.
+    fn finish_oldest(&mut self) -> Result<(), EncodeError> {
+        let Some(at) = self.pending.iter().position(|p| matches!(p, Pending::Running(_))) else {
+            return Ok(());
+        };
+        let Some(Pending::Running(thread)) = self.pending.remove(at) else {
+            unreachable!("a running frame at {at}");
+        };
+        let done = thread.wait()?;
+        let coded = self.finish_row(done);
+        self.pending.insert(at, Pending::Done(Box::new(coded)));
+        Ok(())
+    }
+
+    /// Every frame on its thread finished.
+    fn finish_all(&mut self) -> Result<(), EncodeError> {
+        while self.running() > 0 {
+            self.finish_oldest()?;
+        }
+        Ok(())
+    }
+
+    /// Whether the next frame may be a block P frame decided row by row
+    /// (whether it is depends on its search too: [`Encoder::row_frame`]).
+    fn may_decide_rows(&self) -> bool {
+        let index = self.index;
+        let intra = self.config.gop > 0 && index % self.config.gop == 0;
+        !intra
+            && self.prev_source.is_some()
+            && rayon::current_num_threads() <= 2
+            && matches!(self.config.predictor, Predictor::Block(_))
+            && self.last_rows.is_some()
     }
 
     /// The next frame's place in the sequence and its camera motion (and,
     /// beside it, where a P frame reads the whole previous frame on
-    /// several threads, its weights).
+    /// several threads, its weights; not where it may be decided row by
+    /// row, `rows`).
     fn start_frame(
         &mut self,
         src: &Frame,
         start: Instant,
+        rows: bool,
     ) -> Result<(FrameStart, Option<Weights>), EncodeError> {
         let index = self.index;
         self.index += 1;
         let intra = self.config.gop > 0 && index % self.config.gop == 0;
         let inter = !intra && self.prev_source.is_some();
         let threads = rayon::current_num_threads();
-        let rows = inter
-            && threads <= 2
-            && matches!(self.config.predictor, Predictor::Block(_))
-            && self.last_rows.is_some();
         // Two passes over the frame that nothing else waits on, each on
         // one thread (frames decided row by row measure their weights on
         // the reference's rows as they come: `frame_thread`).
@@ -491,7 +546,6 @@ impl Encoder {
             index,
             intra,
             inter,
-            rows,
             camera: camera?,
             start,
         };
@@ -501,9 +555,13 @@ impl Encoder {
     /// The work of a block P frame decided row by row
     /// ([`super::frame_thread`]), from what the frame before publishes
     /// (`src` back where its search needs the whole reference).
-    fn row_frame(&mut self, frame: &FrameStart, src: Frame) -> Result<Result<RowFrame, Frame>, EncodeError> {
+    fn row_frame(
+        &mut self,
+        frame: &FrameStart,
+        (source, src): (Option<Frame>, Frame),
+    ) -> Result<Result<RowFrame, (Option<Frame>, Frame)>, EncodeError> {
         let Some(from) = self.last_rows.clone() else {
-            return Ok(Err(src));
+            return Ok(Err((source, src)));
         };
         // The frame before is not among the references while in flight.
         let in_flight = self.in_flight();
@@ -525,7 +583,7 @@ impl Encoder {
         let me_ms = t.elapsed().as_secs_f64() * 1e3;
         let Some(motion) = motion else {
             self.spare_plain = Some(plain);
-            return Ok(Err(src));
+            return Ok(Err((source, src)));
         };
         let luma_filter = self.next_luma_filter(frame.index);
         let publish = Arc::new(FrameProgress::new(self.coded_frame(Spare::Rows)?, true));
@@ -556,7 +614,9 @@ impl Encoder {
                 config: self.config,
                 coder: self.coder,
             },
-            index: frame.index,
+            frame: *frame,
+            source,
+            output: self.spare_output.take(),
             src,
             recon: self.coded_frame(Spare::Recon)?,
             plain,
@@ -600,12 +660,7 @@ impl Encoder {
     }
 
     /// Takes a row-by-row frame's outcome into the encoder's state.
-    fn finish_row(
-        &mut self,
-        frame: FrameStart,
-        source: Option<&Frame>,
-        done: RowFrameDone,
-    ) -> Result<EncodedFrame, EncodeError> {
+    fn finish_row(&mut self, done: RowFrameDone) -> EncodedFrame {
         self.pricing = done.before;
         self.entropy = done.after.entropy;
         self.filter = done.after.filter;
@@ -616,7 +671,8 @@ impl Encoder {
         if let Ok(rows) = Arc::try_unwrap(done.from) {
             self.spare_rows = Some(rows.into_frame());
         }
-        self.finish_frame(frame, source, (done.coded, done.me_ms), done.src)
+        self.keep(&done.frame, done.coded.recon, done.src);
+        done.encoded
     }
 
     /// An I frame, or a P frame decided from the whole of the frame
@@ -649,27 +705,24 @@ impl Encoder {
         Ok((coded, me_ms))
     }
 
-    /// The coded frame's statistics and visible reconstruction; its
-    /// reconstruction kept as a reference, `src` as the previous source.
+    /// The coded frame reported ([`report`]); its reconstruction kept as
+    /// a reference, `src` as the previous source.
     fn finish_frame(
         &mut self,
         frame: FrameStart,
         source: Option<&Frame>,
-        (coded, me_ms): (CodedFrame, f64),
+        (mut coded, me_ms): (CodedFrame, f64),
         src: Frame,
     ) -> Result<EncodedFrame, EncodeError> {
-        let measured = !self.config.metrics.is_none();
-        let recon = if self.config.reconstruction || measured {
-            Some(self.visible_recon(&coded.recon)?)
-        } else {
-            None
-        };
-        // The quality measurements are not coding time: some cost more than
-        // the coding.
-        let coding_ms = frame.start.elapsed().as_secs_f64() * 1e3;
-        let times = (me_ms, coding_ms);
-        let stats = self.frame_stats(frame.index, source.unwrap_or(&src), recon.as_ref(), &coded, times);
-        let recon = recon.filter(|_| self.config.reconstruction);
+        let reporting = (&self.seq, &self.config, self.spare_output.take());
+        let encoded = report(reporting, &frame, source.unwrap_or(&src), (&mut coded, me_ms))?;
+        self.keep(&frame, coded.recon, src);
+        Ok(encoded)
+    }
+
+    /// A finished frame's reconstruction kept as a reference, `src` as the
+    /// previous source.
+    fn keep(&mut self, frame: &FrameStart, recon: Frame, src: Frame) {
         if frame.intra {
             self.references.clear();
         }
@@ -678,14 +731,12 @@ impl Encoder {
             // A frame thread may hold it still.
             self.spare_recon = oldest.and_then(|f| Arc::try_unwrap(f).ok());
         }
-        let bytes = coded.bytes;
-        self.references.insert(0, Arc::new(coded.recon));
+        self.references.insert(0, Arc::new(recon));
         self.spare_source = self.prev_source.replace(src);
         if self.lagged_after == Some(frame.index) {
             self.lagged_filter = self.filter;
             self.lagged_after = None;
         }
-        Ok(EncodedFrame { bytes, recon, stats })
     }
 
     /// Publishes a frame coded whole for the next, where the next may be
@@ -704,24 +755,6 @@ impl Encoder {
             }
         }
         Ok(())
-    }
-
-    /// The visible part of a coded reconstruction, in the frame given back
-    /// where it fits: luma beside chroma, as the source was padded.
-    fn visible_recon(&mut self, coded: &Frame) -> Result<Frame, PictureError> {
-        let (w, h) = (self.seq.width, self.seq.height);
-        let Some(mut out) = self.spare_output.take().filter(|f| holds_crop(f, w, h)) else {
-            return crop(coded, w, h);
-        };
-        let [y, u, v] = out.planes_mut();
-        rayon::join(
-            || crop_plane_into(coded.plane(0), y),
-            || {
-                crop_plane_into(coded.plane(1), u);
-                crop_plane_into(coded.plane(2), v);
-            },
-        );
-        Ok(out)
     }
 
     /// A P frame decided from the whole reference (weighted by `weights`,
@@ -812,42 +845,89 @@ impl Encoder {
         self.spare_weighted = weighted.or(self.spare_weighted.take());
         Ok((coded, me_ms))
     }
+}
 
-    /// The statistics of a coded frame: its rate, its reconstruction's
-    /// quality (one record), the macroblocks' kinds and the times.
-    fn frame_stats(
-        &self,
-        index: usize,
-        source: &Frame,
-        recon: Option<&Frame>,
-        coded: &CodedFrame,
-        (me_ms, total_ms): (f64, f64),
-    ) -> FrameStats {
-        let header = &coded.syntax.header;
-        FrameStats {
-            index,
-            frame_type: if header.frame_type == FrameType::Intra {
-                'I'
-            } else {
-                'P'
-            },
-            qp: header.qp,
-            bytes: coded.bytes.len(),
-            bits_header: coded.bits.header,
-            bits_motion: coded.bits.motion,
-            bits_residual: coded.bits.residual,
-            // Without a reconstruction no metric is asked for: a record
-            // of unknowns, as the measurement of none would give.
-            quality: FrameQuality::measure_as(source, recon.unwrap_or(source), &self.config.quality()),
-            prediction_psnr_y: psnr_from_mse(
-                coded.prediction_sse as f64 / (self.seq.width * self.seq.height) as f64,
-            ),
-            skip_mbs: coded.kinds[0],
-            inter_mbs: coded.kinds[1],
-            intra_mbs: coded.kinds[2],
-            me_ms,
-            total_ms,
-        }
+/// A coded frame as [`Encoder::encode`] returns it, its bytes taken: its
+/// visible reconstruction (into `output` where it fits) where asked for
+/// or measured, and its statistics against `source` (the picture, or the
+/// coded source where that is its size).
+pub(super) fn report(
+    (seq, config, output): (&SequenceHeader, &EncoderConfig, Option<Frame>),
+    frame: &FrameStart,
+    source: &Frame,
+    (coded, me_ms): (&mut CodedFrame, f64),
+) -> Result<EncodedFrame, PictureError> {
+    let measured = !config.metrics.is_none();
+    let recon = if config.reconstruction || measured {
+        Some(visible_recon(&coded.recon, (seq.width, seq.height), output)?)
+    } else {
+        None
+    };
+    // The quality measurements are not coding time: some cost more than
+    // the coding.
+    let coding_ms = frame.start.elapsed().as_secs_f64() * 1e3;
+    let times = (me_ms, coding_ms);
+    let stats = frame_stats((seq, config), frame.index, (source, recon.as_ref()), coded, times);
+    Ok(EncodedFrame {
+        bytes: std::mem::take(&mut coded.bytes),
+        recon: recon.filter(|_| config.reconstruction),
+        stats,
+    })
+}
+
+/// The visible part (`w x h`) of a coded reconstruction, in `output`
+/// where it fits: luma beside chroma, as the source was padded.
+fn visible_recon(
+    coded: &Frame,
+    (w, h): (usize, usize),
+    output: Option<Frame>,
+) -> Result<Frame, PictureError> {
+    let Some(mut out) = output.filter(|f| holds_crop(f, w, h)) else {
+        return crop(coded, w, h);
+    };
+    let [y, u, v] = out.planes_mut();
+    rayon::join(
+        || crop_plane_into(coded.plane(0), y),
+        || {
+            crop_plane_into(coded.plane(1), u);
+            crop_plane_into(coded.plane(2), v);
+        },
+    );
+    Ok(out)
+}
+
+/// The statistics of a coded frame: its rate, its reconstruction's
+/// quality against `source` (one record), the macroblocks' kinds and the
+/// times.
+fn frame_stats(
+    (seq, config): (&SequenceHeader, &EncoderConfig),
+    index: usize,
+    (source, recon): (&Frame, Option<&Frame>),
+    coded: &CodedFrame,
+    (me_ms, total_ms): (f64, f64),
+) -> FrameStats {
+    let header = &coded.syntax.header;
+    FrameStats {
+        index,
+        frame_type: if header.frame_type == FrameType::Intra {
+            'I'
+        } else {
+            'P'
+        },
+        qp: header.qp,
+        bytes: coded.bytes.len(),
+        bits_header: coded.bits.header,
+        bits_motion: coded.bits.motion,
+        bits_residual: coded.bits.residual,
+        // Without a reconstruction no metric is asked for: a record
+        // of unknowns, as the measurement of none would give.
+        quality: FrameQuality::measure_as(source, recon.unwrap_or(source), &config.quality()),
+        prediction_psnr_y: psnr_from_mse(coded.prediction_sse as f64 / (seq.width * seq.height) as f64),
+        skip_mbs: coded.kinds[0],
+        inter_mbs: coded.kinds[1],
+        intra_mbs: coded.kinds[2],
+        me_ms,
+        total_ms,
     }
 }
 

@@ -9,13 +9,14 @@ use std::sync::mpsc::{Receiver, Sender};
 use std::sync::Arc;
 
 use super::config::{EncoderConfig, FilterChoice};
+use super::encoder::{report, FrameStart};
 use super::filter::FilterChooser;
 use super::macroblock::MbCoder;
 use super::motion::FrameMotion;
 use super::progress::FrameProgress;
 use super::reference::GrowingReference;
 use super::slice::{self, CodedFrame};
-use super::EncodeError;
+use super::{EncodeError, EncodedFrame};
 use crate::codec::consts::MB;
 use crate::codec::interp::LumaFilter;
 use crate::codec::syntax::{EntropyState, MotionTool, SequenceHeader};
@@ -41,7 +42,11 @@ pub(super) struct Sequence {
 /// Everything a block P frame decided row by row needs, owned.
 pub(super) struct RowFrame {
     pub sequence: Sequence,
-    pub index: usize,
+    pub frame: FrameStart,
+    /// The picture where it is measured against and is not `src`, and
+    /// the buffer its visible reconstruction goes into.
+    pub source: Option<Frame>,
+    pub output: Option<Frame>,
     /// The source (coded size).
     pub src: Frame,
     /// Buffers to reconstruct into, bring the reference into and weigh it
@@ -67,10 +72,12 @@ pub(super) struct RowFrame {
     pub after: Sender<Written>,
 }
 
-/// A [`RowFrame`] done: the frame, and its buffers back.
+/// A [`RowFrame`] done: the frame as reported and as coded (its bytes
+/// taken), and its buffers back.
 pub(super) struct RowFrameDone {
+    pub frame: FrameStart,
+    pub encoded: EncodedFrame,
     pub coded: CodedFrame,
-    pub me_ms: f64,
     pub src: Frame,
     pub plain: Frame,
     pub weighted: Option<Frame>,
@@ -108,7 +115,9 @@ impl RowFrame {
     fn decide_and_write(self) -> Result<RowFrameDone, EncodeError> {
         let RowFrame {
             sequence,
-            index,
+            frame,
+            source,
+            output,
             src,
             recon,
             plain,
@@ -124,6 +133,7 @@ impl RowFrame {
             after,
         } = self;
         let Sequence { seq, config, coder } = &sequence;
+        let index = frame.index;
         let mut growing = GrowingReference::new(plain);
         let top = super::encoder::weight_rows(seq) / MB;
         from.with_rows(top, |f, _| growing.bring_in(f, top, None));
@@ -156,7 +166,7 @@ impl RowFrame {
             .map_err(|_| EncodeError::Config("the frame before this one failed".into()))?;
         let entropy_before = written.entropy.clone();
         let learn = config.luma_filter == FilterChoice::Auto;
-        let coded = decided.finish(
+        let mut coded = decided.finish(
             &mut written.entropy,
             super::encoder::learner(&mut written.filter, learn, &src, index),
         )?;
@@ -164,9 +174,13 @@ impl RowFrame {
         let _ = after.send(written.clone());
         drop(older_frames);
         let (plain, weighted) = growing.into_frames();
+        // Measured here, off the thread that starts the frames.
+        let measured = source.as_ref().unwrap_or(&src);
+        let encoded = report((seq, config, output), &frame, measured, (&mut coded, me_ms))?;
         Ok(RowFrameDone {
+            frame,
+            encoded,
             coded,
-            me_ms,
             src,
             plain,
             weighted: weighted.or(spare_weighted),

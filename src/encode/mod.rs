@@ -193,7 +193,7 @@ pub fn encode_sequence<W: Write>(
         // The next frame is read while this one is coded, on another
         // thread where the pool has one: the copies of reading are work
         // the encoder's threads would otherwise wait for. Frames come
-        // back a frame late (two in flight on two threads).
+        // back up to two pushes late (two on their threads on two).
         pushed += 1;
         let read_next = wanted(pushed);
         let (earlier, read) = rayon::join(
@@ -213,7 +213,7 @@ pub fn encode_sequence<W: Write>(
         have = match read {
             Ok(more) => more,
             Err(e) => {
-                if let Some(coded) = encoder.flush()? {
+                while let Some(coded) = encoder.flush()? {
                     take(coded, &mut encoder)?;
                 }
                 return Err(e);
@@ -221,7 +221,7 @@ pub fn encode_sequence<W: Write>(
         };
         std::mem::swap(&mut frame, &mut next);
     }
-    if let Some(coded) = encoder.flush()? {
+    while let Some(coded) = encoder.flush()? {
         take(coded, &mut encoder)?;
     }
     out.write_all(&Encoder::trailer())?;

@@ -71,7 +71,9 @@ pub struct Args {
     /// progress bar, no summary.
     #[arg(long)]
     pub quiet: bool,
-    /// Worker threads (default: all cores).
+    /// Worker threads (default: all cores). Two run two frames at once
+    /// (frame threads); more decide each frame's rows on a wavefront. The
+    /// stream is the same for any number.
     #[arg(long)]
     pub threads: Option<usize>,
 }

@@ -1,7 +1,9 @@
 //! The encoder's frame loop (x264's `encoder.c`): the sequence header,
 //! and per frame the choice of I or P, the references and their weights,
 //! motion analysis, the frame's macroblocks ([`super::slice`]), the
-//! statistics, and the reconstructions kept as references.
+//! statistics, and the reconstructions kept as references; with two
+//! threads, block P frames two at a time on frame threads
+//! ([`super::frame_thread`]).
 
 use std::borrow::Cow;
 use std::collections::VecDeque;

@@ -678,7 +678,7 @@ pub(crate) fn code_inter(
     frame_coder.finish(state, beside)
 }
 
-/// Where a block P frame decided row by row ([`code_inter_rows`]) takes
+/// Where a block P frame decided row by row ([`decide_inter_rows`]) takes
 /// its references from and publishes its own rows: the previous
 /// reconstruction's published rows, the reference it grows into, the
 /// older references; where its final rows go.

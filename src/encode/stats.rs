@@ -43,7 +43,9 @@ pub struct FrameStats {
     /// (`block` frames search every reference inside the decision: only
     /// the previous frame's half-pel planes are counted here).
     pub me_ms: f64,
-    /// Time to code the frame, ms (the quality measurements not included).
+    /// Time to code the frame, ms (the quality measurements not
+    /// included): from its start to its end, which on frame threads
+    /// overlaps the frames beside it and holds the waits for their rows.
     pub total_ms: f64,
 }
 

@@ -459,7 +459,7 @@ impl Encoder {
         let threads = rayon::current_num_threads() == 2;
         self.code(source.map(Cow::Owned), src, start, threads)?;
         match self.pending.front() {
-            Some(Pending::Done(_)) if self.pending.len() > 1 || !threads => self.flush(),
+            Some(Pending::Done(_)) => self.flush(),
             _ => Ok(None),
         }
     }
@@ -500,12 +500,15 @@ impl Encoder {
         Ok(())
     }
 
+    /// Whether frame `index` is an I frame (the I-frame period's).
+    fn is_intra(&self, index: usize) -> bool {
+        self.config.gop > 0 && index % self.config.gop == 0
+    }
+
     /// Whether the next frame may be a block P frame decided row by row
     /// (whether it is depends on its search too: [`Encoder::row_frame`]).
     fn may_decide_rows(&self) -> bool {
-        let index = self.index;
-        let intra = self.config.gop > 0 && index % self.config.gop == 0;
-        !intra
+        !self.is_intra(self.index)
             && self.prev_source.is_some()
             && rayon::current_num_threads() <= 2
             && matches!(self.config.predictor, Predictor::Block(_))
@@ -524,7 +527,7 @@ impl Encoder {
     ) -> Result<(FrameStart, Option<Weights>), EncodeError> {
         let index = self.index;
         self.index += 1;
-        let intra = self.config.gop > 0 && index % self.config.gop == 0;
+        let intra = self.is_intra(index);
         let inter = !intra && self.prev_source.is_some();
         let threads = rayon::current_num_threads();
         // Two passes over the frame that nothing else waits on, each on

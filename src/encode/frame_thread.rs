@@ -136,7 +136,8 @@ impl RowFrame {
         let index = frame.index;
         let mut growing = GrowingReference::new(plain);
         let top = super::encoder::weight_rows(seq) / MB;
-        from.with_rows(top, |f, _| growing.bring_in(f, top, None));
+        from.with_rows(top, |f, _| growing.copy_in(f, top));
+        growing.settle(None);
         let weights = super::encoder::weights_of(config, seq, &src, growing.plain());
         let mut spare_weighted = weighted;
         if weights.any() {

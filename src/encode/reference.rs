@@ -22,7 +22,9 @@ pub(super) struct GrowingReference {
     /// The rows weighted, where the frame weighs its reference.
     weighted: Option<Frame>,
     weights: Weights,
-    /// Macroblock rows in.
+    /// Macroblock rows copied in, and of those the rows usable (borders
+    /// extended, weighted).
+    copied: usize,
     rows: usize,
     /// Rows of the half-pel planes filled (from the margin's first).
     halfpel_rows: usize,
@@ -36,6 +38,7 @@ impl GrowingReference {
             plain,
             weighted: None,
             weights: Weights::NONE,
+            copied: 0,
             rows: 0,
             halfpel_rows: 0,
         }
@@ -70,35 +73,45 @@ impl GrowingReference {
         (self.plain, self.weighted)
     }
 
-    /// Brings in `from`'s macroblock rows to `upto` (`from` is the
+    /// Copies `from`'s macroblock rows to `upto` in (`from` is the
     /// reconstruction, coded size, final to there; its borders are not
-    /// read), and fills `halfpel` (the weighted luma's planes) as far as
-    /// the rows in reach.
-    pub(super) fn bring_in(&mut self, from: &Frame, upto: usize, halfpel: Option<&mut HalfPel>) {
-        let all = self.plain.height() / MB;
-        let upto = upto.min(all);
-        if upto > self.rows {
-            let luma = self.rows * MB..upto * MB;
+    /// read): all that needs the frame before's published rows, so their
+    /// lock is held no longer ([`GrowingReference::settle`] does the rest).
+    pub(super) fn copy_in(&mut self, from: &Frame, upto: usize) {
+        let upto = upto.min(self.plain.height() / MB);
+        for p in 0..3 {
+            let scale = if p == 0 { 1 } else { 2 };
+            let (src, dst) = (from.plane(p), self.plain.plane_mut(p));
+            for y in self.copied * MB / scale..upto.max(self.copied) * MB / scale {
+                dst.row_mut(y).copy_from_slice(src.row(y));
+            }
+        }
+        self.copied = self.copied.max(upto);
+    }
+
+    /// Makes the rows copied in usable: their borders extended, weighted,
+    /// and `halfpel` (the weighted luma's planes) filled as far as they
+    /// reach.
+    pub(super) fn settle(&mut self, halfpel: Option<&mut HalfPel>) {
+        if self.copied > self.rows {
+            let luma = self.rows * MB..self.copied * MB;
             for p in 0..3 {
                 let rows = if p == 0 {
                     luma.clone()
                 } else {
                     luma.start / 2..luma.end / 2
                 };
-                let (src, dst) = (from.plane(p), self.plain.plane_mut(p));
-                for y in rows.clone() {
-                    dst.row_mut(y).copy_from_slice(src.row(y));
-                }
-                dst.extend_border_rows(rows);
+                self.plain.plane_mut(p).extend_border_rows(rows);
             }
             if let Some(weighted) = &mut self.weighted {
                 self.weights.apply_rows(&self.plain, weighted, luma);
             }
-            self.rows = upto;
+            self.rows = self.copied;
         }
         let Some(halfpel) = halfpel else {
             return;
         };
+        let all = self.plain.height() / MB;
         let margin = halfpel.margin();
         let luma_in = self.rows * MB;
         let end = if self.rows == all {

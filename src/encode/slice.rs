@@ -726,17 +726,16 @@ pub(crate) fn decide_inter_rows<'a, 'r>(
     let mut prior_rows = 0;
     for r in 0..seq.mb_rows() {
         let upto = (r + reach).min(seq.mb_rows());
-        let lazy = frame_coder.lazy.as_deref_mut();
+        let mut lazy = frame_coder.lazy.as_deref_mut();
+        // Only the copies hold the frame before's lock.
         from.with_rows(upto, |f, prior| {
-            let Some(lazy) = lazy else {
-                return growing.bring_in(f, upto, None);
-            };
-            growing.bring_in(f, upto, lazy.search.planes_mut());
-            if let Some(prior) = prior {
+            growing.copy_in(f, upto);
+            if let (Some(lazy), Some(prior)) = (lazy.as_deref_mut(), prior) {
                 lazy.bring_in_prior(prior, prior_rows..upto);
             }
-            prior_rows = upto;
         });
+        prior_rows = upto;
+        growing.settle(lazy.and_then(|l| l.search.planes_mut()));
         let row_coder = frame_coder.with_references(
             std::iter::once(growing.frame())
                 .chain(older.iter().copied())

@@ -751,9 +751,10 @@ impl Encoder {
         if threads > 2 || !matches!(self.config.predictor, Predictor::Block(_)) {
             return Ok(());
         }
-        let prior = self.analyser.prior().map(<[Mv]>::to_vec);
-        let rows = FrameProgress::new(self.coded_frame(Spare::Rows)?, prior.is_some());
-        rows.publish_whole(recon, prior.as_deref());
+        let frame = self.coded_frame(Spare::Rows)?;
+        let prior = self.analyser.prior();
+        let rows = FrameProgress::new(frame, prior.is_some());
+        rows.publish_whole(recon, prior);
         if let Some(old) = self.last_rows.replace(Arc::new(rows)) {
             if let Ok(old) = Arc::try_unwrap(old) {
                 self.spare_rows = Some(old.into_frame());
@@ -792,11 +793,7 @@ impl Encoder {
     /// next block frame's co-located candidates.
     fn remember_vectors(&mut self, coded: &CodedFrame) {
         if self.analyser.searches_in_decision() {
-            let mvs = coded
-                .vectors
-                .iter()
-                .map(|v| v[0].filter(|m| m.ref_idx == 0).map_or(Mv::ZERO, |m| m.mv))
-                .collect();
+            let mvs = coded.vectors.iter().map(super::motion::colocated).collect();
             let (cw, ch) = (self.seq.coded_width(), self.seq.coded_height());
             self.analyser.remember(cw, ch, mvs);
         }

@@ -83,6 +83,13 @@ pub(crate) struct OlderSearch {
     pub found: SharedGrid,
 }
 
+/// A macroblock's co-located candidate for the next frame's search: its
+/// first block's vector into the first reference (zero for intra or an
+/// older reference).
+pub(crate) fn colocated(vectors: &MbVectors) -> Mv {
+    vectors[0].filter(|m| m.ref_idx == 0).map_or(Mv::ZERO, |m| m.mv)
+}
+
 /// How far beyond the picture the half-pel planes kept for the partition
 /// search reach (candidates further out use the codec's filter).
 pub(crate) const PARTITION_MARGIN: usize = 48;

@@ -78,7 +78,7 @@ impl FrameProgress {
         if let Some(prior) = &mut published.prior {
             let mbs = rows.start * cols..rows.end * cols;
             for (p, v) in prior[mbs.clone()].iter_mut().zip(&vectors[mbs]) {
-                *p = v[0].filter(|m| m.ref_idx == 0).map_or(Mv::ZERO, |m| m.mv);
+                *p = super::motion::colocated(v);
             }
         }
         Self::copy_rows(&mut published, from, rows);

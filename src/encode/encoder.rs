@@ -18,6 +18,7 @@ use super::frame_thread::{FrameThreads, InFlight, RowFrame, RowFrameDone, Sequen
 use super::macroblock::MbCoder;
 use super::motion::MotionAnalyser;
 use super::progress::FrameProgress;
+use super::reference::GrowingReference;
 use super::slice::{self, CodedFrame};
 use super::stats::FrameStats;
 use super::weights;
@@ -410,7 +411,7 @@ impl Encoder {
         while self.running() > 1 {
             self.finish_oldest()?;
         }
-        match self.row_frame(&frame, (source.map(Cow::into_owned), src))? {
+        match self.row_frame(&frame, (source.map(Cow::into_owned), src), threads)? {
             Ok(job) if threads => {
                 let threads = match &self.frame_threads {
                     Some(threads) => threads,
@@ -559,39 +560,58 @@ impl Encoder {
 
     /// The work of a block P frame decided row by row
     /// ([`super::frame_thread`]), from what the frame before publishes
-    /// (`src` back where its search needs the whole reference).
+    /// (`src` back where its search needs the whole reference); to run on
+    /// a frame thread where `threads`.
     fn row_frame(
         &mut self,
         frame: &FrameStart,
         (source, src): (Option<Frame>, Frame),
+        threads: bool,
     ) -> Result<Result<RowFrame, (Option<Frame>, Frame)>, EncodeError> {
         let Some(from) = self.last_rows.clone() else {
             return Ok(Err((source, src)));
         };
-        // The frame before is not among the references while in flight.
+        // The frame before is not among the references while in flight;
+        // finished, it is the first, read as it is.
         let in_flight = self.in_flight();
-        let older: Vec<Arc<Frame>> = match in_flight {
-            true => self
-                .references
-                .iter()
-                .take(usize::from(self.seq.max_refs) - 1)
-                .cloned()
-                .collect(),
-            false => self.references.iter().skip(1).cloned().collect(),
+        let (reference, older): (GrowingReference, Vec<Arc<Frame>>) = match in_flight {
+            true => (
+                GrowingReference::new(self.coded_frame(Spare::Plain)?),
+                self.references
+                    .iter()
+                    .take(usize::from(self.seq.max_refs) - 1)
+                    .cloned()
+                    .collect(),
+            ),
+            false => match self.references.first() {
+                Some(before) => (
+                    GrowingReference::finished(Arc::clone(before)),
+                    self.references.iter().skip(1).cloned().collect(),
+                ),
+                None => return Ok(Err((source, src))),
+            },
         };
-        let plain = self.coded_frame(Spare::Plain)?;
         let t = Instant::now();
         let older_frames: Vec<&Frame> = older.iter().map(|f| &**f).collect();
-        let motion = self
-            .analyser
-            .analyse_growing(&plain, &older_frames, frame.camera, from.has_prior());
+        let motion =
+            self.analyser
+                .analyse_growing(reference.plain(), &older_frames, frame.camera, from.has_prior());
         let me_ms = t.elapsed().as_secs_f64() * 1e3;
         let Some(motion) = motion else {
-            self.spare_plain = Some(plain);
+            if let (Some(plain), _) = reference.into_frames() {
+                self.spare_plain = Some(plain);
+            }
             return Ok(Err((source, src)));
         };
         let luma_filter = self.next_luma_filter(frame.index);
-        let publish = Arc::new(FrameProgress::new(self.coded_frame(Spare::Rows)?, true));
+        // Only a frame on a thread may have the frame after it start
+        // before it is finished: only its samples are published.
+        let samples = match threads {
+            true => Some(self.coded_frame(Spare::Rows)?),
+            false => None,
+        };
+        let size = (self.seq.coded_width(), self.seq.coded_height());
+        let publish = Arc::new(FrameProgress::new(size, samples, true));
         self.last_rows = Some(Arc::clone(&publish));
         // Priced two frames back: the last finished where one is in flight.
         let pricing = match in_flight {
@@ -624,8 +644,8 @@ impl Encoder {
             output: self.spare_output.take(),
             src,
             recon: self.coded_frame(Spare::Recon)?,
-            plain,
             weighted: self.spare_weighted.take(),
+            reference,
             motion,
             me_ms,
             from,
@@ -670,11 +690,11 @@ impl Encoder {
         self.entropy = done.after.entropy;
         self.filter = done.after.filter;
         self.remember_vectors(&done.coded);
-        self.spare_plain = Some(done.plain);
+        self.spare_plain = done.plain.or(self.spare_plain.take());
         self.spare_weighted = done.weighted.or(self.spare_weighted.take());
         drop(done.older);
         if let Ok(rows) = Arc::try_unwrap(done.from) {
-            self.spare_rows = Some(rows.into_frame());
+            self.spare_rows = rows.into_samples().or(self.spare_rows.take());
         }
         self.keep(&done.frame, done.coded.recon, done.src);
         done.encoded
@@ -706,7 +726,7 @@ impl Encoder {
             }
         };
         self.pricing = before;
-        self.publish_whole(&coded.recon)?;
+        self.publish_whole(&coded.recon);
         Ok((coded, me_ms))
     }
 
@@ -745,22 +765,23 @@ impl Encoder {
     }
 
     /// Publishes a frame coded whole for the next, where the next may be
-    /// decided row by row (block frames, one or two threads).
-    fn publish_whole(&mut self, recon: &Frame) -> Result<(), PictureError> {
+    /// decided row by row (block frames, one or two threads): its vectors
+    /// alone, since it is finished before the next starts (which reads its
+    /// reconstruction as it is).
+    fn publish_whole(&mut self, recon: &Frame) {
         let threads = rayon::current_num_threads();
         if threads > 2 || !matches!(self.config.predictor, Predictor::Block(_)) {
-            return Ok(());
+            return;
         }
-        let frame = self.coded_frame(Spare::Rows)?;
         let prior = self.analyser.prior();
-        let rows = FrameProgress::new(frame, prior.is_some());
+        let size = (self.seq.coded_width(), self.seq.coded_height());
+        let rows = FrameProgress::new(size, None, prior.is_some());
         rows.publish_whole(recon, prior);
         if let Some(old) = self.last_rows.replace(Arc::new(rows)) {
             if let Ok(old) = Arc::try_unwrap(old) {
-                self.spare_rows = Some(old.into_frame());
+                self.spare_rows = old.into_samples().or(self.spare_rows.take());
             }
         }
-        Ok(())
     }
 
     /// A P frame decided from the whole reference (weighted by `weights`,

@@ -49,11 +49,12 @@ pub(super) struct RowFrame {
     pub output: Option<Frame>,
     /// The source (coded size).
     pub src: Frame,
-    /// Buffers to reconstruct into, bring the reference into and weigh it
-    /// into (coded size, any content).
+    /// The buffer to reconstruct into and weigh the reference into (coded
+    /// size, any content).
     pub recon: Frame,
-    pub plain: Frame,
     pub weighted: Option<Frame>,
+    /// The frame before, as its rows come in (or finished).
+    pub reference: GrowingReference,
     /// Motion analysis made ready ([`super::motion::MotionAnalyser::analyse_growing`])
     /// and the time it took, ms.
     pub motion: FrameMotion,
@@ -79,7 +80,7 @@ pub(super) struct RowFrameDone {
     pub encoded: EncodedFrame,
     pub coded: CodedFrame,
     pub src: Frame,
-    pub plain: Frame,
+    pub plain: Option<Frame>,
     pub weighted: Option<Frame>,
     pub from: Arc<FrameProgress>,
     pub older: Vec<Arc<Frame>>,
@@ -120,8 +121,8 @@ impl RowFrame {
             output,
             src,
             recon,
-            plain,
             weighted,
+            reference,
             motion,
             me_ms,
             from,
@@ -134,7 +135,7 @@ impl RowFrame {
         } = self;
         let Sequence { seq, config, coder } = &sequence;
         let index = frame.index;
-        let mut growing = GrowingReference::new(plain);
+        let mut growing = reference;
         let top = super::encoder::weight_rows(seq) / MB;
         from.with_rows(top, |f, _| growing.copy_in(f, top));
         growing.settle(None);

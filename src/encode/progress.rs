@@ -3,7 +3,9 @@
 //! broadcast a frame's finished rows the same way): the rows are copied
 //! out, so that no frame is written by one thread while another reads it.
 //! The rows' decided vectors go with them: the next frame's co-located
-//! search candidates.
+//! search candidates. A frame finished before the frame after it starts
+//! (one thread, or a frame coded whole) publishes its vectors alone: the
+//! frame after reads its finished reconstruction, and nothing is copied.
 
 use std::sync::{Condvar, Mutex, MutexGuard, PoisonError};
 
@@ -16,12 +18,14 @@ use crate::codec::Frame;
 pub(super) struct FrameProgress {
     published: Mutex<Published>,
     more: Condvar,
+    /// The frame's macroblock rows.
+    mb_rows: usize,
 }
 
 struct Published {
     /// The reconstruction's final rows (coded size; the rest unspecified,
-    /// borders not extended).
-    frame: Frame,
+    /// borders not extended), where the frame publishes its samples.
+    samples: Option<Frame>,
     /// Macroblock rows final.
     rows: usize,
     /// The co-located candidates of the frame after, a vector per
@@ -32,18 +36,21 @@ struct Published {
 }
 
 impl FrameProgress {
-    /// Progress into `frame` (the coded size, its content any): no row
-    /// final yet; with co-located candidates where `prior`.
-    pub(super) fn new(frame: Frame, prior: bool) -> FrameProgress {
-        let mbs = (frame.width() / MB) * (frame.height() / MB);
+    /// Progress of a frame of `(width, height)` (coded size), its rows
+    /// copied into `samples` (that size, its content any) where the frame
+    /// after may start before it is finished: no row final yet; with
+    /// co-located candidates where `prior`.
+    pub(super) fn new((width, height): (usize, usize), samples: Option<Frame>, prior: bool) -> FrameProgress {
+        let mbs = (width / MB) * (height / MB);
         let prior = prior.then(|| vec![Mv::ZERO; mbs]);
         FrameProgress {
             published: Mutex::new(Published {
-                frame,
+                samples,
                 rows: 0,
                 prior,
             }),
             more: Condvar::new(),
+            mb_rows: height / MB,
         }
     }
 
@@ -52,12 +59,12 @@ impl FrameProgress {
         self.lock().prior.is_some()
     }
 
-    /// The published frame's buffer, to be used again.
-    pub(super) fn into_frame(self) -> Frame {
+    /// The buffer the samples were published into, to be used again.
+    pub(super) fn into_samples(self) -> Option<Frame> {
         self.published
             .into_inner()
             .unwrap_or_else(PoisonError::into_inner)
-            .frame
+            .samples
     }
 
     fn lock(&self) -> MutexGuard<'_, Published> {
@@ -70,7 +77,7 @@ impl FrameProgress {
     /// `upto`), and wakes whoever waits for them.
     pub(super) fn publish(&self, from: &Frame, vectors: &[MbVectors], upto: usize) {
         let mut published = self.lock();
-        let rows = published.rows..upto.min(from.height() / MB);
+        let rows = published.rows..upto.min(self.mb_rows);
         if rows.is_empty() {
             return;
         }
@@ -93,7 +100,7 @@ impl FrameProgress {
         if let (Some(to), Some(from)) = (&mut published.prior, prior) {
             to.copy_from_slice(from);
         }
-        let rows = published.rows..from.height() / MB;
+        let rows = published.rows..self.mb_rows;
         Self::copy_rows(&mut published, from, rows);
         drop(published);
         self.more.notify_all();
@@ -104,7 +111,7 @@ impl FrameProgress {
     /// place).
     pub(super) fn abandon(&self) {
         let mut published = self.lock();
-        published.rows = published.frame.height() / MB;
+        published.rows = self.mb_rows;
         drop(published);
         self.more.notify_all();
     }
@@ -113,26 +120,28 @@ impl FrameProgress {
         if rows.is_empty() {
             return;
         }
-        for p in 0..3 {
-            let scale = if p == 0 { 1 } else { 2 };
-            let (src, dst) = (from.plane(p), published.frame.plane_mut(p));
-            for y in rows.start * MB / scale..rows.end * MB / scale {
-                dst.row_mut(y).copy_from_slice(src.row(y));
+        if let Some(samples) = &mut published.samples {
+            for p in 0..3 {
+                let scale = if p == 0 { 1 } else { 2 };
+                let (src, dst) = (from.plane(p), samples.plane_mut(p));
+                for y in rows.start * MB / scale..rows.end * MB / scale {
+                    dst.row_mut(y).copy_from_slice(src.row(y));
+                }
             }
         }
         published.rows = rows.end;
     }
 
-    /// `f` of the published frame and its co-located candidates once
-    /// `rows` macroblock rows of them are final (all it has, if fewer),
-    /// waiting until they are.
-    pub(super) fn with_rows<R>(&self, rows: usize, f: impl FnOnce(&Frame, Option<&[Mv]>) -> R) -> R {
+    /// `f` of the published samples (where the frame publishes them) and
+    /// co-located candidates once `rows` macroblock rows of them are final
+    /// (all it has, if fewer), waiting until they are.
+    pub(super) fn with_rows<R>(&self, rows: usize, f: impl FnOnce(Option<&Frame>, Option<&[Mv]>) -> R) -> R {
         let mut published = self.lock();
-        let rows = rows.min(published.frame.height() / MB);
+        let rows = rows.min(self.mb_rows);
         while published.rows < rows {
             published = self.more.wait(published).unwrap_or_else(PoisonError::into_inner);
         }
-        f(&published.frame, published.prior.as_deref())
+        f(published.samples.as_ref(), published.prior.as_deref())
     }
 }
 
@@ -172,10 +181,11 @@ mod tests {
                 }
             })
             .collect();
-        let progress = FrameProgress::new(Frame::new(w, h).unwrap(), true);
+        let progress = FrameProgress::new((w, h), Some(Frame::new(w, h).unwrap()), true);
         std::thread::scope(|s| {
             let reader = s.spawn(|| {
                 progress.with_rows(2, |f, prior| {
+                    let f = f.expect("samples published");
                     // The two rows asked for are in, all three planes, and
                     // their vectors.
                     let prior = prior.expect("a P frame's candidates");
@@ -197,16 +207,35 @@ mod tests {
             assert!(reader.join().unwrap(), "rows seen before they were published");
         });
         // More rows than the frame has: all of them, no wait.
-        assert!(progress.with_rows(10, |f, _| *f == recon));
+        assert!(progress.with_rows(10, |f, _| f == Some(&recon)));
     }
 
     #[test]
     fn an_abandoned_frame_keeps_no_one_waiting() {
-        let progress = FrameProgress::new(Frame::new(32, 48).unwrap(), false);
+        let progress = FrameProgress::new((32, 48), Some(Frame::new(32, 48).unwrap()), false);
         std::thread::scope(|s| {
             let reader = s.spawn(|| progress.with_rows(3, |_, prior| prior.is_none()));
             progress.abandon();
             assert!(reader.join().unwrap());
         });
+    }
+
+    #[test]
+    fn a_frame_without_samples_publishes_its_rows_and_vectors() {
+        let (w, h) = (32, 48);
+        let recon = Frame::new(w, h).unwrap();
+        let vectors =
+            vec![[Some(crate::codec::partition::RefMv::previous(Mv::new(3, -1))); 4]; (w / MB) * (h / MB)];
+        let progress = FrameProgress::new((w, h), None, true);
+        std::thread::scope(|s| {
+            let reader = s.spawn(|| {
+                progress.with_rows(3, |f, prior| {
+                    f.is_none() && prior.is_some_and(|p| p.iter().all(|&v| v == Mv::new(3, -1)))
+                })
+            });
+            progress.publish(&recon, &vectors, 3);
+            assert!(reader.join().unwrap(), "vectors of every row, no samples");
+        });
+        assert!(progress.into_samples().is_none());
     }
 }

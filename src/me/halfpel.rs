@@ -216,7 +216,7 @@ impl HalfPel {
     /// The samples of phase `(px, py)` (quarter-pels, each 0 or 2) from
     /// picture position (x, y) on, and their stride: the reference's own
     /// at (0, 0).
-    fn phase_at<'a>(
+    pub(crate) fn phase_at<'a>(
         &'a self,
         reference: &'a Plane,
         (px, py): (i32, i32),

@@ -576,6 +576,7 @@ fn state_of(mode: &MbMode) -> MbState {
 pub struct ModeCoder {
     contexts: [Context; CONTEXTS],
     mb_cols: usize,
+    mb_rows: usize,
     states: Vec<MbState>,
     /// |difference| per component of the grid nodes coded so far.
     grid: Vec<[u32; 2]>,
@@ -587,6 +588,7 @@ impl ModeCoder {
         ModeCoder {
             contexts: [Context::new(); CONTEXTS],
             mb_cols,
+            mb_rows,
             states: vec![MbState::default(); mb_cols * mb_rows],
             grid: Vec::new(),
         }
@@ -595,12 +597,18 @@ impl ModeCoder {
     /// A coder for the next frame that starts from the contexts this one
     /// has reached (P frames carry them over, FORMAT.md section 3.4).
     pub fn next_frame(&self) -> ModeCoder {
-        ModeCoder {
-            contexts: self.contexts,
-            mb_cols: self.mb_cols,
-            states: vec![MbState::default(); self.states.len()],
-            grid: Vec::new(),
-        }
+        let mut next = ModeCoder::new(self.mb_cols, self.mb_rows);
+        next.contexts = self.contexts;
+        next
+    }
+
+    /// What the next frame carries over of this coder: its contexts, the
+    /// macroblocks' states dropped (so that the state kept between frames
+    /// is cheap to hold and to copy).
+    pub fn carried(mut self) -> ModeCoder {
+        self.states = Vec::new();
+        self.grid = Vec::new();
+        self
     }
 
     fn neighbours(&self, mb_x: usize, mb_y: usize) -> [&MbState; 2] {

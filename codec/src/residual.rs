@@ -821,6 +821,16 @@ impl ResidualCoder {
         next
     }
 
+    /// What the next frame carries over of this coder: its contexts, the
+    /// blocks' coded flags dropped.
+    pub fn carried(mut self) -> ResidualCoder {
+        self.luma = Vec::new();
+        self.chroma = [Vec::new(), Vec::new()];
+        self.chroma_ac = [Vec::new(), Vec::new()];
+        self.t8 = Vec::new();
+        self
+    }
+
     fn edges(&self, mb_x: usize, mb_y: usize) -> Edges {
         debug_assert!(mb_x < self.mb_cols && mb_y < self.mb_rows);
         let mut e = Edges::default();

@@ -362,7 +362,7 @@ impl FrameWriter {
     /// from) is updated for the next frame.
     pub fn finish(self, state: &mut EntropyState) -> (Vec<u8>, BitCounts) {
         assert_eq!(self.vectors.len(), self.count, "macroblock count");
-        state.last = Some((self.modes, self.residual));
+        state.last = Some((self.modes.carried(), self.residual.carried()));
         let header = self.header;
         let coded = self.enc.finish();
         let [hb, mb, rb] = split_bits(8 * coded.len() as u64, self.estimates);
@@ -531,7 +531,7 @@ pub fn read_frame(
             8 * start,
         ));
     }
-    state.last = Some((part.modes, part.residual));
+    state.last = Some((part.modes.carried(), part.residual.carried()));
     Ok(FrameSyntax { header, grid, mbs })
 }
 

@@ -253,6 +253,28 @@ fn streams_are_the_same_for_any_number_of_threads() {
 }
 
 #[test]
+fn encoders_pushing_at_once_on_both_threads_of_a_pool_finish() {
+    // Two encoders push frames at once from the two threads of the pool
+    // they run in, so that each waits there for its frames on their frame
+    // threads: a frame whose own parallel steps went into that pool would
+    // wait for threads that wait for it (the test would never end). Each
+    // stream is one thread's.
+    let scenes = [scene(160, 96, 5, 2.25, -1.5), scene(160, 96, 5, -1.0, 3.5)];
+    let config = EncoderConfig::new().qp(30).preset(EncoderPreset::Medium);
+    let alone: Vec<Vec<u8>> = scenes.iter().map(|f| encode(f, config).0).collect();
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+    for _ in 0..4 {
+        let (a, b) = pool.install(|| {
+            rayon::join(
+                || encode_pushed(&scenes[0], config).0,
+                || encode_pushed(&scenes[1], config).0,
+            )
+        });
+        assert!(a == alone[0] && b == alone[1], "another stream than one thread's");
+    }
+}
+
+#[test]
 fn without_the_reconstruction_the_stream_and_statistics_are_the_same() {
     // Not copying the reconstruction out changes nothing the encoder
     // decides or measures; with a metric asked for, it is still measured.

@@ -238,8 +238,9 @@ struct Y4mSource<'a, R: std::io::Read>(&'a mut Y4mReader<R>);
 
 impl<R: std::io::Read + Send> FrameSource for Y4mSource<'_, R> {
     fn next_frame(&mut self, frame: &mut crate::codec::Frame) -> Result<bool, EncodeError> {
+        // The encoder pads the frame to its coded size, borders and all.
         self.0
-            .read_frame_into(frame)
+            .read_pictures_into(frame)
             .map_err(|e| EncodeError::Input(Box::new(e)))
     }
 }

@@ -471,6 +471,19 @@ impl<R: Read> Y4mReader<R> {
     /// Reads the next frame into `frame` (of the stream's size), reusing its
     /// buffers; returns `false` at the end of the stream.
     pub fn read_frame_into(&mut self, frame: &mut Frame) -> Result<bool, Y4mError> {
+        let read = self.read_pictures_into(frame)?;
+        if read {
+            for plane in frame.planes_mut() {
+                plane.extend_border();
+            }
+        }
+        Ok(read)
+    }
+
+    /// [`Y4mReader::read_frame_into`] of the pictures alone: the planes'
+    /// borders are left as they were, for a caller that makes its own (the
+    /// encoder pads its sources to the coded size).
+    pub fn read_pictures_into(&mut self, frame: &mut Frame) -> Result<bool, Y4mError> {
         check_frame_size(&self.info, frame)?;
         let start = self.reader.count;
         let index = self.frames_read;
@@ -499,7 +512,6 @@ impl<R: Read> Y4mReader<R> {
                     Err(e) => return Err(Y4mError::Io(e)),
                 }
             }
-            plane.extend_border();
         }
         self.frames_read += 1;
         Ok(true)
@@ -651,7 +663,38 @@ impl From<PictureError> for Y4mError {
 
 #[cfg(test)]
 mod tests {
-    use super::{frame_line, FrameLine, MAX_FRAME_LINE};
+    use super::{frame_line, FrameLine, Y4mInfo, Y4mReader, Y4mWriter, MAX_FRAME_LINE};
+    use crate::codec::Frame;
+
+    #[test]
+    fn pictures_read_alone_leave_the_borders_as_they_were() {
+        let picture = Frame::from_planes(
+            crate::codec::Plane::from_fn(6, 4, |x, y| (10 * x + y) as u8).unwrap(),
+            crate::codec::Plane::from_fn(3, 2, |x, y| (100 + x + 5 * y) as u8).unwrap(),
+            crate::codec::Plane::from_fn(3, 2, |x, y| (200 + x + 5 * y) as u8).unwrap(),
+        )
+        .unwrap();
+        let info = Y4mInfo::new(6, 4, (25, 1));
+        let mut bytes = Vec::new();
+        Y4mWriter::new(&mut bytes, &info)
+            .unwrap()
+            .write_frame(&picture)
+            .unwrap();
+        let read = |pictures_only: bool| {
+            let mut reader = Y4mReader::new(&bytes[..]).unwrap();
+            let mut frame = Frame::filled(6, 4, 7, 7, 7).unwrap();
+            let got = match pictures_only {
+                true => reader.read_pictures_into(&mut frame).unwrap(),
+                false => reader.read_frame_into(&mut frame).unwrap(),
+            };
+            assert!(got && frame == picture, "the pictures read");
+            frame
+        };
+        // Beyond the left edge: the filled frame's border, or the edge's
+        // sample once extended.
+        assert_eq!(read(true).y().at(-1, 2), 7);
+        assert_eq!(read(false).y().at(-1, 2), picture.y().get(0, 2));
+    }
 
     #[test]
     fn frame_lines_are_told_from_ends_cuts_and_garbage() {

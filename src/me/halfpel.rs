@@ -11,6 +11,7 @@
 //! codec's exact interpolation.
 
 use std::cell::RefCell;
+use std::sync::{Mutex, MutexGuard, PoisonError};
 
 use super::dsp::{
     average_rows, copy_rows, fill_halfpel, fill_halfpel_rows, pixel, HalfpelBand, PixelDsp, PATCH18_PHASE,
@@ -20,21 +21,27 @@ use crate::codec::interp::{predict_luma, LumaFilter};
 use crate::codec::mv::Mv;
 use crate::codec::Plane;
 
-thread_local! {
-    /// Planes of earlier references, reused: a search per frame would
-    /// otherwise fault in three fresh planes every time.
-    static SPARE: RefCell<Vec<Plane>> = const { RefCell::new(Vec::new()) };
+/// Planes of earlier references, reused: a search per frame would
+/// otherwise zero (or fault in) three fresh planes every time. One store
+/// for every thread: an encoder's frame thread drops the planes that the
+/// encoder's own thread takes for the frame after (per thread, each frame
+/// at two threads made three new ones, 1.3 ms a 720p frame on the thread
+/// that starts the frames).
+static SPARE: Mutex<Vec<Plane>> = Mutex::new(Vec::new());
+
+/// The spare planes (a panic while they were held leaves them whole).
+fn spares() -> MutexGuard<'static, Vec<Plane>> {
+    SPARE.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
 /// A plane of this size and border from the spares, or a new one.
 fn take_plane(w: usize, h: usize, pad: usize) -> Option<Plane> {
-    let reused = SPARE.with(|s| {
-        let mut s = s.borrow_mut();
-        let i = s
-            .iter()
-            .position(|p| (p.width(), p.height(), p.pad()) == (w, h, pad))?;
-        Some(s.swap_remove(i))
-    });
+    let reused = {
+        let mut s = spares();
+        s.iter()
+            .position(|p| (p.width(), p.height(), p.pad()) == (w, h, pad))
+            .map(|i| s.swap_remove(i))
+    };
     reused.or_else(|| Plane::with_padding(w, h, pad).ok())
 }
 
@@ -380,13 +387,15 @@ impl Drop for HalfPel {
         let Store::Planes(planes) = &mut self.store else {
             return;
         };
-        SPARE.with(|s| {
-            let mut s = s.borrow_mut();
-            s.append(planes);
-            // Enough for two sizes in turn; older ones go.
-            let excess = s.len().saturating_sub(6);
-            s.drain(..excess);
-        });
+        let mut s = spares();
+        s.append(planes);
+        // Enough for two frames' sets in flight, or two sizes in turn;
+        // older ones go.
+        let excess = s.len().saturating_sub(6);
+        let gone: Vec<Plane> = s.drain(..excess).collect();
+        // Freed once the others can take theirs.
+        drop(s);
+        drop(gone);
     }
 }
 

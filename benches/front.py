@@ -28,7 +28,7 @@ QP 27 on 1 and on 2 threads (x264 beside it: --threads 1 and 2), median
 of THREADS_RUNS (5) interleaved rounds; the table gives each time and the
 2-thread time as a share of the 1-thread one.
 
-Env: FRAMES (30), QPS ("22 27 32 37"), MOCOMP_PRESETS, X264_PRESETS,
+Env: FRAMES (30), QPS ("22 27 32 37"), MOCOMP_PRESETS, X264_PRESETS (medium among them),
 MOCOMP (a binary; default this tree's, built now), RUNS (timing rounds per
 encode, the median kept; default 1), MOCOMP_ARGS (added to every mocomp
 encode, e.g. "--refs 2"), THREADS_PRESET, THREADS_MIN_WIDTH, THREADS_RUNS.
@@ -305,6 +305,10 @@ def main():
     if len(sys.argv) < 3:
         raise SystemExit(__doc__)
     out_dir, seqs = sys.argv[1], sys.argv[2:]
+    if "medium" not in X264_PRESETS:
+        # Checked before any encode: the table's times and BD-rates are
+        # against x264 medium.
+        raise SystemExit("front.py: X264_PRESETS must include medium (the table's anchor)")
     os.makedirs(out_dir, exist_ok=True)
     binary = mocomp_binary()
     # Warm the page cache with both binaries and the first sequence, so

@@ -389,9 +389,11 @@ impl Drop for HalfPel {
         };
         let mut s = spares();
         s.append(planes);
-        // Enough for two frames' sets in flight, or two sizes in turn;
-        // older ones go.
-        let excess = s.len().saturating_sub(6);
+        // Enough for two frames' sets in flight, or two sizes in turn, for
+        // each thread of the pool (searches running side by side, as
+        // `mocomp rd`'s encodes do); older ones go.
+        let keep = 6 * rayon::current_num_threads().max(1);
+        let excess = s.len().saturating_sub(keep);
         let gone: Vec<Plane> = s.drain(..excess).collect();
         // Freed once the others can take theirs.
         drop(s);

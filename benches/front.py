@@ -228,6 +228,30 @@ def markdown(summary, bds, names):
     return "\n".join(lines) + "\n"
 
 
+def time_table(rows, names):
+    """Time per encode per sequence (mean over the QPs), each mocomp preset
+    also as a ratio to x264 medium's and, where it ran, x264 ultrafast's:
+    a mean over a set of small and large pictures hides where an encoder
+    is slow (the large real clips)."""
+    def per_encode(name, codec):
+        t = [r["seconds"] for r in rows if r["sequence"] == name and r["codec"] == codec]
+        return sum(t) / len(t)
+    anchors = [a for a in ("x264:medium", "x264:ultrafast") if a.split(":")[1] in X264_PRESETS]
+    head = [f"mocomp:{p}" for p in MOCOMP_PRESETS]
+    lines = ["Time per encode per sequence (mean over the QPs), each mocomp preset as a ratio to "
+             + " and ".join(anchors) + ":", "",
+             "| sequence | " + " | ".join(anchors) + " | " + " | ".join(head) + " |",
+             "|---|" + "---:|" * (len(anchors) + len(head))]
+    for n in names:
+        ref = {a: per_encode(n, a) for a in anchors}
+        cells = [f"{ref[a]:.3f} s" for a in anchors]
+        for c in head:
+            t = per_encode(n, c)
+            cells.append(f"{t:.3f} s (" + ", ".join(f"{t / ref[a]:.2f}x" for a in anchors) + ")")
+        lines.append(f"| {n} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def svg_plot(summary):
     """Time per encode (log axis) against BD-rate vs x264 medium, one point per preset."""
     pts = [(e["time_per_encode"], e["bd_vs_x264:medium"], e["codec"]) for e in summary
@@ -329,6 +353,7 @@ def main():
         writer.writerows(rows)
     summary = summarise(rows, bds, names)
     table = markdown(summary, bds, names)
+    table += "\n" + time_table(rows, names)
     table += "\n" + thread_scaling(binary, seqs, out_dir)
     open(os.path.join(out_dir, "front.md"), "w").write(table)
     json.dump(dict(summary=summary, per_sequence=bds), open(os.path.join(out_dir, "front.json"), "w"), indent=1)

@@ -77,9 +77,22 @@ pub(super) fn best_intra(
     s: &MbSource,
     recon: &Frame,
     at: (usize, usize),
-    (modes, residual_coder): (&ModeCoder, &ResidualCoder),
+    coders: (&ModeCoder, &ResidualCoder),
     bound: Option<(u32, f64)>,
 ) -> Option<Choice> {
+    intra_against(coder, s, recon, at, coders, bound).0
+}
+
+/// [`best_intra`], and whether its 16x16 luma candidate was coded (its
+/// SATD below the bound's).
+fn intra_against(
+    coder: &MbCoder,
+    s: &MbSource,
+    recon: &Frame,
+    at: (usize, usize),
+    (modes, residual_coder): (&ModeCoder, &ResidualCoder),
+    bound: Option<(u32, f64)>,
+) -> (Option<Choice>, bool) {
     let mut pred = MbSamples::default();
     let (luma, satd) = best_intra_16x16(coder, s, recon, at, &mut pred);
     let whole = bound.is_none_or(|(inter_satd, _)| satd < inter_satd);
@@ -115,7 +128,7 @@ pub(super) fn best_intra(
         .filter(|_| coder.intra4x4)
         .and_then(|search| search.run(s, None, bound4));
     if !whole && blocks8.is_none() && blocks4.is_none() {
-        return None;
+        return (None, false);
     }
     let chroma = best_intra_chroma(coder, s, recon, at, &mut pred);
     let inter_frame = bound.is_some();
@@ -166,7 +179,10 @@ pub(super) fn best_intra(
         let coded = code(&pred4, levels, ResidualSyntax::Intra);
         candidates.push(choice(LumaIntra::Blocks(b.modes), pred4, coded));
     }
-    candidates.into_iter().min_by(|a, b| a.cost.total_cmp(&b.cost))
+    (
+        candidates.into_iter().min_by(|a, b| a.cost.total_cmp(&b.cost)),
+        whole,
+    )
 }
 
 /// How far above inter's SATD a P frame's 16x16 intra SATD may be for
@@ -236,13 +252,24 @@ impl InterFrameCoder<'_, '_> {
             return;
         }
         mb.searched = self.searched_vector(mb, env);
-        if !self.skips_early(mb, env) {
-            self.analyse_inter(mb, env);
+        if self.skips_early(mb, env) {
+            return;
+        }
+        let candidates = self.inter_candidates(mb, env);
+        if self.decision == ModeDecision::Fast {
+            // Intra first, inter coded only where intra's 16x16 SATD does
+            // not beat it (see [`ModeDecision::Fast`]).
+            if !self.analyse_intra(mb, env) {
+                self.code_inter(mb, env, candidates);
+            }
+            self.analyse_split(mb, env);
+        } else {
+            self.code_inter(mb, env, candidates);
             self.analyse_split(mb, env);
             self.analyse_intra(mb, env);
-            self.analyse_subpel_rd(mb, env);
-            self.analyse_transform(mb, env);
         }
+        self.analyse_subpel_rd(mb, env);
+        self.analyse_transform(mb, env);
     }
 
     /// The macroblock's searched vector: motion analysis', or, when the
@@ -447,11 +474,10 @@ impl InterFrameCoder<'_, '_> {
         }
     }
 
-    /// Inter with the predicted vector and with the searched one, and
-    /// with each older reference's searched vector (with
-    /// [`ModeDecision::Fast`], only the one of lowest SATD + rate
-    /// estimate; with the full decision, those within [`RD_MARGIN`] of it).
-    pub(super) fn analyse_inter(&self, mb: &mut MbAnalysis, env: &MbEnv<'_>) {
+    /// The 16x16 inter candidates, estimated, not yet coded: the predicted
+    /// vector, the searched one and each older reference's searched
+    /// vector. Sets the macroblock's least inter SATD and estimate.
+    pub(super) fn inter_candidates(&self, mb: &mut MbAnalysis, env: &MbEnv<'_>) -> Vec<InterCandidate> {
         let searched = mb.searched;
         let searched_mv = (self.syntax.any() && searched != mb.mvp).then_some(searched);
         let mut candidates = Vec::with_capacity(1 + usize::from(self.syntax.refs()));
@@ -471,6 +497,19 @@ impl InterFrameCoder<'_, '_> {
             .iter()
             .map(|c| c.estimate)
             .fold(f64::INFINITY, f64::min);
+        candidates
+    }
+
+    /// The inter `candidates` ([`Self::inter_candidates`]) coded and
+    /// weighed against the best choice so far: with
+    /// [`ModeDecision::Fast`], only the one of lowest SATD + rate
+    /// estimate; with the full decision, those within [`RD_MARGIN`] of it.
+    pub(super) fn code_inter(
+        &self,
+        mb: &mut MbAnalysis,
+        env: &MbEnv<'_>,
+        mut candidates: Vec<InterCandidate>,
+    ) {
         if self.decision == ModeDecision::Fast {
             // The lowest SATD + sqrt(lambda) * vector bits is coded alone.
             candidates.sort_by(|a, b| a.estimate.total_cmp(&b.estimate));
@@ -733,14 +772,16 @@ impl InterFrameCoder<'_, '_> {
     /// Intra, each luma candidate coded only when its estimate is below
     /// inter's (the 16x16 SATD below inter's SATD, as the H.264 reference
     /// encoder's fast modes; the 4x4 search's below inter's SATD + vector
-    /// cost, where it stops early).
-    pub(super) fn analyse_intra(&self, mb: &mut MbAnalysis, env: &MbEnv<'_>) {
+    /// cost, where it stops early). Whether the 16x16 one was coded.
+    pub(super) fn analyse_intra(&self, mb: &mut MbAnalysis, env: &MbEnv<'_>) -> bool {
         let bound = (mb.inter_satd, mb.inter_estimate);
         let coders = (env.modes, env.residual);
         let at = (mb.mb_x, mb.mb_y);
-        if let Some(choice) = best_intra(self.coder, &mb.source, env.recon, at, coders, Some(bound)) {
+        let (choice, whole) = intra_against(self.coder, &mb.source, env.recon, at, coders, Some(bound));
+        if let Some(choice) = choice {
             mb.consider(choice);
         }
+        whole
     }
 
     /// `pred` with its residual coded, priced as `mode`.
@@ -881,7 +922,7 @@ mod tests {
         mb: Vec<Mv>,
         skips: (bool, bool, bool),
     ) -> Vec<(MbKind, MbVectors)> {
-        decide_motion(src, reference, mb, None, skips)
+        decide_motion(src, reference, mb, None, (skips, ModeDecision::Full))
     }
 
     /// [`decide_with`], with vectors `mb` or, given `lazy`, the decision's
@@ -891,7 +932,7 @@ mod tests {
         reference: &Frame,
         mb: Vec<Mv>,
         lazy: Option<Box<LazySearch>>,
-        (partitions, fast_pskip, early_pskip): (bool, bool, bool),
+        ((partitions, fast_pskip, early_pskip), decision): ((bool, bool, bool), ModeDecision),
     ) -> Vec<(MbKind, MbVectors)> {
         let seq = SequenceHeader {
             width: SIZE,
@@ -917,7 +958,7 @@ mod tests {
                 lazy,
             }),
             tool: MotionTool::Block,
-            decision: ModeDecision::Full,
+            decision,
             deblock: true,
             weights: Weights::NONE,
             luma_filter: crate::codec::interp::LumaFilter::Sharp,
@@ -935,6 +976,50 @@ mod tests {
         let coded = code_inter(&seq, &coder, src, inputs, (&mut state, recon), |_, _| ()).unwrap();
         let vectors = frame_vectors(&seq, &coded.syntax);
         coded.syntax.mbs.iter().map(|m| m.kind).zip(vectors).collect()
+    }
+
+    #[test]
+    fn the_fast_decision_takes_intra_by_satd_and_the_full_one_by_cost() {
+        // A grey picture; in the middle macroblock, each 4x4 block a
+        // checkerboard of 2x2 squares 7 above and 7 below grey. The
+        // reference has it a macroblock to the right (the vector given;
+        // skip, from the neighbours' zero vectors, sees a flat 200 there),
+        // with one sample of each block 8 higher: it predicts with a 4x4
+        // SATD of 64 a block, grey intra with 56. But intra needs a level
+        // in every block, and the reference's error of one sample a block
+        // codes nothing.
+        let centre = |x: isize, y: isize| (16..32).contains(&x) && (16..32).contains(&y);
+        let offset = |x: isize, y: isize| if (x % 4 < 2) == (y % 4 < 2) { 135 } else { 121 };
+        let src = frame(|x, y| if centre(x, y) { offset(x, y) } else { 128 });
+        let spike = |x: isize, y: isize| x % 4 == 1 && y % 4 == 2;
+        let reference = frame(|x, y| match (centre(x, y), centre(x - 16, y), spike(x, y)) {
+            (true, _, _) => 200,
+            (_, true, true) => offset(x, y) + 8,
+            (_, true, false) => offset(x, y),
+            _ => 128,
+        });
+        let shift = Mv::full_pel(16, 0);
+        let mut vectors = vec![Mv::ZERO; 9];
+        vectors[4] = shift;
+        let kind = |decision| {
+            let decided = decide_motion(
+                &src,
+                &reference,
+                vectors.clone(),
+                None,
+                ((false, false, false), decision),
+            );
+            decided[4].0
+        };
+        let fast = kind(ModeDecision::Fast);
+        let full = kind(ModeDecision::Full);
+        assert!(matches!(fast, MbKind::Intra { .. }), "{fast:?}");
+        assert_eq!(
+            full,
+            MbKind::Inter {
+                mv: RefMv::previous(shift)
+            }
+        );
     }
 
     #[test]
@@ -997,7 +1082,13 @@ mod tests {
             prior: None,
             older: Vec::new(),
         });
-        let decided = decide_motion(&src, &reference, Vec::new(), Some(lazy), (false, true, false));
+        let decided = decide_motion(
+            &src,
+            &reference,
+            Vec::new(),
+            Some(lazy),
+            ((false, true, false), ModeDecision::Full),
+        );
         // The first macroblock searches from zero alone and finds the
         // shift; its neighbours predict it. Those whose moved block stays
         // inside the picture take it; none is intra.

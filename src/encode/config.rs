@@ -213,11 +213,11 @@ pub enum ModeDecision {
     #[default]
     Full,
     /// Only the one with the lower SATD + sqrt(lambda) * vector bits is
-    /// coded (x264's decision below `--subme 6`), and only where 16x16
-    /// intra does not beat it by SATD (x264's comparison of the two
-    /// below `--subme 6`): there intra alone is coded (intra blocks
-    /// beside it where their estimate is lower). One residual coding per
-    /// macroblock instead of two, where P frames try no intra blocks.
+    /// coded, and only where 16x16 intra does not beat it by SATD: there
+    /// intra alone is coded (x264's decisions below `--subme 6`). Intra
+    /// blocks are coded beside either where their estimate is lower. One
+    /// residual coding per macroblock instead of two, where P frames try
+    /// no intra blocks.
     Fast,
 }
 

@@ -219,8 +219,8 @@ pub(super) struct MbAnalysis {
     pub(super) mb_y: usize,
     pub(super) source: MbSource,
     pub(super) mvp: Mv,
-    /// The skip prediction (also the inter prediction with vector `mvp`).
-    pub(super) skip_pred: MbSamples,
+    /// The best choice so far: skip, predicted at `mvp`, until another
+    /// is considered ([`MbAnalysis::skip_pred`]).
     pub(super) best: Choice,
     /// Whether any choice but skip can win (see [`InterFrameCoder::analyse_skip`]).
     pub(super) exhaustive: bool,
@@ -239,6 +239,13 @@ impl MbAnalysis {
         if choice.cost < self.best.cost {
             self.best = choice;
         }
+    }
+
+    /// The skip prediction (the inter prediction at `mvp`) while skip is
+    /// the best choice, as it is until another is considered: kept once,
+    /// as the choice's (a copy of 384 bytes a macroblock fewer).
+    pub(super) fn skip_pred(&self) -> Option<&MbSamples> {
+        matches!(self.best.kind, MbKind::Skip).then_some(&self.best.pred)
     }
 }
 
@@ -350,7 +357,10 @@ impl InterFrameCoder<'_, '_> {
     /// prediction codes no level, and beside an intra neighbour intra's
     /// 16x16 prediction is no closer.
     fn skip_loses_nothing(&self, mb: &MbAnalysis, env: &MbEnv<'_>) -> bool {
-        if !self.coder.codes_nothing(&mb.source, &mb.skip_pred) {
+        let Some(skip_pred) = mb.skip_pred() else {
+            return false;
+        };
+        if !self.coder.codes_nothing(&mb.source, skip_pred) {
             return false;
         }
         // Beside an intra neighbour, intra may win where the skip codes
@@ -364,7 +374,7 @@ impl InterFrameCoder<'_, '_> {
         let mut intra = MbSamples::default();
         let (_, intra_satd) =
             best_intra_16x16(self.coder, &mb.source, env.recon, (mb.mb_x, mb.mb_y), &mut intra);
-        intra_satd >= luma_satd(&mb.source, &mb.skip_pred)
+        intra_satd >= luma_satd(&mb.source, skip_pred)
     }
 
     /// Sub-pel RD refinement (x264's `--subme 8`): when a 16x16 inter
@@ -461,12 +471,11 @@ impl InterFrameCoder<'_, '_> {
                 cost,
                 residual_cost: 0.0,
                 kind: MbKind::Skip,
-                pred: skip_pred.clone(),
-                residual: None,
                 samples: skip_pred.clone(),
+                pred: skip_pred,
+                residual: None,
             },
             source,
-            skip_pred,
             exhaustive: cost > rdo::cost(lambda, 0, not_skipped),
             searched: mvp,
             inter_satd: u32::MAX,
@@ -482,10 +491,9 @@ impl InterFrameCoder<'_, '_> {
         let searched_mv = (self.syntax.any() && searched != mb.mvp).then_some(searched);
         let mut candidates = Vec::with_capacity(1 + usize::from(self.syntax.refs()));
         for mv in std::iter::once(mb.mvp).chain(searched_mv) {
-            let pred = if mv == mb.mvp {
-                mb.skip_pred.clone()
-            } else {
-                predict_inter(&self.inter_context(), mb.mb_x, mb.mb_y, RefMv::previous(mv))
+            let pred = match mb.skip_pred() {
+                Some(skip_pred) if mv == mb.mvp => skip_pred.clone(),
+                _ => predict_inter(&self.inter_context(), mb.mb_x, mb.mb_y, RefMv::previous(mv)),
             };
             candidates.push(self.inter_candidate(mb, RefMv::previous(mv), mb.mvp, pred));
         }

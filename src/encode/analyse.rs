@@ -141,7 +141,7 @@ fn intra_against(
             kind: MbKind::Intra { luma, chroma },
             pred,
             residual: Some(c.residual),
-            samples: c.samples,
+            samples: Some(c.samples),
         }
     };
     // The chroma's levels are the same whatever the luma: found once. The
@@ -207,8 +207,16 @@ pub(super) struct Choice {
     pub(super) kind: MbKind,
     pub(super) pred: MbSamples,
     pub(super) residual: Option<Box<MbResidual>>,
-    /// The reconstruction it gives.
-    pub(super) samples: MbSamples,
+    /// The reconstruction it gives: `None` for the prediction itself
+    /// (skip, whose copy was a fifth of its analysis' copies).
+    pub(super) samples: Option<MbSamples>,
+}
+
+impl Choice {
+    /// The reconstruction the choice gives.
+    pub(super) fn reconstruction(&self) -> &MbSamples {
+        self.samples.as_ref().unwrap_or(&self.pred)
+    }
 }
 
 /// One macroblock under analysis: its source, its predicted vector and the
@@ -426,7 +434,7 @@ impl InterFrameCoder<'_, '_> {
         let Some(c8) = self.coder.luma8_alternative(
             &mb.source,
             &best.pred,
-            (residual, &best.samples),
+            (residual, best.reconstruction()),
             env.residual,
             at,
         ) else {
@@ -437,7 +445,7 @@ impl InterFrameCoder<'_, '_> {
             best.cost += cost8 - best.residual_cost;
             best.residual_cost = cost8;
             best.residual = Some(c8.residual);
-            best.samples = c8.samples;
+            best.samples = Some(c8.samples);
         }
     }
 
@@ -471,8 +479,8 @@ impl InterFrameCoder<'_, '_> {
                 cost,
                 residual_cost: 0.0,
                 kind: MbKind::Skip,
-                samples: skip_pred.clone(),
                 pred: skip_pred,
+                samples: None,
                 residual: None,
             },
             source,
@@ -812,7 +820,7 @@ impl InterFrameCoder<'_, '_> {
             kind,
             pred,
             residual: Some(coded.residual),
-            samples: coded.samples,
+            samples: Some(coded.samples),
         }
     }
 }

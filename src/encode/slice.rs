@@ -586,7 +586,7 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
     fn commit(&mut self, mb: MbAnalysis) {
         let (mb_x, mb_y) = (mb.mb_x, mb.mb_y);
         let best = mb.best;
-        write_mb(&best.samples, &mut self.frame.recon, mb_x, mb_y);
+        write_mb(best.reconstruction(), &mut self.frame.recon, mb_x, mb_y);
         self.frame.prediction_sse += visible_luma_sse(&mb.source, &best.pred, mb_x, mb_y, self.seq);
         let cols = self.seq.mb_cols();
         let v = mb_vectors(&best.kind, &self.decided, mb_x, mb_y, cols);

@@ -305,14 +305,14 @@ impl WavefrontFrame<'_> {
         let done = &w.decided[..index];
         let vectors = mb_vectors(&best.kind, done, c, r, cols);
         let mode = mb_mode(&best.kind, done, (c, r, cols), self.syntax);
+        write_mb(best.reconstruction(), &mut w.recon, c, r);
         let coded = match best.residual {
             Some(levels) => CodedMb::with_levels(best.kind, levels),
             None => CodedMb::without_residual(best.kind),
         };
-        write_mb(&best.samples, &mut w.recon, c, r);
         let d = Decided {
             prediction_sse,
-            samples: shared.then(|| Box::new(best.samples)),
+            samples: shared.then(|| Box::new(best.samples.unwrap_or(best.pred))),
             coded,
             mode,
             vectors,

@@ -240,7 +240,9 @@ impl WavefrontFrame<'_> {
         // And the reconstruction's rows the next macroblocks are written
         // into (a frame's worth of stores a frame).
         prefetch_ahead(&w.recon, c, r);
-        let d = self.commit(w, decide, (c, r), shared);
+        // Decided into its place (moved there from a local, the record was
+        // copied twice a macroblock).
+        frame.decided[r * cols + c].get_or_init(|| self.commit(w, decide, (c, r), shared));
         if c + 1 == self.lead() {
             let start = RowStart {
                 modes: w.modes.contexts().to_vec(),
@@ -248,7 +250,6 @@ impl WavefrontFrame<'_> {
             };
             let _ = frame.starts[r].set(start);
         }
-        let _ = frame.decided[r * cols + c].set(d);
         if c + 1 == cols {
             self.deblock_behind(w, &frame.decided[r * cols..(r + 1) * cols], r);
         }

@@ -8,7 +8,7 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BenchmarkGroup, BenchmarkId, Criterion};
 use mocomp::codec::cpu;
-use mocomp::codec::dsp::ipred::{Edges, Edges8, Intra4x4Mode, IntraMode, Neighbours, IPRED};
+use mocomp::codec::dsp::ipred::{Edges, Edges8, Intra4x4Mode, IntraMode, ModeSource4, Neighbours, IPRED};
 use mocomp::codec::dsp::itx::ITX;
 use mocomp::codec::dsp::lf::LF;
 use mocomp::codec::dsp::mc::{LUMA_TAPS, MC};
@@ -107,6 +107,10 @@ fn codec_tables(c: &mut Criterion) {
         });
         bench(g, "pred_8x8_nine_modes", l, || {
             Intra4x4Mode::ALL.map(|m| (t.pred_8x8)(m, black_box(&e8), &mut o8))
+        });
+        let (source, mut o32) = (ModeSource4::new(&e4), [0u8; 32]);
+        bench(g, "pred_4x4_pair_nine_modes", l, || {
+            Intra4x4Mode::ALL.map(|m| (t.pred_4x4_pair)(black_box(&source), m, Intra4x4Mode::Dc, &mut o32))
         });
     });
     // Near-flat with a step across the edges: most lines are filtered.

@@ -10,7 +10,9 @@
 //! and metrics at every level.
 
 use mocomp::codec::cpu::{self, CpuLevel};
-use mocomp::codec::dsp::ipred::{Edges, Edges8, Intra4x4Mode, IntraMode, IpredDsp, Neighbours, IPRED};
+use mocomp::codec::dsp::ipred::{
+    Edges, Edges8, Intra4x4Mode, IntraMode, IpredDsp, ModeSource4, Neighbours, IPRED,
+};
 use mocomp::codec::dsp::itx::{ItxDsp, ITX};
 use mocomp::codec::dsp::lf::{LfDsp, LF};
 use mocomp::codec::dsp::mc::{McDsp, LUMA_TAPS, MC, SMOOTH_LUMA_TAPS};
@@ -159,6 +161,7 @@ fn intra_prediction() {
             pred_8x8_chroma,
             pred_4x4,
             pred_8x8,
+            pred_4x4_pair,
         } = *t;
         for edge in sample_sets(32, 3) {
             for (top, left) in [(true, true), (true, false), (false, true), (false, false)] {
@@ -198,6 +201,17 @@ fn intra_prediction() {
                     pred_8x8(mode, &e8, &mut a);
                     (s.pred_8x8)(mode, &e8, &mut b);
                     assert_eq!(a, b, "{isa} 8x8 {mode:?}");
+                }
+                // Every pair of modes, the unavailable ones too (a gather
+                // is defined for any).
+                let source = ModeSource4::new(&e4);
+                for a_mode in Intra4x4Mode::ALL {
+                    for b_mode in Intra4x4Mode::ALL {
+                        let (mut a, mut b) = ([0u8; 32], [0u8; 32]);
+                        pred_4x4_pair(&source, a_mode, b_mode, &mut a);
+                        (s.pred_4x4_pair)(&source, a_mode, b_mode, &mut b);
+                        assert_eq!(a, b, "{isa} 4x4 pair {a_mode:?} {b_mode:?}");
+                    }
                 }
             }
         }

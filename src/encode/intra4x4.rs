@@ -136,6 +136,7 @@ fn block_satds(
     modes: &[Intra4x4Mode],
 ) -> [u32; 9] {
     let pair = pixel().satd_4x4_pair;
+    let predict_pair = crate::codec::dsp::ipred::ipred().pred_4x4_pair;
     // The source block twice side by side, predictions likewise.
     let mut doubled = [0u8; 32];
     for r in 0..4 {
@@ -147,8 +148,7 @@ fn block_satds(
     for i in (0..modes.len()).step_by(2) {
         let j = (i + 1).min(modes.len() - 1);
         let mut two = [0u8; 32];
-        source.predict_strided(modes[i], &mut two, 8);
-        source.predict_strided(modes[j], &mut two[4..], 8);
+        predict_pair(source, modes[i], modes[j], &mut two);
         let [a, b] = pair(&doubled, &two);
         out[i] = a;
         out[j] = b;

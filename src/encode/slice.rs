@@ -30,7 +30,7 @@ use crate::codec::recon::{
 };
 use crate::codec::residual::{ResidualCoder, ResidualSyntax};
 use crate::codec::syntax::{
-    mb_mode, mb_vectors, vector_syntax, write_frame, BitCounts, CodedMb, EntropyState, FrameHeader,
+    mb_mode, mb_vectors, vector_syntax, write_decided_frame, BitCounts, CodedMb, EntropyState, FrameHeader,
     FrameSyntax, FrameType, FrameWriter, MbKind, MotionTool, SequenceHeader,
 };
 use crate::codec::warp::warp_frame;
@@ -185,8 +185,12 @@ pub(crate) fn code_intra(
             None,
         )
         .expect("without a bound, intra always has a choice");
-        let sse = visible_luma_sse(&s, &best.pred, mb_x, mb_y, seq);
-        (best, sse)
+        let prediction_sse = visible_luma_sse(&s, &best.pred, mb_x, mb_y, seq);
+        wavefront::Decision {
+            choice: best,
+            prediction_sse,
+            mvp: None,
+        }
     })?;
     let (sum, recon) = wavefront::collect(decided, cols);
     let syntax = FrameSyntax {
@@ -221,7 +225,12 @@ impl CodedFrame {
         beside: impl FnOnce(&[MbVectors]) + Send,
     ) {
         let ((written, ()), ()) = rayon::join(
-            || rayon::join(|| write_frame(seq, &self.syntax, state), || beside(&self.vectors)),
+            || {
+                rayon::join(
+                    || write_decided_frame(seq, &self.syntax, &self.vectors, state),
+                    || beside(&self.vectors),
+                )
+            },
             || finish_recon(seq, &self.syntax, &self.vectors, &mut self.recon, self.deblocked),
         );
         (self.bytes, self.bits) = written;
@@ -521,8 +530,14 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
     fn decide_mb(&self, env: &MbEnv<'_>, index: usize) -> wavefront::Decision {
         let mut mb = self.analyse_skip(index, env);
         self.analyse_beyond_skip(&mut mb, env);
-        let sse = visible_luma_sse(&mb.source, &mb.best.pred, mb.mb_x, mb.mb_y, self.seq);
-        (mb.best, sse)
+        let prediction_sse = visible_luma_sse(&mb.source, &mb.best.pred, mb.mb_x, mb.mb_y, self.seq);
+        wavefront::Decision {
+            choice: mb.best,
+            prediction_sse,
+            // (Predicted from the decided vectors only where the frame
+            // codes vectors: [`Self::analyse_skip`].)
+            mvp: self.syntax.any().then_some(mb.mvp),
+        }
     }
 
     /// The reconstruction, lent to a wavefront's worker (it comes back,

@@ -23,7 +23,8 @@ use super::slice::kind_index;
 use crate::codec::deblock::{FrameDeblocker, MbEdgeInfo};
 use crate::codec::entropy::Context;
 use crate::codec::modes::{MbMode, ModeCoder, VectorSyntax};
-use crate::codec::partition::MbVectors;
+use crate::codec::mv::Mv;
+use crate::codec::partition::{MbVectors, RefMv};
 use crate::codec::recon::{write_mb, MbSamples};
 use crate::codec::residual::ResidualCoder;
 use crate::codec::syntax::{mb_mode, mb_vectors, CodedMb, MbKind, MotionTool, SequenceHeader};
@@ -43,9 +44,16 @@ pub(super) struct Decided {
     prediction_sse: u64,
 }
 
-/// One macroblock's decision: the choice and its prediction's squared luma
-/// error.
-pub(super) type Decision = (Choice, u64);
+/// One macroblock's decision.
+pub(super) struct Decision {
+    pub(super) choice: Choice,
+    /// Its prediction's squared luma error (visible part).
+    pub(super) prediction_sse: u64,
+    /// The macroblock's predicted vector, where the analysis found it from
+    /// the decided vectors as [`mb_vectors`] does: a skip's own vector, not
+    /// predicted again.
+    pub(super) mvp: Option<Mv>,
+}
 
 /// What the frame is decided with: its size and syntax, and the coders it
 /// starts with.
@@ -302,9 +310,16 @@ impl WavefrontFrame<'_> {
             recon: &w.recon,
             satd8: &w.satd8,
         };
-        let (best, prediction_sse) = decide(&env, index);
+        let Decision {
+            choice: best,
+            prediction_sse,
+            mvp,
+        } = decide(&env, index);
         let done = &w.decided[..index];
-        let vectors = mb_vectors(&best.kind, done, c, r, cols);
+        let vectors = match (&best.kind, mvp) {
+            (MbKind::Skip, Some(mvp)) => [Some(RefMv::previous(mvp)); 4],
+            (kind, _) => mb_vectors(kind, done, c, r, cols),
+        };
         let mode = mb_mode(&best.kind, done, (c, r, cols), self.syntax);
         write_mb(best.reconstruction(), &mut w.recon, c, r);
         let coded = match best.residual {

@@ -165,6 +165,25 @@ pub fn write_frame(
     w.finish(state)
 }
 
+/// [`write_frame`] for an encoder that has each macroblock's `vectors`
+/// already ([`mb_vectors`] of its macroblock, found when it was decided):
+/// a skipped macroblock's is a vector prediction, not made again. Wrong
+/// vectors make a stream the decoder reads otherwise.
+pub fn write_decided_frame(
+    seq: &SequenceHeader,
+    frame: &FrameSyntax,
+    vectors: &[MbVectors],
+    state: &mut EntropyState,
+) -> (Vec<u8>, BitCounts) {
+    assert_eq!(frame.mbs.len(), seq.mb_cols() * seq.mb_rows(), "macroblock count");
+    assert_eq!(vectors.len(), frame.mbs.len(), "a macroblock's vectors each");
+    let mut w = FrameWriter::new(seq, &frame.header, frame.grid.as_ref(), state);
+    for (mb, &v) in frame.mbs.iter().zip(vectors) {
+        w.push_decided(mb, v);
+    }
+    w.finish(state)
+}
+
 /// The frame header's bits (FORMAT.md, "Frame header"), aligned: the
 /// writer twin of [`read_frame_header`]. Panics on a header the syntax
 /// cannot carry (the encoder's bug, not input).
@@ -330,6 +349,14 @@ impl FrameWriter {
     /// Writes the next macroblock (raster order).
     pub fn push(&mut self, mb: &CodedMb) {
         let i = self.vectors.len();
+        let vectors = mb_vectors(&mb.kind, &self.vectors, i % self.cols, i / self.cols, self.cols);
+        self.push_decided(mb, vectors);
+    }
+
+    /// [`FrameWriter::push`] of a macroblock whose `vectors` the caller
+    /// has ([`write_decided_frame`]).
+    pub fn push_decided(&mut self, mb: &CodedMb, vectors: MbVectors) {
+        let i = self.vectors.len();
         assert!(i < self.count, "more macroblocks than the frame holds");
         let (mb_x, mb_y) = (i % self.cols, i / self.cols);
         assert!(
@@ -344,8 +371,11 @@ impl FrameWriter {
                 .write(&mut self.enc, mb_x, mb_y, self.inter_frame, self.syntax, &mode);
         self.estimates[0] += u64::from(rest);
         self.estimates[1] += u64::from(motion);
-        self.vectors
-            .push(mb_vectors(&mb.kind, &self.vectors, mb_x, mb_y, self.cols));
+        debug_assert_eq!(
+            vectors,
+            mb_vectors(&mb.kind, &self.vectors, mb_x, mb_y, self.cols)
+        );
+        self.vectors.push(vectors);
         if mb.kind == MbKind::Skip {
             assert!(mb.residual.is_none(), "skipped macroblocks have no residual");
             return;

@@ -12,8 +12,8 @@ pub mod sequence;
 pub use crate::consts::{FRAME_START, MAGIC, MB, SEQUENCE_HEADER_LEN, STREAM_END, VERSION};
 pub use error::SyntaxError;
 pub use frame::{
-    read_frame, vector_syntax, write_frame, write_stream, BitCounts, EntropyState, FrameHeader, FrameSyntax,
-    FrameType, FrameWriter, MotionTool,
+    read_frame, vector_syntax, write_decided_frame, write_frame, write_stream, BitCounts, EntropyState,
+    FrameHeader, FrameSyntax, FrameType, FrameWriter, MotionTool,
 };
 pub use macroblock::{intra_mode_allowed, luma_intra_allowed, mb_mode, mb_vectors, CodedMb, MbKind};
 pub use sequence::{ChromaSiting, ColourRange, HeaderError, SequenceHeader, Vui};

@@ -15,7 +15,7 @@ use crate::dsp::lf::{lf, Edge};
 use crate::partition::MbVectors;
 use crate::picture::{Frame, Plane};
 use crate::residual::MbResidual;
-use crate::syntax::{FrameSyntax, MbKind, MotionTool};
+use crate::syntax::{CodedMb, FrameSyntax, MbKind, MotionTool};
 use crate::transform::chroma_qp;
 
 /// Bit `k` set where luma 4x4 block `k` has a level.
@@ -50,6 +50,13 @@ impl MbEdgeInfo {
         MbEdgeInfo::with_coded(kind, residual, luma_coded_bits(residual), tool, mvs)
     }
 
+    /// [`MbEdgeInfo::of`] of a coded macroblock: one without levels (most
+    /// of a P frame's) read no further than its kind.
+    pub fn of_coded(mb: &CodedMb, tool: MotionTool, mvs: MbVectors) -> MbEdgeInfo {
+        let coded = mb.levels().map_or(0, luma_coded_bits);
+        MbEdgeInfo::with_coded(&mb.kind, mb.residual(), coded, tool, mvs)
+    }
+
     /// [`MbEdgeInfo::of`] with the luma blocks' coded bits known.
     fn with_coded(
         kind: &MbKind,
@@ -79,10 +86,7 @@ impl MbEdgeInfo {
             .mbs
             .iter()
             .zip(vectors)
-            .map(|(mb, &mv)| {
-                let coded = mb.levels().map_or(0, luma_coded_bits);
-                MbEdgeInfo::with_coded(&mb.kind, mb.residual(), coded, tool, mv)
-            })
+            .map(|(mb, &mv)| MbEdgeInfo::of_coded(mb, tool, mv))
             .collect()
     }
 

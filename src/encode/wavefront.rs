@@ -368,7 +368,7 @@ impl WavefrontFrame<'_> {
         d.row.clear();
         d.row.extend(row.iter().map(|m| {
             let m = m.get().expect("the row decided");
-            MbEdgeInfo::of(&m.coded.kind, m.coded.residual(), d.tool, m.vectors)
+            MbEdgeInfo::of_coded(&m.coded, d.tool, m.vectors)
         }));
         d.deblocker.set_row(r, &d.row, (r > 0).then_some(&d.above[..]));
         std::mem::swap(&mut d.above, &mut d.row);

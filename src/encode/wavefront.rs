@@ -310,40 +310,44 @@ impl WavefrontFrame<'_> {
             recon: &w.recon,
             satd8: &w.satd8,
         };
-        let Decision {
-            choice: best,
-            prediction_sse,
-            mvp,
-        } = decide(&env, index);
+        // Read in place (destructured, the 850-byte decision was copied
+        // a macroblock; the record below is built where it is returned).
+        let decision = decide(&env, index);
+        let best = &decision.choice;
         let done = &w.decided[..index];
-        let vectors = match (&best.kind, mvp) {
+        let vectors = match (&best.kind, decision.mvp) {
             (MbKind::Skip, Some(mvp)) => [Some(RefMv::previous(mvp)); 4],
             (kind, _) => mb_vectors(kind, done, c, r, cols),
         };
         let mode = mb_mode(&best.kind, done, (c, r, cols), self.syntax);
         write_mb(best.reconstruction(), &mut w.recon, c, r);
-        let coded = match best.residual {
-            Some(levels) => CodedMb::with_levels(best.kind, levels),
-            None => CodedMb::without_residual(best.kind),
+        w.decided[index] = vectors;
+        w.modes.commit(c, r, self.inter_frame, self.syntax, &mode);
+        let coded = match decision.choice.residual {
+            Some(levels) => CodedMb::with_levels(decision.choice.kind, levels),
+            None => CodedMb::without_residual(decision.choice.kind),
         };
-        let d = Decided {
-            prediction_sse,
-            samples: shared.then(|| Box::new(best.samples.unwrap_or(best.pred))),
+        if coded.kind != MbKind::Skip {
+            let syntax = coded.kind.residual_syntax();
+            if self.adapt {
+                w.residual.commit(c, r, syntax, coded.residual());
+            } else {
+                w.residual.record(c, r, syntax, coded.residual());
+            }
+        }
+        Decided {
+            prediction_sse: decision.prediction_sse,
+            // (Not `shared.then(..)`: its closure took the samples, a copy
+            // a macroblock with one worker too.)
+            samples: if shared {
+                Some(Box::new(decision.choice.samples.unwrap_or(decision.choice.pred)))
+            } else {
+                None
+            },
             coded,
             mode,
             vectors,
-        };
-        w.decided[index] = d.vectors;
-        w.modes.commit(c, r, self.inter_frame, self.syntax, &d.mode);
-        if d.coded.kind != MbKind::Skip {
-            let syntax = d.coded.kind.residual_syntax();
-            if self.adapt {
-                w.residual.commit(c, r, syntax, d.coded.residual());
-            } else {
-                w.residual.record(c, r, syntax, d.coded.residual());
-            }
         }
-        d
     }
 
     /// The neighbours in the row above that macroblock (c, r) reads and

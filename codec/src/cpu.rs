@@ -133,6 +133,31 @@ pub fn prefetch<T>(value: &T) {
     let _ = value;
 }
 
+/// [`prefetch`] of the line holding `data[first]` and of those holding
+/// every `step`-th byte after it up to `data[last]` (rows of a picture a
+/// stride apart): a few instructions a line, where a generic iterator
+/// over the samples took several times as many.
+#[inline]
+pub fn prefetch_every(data: &[u8], first: usize, last: usize, step: usize) {
+    assert!(
+        first <= last && last < data.len() && step > 0,
+        "lines inside the slice"
+    );
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let base = data.as_ptr().cast::<i8>();
+        let mut at = first;
+        while at <= last {
+            // SAFETY: `at <= last < data.len()`, so the address is inside
+            // `data`; a prefetch never faults and reads nothing
+            // architecturally.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(base.add(at)) };
+            at += step;
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -147,5 +172,14 @@ mod tests {
         assert!(CpuLevel::Scalar < CpuLevel::Sse2 && CpuLevel::Sse2 < CpuLevel::Avx2);
         assert_eq!(available()[0], CpuLevel::Scalar);
         assert_eq!(available().last(), Some(&CpuLevel::detected()));
+    }
+
+    #[test]
+    fn lines_are_prefetched_up_to_the_last_byte_and_no_further() {
+        let data = [0u8; 100];
+        prefetch_every(&data, 0, 99, 33);
+        prefetch_every(&data, 99, 99, 1);
+        let past = std::panic::catch_unwind(|| prefetch_every(&data, 0, 100, 10));
+        assert!(past.is_err(), "a line past the slice is refused");
     }
 }

@@ -301,12 +301,9 @@ impl Plane {
         let total_rows = self.data.len() / self.stride;
         let top = (y + pad).clamp(0, total_rows as isize - 1) as usize;
         let end = (top + rows).min(total_rows);
-        // One slice, stepped by the stride: no bounds check a row.
         let first = top * self.stride + cx;
         let last = (end - 1) * self.stride + cx;
-        for sample in self.data[first..=last].iter().step_by(self.stride) {
-            crate::cpu::prefetch(sample);
-        }
+        crate::cpu::prefetch_every(&self.data, first, last, self.stride);
     }
 
     /// The `N`-wide block at (x, y) inside the picture, into `out` (rows

@@ -77,6 +77,9 @@ fn codec_tables(c: &mut Criterion) {
         bench(g, "add_8x8", l, || {
             (t.add_8x8)(black_box(&levels8), 28, &mut mb, (8, 8))
         });
+        bench(g, "add_4x4_dc", l, || {
+            (t.add_4x4_dc)(black_box(&levels4), 1200, 28, &mut mb, 16, (4, 4))
+        });
     });
     let edge = noise(32, 2);
     let n = Neighbours {

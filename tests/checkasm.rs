@@ -127,7 +127,11 @@ fn level_blocks<const N: usize>(seed: u64) -> Vec<[[i32; N]; N]> {
 #[test]
 fn inverse_transforms() {
     each_level(&ITX, |isa, t, s| {
-        let ItxDsp { add_4x4, add_8x8 } = *t;
+        let ItxDsp {
+            add_4x4,
+            add_8x8,
+            add_4x4_dc,
+        } = *t;
         for pred in sample_sets(256, 2) {
             for qp in [0, 12, 27, 51] {
                 // Past 16 bits too: dequantisation clamps them.
@@ -140,6 +144,14 @@ fn inverse_transforms() {
                     add_4x4(&levels, qp, &mut a, 16, (4, 8));
                     (s.add_4x4)(&levels, qp, &mut b, 16, (4, 8));
                     assert_eq!(a, b, "{isa} 4x4 at QP {qp}");
+                    // Dequantised DC coefficients across their 16-bit
+                    // range (the levels' position 0 ignored).
+                    for dc in [0, 1, -1, 97, -4000, 32767, -32768] {
+                        let (mut a, mut b) = (pred.clone(), pred.clone());
+                        add_4x4_dc(&levels, dc, qp, &mut a, 16, (4, 8));
+                        (s.add_4x4_dc)(&levels, dc, qp, &mut b, 16, (4, 8));
+                        assert_eq!(a, b, "{isa} 4x4 with DC {dc} at QP {qp}");
+                    }
                 }
                 for levels in level_blocks::<8>(qp as u64 + 9) {
                     let mut a: [u8; 256] = pred.clone().try_into().unwrap();

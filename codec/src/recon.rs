@@ -18,7 +18,7 @@ use crate::partition::{MbVectors, RefMv};
 use crate::picture::{Frame, PictureError, Plane};
 use crate::residual::MbResidual;
 use crate::syntax::{mb_vectors, FrameSyntax, FrameType, MbKind, MotionTool, SequenceHeader, MB};
-use crate::transform::{dequantize, dequantize_chroma_dc, dequantize_luma_dc, inverse_4x4, Block4};
+use crate::transform::{dequantize_chroma_dc, dequantize_luma_dc, Block4};
 use crate::transform8x8::Block8;
 use crate::warp::warp_frame;
 
@@ -442,15 +442,7 @@ fn add_blocks_with_dc(blocks: &[Block4], dc: &[i32], qp: u8, out: &mut [u8], per
                 }
             }
             (true, 0) => add_block(&ac, qp, out, stride, at),
-            (true, d) => {
-                dequantize(&mut ac, qp);
-                ac[0][0] = d;
-                for (y, row) in inverse_4x4(&ac).iter().enumerate() {
-                    for (v, r) in out[(at.1 + y) * stride + at.0..][..4].iter_mut().zip(row) {
-                        *v = (i32::from(*v) + r).clamp(0, 255) as u8;
-                    }
-                }
-            }
+            (true, d) => (itx().add_4x4_dc)(&ac, d, qp, out, stride, at),
         }
     }
 }

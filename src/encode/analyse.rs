@@ -208,7 +208,7 @@ pub(super) struct Choice {
     pub(super) pred: MbSamples,
     pub(super) residual: Option<Box<MbResidual>>,
     /// The reconstruction it gives: `None` for the prediction itself
-    /// (skip, whose copy was a fifth of its analysis' copies).
+    /// (skip: not a copy of it).
     pub(super) samples: Option<MbSamples>,
 }
 

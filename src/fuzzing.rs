@@ -207,6 +207,9 @@ impl EncoderCase {
             b.pick(&["all", "none", "p8x8", "i8x8", "i4x4", "p8x8,i4x4", "i8x8,i4x4"])
                 .to_string()
         });
+        maybe(&mut b, "i-partitions", &|b| {
+            b.pick(&["all", "none", "i8x8", "i4x4"]).to_string()
+        });
         maybe(&mut b, "lambda-scale", &|b| {
             format!("{}", 0.25 + b.below(12) as f64 * 0.25)
         });

@@ -1174,6 +1174,16 @@ fn presets_differ_options_override_them_and_every_stream_decodes() {
         encode("no8.mcv", &["--no-8x8dct"]),
         encode("no8i.mcv", &["--no-8x8dct", "--partitions", "p8x8"])
     );
+    // I frames' intra blocks apart (x264's analyse.intra): with none of
+    // them the I frame is 16x16 intra only and differs; naming every one
+    // is the default; an inter partition is no intra block.
+    let i_frame = |extra: &[&str]| at_cut(&[&only_i_frames[..], extra].concat());
+    assert_eq!(i_frame(&["--i-partitions", "i8x8,i4x4"]), i_frame(&[]));
+    assert_ne!(i_frame(&["--i-partitions", "none"]), i_frame(&[]));
+    assert_ne!(
+        i_frame(&["--i-partitions", "i8x8"]),
+        i_frame(&["--i-partitions", "i4x4"])
+    );
     // A bad value is an error that names it.
     let rejects = |option: &str, value: &str, message: &str| {
         mocomp()
@@ -1190,6 +1200,7 @@ fn presets_differ_options_override_them_and_every_stream_decodes() {
             .stderr(predicates::str::contains(message));
     };
     rejects("--partitions", "p4x4", "unknown partition 'p4x4'");
+    rejects("--i-partitions", "p8x8", "p8x8 is an inter partition");
     // Sub-pel RD is slow's: off there, or on in medium, the stream changes;
     // only on and off are values.
     assert_ne!(

@@ -179,6 +179,7 @@ def encode(
     dct8x8: Optional[bool] = None,
     luma_filter: Optional[Literal["auto", "sharp", "smooth"]] = None,
     partitions: Optional[Union[bool, str]] = None,
+    i_partitions: Optional[Union[bool, str]] = None,
     metrics: Optional[str] = None,
     ssim: Optional[bool] = None,
 ) -> Union[Tuple[bytes, list[dict[str, Any]]], Tuple[bytes, list[dict[str, Any]], list[Yuv]]]: ...

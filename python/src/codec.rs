@@ -98,8 +98,8 @@ fn option_text(name: &str, value: &Bound<'_, PyAny>) -> PyResult<Option<String>>
     }
     if let Ok(b) = value.extract::<bool>() {
         let text = match (name, b) {
-            ("partitions", true) => "all",
-            ("partitions", false) => "none",
+            ("partitions" | "i_partitions" | "i-partitions", true) => "all",
+            ("partitions" | "i_partitions" | "i-partitions", false) => "none",
             (_, true) => "on",
             (_, false) => "off",
         };
@@ -157,7 +157,8 @@ fn encode_all(frames: &[Frame], fps: (u32, u32), config: EncoderConfig, keep: bo
 ///     weightp, refs, subpel_rd, split_margin, chroma_me, adaptive_pricing,
 ///     fast_pskip, early_pskip, dct8x8 (or 8x8dct),
 ///     luma_filter ("auto", "sharp" or "smooth"), partitions (True,
-///     False, or x264's names: "p8x8,i8x8,i4x4"), metrics ("psnr,ssim",
+///     False, or x264's names: "p8x8,i8x8,i4x4"), i_partitions (I
+///     frames' intra blocks: True, False or "i8x8,i4x4"), metrics ("psnr,ssim",
 ///     "all", ...), ssim (`mocomp.encoder_options()` lists them).
 /// frames: code at most this many frames.
 ///

@@ -46,6 +46,11 @@ def test_coding_tools_by_keyword(synth_frames, samples):
     all_named = mocomp.encode(source, qp=30, partitions="p8x8,i8x8,i4x4")[0]
     assert mocomp.encode(source, qp=30, partitions=True)[0] == all_named
     assert mocomp.encode(source, qp=30, partitions="none")[0] == mocomp.encode(source, qp=30, partitions=False)[0]
+    # I frames' intra blocks apart: False is 16x16 intra only.
+    first = source[:1]
+    assert mocomp.encode(first, qp=30, i_partitions=True)[0] == mocomp.encode(first, qp=30)[0]
+    assert mocomp.encode(first, qp=30, i_partitions=False)[0] == mocomp.encode(first, qp=30, i_partitions="none")[0]
+    assert mocomp.encode(first, qp=30, i_partitions=False)[0] != mocomp.encode(first, qp=30)[0]
     with pytest.raises(ValueError):
         mocomp.encode(source, partitions="p4x4")
     # The 8x8 transform: on in the default preset, off on request.

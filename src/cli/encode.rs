@@ -155,9 +155,14 @@ pub struct ToolArgs {
     /// or a list of p8x8 (16x8, 8x16 and 8x8 inter partitions), i8x8
     /// (intra luma in 8x8 blocks, with the 8x8 transform on) and i4x4
     /// (intra luma in 4x4 blocks) [default: the preset's]. As in x264, I
-    /// frames try 4x4 and 8x8 intra whatever this says.
+    /// frames' intra blocks are set apart (`--i-partitions`).
     #[arg(long, value_name = "all|none|p8x8,i8x8,i4x4")]
     pub partitions: Option<Partitions>,
+    /// I frames' intra blocks: all, none (16x16 intra only, as x264's
+    /// ultrafast), or a list of i8x8 (with the 8x8 transform on) and i4x4
+    /// [default: the preset's].
+    #[arg(long, value_name = "all|none|i8x8,i4x4")]
+    pub i_partitions: Option<Partitions>,
     /// Quality metrics to measure, comma-separated: psnr, ssim, ms-ssim,
     /// psnr-hvs, ciede2000, vmaf (through an ffmpeg built with libvmaf), or
     /// all (all but vmaf); none for no measurement at all (as x264 without
@@ -184,6 +189,7 @@ impl ToolArgs {
         o.extend(self.no_fast_pskip.then(|| ("fast-pskip", on(false))));
         o.extend(self.early_pskip.map(|b| ("early-pskip", on(b))));
         o.extend(self.partitions.map(|p| ("partitions", p.to_string())));
+        o.extend(self.i_partitions.map(|p| ("i-partitions", p.to_string())));
         o.extend(self.refs.map(|n| ("refs", n.to_string())));
         o.extend(self.subpel_rd.map(|b| ("subpel-rd", on(b))));
         o.extend(self.split_margin.map(|b| ("split-margin", on(b))));

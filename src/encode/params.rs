@@ -23,7 +23,7 @@ use crate::metrics::{Metric, Metrics};
 
 /// Every option [`EncoderConfig::set`] takes, with what its value is
 /// (names as `mocomp encode` spells them; `_` may stand for `-`).
-pub const OPTIONS: [(&str, &str); 27] = [
+pub const OPTIONS: [(&str, &str); 28] = [
     ("qp", "quantisation parameter, 0..=51"),
     ("gop", "I-frame period (0: only the first frame)"),
     (
@@ -81,6 +81,10 @@ pub const OPTIONS: [(&str, &str); 27] = [
     (
         "partitions",
         "P frames' partitions: all, none, or a list of p8x8, i8x8, i4x4",
+    ),
+    (
+        "i-partitions",
+        "I frames' intra blocks: all, none (16x16 only), or a list of i8x8, i4x4",
     ),
     (
         "metrics",
@@ -152,6 +156,7 @@ impl EncoderConfig {
             "luma-filter" => self.luma_filter = parse(value).map_err(bad)?,
             "8x8dct" | "dct8x8" => self.transform_8x8 = switch(value).map_err(bad)?,
             "partitions" => self.partitions = parse::<Partitions>(value).map_err(bad)?,
+            "i-partitions" => self.i_frame_partitions = intra_partitions(value).map_err(bad)?,
             "metrics" => self.metrics = parse::<Metrics>(value).map_err(bad)?,
             "ssim" => self.metrics = self.metrics.with(Metric::Ssim, switch(value).map_err(bad)?),
             _ => {
@@ -190,6 +195,15 @@ impl EncoderConfig {
         }
         Ok(())
     }
+}
+
+/// Intra partitions only: I frames have no inter blocks to split.
+fn intra_partitions(value: &str) -> Result<Partitions, String> {
+    let p = parse::<Partitions>(value)?;
+    if p.p8x8 && value.trim() != "all" {
+        return Err("p8x8 is an inter partition: expected all, none, or a list of i8x8 and i4x4".into());
+    }
+    Ok(Partitions { p8x8: false, ..p })
 }
 
 fn positive(v: f64, key: &str) -> Result<f64, String> {
@@ -252,6 +266,7 @@ mod tests {
             ("8x8dct", "off"),
             ("luma-filter", "smooth"),
             ("partitions", "p8x8,i4x4"),
+            ("i-partitions", "i8x8"),
             ("metrics", "ms-ssim"),
             ("ssim", "off"),
         ];

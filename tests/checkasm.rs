@@ -316,6 +316,7 @@ fn pixel_kernels() {
             sad,
             satd,
             satd_4x4_pair,
+            intra_satd_x3_16x16,
             satd_16x16_capped,
             halfpel_planes,
             halfpel_patch18,
@@ -386,6 +387,16 @@ fn pixel_kernels() {
                     (s.satd_4x4_pair)(&pa, &pb),
                     "{isa} paired satd"
                 );
+                let block = |d: &[u8], at: usize| -> [u8; 16] { d[at..at + 16].try_into().unwrap() };
+                let src: [u8; 256] = a[300..556].try_into().unwrap();
+                let (top, left) = (block(b, 11), block(b, 900));
+                for dc in [0, b[5], 255] {
+                    assert_eq!(
+                        intra_satd_x3_16x16(&src, &top, &left, dc),
+                        (s.intra_satd_x3_16x16)(&src, &top, &left, dc),
+                        "{isa} 16x16 intra SATD x3, dc {dc}"
+                    );
+                }
                 let full = (s.satd)(a, 100, b, 100, 16, 16);
                 for cap in [0, full / 3, full, u32::MAX] {
                     assert_eq!(
@@ -404,6 +415,19 @@ fn pixel_kernels() {
                 average_8x8((&a[7..], 100), (&b[2..], 33), &mut x[..64]);
                 (s.average_8x8)((&a[7..], 100), (&b[2..], 33), &mut y[..64]);
                 assert_eq!(x, y, "{isa} average 8x8");
+            }
+        }
+        // The coefficients' extremes: a white source against black edges
+        // and the reverse (every difference +-255), and a checkerboard.
+        let checker: [u8; 256] = std::array::from_fn(|i| if (i + i / 16) % 2 == 0 { 255 } else { 0 });
+        for (src, edge) in [([255u8; 256], 0u8), ([0; 256], 255), (checker, 0), (checker, 255)] {
+            let edges = [edge; 16];
+            for dc in [0, 255] {
+                assert_eq!(
+                    intra_satd_x3_16x16(&src, &edges, &edges, dc),
+                    (s.intra_satd_x3_16x16)(&src, &edges, &edges, dc),
+                    "{isa} 16x16 intra SATD x3 at the extremes"
+                );
             }
         }
         // Box sums of every side successive elimination uses, on buffers

@@ -199,17 +199,34 @@ impl IntraEdges {
         }
     }
 
+    /// The row above (its first `size` samples), if the block has one.
+    pub fn top(&self) -> Option<&[u8; MB]> {
+        self.top.as_ref()
+    }
+
+    /// The column to the left (its first `size` samples), if any.
+    pub fn left(&self) -> Option<&[u8; MB]> {
+        self.left.as_ref()
+    }
+
+    /// The DC mode's value.
+    pub fn dc(&self) -> u8 {
+        crate::dsp::ipred::dc_value(self.size, &self.neighbours())
+    }
+
+    fn neighbours(&self) -> Neighbours<'_> {
+        Neighbours {
+            top: self.top.as_ref().map(|t| &t[..self.size]),
+            left: self.left.as_ref().map(|l| &l[..self.size]),
+            top_left: self.top_left,
+        }
+    }
+
     /// The prediction in `mode` into `out` (row stride the block's side).
     /// The mode must be allowed here
     /// ([`crate::syntax::intra_mode_allowed`]); panics otherwise.
     pub fn predict(&self, mode: intra::IntraMode, out: &mut [u8]) {
-        let size = self.size;
-        let n = Neighbours {
-            top: self.top.as_ref().map(|t| &t[..size]),
-            left: self.left.as_ref().map(|l| &l[..size]),
-            top_left: self.top_left,
-        };
-        let done = intra::predict(mode, size, &n, out, size);
+        let done = intra::predict(mode, self.size, &self.neighbours(), out, self.size);
         assert!(
             done.is_ok(),
             "intra mode {mode:?} not allowed at macroblock {:?}",

@@ -13,6 +13,7 @@ use crate::codec::consts::MB;
 use crate::codec::intra::IntraMode;
 use crate::codec::recon::IntraEdges;
 use crate::codec::syntax::intra_mode_allowed;
+use crate::me::dsp::pixel;
 use crate::me::{ChromaBlock, Metric};
 
 use super::config::ModeDecision;
@@ -837,17 +838,34 @@ pub(super) fn best_intra_16x16(
     pred: &mut MbSamples,
 ) -> (IntraMode, u32) {
     let sad_lambda = coder.lambda.sqrt();
-    let mut trial = [0u8; 256];
     let (mut luma, mut best_cost, mut satd) = (IntraMode::Dc, f64::INFINITY, 0);
     let edges = IntraEdges::of(recon, 0, mb_x, mb_y);
+    // Vertical, horizontal and DC from one transform of the source; a
+    // missing edge's mode is not allowed, so its figure goes unread.
+    let none = [0u8; MB];
+    let x3 = (pixel().intra_satd_x3_16x16)(
+        &src.luma,
+        edges.top().unwrap_or(&none),
+        edges.left().unwrap_or(&none),
+        edges.dc(),
+    );
     for m in allowed_intra_modes(mb_x, mb_y) {
-        edges.predict(m, &mut trial);
-        let d = Metric::Satd.cost(&src.luma, MB, &trial, MB, MB, MB);
+        let d = match m {
+            IntraMode::Vertical => x3[0],
+            IntraMode::Horizontal => x3[1],
+            IntraMode::Dc => x3[2],
+            IntraMode::Plane => {
+                edges.predict(m, &mut pred.luma);
+                Metric::Satd.cost(&src.luma, MB, &pred.luma, MB, MB, MB)
+            }
+        };
         let c = f64::from(d) + sad_lambda * f64::from(ue_len(m as u32));
         if c < best_cost {
             (luma, best_cost, satd) = (m, c, d);
-            pred.luma = trial;
         }
+    }
+    if luma != IntraMode::Plane {
+        edges.predict(luma, &mut pred.luma);
     }
     (luma, satd)
 }

@@ -21,6 +21,9 @@ use std::cell::RefCell;
 use crate::codec::dsp::PerLevel;
 use crate::codec::Plane;
 
+mod intra16;
+pub use intra16::{intra_satd_x3_16x16, IntraSatdX3Fn};
+
 thread_local! {
     /// The horizontal pass the half-pel planes are filled from, reused.
     static HPASS: RefCell<Vec<i16>> = const { RefCell::new(Vec::new()) };
@@ -289,6 +292,9 @@ pub struct PixelDsp {
     pub satd: CostFn,
     /// SATD of two 4x4 tiles at once (4x4 intra mode search).
     pub satd_4x4_pair: PairFn,
+    /// SATD of the vertical, horizontal and DC 16x16 intra predictions
+    /// from one transform of the source (16x16 intra mode search).
+    pub intra_satd_x3_16x16: IntraSatdX3Fn,
     /// 16x16 SATD that may stop half way above a cap (block search).
     pub satd_16x16_capped: CappedFn,
     /// The half-pel planes of a reference.
@@ -324,6 +330,7 @@ const SCALAR: PixelDsp = PixelDsp {
     sad,
     satd,
     satd_4x4_pair,
+    intra_satd_x3_16x16,
     satd_16x16_capped,
     halfpel_planes: halfpel_planes_scalar,
     halfpel_patch18: halfpel_patch18_scalar,
@@ -708,6 +715,7 @@ mod x86 {
         sad: sad_sse2,
         satd: satd_sse2,
         satd_4x4_pair: satd_4x4_pair_sse2,
+        intra_satd_x3_16x16: super::intra_satd_x3_16x16,
         satd_16x16_capped: satd_16x16_capped_sse2,
         halfpel_planes: super::halfpel_planes_scalar,
         halfpel_patch18: super::halfpel_patch18_scalar,
@@ -785,6 +793,7 @@ mod x86 {
         sad: sad_avx2,
         satd: satd_avx2,
         satd_4x4_pair: satd_4x4_pair_sse2,
+        intra_satd_x3_16x16: super::intra16::x86::intra_satd_x3_16x16_avx2,
         satd_16x16_capped: satd_16x16_capped_avx2,
         halfpel_planes: super::avx2::halfpel_planes,
         halfpel_patch18: super::avx2::halfpel_patch18,

@@ -270,6 +270,19 @@ pub struct Edges {
     pub top_left: Option<u8>,
 }
 
+/// The DC mode's value of a `size x size` block (16x16 luma or 8x8
+/// chroma): the rounded mean of the neighbours there are, or 128.
+pub fn dc_value(size: usize, n: &Neighbours<'_>) -> u8 {
+    let sum = |s: &[u8]| s[..size].iter().map(|&v| u32::from(v)).sum::<u32>();
+    let n_bits = size.trailing_zeros();
+    (match (n.top, n.left) {
+        (Some(t), Some(l)) => (sum(t) + sum(l) + size as u32) >> (n_bits + 1),
+        (Some(t), None) => (sum(t) + size as u32 / 2) >> n_bits,
+        (None, Some(l)) => (sum(l) + size as u32 / 2) >> n_bits,
+        (None, None) => 128,
+    }) as u8
+}
+
 /// An available 16x16 or chroma mode at size `N` (the intra module's
 /// `predict` checks the mode and the neighbours).
 #[inline(always)]
@@ -288,14 +301,7 @@ fn predict_sized<const N: usize>(mode: IntraMode, n: &Neighbours<'_>, out: &mut 
             rows.enumerate().for_each(|(y, r)| r.fill(left[y]));
         }
         IntraMode::Dc => {
-            let sum = |s: &[u8]| s[..size].iter().map(|&v| u32::from(v)).sum::<u32>();
-            let n_bits = size.trailing_zeros();
-            let dc = match (n.top, n.left) {
-                (Some(t), Some(l)) => (sum(t) + sum(l) + size as u32) >> (n_bits + 1),
-                (Some(t), None) => (sum(t) + size as u32 / 2) >> n_bits,
-                (None, Some(l)) => (sum(l) + size as u32 / 2) >> n_bits,
-                (None, None) => 128,
-            } as u8;
+            let dc = dc_value(size, n);
             rows.for_each(|r| r.fill(dc));
         }
         IntraMode::Plane => {

@@ -159,6 +159,10 @@ fn pixel_table(c: &mut Criterion) {
         bench(g, "satd_4x4_pair", l, || {
             (t.satd_4x4_pair)(black_box(&pair), &pair)
         });
+        let pairs = [pair, b[..32].try_into().unwrap()];
+        bench(g, "satd_4x4_quad", l, || {
+            (t.satd_4x4_quad)(black_box(&pair), &pairs)
+        });
         let mb: [u8; 256] = a[..256].try_into().unwrap();
         let (top, left): ([u8; 16], [u8; 16]) = (b[..16].try_into().unwrap(), b[64..80].try_into().unwrap());
         bench(g, "intra_satd_x3_16x16", l, || {

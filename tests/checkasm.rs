@@ -316,6 +316,7 @@ fn pixel_kernels() {
             sad,
             satd,
             satd_4x4_pair,
+            satd_4x4_quad,
             intra_satd_x3_16x16,
             satd_16x16_capped,
             halfpel_planes,
@@ -386,6 +387,12 @@ fn pixel_kernels() {
                     satd_4x4_pair(&pa, &pb),
                     (s.satd_4x4_pair)(&pa, &pb),
                     "{isa} paired satd"
+                );
+                let quad: [[u8; 32]; 2] = [b[200..232].try_into().unwrap(), b[500..532].try_into().unwrap()];
+                assert_eq!(
+                    satd_4x4_quad(&pa, &quad),
+                    (s.satd_4x4_quad)(&pa, &quad),
+                    "{isa} four 4x4 SATDs"
                 );
                 let block = |d: &[u8], at: usize| -> [u8; 16] { d[at..at + 16].try_into().unwrap() };
                 let src: [u8; 256] = a[300..556].try_into().unwrap();

@@ -88,8 +88,19 @@ fn every_paired_4x4_satd_equals_scalar() {
         let chunk = |v: &[u8], at: usize| -> [u8; 32] { v[at..at + 32].try_into().unwrap() };
         let (a, b) = (chunk(&long_a, 32 * seed), chunk(&long_b, 32 * seed + 5));
         let want = [0, 4].map(|o| cost::satd(&a[o..], 8, &b[o..], 8, 4, 4));
+        // Four tiles: this pair, then the next seed's.
+        let c = chunk(&long_b, (32 * seed + 37) % (long_b.len() - 32));
+        let quad = [b, c];
+        let own = [0, 4].map(|o| cost::satd(&a[o..], 8, &c[o..], 8, 4, 4));
         for k in available() {
             assert_eq!((k.satd_4x4_pair)(&a, &b), want, "{} seed {seed}", k.isa);
+            let four = (k.satd_4x4_quad)(&a, &quad);
+            assert_eq!(
+                four,
+                [want[0], want[1], own[0], own[1]],
+                "{} quad seed {seed}",
+                k.isa
+            );
         }
     }
 }

@@ -52,10 +52,12 @@ pub(crate) fn pricing(
 }
 
 impl IntraBlockSearch<'_> {
-    /// sqrt(lambda) * the bits of a block's mode, most probable or not.
-    pub fn mode_cost(&self, probable: bool) -> f64 {
+    /// sqrt(lambda) * the bits of a block's mode: `[other, most
+    /// probable]`, indexed by whether it is the most probable (found once
+    /// a macroblock, not once a candidate).
+    pub fn mode_costs(&self) -> [f64; 2] {
         let (probable_bits, other_bits) = self.mode_bits;
-        self.coder.lambda.sqrt() * f64::from(if probable { probable_bits } else { other_bits }) / 256.0
+        [other_bits, probable_bits].map(|bits| self.coder.lambda.sqrt() * f64::from(bits) / 256.0)
     }
 
     /// The modes (`fixed`, or each block's best), their prediction and
@@ -80,6 +82,7 @@ impl IntraBlockSearch<'_> {
             estimate: 0.0,
         };
         let mut own = [0u8; 256];
+        let mode_costs = self.mode_costs();
         for k in CODING_ORDER {
             let (bx, by) = (4 * (k % 4), 4 * (k / 4));
             let edges = intra4x4::edges(self.recon.y(), &own, mb_x, mb_y, k);
@@ -99,7 +102,7 @@ impl IntraBlockSearch<'_> {
             let satds = block_satds(&src.luma, (bx, by), &source, &candidates[..n]);
             let mut best = (f64::INFINITY, Intra4x4Mode::Dc);
             for i in 0..n {
-                let cost = f64::from(satds[i]) + self.mode_cost(candidates[i] == probable);
+                let cost = f64::from(satds[i]) + mode_costs[usize::from(candidates[i] == probable)];
                 if cost < best.0 {
                     best = (cost, candidates[i]);
                 }
@@ -128,14 +131,15 @@ impl IntraBlockSearch<'_> {
 }
 
 /// The SATD against the source's 4x4 block at (bx, by) of each mode's
-/// prediction, two at a time (gathered side by side).
+/// prediction: gathered two at a time side by side, measured four at a
+/// time (the last one or two as a pair).
 fn block_satds(
     src: &[u8; 256],
     (bx, by): (usize, usize),
     source: &ModeSource4,
     modes: &[Intra4x4Mode],
 ) -> [u32; 9] {
-    let pair = pixel().satd_4x4_pair;
+    let (pair, quad) = (pixel().satd_4x4_pair, pixel().satd_4x4_quad);
     let predict_pair = crate::codec::dsp::ipred::ipred().pred_4x4_pair;
     // The source block twice side by side, predictions likewise.
     let mut doubled = [0u8; 32];
@@ -145,13 +149,23 @@ fn block_satds(
         doubled[8 * r + 4..8 * r + 8].copy_from_slice(row);
     }
     let mut out = [0u32; 9];
-    for i in (0..modes.len()).step_by(2) {
-        let j = (i + 1).min(modes.len() - 1);
+    let n = modes.len();
+    let mut i = 0;
+    while i + 4 <= n {
+        let mut two_pairs = [[0u8; 32]; 2];
+        predict_pair(source, modes[i], modes[i + 1], &mut two_pairs[0]);
+        predict_pair(source, modes[i + 2], modes[i + 3], &mut two_pairs[1]);
+        out[i..i + 4].copy_from_slice(&quad(&doubled, &two_pairs));
+        i += 4;
+    }
+    while i < n {
+        let j = (i + 1).min(n - 1);
         let mut two = [0u8; 32];
         predict_pair(source, modes[i], modes[j], &mut two);
         let [a, b] = pair(&doubled, &two);
         out[i] = a;
         out[j] = b;
+        i += 2;
     }
     out
 }

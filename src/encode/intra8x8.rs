@@ -47,6 +47,7 @@ impl IntraBlockSearch<'_> {
         };
         let mut levels = Box::new([[[0; 8]; 8]; 4]);
         let mut own = [0u8; 256];
+        let mode_costs = self.mode_costs();
         for q in 0..4 {
             let edges = intra8x8::filtered(&intra8x8::edges(self.recon.y(), &own, mb_x, mb_y, q));
             let modes = ModeSource::new(&edges);
@@ -63,7 +64,7 @@ impl IntraBlockSearch<'_> {
                 }
                 modes.predict(m, &mut block);
                 let satd = Metric::Satd.cost(source, MB, &block, 8, 8, 8);
-                let cost = f64::from(satd) + self.mode_cost(m == probable);
+                let cost = f64::from(satd) + mode_costs[usize::from(m == probable)];
                 if cost < best.0 {
                     best = (cost, m, block);
                 }

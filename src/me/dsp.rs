@@ -21,8 +21,8 @@ use std::cell::RefCell;
 use crate::codec::dsp::PerLevel;
 use crate::codec::Plane;
 
-mod intra16;
-pub use intra16::{intra_satd_x3_16x16, IntraSatdX3Fn};
+mod intra;
+pub use intra::{intra_satd_x3_16x16, satd_4x4_quad, IntraSatdX3Fn, QuadFn};
 
 thread_local! {
     /// The horizontal pass the half-pel planes are filled from, reused.
@@ -292,6 +292,8 @@ pub struct PixelDsp {
     pub satd: CostFn,
     /// SATD of two 4x4 tiles at once (4x4 intra mode search).
     pub satd_4x4_pair: PairFn,
+    /// SATD of four 4x4 tiles at once (4x4 intra mode search).
+    pub satd_4x4_quad: QuadFn,
     /// SATD of the vertical, horizontal and DC 16x16 intra predictions
     /// from one transform of the source (16x16 intra mode search).
     pub intra_satd_x3_16x16: IntraSatdX3Fn,
@@ -330,6 +332,7 @@ const SCALAR: PixelDsp = PixelDsp {
     sad,
     satd,
     satd_4x4_pair,
+    satd_4x4_quad,
     intra_satd_x3_16x16,
     satd_16x16_capped,
     halfpel_planes: halfpel_planes_scalar,
@@ -715,6 +718,7 @@ mod x86 {
         sad: sad_sse2,
         satd: satd_sse2,
         satd_4x4_pair: satd_4x4_pair_sse2,
+        satd_4x4_quad: satd_4x4_quad_sse2,
         intra_satd_x3_16x16: super::intra_satd_x3_16x16,
         satd_16x16_capped: satd_16x16_capped_sse2,
         halfpel_planes: super::halfpel_planes_scalar,
@@ -793,7 +797,8 @@ mod x86 {
         sad: sad_avx2,
         satd: satd_avx2,
         satd_4x4_pair: satd_4x4_pair_sse2,
-        intra_satd_x3_16x16: super::intra16::x86::intra_satd_x3_16x16_avx2,
+        satd_4x4_quad: super::intra::x86::satd_4x4_quad_avx2,
+        intra_satd_x3_16x16: super::intra::x86::intra_satd_x3_16x16_avx2,
         satd_16x16_capped: satd_16x16_capped_avx2,
         halfpel_planes: super::avx2::halfpel_planes,
         halfpel_patch18: super::avx2::halfpel_patch18,
@@ -1132,6 +1137,12 @@ mod x86 {
             }
         }
         sum.div_ceil(2)
+    }
+
+    /// Two pairs.
+    fn satd_4x4_quad_sse2(a: &[u8; 32], b: &[[u8; 32]; 2]) -> [u32; 4] {
+        let ([w, x], [y, z]) = (satd_4x4_pair_sse2(a, &b[0]), satd_4x4_pair_sse2(a, &b[1]));
+        [w, x, y, z]
     }
 
     fn satd_4x4_pair_sse2(a: &[u8; 32], b: &[u8; 32]) -> [u32; 2] {

@@ -233,6 +233,9 @@ pub(super) struct MbAnalysis {
     pub(super) best: Choice,
     /// Whether any choice but skip can win (see [`InterFrameCoder::analyse_skip`]).
     pub(super) exhaustive: bool,
+    /// The skip prediction's squared luma error (the frame's prediction
+    /// PSNR takes it where skip wins, not measured again).
+    pub(super) skip_luma_sse: u64,
     /// Motion analysis' vector (the predicted one until it is searched).
     pub(super) searched: Mv,
     /// The lowest luma SATD of the inter candidates, for intra's early out.
@@ -465,7 +468,8 @@ impl InterFrameCoder<'_, '_> {
         let skip_pred = predict_inter(&self.inter_context(), mb_x, mb_y, RefMv::previous(mvp));
         let lambda = self.coder.lambda;
         let skip_bits = self.mode_bits_at(env, (mb_x, mb_y), &MbMode::Skip);
-        let cost = rdo::cost(lambda, source.ssd(&skip_pred), skip_bits);
+        let (skip_luma_sse, skip_chroma_sse) = source.ssd_by_plane(&skip_pred);
+        let cost = rdo::cost(lambda, skip_luma_sse + skip_chroma_sse, skip_bits);
         // Every other choice spends at least the flag saying it is not
         // skipped: when skip costs no more, nothing can beat it.
         let not_skipped = rdo::bits(rate::not_skipped_cost(env.modes, (mb_x, mb_y)));
@@ -486,6 +490,7 @@ impl InterFrameCoder<'_, '_> {
             },
             source,
             exhaustive: cost > rdo::cost(lambda, 0, not_skipped),
+            skip_luma_sse,
             searched: mvp,
             inter_satd: u32::MAX,
             inter_estimate: f64::INFINITY,

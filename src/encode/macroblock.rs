@@ -47,8 +47,17 @@ impl MbSource {
 
     /// Squared error of a prediction (or reconstruction), luma and chroma.
     pub fn ssd(&self, p: &MbSamples) -> u64 {
+        let (luma, chroma) = self.ssd_by_plane(p);
+        luma + chroma
+    }
+
+    /// [`MbSource::ssd`]'s luma and chroma parts.
+    pub fn ssd_by_plane(&self, p: &MbSamples) -> (u64, u64) {
         let d = squared_difference_sum;
-        d(&self.luma, &p.luma) + d(&self.chroma[0], &p.chroma[0]) + d(&self.chroma[1], &p.chroma[1])
+        (
+            d(&self.luma, &p.luma),
+            d(&self.chroma[0], &p.chroma[0]) + d(&self.chroma[1], &p.chroma[1]),
+        )
     }
 }
 

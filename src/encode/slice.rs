@@ -68,8 +68,7 @@ pub(super) fn visible_luma_sse(
     mb_y: usize,
     seq: &SequenceHeader,
 ) -> u64 {
-    let w = (seq.width - mb_x * 16).min(16);
-    let h = (seq.height - mb_y * 16).min(16);
+    let (w, h) = visible_size(mb_x, mb_y, seq);
     if w == 16 {
         // Whole rows: one run of samples (a call a row cost 16 kernel calls
         // a macroblock).
@@ -78,6 +77,11 @@ pub(super) fn visible_luma_sse(
     (0..h)
         .map(|r| squared_difference_sum(&src.luma[r * 16..r * 16 + w], &pred.luma[r * 16..r * 16 + w]))
         .sum()
+}
+
+/// The columns and rows of macroblock (mb_x, mb_y) inside the picture.
+fn visible_size(mb_x: usize, mb_y: usize, seq: &SequenceHeader) -> (usize, usize) {
+    ((seq.width - mb_x * 16).min(16), (seq.height - mb_y * 16).min(16))
 }
 
 pub(super) fn kind_index(kind: &MbKind) -> usize {
@@ -530,7 +534,10 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
     fn decide_mb(&self, env: &MbEnv<'_>, index: usize) -> wavefront::Decision {
         let mut mb = self.analyse_skip(index, env);
         self.analyse_beyond_skip(&mut mb, env);
-        let prediction_sse = visible_luma_sse(&mb.source, &mb.best.pred, mb.mb_x, mb.mb_y, self.seq);
+        let prediction_sse = match mb.skip_pred() {
+            Some(_) if visible_size(mb.mb_x, mb.mb_y, self.seq) == (16, 16) => mb.skip_luma_sse,
+            _ => visible_luma_sse(&mb.source, &mb.best.pred, mb.mb_x, mb.mb_y, self.seq),
+        };
         wavefront::Decision {
             choice: mb.best,
             prediction_sse,

@@ -6,9 +6,9 @@
 //! two SSE2 pairs). With it, and the mode prices found once a macroblock,
 //! ultrafast's instructions x0.988 on the five encodes below.
 //!
-//! [`IntraSatdX3Fn`]: the SATD of the three 16x16 intra modes whose prediction is constant
-//! down columns or along rows (vertical, horizontal, DC) from one
-//! transform of the source, as x264's `intra_satd_x3_16x16`. The Hadamard
+//! [`IntraSatdX3Fn`]: the SATD of the three 16x16 intra modes whose
+//! prediction is constant down columns or along rows (vertical,
+//! horizontal, DC) from one transform of the source, as x264's `intra_satd_x3_16x16`. The Hadamard
 //! transform is linear, and in each 4x4 tile those predictions have only
 //! a few nonzero coefficients (vertical: the first row, 4 H t; horizontal:
 //! the first column, 4 H l; DC: the first, 16 dc): the source's
@@ -203,10 +203,10 @@ pub(super) mod x86 {
                 l0 - l1 - l2 + l3,
             ]
             .map(|c| first_of_fours(4 * c));
-            rest = _mm256_add_epi32(
-                rest,
-                abs_sum(_mm256_add_epi16(_mm256_abs_epi16(w[1]), w_abs(w[2], w[3]))),
-            );
+            // Rows 1-3 are the same in the vertical and DC predictions'
+            // SATD: summed once (three magnitudes, at most 12240 a lane).
+            let rows_1_to_3 = _mm256_add_epi16(_mm256_abs_epi16(w[1]), abs_add(w[2], w[3]));
+            rest = _mm256_add_epi32(rest, _mm256_madd_epi16(rows_1_to_3, _mm256_set1_epi16(1)));
             v = _mm256_add_epi32(v, abs_diff_sum(w[0], vertical));
             d = _mm256_add_epi32(d, abs_diff_sum(w[0], flat));
             for u in 0..4 {
@@ -221,9 +221,9 @@ pub(super) mod x86 {
         ]
     }
 
-    /// `|a| + |b|` in 16-bit lanes (at most 8160 in all).
+    /// `|a| + |b|` in 16-bit lanes (coefficients of at most 4080 each).
     #[target_feature(enable = "avx2")]
-    fn w_abs(a: __m256i, b: __m256i) -> __m256i {
+    fn abs_add(a: __m256i, b: __m256i) -> __m256i {
         _mm256_add_epi16(_mm256_abs_epi16(a), _mm256_abs_epi16(b))
     }
 }

@@ -1179,6 +1179,7 @@ fn presets_differ_options_override_them_and_every_stream_decodes() {
     // is the default; an inter partition is no intra block.
     let i_frame = |extra: &[&str]| at_cut(&[&only_i_frames[..], extra].concat());
     assert_eq!(i_frame(&["--i-partitions", "i8x8,i4x4"]), i_frame(&[]));
+    assert_eq!(i_frame(&["--i-partitions", "all"]), i_frame(&[]));
     assert_ne!(i_frame(&["--i-partitions", "none"]), i_frame(&[]));
     assert_ne!(
         i_frame(&["--i-partitions", "i8x8"]),

@@ -197,10 +197,11 @@ impl EncoderConfig {
     }
 }
 
-/// Intra partitions only: I frames have no inter blocks to split.
+/// Intra partitions only: I frames have no inter blocks to split. `all`
+/// (every partition, as the command line hands it on) is every intra one.
 fn intra_partitions(value: &str) -> Result<Partitions, String> {
     let p = parse::<Partitions>(value)?;
-    if p.p8x8 && value.trim() != "all" {
+    if p.p8x8 && p != Partitions::ALL {
         return Err("p8x8 is an inter partition: expected all, none, or a list of i8x8 and i4x4".into());
     }
     Ok(Partitions { p8x8: false, ..p })

@@ -166,7 +166,7 @@ impl Encoder {
             intra_coder: MbCoder::new(config.intra_qp(), config.lambda_scale, config.rdoq)
                 .intra4x4(config.i_frame_partitions.i4x4)
                 .intra8x8(config.i_frame_intra8x8()),
-            analyser: MotionAnalyser::new(config.predictor, config.qp, config.partitions.p8x8),
+            analyser: MotionAnalyser::of_config(&config),
             references: Vec::new(),
             prev_source: None,
             camera: CameraMotion::default(),
@@ -634,11 +634,7 @@ impl Encoder {
         };
         self.handoff = Some(next);
         Ok(Ok(RowFrame {
-            sequence: Sequence {
-                seq: self.seq,
-                config: self.config,
-                coder: self.coder,
-            },
+            sequence: self.frame_sequence(),
             frame: *frame,
             source,
             output: self.spare_output.take(),
@@ -656,6 +652,15 @@ impl Encoder {
             before,
             after,
         }))
+    }
+
+    /// What a frame thread's frame has of the sequence.
+    pub(super) fn frame_sequence(&self) -> Sequence {
+        Sequence {
+            seq: self.seq,
+            config: self.config,
+            coder: self.coder,
+        }
     }
 
     /// A spare coded-size frame of the kind asked, or a new one.
@@ -1012,8 +1017,8 @@ pub(super) fn weights_of(
 }
 
 /// How many of the reference's luma rows a P frame's weights are measured
-/// on: its top half, whole macroblock rows (the rows a frame thread has
-/// when it starts the next frame).
+/// on: its top half, whole macroblock rows (on a frame thread, measured
+/// once the frame before has published them).
 pub(super) fn weight_rows(seq: &SequenceHeader) -> usize {
     (seq.mb_rows() / 2).max(1) * crate::codec::consts::MB
 }

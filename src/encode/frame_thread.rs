@@ -12,14 +12,16 @@ use super::config::{EncoderConfig, FilterChoice};
 use super::encoder::{report, FrameStart};
 use super::filter::FilterChooser;
 use super::macroblock::MbCoder;
-use super::motion::FrameMotion;
+use super::motion::{FrameMotion, MotionAnalyser};
 use super::progress::FrameProgress;
 use super::reference::GrowingReference;
-use super::slice::{self, CodedFrame};
+use super::slice::{self, CodedFrame, InterFrameCoder, RowsDecided};
 use super::{EncodeError, EncodedFrame};
 use crate::codec::consts::MB;
 use crate::codec::interp::LumaFilter;
+use crate::codec::mv::Mv;
 use crate::codec::syntax::{EntropyState, MotionTool, SequenceHeader};
+use crate::codec::weight::Weights;
 use crate::codec::Frame;
 
 /// The stream's state after a frame is written, which the next frame's
@@ -102,9 +104,9 @@ impl Drop for AbandonUnlessDone<'_> {
 }
 
 impl RowFrame {
-    /// Decides the frame row by row (after its weights, measured on the
-    /// reference's top half), then, once the frame before is written,
-    /// writes it.
+    /// Decides the frame row by row (its weights measured on the
+    /// reference's top half: [`RowsJob::decide`]), then, once the frame
+    /// before is written, writes it.
     pub(super) fn run(self) -> Result<RowFrameDone, EncodeError> {
         let publish = Arc::clone(&self.publish);
         let mut guard = AbandonUnlessDone(&publish, false);
@@ -133,36 +135,28 @@ impl RowFrame {
             before,
             after,
         } = self;
-        let Sequence { seq, config, coder } = &sequence;
+        let Sequence { seq, config, .. } = &sequence;
         let index = frame.index;
         let mut growing = reference;
-        let top = super::encoder::weight_rows(seq) / MB;
-        from.with_rows(top, |f, _| growing.copy_in(f, top));
-        growing.settle(None);
-        let weights = super::encoder::weights_of(config, seq, &src, growing.plain());
         let mut spare_weighted = weighted;
-        if weights.any() {
-            let buffer = match spare_weighted.take() {
-                Some(f) => f,
-                None => Frame::new(seq.coded_width(), seq.coded_height())?,
-            };
-            growing.weigh(weights, buffer);
-        }
         let older_frames: Vec<&Frame> = older.iter().map(|f| &**f).collect();
-        let inputs = super::encoder::inter_inputs(
-            config,
-            &pricing,
-            motion,
-            MotionTool::Block,
-            (weights, luma_filter),
-        );
-        let refs = slice::RowReferences {
+        let rows = RowsJob {
+            sequence: &sequence,
+            src: &src,
+            camera: frame.camera,
             from: &from,
-            growing: &mut growing,
             older: &older_frames,
             publish: &publish,
+            pricing: &pricing,
+            luma_filter,
         };
-        let decided = slice::decide_inter_rows((seq, coder, &src), inputs, refs, recon)?;
+        let decided = rows
+            .decide(&mut growing, motion, recon, &mut spare_weighted)?
+            .with_references(
+                std::iter::once(growing.frame())
+                    .chain(older_frames.iter().copied())
+                    .collect(),
+            );
         let mut written = before
             .recv()
             .map_err(|_| EncodeError::Config("the frame before this one failed".into()))?;
@@ -191,6 +185,115 @@ impl RowFrame {
             before: entropy_before,
             after: written,
         })
+    }
+}
+
+/// What deciding a frame's rows reads, apart from its reference, its
+/// search and the buffer it reconstructs into.
+struct RowsJob<'j> {
+    sequence: &'j Sequence,
+    src: &'j Frame,
+    camera: Mv,
+    from: &'j FrameProgress,
+    older: &'j [&'j Frame],
+    publish: &'j FrameProgress,
+    pricing: &'j EntropyState,
+    luma_filter: LumaFilter,
+}
+
+impl<'j> RowsJob<'j> {
+    /// The frame's rows decided, weighted as measured on the reference's
+    /// top half: measured first where the frame before has those rows
+    /// (one thread: always); else once they come in, the rows before them
+    /// decided as if unweighted ([`slice::UnmeasuredWeights`]) and again,
+    /// weighted, where the weights are not none. A weighted reference
+    /// goes into `spare_weighted` where it holds one.
+    fn decide(
+        &self,
+        growing: &mut GrowingReference,
+        motion: FrameMotion,
+        recon: Frame,
+        spare_weighted: &mut Option<Frame>,
+    ) -> Result<InterFrameCoder<'j, 'static>, EncodeError> {
+        let Sequence { seq, config, .. } = self.sequence;
+        let top = super::encoder::weight_rows(seq) / MB;
+        let measure = |plain: &Frame| super::encoder::weights_of(config, seq, self.src, plain);
+        let mut weighted_buffer = || match spare_weighted.take() {
+            Some(f) => Ok(f),
+            None => Frame::new(seq.coded_width(), seq.coded_height()),
+        };
+        if self.from.rows() < top {
+            let unmeasured = slice::UnmeasuredWeights {
+                rows: top,
+                measure: &measure,
+            };
+            let weights = match self.decide_with(growing, motion, Weights::NONE, Some(unmeasured), recon)? {
+                RowsDecided::Decided(decided) => return Ok(*decided),
+                RowsDecided::Weigh(weights) => weights,
+            };
+            // Decided again from the top, weighted: a new search (its
+            // half-pel planes are the weighted luma's), a new buffer.
+            let motion = MotionAnalyser::of_config(config)
+                .analyse_growing(growing.plain(), self.older, self.camera, self.from.has_prior())
+                .ok_or_else(|| EncodeError::Config("a frame's search changed kind".into()))?;
+            growing.reweigh(weights, weighted_buffer()?);
+            let recon = Frame::new(seq.coded_width(), seq.coded_height())?;
+            return self.decided(growing, motion, weights, recon);
+        }
+        self.from.with_rows(top, |f, _| growing.copy_in(f, top));
+        growing.settle(None);
+        let weights = measure(growing.plain());
+        if weights.any() {
+            growing.weigh(weights, weighted_buffer()?);
+        }
+        self.decided(growing, motion, weights, recon)
+    }
+
+    /// [`slice::decide_inter_rows`] of the frame weighted by `weights`,
+    /// or, where `unmeasured`, as if unweighted until they are measured.
+    fn decide_with(
+        &self,
+        growing: &mut GrowingReference,
+        motion: FrameMotion,
+        weights: Weights,
+        unmeasured: Option<slice::UnmeasuredWeights<'_>>,
+        recon: Frame,
+    ) -> Result<RowsDecided<'j>, EncodeError> {
+        let Sequence { seq, config, coder } = self.sequence;
+        let inputs = super::encoder::inter_inputs(
+            config,
+            self.pricing,
+            motion,
+            MotionTool::Block,
+            (weights, self.luma_filter),
+        );
+        let refs = slice::RowReferences {
+            from: self.from,
+            growing,
+            older: self.older,
+            publish: self.publish,
+        };
+        Ok(slice::decide_inter_rows(
+            (seq, coder, self.src),
+            inputs,
+            refs,
+            unmeasured,
+            recon,
+        )?)
+    }
+
+    /// [`RowsJob::decide_with`] where the weights are known.
+    fn decided(
+        &self,
+        growing: &mut GrowingReference,
+        motion: FrameMotion,
+        weights: Weights,
+        recon: Frame,
+    ) -> Result<InterFrameCoder<'j, 'static>, EncodeError> {
+        match self.decide_with(growing, motion, weights, None, recon)? {
+            RowsDecided::Decided(decided) => Ok(*decided),
+            RowsDecided::Weigh(_) => Err(EncodeError::Config("weights measured twice".into())),
+        }
     }
 }
 
@@ -245,6 +348,104 @@ impl InFlight {
             Ok(Ok(done)) => done,
             Ok(Err(panic)) => std::panic::resume_unwind(panic),
             Err(_) => Err(EncodeError::Config("a frame thread stopped".into())),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::codec::partition::MbVectors;
+    use crate::encode::{Encoder, EncoderConfig, EncoderPreset};
+    use crate::synth::{Motion, SceneSpec, Synth};
+
+    const SIZE: (usize, usize) = (320, 176);
+
+    /// Frames 0 and 1 of a scene moving by (2.25, -1.5) a frame, its light
+    /// up by `brightness` a frame, borders extended.
+    fn frames(brightness: f64) -> [Frame; 2] {
+        let spec = SceneSpec::new("rising", SIZE.0, SIZE.1, 2)
+            .seed(5)
+            .camera(Motion::translation(2.25, -1.5))
+            .brightness(brightness);
+        let synth = Synth::new(spec).unwrap();
+        [0, 1].map(|t| {
+            let mut f = synth.frame(t);
+            f.extend_borders();
+            f
+        })
+    }
+
+    /// `src` decided and written from `reference` as on a frame thread, the
+    /// frame before publishing its rows all before (`behind` false) or
+    /// a row at a time after the frame starts, so that its rows are
+    /// decided before its weights are measured.
+    fn coded(src: &Frame, reference: &Frame, behind: bool) -> CodedFrame {
+        let (w, h) = SIZE;
+        let config = EncoderConfig::new().qp(30).preset(EncoderPreset::Medium);
+        let sequence = Encoder::new(w, h, (25, 1), config).unwrap().frame_sequence();
+        let buffer = || Frame::new(w, h).unwrap();
+        let (from, publish) = (
+            FrameProgress::new(SIZE, Some(buffer()), false),
+            FrameProgress::new(SIZE, Some(buffer()), false),
+        );
+        let mut growing = GrowingReference::new(buffer());
+        let motion = MotionAnalyser::of_config(&config)
+            .analyse_growing(growing.plain(), &[], Mv::ZERO, false)
+            .expect("a search that takes its reference as it grows");
+        let pricing = EntropyState::new();
+        let job = RowsJob {
+            sequence: &sequence,
+            src,
+            camera: Mv::ZERO,
+            from: &from,
+            older: &[],
+            publish: &publish,
+            pricing: &pricing,
+            luma_filter: LumaFilter::default(),
+        };
+        let no_vectors: Vec<MbVectors> = vec![[None; 4]; (w / MB) * (h / MB)];
+        let decide = || job.decide(&mut growing, motion, buffer(), &mut None).unwrap();
+        let decided = if behind {
+            std::thread::scope(|s| {
+                // No row is in when it starts: it decides as if unweighted.
+                let decider = s.spawn(decide);
+                for upto in 1..=h / MB {
+                    std::thread::sleep(std::time::Duration::from_millis(2));
+                    from.publish(reference, &no_vectors, upto);
+                }
+                decider.join().unwrap()
+            })
+        } else {
+            from.publish_whole(reference, None);
+            decide()
+        };
+        assert_eq!(publish.rows(), h / MB, "every row published");
+        let mut filter = FilterChooser::default();
+        decided
+            .with_references(vec![growing.frame()])
+            .finish(
+                &mut EntropyState::new(),
+                super::super::encoder::learner(&mut filter, false, src, 1),
+            )
+            .unwrap()
+    }
+
+    #[test]
+    fn rows_decided_before_the_weights_are_measured_are_those_decided_after() {
+        for brightness in [0.0, 6.0] {
+            let [reference, src] = frames(brightness);
+            let first = coded(&src, &reference, false);
+            assert_eq!(
+                first.syntax.header.weights.any(),
+                brightness > 0.0,
+                "weighted where the light changes"
+            );
+            let late = coded(&src, &reference, true);
+            assert!(
+                late.bytes == first.bytes && late.recon == first.recon,
+                "light {brightness}: another frame where its weights were measured late"
+            );
         }
     }
 }

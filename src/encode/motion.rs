@@ -119,6 +119,11 @@ impl MotionAnalyser {
         }
     }
 
+    /// The analyser an encoder of `config` starts with.
+    pub fn of_config(config: &super::EncoderConfig) -> MotionAnalyser {
+        MotionAnalyser::new(config.predictor, config.qp, config.partitions.p8x8)
+    }
+
     /// Whether `block` frames' macroblocks are searched from the mode
     /// decision ([`LazySearch`]), into every reference.
     pub fn searches_in_decision(&self) -> bool {

@@ -132,6 +132,11 @@ impl FrameProgress {
         published.rows = rows.end;
     }
 
+    /// How many macroblock rows are published now.
+    pub(super) fn rows(&self) -> usize {
+        self.lock().rows
+    }
+
     /// `f` of the published samples (where the frame publishes them) and
     /// co-located candidates once `rows` macroblock rows of them are final
     /// (all it has, if fewer), waiting until they are.

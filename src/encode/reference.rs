@@ -82,6 +82,15 @@ impl GrowingReference {
         self.weighted = Some(weighted);
     }
 
+    /// [`GrowingReference::weigh`] after rows were settled unweighted
+    /// (rows decided before the weights were measured): the half-pel
+    /// planes to fill, the weighted luma's, are new ones, filled from the
+    /// top.
+    pub(super) fn reweigh(&mut self, weights: Weights, weighted: Frame) {
+        self.halfpel_rows = 0;
+        self.weigh(weights, weighted);
+    }
+
     /// The rows as they came, unweighted: final to
     /// [`GrowingReference::frame`]'s rows.
     pub(super) fn plain(&self) -> &Frame {

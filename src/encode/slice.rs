@@ -711,6 +711,29 @@ pub(crate) struct RowReferences<'f> {
     pub publish: &'f FrameProgress,
 }
 
+/// A frame thread's weights before the reference's rows they are measured
+/// on are in: the frame's rows are decided as if it weighed nothing (and
+/// not published) until they are, then the weights are measured. None,
+/// the rows stand; any, they are decided again, weighted
+/// ([`RowsDecided::Weigh`]). The same stream as waiting for the rows
+/// first, without the wait (most frames weigh nothing).
+pub(crate) struct UnmeasuredWeights<'f> {
+    /// The reference's macroblock rows the weights are measured on.
+    pub rows: usize,
+    /// The weights measured on the reference (its rows to `rows` in).
+    pub measure: &'f dyn Fn(&Frame) -> Weights,
+}
+
+/// What [`decide_inter_rows`] ends with.
+pub(crate) enum RowsDecided<'a> {
+    /// The frame decided, to be written once its references are lent
+    /// again ([`InterFrameCoder::with_references`]).
+    Decided(Box<InterFrameCoder<'a, 'static>>),
+    /// The weights measured once their rows came in, which the rows
+    /// decided before did not weigh by: to decide again with them.
+    Weigh(Weights),
+}
+
 /// The decisions of [`code_inter`] for a block P frame whose search the
 /// decision runs ([`super::motion::MotionAnalyser::analyse_growing`]),
 /// decided a row at a time on this thread, as a frame thread decides it:
@@ -720,12 +743,13 @@ pub(crate) struct RowReferences<'f> {
 /// published. The same decisions as on a wavefront from the whole
 /// reference; the frame is written by [`InterFrameCoder::finish`] (once
 /// the frame before is: its contexts go on into this one's).
-pub(crate) fn decide_inter_rows<'a, 'r>(
+pub(crate) fn decide_inter_rows<'a>(
     (seq, coder, src): (&'a SequenceHeader, &'a MbCoder, &'a Frame),
     inputs: InterInputs<'_>,
-    refs: RowReferences<'r>,
+    refs: RowReferences<'_>,
+    mut unmeasured: Option<UnmeasuredWeights<'_>>,
     recon: Frame,
-) -> Result<InterFrameCoder<'a, 'r>, PictureError> {
+) -> Result<RowsDecided<'a>, PictureError> {
     let RowReferences {
         from,
         growing,
@@ -747,7 +771,15 @@ pub(crate) fn decide_inter_rows<'a, 'r>(
     let mut rows = frame_coder.wavefront().row_by_row(recon);
     let mut prior_rows = 0;
     for r in 0..seq.mb_rows() {
-        let upto = (r + reach).min(seq.mb_rows());
+        // Never fewer rows than before (the weights may have taken more).
+        let mut upto = (r + reach).min(seq.mb_rows()).max(prior_rows);
+        if let Some(weights) = &unmeasured {
+            // Measured once their rows are in (waiting for them only where
+            // this row needs them too).
+            if upto >= weights.rows || from.rows() >= weights.rows {
+                upto = upto.max(weights.rows);
+            }
+        }
         let mut lazy = frame_coder.lazy.as_deref_mut();
         // Only the copies hold the frame before's lock.
         from.with_rows(upto, |f, prior| {
@@ -757,6 +789,13 @@ pub(crate) fn decide_inter_rows<'a, 'r>(
             }
         });
         prior_rows = upto;
+        if let Some(weights) = unmeasured.take_if(|w| upto >= w.rows) {
+            let measured = (weights.measure)(growing.plain());
+            if measured.any() {
+                return Ok(RowsDecided::Weigh(measured));
+            }
+            publish.publish(rows.recon(), rows.vectors(), rows.final_rows());
+        }
         growing.settle(lazy.and_then(|l| l.search.planes_mut()));
         let row_coder = frame_coder.with_references(
             std::iter::once(growing.frame())
@@ -767,15 +806,15 @@ pub(crate) fn decide_inter_rows<'a, 'r>(
             .wavefront()
             .decide_row(&mut rows, &|env, index| row_coder.decide_mb(env, index));
         frame_coder = row_coder.with_references(Vec::new());
-        publish.publish(rows.recon(), rows.vectors(), rows.final_rows());
+        if unmeasured.is_none() {
+            publish.publish(rows.recon(), rows.vectors(), rows.final_rows());
+        }
     }
+    debug_assert!(unmeasured.is_none(), "the weights' rows are among the frame's");
     frame_coder.take_decided(rows.finish());
-    let growing: &'r GrowingReference = growing;
-    Ok(frame_coder.with_references(
-        std::iter::once(growing.frame())
-            .chain(older.iter().copied())
-            .collect(),
-    ))
+    Ok(RowsDecided::Decided(Box::new(
+        frame_coder.with_references(Vec::new()),
+    )))
 }
 
 /// Codes every macroblock's residual again, keeping the decisions, against

@@ -39,8 +39,9 @@ const CUT_ABOVE: f64 = 0.5;
 
 /// The weights of `source` predicted from `reference` (both coded size),
 /// measured on their top `luma_rows` rows (chroma: half as many; the whole
-/// frame where it has fewer): an encoder's frame threads start a frame once
-/// the reference's top half is final (ARCHITECTURE.md, "Frame threads").
+/// frame where it has fewer): an encoder's frame thread measures a frame's
+/// weights once the reference's top half is final (ARCHITECTURE.md,
+/// "Frame threads").
 pub fn estimate(source: &Frame, reference: &Frame, luma_rows: usize) -> Weights {
     let mut out = Weights::NONE;
     for (i, slot) in out.0.iter_mut().enumerate() {

@@ -207,7 +207,7 @@ impl<'j> RowsJob<'j> {
     /// (one thread: always); else once they come in, the rows before them
     /// decided as if unweighted ([`slice::UnmeasuredWeights`]) and again,
     /// weighted, where the weights are not none. A weighted reference
-    /// goes into `spare_weighted` where it holds one.
+    /// is weighed into `spare_weighted`'s buffer where it holds one.
     fn decide(
         &self,
         growing: &mut GrowingReference,

@@ -4,6 +4,7 @@
 use mocomp::codec::Frame;
 use mocomp::io::y4m::{ChromaSiting, Y4mError, Y4mInfo, Y4mReader, Y4mWriter, CONVERT_HINT};
 use proptest::prelude::*;
+use std::io::{self, IoSliceMut, Read};
 
 /// Sample `i` of plane `p` of frame `f`: distinct per position and frame.
 fn sample(f: usize, p: usize, i: usize) -> u8 {
@@ -24,7 +25,11 @@ fn stream(tags: &str, w: usize, h: usize, frames: usize) -> Vec<u8> {
 }
 
 fn check_frames(bytes: &[u8], w: usize, h: usize, frames: usize) -> Y4mInfo {
-    let reader = Y4mReader::new(bytes).unwrap();
+    check_frames_from(bytes, w, h, frames)
+}
+
+fn check_frames_from(input: impl Read, w: usize, h: usize, frames: usize) -> Y4mInfo {
+    let reader = Y4mReader::new(input).unwrap();
     let info = reader.info().clone();
     let all = reader.read_all().unwrap();
     assert_eq!(all.len(), frames);
@@ -343,4 +348,72 @@ proptest! {
         bytes.push(b'\n');
         let _ = Y4mReader::new(&bytes[..]).map(|r| r.read_all());
     }
+}
+
+/// An input that gives at most `most` bytes a call, across as many rows
+/// as a vectored read asks for, and is interrupted every third call (as
+/// a pipe and a signal may).
+struct Trickle<'a> {
+    data: &'a [u8],
+    most: usize,
+    calls: usize,
+}
+
+impl Trickle<'_> {
+    fn interrupted(&mut self) -> bool {
+        self.calls += 1;
+        self.calls % 3 == 0
+    }
+}
+
+impl Read for Trickle<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        self.read_vectored(&mut [IoSliceMut::new(buf)])
+    }
+
+    fn read_vectored(&mut self, bufs: &mut [IoSliceMut<'_>]) -> io::Result<usize> {
+        if self.interrupted() {
+            return Err(io::ErrorKind::Interrupted.into());
+        }
+        let mut given = 0;
+        for buf in bufs {
+            let n = buf.len().min(self.most - given).min(self.data.len());
+            buf[..n].copy_from_slice(&self.data[..n]);
+            self.data = &self.data[n..];
+            given += n;
+        }
+        Ok(given)
+    }
+}
+
+#[test]
+fn frames_larger_than_the_read_buffer_come_whole_from_short_and_interrupted_reads() {
+    // 320 x 240: 115 200 bytes a frame, beyond the reader's 64 KiB
+    // buffer, so most rows are read straight into the frame.
+    let (w, h) = (320, 240);
+    let full = stream("W320 H240 F30:1", w, h, 3);
+    for most in [usize::MAX, 70_000, 4097, 333] {
+        let input = Trickle {
+            data: &full,
+            most,
+            calls: 0,
+        };
+        check_frames_from(input, w, h, 3);
+    }
+    // Cut 1000 bytes before the end: frame 2 truncated, with the bytes it
+    // had (its FRAME line and all but the last 1000 of its samples).
+    let frame_len = 6 + w * h * 3 / 2;
+    let input = Trickle {
+        data: &full[..full.len() - 1000],
+        most: 4097,
+        calls: 0,
+    };
+    let mut reader = Y4mReader::new(input).unwrap();
+    assert!(reader.read_frame().unwrap().is_some());
+    assert!(reader.read_frame().unwrap().is_some());
+    let err = reader.read_frame().unwrap_err();
+    assert!(
+        matches!(err, Y4mError::Truncated { frame: 2, got, expected } if got == (frame_len - 1000) as u64 && expected == frame_len as u64),
+        "{err:?}"
+    );
 }

@@ -1201,7 +1201,11 @@ fn presets_differ_options_override_them_and_every_stream_decodes() {
             .stderr(predicates::str::contains(message));
     };
     rejects("--partitions", "p4x4", "unknown partition 'p4x4'");
-    rejects("--i-partitions", "p8x8", "p8x8 is an inter partition");
+    rejects(
+        "--i-partitions",
+        "p8x8",
+        "--i-partitions: p8x8 is an inter partition",
+    );
     // Sub-pel RD is slow's: off there, or on in medium, the stream changes;
     // only on and off are values.
     assert_ne!(

@@ -205,9 +205,11 @@ impl ToolArgs {
     pub fn configure(&self, first: &[(&str, String)]) -> Result<EncoderConfig> {
         let mut config = EncoderConfig::from_preset(self.preset.name()).map_err(anyhow::Error::msg)?;
         for (name, value) in first.iter().cloned().chain(self.options()) {
-            config
-                .set(name, &value)
-                .map_err(|e| anyhow::anyhow!("--{name}: {e}"))?;
+            // The option's name once: the setter's message may start with it.
+            config.set(name, &value).map_err(|e| {
+                let prefix = format!("{name}: ");
+                anyhow::anyhow!("--{name}: {}", e.strip_prefix(&prefix).unwrap_or(&e))
+            })?;
         }
         Ok(config)
     }

@@ -24,9 +24,11 @@ table), front.json, front.svg (time per encode against BD-rate).
 
 Threads: with THREADS_PRESET (e.g. medium), every sequence of at least
 THREADS_MIN_WIDTH (1280) pixels across is also encoded by that preset at
-QP 27 on 1 and on 2 threads (x264 beside it: --threads 1 and 2), median
-of THREADS_RUNS (5) interleaved rounds; the table gives each time and the
-2-thread time as a share of the 1-thread one.
+QP 27 on 1 and on 2 threads (x264 beside it: --threads 1 and 2), in
+THREADS_RUNS (5) rounds, each encoder's two runs side by side in a round
+(mocomp 1, mocomp 2, x264 1, x264 2); the table gives each time's median
+and the median of the rounds' 2-thread / 1-thread ratios (a pair's two
+runs see the same state of the machine, which drifts between rounds).
 
 Env: FRAMES (30), QPS ("22 27 32 37"), MOCOMP_PRESETS, X264_PRESETS (medium among them),
 MOCOMP (a binary; default this tree's, built now), RUNS (timing rounds per
@@ -305,7 +307,8 @@ def thread_scaling(binary, seqs, out_dir):
         return ""
     min_width = int(os.environ.get("THREADS_MIN_WIDTH", "1280"))
     runs = int(os.environ.get("THREADS_RUNS", "5"))
-    lines = [f"Threads: preset {preset}, QP 27, first {FRAMES} frames, median of {runs} interleaved rounds.", "",
+    lines = [f"Threads: preset {preset}, QP 27, first {FRAMES} frames, {runs} rounds: median times, "
+             "median of the rounds' ratios.", "",
              "| sequence | mocomp 1 thread | 2 threads | 2 / 1 | x264 1 thread | 2 threads | 2 / 1 |",
              "|---|---:|---:|---:|---:|---:|---:|"]
     for seq in seqs:
@@ -315,13 +318,15 @@ def thread_scaling(binary, seqs, out_dir):
         for _ in range(runs):
             for t in (1, 2):
                 times[f"m{t}"].append(encode_mocomp(binary, seq, preset, 27, os.path.join(out_dir, "t.mcv"), t, measure=False)[3])
+            for t in (1, 2):
                 times[f"x{t}"].append(
                     encode_x264(binary, seq, preset, 27, os.path.join(out_dir, "t.264"), t, measure=False)[3]
                 )
         m = {k: statistics.median(v) for k, v in times.items()}
+        ratio = {e: statistics.median(b / a for a, b in zip(times[f"{e}1"], times[f"{e}2"])) for e in "mx"}
         name = os.path.splitext(os.path.basename(seq))[0]
-        lines.append(f"| {name} | {m['m1']:.3f} s | {m['m2']:.3f} s | {m['m2'] / m['m1']:.2f} | "
-                     f"{m['x1']:.3f} s | {m['x2']:.3f} s | {m['x2'] / m['x1']:.2f} |")
+        lines.append(f"| {name} | {m['m1']:.3f} s | {m['m2']:.3f} s | {ratio['m']:.2f} | "
+                     f"{m['x1']:.3f} s | {m['x2']:.3f} s | {ratio['x']:.2f} |")
     return "\n".join(lines) + "\n"
 
 

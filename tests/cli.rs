@@ -1840,3 +1840,46 @@ fn segment_writes_a_mask_per_frame_and_an_overlay() {
     assert_eq!(v["mean_iou"].as_f64().unwrap(), 1.0, "{v}");
     fails_cleanly(&["segment", input.to_str().unwrap(), "--tolerance", "0"]);
 }
+
+#[cfg(target_os = "linux")]
+#[test]
+fn the_command_line_runs_without_transparent_huge_pages() {
+    // Seen from outside while it encodes: the kernel's own flag
+    // (`THP_enabled` in /proc/PID/status, Linux 5.0 and later).
+    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/synth_cif.y4m");
+    let dir = tempfile::tempdir().unwrap();
+    let mut child = std::process::Command::new(assert_cmd::cargo::cargo_bin!("mocomp"))
+        .args([
+            "encode",
+            input.to_str().unwrap(),
+            "--preset",
+            "slower",
+            "--quiet",
+            "-o",
+        ])
+        .arg(dir.path().join("out.mcv"))
+        .stdout(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let status = format!("/proc/{}/status", child.id());
+    let mut seen = None;
+    while child.try_wait().unwrap().is_none() {
+        let flag = std::fs::read_to_string(&status).ok().and_then(|s| {
+            s.lines()
+                .find_map(|l| l.strip_prefix("THP_enabled:").map(|v| v.trim().to_string()))
+        });
+        if flag.is_some() {
+            seen = flag;
+        }
+        if seen.as_deref() == Some("0") {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+    match seen {
+        Some(flag) => assert_eq!(flag, "0", "transparent huge pages still on"),
+        None => eprintln!("this kernel does not say (no THP_enabled): not checked"),
+    }
+}

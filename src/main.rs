@@ -13,9 +13,9 @@ static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 /// first touches a page (mimalloc's pages of each size spread over many):
 /// on the 2-vCPU virtual machine measured, a two-thread 720p encode
 /// touched 92 MiB (67 without) and spent from 0.02 to 0.3 s in the kernel
-/// from one run to the next. Without: 0.952x the wall time of ultrafast's
-/// encodes and 0.970x medium's on the 28 sequences (`benches/pair.py`,
-/// one run, streams unchanged).
+/// from one run to the next, most after another process's encode; without
+/// them 0.03-0.05 s. One-thread encodes: within the machine's noise
+/// (README, "the front").
 fn small_pages_only() {
     #[cfg(target_os = "linux")]
     // SAFETY: a plain system call on this process's own flags.

@@ -227,17 +227,17 @@ impl<'j> RowsJob<'j> {
                 rows: top,
                 measure: &measure,
             };
-            let weights = match self.decide_with(growing, motion, Weights::NONE, Some(unmeasured), recon)? {
-                RowsDecided::Decided(decided) => return Ok(*decided),
-                RowsDecided::Weigh(weights) => weights,
-            };
+            let (weights, recon) =
+                match self.decide_with(growing, motion, Weights::NONE, Some(unmeasured), recon)? {
+                    RowsDecided::Decided(decided) => return Ok(*decided),
+                    RowsDecided::Weigh(weights, recon) => (weights, recon),
+                };
             // Decided again from the top, weighted: a new search (its
-            // half-pel planes are the weighted luma's), a new buffer.
+            // half-pel planes are the weighted luma's).
             let motion = MotionAnalyser::of_config(config)
                 .analyse_growing(growing.plain(), self.older, self.camera, self.from.has_prior())
                 .ok_or_else(|| EncodeError::Config("a frame's search changed kind".into()))?;
             growing.reweigh(weights, weighted_buffer()?);
-            let recon = Frame::new(seq.coded_width(), seq.coded_height())?;
             return self.decided(growing, motion, weights, recon);
         }
         self.from.with_rows(top, |f, _| growing.copy_in(f, top));
@@ -292,7 +292,7 @@ impl<'j> RowsJob<'j> {
     ) -> Result<InterFrameCoder<'j, 'static>, EncodeError> {
         match self.decide_with(growing, motion, weights, None, recon)? {
             RowsDecided::Decided(decided) => Ok(*decided),
-            RowsDecided::Weigh(_) => Err(EncodeError::Config("weights measured twice".into())),
+            RowsDecided::Weigh(..) => Err(EncodeError::Config("weights measured twice".into())),
         }
     }
 }

@@ -730,8 +730,9 @@ pub(crate) enum RowsDecided<'a> {
     /// again ([`InterFrameCoder::with_references`]).
     Decided(Box<InterFrameCoder<'a, 'static>>),
     /// The weights measured once their rows came in, which the rows
-    /// decided before did not weigh by: to decide again with them.
-    Weigh(Weights),
+    /// decided before did not weigh by: to decide again with them, into
+    /// the reconstruction's buffer given back.
+    Weigh(Weights, Frame),
 }
 
 /// The decisions of [`code_inter`] for a block P frame whose search the
@@ -792,7 +793,7 @@ pub(crate) fn decide_inter_rows<'a>(
         if let Some(weights) = unmeasured.take_if(|w| upto >= w.rows) {
             let measured = (weights.measure)(growing.plain());
             if measured.any() {
-                return Ok(RowsDecided::Weigh(measured));
+                return Ok(RowsDecided::Weigh(measured, rows.into_recon()));
             }
             publish.publish(rows.recon(), rows.vectors(), rows.final_rows());
         }

@@ -474,6 +474,12 @@ impl RowByRow {
         &self.worker.decided
     }
 
+    /// The reconstruction's buffer back, its rows given up (a frame
+    /// decided again from its first row).
+    pub(super) fn into_recon(self) -> Frame {
+        self.worker.recon
+    }
+
     /// The decided frame; panics unless every row is decided.
     pub(super) fn finish(self) -> DecidedFrame {
         assert_eq!(self.done, self.worker.held.len(), "every row decided");

@@ -886,19 +886,27 @@ pub(super) fn report(
     (coded, me_ms): (&mut CodedFrame, f64),
 ) -> Result<EncodedFrame, PictureError> {
     let measured = !config.metrics.is_none();
-    let recon = if config.reconstruction || measured {
+    // A coded reconstruction of the picture's size is measured as it is:
+    // a copy only where one is given out or the coded size is larger.
+    let as_coded = (coded.recon.width(), coded.recon.height()) == (seq.width, seq.height);
+    let recon = if config.reconstruction || (measured && !as_coded) {
         Some(visible_recon(&coded.recon, (seq.width, seq.height), output)?)
     } else {
         None
+    };
+    let measured_recon = match (&recon, measured) {
+        (Some(recon), _) => Some(recon),
+        (None, true) => Some(&coded.recon),
+        (None, false) => None,
     };
     // The quality measurements are not coding time: some cost more than
     // the coding.
     let coding_ms = frame.start.elapsed().as_secs_f64() * 1e3;
     let times = (me_ms, coding_ms);
-    let stats = frame_stats((seq, config), frame.index, (source, recon.as_ref()), coded, times);
+    let stats = frame_stats((seq, config), frame.index, (source, measured_recon), coded, times);
     Ok(EncodedFrame {
         bytes: std::mem::take(&mut coded.bytes),
-        recon: recon.filter(|_| config.reconstruction),
+        recon,
         stats,
     })
 }

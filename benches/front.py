@@ -28,7 +28,8 @@ QP 27 on 1 and on 2 threads (x264 beside it: --threads 1 and 2), in
 THREADS_RUNS (5) rounds, each encoder's two runs side by side in a round
 (mocomp 1, mocomp 2, x264 1, x264 2); the table gives each time's median
 and the median of the rounds' 2-thread / 1-thread ratios (a pair's two
-runs see the same state of the machine, which drifts between rounds).
+runs see the same state of the machine, which drifts between rounds);
+every round's four times in threads.csv.
 
 Env: FRAMES (30), QPS ("22 27 32 37"), MOCOMP_PRESETS, X264_PRESETS (medium among them),
 MOCOMP (a binary; default this tree's, built now), RUNS (timing rounds per
@@ -311,6 +312,7 @@ def thread_scaling(binary, seqs, out_dir):
              "median of the rounds' ratios.", "",
              "| sequence | mocomp 1 thread | 2 threads | 2 / 1 | x264 1 thread | 2 threads | 2 / 1 |",
              "|---|---:|---:|---:|---:|---:|---:|"]
+    rounds = []
     for seq in seqs:
         if y4m_width(seq) < min_width:
             continue
@@ -325,8 +327,13 @@ def thread_scaling(binary, seqs, out_dir):
         m = {k: statistics.median(v) for k, v in times.items()}
         ratio = {e: statistics.median(b / a for a, b in zip(times[f"{e}1"], times[f"{e}2"])) for e in "mx"}
         name = os.path.splitext(os.path.basename(seq))[0]
-        lines.append(f"| {name} | {m['m1']:.3f} s | {m['m2']:.3f} s | {ratio['m']:.2f} | "
-                     f"{m['x1']:.3f} s | {m['x2']:.3f} s | {ratio['x']:.2f} |")
+        lines.append(f"| {name} | {m['m1']:.3f} s | {m['m2']:.3f} s | {ratio['m']:.3f} | "
+                     f"{m['x1']:.3f} s | {m['x2']:.3f} s | {ratio['x']:.3f} |")
+        rounds.extend((name, r, times["m1"][r], times["m2"][r], times["x1"][r], times["x2"][r]) for r in range(runs))
+    with open(os.path.join(out_dir, "threads.csv"), "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["sequence", "round", "mocomp_1", "mocomp_2", "x264_1", "x264_2"])
+        writer.writerows(rounds)
     return "\n".join(lines) + "\n"
 
 

@@ -277,24 +277,41 @@ fn encoders_pushing_at_once_on_both_threads_of_a_pool_finish() {
 #[test]
 fn without_the_reconstruction_the_stream_and_statistics_are_the_same() {
     // Not copying the reconstruction out changes nothing the encoder
-    // decides or measures; with a metric asked for, it is still measured.
-    let frames = scene(96, 64, 3, 1.25, 0.5);
-    for metrics in [Metrics::none(), Metrics::psnr_only()] {
-        let config = EncoderConfig::new().qp(30).metrics(metrics);
-        let (stream, _, stats) = encode(&frames, config);
-        let mut enc = Encoder::new(96, 64, (25, 1), config.reconstruction(false)).unwrap();
-        let mut other = enc.header();
-        for (f, want) in frames.iter().zip(&stats) {
-            let coded = enc.encode(f).unwrap();
-            assert!(coded.recon.is_none());
-            other.extend_from_slice(&coded.bytes);
-            let (a, b) = (coded.stats.quality.psnr.y, want.quality.psnr.y);
-            assert!(a == b || (a.is_nan() && b.is_nan()), "{a} against {b}");
+    // decides or measures; with a metric asked for, it is still measured
+    // (the coded reconstruction as it is where it is the picture's size,
+    // 96x64; the picture cut from it where the coded size is larger,
+    // 90x60), and none is given out.
+    for (w, h) in [(96, 64), (90, 60)] {
+        let frames = scene(w, h, 3, 1.25, 0.5);
+        for metrics in [Metrics::none(), Metrics::psnr_only(), Metrics::all_builtin()] {
+            let config = EncoderConfig::new().qp(30).metrics(metrics);
+            let (stream, _, stats) = encode(&frames, config);
+            let mut enc = Encoder::new(w, h, (25, 1), config.reconstruction(false)).unwrap();
+            let mut other = enc.header();
+            for (f, want) in frames.iter().zip(&stats) {
+                let coded = enc.encode(f).unwrap();
+                assert!(coded.recon.is_none(), "{w}x{h}: a reconstruction given out");
+                other.extend_from_slice(&coded.bytes);
+                let (a, b) = (coded.stats.quality, want.quality);
+                let same = |a: f64, b: f64| a == b || (a.is_nan() && b.is_nan());
+                let pairs = [
+                    (a.psnr.y, b.psnr.y),
+                    (a.psnr.u, b.psnr.u),
+                    (a.ssim, b.ssim),
+                    (a.ms_ssim, b.ms_ssim),
+                    (a.psnr_hvs, b.psnr_hvs),
+                    (a.ciede2000, b.ciede2000),
+                ];
+                assert!(
+                    pairs.iter().all(|&(a, b)| same(a, b)),
+                    "{w}x{h}: {a:?} against {b:?}"
+                );
+            }
+            other.extend_from_slice(&Encoder::trailer());
+            assert!(other == stream);
         }
-        other.extend_from_slice(&Encoder::trailer());
-        assert!(other == stream);
+        assert!(encode(&frames, EncoderConfig::new()).2[0].quality.psnr.y > 20.0);
     }
-    assert!(encode(&frames, EncoderConfig::new()).2[0].quality.psnr.y > 20.0);
 }
 
 #[test]

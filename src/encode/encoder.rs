@@ -906,7 +906,7 @@ pub(super) fn report(
     let stats = frame_stats((seq, config), frame.index, (source, measured_recon), coded, times);
     Ok(EncodedFrame {
         bytes: std::mem::take(&mut coded.bytes),
-        recon,
+        recon: recon.filter(|_| config.reconstruction),
         stats,
     })
 }

@@ -672,8 +672,9 @@ impl EncoderConfig {
         self.transform_8x8 = preset >= Superfast;
         // One reference below slow (x264's medium has three): in medium
         // two took -1.46 % on the 28 sequences' mean for 1.14x the wall
-        // time, three -2.24 % for 1.28x (fish_1160 +6.0 % and +4.0 %: older
-        // references chosen where their vectors cost more than they save).
+        // time, three -2.24 % for 1.28x (`benches/pair.py`; fish_1160
+        // +6.0 % and +4.0 %: under a flickering light half its inter
+        // blocks took the older reference, in place of skips and intra).
         self.refs = match preset {
             Slower => 5,
             Slow => 3,

@@ -894,11 +894,7 @@ pub(super) fn report(
     } else {
         None
     };
-    let measured_recon = match (&recon, measured) {
-        (Some(recon), _) => Some(recon),
-        (None, true) => Some(&coded.recon),
-        (None, false) => None,
-    };
+    let measured_recon = recon.as_ref().or(measured.then_some(&coded.recon));
     // The quality measurements are not coding time: some cost more than
     // the coding.
     let coding_ms = frame.start.elapsed().as_secs_f64() * 1e3;

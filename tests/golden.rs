@@ -46,16 +46,18 @@ fn streams_are_the_pinned_ones() {
     // starts (weights from the top half, pricing contexts two frames
     // back, the luma filter learnt a frame later: every block stream),
     // and when the fast decision coded inter only where 16x16 intra does
-    // not beat it by SATD (streams with intra in P frames).
+    // not beat it by SATD (streams with intra in P frames), and when the
+    // presets with RDOQ (the default configuration's, these streams')
+    // took the base lambda as it is instead of 1.3 times it.
     let cases: [(&str, &str, u8, &str, u64); 8] = [
-        ("synth_qcif.y4m", "zero", 30, "fast", 0x93eedf1e5ce87cc3),
-        ("synth_qcif.y4m", "block", 27, "fast", 0x0862bc672d6244df),
-        ("synth_qcif.y4m", "block:esa", 22, "full", 0x66d74c0ca0378e01),
-        ("synth_qcif.y4m", "flow-block:lk", 32, "fast", 0xc7994c7dd4201d51),
-        ("synth_qcif.y4m", "dense-lk", 32, "fast", 0xabf8baf74b29a8f6),
-        ("tree_qcif.y4m", "obmc", 27, "fast", 0x7289685f65b7aa8e),
-        ("tree_qcif.y4m", "block:hexbs", 37, "fast", 0x6853c0d242230bd7),
-        ("tree_qcif.y4m", "flow-block:dis", 30, "fast", 0x147c2c7637fe91fb),
+        ("synth_qcif.y4m", "zero", 30, "fast", 0xe0c9942a1994240d),
+        ("synth_qcif.y4m", "block", 27, "fast", 0x1e850853a7b733ef),
+        ("synth_qcif.y4m", "block:esa", 22, "full", 0x502cd73cf0ebdd6f),
+        ("synth_qcif.y4m", "flow-block:lk", 32, "fast", 0xa5b1410fb094c8da),
+        ("synth_qcif.y4m", "dense-lk", 32, "fast", 0x846408365ed8ee53),
+        ("tree_qcif.y4m", "obmc", 27, "fast", 0xb477012be0fe5811),
+        ("tree_qcif.y4m", "block:hexbs", 37, "fast", 0x5cce8b05e64554d1),
+        ("tree_qcif.y4m", "flow-block:dis", 30, "fast", 0xb2aa23b8554aee07),
     ];
     let print = std::env::var("MOCOMP_GOLDEN").is_ok_and(|v| v == "print");
     let mut wrong = Vec::new();

@@ -633,11 +633,12 @@ impl EncoderConfig {
         use EncoderPreset::*;
         self.rdoq = preset >= Medium;
         // With RDOQ, the base lambda as it is (H.264's reference
-        // encoder's) instead of 1.4 times it. Against 1.3, on the 28
-        // sequences (`benches/pair.py`, 2026-12-05): medium -1.13 % for
-        // 1.02x its time, fourteen of the sixteen real clips better
-        // (dog_1080p +2.1 %); 1.15 -0.39 %, 0.9 -0.79 %, 0.8 -0.74 %;
-        // slow -0.35 % (fish_1160 +3.8 %). Below medium 1.0 was mixed on
+        // encoder's); below medium 1.4 times it. Against 1.3 (medium's
+        // until 2026-12-05), on the 28 sequences (`benches/pair.py`):
+        // medium -1.13 % for 1.02x its time, fourteen of the sixteen real
+        // clips better (dog_1080p +2.1 %); 1.15 -0.39 %, 0.9 -0.79 %, 0.8
+        // -0.74 %; slow -0.35 % (fish_1160 +3.8 %), slower -0.97 %.
+        // Below medium 1.0 was mixed on
         // the real clips (ultrafast -0.89 % and fast -1.32 % on the mean,
         // dark_cif and poster_384 most of it; fish_1160 and coin_568
         // +2.8 % in ultrafast): 1.4 kept there.

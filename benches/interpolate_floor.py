@@ -24,27 +24,23 @@ difference):
 
 Needs numpy; reads 4:2:0 8-bit Y4M.
 """
-import re
+import os
 import sys
 
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from y4m_split import split  # noqa: E402
+
 
 def luma_frames(path):
-    with open(path, "rb") as f:
-        data = f.read()
-    end = data.index(b"\n")
-    header = data[:end].decode()
-    w = int(re.search(r" W(\d+)", header).group(1))
-    h = int(re.search(r" H(\d+)", header).group(1))
-    size = w * h + 2 * ((w + 1) // 2) * ((h + 1) // 2)
-    frames, at = [], end + 1
-    while at < len(data):
-        stop = data.index(b"\n", at) + 1
-        y = np.frombuffer(data[stop : stop + w * h], np.uint8).reshape(h, w)
-        frames.append(y.astype(np.float64))
-        at = stop + size
-    return frames
+    _, w, h, frames = split(path)
+    planes = []
+    for frame in frames:
+        start = frame.index(b"\n") + 1
+        y = np.frombuffer(frame[start : start + w * h], np.uint8).reshape(h, w)
+        planes.append(y.astype(np.float64))
+    return planes
 
 
 def block_means(x, b):

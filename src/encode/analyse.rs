@@ -195,6 +195,19 @@ fn intra_against(
 /// pay), and 2.0 1.58 % for 6.5 % more time.
 const INTRA_SEARCH_MARGIN: f64 = 1.25;
 
+/// The most squared luma error, in lambdas, a skip taken before the
+/// search may leave in the full decision. A still background skipped
+/// frame after frame keeps the error it once had, and no level the skip's
+/// residual would code corrects it; x264's medium, which never skips
+/// before its search, refreshes such blocks with intra or a residual.
+/// Against no limit (`benches/pair.py`, the 28 sequences, one run each):
+/// medium -2.01 % for 1.13x its encode time (fish_1160 -11.9 %, dog_1080p
+/// -6.2 %, ball_576 -5.8 %), 32 lambdas -1.32 % for 1.05x, 8 -2.14 % for
+/// 1.22x; slow -2.10 % for 1.17x. In ultrafast (the fast decision) -1.96 %
+/// for 1.10x, 32 lambdas -1.09 % for 1.03x: a dearer trade than its
+/// others (half-pel instead of quarter-pel, +8 % for 0.95x), not taken.
+const EARLY_SKIP_MAX_SSE: f64 = 16.0;
+
 /// How far above the 16x16 and 8x8 estimates the 4x4 search may run
 /// before it stops (x264's 10/8).
 const INTRA4_MARGIN: f64 = 1.25;
@@ -349,10 +362,14 @@ impl InterFrameCoder<'_, '_> {
     /// development set's mean, beside both +1.6 %, each for about 0.85x
     /// its time. Where the two neighbours' vectors also had to equal the
     /// predicted one: medium +0.7 % for 0.90x, against +1.3 % for 0.82x.
+    /// In the full decision, only where the skip leaves at most
+    /// [`EARLY_SKIP_MAX_SSE`] lambdas of luma error.
     fn skips_before_search(&self, mb: &MbAnalysis, env: &MbEnv<'_>) -> bool {
         self.fast_pskip
             && self.early_pskip
             && env.modes.skipped_neighbours(mb.mb_x, mb.mb_y) == 2
+            && (self.decision == ModeDecision::Fast
+                || mb.skip_luma_sse as f64 <= EARLY_SKIP_MAX_SSE * self.coder.lambda)
             && self.skip_loses_nothing(mb, env)
     }
 
@@ -1221,8 +1238,9 @@ mod tests {
         // the skip (zero), and is not within a quarter pel of it, so fast
         // P-skip after the search codes it; probed before the search,
         // between its skipped left and upper neighbours, the skip codes
-        // nothing and is taken.
-        let smooth = |x: f64, y: f64| (128.0 + 18.0 * (0.3 * x + 0.13 * y).sin()) as u8;
+        // nothing and is taken (its squared error, 675, under 16 lambdas:
+        // 766 at QP 28, lambda scale 1.4).
+        let smooth = |x: f64, y: f64| (128.0 + 15.0 * (0.3 * x + 0.13 * y).sin()) as u8;
         let reference = frame(|x, y| smooth(x as f64, y as f64));
         let centre = |x: isize, y: isize| (16..32).contains(&x) && (16..32).contains(&y);
         let src = frame(|x, y| smooth(x as f64 + if centre(x, y) { 0.5 } else { 0.0 }, y as f64));
@@ -1243,5 +1261,36 @@ mod tests {
             after[4]
         );
         assert_eq!(before[4].0, MbKind::Skip);
+    }
+
+    #[test]
+    fn early_pskip_leaves_a_skip_that_keeps_too_much_error() {
+        // A flat picture whose reference is 2 too bright on the centre
+        // macroblock (an error left by an earlier frame): the skip's
+        // residual codes no level, and its squared error (1024) is above
+        // 16 lambdas (766 at QP 28, lambda scale 1.4). Between two exact
+        // skips the full decision analyses it and refreshes it with intra
+        // (DC from the neighbours, exact); the fast decision skips it.
+        let src = frame(|_, _| 100);
+        let centre = |x: isize, y: isize| (16..32).contains(&x) && (16..32).contains(&y);
+        let reference = frame(|x, y| if centre(x, y) { 102 } else { 100 });
+        // Motion analysis found a vector a pel right for it (as a search
+        // does over noise), so fast P-skip after the search does not
+        // take it either.
+        let mut mb = vec![Mv::ZERO; 9];
+        mb[4] = Mv::new(4, 0);
+        let full = decide_with(&src, &reference, mb.clone(), (false, true, true));
+        for i in [0, 1, 3] {
+            assert_eq!(full[i].0, MbKind::Skip, "macroblock {i}");
+        }
+        assert!(matches!(full[4].0, MbKind::Intra { .. }), "{:?}", full[4]);
+        let fast = decide_motion(
+            &src,
+            &reference,
+            mb,
+            None,
+            ((false, true, true), ModeDecision::Fast),
+        );
+        assert_eq!(fast[4].0, MbKind::Skip);
     }
 }

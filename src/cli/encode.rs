@@ -88,7 +88,7 @@ pub struct ToolArgs {
     #[arg(long, default_value = "medium")]
     pub preset: EncoderPreset,
     /// Multiply the mode-decision lambda `0.85 * 2^((QP - 12) / 3)`
-    /// [default: the preset's: 1.4, from medium 1.0].
+    /// [default: the preset's: 1.4, from fast 1.0].
     #[arg(long)]
     pub lambda_scale: Option<f64>,
     /// No rate-distortion optimised quantisation.

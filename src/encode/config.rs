@@ -374,9 +374,8 @@ pub struct EncoderConfig {
     /// How P frames are predicted.
     pub predictor: Predictor,
     /// Multiplies the mode-decision lambda `0.85 * 2^((QP - 12) / 3)`.
-    /// 1.4 below medium (the best of 0.5-2.0 on 20 frames of `tree_qvga`
-    /// and `pan_cif`), 1.0 from medium (the presets with RDOQ): see
-    /// [`EncoderConfig::preset`].
+    /// 1.4 below fast (the best of 0.5-2.0 on 20 frames of `tree_qvga`
+    /// and `pan_cif`), 1.0 from fast: see [`EncoderConfig::preset`].
     pub lambda_scale: f64,
     /// Rate-distortion optimised quantisation: each level moves toward
     /// zero when that lowers SSD + lambda * bits.
@@ -632,8 +631,8 @@ impl EncoderConfig {
     pub fn preset(mut self, preset: EncoderPreset) -> EncoderConfig {
         use EncoderPreset::*;
         self.rdoq = preset >= Medium;
-        // With RDOQ, the base lambda as it is (H.264's reference
-        // encoder's); below medium 1.4 times it. Against 1.3 (medium's
+        // From fast, the base lambda as it is (H.264's reference
+        // encoder's); below fast 1.4 times it. Against 1.3 (medium's
         // until 2026-12-05), on the 28 sequences (`benches/pair.py`):
         // medium -1.13 % for 1.02x its time, fourteen of the sixteen real
         // clips better (dog_1080p +2.1 %); 1.15 -0.39 %, 0.9 -0.79 %, 0.8
@@ -641,8 +640,11 @@ impl EncoderConfig {
         // Below medium 1.0 was mixed on
         // the real clips (ultrafast -0.89 % and fast -1.32 % on the mean,
         // dark_cif and poster_384 most of it; fish_1160 and coin_568
-        // +2.8 % in ultrafast): 1.4 kept there.
-        self.lambda_scale = if preset >= Medium { 1.0 } else { 1.4 };
+        // +2.8 % in ultrafast): 1.4 kept there. Fast, once its full
+        // decision refused early skips that keep their error, took 1.0:
+        // -2.25 % for 1.04x its time, twelve of the sixteen real clips
+        // better (poster_384 -7.9 %, fish_1160 -6.1 %; coin_568 +1.3 %).
+        self.lambda_scale = if preset >= Fast { 1.0 } else { 1.4 };
         // In every preset (x264's from superfast): a flickering light
         // (fish_1160) is half of the bits without it; in ultrafast -6.8
         // (its statistics are about 2.6 % of ultrafast's profile).

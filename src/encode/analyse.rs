@@ -1272,9 +1272,10 @@ mod tests {
         // A flat picture whose reference is 3 too bright on the centre
         // macroblock (an error left by an earlier frame): the skip's
         // residual codes no level, and its squared error (2304) is above
-        // 24 lambdas (about 1150 at QP 28, lambda scale 1.4). Between two exact
-        // skips the full decision analyses it and refreshes it with intra
-        // (DC from the neighbours, exact); the fast decision skips it.
+        // 24 lambdas (about 1150 at QP 28, lambda scale 1.4). Between two
+        // exact skips the full decision analyses it and refreshes it with
+        // intra (DC from the neighbours, exact); the fast decision skips
+        // it.
         let src = frame(|_, _| 100);
         let centre = |x: isize, y: isize| (16..32).contains(&x) && (16..32).contains(&y);
         let reference = frame(|x, y| if centre(x, y) { 103 } else { 100 });

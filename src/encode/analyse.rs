@@ -204,8 +204,9 @@ pub(super) struct InterBound {
 const INTRA_SEARCH_MARGIN: f64 = 1.25;
 
 /// [`INTRA_SEARCH_MARGIN`] beside an intra neighbour (left or above),
-/// where intra is likely (x264 searches every intra size there, and
-/// elsewhere only where 16x16 intra is within twice inter's SATD). Against
+/// where intra is likely: x264 searches every intra size there, and
+/// elsewhere where 16x16 intra is within twice inter's SATD; mocomp takes
+/// that twice beside the neighbour, 1.25 elsewhere. Against
 /// 1.25 there (`benches/pair.py`, the 28 sequences, one run): medium
 /// -0.32 % in the same time (cockatoo_720p -2.6 %, fish_1160 -2.4 %,
 /// band_qcif -1.3 %, coin_568 -1.2 %; ball_576 +0.6 %, garden_720p

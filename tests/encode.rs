@@ -553,21 +553,21 @@ fn rate_falls_as_qp_rises_and_motion_beats_frame_difference() {
 
 #[test]
 fn deblocking_lowers_the_error_at_high_qps_and_the_decoder_follows() {
-    // At QP 38 block edges show; the filter smooths them in the loop: the
+    // At QP 42 block edges show; the filter smooths them in the loop: the
     // mean luma PSNR rises for about the same bytes, and what the decoder
     // outputs is still exactly the encoder's reconstruction.
     let frames = scene(96, 64, 6, 1.25, -0.5);
     let run = |deblock: bool| {
-        let (stream, recon, stats) = encode(&frames, EncoderConfig::new().qp(38).deblock(deblock));
+        let (stream, recon, stats) = encode(&frames, EncoderConfig::new().qp(42).deblock(deblock));
         assert_eq!(decoder::decode(&stream).unwrap().1, recon, "deblock {deblock}");
         let psnr = stats.iter().map(|s| s.quality.psnr.y).sum::<f64>() / stats.len() as f64;
         (stream.len() as f64, psnr)
     };
     let ((bytes_on, psnr_on), (bytes_off, psnr_off)) = (run(true), run(false));
-    // (0.09 dB on this scene, 32.34 against 32.25, since the full
-    // decision refreshes skips that keep too much error, which the
-    // filter's absence leaves more of.)
-    assert!(psnr_on > psnr_off + 0.05, "{psnr_on:.2} dB against {psnr_off:.2}");
+    // (QP 42, not 38: since the full decision refreshes skips that keep
+    // too much error, which the filter's absence leaves more of, the
+    // filter's gain at 38 on this scene fell to 0.09 dB; at 42 it is 0.23.)
+    assert!(psnr_on > psnr_off + 0.1, "{psnr_on:.2} dB against {psnr_off:.2}");
     assert!(
         bytes_on < bytes_off * 1.05,
         "{bytes_on} bytes against {bytes_off}"

@@ -210,7 +210,7 @@ const INTRA_SEARCH_MARGIN: f64 = 1.25;
 /// 1.25 there (`benches/pair.py`, the 28 sequences, one run): medium
 /// -0.32 % in the same time (cockatoo_720p -2.6 %, fish_1160 -2.4 %,
 /// band_qcif -1.3 %, coin_568 -1.2 %; ball_576 +0.6 %, garden_720p
-/// +0.4 %); ultrafast unchanged.
+/// +0.4 %); ultrafast 0.00 % on the mean (its streams may differ).
 const INTRA_LIKELY_SEARCH_MARGIN: f64 = 2.0;
 
 /// The most squared luma error, in lambdas, a skip taken before the

@@ -201,8 +201,9 @@ fn misfit(source: &[f64], reference: &[f64], f: impl Fn(f64) -> f64) -> f64 {
 /// block means' central differences (interior blocks), so that what a
 /// small pan moves over a gradient of light is not taken for the weight's
 /// change. Least absolute deviations (by reweighted least squares): a few
-/// blocks that change by far more (a title leaving) weigh little. Zero
-/// where the fit is singular (too few blocks, a flat picture).
+/// blocks that change by far more (a title leaving) weigh little. One
+/// where the plane has no interior block (nothing to tell a pan from),
+/// zero where the weight changes no block.
 fn share_beside_pan(source: &[f64], reference: &[f64], cols: usize, weigh: impl Fn(f64) -> f64) -> f64 {
     let rows = reference.len() / cols;
     let samples: Vec<([f64; 3], f64)> = (1..rows.saturating_sub(1))
@@ -216,6 +217,11 @@ fn share_beside_pan(source: &[f64], reference: &[f64], cols: usize, weigh: impl 
             )
         })
         .collect();
+    if samples.is_empty() {
+        // Fewer than three block rows or columns: no pan to tell apart,
+        // the other rules decide alone.
+        return 1.0;
+    }
     let mut fit = [1.0, 0.0, 0.0];
     for _ in 0..LAD_ROUNDS {
         let weighted = samples.iter().map(|(f, d)| {
@@ -260,9 +266,16 @@ fn least_squares(samples: impl Iterator<Item = ([f64; 3], f64, f64)>) -> Option<
         m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
             + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
     };
+    // A little ridge on the pan's two coefficients: where the reference's
+    // block means have no gradient (a flat wall) no pan changes them, and
+    // the fit is the weight's change alone.
+    let ridge = 1e-6 * (1.0 + m[0][0]);
+    m[1][1] += ridge;
+    m[2][2] += ridge;
     let d = det3(m);
-    // Singular, relative to the sums' scale.
-    if d.abs() < 1e-9 * (1.0 + m[0][0].powi(3)) {
+    // Singular against the diagonal's product (zero where the weight
+    // changes no block).
+    if d.abs() <= 1e-12 * m[0][0] * m[1][1] * m[2][2] {
         return None;
     }
     let mut c = [0.0; 3];
@@ -378,6 +391,9 @@ mod tests {
         // ... and a weight of twice that change explains half of it.
         let more = |r: f64| r + 4.0;
         assert!((share_beside_pan(&lit, &reference, cols, more) - 0.5).abs() < 0.1);
+        // On a flat wall no pan changes the means: the change is the light.
+        let (wall, lit_wall) = (vec![90.0; rows * cols], vec![92.0; rows * cols]);
+        assert!((share_beside_pan(&lit_wall, &wall, cols, lift) - 1.0).abs() < 0.01);
     }
 
     #[test]

@@ -341,6 +341,7 @@ impl MotionAnalyser {
         cfg.window = s.window;
         cfg.metric = Metric::Satd;
         cfg.full_pel_sad = s.full_pel_sad;
+        cfg.subpel_moves = s.subpel_moves;
         cfg.lambda = lambda_for_qp(Metric::Satd, self.qp);
         if s.sub_pel_sad {
             cfg.metric = Metric::Sad;

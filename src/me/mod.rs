@@ -214,7 +214,15 @@ pub struct MeConfig {
     /// same vectors, far less work. Off only to compare with the plain
     /// search, every position evaluated one at a time.
     pub successive_elimination: bool,
+    /// How many times each sub-pel step (half, then quarter) may move the
+    /// vector: the step is tried again around each new best until the
+    /// best stays, at most this often (x264 walks its sub-pel diamonds
+    /// twice each at `--subme 7`; 1 is one move a step).
+    pub subpel_moves: u8,
 }
+
+/// The most [`MeConfig::subpel_moves`] allowed.
+pub const MAX_SUBPEL_MOVES: u8 = 8;
 
 impl MeConfig {
     /// `method` with `block` x `block` blocks and `range`; SAD, full-pel, no
@@ -230,6 +238,7 @@ impl MeConfig {
             window: 0,
             full_pel_sad: false,
             successive_elimination: true,
+            subpel_moves: 1,
         }
     }
 
@@ -254,6 +263,9 @@ impl MeConfig {
         }
         if !(0..=MAX_RANGE).contains(&self.window) {
             return Err(MeError::Range(self.window));
+        }
+        if !(1..=MAX_SUBPEL_MOVES).contains(&self.subpel_moves) {
+            return Err(MeError::SubpelMoves(self.subpel_moves));
         }
         Ok(())
     }
@@ -282,6 +294,9 @@ pub enum MeError {
     /// Negative or absurd lambda.
     #[error("lambda {0} is out of range")]
     Lambda(f64),
+    /// Sub-pel moves outside 1..=8.
+    #[error("sub-pel moves {0} is outside 1..=8")]
+    SubpelMoves(u8),
     /// The pictures differ in size, or their border is too narrow.
     #[error("{0}")]
     Pictures(String),

@@ -498,8 +498,9 @@ mod tests {
     #[test]
     fn a_patch_gives_every_sub_pel_step_what_the_planes_give() {
         // Blocks inside, at the edges and out in the margin (where the
-        // patch is cut, or empty), every step within three quarter-pels of
-        // the full-pel centre, as the refinement takes them.
+        // patch is cut, or empty), every step from a pel before the
+        // full-pel centre to three quarter-pels after it, as the
+        // refinement takes them (`search::PATCH_REACH`).
         let r = textured(64, 48);
         let margin = 24;
         let planes = HalfPel::new(&r, margin).unwrap();
@@ -518,8 +519,8 @@ mod tests {
         ] {
             with_patch(&r, margin, (x, y), 16, |patch| {
                 let patch = patch.expect("a patch for a 16x16 block");
-                for mvy in -3..=3 {
-                    for mvx in -3..=3 {
+                for mvy in -4..=3 {
+                    for mvx in -4..=3 {
                         let mv = (4 * (x - ox) as i32 + mvx, 4 * (y - oy) as i32 + mvy);
                         let from_planes = planes.predict(&r, ox, oy, mv.0, mv.1, 16, &mut a);
                         let from_patch = patch.predict(&r, ox, oy, mv.0, mv.1, 16, &mut b);

@@ -855,12 +855,21 @@ impl<'p> FrameSearch<'p> {
         let Some(Planes::PerBlock(margin)) = self.halfpel else {
             return search::refine(&s, s.in_sub_pel_measure(best));
         };
-        let (dx, dy) = nearest_full_pel(best.mv);
-        let at = (s.x + dx as isize, s.y + dy as isize);
-        halfpel::with_patch(reference, margin, at, block, |patch| {
-            let s = SearchContext { halfpel: patch, ..s };
-            search::refine(&s, s.in_sub_pel_measure(best))
-        })
+        // Each patch holds the steps near its full-pel position: where the
+        // steps walk further, a patch around the best takes over (its
+        // samples those of whole planes, so the vectors are the same).
+        let mut refinement = search::Refinement::new(s.in_sub_pel_measure(best));
+        loop {
+            let (dx, dy) = nearest_full_pel(refinement.best.mv);
+            let at = (s.x + dx as isize, s.y + dy as isize);
+            let done = halfpel::with_patch(reference, margin, at, block, |patch| {
+                let s = SearchContext { halfpel: patch, ..s };
+                refinement.run(&s, Some((dx, dy)))
+            });
+            if done {
+                return refinement.best;
+            }
+        }
     }
 }
 
@@ -1015,5 +1024,70 @@ mod tests {
         };
         assert_eq!(found(None), Mv::ZERO);
         assert_eq!(found(Some(chroma)), motion);
+    }
+
+    /// Blocks searched with a patch of half-pel samples each, whose
+    /// sub-pel steps walk up to four times a step past the first patch's
+    /// reach (the motion, 2.75 and 1.5 pels, beyond a full-pel window of
+    /// one pel), find what whole planes find: the same vectors and costs.
+    /// The picture's finest ripple makes the codec's quarter-pel filter
+    /// and the planes' averages differ, so that a step read off the patch
+    /// through the filter would show.
+    #[test]
+    fn patches_find_what_whole_planes_find_however_far_the_steps_walk() {
+        let (w, h) = (96, 64);
+        let mut reference = Plane::from_fn(w, h, |x, y| {
+            let (x, y) = (x as f64, y as f64);
+            (128.0
+                + 50.0 * (x * 0.29).sin() * (y * 0.21).cos()
+                + 25.0 * ((x + 2.0 * y) * 0.13).sin()
+                + 6.0 * (x * 1.9).sin() * (y * 1.7).cos()) as u8
+        })
+        .unwrap();
+        reference.extend_border();
+        // The source: the reference moved by (2.75, -1.5) pels, with a
+        // little noise, so that blocks' best vectors scatter.
+        let mut moved = [0u8; 16];
+        let cur = Plane::from_fn(w, h, |x, y| {
+            crate::codec::interp::predict_luma(
+                crate::codec::interp::LumaFilter::Sharp,
+                &reference,
+                x as isize,
+                y as isize,
+                11,
+                -6,
+                1,
+                1,
+                &mut moved,
+                1,
+            );
+            moved[0].saturating_add(((x * 7 + y * 13) % 5) as u8)
+        })
+        .unwrap();
+        let cfg = MeConfig {
+            subpel: Subpel::Quarter,
+            metric: Metric::Satd,
+            lambda: lambda_for_qp(Metric::Satd, 27),
+            subpel_moves: 4,
+            ..MeConfig::new(Method::Epzs, 16, 1)
+        };
+        let planes = halfpel::HalfPel::new(&reference, planes_margin(&cfg)).unwrap();
+        let whole = FrameSearch::new(&reference, &cfg, Some(&planes)).unwrap();
+        let patched = FrameSearch::per_block(&reference, &cfg).unwrap();
+        let mut walked = 0;
+        for row in 0..h / 16 {
+            for col in 0..w / 16 {
+                let candidates = search::Neighbours::list(Mv::ZERO, []);
+                let at = |f: &FrameSearch<'_>| {
+                    f.search((&cur, &reference), (col, row), Mv::ZERO, &candidates, None)
+                };
+                let (a, b) = (at(&whole), at(&patched));
+                assert_eq!((a.mv, a.cost), (b.mv, b.cost), "block ({col}, {row})");
+                // Past the window's pel: more than three quarter-pels
+                // from any full-pel position it holds.
+                walked += usize::from(a.mv.x > 4 + 3 || a.mv.y < -4 - 3);
+            }
+        }
+        assert!(walked > 0, "no block's steps walked past the first patch");
     }
 }

@@ -599,25 +599,68 @@ impl Survivors {
 /// 60 % more sub-pel work), again around the new best while it moves, up
 /// to [`MeConfig::subpel_moves`](super::MeConfig::subpel_moves) times a
 /// step.
-pub(crate) fn refine(s: &SearchContext<'_>, mut best: Candidate) -> Candidate {
-    let steps: &[i32] = match s.cfg.subpel {
-        Subpel::None => return best,
-        Subpel::Half => &[2],
-        Subpel::Quarter => &[2, 1],
-    };
-    // On the stack: blocks are at most 32 x 32 (checked with the config).
-    let mut scratch = [0u8; 32 * 32];
-    let scratch = &mut scratch[..s.cfg.block * s.cfg.block];
-    for &step in steps {
-        for _ in 0..s.cfg.subpel_moves {
-            let centre = best.mv;
-            sub_pel_step(s, step, &mut best, scratch);
-            if best.mv == centre {
-                break;
-            }
+pub(crate) fn refine(s: &SearchContext<'_>, best: Candidate) -> Candidate {
+    let mut refinement = Refinement::new(best);
+    refinement.run(s, None);
+    refinement.best
+}
+
+/// A sub-pel refinement under way ([`refine`]), which may be taken a part
+/// at a time: the best so far, the step being taken and its moves so far.
+pub(crate) struct Refinement {
+    pub best: Candidate,
+    step: usize,
+    moves: u8,
+}
+
+/// How far a step's candidates may lie from the full-pel position a
+/// half-pel patch is filled around, in quarter pels, before and after it:
+/// the blocks one pel before it and at it, and the sample after each
+/// (`halfpel::with_patch`).
+const PATCH_REACH: (i32, i32) = (-4, 3);
+
+impl Refinement {
+    pub(crate) fn new(best: Candidate) -> Refinement {
+        Refinement {
+            best,
+            step: 0,
+            moves: 0,
         }
     }
-    best
+
+    /// Takes the refinement's steps; with `centre` (the full-pel position
+    /// a patch holds), only while each step's candidates lie within
+    /// [`PATCH_REACH`] of it. True once the refinement is done; false
+    /// where the next step needs a patch around the best instead.
+    pub(crate) fn run(&mut self, s: &SearchContext<'_>, centre: Option<(i32, i32)>) -> bool {
+        let steps: &[i32] = match s.cfg.subpel {
+            Subpel::None => return true,
+            Subpel::Half => &[2],
+            Subpel::Quarter => &[2, 1],
+        };
+        // On the stack: blocks are at most 32 x 32 (checked with the config).
+        let mut scratch = [0u8; 32 * 32];
+        let scratch = &mut scratch[..s.cfg.block * s.cfg.block];
+        while let Some(&step) = steps.get(self.step) {
+            if self.moves < s.cfg.subpel_moves {
+                let fits = |v: i32, c: i32| {
+                    let at = v - 4 * c;
+                    at - step >= PATCH_REACH.0 && at + step <= PATCH_REACH.1
+                };
+                if centre.is_some_and(|(cx, cy)| !(fits(self.best.mv.x, cx) && fits(self.best.mv.y, cy))) {
+                    return false;
+                }
+                let before = self.best.mv;
+                sub_pel_step(s, step, &mut self.best, scratch);
+                self.moves += 1;
+                if self.best.mv != before {
+                    continue;
+                }
+            }
+            (self.step, self.moves) = (self.step + 1, 0);
+        }
+        true
+    }
 }
 
 /// One sub-pel step of `step` quarter pels around `best` (see [`refine`]).

@@ -57,6 +57,20 @@ impl SharedGrid {
 #[repr(align(64))]
 struct Progress(AtomicUsize);
 
+/// A row's progress once a block at or above it panicked.
+const ABANDONED: usize = usize::MAX;
+
+/// Marks a row abandoned if its block panics: the worker of the row below,
+/// which waits for it, leaves its own row abandoned and stops instead of
+/// waiting forever, and the scope passes the panic on.
+struct RowLeftOnPanic<'a>(&'a Progress);
+
+impl Drop for RowLeftOnPanic<'_> {
+    fn drop(&mut self) {
+        self.0 .0.store(ABANDONED, Ordering::Release);
+    }
+}
+
 /// Runs `block(state, col, row)` for every block of a `cols x rows` grid
 /// on the current rayon pool's threads, each row following the one above
 /// two blocks behind (so that a block may read the results of its left,
@@ -94,7 +108,16 @@ pub(crate) fn wavefront<S: Send>(
                     // so it gets there.
                     let need = if c == 0 { start.max(2) } else { c + 2 }.min(cols);
                     let mut spins = 0u32;
-                    while done[r - 1].0.load(Ordering::Acquire) < need {
+                    loop {
+                        let above = done[r - 1].0.load(Ordering::Acquire);
+                        if above == ABANDONED {
+                            // A block above panicked: this row is left too.
+                            done[r].0.store(ABANDONED, Ordering::Release);
+                            return;
+                        }
+                        if above >= need {
+                            break;
+                        }
                         spins += 1;
                         if spins < 64 {
                             std::hint::spin_loop();
@@ -103,7 +126,9 @@ pub(crate) fn wavefront<S: Send>(
                         }
                     }
                 }
+                let unwinding = RowLeftOnPanic(&done[r]);
                 block(state, c, r);
+                std::mem::forget(unwinding);
                 done[r].0.store(c + 1, Ordering::Release);
             }
         }
@@ -143,4 +168,36 @@ pub(crate) fn search_rows(
         .map(|i| grid.vector(i % cols, i / cols))
         .collect();
     (vectors, costs.into_iter().map(AtomicU32::into_inner).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A block that panics ends the call with its panic on any number of
+    /// threads, instead of leaving the rows below waiting for it.
+    #[test]
+    fn a_panicking_block_ends_the_rows_instead_of_hanging_them() {
+        for threads in [1, 2, 3] {
+            let (tx, rx) = std::sync::mpsc::channel();
+            std::thread::spawn(move || {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                let outcome = pool.install(|| {
+                    std::panic::catch_unwind(|| {
+                        wavefront(6, 5, 2, &|| (), &|_, c, r| {
+                            assert!((c, r) != (3, 1), "a block's bug");
+                        })
+                    })
+                });
+                let _ = tx.send(outcome.is_err());
+            });
+            let panicked = rx
+                .recv_timeout(std::time::Duration::from_secs(20))
+                .expect("the rows ended");
+            assert!(panicked, "the block's panic passed on ({threads} threads)");
+        }
+    }
 }

@@ -58,7 +58,7 @@ impl Default for SearchSettings {
 /// +0.9 %, dark_cif +0.9 %), eight -0.70 %; ultrafast -0.88 % for 1.02x
 /// with four. One move ended most blocks' half-pel step where the step
 /// had just moved them.
-const SUBPEL_MOVES: u8 = 4;
+pub(super) const SUBPEL_MOVES: u8 = 4;
 
 /// How P frames are predicted. Each is a complete path to the bitstream.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

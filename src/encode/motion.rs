@@ -181,8 +181,8 @@ impl MotionAnalyser {
                 let f = self.flow(flow, source.y(), prev_source.y());
                 let mut cfg = MeConfig::new(me::Method::Esa, MB, refine.max(1));
                 cfg.subpel = me::Subpel::Quarter;
-                // The block searches' walk (`SearchSettings::subpel_moves`).
-                cfg.subpel_moves = super::config::SearchSettings::default().subpel_moves;
+                // The block searches' walk.
+                cfg.subpel_moves = super::config::SUBPEL_MOVES;
                 cfg.metric = Metric::Satd;
                 cfg.lambda = lambda_for_qp(Metric::Satd, self.qp);
                 let mut vectors: Vec<MbVectors> = Vec::with_capacity(cols * rows);

@@ -858,6 +858,8 @@ impl<'p> FrameSearch<'p> {
         // Each patch holds the steps near its full-pel position: where the
         // steps walk further, a patch around the best takes over (its
         // samples those of whole planes, so the vectors are the same).
+        // Around its nearest full pel the best's next step always fits
+        // (`search::PATCH_REACH`), so every pass moves on.
         let mut refinement = search::Refinement::new(s.in_sub_pel_measure(best));
         loop {
             let (dx, dy) = nearest_full_pel(refinement.best.mv);

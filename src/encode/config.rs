@@ -33,6 +33,9 @@ pub struct SearchSettings {
     /// How often each sub-pel step may move the vector
     /// (`me::MeConfig::subpel_moves`).
     pub subpel_moves: u8,
+    /// The candidates' own quarter-pel positions as starts of the sub-pel
+    /// steps (`me::MeConfig::sub_pel_starts`).
+    pub sub_pel_starts: bool,
 }
 
 impl Default for SearchSettings {
@@ -46,6 +49,7 @@ impl Default for SearchSettings {
             full_pel_sad: true,
             sub_pel_sad: false,
             subpel_moves: SUBPEL_MOVES,
+            sub_pel_starts: true,
         }
     }
 }

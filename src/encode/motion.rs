@@ -344,6 +344,7 @@ impl MotionAnalyser {
         cfg.metric = Metric::Satd;
         cfg.full_pel_sad = s.full_pel_sad;
         cfg.subpel_moves = s.subpel_moves;
+        cfg.sub_pel_starts = s.sub_pel_starts;
         cfg.lambda = lambda_for_qp(Metric::Satd, self.qp);
         if s.sub_pel_sad {
             cfg.metric = Metric::Sad;

@@ -219,6 +219,11 @@ pub struct MeConfig {
     /// best stays, at most this often (x264 walks its sub-pel diamonds
     /// twice each at `--subme 7`; 1 is one move a step).
     pub subpel_moves: u8,
+    /// The candidates' own quarter-pel positions (the neighbours' and the
+    /// previous field's vectors, as they are) are starts of the sub-pel
+    /// refinement beside the full-pel best, measured through the codec's
+    /// filter: where one costs less, the refinement walks from it.
+    pub sub_pel_starts: bool,
 }
 
 /// The most [`MeConfig::subpel_moves`] allowed.
@@ -239,6 +244,7 @@ impl MeConfig {
             full_pel_sad: false,
             successive_elimination: true,
             subpel_moves: 1,
+            sub_pel_starts: false,
         }
     }
 
@@ -542,6 +548,30 @@ impl<'a> SearchContext<'a> {
 
     /// `best` of the full-pel search with its cost in the measure of the
     /// sub-pel steps, which compare against it.
+    /// The better of `best` and the off-grid vectors of `candidates` in
+    /// the sub-pel measure ([`MeConfig::sub_pel_starts`]).
+    fn sub_pel_start(&self, mut best: Candidate, candidates: &[Mv]) -> Candidate {
+        if self.cfg.subpel == Subpel::None {
+            return best;
+        }
+        let mut scratch = [0u8; 32 * 32];
+        let b = self.cfg.block;
+        for (i, &mv) in candidates.iter().enumerate() {
+            let on_grid = mv.x & 3 == 0 && mv.y & 3 == 0;
+            if on_grid || mv == best.mv || candidates[..i].contains(&mv) || !mv.in_range() {
+                continue;
+            }
+            let c = Candidate {
+                cost: self.sub_pel_cost(mv, &mut scratch[..b * b]),
+                mv,
+            };
+            if c.beats(&best) {
+                best = c;
+            }
+        }
+        best
+    }
+
     fn in_sub_pel_measure(&self, best: Candidate) -> Candidate {
         let same_measure = !self.cfg.full_pel_sad || self.cfg.metric == Metric::Sad;
         if self.cfg.subpel == Subpel::None || (same_measure && self.chroma.is_none()) {
@@ -851,16 +881,23 @@ impl<'p> FrameSearch<'p> {
             chroma: chroma.filter(|_| block == 16),
             ..SearchContext::new(cur, reference, (col * block, row * block), &self.cfg)
         };
-        let best = search::full_pel(&s, candidates);
+        let best = s.in_sub_pel_measure(search::full_pel(&s, candidates));
+        let best = if self.cfg.sub_pel_starts {
+            // Measured alike with whole planes and with patches.
+            let exact = SearchContext { halfpel: None, ..s };
+            exact.sub_pel_start(best, candidates.candidates())
+        } else {
+            best
+        };
         let Some(Planes::PerBlock(margin)) = self.halfpel else {
-            return search::refine(&s, s.in_sub_pel_measure(best));
+            return search::refine(&s, best);
         };
         // Each patch holds the steps near its full-pel position: where the
         // steps walk further, a patch around the best takes over (its
         // samples those of whole planes, so the vectors are the same).
         // Around its nearest full pel the best's next step always fits
         // (`search::PATCH_REACH`), so every pass moves on.
-        let mut refinement = search::Refinement::new(s.in_sub_pel_measure(best));
+        let mut refinement = search::Refinement::new(best);
         loop {
             let (dx, dy) = nearest_full_pel(refinement.best.mv);
             let at = (s.x + dx as isize, s.y + dy as isize);
@@ -1074,22 +1111,90 @@ mod tests {
             ..MeConfig::new(Method::Epzs, 16, 1)
         };
         let planes = halfpel::HalfPel::new(&reference, planes_margin(&cfg)).unwrap();
-        let whole = FrameSearch::new(&reference, &cfg, Some(&planes)).unwrap();
-        let patched = FrameSearch::per_block(&reference, &cfg).unwrap();
         let mut walked = 0;
-        for row in 0..h / 16 {
-            for col in 0..w / 16 {
-                let candidates = search::Neighbours::list(Mv::ZERO, []);
-                let at = |f: &FrameSearch<'_>| {
-                    f.search((&cur, &reference), (col, row), Mv::ZERO, &candidates, None)
-                };
-                let (a, b) = (at(&whole), at(&patched));
+        // Without and with the candidates' own vectors as starts (two of
+        // them off the full-pel grid, near the motion).
+        for starts in [false, true] {
+            let cfg = MeConfig {
+                sub_pel_starts: starts,
+                ..cfg
+            };
+            let whole = FrameSearch::new(&reference, &cfg, Some(&planes)).unwrap();
+            let patched = FrameSearch::per_block(&reference, &cfg).unwrap();
+            walked += walks_alike(&cur, &reference, (&whole, &patched));
+        }
+        assert!(walked > 0, "no block's steps walked past the first patch");
+    }
+
+    /// How many blocks of `cur` walked past the first patch, asserting
+    /// that both searches find the same vectors and costs.
+    fn walks_alike(
+        cur: &Plane,
+        reference: &Plane,
+        (whole, patched): (&FrameSearch<'_>, &FrameSearch<'_>),
+    ) -> usize {
+        let mut walked = 0;
+        for row in 0..cur.height() / 16 {
+            for col in 0..cur.width() / 16 {
+                let candidates = search::Neighbours::list(Mv::ZERO, [Mv::new(9, -5), Mv::new(13, -7)]);
+                let at =
+                    |f: &FrameSearch<'_>| f.search((cur, reference), (col, row), Mv::ZERO, &candidates, None);
+                let (a, b) = (at(whole), at(patched));
                 assert_eq!((a.mv, a.cost), (b.mv, b.cost), "block ({col}, {row})");
                 // Past the window's pel: more than three quarter-pels
                 // from any full-pel position it holds.
                 walked += usize::from(a.mv.x > 4 + 3 || a.mv.y < -4 - 3);
             }
         }
-        assert!(walked > 0, "no block's steps walked past the first patch");
+        walked
+    }
+
+    /// A block moved by exactly a candidate's quarter-pel vector, beyond
+    /// a full-pel window of one pel and more than one sub-pel move from
+    /// it: found at no cost from the candidate, missed without it.
+    #[test]
+    fn a_candidates_own_quarter_pel_vector_starts_the_sub_pel_steps() {
+        let mut reference = Plane::from_fn(64, 64, |x, y| {
+            let (x, y) = (x as f64, y as f64);
+            (128.0 + 50.0 * (x * 0.29).sin() * (y * 0.21).cos() + 25.0 * ((x + 2.0 * y) * 0.13).sin()) as u8
+        })
+        .unwrap();
+        reference.extend_border();
+        let truth = Mv::new(13, -7);
+        let mut block = [0u8; 256];
+        crate::codec::interp::predict_luma(
+            crate::codec::interp::LumaFilter::Sharp,
+            &reference,
+            16,
+            16,
+            truth.x,
+            truth.y,
+            16,
+            16,
+            &mut block,
+            16,
+        );
+        let cur = Plane::from_fn(64, 64, |x, y| {
+            if (16..32).contains(&x) && (16..32).contains(&y) {
+                block[(y - 16) * 16 + x - 16]
+            } else {
+                0
+            }
+        })
+        .unwrap();
+        let found = |starts: bool| {
+            let cfg = MeConfig {
+                subpel: Subpel::Quarter,
+                metric: Metric::Satd,
+                sub_pel_starts: starts,
+                ..MeConfig::new(Method::Epzs, 16, 1)
+            };
+            let search = FrameSearch::new(&reference, &cfg, None).unwrap();
+            let candidates = search::Neighbours::list(Mv::ZERO, [truth]);
+            search.search((&cur, &reference), (1, 1), Mv::ZERO, &candidates, None)
+        };
+        assert_ne!(found(false).mv, truth);
+        let started = found(true);
+        assert_eq!((started.mv, started.cost), (truth, 0));
     }
 }

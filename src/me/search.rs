@@ -71,7 +71,7 @@ impl Neighbours {
         self.len += 1;
     }
 
-    fn candidates(&self) -> &[Mv] {
+    pub(crate) fn candidates(&self) -> &[Mv] {
         &self.candidates[..self.len]
     }
 }

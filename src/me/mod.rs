@@ -1013,9 +1013,36 @@ pub fn search_around(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::codec::interp::predict_chroma;
+
+    /// A 64x64 picture, zero but for the 16x16 block at (at, at): the
+    /// codec's prediction of it from `reference` at quarter-pel `mv`.
+    pub(crate) fn block_moved_by(reference: &Plane, at: usize, mv: Mv) -> Plane {
+        let mut block = [0u8; 256];
+        let p = at as isize;
+        crate::codec::interp::predict_luma(
+            crate::codec::interp::LumaFilter::Sharp,
+            reference,
+            p,
+            p,
+            mv.x,
+            mv.y,
+            16,
+            16,
+            &mut block,
+            16,
+        );
+        Plane::from_fn(64, 64, |x, y| {
+            if (at..at + 16).contains(&x) && (at..at + 16).contains(&y) {
+                block[(y - at) * 16 + x - at]
+            } else {
+                0
+            }
+        })
+        .unwrap()
+    }
 
     /// A chroma plane of noise (a hash of the position), borders extended.
     fn noise_plane(w: usize, h: usize, seed: u32) -> Plane {
@@ -1161,27 +1188,7 @@ mod tests {
         .unwrap();
         reference.extend_border();
         let truth = Mv::new(13, -7);
-        let mut block = [0u8; 256];
-        crate::codec::interp::predict_luma(
-            crate::codec::interp::LumaFilter::Sharp,
-            &reference,
-            16,
-            16,
-            truth.x,
-            truth.y,
-            16,
-            16,
-            &mut block,
-            16,
-        );
-        let cur = Plane::from_fn(64, 64, |x, y| {
-            if (16..32).contains(&x) && (16..32).contains(&y) {
-                block[(y - 16) * 16 + x - 16]
-            } else {
-                0
-            }
-        })
-        .unwrap();
+        let cur = block_moved_by(&reference, 16, truth);
         let found = |starts: bool| {
             let cfg = MeConfig {
                 subpel: Subpel::Quarter,

@@ -686,7 +686,6 @@ fn sub_pel_step(s: &SearchContext<'_>, step: i32, best: &mut Candidate, scratch:
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::codec::interp::{predict_luma, LumaFilter};
     use crate::codec::Plane;
     use crate::me::{MeConfig, SearchContext};
 
@@ -702,27 +701,7 @@ mod tests {
         .unwrap();
         reference.extend_border();
         let truth = Mv::new(7, -5);
-        let mut block = [0u8; 256];
-        predict_luma(
-            LumaFilter::Sharp,
-            &reference,
-            24,
-            24,
-            truth.x,
-            truth.y,
-            16,
-            16,
-            &mut block,
-            16,
-        );
-        let cur = Plane::from_fn(64, 64, |x, y| {
-            if (24..40).contains(&x) && (24..40).contains(&y) {
-                block[(y - 24) * 16 + x - 24]
-            } else {
-                0
-            }
-        })
-        .unwrap();
+        let cur = crate::me::tests::block_moved_by(&reference, 24, truth);
         let found = |moves: u8| {
             let cfg = MeConfig {
                 subpel: Subpel::Quarter,

@@ -49,6 +49,8 @@ impl Default for SearchSettings {
             full_pel_sad: true,
             sub_pel_sad: false,
             subpel_moves: SUBPEL_MOVES,
+            // Against none (`benches/pair.py`, the 28, one run): medium
+            // -0.51 %, ultrafast -0.53 %, in about the same time.
             sub_pel_starts: true,
         }
     }
@@ -59,9 +61,8 @@ impl Default for SearchSettings {
 /// medium -0.54 % for 1.008x its encode time, four -0.77 % for
 /// 1.008-1.027x (garden_720p -3.2 %, cartoon_cif -2.8 %, plant_qvga
 /// -2.4 %, coin_568 -2.3 %, smile_360p -2.2 %, face_360p -2.0 %; fish_1160
-/// +0.9 %, dark_cif +0.9 %), eight -0.70 %; ultrafast -0.88 % for 1.02x
-/// with four. One move ended most blocks' half-pel step where the step
-/// had just moved them.
+/// +0.9 %, dark_cif +0.9 %), eight -0.70 %; ultrafast -0.84 % for
+/// 1.02-1.03x with four.
 pub(super) const SUBPEL_MOVES: u8 = 4;
 
 /// How P frames are predicted. Each is a complete path to the bitstream.

@@ -546,8 +546,6 @@ impl<'a> SearchContext<'a> {
         (self.lambda_q8 * u64::from(mvd_bits(mv, self.mvp)) + 128) >> 8
     }
 
-    /// `best` of the full-pel search with its cost in the measure of the
-    /// sub-pel steps, which compare against it.
     /// The better of `best` and the off-grid vectors of `candidates` in
     /// the sub-pel measure ([`MeConfig::sub_pel_starts`]).
     fn sub_pel_start(&self, mut best: Candidate, candidates: &[Mv]) -> Candidate {
@@ -572,6 +570,8 @@ impl<'a> SearchContext<'a> {
         best
     }
 
+    /// `best` of the full-pel search with its cost in the measure of the
+    /// sub-pel steps, which compare against it.
     fn in_sub_pel_measure(&self, best: Candidate) -> Candidate {
         let same_measure = !self.cfg.full_pel_sad || self.cfg.metric == Metric::Sad;
         if self.cfg.subpel == Subpel::None || (same_measure && self.chroma.is_none()) {

@@ -169,6 +169,7 @@ def encode(
     decision: Optional[Literal["fast", "full"]] = None,
     ipratio: Optional[float] = None,
     deblock: Optional[bool] = None,
+    deblock_choice: Optional[bool] = None,
     weightp: Optional[bool] = None,
     refs: Optional[int] = None,
     subpel_rd: Optional[bool] = None,

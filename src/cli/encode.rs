@@ -106,6 +106,11 @@ pub struct ToolArgs {
     /// No in-loop deblocking filter.
     #[arg(long)]
     pub no_deblock: bool,
+    /// Block P frames deblocked only where the filter lowered the error
+    /// of the frames before, on or off (off: every frame deblocked, as
+    /// x264 does) [default: on].
+    #[arg(long, value_name = "on|off", value_parser = on_off)]
+    pub deblock_choice: Option<bool>,
     /// No weighted prediction (P frames scaling and offsetting the
     /// reference where the light changed).
     #[arg(long)]
@@ -184,6 +189,7 @@ impl ToolArgs {
         o.extend(self.decision.map(|d| ("decision", d.name().to_string())));
         o.extend(self.no_rdoq.then(|| ("rdoq", on(false))));
         o.extend(self.no_deblock.then(|| ("deblock", on(false))));
+        o.extend(self.deblock_choice.map(|b| ("deblock-choice", on(b))));
         o.extend(self.no_weightp.then(|| ("weightp", on(false))));
         o.extend(self.no_8x8dct.then(|| ("8x8dct", on(false))));
         o.extend(self.no_fast_pskip.then(|| ("fast-pskip", on(false))));

@@ -1046,6 +1046,7 @@ mod tests {
             tool: MotionTool::Block,
             decision,
             deblock: true,
+            measure_deblock: false,
             weights: Weights::NONE,
             luma_filter: crate::codec::interp::LumaFilter::Sharp,
             partitions,

@@ -411,8 +411,11 @@ pub struct EncoderConfig {
     /// `--ipratio`: I frames are coded at `qp - 6 log2(ipratio)` (rounded),
     /// since every later frame predicts from them.
     pub ipratio: f64,
-    /// The in-loop deblocking filter (FORMAT.md section 11) on every frame.
+    /// The in-loop deblocking filter (FORMAT.md section 11).
     pub deblock: bool,
+    /// Block P frames deblocked or not as the filter did on the frames
+    /// before ([`super::deblock_choice`]); every frame where off.
+    pub deblock_choice: bool,
     /// Weighted prediction (FORMAT.md section 12): P frames scale and
     /// offset the reference's planes where the light changed.
     pub weightp: bool,
@@ -565,6 +568,7 @@ impl Default for EncoderConfig {
             metrics: Metrics::default(),
             ipratio: DEFAULT_IPRATIO,
             deblock: true,
+            deblock_choice: true,
             weightp: true,
             // Medium's: 4x4 intra blocks in P frames from slow.
             partitions: Partitions {
@@ -639,6 +643,12 @@ impl EncoderConfig {
     /// Turns the in-loop deblocking filter on or off.
     pub fn deblock(mut self, on: bool) -> EncoderConfig {
         self.deblock = on;
+        self
+    }
+
+    /// Turns the choice of each block P frame's deblocking on or off.
+    pub fn deblock_choice(mut self, on: bool) -> EncoderConfig {
+        self.deblock_choice = on;
         self
     }
 

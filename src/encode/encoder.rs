@@ -13,6 +13,7 @@ use std::time::Instant;
 
 use super::camera::CameraMotion;
 use super::config::{EncoderConfig, FilterChoice, Predictor};
+use super::deblock_choice::DeblockChooser;
 use super::filter::FilterChooser;
 use super::frame_thread::{FrameThreads, InFlight, RowFrame, RowFrameDone, Sequence, Written};
 use super::macroblock::MbCoder;
@@ -81,17 +82,27 @@ pub struct Encoder {
     /// priced from them (two frames back), as a frame thread, started
     /// while the frame before is decided, has them.
     pricing: EntropyState,
-    /// What the coded frames say of the luma filters.
+    /// What the coded frames say of the luma filters and of deblocking.
     filter: FilterChooser,
-    /// The chooser as it stood a frame earlier, which gives the next block
-    /// P frame's filter (a frame thread starts before the frame before it
-    /// is learnt from).
+    deblock: DeblockChooser,
+    /// The choosers as they stood a frame earlier, which give the next
+    /// block P frame's filter and deblocking (a frame thread starts before
+    /// the frame before it is learnt from).
     lagged_filter: FilterChooser,
-    /// The frame after whose learning `lagged_filter` is the chooser
-    /// (in flight when the last P frame started).
+    lagged_deblock: DeblockChooser,
+    /// The frame after whose learning the lagged choosers are the
+    /// choosers (in flight when the last P frame started).
     lagged_after: Option<usize>,
     /// The next frame's number.
     index: usize,
+}
+
+/// What a P frame takes from the choosers ([`Encoder::next_chosen`]).
+#[derive(Clone, Copy)]
+pub(super) struct Chosen {
+    pub luma_filter: LumaFilter,
+    /// Whether it is deblocked (where the sequence is).
+    pub deblock: bool,
 }
 
 /// A frame started: its number, kind and camera motion, and when.
@@ -183,7 +194,9 @@ impl Encoder {
             entropy: EntropyState::new(),
             pricing: EntropyState::new(),
             filter: FilterChooser::default(),
+            deblock: DeblockChooser::default(),
             lagged_filter: FilterChooser::default(),
+            lagged_deblock: DeblockChooser::default(),
             lagged_after: None,
             index: 0,
         })
@@ -603,7 +616,7 @@ impl Encoder {
             }
             return Ok(Err((source, src)));
         };
-        let luma_filter = self.next_luma_filter(frame.index);
+        let chosen = self.next_chosen(frame.index);
         // Only a frame on a thread may have the frame after it start
         // before it is finished: only its samples are published.
         let samples = match threads {
@@ -626,6 +639,7 @@ impl Encoder {
                 let written = Written {
                     entropy: self.entropy.clone(),
                     filter: self.filter,
+                    deblock: self.deblock,
                 };
                 // The receiver is right here.
                 let _ = now.send(written);
@@ -648,7 +662,7 @@ impl Encoder {
             publish,
             older,
             pricing,
-            luma_filter,
+            chosen,
             before,
             after,
         }))
@@ -676,17 +690,20 @@ impl Encoder {
         }
     }
 
-    /// The luma filter of the P frame `index` (the chooser as it stood
-    /// when the P frame before started: it learns a frame late, as frame
-    /// threads do), the next one's set to the chooser once the frame
-    /// before this one is learnt from.
-    fn next_luma_filter(&mut self, index: usize) -> LumaFilter {
-        let filter = self.lagged_filter.next(self.config.luma_filter);
+    /// The luma filter and deblocking of the P frame `index` (the
+    /// choosers as they stood when the P frame before started: they learn
+    /// a frame late, as frame threads do), the next one's set to the
+    /// choosers once the frame before this one is learnt from.
+    fn next_chosen(&mut self, index: usize) -> Chosen {
+        let chosen = Chosen {
+            luma_filter: self.lagged_filter.next(self.config.luma_filter),
+            deblock: !self.config.deblock_choice || self.lagged_deblock.deblocks(index),
+        };
         match self.in_flight() {
             true => self.lagged_after = index.checked_sub(1),
-            false => self.lagged_filter = self.filter,
+            false => (self.lagged_filter, self.lagged_deblock) = (self.filter, self.deblock),
         }
-        filter
+        chosen
     }
 
     /// Takes a row-by-row frame's outcome into the encoder's state.
@@ -694,6 +711,7 @@ impl Encoder {
         self.pricing = done.before;
         self.entropy = done.after.entropy;
         self.filter = done.after.filter;
+        self.deblock = done.after.deblock;
         self.remember_vectors(&done.coded);
         self.spare_plain = done.plain.or(self.spare_plain.take());
         self.spare_weighted = done.weighted.or(self.spare_weighted.take());
@@ -764,7 +782,7 @@ impl Encoder {
         self.references.insert(0, Arc::new(recon));
         self.spare_source = self.prev_source.replace(src);
         if self.lagged_after == Some(frame.index) {
-            self.lagged_filter = self.filter;
+            (self.lagged_filter, self.lagged_deblock) = (self.filter, self.deblock);
             self.lagged_after = None;
         }
     }
@@ -804,13 +822,13 @@ impl Encoder {
             Predictor::Dense { grid, .. } => MotionTool::Grid(grid),
             _ => MotionTool::Block,
         };
-        let luma_filter = self.next_luma_filter(frame.index);
+        let chosen = self.next_chosen(frame.index);
         let weights = match (weights, self.references.first()) {
             (Some(w), _) => w,
             (None, Some(reference)) => weights_of(&self.config, &self.seq, src, reference),
             (None, None) => Weights::NONE,
         };
-        let coded = self.code_p_whole((frame, src), recon, (weights, luma_filter, tool))?;
+        let coded = self.code_p_whole((frame, src), recon, (weights, chosen, tool))?;
         self.remember_vectors(&coded.0);
         Ok(coded)
     }
@@ -831,7 +849,7 @@ impl Encoder {
         &mut self,
         (frame, src): (&FrameStart, &Frame),
         recon: Frame,
-        (weights, luma_filter, tool): (Weights, LumaFilter, MotionTool),
+        (weights, chosen, tool): (Weights, Chosen, MotionTool),
     ) -> Result<(CodedFrame, f64), EncodeError> {
         let (index, camera) = (frame.index, frame.camera);
         let (Some(unweighted), Some(prev)) = (self.references.first().map(|f| &**f), &self.prev_source)
@@ -856,7 +874,7 @@ impl Encoder {
         let older: Vec<&Frame> = self.references[1..].iter().map(|f| &**f).collect();
         let motion = self.analyser.analyse(src, prev, reference, &older, camera);
         let me_ms = t.elapsed().as_secs_f64() * 1e3;
-        let mut inputs = inter_inputs(&self.config, &self.pricing, motion, tool, (weights, luma_filter));
+        let mut inputs = inter_inputs(&self.config, &self.pricing, motion, tool, (weights, chosen));
         // Weights apply to reference 0 alone (FORMAT.md section 12).
         inputs.references = std::iter::once(reference).chain(older.iter().copied()).collect();
         // Which filter the next frame takes, learnt while this one is
@@ -870,6 +888,7 @@ impl Encoder {
             (&mut self.entropy, recon),
             learner(&mut self.filter, learn, src, index),
         )?;
+        self.deblock.learn(coded.deblock_effect);
         self.spare_weighted = weighted.or(self.spare_weighted.take());
         Ok((coded, me_ms))
     }
@@ -984,15 +1003,16 @@ pub(super) fn inter_inputs<'r>(
     pricing: &'r EntropyState,
     motion: super::motion::FrameMotion,
     tool: MotionTool,
-    (weights, luma_filter): (Weights, LumaFilter),
+    (weights, chosen): (Weights, Chosen),
 ) -> slice::InterInputs<'r> {
     slice::InterInputs {
         references: Vec::new(),
-        luma_filter,
+        luma_filter: chosen.luma_filter,
         motion,
         tool,
         decision: config.decision,
-        deblock: config.deblock,
+        deblock: config.deblock && chosen.deblock,
+        measure_deblock: config.deblock_choice && tool == MotionTool::Block,
         weights,
         partitions: config.partitions.p8x8,
         subpel_rd: config.subpel_rd,

@@ -9,7 +9,8 @@ use std::sync::mpsc::{Receiver, Sender};
 use std::sync::Arc;
 
 use super::config::{EncoderConfig, FilterChoice};
-use super::encoder::{report, FrameStart};
+use super::deblock_choice::DeblockChooser;
+use super::encoder::{report, Chosen, FrameStart};
 use super::filter::FilterChooser;
 use super::macroblock::MbCoder;
 use super::motion::{FrameMotion, MotionAnalyser};
@@ -18,7 +19,6 @@ use super::reference::GrowingReference;
 use super::slice::{self, CodedFrame, InterFrameCoder, RowsDecided};
 use super::{EncodeError, EncodedFrame};
 use crate::codec::consts::MB;
-use crate::codec::interp::LumaFilter;
 use crate::codec::mv::Mv;
 use crate::codec::syntax::{EntropyState, MotionTool, SequenceHeader};
 use crate::codec::weight::Weights;
@@ -26,11 +26,12 @@ use crate::codec::Frame;
 
 /// The stream's state after a frame is written, which the next frame's
 /// writing goes on from: the entropy contexts and what the luma filter
-/// chooser has learnt.
+/// and deblocking choosers have learnt.
 #[derive(Clone)]
 pub(super) struct Written {
     pub entropy: EntropyState,
     pub filter: FilterChooser,
+    pub deblock: DeblockChooser,
 }
 
 /// What stays the same from frame to frame.
@@ -68,7 +69,7 @@ pub(super) struct RowFrame {
     pub older: Vec<Arc<Frame>>,
     /// The contexts two frames back, which the decisions are priced from.
     pub pricing: EntropyState,
-    pub luma_filter: LumaFilter,
+    pub chosen: Chosen,
     /// The state after the frame before is written, and where this
     /// frame's goes.
     pub before: Receiver<Written>,
@@ -131,7 +132,7 @@ impl RowFrame {
             publish,
             older,
             pricing,
-            luma_filter,
+            chosen,
             before,
             after,
         } = self;
@@ -148,7 +149,7 @@ impl RowFrame {
             older: &older_frames,
             publish: &publish,
             pricing: &pricing,
-            luma_filter,
+            chosen,
         };
         let decided = rows
             .decide(&mut growing, motion, recon, &mut spare_weighted)?
@@ -166,6 +167,7 @@ impl RowFrame {
             &mut written.entropy,
             super::encoder::learner(&mut written.filter, learn, &src, index),
         )?;
+        written.deblock.learn(coded.deblock_effect);
         // No one listens where the next frame is not a frame thread's.
         let _ = after.send(written.clone());
         drop(older_frames);
@@ -198,7 +200,7 @@ struct RowsJob<'j> {
     older: &'j [&'j Frame],
     publish: &'j FrameProgress,
     pricing: &'j EntropyState,
-    luma_filter: LumaFilter,
+    chosen: Chosen,
 }
 
 impl<'j> RowsJob<'j> {
@@ -265,7 +267,7 @@ impl<'j> RowsJob<'j> {
             self.pricing,
             motion,
             MotionTool::Block,
-            (weights, self.luma_filter),
+            (weights, self.chosen),
         );
         let refs = slice::RowReferences {
             from: self.from,
@@ -355,6 +357,7 @@ impl InFlight {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::codec::interp::LumaFilter;
     use crate::codec::partition::MbVectors;
     use crate::encode::{Encoder, EncoderConfig, EncoderPreset};
     use crate::synth::{Motion, SceneSpec, Synth};
@@ -402,7 +405,10 @@ mod tests {
             older: &[],
             publish: &publish,
             pricing: &pricing,
-            luma_filter: LumaFilter::default(),
+            chosen: Chosen {
+                luma_filter: LumaFilter::default(),
+                deblock: true,
+            },
         };
         let no_vectors: Vec<MbVectors> = vec![[None; 4]; (w / MB) * (h / MB)];
         let decide = || job.decide(&mut growing, motion, buffer(), &mut None).unwrap();

@@ -39,6 +39,7 @@
 mod analyse;
 mod camera;
 mod config;
+mod deblock_choice;
 pub mod dsp;
 mod encoder;
 mod filter;

@@ -23,7 +23,7 @@ use crate::metrics::{Metric, Metrics};
 
 /// Every option [`EncoderConfig::set`] takes, with what its value is
 /// (names as `mocomp encode` spells them; `_` may stand for `-`).
-pub const OPTIONS: [(&str, &str); 28] = [
+pub const OPTIONS: [(&str, &str); 29] = [
     ("qp", "quantisation parameter, 0..=51"),
     ("gop", "I-frame period (0: only the first frame)"),
     (
@@ -50,6 +50,10 @@ pub const OPTIONS: [(&str, &str); 28] = [
     ("decision", "inter mode decision, fast|full"),
     ("ipratio", "quantiser step of P frames over I frames (> 0)"),
     ("deblock", "the in-loop deblocking filter, on|off"),
+    (
+        "deblock-choice",
+        "block P frames deblocked only where the filter lowered the error before, on|off",
+    ),
     ("weightp", "weighted prediction, on|off"),
     ("refs", "references P frames may predict from, 1..=8 (block)"),
     ("subpel-rd", "sub-pel RD refinement (x264's subme 8), on|off"),
@@ -145,6 +149,7 @@ impl EncoderConfig {
             "decision" => self.decision = parse(value).map_err(bad)?,
             "ipratio" => self.ipratio = positive(parse(value).map_err(bad)?, &key)?,
             "deblock" => self.deblock = switch(value).map_err(bad)?,
+            "deblock-choice" => self.deblock_choice = switch(value).map_err(bad)?,
             "weightp" => self.weightp = switch(value).map_err(bad)?,
             "refs" => self.refs = parse(value).map_err(bad)?,
             "subpel-rd" => self.subpel_rd = switch(value).map_err(bad)?,
@@ -256,6 +261,7 @@ mod tests {
             ("decision", "fast"),
             ("ipratio", "1.2"),
             ("deblock", "off"),
+            ("deblock-choice", "off"),
             ("weightp", "no"),
             ("refs", "3"),
             ("subpel-rd", "1"),

@@ -13,6 +13,7 @@ use super::reference::GrowingReference;
 use super::wavefront::{self, WavefrontFrame};
 
 use super::config::ModeDecision;
+use super::deblock_choice::{measured_around, DeblockEffect};
 use super::intra4x4::IntraBlockSearch;
 use super::macroblock::{prefetch_ahead, MbCoder, MbSource};
 use super::motion::{BlockMotion, FrameMotion, LazySearch};
@@ -57,6 +58,9 @@ pub(crate) struct CodedFrame {
     pub vectors: Vec<MbVectors>,
     /// Whether `recon` is deblocked already (as it was decided).
     pub deblocked: bool,
+    /// What the filter did, where the frame's deblocking is chosen and
+    /// it was deblocked ([`super::deblock_choice`]).
+    pub deblock_effect: Option<DeblockEffect>,
 }
 
 /// The squared luma error of `pred` against `src` over the visible part of
@@ -175,6 +179,7 @@ pub(crate) fn code_intra(
         // Untrained at an I frame's start: they adapt.
         adapt: true,
         deblock: deblock.then_some((header.qp, header.tool)),
+        measure: None,
     };
     let decided = frame.decide(recon, &|env, index| {
         let (mb_x, mb_y) = (index % cols, index / cols);
@@ -211,8 +216,9 @@ pub(crate) fn code_intra(
         kinds: sum.kinds,
         vectors: sum.vectors,
         deblocked: sum.deblocked,
+        deblock_effect: None,
     };
-    frame.write_and_finish(seq, state, |_| ());
+    frame.write_and_finish(seq, state, None, |_| ());
     Ok(frame)
 }
 
@@ -226,32 +232,43 @@ impl CodedFrame {
         &mut self,
         seq: &SequenceHeader,
         state: &mut EntropyState,
+        measure: Option<&Plane>,
         beside: impl FnOnce(&[MbVectors]) + Send,
     ) {
-        let ((written, ()), ()) = rayon::join(
+        let ((written, ()), effect) = rayon::join(
             || {
                 rayon::join(
                     || write_decided_frame(seq, &self.syntax, &self.vectors, state),
                     || beside(&self.vectors),
                 )
             },
-            || finish_recon(seq, &self.syntax, &self.vectors, &mut self.recon, self.deblocked),
+            || {
+                finish_recon(
+                    seq,
+                    &self.syntax,
+                    &self.vectors,
+                    &mut self.recon,
+                    (self.deblocked, measure),
+                )
+            },
         );
         (self.bytes, self.bits) = written;
+        self.deblock_effect = self.deblock_effect.or(effect);
     }
 }
 
 /// The reconstruction of `syntax` as the decoder's: deblocked when the
 /// header says so (after every macroblock, whose intra prediction read the
 /// samples before it; the three planes at once) unless `deblocked`
-/// already, borders extended.
+/// already, borders extended; the filter's effect where deblocked here
+/// and measured against `measure` (the source's luma).
 fn finish_recon(
     seq: &SequenceHeader,
     syntax: &FrameSyntax,
     vectors: &[MbVectors],
     recon: &mut Frame,
-    deblocked: bool,
-) {
+    (deblocked, measure): (bool, Option<&Plane>),
+) -> Option<DeblockEffect> {
     let header = &syntax.header;
     let deblocker = (header.deblock && !deblocked).then(|| {
         debug_assert_eq!(vectors, frame_vectors(seq, syntax));
@@ -259,10 +276,16 @@ fn finish_recon(
         FrameDeblocker::new(&info, (recon.width(), recon.height()), header.qp)
     });
     let luma = |y: &mut Plane| {
-        if let Some(d) = &deblocker {
-            d.filter(y, 0);
-        }
+        let effect = match (&deblocker, measure) {
+            (Some(d), Some(source)) => Some(measured_around(source, y, |y| d.filter(y, 0))),
+            (Some(d), None) => {
+                d.filter(y, 0);
+                None
+            }
+            (None, _) => None,
+        };
         y.extend_border();
+        effect
     };
     // The chroma planes together: the kernel filters an edge of both at
     // once.
@@ -274,7 +297,7 @@ fn finish_recon(
         v.extend_border();
     };
     let [y, u, v] = recon.planes_mut();
-    rayon::join(|| luma(y), || chroma(u, v));
+    rayon::join(|| luma(y), || chroma(u, v)).0
 }
 
 /// What a P frame is predicted from and how.
@@ -287,6 +310,9 @@ pub(crate) struct InterInputs<'a> {
     pub decision: ModeDecision,
     /// Whether the frame is deblocked.
     pub deblock: bool,
+    /// Whether the filter's effect is measured, where deblocked
+    /// ([`super::deblock_choice`]).
+    pub measure_deblock: bool,
     /// The weights `reference` was weighted with (already applied).
     pub weights: Weights,
     /// The luma interpolation filter of block frames.
@@ -342,6 +368,8 @@ pub(super) struct InterFrameCoder<'a, 'r> {
     pub(super) fast_pskip: bool,
     /// Fast P-skip before the search too ([`super::EncoderConfig::early_pskip`]).
     pub(super) early_pskip: bool,
+    /// The deblocking filter's effect measured ([`InterInputs::measure_deblock`]).
+    pub(super) measure_deblock: bool,
     /// A vector per 8x8 block, when motion analysis has one (flows).
     pub(super) blocks: Option<Vec<Mv>>,
     /// The reference's half-pel planes, for the partitions' search.
@@ -436,6 +464,7 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
             adaptive_pricing: inputs.adaptive_pricing,
             fast_pskip: inputs.fast_pskip,
             early_pskip: inputs.early_pskip,
+            measure_deblock: inputs.measure_deblock,
             halfpel,
             blocks,
             warped,
@@ -455,6 +484,7 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
                 kinds: [0; 3],
                 vectors: Vec::new(),
                 deblocked: false,
+                deblock_effect: None,
             },
         })
     }
@@ -478,6 +508,7 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
             adaptive_pricing: self.adaptive_pricing,
             fast_pskip: self.fast_pskip,
             early_pskip: self.early_pskip,
+            measure_deblock: self.measure_deblock,
             blocks: self.blocks,
             halfpel: self.halfpel,
             warped: self.warped,
@@ -511,6 +542,12 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
         rdo::bits(rate::mode_cost(env.modes, at, true, self.syntax, mode))
     }
 
+    /// Whether the filter's effect on this frame is measured: deblocked,
+    /// and its deblocking chosen.
+    fn deblock_measured(&self) -> bool {
+        self.measure_deblock && self.frame.syntax.header.deblock
+    }
+
     /// How the frame's macroblocks are decided on a wavefront (block
     /// frames).
     fn wavefront(&self) -> WavefrontFrame<'_> {
@@ -526,6 +563,7 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
             lead: 2,
             adapt: self.adaptive_pricing,
             deblock: header.deblock.then_some((header.qp, header.tool)),
+            measure: self.deblock_measured().then(|| self.src.y()),
         }
     }
 
@@ -564,6 +602,7 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
         self.frame.kinds = sum.kinds;
         self.frame.vectors = sum.vectors;
         self.frame.deblocked = sum.deblocked;
+        self.frame.deblock_effect = sum.deblock_effect;
     }
 
     /// How many macroblock rows of the first reference, from its own on,
@@ -633,6 +672,7 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
     ) -> Result<CodedFrame, PictureError> {
         let references = &self.references;
         let beside = |vectors: &[MbVectors]| beside(vectors, references);
+        let measure = self.deblock_measured().then(|| self.src.y());
         let mut frame = self.frame;
         if frame.vectors.is_empty() {
             // Decided in raster order: the frame's own record.
@@ -641,13 +681,14 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
         match self.sink {
             MbSink::Write(writer) => {
                 (frame.bytes, frame.bits) = writer.finish(state);
-                finish_recon(
+                let effect = finish_recon(
                     self.seq,
                     &frame.syntax,
                     &frame.vectors,
                     &mut frame.recon,
-                    frame.deblocked,
+                    (frame.deblocked, measure),
                 );
+                frame.deblock_effect = frame.deblock_effect.or(effect);
                 beside(&frame.vectors);
             }
             MbSink::Adapt(_) => {
@@ -664,7 +705,7 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
                         &mut frame,
                     )?;
                 }
-                frame.write_and_finish(self.seq, state, beside);
+                frame.write_and_finish(self.seq, state, measure, beside);
             }
         }
         Ok(frame)

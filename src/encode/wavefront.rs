@@ -17,6 +17,7 @@ use std::cell::RefCell;
 use std::sync::{Mutex, OnceLock};
 
 use super::analyse::{Choice, MbEnv};
+use super::deblock_choice::{DeblockEffect, DeblockMeter};
 use super::macroblock::prefetch_ahead;
 use super::partition::SatdCache;
 use super::slice::kind_index;
@@ -28,7 +29,7 @@ use crate::codec::partition::{MbVectors, RefMv};
 use crate::codec::recon::{write_mb, MbSamples};
 use crate::codec::residual::ResidualCoder;
 use crate::codec::syntax::{mb_mode, mb_vectors, CodedMb, MbKind, MotionTool, SequenceHeader};
-use crate::codec::{Frame, PictureError};
+use crate::codec::{Frame, PictureError, Plane};
 use crate::me::pipeline::wavefront;
 
 /// A decided macroblock, as the rows below and the frame read it.
@@ -75,6 +76,9 @@ pub(super) struct WavefrontFrame<'a> {
     /// while the rows are in its caches (several workers leave it to the
     /// frame's end, [`DecidedFrame::deblocked`]).
     pub(super) deblock: Option<(u8, MotionTool)>,
+    /// The source (luma) the filter's effect is measured against, where
+    /// the frame's deblocking is chosen ([`super::deblock_choice`]).
+    pub(super) measure: Option<&'a Plane>,
 }
 
 /// The pricing contexts a row starts from.
@@ -116,6 +120,14 @@ struct RowDeblocking {
     /// The records of the row decided last, and the buffer of the next.
     above: Vec<MbEdgeInfo>,
     row: Vec<MbEdgeInfo>,
+    /// The filter's effect so far, where measured.
+    meter: Option<DeblockMeter>,
+}
+
+impl RowDeblocking {
+    fn effect(&self) -> Option<DeblockEffect> {
+        self.meter.as_ref().map(DeblockMeter::effect)
+    }
 }
 
 impl Worker {
@@ -147,6 +159,8 @@ pub(super) struct DecidedFrame {
     held: Vec<bool>,
     /// Whether `recon` is deblocked already (one worker did every row).
     pub(super) deblocked: bool,
+    /// What the filter did, where deblocked already and measured.
+    pub(super) deblock_effect: Option<DeblockEffect>,
 }
 
 impl WavefrontFrame<'_> {
@@ -184,8 +198,11 @@ impl WavefrontFrame<'_> {
         let workers = wavefront(cols, rows, self.lead(), &new_worker, &|w: &mut Worker, c, r| {
             self.step(w, &rows_of, decide, (c, r), shared);
         });
-        let (recon, held, deblocked) = match fullest(workers) {
-            Some(w) => (w.recon, w.held, w.deblocking.is_some()),
+        let (recon, held, deblocked, deblock_effect) = match fullest(workers) {
+            Some(w) => {
+                let effect = w.deblocking.as_ref().and_then(RowDeblocking::effect);
+                (w.recon, w.held, w.deblocking.is_some(), effect)
+            }
             // No worker took a row (a frame has one at least).
             None => (
                 recons
@@ -195,6 +212,7 @@ impl WavefrontFrame<'_> {
                     .expect("the reconstruction given"),
                 vec![false; rows],
                 false,
+                None,
             ),
         };
         Ok(DecidedFrame {
@@ -202,6 +220,7 @@ impl WavefrontFrame<'_> {
             recon,
             held,
             deblocked,
+            deblock_effect,
         })
     }
 
@@ -286,6 +305,7 @@ impl WavefrontFrame<'_> {
                     tool,
                     above: Vec::with_capacity(cols),
                     row: Vec::with_capacity(cols),
+                    meter: self.measure.map(|_| DeblockMeter::default()),
                 }
             }),
         }
@@ -379,8 +399,24 @@ impl WavefrontFrame<'_> {
         let last = r + 1 == self.seq.mb_rows();
         let rows = r.saturating_sub(1)..if last { r + 1 } else { r };
         let [y, u, v] = w.recon.planes_mut();
+        let meter = d.meter.as_mut().zip(self.measure);
+        if let Some((meter, source)) = meter {
+            meter.before(source, y, rows.clone());
+        }
         d.deblocker.filter_rows(y, 0, rows.clone());
-        d.deblocker.filter_chroma_rows(u, v, rows);
+        d.deblocker.filter_chroma_rows(u, v, rows.clone());
+        if let Some((meter, source)) = d.meter.as_mut().zip(self.measure) {
+            // The last line of the rows filtered changes with the row below.
+            meter.after(
+                source,
+                y,
+                if last {
+                    rows.end
+                } else {
+                    rows.end.saturating_sub(1)
+                },
+            );
+        }
     }
 
     /// Records macroblock (x, y), decided by another row, in the worker's
@@ -486,6 +522,7 @@ impl RowByRow {
         DecidedFrame {
             mbs: self.decided,
             deblocked: self.worker.deblocking.is_some(),
+            deblock_effect: self.worker.deblocking.as_ref().and_then(RowDeblocking::effect),
             recon: self.worker.recon,
             held: self.worker.held,
         }
@@ -501,6 +538,8 @@ pub(super) struct FrameSummary {
     pub(super) vectors: Vec<MbVectors>,
     /// Whether the reconstruction is deblocked already.
     pub(super) deblocked: bool,
+    /// What the filter did, where deblocked already and measured.
+    pub(super) deblock_effect: Option<DeblockEffect>,
 }
 
 /// The frame's reconstruction (every macroblock of `decided` written into
@@ -512,6 +551,7 @@ pub(super) fn collect(decided: DecidedFrame, cols: usize) -> (FrameSummary, Fram
         kinds: [0; 3],
         vectors: Vec::with_capacity(decided.mbs.len()),
         deblocked: decided.deblocked,
+        deblock_effect: decided.deblock_effect,
     };
     let mut recon = decided.recon;
     for (i, d) in decided.mbs.into_iter().enumerate() {

@@ -1,0 +1,193 @@
+//! Whether a block P frame is deblocked (the frame header's `deblock` bit,
+//! FORMAT.md section 11), chosen from what the filter did to the frames
+//! before it (encoder side). H.264's filter at its one strength takes
+//! real texture for blocking on some footage: without it, medium needs
+//! 11.7 % fewer bits on diver_vga (bubbles under water, most macroblocks
+//! intra: at QP 27 its P frames lose 1.8 dB of luma PSNR to the filter)
+//! and 9.1 % on fish_1160, and 10-23 % more on ball_576 and
+//! static_noise_cif (`--no-deblock`, `benches/pair.py`). libaom picks its
+//! loop filter's level per frame by the error the filter leaves; the
+//! format here has on and off.
+//!
+//! The measure is the luma's squared error against the source before and
+//! after the filter, on every [`MEASURED_ROW_EVERY`]-th macroblock row
+//! ([`DeblockMeter`]), the same whether the frame is filtered row by row
+//! or whole. A frame not deblocked measures nothing: every
+//! [`PROBE_EVERY`]-th frame is deblocked while the filter is off, to see
+//! whether the footage has changed.
+
+use crate::codec::consts::MB;
+use crate::codec::Plane;
+use crate::metrics::squared_difference_sum;
+
+/// Macroblock rows measured: one in this many (the first of each group).
+const MEASURED_ROW_EVERY: usize = 2;
+
+/// While the filter is off, one frame in this many is deblocked anyway.
+/// Against 8 (`benches/pair.py`, the 28 sequences): medium -0.59 %
+/// against -0.57 %, ultrafast -0.38 % against -0.15 % (fish_1160 -4.0 %
+/// against +2.2 %: its error ratios lie near [`OFF_ABOVE`] at QP 27).
+const PROBE_EVERY: usize = 16;
+
+/// The averaged after/before error ratio above which frames go
+/// undeblocked: a frame whose error the filter leaves about the same
+/// predicts the frames after it better deblocked. `benches/pair.py` on
+/// the 28 sequences, medium: 1.0 -0.48 % (room_400 +1.75 %,
+/// static_noise_cif +0.97 %), 0.995 +0.68 %, 1.005 -0.57 % (room_400
+/// +0.32 %), 1.01 -0.57 % (diver_vga -9.3 %, dark_cif -3.5 %, fish_1160
+/// -3.2 %, webcam_cif -0.2 %, no other sequence changed).
+const OFF_ABOVE: f64 = 1.01;
+
+/// The luma's squared error against the source on the measured rows,
+/// before the frame's filter and after it.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub(crate) struct DeblockEffect {
+    pub before: u64,
+    pub after: u64,
+}
+
+/// [`DeblockEffect`] of one frame, measured as its rows are filtered: each
+/// macroblock row before its own filter (no filter of a row above reaches
+/// it) and once final (after the filter of the row below, which changes
+/// its last three lines, or at the frame's end).
+#[derive(Debug, Default)]
+pub(crate) struct DeblockMeter {
+    effect: DeblockEffect,
+    /// Macroblock rows measured after the filter: those above this one.
+    final_rows: usize,
+}
+
+impl DeblockMeter {
+    /// Macroblock rows `rows` of `recon` about to be filtered for the
+    /// first time, against `source` (luma, coded size).
+    pub(crate) fn before(&mut self, source: &Plane, recon: &Plane, rows: std::ops::Range<usize>) {
+        self.effect.before += measured_sse(source, recon, rows);
+    }
+
+    /// Macroblock rows of `recon` above `upto` final.
+    pub(crate) fn after(&mut self, source: &Plane, recon: &Plane, upto: usize) {
+        if upto > self.final_rows {
+            self.effect.after += measured_sse(source, recon, self.final_rows..upto);
+            self.final_rows = upto;
+        }
+    }
+
+    pub(crate) fn effect(&self) -> DeblockEffect {
+        self.effect
+    }
+}
+
+/// The effect of deblocking `recon` whole with `filter` (in place),
+/// against `source` (luma, coded size).
+pub(crate) fn measured_around(
+    source: &Plane,
+    recon: &mut Plane,
+    filter: impl FnOnce(&mut Plane),
+) -> DeblockEffect {
+    let rows = recon.height() / MB;
+    let mut meter = DeblockMeter::default();
+    meter.before(source, recon, 0..rows);
+    filter(recon);
+    meter.after(source, recon, rows);
+    meter.effect()
+}
+
+/// The squared error of `recon` against `source` on the measured rows
+/// among macroblock rows `rows` (luma, coded size).
+fn measured_sse(source: &Plane, recon: &Plane, rows: std::ops::Range<usize>) -> u64 {
+    rows.filter(|r| r % MEASURED_ROW_EVERY == 0)
+        .flat_map(|r| r * MB..(r + 1) * MB)
+        .map(|y| squared_difference_sum(source.row(y), recon.row(y)))
+        .sum()
+}
+
+/// Whether the frames to come are deblocked, from the effect of the
+/// filter on the frames before.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct DeblockChooser {
+    on: bool,
+    /// The after/before ratio, averaged with weight 1/2 on the latest
+    /// frame measured; none before the first.
+    ratio: Option<f64>,
+}
+
+impl Default for DeblockChooser {
+    fn default() -> DeblockChooser {
+        DeblockChooser {
+            on: true,
+            ratio: None,
+        }
+    }
+}
+
+impl DeblockChooser {
+    /// Whether the P frame `index` is deblocked.
+    pub(crate) fn deblocks(&self, index: usize) -> bool {
+        self.on || index % PROBE_EVERY == 0
+    }
+
+    /// Learns from a frame's effect (none where it was not deblocked).
+    pub(crate) fn learn(&mut self, effect: Option<DeblockEffect>) {
+        let Some(e) = effect.filter(|e| e.before > 0) else {
+            return;
+        };
+        let latest = e.after as f64 / e.before as f64;
+        let ratio = self.ratio.map_or(latest, |r| 0.5 * (r + latest));
+        self.ratio = Some(ratio);
+        self.on = ratio <= OFF_ABOVE;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_filter_goes_off_where_it_adds_error_and_probes_while_off() {
+        let mut chooser = DeblockChooser::default();
+        assert!((0..20).all(|i| chooser.deblocks(i)), "on until measured");
+        chooser.learn(Some(DeblockEffect {
+            before: 1000,
+            after: 1300,
+        }));
+        let probes: Vec<usize> = (1..40).filter(|&i| chooser.deblocks(i)).collect();
+        assert_eq!(probes, [16, 32]);
+        // Not deblocked: nothing learnt.
+        chooser.learn(None);
+        assert!(!chooser.deblocks(9));
+        // Two frames that the filter helps bring it back: (1.3 + 0.8) / 2
+        // is still above 1, (1.05 + 0.8) / 2 is not.
+        chooser.learn(Some(DeblockEffect {
+            before: 1000,
+            after: 800,
+        }));
+        assert!(!chooser.deblocks(9));
+        chooser.learn(Some(DeblockEffect {
+            before: 1000,
+            after: 800,
+        }));
+        assert!(chooser.deblocks(9));
+    }
+
+    #[test]
+    fn rows_measured_before_and_once_final_count_each_line_once() {
+        let source = Plane::from_fn(32, 64, |x, y| (x + y) as u8).unwrap();
+        let before = Plane::from_fn(32, 64, |x, y| (x + y + 2) as u8).unwrap();
+        let after = Plane::from_fn(32, 64, |x, y| (x + y + 1) as u8).unwrap();
+        let mut meter = DeblockMeter::default();
+        for r in 0..4 {
+            meter.before(&source, &before, r..r + 1);
+            meter.after(&source, &after, r.saturating_sub(1));
+        }
+        meter.after(&source, &after, 4);
+        // Rows 0 and 2 measured: 2 x 16 lines of 32 samples.
+        let lines = (2 * MB * 32) as u64;
+        assert_eq!(
+            meter.effect(),
+            DeblockEffect {
+                before: 4 * lines,
+                after: lines
+            }
+        );
+    }
+}

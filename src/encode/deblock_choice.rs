@@ -141,6 +141,103 @@ impl DeblockChooser {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::codec::mv::Mv;
+    use crate::codec::syntax::{EntropyState, MotionTool, SequenceHeader, Vui};
+    use crate::codec::weight::Weights;
+    use crate::codec::Frame;
+    use crate::encode::config::ModeDecision;
+    use crate::encode::macroblock::MbCoder;
+    use crate::encode::motion::{BlockMotion, FrameMotion};
+    use crate::encode::slice::{code_inter, CodedFrame, InterInputs};
+
+    /// A 64x64 P frame (four macroblock rows) of a smooth texture moved
+    /// by (6, 6) from its reference, coded at QP 38 with every
+    /// macroblock's vector zero (so all intra, every edge filtered),
+    /// deblocked or not, its filter's effect measured, on a pool of
+    /// `threads`.
+    fn coded(deblock: bool, threads: usize) -> (Frame, CodedFrame) {
+        let texture = |dx: usize| {
+            let mut f = Frame::filled(64, 64, 0, 128, 128).unwrap();
+            *f.plane_mut(0) = Plane::from_fn(64, 64, |x, y| {
+                let (x, y) = ((x + dx) as f64, (y + dx) as f64);
+                (128.0 + 50.0 * (x * 0.21).sin() * (y * 0.17).cos()) as u8
+            })
+            .unwrap();
+            f.extend_borders();
+            f
+        };
+        let (src, reference) = (texture(6), texture(0));
+        let seq = SequenceHeader {
+            width: 64,
+            height: 64,
+            fps_num: 25,
+            fps_den: 1,
+            frame_count: 0,
+            vui: Vui::default(),
+            max_refs: 1,
+        };
+        let pricing = EntropyState::new();
+        let inputs = InterInputs {
+            references: vec![&reference],
+            motion: FrameMotion::Vectors(BlockMotion {
+                mb: vec![Mv::ZERO; 16],
+                blocks: None,
+                halfpel: None,
+                lazy: None,
+            }),
+            tool: MotionTool::Block,
+            decision: ModeDecision::Full,
+            deblock,
+            measure_deblock: true,
+            weights: Weights::NONE,
+            luma_filter: crate::codec::interp::LumaFilter::Sharp,
+            partitions: false,
+            subpel_rd: false,
+            split_margin: false,
+            chroma_me: false,
+            adaptive_pricing: true,
+            fast_pskip: false,
+            early_pskip: false,
+            pricing: &pricing,
+        };
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let coder = MbCoder::new(38, 1.0, false);
+        let recon = Frame::new(64, 64).unwrap();
+        let frame = pool.install(|| {
+            code_inter(
+                &seq,
+                &coder,
+                &src,
+                inputs,
+                (&mut EntropyState::new(), recon),
+                |_, _| (),
+            )
+            .unwrap()
+        });
+        (src, frame)
+    }
+
+    #[test]
+    fn the_effect_is_the_measured_rows_error_before_and_after_the_filter_on_any_number_of_workers() {
+        // One thread: one worker filters each row behind its decisions;
+        // three: three workers, the filter over the whole frame at its end.
+        let (src, plain) = coded(false, 1);
+        assert_eq!(plain.deblock_effect, None, "not deblocked: nothing measured");
+        let before = measured_sse(src.y(), plain.recon.y(), 0..4);
+        for threads in [1, 3] {
+            let (_, deblocked) = coded(true, threads);
+            let after = measured_sse(src.y(), deblocked.recon.y(), 0..4);
+            assert_ne!(before, after, "the filter changed nothing to measure");
+            assert_eq!(
+                deblocked.deblock_effect,
+                Some(DeblockEffect { before, after }),
+                "{threads} threads"
+            );
+        }
+    }
 
     #[test]
     fn the_filter_goes_off_where_it_adds_error_and_probes_while_off() {

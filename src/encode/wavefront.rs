@@ -399,24 +399,22 @@ impl WavefrontFrame<'_> {
         let last = r + 1 == self.seq.mb_rows();
         let rows = r.saturating_sub(1)..if last { r + 1 } else { r };
         let [y, u, v] = w.recon.planes_mut();
+        // Final once filtered: the rows above the last filtered (whose
+        // last three lines change with the row below), all at the end.
+        let settled = if last {
+            rows.end
+        } else {
+            rows.end.saturating_sub(1)
+        };
         let meter = d.meter.as_mut().zip(self.measure);
         if let Some((meter, source)) = meter {
             meter.before(source, y, rows.clone());
+            d.deblocker.filter_rows(y, 0, rows.clone());
+            meter.after(source, y, settled);
+        } else {
+            d.deblocker.filter_rows(y, 0, rows.clone());
         }
-        d.deblocker.filter_rows(y, 0, rows.clone());
-        d.deblocker.filter_chroma_rows(u, v, rows.clone());
-        if let Some((meter, source)) = d.meter.as_mut().zip(self.measure) {
-            // The last line of the rows filtered changes with the row below.
-            meter.after(
-                source,
-                y,
-                if last {
-                    rows.end
-                } else {
-                    rows.end.saturating_sub(1)
-                },
-            );
-        }
+        d.deblocker.filter_chroma_rows(u, v, rows);
     }
 
     /// Records macroblock (x, y), decided by another row, in the worker's

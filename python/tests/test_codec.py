@@ -86,6 +86,18 @@ def test_every_encoder_option_by_keyword_as_the_command_line_names_it(synth_fram
     assert mocomp.encode(source, qp=30, chroma_me=False)[0] == on
     assert mocomp.encode(source, qp=30, adaptive_pricing=True)[0] == on
     assert mocomp.encode(source, qp=30, adaptive_pricing=False)[0] != on
+    # Each P frame's deblocking chosen (on by default): grain of its own
+    # in every frame at QP 34, which the filter takes for blocking, goes
+    # undeblocked after the first frames; off, every frame is deblocked.
+    grain = [
+        (np.random.default_rng(t).integers(100, 157, (64, 96), dtype=np.uint8),
+         np.full((32, 48), 128, np.uint8), np.full((32, 48), 128, np.uint8))
+        for t in range(6)
+    ]
+    assert "deblock-choice" in names
+    chosen, _ = mocomp.encode(grain, qp=34)
+    assert mocomp.encode(grain, qp=34, deblock_choice=True)[0] == chosen
+    assert mocomp.encode(grain, qp=34, deblock_choice=False)[0] != chosen
     # Fast P-skip is on in every preset; off, the stream changes (in
     # ultrafast: medium's full decision codes this sample alike either
     # way).

@@ -16,16 +16,26 @@ static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 /// from one run to the next, most after another process's encode; without
 /// them 0.03-0.05 s. One-thread encodes: within the machine's noise
 /// (README, "the front").
-fn small_pages_only() {
-    #[cfg(target_os = "linux")]
+///
+/// Run by the loader, before the standard library's start-up makes the
+/// first allocation: called from `main`, that allocation's page (the
+/// allocator's first arena) was a huge one, zeroed at every start.
+#[cfg(target_os = "linux")]
+extern "C" fn small_pages_only() {
     // SAFETY: a plain system call on this process's own flags.
     unsafe {
         libc::prctl(libc::PR_SET_THP_DISABLE, 1, 0, 0, 0);
     }
 }
 
+// (The `ctor` crate does this for every platform; one section on one
+// platform is all this needs.)
+#[cfg(target_os = "linux")]
+#[used]
+#[unsafe(link_section = ".init_array")]
+static SMALL_PAGES_AT_LOAD: extern "C" fn() = small_pages_only;
+
 fn main() -> ExitCode {
-    small_pages_only();
     // Any panic is a bug; say so on one line instead of a backtrace dump.
     std::panic::set_hook(Box::new(|info| {
         let msg = info

@@ -56,7 +56,7 @@ impl Default for SearchSettings {
     }
 }
 
-/// Every preset's [`SearchSettings::subpel_moves`]. Against one move a
+/// The [`SearchSettings::subpel_moves`] from veryfast. Against one move a
 /// step (`benches/pair.py`, the 28 sequences, one run each): two took
 /// medium -0.54 % for 1.008x its encode time, four -0.77 % for
 /// 1.008-1.027x (garden_720p -3.2 %, cartoon_cif -2.8 %, plant_qvga
@@ -678,11 +678,19 @@ impl EncoderConfig {
         // (fish_1160) is half of the bits without it; in ultrafast -6.8
         // (its statistics are about 2.6 % of ultrafast's profile).
         self.weightp = true;
-        // I frames in blocks in every preset (x264's ultrafast has none):
-        // one frame in 30 and most of the bits of a still scene (talk_vga);
-        // in ultrafast -8.9 (again 2026-12-04: `--i-partitions none` +8.0 %
-        // on the 28 sequences' mean for 0.974x the encode time).
-        self.i_frame_partitions = Partitions::ALL;
+        // I frames in blocks from superfast (as x264's; its ultrafast has
+        // none): one frame in 30 and most of the bits of a still scene
+        // (talk_vga). In ultrafast (one sub-pel move, no starts), their
+        // first 60 frames, none against all: +5.46 % on the 28 sequences'
+        // mean for 0.921x the whole process's time (0.948x the encoder's
+        // own; `benches/pair.py`, one run): with them ultrafast took
+        // about twice x264 ultrafast's time. At 30 frames +8.0 % for
+        // 0.974x the encoder's time (2026-12-04).
+        self.i_frame_partitions = if preset == Ultrafast {
+            Partitions::NONE
+        } else {
+            Partitions::ALL
+        };
         // P frames' intra blocks from veryfast (x264's from superfast):
         // 4x4 intra in P frames alone took 46 % more of ultrafast's time
         // for about 1 % fewer bits. 4x4 blocks from slow: in medium they
@@ -788,6 +796,17 @@ impl EncoderConfig {
             // ultrafast for 0.93x its time, +1.4 in superfast for 0.93x;
             // in veryfast +1.0 for no time this machine could show.
             search.sub_pel_sad = preset <= Superfast;
+            // Up to superfast, as x264's subme 1 (one half-pel and one
+            // quarter-pel pass), one move a sub-pel step and no sub-pel
+            // starts: against four moves and the starts (`benches/pair.py`,
+            // the 28 sequences, their first 60 frames, one run) ultrafast
+            // +1.80 % for 0.912-0.922x its wall time (two runs), superfast
+            // +1.77 % for 0.910x, on the slope between the presets; veryfast
+            // +1.96 % for 0.950x, off it. Starts alone in ultrafast +0.99 %
+            // for 0.951x, one move alone +0.81 % for 0.954x.
+            let subme1 = preset <= Superfast;
+            search.subpel_moves = if subme1 { 1 } else { SUBPEL_MOVES };
+            search.sub_pel_starts = !subme1;
         }
     }
 
@@ -990,7 +1009,11 @@ mod tests {
             assert_eq!(s.full_pel_sad, p <= Medium);
             assert_eq!(s.sub_pel_sad, p <= Superfast);
             assert_eq!(c.refs, [1, 1, 1, 1, 1, 1, 3, 5][p as usize]);
-            assert!(c.weightp && c.i_frame_partitions == Partitions::ALL);
+            assert!(c.weightp);
+            let i_blocks = if p >= Superfast { Partitions::ALL } else { Partitions::NONE };
+            assert_eq!(c.i_frame_partitions, i_blocks);
+            assert_eq!(s.subpel_moves, if p >= Veryfast { SUBPEL_MOVES } else { 1 });
+            assert_eq!(s.sub_pel_starts, p >= Veryfast);
             assert_eq!(c.partitions.p8x8, p >= Medium);
             assert_eq!(c.partitions.i4x4, p >= Slow);
             assert_eq!(c.early_pskip, p <= Slow);
@@ -1008,6 +1031,10 @@ mod tests {
             let (a, b) = (base.preset(w[0]), base.preset(w[1]));
             assert!(b.rdoq >= a.rdoq && b.weightp >= a.weightp && b.transform_8x8 >= a.transform_8x8);
             assert!(b.refs >= a.refs && b.subpel_rd >= a.subpel_rd && b.split_margin >= a.split_margin);
+            let (mut pa, mut pb) = (a.predictor, b.predictor);
+            let (sa, sb) = (pa.search_mut().unwrap(), pb.search_mut().unwrap());
+            assert!(sb.subpel_moves >= sa.subpel_moves && sb.sub_pel_starts >= sa.sub_pel_starts);
+            assert!(b.i_frame_partitions.i4x4 >= a.i_frame_partitions.i4x4);
         }
         // The default configuration is the medium preset's.
         assert_eq!(

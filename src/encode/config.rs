@@ -678,31 +678,7 @@ impl EncoderConfig {
         // (fish_1160) is half of the bits without it; in ultrafast -6.8
         // (its statistics are about 2.6 % of ultrafast's profile).
         self.weightp = true;
-        // I frames in blocks from superfast (as x264's; its ultrafast has
-        // none): one frame in 30 and most of the bits of a still scene
-        // (talk_vga). In ultrafast (one sub-pel move, no starts), their
-        // first 60 frames, none against all: +5.46 % on the 28 sequences'
-        // mean for 0.921x the whole process's time (0.948x the encoder's
-        // own; `benches/pair.py`, one run): with them ultrafast took
-        // about twice x264 ultrafast's time. At 30 frames +8.0 % for
-        // 0.974x the encoder's time (2026-12-04).
-        self.i_frame_partitions = if preset == Ultrafast {
-            Partitions::NONE
-        } else {
-            Partitions::ALL
-        };
-        // P frames' intra blocks from veryfast (x264's from superfast):
-        // 4x4 intra in P frames alone took 46 % more of ultrafast's time
-        // for about 1 % fewer bits. 4x4 blocks from slow: in medium they
-        // won 771 of 339,670 P macroblocks analysed at QP 22 (8x8 blocks
-        // 26,640), and without them medium took +0.12 % for 0.923x its
-        // time, veryfast +0.31 % for 0.950x. The inter partitions in
-        // medium (as x264's faster presets leave p8x8 out).
-        self.partitions = Partitions {
-            p8x8: preset >= Medium,
-            i8x8: preset >= Veryfast,
-            i4x4: preset >= Slow,
-        };
+        self.preset_partitions(preset);
         // Fast P-skip before the search up to slow (x264's below subme 3,
         // to veryfast): against the skip after the search alone,
         // ultrafast +1.6 % for about 0.88x its time, superfast +1.7 % for
@@ -763,6 +739,37 @@ impl EncoderConfig {
         };
         self.preset_search(preset);
         self
+    }
+
+    /// The intra blocks and inter partitions of `preset`: a part of
+    /// [`EncoderConfig::preset`].
+    fn preset_partitions(&mut self, preset: EncoderPreset) {
+        use EncoderPreset::*;
+        // I frames in blocks from superfast (as x264's; its ultrafast has
+        // none): one frame in 30 and most of the bits of a still scene
+        // (talk_vga). In ultrafast (one sub-pel move, no starts), their
+        // first 60 frames, none against all: +5.46 % on the 28 sequences'
+        // mean for 0.921x the whole process's time (0.948x the encoder's
+        // own; `benches/pair.py`, one run): with them ultrafast took
+        // about twice x264 ultrafast's time. At 30 frames +8.0 % for
+        // 0.974x the encoder's time (2026-12-04).
+        self.i_frame_partitions = if preset == Ultrafast {
+            Partitions::NONE
+        } else {
+            Partitions::ALL
+        };
+        // P frames' intra blocks from veryfast (x264's from superfast):
+        // 4x4 intra in P frames alone took 46 % more of ultrafast's time
+        // for about 1 % fewer bits. 4x4 blocks from slow: in medium they
+        // won 771 of 339,670 P macroblocks analysed at QP 22 (8x8 blocks
+        // 26,640), and without them medium took +0.12 % for 0.923x its
+        // time, veryfast +0.31 % for 0.950x. The inter partitions in
+        // medium (as x264's faster presets leave p8x8 out).
+        self.partitions = Partitions {
+            p8x8: preset >= Medium,
+            i8x8: preset >= Veryfast,
+            i4x4: preset >= Slow,
+        };
     }
 
     /// The search settings of `preset` (the predictor's pattern kept): a
@@ -1010,7 +1017,11 @@ mod tests {
             assert_eq!(s.sub_pel_sad, p <= Superfast);
             assert_eq!(c.refs, [1, 1, 1, 1, 1, 1, 3, 5][p as usize]);
             assert!(c.weightp);
-            let i_blocks = if p >= Superfast { Partitions::ALL } else { Partitions::NONE };
+            let i_blocks = if p >= Superfast {
+                Partitions::ALL
+            } else {
+                Partitions::NONE
+            };
             assert_eq!(c.i_frame_partitions, i_blocks);
             assert_eq!(s.subpel_moves, if p >= Veryfast { SUBPEL_MOVES } else { 1 });
             assert_eq!(s.sub_pel_starts, p >= Veryfast);

@@ -306,14 +306,15 @@ impl FromStr for FilterChoice {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Default)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum EncoderPreset {
-    /// Quarter-pel vectors searched by SAD (sub-pel steps too),
-    /// weighted prediction, P frames' intra in 16x16 only (I frames' in
-    /// 4x4 blocks too), the 4x4 transform only, no RDOQ, the fast mode
+    /// Quarter-pel vectors searched by SAD (one sub-pel move a step, no
+    /// sub-pel starts), weighted prediction, intra in 16x16 only (I
+    /// frames too), the 4x4 transform only, no RDOQ, the fast mode
     /// decision, fast P-skip before the search.
     Ultrafast,
-    /// The 8x8 transform (and 8x8 intra in I frames).
+    /// The 8x8 transform, and I frames' intra in 4x4 and 8x8 blocks.
     Superfast,
-    /// 8x8 intra in P frames.
+    /// 8x8 intra in P frames; sub-pel compared by SATD, four moves a
+    /// step and sub-pel starts.
     Veryfast,
     /// EPZS's exhaustive window of 3 pels.
     Faster,

@@ -236,7 +236,9 @@ pub enum ModeDecision {
     /// intra alone is coded (x264's decisions below `--subme 6`). Intra
     /// blocks are coded beside either where their estimate is lower. One
     /// residual coding per macroblock instead of two, where P frames try
-    /// no intra blocks.
+    /// no intra blocks; without the 8x8 transform (ultrafast), its bits
+    /// weighed against skip are estimated from its levels, not priced
+    /// bin by bin ([`super::rate::residual_estimate`]).
     Fast,
 }
 

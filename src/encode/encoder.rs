@@ -12,7 +12,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use super::camera::CameraMotion;
-use super::config::{EncoderConfig, FilterChoice, Predictor};
+use super::config::{EncoderConfig, FilterChoice, ModeDecision, Predictor};
 use super::deblock_choice::DeblockChooser;
 use super::filter::FilterChooser;
 use super::frame_thread::{FrameThreads, InFlight, RowFrame, RowFrameDone, Sequence, Written};
@@ -173,7 +173,8 @@ impl Encoder {
             coder: MbCoder::new(config.qp, config.lambda_scale, config.rdoq)
                 .intra4x4(config.partitions.i4x4)
                 .intra8x8(config.intra8x8())
-                .transform_8x8(config.transform_8x8),
+                .transform_8x8(config.transform_8x8)
+                .estimated_rates(config.decision == ModeDecision::Fast && !config.transform_8x8),
             intra_coder: MbCoder::new(config.intra_qp(), config.lambda_scale, config.rdoq)
                 .intra4x4(config.i_frame_partitions.i4x4)
                 .intra8x8(config.i_frame_intra8x8()),

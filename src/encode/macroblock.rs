@@ -136,6 +136,17 @@ impl Coded {
             samples,
         }
     }
+
+    /// [`Coded::priced`] with the bits estimated from the levels alone
+    /// ([`rate::residual_estimate`]).
+    fn estimated(src: &MbSource, residual: Box<MbResidual>, samples: MbSamples) -> Coded {
+        Coded {
+            bits: rate::residual_estimate(&residual),
+            ssd: src.ssd(&samples),
+            residual,
+            samples,
+        }
+    }
 }
 
 /// The per-frame constants of macroblock coding.
@@ -152,6 +163,10 @@ pub(crate) struct MbCoder {
     pub intra8x8: bool,
     /// Inter luma may be coded in the 8x8 transform.
     pub transform_8x8: bool,
+    /// Coded macroblocks' residual bits estimated from their levels
+    /// ([`rate::residual_estimate`]) instead of priced bin by bin: the
+    /// fast mode decision's.
+    pub estimated_rates: bool,
     /// The kernels (the CPU level's when the coder was made).
     pub dsp: &'static CoderDsp,
 }
@@ -165,7 +180,17 @@ impl MbCoder {
             intra4x4: true,
             intra8x8: true,
             transform_8x8: true,
+            estimated_rates: false,
             dsp: coder(),
+        }
+    }
+
+    /// This coder with residual bits estimated or priced
+    /// ([`MbCoder::estimated_rates`]).
+    pub fn estimated_rates(self, on: bool) -> MbCoder {
+        MbCoder {
+            estimated_rates: on,
+            ..self
         }
     }
 
@@ -285,6 +310,9 @@ impl MbCoder {
         at: (usize, usize),
     ) -> Coded {
         let samples = reconstruct_samples(pred, &residual, self.qp);
+        if self.estimated_rates {
+            return Coded::estimated(src, residual, samples);
+        }
         Coded::priced(src, residual, samples, coder_syntax, at)
     }
 

@@ -68,7 +68,10 @@ pub fn residual_cost(
 /// bins ([`residual_cost`]): x264 below `--subme 6` takes skip only where
 /// nothing is coded. Against the exact price (`benches/pair.py`, the 28
 /// sequences' first 60 frames, one run each): ultrafast -0.06 % on the
-/// mean (poster_384 -2.3 %, cuts_cif +1.9 %) for 0.945x the wall time;
+/// mean (poster_384 -2.3 %, cuts_cif +1.9 %) for 0.945x the wall time in
+/// a run that shared the machine with a build (0.961x for a first
+/// version alone; `farm-bench` of cockatoo_720p, diver_vga and
+/// garden_720p at QP 27-32: 0.96-0.99x, the gain the largest at QP 22);
 /// with no residual bits at all +0.01 % for 0.978x (dark_cif -14.0 %,
 /// fish_1160 +6.5 %: more coded, and more to write). Not where the 8x8
 /// transform is tried, whose choice weighs the two transforms' bits,

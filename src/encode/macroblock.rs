@@ -165,7 +165,7 @@ pub(crate) struct MbCoder {
     pub transform_8x8: bool,
     /// Coded macroblocks' residual bits estimated from their levels
     /// ([`rate::residual_estimate`]) instead of priced bin by bin: the
-    /// fast mode decision's.
+    /// fast mode decision's without the 8x8 transform (ultrafast's).
     pub estimated_rates: bool,
     /// The kernels (the CPU level's when the coder was made).
     pub dsp: &'static CoderDsp,

@@ -178,6 +178,7 @@ pub(crate) fn code_intra(
         lead: cols / 2,
         // Untrained at an I frame's start: they adapt.
         adapt: true,
+        record: true,
         deblock: deblock.then_some((header.qp, header.tool)),
         measure: None,
     };
@@ -562,6 +563,7 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
             // (-0.1 %), the contexts being trained by the frames before.
             lead: 2,
             adapt: self.adaptive_pricing,
+            record: !self.coder.estimated_rates,
             deblock: header.deblock.then_some((header.qp, header.tool)),
             measure: self.deblock_measured().then(|| self.src.y()),
         }

@@ -10,7 +10,7 @@ use std::cell::RefCell;
 use super::analyse::{best_intra, MbAnalysis, MbEnv};
 use super::progress::FrameProgress;
 use super::reference::GrowingReference;
-use super::wavefront::{self, WavefrontFrame};
+use super::wavefront::{self, ResidualTracking, WavefrontFrame};
 
 use super::config::ModeDecision;
 use super::deblock_choice::{measured_around, DeblockEffect};
@@ -177,8 +177,7 @@ pub(crate) fn code_intra(
         // order; after half a row, 0.25 %, with two workers still busy.
         lead: cols / 2,
         // Untrained at an I frame's start: they adapt.
-        adapt: true,
-        record: true,
+        tracking: ResidualTracking::Adapt,
         deblock: deblock.then_some((header.qp, header.tool)),
         measure: None,
     };
@@ -562,8 +561,13 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
             // HEVC's two: as good as raster order on the development set
             // (-0.1 %), the contexts being trained by the frames before.
             lead: 2,
-            adapt: self.adaptive_pricing,
-            record: !self.coder.estimated_rates,
+            tracking: if self.adaptive_pricing {
+                ResidualTracking::Adapt
+            } else if self.coder.estimated_rates {
+                ResidualTracking::Nothing
+            } else {
+                ResidualTracking::CodedBlocks
+            },
             deblock: header.deblock.then_some((header.qp, header.tool)),
             measure: self.deblock_measured().then(|| self.src.y()),
         }

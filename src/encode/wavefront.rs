@@ -45,6 +45,24 @@ pub(super) struct Decided {
     prediction_sse: u64,
 }
 
+/// What a frame's decisions keep of each decided macroblock in their
+/// residual coder, for the pricing of the macroblocks after it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum ResidualTracking {
+    /// Its bins adapt the contexts, and its coded blocks are recorded (the
+    /// neighbours' flags choose contexts).
+    Adapt,
+    /// Its coded blocks alone: the contexts stay the frame's first.
+    CodedBlocks,
+    /// Nothing, where nothing reads it: residual bits estimated from the
+    /// levels alone ([`super::macroblock::MbCoder::estimated_rates`]),
+    /// whose decisions price no bin of any residual. The same streams;
+    /// ultrafast 0.957x, 0.994x and 0.986x the wall time in three runs of
+    /// `benches/pair.py` (the 28 sequences' first 60 frames) against
+    /// recording the coded blocks.
+    Nothing,
+}
+
 /// One macroblock's decision.
 pub(super) struct Decision {
     pub(super) choice: Choice,
@@ -67,18 +85,9 @@ pub(super) struct WavefrontFrame<'a> {
     /// How many macroblocks of the row above a row's pricing contexts have
     /// seen (at least 2).
     pub(super) lead: usize,
-    /// Whether the residual pricing contexts adapt to the decided
-    /// macroblocks (else they stay the frame's first: only the neighbours'
-    /// coded blocks are recorded).
-    pub(super) adapt: bool,
-    /// Whether, where they do not adapt, the decisions read the decided
-    /// neighbours' coded blocks (the residual pricing's contexts): not
-    /// where residual bits are estimated from the levels alone
-    /// ([`super::macroblock::MbCoder::estimated_rates`]), which record
-    /// nothing then: the same streams, ultrafast 0.957x, 0.994x and
-    /// 0.986x the wall time in three runs of `benches/pair.py` (the 28
-    /// sequences' first 60 frames).
-    pub(super) record: bool,
+    /// What the decision's residual coder keeps of each decided
+    /// macroblock.
+    pub(super) tracking: ResidualTracking,
     /// The deblocking of the frame (its QP and motion tool), if any: one
     /// worker deblocks each row as soon as the row below is decided,
     /// while the rows are in its caches (several workers leave it to the
@@ -357,10 +366,10 @@ impl WavefrontFrame<'_> {
         };
         if coded.kind != MbKind::Skip {
             let syntax = coded.kind.residual_syntax();
-            if self.adapt {
-                w.residual.commit(c, r, syntax, coded.residual());
-            } else if self.record {
-                w.residual.record(c, r, syntax, coded.residual());
+            match self.tracking {
+                ResidualTracking::Adapt => w.residual.commit(c, r, syntax, coded.residual()),
+                ResidualTracking::CodedBlocks => w.residual.record(c, r, syntax, coded.residual()),
+                ResidualTracking::Nothing => {}
             }
         }
         Decided {
@@ -432,7 +441,7 @@ impl WavefrontFrame<'_> {
         let samples = d.samples.as_ref().expect("kept with several workers");
         write_mb(samples, &mut w.recon, x, y);
         w.modes.record(x, y, &d.mode);
-        if d.coded.kind != MbKind::Skip && (self.adapt || self.record) {
+        if d.coded.kind != MbKind::Skip && self.tracking != ResidualTracking::Nothing {
             w.residual
                 .record(x, y, d.coded.kind.residual_syntax(), d.coded.residual());
         }

@@ -97,9 +97,12 @@ fn intra_against(
     let (luma, satd) = best_intra_16x16(coder, s, recon, at, &mut pred);
     let whole = bound.is_none_or(|b| satd < b.satd);
     // In P frames, where inter mostly wins, blocks are searched only where
-    // 16x16 intra is within the bound's margin of inter by SATD.
+    // 16x16 intra is within the bound's margin of inter by SATD (and the
+    // neighbours' modes are looked up only where some block size is tried:
+    // ultrafast's and superfast's P frames try none).
     let hopeless = bound.is_some_and(|b| f64::from(satd) > b.search_margin * f64::from(b.satd));
-    let search = (!hopeless).then(|| {
+    let blocks_tried = coder.intra8x8 || coder.intra4x4;
+    let search = (blocks_tried && !hopeless).then(|| {
         let (around, mode_bits) = intra4x4::pricing(modes, at);
         IntraBlockSearch {
             coder,

@@ -13,7 +13,7 @@ use mocomp::codec::dsp::itx::ITX;
 use mocomp::codec::dsp::lf::LF;
 use mocomp::codec::dsp::mc::{LUMA_TAPS, MC};
 use mocomp::codec::dsp::PerLevel;
-use mocomp::codec::residual::{BlockClass, ResidualCoder};
+use mocomp::codec::residual::{BlockClass, MbResidual, ResidualCoder};
 use mocomp::codec::Plane;
 use mocomp::encode::dsp::CODER;
 use mocomp::features::dsp::FEATURES;
@@ -312,6 +312,14 @@ fn coder_table(c: &mut Criterion) {
         });
         bench(g, "decimate_score_4", l, || {
             (t.decimate_score)(black_box(&blocks[..4]))
+        });
+        let coded = MbResidual {
+            luma: blocks,
+            chroma: [blocks[..4].try_into().unwrap(), blocks[4..8].try_into().unwrap()],
+            ..MbResidual::default()
+        };
+        bench(g, "residual_estimate", l, || {
+            (t.residual_estimate)(black_box(&coded))
         });
         bench(g, "inter_luma8_rdoq", l, || {
             (t.inter_luma8)(black_box(&src), &pred, 28, lambda, Some(&rate8))

@@ -17,7 +17,7 @@ use mocomp::codec::dsp::itx::{ItxDsp, ITX};
 use mocomp::codec::dsp::lf::{LfDsp, LF};
 use mocomp::codec::dsp::mc::{McDsp, LUMA_TAPS, MC, SMOOTH_LUMA_TAPS};
 use mocomp::codec::dsp::PerLevel;
-use mocomp::codec::residual::{BlockClass, ResidualCoder};
+use mocomp::codec::residual::{BlockClass, MbResidual, ResidualCoder};
 use mocomp::codec::Plane;
 use mocomp::encode::dsp::{CoderDsp, CODER};
 use mocomp::features::dsp::{FeaturesDsp, FEATURES};
@@ -702,6 +702,7 @@ fn macroblock_coder() {
             rdoq_4x4,
             decimate_luma,
             decimate_score,
+            residual_estimate,
             inter_luma8,
             intra_block8,
         } = *t;
@@ -803,6 +804,26 @@ fn macroblock_coder() {
                 (s.decimate_score)(blocks),
                 "{isa} zeroing score"
             );
+        }
+        // Macroblocks of every kind of level, with and without the 8x8
+        // transform's blocks and intra 16x16's DC levels.
+        let blocks = level_blocks::<4>(15);
+        let blocks8 = level_blocks::<8>(16);
+        for (k, luma) in blocks.chunks_exact(16).enumerate() {
+            let mut res = MbResidual {
+                luma: luma.try_into().unwrap(),
+                ..MbResidual::default()
+            };
+            res.chroma[k % 2] = blocks[k..k + 4].try_into().unwrap();
+            res.luma_dc = blocks[(k + 7) % blocks.len()].as_flattened().try_into().unwrap();
+            for luma8 in [None, Some(blocks8[k % blocks8.len()..][..4].try_into().unwrap())] {
+                res.luma8 = luma8.map(Box::new);
+                assert_eq!(
+                    residual_estimate(&res),
+                    (s.residual_estimate)(&res),
+                    "{isa} residual estimate"
+                );
+            }
         }
     });
 }

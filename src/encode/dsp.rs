@@ -11,10 +11,10 @@
 //! arithmetic and the same floating-point operations without FMA: the
 //! same levels.
 
-use super::rate::{Block8Pricer, BlockPricer, ScanLevels};
+use super::rate::{residual_estimate, Block8Pricer, BlockPricer, ScanLevels};
 use super::transform8x8::{inter_luma8, intra_block8};
 use crate::codec::dsp::PerLevel;
-use crate::codec::residual::ZIGZAG;
+use crate::codec::residual::{MbResidual, ZIGZAG};
 use crate::codec::transform::{
     dequantize, dequantize_level, forward_4x4, inverse_4x4_unrounded, quantize, Block4,
 };
@@ -56,6 +56,10 @@ pub type DecimateLumaFn = fn(&mut [Block4; 16]);
 /// x264's `decimate_score`).
 pub type DecimateScoreFn = fn(&[Block4]) -> u32;
 
+/// A macroblock's residual bits estimated from its levels' counts
+/// ([`super::rate::residual_estimate`]).
+pub type ResidualEstimateFn = fn(&MbResidual) -> f64;
+
 /// The macroblock coder's kernels of one CPU level.
 #[derive(Debug, Clone, Copy)]
 pub struct CoderDsp {
@@ -71,6 +75,8 @@ pub struct CoderDsp {
     pub decimate_luma: DecimateLumaFn,
     /// Blocks' zeroing cost.
     pub decimate_score: DecimateScoreFn,
+    /// A macroblock's residual bits estimated from its levels.
+    pub residual_estimate: ResidualEstimateFn,
     /// Inter luma in the 8x8 transform.
     pub inter_luma8: InterLuma8Fn,
     /// An intra 8x8 block's levels.
@@ -84,6 +90,7 @@ const SCALAR: CoderDsp = CoderDsp {
     rdoq_4x4,
     decimate_luma,
     decimate_score,
+    residual_estimate,
     inter_luma8,
     intra_block8,
 };
@@ -100,6 +107,7 @@ pub static CODER: PerLevel<CoderDsp> = PerLevel([
         rdoq_4x4: avx2::rdoq_4x4,
         decimate_luma: avx2::decimate_luma,
         decimate_score: avx2::decimate_score,
+        residual_estimate: avx2::residual_estimate,
         inter_luma8: avx2::inter_luma8,
         intra_block8: avx2::intra_block8,
     },
@@ -115,6 +123,7 @@ pub fn coder() -> &'static CoderDsp {
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
+    use crate::codec::residual::MbResidual;
     use crate::codec::transform::Block4;
     use crate::codec::transform8x8::Block8;
     use crate::encode::rate::{Block8Pricer, BlockPricer};
@@ -129,6 +138,11 @@ mod avx2 {
             => super::inter_luma8;
         fn intra_block8(src: &[u8; 256], pred: &[u8; 256], q: usize, qp_lambda: (u8, f64), rate: Option<&Block8Pricer>) -> Block8
             => super::intra_block8;
+    }
+    // The counts of non-zero levels are masks counted by POPCNT (which the
+    // AVX2 level requires too): without it, bit by bit.
+    crate::codec::compiled_for! { "avx2,popcnt":
+        fn residual_estimate(res: &MbResidual) -> f64 => crate::encode::rate::residual_estimate;
     }
 }
 

@@ -139,9 +139,9 @@ impl Coded {
 
     /// [`Coded::priced`] with the bits estimated from the levels alone
     /// ([`rate::residual_estimate`]).
-    fn estimated(src: &MbSource, residual: Box<MbResidual>, samples: MbSamples) -> Coded {
+    fn estimated(src: &MbSource, residual: Box<MbResidual>, samples: MbSamples, dsp: &CoderDsp) -> Coded {
         Coded {
-            bits: rate::residual_estimate(&residual),
+            bits: (dsp.residual_estimate)(&residual),
             ssd: src.ssd(&samples),
             residual,
             samples,
@@ -311,7 +311,7 @@ impl MbCoder {
     ) -> Coded {
         let samples = reconstruct_samples(pred, &residual, self.qp);
         if self.estimated_rates {
-            return Coded::estimated(src, residual, samples);
+            return Coded::estimated(src, residual, samples, self.dsp);
         }
         Coded::priced(src, residual, samples, coder_syntax, at)
     }

@@ -479,15 +479,22 @@ mod x86 {
     pub(super) unsafe fn vpass16_avx2(tmp: &[[i16; N16]; N16 + 7], taps: &[i32; 8], out: &mut [u8; 256]) {
         let pair = |k: usize| _mm256_set1_epi32((taps[k + 1] << 16) | (taps[k] & 0xffff));
         let coef = [pair(0), pair(2), pair(4), pair(6)];
-        let rows: [__m256i; N16 + 7] = std::array::from_fn(|r| {
-            // SAFETY: a row is 16 i16 = 32 bytes; unaligned load.
-            unsafe { _mm256_loadu_si256(tmp[r].as_ptr() as *const __m256i) }
-        });
         let round = _mm256_set1_epi32(32);
+        // Rows loaded where used (from L1), not gathered into an array of
+        // 23 vectors first: more than the registers hold, that array was a
+        // 736-byte copy of `tmp` on the stack every call.
+        let rows = tmp.as_ptr() as *const __m256i;
         for (r, o) in out.chunks_exact_mut(N16).enumerate() {
             let (mut lo, mut hi) = (_mm256_setzero_si256(), _mm256_setzero_si256());
             for (p, c) in coef.iter().enumerate() {
-                let (a, b) = (rows[r + 2 * p], rows[r + 2 * p + 1]);
+                // SAFETY: rows r + 2p and r + 2p + 1 are at most row 22 of
+                // tmp's 23 rows of 16 i16 (32 bytes each); unaligned loads.
+                let (a, b) = unsafe {
+                    (
+                        _mm256_loadu_si256(rows.add(r + 2 * p)),
+                        _mm256_loadu_si256(rows.add(r + 2 * p + 1)),
+                    )
+                };
                 lo = _mm256_add_epi32(lo, _mm256_madd_epi16(_mm256_unpacklo_epi16(a, b), *c));
                 hi = _mm256_add_epi32(hi, _mm256_madd_epi16(_mm256_unpackhi_epi16(a, b), *c));
             }

@@ -241,6 +241,12 @@ pub fn predict_inter(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mv: RefMv
     predict_inter_blocks(ctx, mb_x, mb_y, &[mv; 4])
 }
 
+/// [`predict_inter`] into `pred` (every sample written): an encoder
+/// predicting into a record it keeps saves the copy of a returned one.
+pub fn predict_inter_into(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mv: RefMv, pred: &mut MbSamples) {
+    predict_inter_blocks_into(ctx, mb_x, mb_y, &[mv; 4], pred)
+}
+
 /// Block motion compensation of the `w x h` luma rectangle at (bx, by) in
 /// macroblock (mb_x, mb_y), and of its chroma, with vector `mv`, into the
 /// same place of `pred`.
@@ -287,6 +293,18 @@ fn predict_rect(
 /// the context's references.
 pub fn predict_inter_blocks(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mvs: &[RefMv; 4]) -> MbSamples {
     let mut pred = MbSamples::default();
+    predict_inter_blocks_into(ctx, mb_x, mb_y, mvs, &mut pred);
+    pred
+}
+
+/// [`predict_inter_blocks`] into `pred` (every sample written).
+pub fn predict_inter_blocks_into(
+    ctx: &InterContext<'_>,
+    mb_x: usize,
+    mb_y: usize,
+    mvs: &[RefMv; 4],
+    pred: &mut MbSamples,
+) {
     let (x, y) = ((mb_x * MB) as isize, (mb_y * MB) as isize);
     let (cx, cy) = (x / 2, y / 2);
     let r = ctx.references[0];
@@ -312,7 +330,7 @@ pub fn predict_inter_blocks(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mv
                     (mb_x, mb_y),
                     (bx, by, w, h),
                     m.mv,
-                    &mut pred,
+                    pred,
                 );
             }
         }
@@ -355,7 +373,6 @@ pub fn predict_inter_blocks(ctx: &InterContext<'_>, mb_x: usize, mb_y: usize, mv
             copy(warped.v(), MB / 2, &mut pred.chroma[1]);
         }
     }
-    pred
 }
 
 /// Adds one 4x4 block of levels, dequantised at `qp`, to the prediction

@@ -26,7 +26,7 @@ use crate::codec::mv::mvd_bits;
 use crate::codec::mv::Mv;
 use crate::codec::mvpred::{mv_prediction, mv_prediction_into, walk_partitions};
 use crate::codec::partition::{MbVectors, Part, RefMv, Split};
-use crate::codec::recon::{predict_inter, predict_inter_blocks, MbSamples};
+use crate::codec::recon::{predict_inter, predict_inter_blocks, predict_inter_into, MbSamples};
 use crate::codec::residual::{MbResidual, ResidualCoder, ResidualSyntax};
 use crate::codec::syntax::{mb_mode, MbKind, MotionTool};
 use crate::codec::Frame;
@@ -97,12 +97,10 @@ fn intra_against(
     let (luma, satd) = best_intra_16x16(coder, s, recon, at, &mut pred);
     let whole = bound.is_none_or(|b| satd < b.satd);
     // In P frames, where inter mostly wins, blocks are searched only where
-    // 16x16 intra is within the bound's margin of inter by SATD (and the
-    // neighbours' modes are looked up only where some block size is tried:
-    // ultrafast's and superfast's P frames try none).
+    // 16x16 intra is within the bound's margin of inter by SATD, and where
+    // a block size is tried (ultrafast's and superfast's P frames: none).
     let hopeless = bound.is_some_and(|b| f64::from(satd) > b.search_margin * f64::from(b.satd));
-    let blocks_tried = coder.intra8x8 || coder.intra4x4;
-    let search = (blocks_tried && !hopeless).then(|| {
+    let search = ((coder.intra8x8 || coder.intra4x4) && !hopeless).then(|| {
         let (around, mode_bits) = intra4x4::pricing(modes, at);
         IntraBlockSearch {
             coder,
@@ -284,6 +282,34 @@ pub(super) struct MbAnalysis {
 }
 
 impl MbAnalysis {
+    /// A record for [`InterFrameCoder::analyse_skip`] to fill (its
+    /// content until then: nothing meaningful).
+    pub(super) fn empty() -> MbAnalysis {
+        MbAnalysis {
+            index: 0,
+            mb_x: 0,
+            mb_y: 0,
+            source: MbSource {
+                luma: [0; 256],
+                chroma: [[0; 64]; 2],
+            },
+            mvp: Mv::ZERO,
+            best: Choice {
+                cost: f64::INFINITY,
+                residual_cost: 0.0,
+                kind: MbKind::Skip,
+                pred: MbSamples::default(),
+                residual: None,
+                samples: None,
+            },
+            exhaustive: false,
+            skip_luma_sse: 0,
+            searched: Mv::ZERO,
+            inter_satd: u32::MAX,
+            inter_estimate: f64::INFINITY,
+        }
+    }
+
     /// Keeps `choice` if it costs less than the best so far.
     pub(super) fn consider(&mut self, choice: Choice) {
         if choice.cost < self.best.cost {
@@ -495,11 +521,15 @@ impl InterFrameCoder<'_, '_> {
         }
     }
 
-    /// The analysis context of macroblock `index` with skip as its best.
-    pub(super) fn analyse_skip(&self, index: usize, env: &MbEnv<'_>) -> MbAnalysis {
+    /// `mb` made the analysis context of macroblock `index`, with skip as
+    /// its best. The record is the caller's, kept from macroblock to
+    /// macroblock: the source and the skip prediction are written into it
+    /// in place (returned by value, the 1.3 KB record and the samples in
+    /// it were copied two or three times a macroblock).
+    pub(super) fn analyse_skip(&self, index: usize, env: &MbEnv<'_>, mb: &mut MbAnalysis) {
         let cols = self.seq.mb_cols();
         let (mb_x, mb_y) = (index % cols, index / cols);
-        let source = MbSource::load(self.src, mb_x, mb_y);
+        mb.source.load_into(self.src, mb_x, mb_y);
         prefetch_ahead(self.src, mb_x, mb_y);
         let mvp = if self.syntax.any() {
             mv_prediction(env.decided, mb_x, mb_y, cols)
@@ -507,36 +537,29 @@ impl InterFrameCoder<'_, '_> {
             Mv::ZERO
         };
         prefetch_ahead_displaced(self.references[0], mb_x, mb_y, mvp);
-        let skip_pred = predict_inter(&self.inter_context(), mb_x, mb_y, RefMv::previous(mvp));
+        predict_inter_into(
+            &self.inter_context(),
+            mb_x,
+            mb_y,
+            RefMv::previous(mvp),
+            &mut mb.best.pred,
+        );
         let lambda = self.coder.lambda;
         let skip_bits = self.mode_bits_at(env, (mb_x, mb_y), &MbMode::Skip);
-        let (skip_luma_sse, skip_chroma_sse) = source.ssd_by_plane(&skip_pred);
+        let (skip_luma_sse, skip_chroma_sse) = mb.source.ssd_by_plane(&mb.best.pred);
         let cost = rdo::cost(lambda, skip_luma_sse + skip_chroma_sse, skip_bits);
         // Every other choice spends at least the flag saying it is not
         // skipped: when skip costs no more, nothing can beat it.
         let not_skipped = rdo::bits(rate::not_skipped_cost(env.modes, (mb_x, mb_y)));
-        // Built as the returned value, in place (a 1.7 KB record a
-        // macroblock: made in a local, it was copied out twice).
-        MbAnalysis {
-            index,
-            mb_x,
-            mb_y,
-            mvp,
-            best: Choice {
-                cost,
-                residual_cost: 0.0,
-                kind: MbKind::Skip,
-                pred: skip_pred,
-                samples: None,
-                residual: None,
-            },
-            source,
-            exhaustive: cost > rdo::cost(lambda, 0, not_skipped),
-            skip_luma_sse,
-            searched: mvp,
-            inter_satd: u32::MAX,
-            inter_estimate: f64::INFINITY,
-        }
+        (mb.index, mb.mb_x, mb.mb_y, mb.mvp) = (index, mb_x, mb_y, mvp);
+        let best = &mut mb.best;
+        (best.cost, best.residual_cost, best.kind) = (cost, 0.0, MbKind::Skip);
+        (best.samples, best.residual) = (None, None);
+        mb.exhaustive = cost > rdo::cost(lambda, 0, not_skipped);
+        mb.skip_luma_sse = skip_luma_sse;
+        mb.searched = mvp;
+        mb.inter_satd = u32::MAX;
+        mb.inter_estimate = f64::INFINITY;
     }
 
     /// The 16x16 inter candidates, estimated, not yet coded: the predicted

@@ -35,14 +35,20 @@ impl MbSource {
             luma: [0; 256],
             chroma: [[0; 64]; 2],
         };
+        s.load_into(frame, mb_x, mb_y);
+        s
+    }
+
+    /// [`MbSource::load`] into this record (kept from macroblock to
+    /// macroblock: no copy of a returned one).
+    pub fn load_into(&mut self, frame: &Frame, mb_x: usize, mb_y: usize) {
         let (x0, y0) = (mb_x * MB, mb_y * MB);
-        frame.y().read_block::<MB>(x0, y0, &mut s.luma);
+        frame.y().read_block::<MB>(x0, y0, &mut self.luma);
         for p in 0..2 {
             frame
                 .plane(p + 1)
-                .read_block::<8>(x0 / 2, y0 / 2, &mut s.chroma[p]);
+                .read_block::<8>(x0 / 2, y0 / 2, &mut self.chroma[p]);
         }
-        s
     }
 
     /// Squared error of a prediction (or reconstruction), luma and chroma.

@@ -181,23 +181,21 @@ pub(crate) fn code_intra(
         deblock: deblock.then_some((header.qp, header.tool)),
         measure: None,
     };
-    let decided = frame.decide(recon, &|env, index| {
+    let decided = frame.decide(recon, &|env, index, mb| {
         let (mb_x, mb_y) = (index % cols, index / cols);
-        let s = MbSource::load(src, mb_x, mb_y);
+        mb.source.load_into(src, mb_x, mb_y);
         prefetch_ahead(src, mb_x, mb_y);
-        let best = best_intra(
+        mb.best = best_intra(
             coder,
-            &s,
+            &mb.source,
             env.recon,
             (mb_x, mb_y),
             (env.modes, env.residual),
             None,
         )
         .expect("without a bound, intra always has a choice");
-        let prediction_sse = visible_luma_sse(&s, &best.pred, mb_x, mb_y, seq);
         wavefront::Decision {
-            choice: best,
-            prediction_sse,
+            prediction_sse: visible_luma_sse(&mb.source, &mb.best.pred, mb_x, mb_y, seq),
             mvp: None,
         }
     })?;
@@ -573,17 +571,16 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
         }
     }
 
-    /// Macroblock `index`'s decision from `env`, and its prediction's
-    /// squared luma error.
-    fn decide_mb(&self, env: &MbEnv<'_>, index: usize) -> wavefront::Decision {
-        let mut mb = self.analyse_skip(index, env);
-        self.analyse_beyond_skip(&mut mb, env);
+    /// Macroblock `index` decided from `env` into `mb` (its best choice),
+    /// and its prediction's squared luma error.
+    fn decide_mb(&self, env: &MbEnv<'_>, index: usize, mb: &mut MbAnalysis) -> wavefront::Decision {
+        self.analyse_skip(index, env, mb);
+        self.analyse_beyond_skip(mb, env);
         let prediction_sse = match mb.skip_pred() {
             Some(_) if visible_size(mb.mb_x, mb.mb_y, self.seq) == (16, 16) => mb.skip_luma_sse,
             _ => visible_luma_sse(&mb.source, &mb.best.pred, mb.mb_x, mb.mb_y, self.seq),
         };
         wavefront::Decision {
-            choice: mb.best,
             prediction_sse,
             // (Predicted from the decided vectors only where the frame
             // codes vectors: [`Self::analyse_skip`].)
@@ -632,7 +629,7 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
         let recon = self.lend_recon()?;
         let decided = self
             .wavefront()
-            .decide(recon, &|env, index| self.decide_mb(env, index))?;
+            .decide(recon, &|env, index, mb| self.decide_mb(env, index, mb))?;
         self.take_decided(decided);
         Ok(())
     }
@@ -649,16 +646,17 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
         }
     }
 
-    /// Reconstructs and records the decided macroblock.
-    fn commit(&mut self, mb: MbAnalysis) {
+    /// Reconstructs and records the decided macroblock (its residual
+    /// taken from the record).
+    fn commit(&mut self, mb: &mut MbAnalysis) {
         let (mb_x, mb_y) = (mb.mb_x, mb.mb_y);
-        let best = mb.best;
+        let best = &mut mb.best;
         write_mb(best.reconstruction(), &mut self.frame.recon, mb_x, mb_y);
         self.frame.prediction_sse += visible_luma_sse(&mb.source, &best.pred, mb_x, mb_y, self.seq);
         let cols = self.seq.mb_cols();
         let v = mb_vectors(&best.kind, &self.decided, mb_x, mb_y, cols);
         self.frame.kinds[kind_index(&best.kind)] += 1;
-        let coded = match best.residual {
+        let coded = match best.residual.take() {
             Some(levels) => CodedMb::with_levels(best.kind, levels),
             None => CodedMb::without_residual(best.kind),
         };
@@ -737,11 +735,12 @@ pub(crate) fn code_inter(
         // OBMC prices with its neighbours' searched vectors until they are
         // decided, and grid frames are cheap to decide: raster order.
         let satd8 = RefCell::default();
+        let mut mb = MbAnalysis::empty();
         for index in 0..seq.mb_cols() * seq.mb_rows() {
             let env = frame_coder.raster_env(&satd8);
-            let mut mb = frame_coder.analyse_skip(index, &env);
+            frame_coder.analyse_skip(index, &env, &mut mb);
             frame_coder.analyse_beyond_skip(&mut mb, &env);
-            frame_coder.commit(mb);
+            frame_coder.commit(&mut mb);
         }
     }
     frame_coder.finish(state, beside)
@@ -852,7 +851,7 @@ pub(crate) fn decide_inter_rows<'a>(
         );
         row_coder
             .wavefront()
-            .decide_row(&mut rows, &|env, index| row_coder.decide_mb(env, index));
+            .decide_row(&mut rows, &|env, index, mb| row_coder.decide_mb(env, index, mb));
         frame_coder = row_coder.with_references(Vec::new());
         if unmeasured.is_none() {
             publish.publish(rows.recon(), rows.vectors(), rows.final_rows());

@@ -16,7 +16,7 @@
 use std::cell::RefCell;
 use std::sync::{Mutex, OnceLock};
 
-use super::analyse::{Choice, MbEnv};
+use super::analyse::{MbAnalysis, MbEnv};
 use super::deblock_choice::{DeblockEffect, DeblockMeter};
 use super::macroblock::prefetch_ahead;
 use super::partition::SatdCache;
@@ -63,9 +63,9 @@ pub(super) enum ResidualTracking {
     Nothing,
 }
 
-/// One macroblock's decision.
+/// What one macroblock's decision returns beside its best choice (which
+/// it leaves in the worker's [`MbAnalysis`]).
 pub(super) struct Decision {
-    pub(super) choice: Choice,
     /// Its prediction's squared luma error (visible part).
     pub(super) prediction_sse: u64,
     /// The macroblock's predicted vector, where the analysis found it from
@@ -120,6 +120,8 @@ struct Worker {
     residual: ResidualCoder,
     recon: Frame,
     satd8: RefCell<SatdCache>,
+    /// The record each macroblock's analysis is made in (one a worker).
+    analysis: Box<MbAnalysis>,
     /// The row the worker decided last: when that is the row above, its
     /// state already holds the neighbours there (one worker: every row).
     last_row: Option<usize>,
@@ -187,7 +189,7 @@ impl WavefrontFrame<'_> {
     pub(super) fn decide(
         &self,
         recon: Frame,
-        decide: &(dyn Fn(&MbEnv<'_>, usize) -> Decision + Sync),
+        decide: &(dyn Fn(&MbEnv<'_>, usize, &mut MbAnalysis) -> Decision + Sync),
     ) -> Result<DecidedFrame, PictureError> {
         let (cols, rows) = (self.seq.mb_cols(), self.seq.mb_rows());
         let decided: Vec<OnceLock<Decided>> = (0..cols * rows).map(|_| OnceLock::new()).collect();
@@ -254,7 +256,7 @@ impl WavefrontFrame<'_> {
         &self,
         w: &mut Worker,
         frame: &FrameRows<'_>,
-        decide: &(dyn Fn(&MbEnv<'_>, usize) -> Decision + Sync),
+        decide: &(dyn Fn(&MbEnv<'_>, usize, &mut MbAnalysis) -> Decision + Sync),
         (c, r): (usize, usize),
         shared: bool,
     ) {
@@ -313,6 +315,7 @@ impl WavefrontFrame<'_> {
                 .and_then(|mut r| r.pop())
                 .expect("a reconstruction per worker"),
             satd8: RefCell::default(),
+            analysis: Box::new(MbAnalysis::empty()),
             last_row: None,
             held: vec![false; rows],
             deblocking: self.deblock.filter(|_| !shared).map(|(qp, tool)| {
@@ -334,7 +337,7 @@ impl WavefrontFrame<'_> {
     fn commit(
         &self,
         w: &mut Worker,
-        decide: &(dyn Fn(&MbEnv<'_>, usize) -> Decision + Sync),
+        decide: &(dyn Fn(&MbEnv<'_>, usize, &mut MbAnalysis) -> Decision + Sync),
         (c, r): (usize, usize),
         shared: bool,
     ) -> Decided {
@@ -347,10 +350,12 @@ impl WavefrontFrame<'_> {
             recon: &w.recon,
             satd8: &w.satd8,
         };
-        // Read in place (destructured, the 850-byte decision was copied
-        // a macroblock; the record below is built where it is returned).
-        let decision = decide(&env, index);
-        let best = &decision.choice;
+        // The analysis record is the worker's, kept from macroblock to
+        // macroblock: the decision is read where it was made (returned,
+        // the 850-byte choice was copied a macroblock; the record below is
+        // built where it is returned).
+        let decision = decide(&env, index, &mut w.analysis);
+        let best = &mut w.analysis.best;
         let done = &w.decided[..index];
         let vectors = match (&best.kind, decision.mvp) {
             (MbKind::Skip, Some(mvp)) => [Some(RefMv::previous(mvp)); 4],
@@ -360,9 +365,9 @@ impl WavefrontFrame<'_> {
         write_mb(best.reconstruction(), &mut w.recon, c, r);
         w.decided[index] = vectors;
         w.modes.commit(c, r, self.inter_frame, self.syntax, &mode);
-        let coded = match decision.choice.residual {
-            Some(levels) => CodedMb::with_levels(decision.choice.kind, levels),
-            None => CodedMb::without_residual(decision.choice.kind),
+        let coded = match best.residual.take() {
+            Some(levels) => CodedMb::with_levels(best.kind, levels),
+            None => CodedMb::without_residual(best.kind),
         };
         if coded.kind != MbKind::Skip {
             let syntax = coded.kind.residual_syntax();
@@ -377,7 +382,7 @@ impl WavefrontFrame<'_> {
             // (Not `shared.then(..)`: its closure took the samples, a copy
             // a macroblock with one worker too.)
             samples: if shared {
-                Some(Box::new(decision.choice.samples.unwrap_or(decision.choice.pred)))
+                Some(Box::new(best.reconstruction().clone()))
             } else {
                 None
             },
@@ -483,7 +488,7 @@ impl WavefrontFrame<'_> {
     pub(super) fn decide_row(
         &self,
         rows: &mut RowByRow,
-        decide: &(dyn Fn(&MbEnv<'_>, usize) -> Decision + Sync),
+        decide: &(dyn Fn(&MbEnv<'_>, usize, &mut MbAnalysis) -> Decision + Sync),
     ) {
         let r = rows.done;
         assert!(r < self.seq.mb_rows(), "a row beyond the frame");

@@ -42,7 +42,10 @@ pub(super) struct InterCandidate {
     pub(super) satd: u32,
     /// SATD + sqrt(lambda) * (vector and reference index bits).
     pub(super) estimate: f64,
-    pub(super) pred: MbSamples,
+    /// Its prediction; `None` for the predicted vector's, which is the
+    /// skip's (read from the analysis while skip is its best, not copied
+    /// into every candidate list: [`InterFrameCoder::candidate_pred`]).
+    pub(super) pred: Option<MbSamples>,
 }
 
 /// What one macroblock's analysis reads besides the frame's inputs: the
@@ -470,7 +473,9 @@ impl InterFrameCoder<'_, '_> {
         }
         let at = (mb.mb_x, mb.mb_y, self.seq.mb_cols());
         let mvp = mv_prediction_into(env.decided, at, mv.ref_idx);
-        let winner = self.inter_candidate(mb, mv, mvp, mb.best.pred.clone()).estimate;
+        let winner = self
+            .inter_candidate(mb, mv, mvp, Some(mb.best.pred.clone()))
+            .estimate;
         // The eight quarter-pel steps around it.
         let mut candidates: Vec<InterCandidate> = SQUARE
             .iter()
@@ -479,7 +484,7 @@ impl InterFrameCoder<'_, '_> {
             .map(|m| {
                 let m = RefMv::new(m, mv.ref_idx);
                 let pred = predict_inter(&self.inter_context(), mb.mb_x, mb.mb_y, m);
-                self.inter_candidate(mb, m, mvp, pred)
+                self.inter_candidate(mb, m, mvp, Some(pred))
             })
             .filter(|c| c.estimate <= RD_MARGIN * winner)
             .collect();
@@ -489,7 +494,8 @@ impl InterFrameCoder<'_, '_> {
                 mvd: c.mv.mv - c.mvp,
                 ref_idx: c.mv.ref_idx,
             };
-            let choice = self.coded_choice(mb, MbKind::Inter { mv: c.mv }, &mode, c.pred, env);
+            let pred = self.candidate_pred(mb, c.mv, c.pred);
+            let choice = self.coded_choice(mb, MbKind::Inter { mv: c.mv }, &mode, pred, env);
             mb.consider(choice);
         }
     }
@@ -571,8 +577,13 @@ impl InterFrameCoder<'_, '_> {
         let mut candidates = Vec::with_capacity(1 + usize::from(self.syntax.refs()));
         for mv in std::iter::once(mb.mvp).chain(searched_mv) {
             let pred = match mb.skip_pred() {
-                Some(skip_pred) if mv == mb.mvp => skip_pred.clone(),
-                _ => predict_inter(&self.inter_context(), mb.mb_x, mb.mb_y, RefMv::previous(mv)),
+                Some(_) if mv == mb.mvp => None,
+                _ => Some(predict_inter(
+                    &self.inter_context(),
+                    mb.mb_x,
+                    mb.mb_y,
+                    RefMv::previous(mv),
+                )),
             };
             candidates.push(self.inter_candidate(mb, RefMv::previous(mv), mb.mvp, pred));
         }
@@ -627,8 +638,21 @@ impl InterFrameCoder<'_, '_> {
             mvd: c.mv.mv - c.mvp,
             ref_idx: c.mv.ref_idx,
         };
-        let choice = self.coded_choice(mb, MbKind::Inter { mv: c.mv }, &mode, c.pred, env);
+        let pred = self.candidate_pred(mb, c.mv, c.pred);
+        let choice = self.coded_choice(mb, MbKind::Inter { mv: c.mv }, &mode, pred, env);
         mb.consider(choice);
+    }
+
+    /// A candidate's prediction `pred` at `mv`, to be coded: its own, or
+    /// the skip's (copied while skip is the best; predicted again where
+    /// another choice has taken its place, as an intra block search can
+    /// before the fast decision codes inter).
+    fn candidate_pred(&self, mb: &MbAnalysis, mv: RefMv, pred: Option<MbSamples>) -> MbSamples {
+        match (pred, mb.skip_pred()) {
+            (Some(own), _) => own,
+            (None, Some(skip)) => skip.clone(),
+            (None, None) => predict_inter(&self.inter_context(), mb.mb_x, mb.mb_y, mv),
+        }
     }
 
     /// A 16x16 inter candidate with its SATD and its estimate, SATD +
@@ -638,9 +662,13 @@ impl InterFrameCoder<'_, '_> {
         mb: &MbAnalysis,
         mv: RefMv,
         mvp: Mv,
-        pred: MbSamples,
+        pred: Option<MbSamples>,
     ) -> InterCandidate {
-        let satd = luma_satd(&mb.source, &pred);
+        let samples = pred
+            .as_ref()
+            .or(mb.skip_pred())
+            .expect("a prediction or the skip's");
+        let satd = luma_satd(&mb.source, samples);
         let bits = mvd_bits(mv.mv, mvp) + reference_bits(mv.ref_idx, self.syntax.refs());
         InterCandidate {
             mv,
@@ -699,7 +727,7 @@ impl InterFrameCoder<'_, '_> {
         found.set(x, y, best.mv);
         let mv = RefMv::new(best.mv, ref_idx);
         let pred = predict_inter(&self.inter_context(), x, y, mv);
-        Some(self.inter_candidate(mb, mv, mvp, pred))
+        Some(self.inter_candidate(mb, mv, mvp, Some(pred)))
     }
 
     /// The macroblock split into partitions (block frames): the 8x8 split

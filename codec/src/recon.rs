@@ -404,6 +404,14 @@ pub fn add_luma8(blocks: &[Block8; 4], qp: u8, out: &mut [u8; 256]) {
 #[inline]
 pub fn reconstruct_samples(pred: &MbSamples, residual: &MbResidual, qp: u8) -> MbSamples {
     let mut out = pred.clone();
+    add_residual(&mut out, residual, qp);
+    out
+}
+
+/// [`reconstruct_samples`] in place: `residual` dequantised at `qp`
+/// added to the prediction `out` (an encoder's record, not copied out of
+/// a returned one).
+pub fn add_residual(out: &mut MbSamples, residual: &MbResidual, qp: u8) {
     match &residual.luma8 {
         Some(b8) => add_luma8(b8, qp, &mut out.luma),
         // Only intra 16x16 macroblocks have luma DC levels apart.
@@ -420,7 +428,6 @@ pub fn reconstruct_samples(pred: &MbSamples, residual: &MbResidual, qp: u8) -> M
     for (p, plane) in out.chroma.iter_mut().enumerate() {
         add_chroma_plane(&residual.chroma[p], cqp, plane);
     }
-    out
 }
 
 /// Adds a chroma plane's four blocks of levels to its prediction `out`

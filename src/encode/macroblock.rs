@@ -7,7 +7,7 @@ use super::dsp::{coder, CoderDsp};
 use super::rate::{self, BlockPricer};
 use super::rdo;
 use crate::codec::mv::Mv;
-use crate::codec::recon::{add_luma8, chroma_qp, reconstruct_samples, MbSamples};
+use crate::codec::recon::{add_luma8, add_residual, chroma_qp, MbSamples};
 use crate::codec::residual::{BlockClass, MbResidual, ResidualCoder, ResidualSyntax};
 use crate::codec::syntax::MB;
 use crate::codec::transform::{dequantize_chroma_dc, quantize_chroma_dc, quantize_luma_dc, Block4};
@@ -137,17 +137,6 @@ impl Coded {
                 syntax,
                 &residual,
             )),
-            ssd: src.ssd(&samples),
-            residual,
-            samples,
-        }
-    }
-
-    /// [`Coded::priced`] with the bits estimated from the levels alone
-    /// ([`rate::residual_estimate`]).
-    fn estimated(src: &MbSource, residual: Box<MbResidual>, samples: MbSamples, dsp: &CoderDsp) -> Coded {
-        Coded {
-            bits: (dsp.residual_estimate)(&residual),
             ssd: src.ssd(&samples),
             residual,
             samples,
@@ -315,11 +304,23 @@ impl MbCoder {
         coder_syntax: (&ResidualCoder, ResidualSyntax),
         at: (usize, usize),
     ) -> Coded {
-        let samples = reconstruct_samples(pred, &residual, self.qp);
-        if self.estimated_rates {
-            return Coded::estimated(src, residual, samples, self.dsp);
-        }
-        Coded::priced(src, residual, samples, coder_syntax, at)
+        // Built in place: reconstructed by value and moved in, the
+        // samples were copied three times a coded candidate.
+        let mut coded = Coded {
+            residual,
+            bits: 0.0,
+            ssd: 0,
+            samples: pred.clone(),
+        };
+        add_residual(&mut coded.samples, &coded.residual, self.qp);
+        coded.ssd = src.ssd(&coded.samples);
+        coded.bits = if self.estimated_rates {
+            (self.dsp.residual_estimate)(&coded.residual)
+        } else {
+            let (residual_coder, syntax) = coder_syntax;
+            rdo::bits(rate::residual_cost(residual_coder, at, syntax, &coded.residual))
+        };
+        coded
     }
 
     /// The luma levels of `src - pred` in 4x4 transforms as
@@ -707,6 +708,7 @@ impl ChromaDcTrial<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::codec::recon::reconstruct_samples;
     use proptest::prelude::*;
 
     /// A textured macroblock.

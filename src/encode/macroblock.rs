@@ -287,7 +287,7 @@ impl MbCoder {
         mb_y: usize,
     ) -> Coded {
         let mut residual = self.luma_residual(src, pred, intra, residual_coder);
-        self.code_chroma(src, pred, intra, residual_coder, &mut residual);
+        self.code_chroma(src, pred, intra, residual_coder, &mut residual.chroma);
         let syntax = ResidualSyntax::of_4x4(intra);
         self.reconstructed(src, pred, residual, (residual_coder, syntax), (mb_x, mb_y))
     }
@@ -376,7 +376,7 @@ impl MbCoder {
         at: (usize, usize),
     ) -> Coded {
         let mut residual = self.intra16x16_luma(src, pred, residual_coder);
-        self.code_chroma(src, pred, true, residual_coder, &mut residual);
+        self.code_chroma(src, pred, true, residual_coder, &mut residual.chroma);
         self.reconstructed(
             src,
             pred,
@@ -442,9 +442,9 @@ impl MbCoder {
         pred: &MbSamples,
         residual_coder: &ResidualCoder,
     ) -> [[Block4; 4]; 2] {
-        let mut residual = MbResidual::default();
-        self.code_chroma(src, pred, true, residual_coder, &mut residual);
-        residual.chroma
+        let mut chroma = [[[[0; 4]; 4]; 4]; 2];
+        self.code_chroma(src, pred, true, residual_coder, &mut chroma);
+        chroma
     }
 
     /// An intra macroblock coded in 8x8 blocks: `pred` (each luma block
@@ -473,7 +473,7 @@ impl MbCoder {
         )
     }
 
-    /// The chroma levels of `src - pred` into `residual`, as
+    /// The chroma levels of `src - pred` into `chroma`, as
     /// [`MbCoder::code`] quantises them: per plane, the AC levels of its
     /// four blocks ([`MbCoder::chroma_ac`]), then its DC levels in the
     /// blocks' position 0 (FORMAT.md section 10.1): the plane zeroed in an
@@ -487,13 +487,12 @@ impl MbCoder {
         pred: &MbSamples,
         intra: bool,
         residual_coder: &ResidualCoder,
-        residual: &mut MbResidual,
+        chroma: &mut [[Block4; 4]; 2],
     ) {
         let cqp = chroma_qp(self.qp);
         let rounding = if intra { ROUND_INTRA } else { ROUND_INTER };
         let (mut ac_rate, mut dc_rate) = (None, None);
-        for p in 0..2 {
-            let blocks = &mut residual.chroma[p];
+        for (p, blocks) in chroma.iter_mut().enumerate() {
             let mut diffs = [[[0i32; 4]; 4]; 4];
             (self.dsp.quantize_blocks)(
                 &src.chroma[p],

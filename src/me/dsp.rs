@@ -1457,19 +1457,21 @@ mod x86_halfpel {
         // SAFETY: `first` is inside the reference's buffer (asserted).
         let base = unsafe { reference.data().as_ptr().add(first) };
         let filter = Filter::new();
-        let mut hpass = [[0i16; W]; ROWS + 7];
-        for (r, row) in hpass.iter_mut().enumerate() {
-            // SAFETY: row r's 39 samples from `base` (asserted), and 32
-            // values of `row`.
+        // Every value is stored below before any is read: not cleared
+        // first (1600 bytes a searched macroblock).
+        let mut first_pass = std::mem::MaybeUninit::<[[i16; W]; ROWS + 7]>::uninit();
+        let rows = first_pass.as_mut_ptr() as *mut i16;
+        for r in 0..ROWS + 7 {
+            // SAFETY: row r's 39 samples from `base` (asserted), and the
+            // 32 values of row r of `first_pass`.
             unsafe {
-                let p = base.add(r * stride);
-                _mm256_storeu_si256(row.as_mut_ptr() as *mut __m256i, filter.horizontal16(p));
-                _mm256_storeu_si256(
-                    row.as_mut_ptr().add(16) as *mut __m256i,
-                    filter.horizontal16(p.add(16)),
-                );
+                let (p, row) = (base.add(r * stride), rows.add(r * W));
+                _mm256_storeu_si256(row as *mut __m256i, filter.horizontal16(p));
+                _mm256_storeu_si256(row.add(16) as *mut __m256i, filter.horizontal16(p.add(16)));
             }
         }
+        // SAFETY: all ROWS + 7 rows of W values were stored above.
+        let hpass = unsafe { first_pass.assume_init_ref() };
         let (h, rest) = out.split_at_mut(PHASE);
         let (v, rest) = rest.split_at_mut(PHASE);
         let d = &mut rest[..PHASE];

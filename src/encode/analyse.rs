@@ -490,13 +490,7 @@ impl InterFrameCoder<'_, '_> {
             .collect();
         candidates.sort_by(|a, b| a.estimate.total_cmp(&b.estimate));
         for c in candidates.into_iter().take(2) {
-            let mode = MbMode::Inter {
-                mvd: c.mv.mv - c.mvp,
-                ref_idx: c.mv.ref_idx,
-            };
-            let pred = self.candidate_pred(mb, c.mv, c.pred);
-            let choice = self.coded_choice(mb, MbKind::Inter { mv: c.mv }, &mode, pred, env);
-            mb.consider(choice);
+            self.code_candidate(mb, env, c);
         }
     }
 

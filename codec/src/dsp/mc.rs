@@ -145,7 +145,15 @@ unsafe fn luma_body<const AVX2: bool>(
 ) {
     const B: usize = TAPS_BEFORE;
     if w == 16 && h == 16 && (fx, fy) != (0, 0) {
-        // The macroblock case, with sizes the compiler knows.
+        // The macroblock case, with sizes the compiler knows; written in
+        // place where `out` is a macroblock's 16x16 block.
+        if out_stride == 16 {
+            if let Some(block) = out.first_chunk_mut::<256>() {
+                // SAFETY: this function's contract passes on.
+                luma_16x16::<AVX2>(taps, data, stride, fx, fy, block);
+                return;
+            }
+        }
         let mut block = [0u8; 256];
         // SAFETY: this function's contract passes on.
         luma_16x16::<AVX2>(taps, data, stride, fx, fy, &mut block);
@@ -295,16 +303,18 @@ unsafe fn luma_16x16<const AVX2: bool>(
     if AVX2 && fx != 0 {
         let rows = if fy == 0 { N } else { N + 7 };
         let first = if fy == 0 { B } else { 0 };
-        let mut tmp = [[0i16; N]; N + 7];
+        // Not cleared first (a 736-byte memset a call): the pass writes
+        // every row it returns.
+        let mut tmp = [std::mem::MaybeUninit::<[i16; N]>::uninit(); N + 7];
         // SAFETY: the caller's contract: AVX2 only where the CPU has it.
-        unsafe { x86::hpass16_rows(data, stride, first, &taps[fx], &mut tmp[..rows]) };
-        if fy == 0 {
-            for (r, acc) in tmp[..N].iter().enumerate() {
+        let tmp = unsafe { x86::hpass16_rows(data, stride, first, &taps[fx], &mut tmp[..rows]) };
+        if let Ok(all) = <&[[i16; N]; N + 7]>::try_from(&*tmp) {
+            // SAFETY: the caller's contract: AVX2 only where the CPU has it.
+            unsafe { x86::vpass16_avx2(all, &taps[fy], out) };
+        } else {
+            for (r, acc) in tmp.iter().enumerate() {
                 round16(acc, &mut out[r * N..(r + 1) * N]);
             }
-        } else {
-            // SAFETY: the caller's contract: AVX2 only where the CPU has it.
-            unsafe { x86::vpass16_avx2(&tmp, &taps[fy], out) };
         }
         return;
     }
@@ -353,6 +363,7 @@ unsafe fn luma_16x16<const AVX2: bool>(
 #[cfg(target_arch = "x86_64")]
 mod x86 {
     use std::arch::x86_64::*;
+    use std::mem::MaybeUninit;
 
     use super::N16;
 
@@ -425,21 +436,22 @@ mod x86 {
 
     /// The horizontal 8-tap pass of `out.len()` rows of a 16x16
     /// prediction, from row `first` of `data` on (each row 16 + 7
-    /// samples), at full precision as the scalar [`super::hpass16`].
+    /// samples), at full precision as the scalar [`super::hpass16`]:
+    /// `out`, every row written.
     ///
     /// # Safety
     /// AVX2 is there.
     #[inline]
     #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn hpass16_rows(
+    pub(super) unsafe fn hpass16_rows<'o>(
         data: &[u8],
         stride: usize,
         first: usize,
         taps: &[i32; 8],
-        out: &mut [[i16; N16]],
-    ) {
+        out: &'o mut [MaybeUninit<[i16; N16]>],
+    ) -> &'o mut [[i16; N16]] {
         let Some(last) = (first + out.len()).checked_sub(1) else {
-            return;
+            return &mut [];
         };
         assert!(
             data.len() >= last * stride + N16 + 7,
@@ -469,6 +481,9 @@ mod x86 {
             // SAFETY: `o` is 16 i16 = 32 bytes; unaligned store.
             unsafe { _mm256_storeu_si256(o.as_mut_ptr() as *mut __m256i, acc) };
         }
+        // SAFETY: every row was written above; `MaybeUninit<T>` has `T`'s
+        // layout.
+        unsafe { std::slice::from_raw_parts_mut(out.as_mut_ptr() as *mut [i16; N16], out.len()) }
     }
 
     /// The vertical 8-tap pass of a 16x16 prediction from its 23 rows of

@@ -42,10 +42,10 @@ pub(super) struct InterCandidate {
     pub(super) satd: u32,
     /// SATD + sqrt(lambda) * (vector and reference index bits).
     pub(super) estimate: f64,
-    /// Its prediction; `None` for the predicted vector's, which is the
-    /// skip's (read from the analysis while skip is its best, not copied
-    /// into every candidate list: [`InterFrameCoder::candidate_pred`]).
-    pub(super) pred: Option<MbSamples>,
+    /// Where its prediction is: a slot of [`MbAnalysis::preds`]; `None`
+    /// for the predicted vector's, which is the skip's (read from the
+    /// analysis while skip is its best: [`InterFrameCoder::candidate_pred`]).
+    pub(super) pred: Option<usize>,
 }
 
 /// What one macroblock's analysis reads besides the frame's inputs: the
@@ -282,6 +282,10 @@ pub(super) struct MbAnalysis {
     /// The lowest SATD + sqrt(lambda) * vector bits of the 16x16 inter
     /// candidates, which a split must beat to be coded.
     pub(super) inter_estimate: f64,
+    /// The inter candidates' predictions, made in place (slots kept from
+    /// macroblock to macroblock: a prediction returned by value was
+    /// copied three or four times before it was coded).
+    pub(super) preds: Vec<MbSamples>,
 }
 
 impl MbAnalysis {
@@ -310,6 +314,7 @@ impl MbAnalysis {
             searched: Mv::ZERO,
             inter_satd: u32::MAX,
             inter_estimate: f64::INFINITY,
+            preds: Vec::new(),
         }
     }
 
@@ -473,18 +478,20 @@ impl InterFrameCoder<'_, '_> {
         }
         let at = (mb.mb_x, mb.mb_y, self.seq.mb_cols());
         let mvp = mv_prediction_into(env.decided, at, mv.ref_idx);
-        let winner = self
-            .inter_candidate(mb, mv, mvp, Some(mb.best.pred.clone()))
-            .estimate;
+        let (_, winner) = self.inter_estimate(&mb.source, &mb.best.pred, mv, mvp);
         // The eight quarter-pel steps around it.
-        let mut candidates: Vec<InterCandidate> = SQUARE
+        let steps: Vec<RefMv> = SQUARE
             .iter()
             .map(|&(dx, dy)| Mv::new(mv.mv.x + dx, mv.mv.y + dy))
             .filter(|m| m.in_range())
-            .map(|m| {
-                let m = RefMv::new(m, mv.ref_idx);
-                let pred = predict_inter(&self.inter_context(), mb.mb_x, mb.mb_y, m);
-                self.inter_candidate(mb, m, mvp, Some(pred))
+            .map(|m| RefMv::new(m, mv.ref_idx))
+            .collect();
+        let mut candidates: Vec<InterCandidate> = steps
+            .into_iter()
+            .enumerate()
+            .map(|(slot, m)| {
+                self.predict_candidate(mb, slot, m);
+                self.inter_candidate(mb, m, mvp, Some(slot))
             })
             .filter(|c| c.estimate <= RD_MARGIN * winner)
             .collect();
@@ -569,20 +576,21 @@ impl InterFrameCoder<'_, '_> {
         let searched = mb.searched;
         let searched_mv = (self.syntax.any() && searched != mb.mvp).then_some(searched);
         let mut candidates = Vec::with_capacity(1 + usize::from(self.syntax.refs()));
+        let mut slots = 0..;
         for mv in std::iter::once(mb.mvp).chain(searched_mv) {
+            let mv = RefMv::previous(mv);
             let pred = match mb.skip_pred() {
-                Some(_) if mv == mb.mvp => None,
-                _ => Some(predict_inter(
-                    &self.inter_context(),
-                    mb.mb_x,
-                    mb.mb_y,
-                    RefMv::previous(mv),
-                )),
+                Some(_) if mv.mv == mb.mvp => None,
+                _ => slots.next(),
             };
-            candidates.push(self.inter_candidate(mb, RefMv::previous(mv), mb.mvp, pred));
+            if let Some(slot) = pred {
+                self.predict_candidate(mb, slot, mv);
+            }
+            candidates.push(self.inter_candidate(mb, mv, mb.mvp, pred));
         }
         for ref_idx in 1..self.syntax.refs() {
-            candidates.extend(self.older_reference_candidate(mb, ref_idx, env));
+            let slot = slots.next().unwrap_or_default();
+            candidates.extend(self.older_reference_candidate(mb, ref_idx, env, slot));
         }
         mb.inter_satd = candidates.iter().map(|c| c.satd).min().unwrap_or(u32::MAX);
         mb.inter_estimate = candidates
@@ -632,45 +640,58 @@ impl InterFrameCoder<'_, '_> {
             mvd: c.mv.mv - c.mvp,
             ref_idx: c.mv.ref_idx,
         };
-        let pred = self.candidate_pred(mb, c.mv, c.pred);
-        let choice = self.coded_choice(mb, MbKind::Inter { mv: c.mv }, &mode, pred, env);
+        let choice = match self.candidate_pred(mb, c.pred) {
+            Some(pred) => self.coded_choice(mb, MbKind::Inter { mv: c.mv }, &mode, pred, env),
+            None => {
+                let pred = predict_inter(&self.inter_context(), mb.mb_x, mb.mb_y, c.mv);
+                self.coded_choice(mb, MbKind::Inter { mv: c.mv }, &mode, &pred, env)
+            }
+        };
         mb.consider(choice);
     }
 
-    /// A candidate's prediction `pred` at `mv`, to be coded: its own, or
-    /// the skip's (copied while skip is the best; predicted again where
-    /// another choice has taken its place, as an intra block search can
-    /// before the fast decision codes inter).
-    fn candidate_pred(&self, mb: &MbAnalysis, mv: RefMv, pred: Option<MbSamples>) -> MbSamples {
-        match (pred, mb.skip_pred()) {
-            (Some(own), _) => own,
-            (None, Some(skip)) => skip.clone(),
-            (None, None) => predict_inter(&self.inter_context(), mb.mb_x, mb.mb_y, mv),
+    /// A candidate's prediction, to be coded: its own slot's, or the
+    /// skip's while skip is the best; `None` where another choice has
+    /// taken the skip's place (as an intra block search can before the
+    /// fast decision codes inter): to be predicted again.
+    fn candidate_pred<'m>(&self, mb: &'m MbAnalysis, slot: Option<usize>) -> Option<&'m MbSamples> {
+        match slot {
+            Some(s) => mb.preds.get(s),
+            None => mb.skip_pred(),
         }
     }
 
-    /// A 16x16 inter candidate with its SATD and its estimate, SATD +
-    /// sqrt(lambda) * (vector and reference index bits).
-    pub(super) fn inter_candidate(
-        &self,
-        mb: &MbAnalysis,
-        mv: RefMv,
-        mvp: Mv,
-        pred: Option<MbSamples>,
-    ) -> InterCandidate {
-        let samples = pred
-            .as_ref()
-            .or(mb.skip_pred())
-            .expect("a prediction or the skip's");
-        let satd = luma_satd(&mb.source, samples);
-        let bits = mvd_bits(mv.mv, mvp) + reference_bits(mv.ref_idx, self.syntax.refs());
+    /// The inter prediction at `mv` into slot `slot` of the analysis'
+    /// candidate predictions.
+    fn predict_candidate(&self, mb: &mut MbAnalysis, slot: usize, mv: RefMv) {
+        if mb.preds.len() <= slot {
+            mb.preds.resize_with(slot + 1, MbSamples::default);
+        }
+        predict_inter_into(&self.inter_context(), mb.mb_x, mb.mb_y, mv, &mut mb.preds[slot]);
+    }
+
+    /// A 16x16 inter candidate (its prediction in `slot`, or the skip's)
+    /// with its SATD and its estimate ([`InterFrameCoder::inter_estimate`]).
+    pub(super) fn inter_candidate(&self, mb: &MbAnalysis, mv: RefMv, mvp: Mv, slot: Option<usize>) -> InterCandidate {
+        let samples = self
+            .candidate_pred(mb, slot)
+            .expect("a candidate's prediction or the skip's");
+        let (satd, estimate) = self.inter_estimate(&mb.source, samples, mv, mvp);
         InterCandidate {
             mv,
             mvp,
-            estimate: rdo::estimate(self.coder.lambda, satd, bits),
+            estimate,
             satd,
-            pred,
+            pred: slot,
         }
+    }
+
+    /// The luma SATD of the prediction `samples` at `mv` and its estimate,
+    /// SATD + sqrt(lambda) * (vector and reference index bits).
+    fn inter_estimate(&self, src: &MbSource, samples: &MbSamples, mv: RefMv, mvp: Mv) -> (u32, f64) {
+        let satd = luma_satd(src, samples);
+        let bits = mvd_bits(mv.mv, mvp) + reference_bits(mv.ref_idx, self.syntax.refs());
+        (satd, rdo::estimate(self.coder.lambda, satd, bits))
     }
 
     /// The 16x16 candidate into older reference `ref_idx`, searched now
@@ -680,9 +701,10 @@ impl InterFrameCoder<'_, '_> {
     /// alike.
     pub(super) fn older_reference_candidate(
         &self,
-        mb: &MbAnalysis,
+        mb: &mut MbAnalysis,
         ref_idx: u8,
         env: &MbEnv<'_>,
+        slot: usize,
     ) -> Option<InterCandidate> {
         let older = self.lazy.as_ref()?.older.get(usize::from(ref_idx) - 1)?;
         let (cols, x, y) = (self.seq.mb_cols(), mb.mb_x, mb.mb_y);
@@ -720,8 +742,8 @@ impl InterFrameCoder<'_, '_> {
             .search((self.src.y(), reference.y()), (x, y), mvp, &candidates, chroma);
         found.set(x, y, best.mv);
         let mv = RefMv::new(best.mv, ref_idx);
-        let pred = predict_inter(&self.inter_context(), x, y, mv);
-        Some(self.inter_candidate(mb, mv, mvp, Some(pred)))
+        self.predict_candidate(mb, slot, mv);
+        Some(self.inter_candidate(mb, mv, mvp, Some(slot)))
     }
 
     /// The macroblock split into partitions (block frames): the 8x8 split
@@ -776,7 +798,7 @@ impl InterFrameCoder<'_, '_> {
             mb.mb_y,
             &split.block_vectors(&mvs.map(RefMv::previous)),
         );
-        let choice = self.coded_choice(mb, kind, &mode, pred, env);
+        let choice = self.coded_choice(mb, kind, &mode, &pred, env);
         mb.consider(choice);
     }
 
@@ -920,19 +942,19 @@ impl InterFrameCoder<'_, '_> {
         mb: &MbAnalysis,
         kind: MbKind,
         mode: &MbMode,
-        pred: MbSamples,
+        pred: &MbSamples,
         env: &MbEnv<'_>,
     ) -> Choice {
         let intra = matches!(kind, MbKind::Intra { .. });
         let coded = self
             .coder
-            .code(&mb.source, &pred, intra, env.residual, mb.mb_x, mb.mb_y);
+            .code(&mb.source, pred, intra, env.residual, mb.mb_x, mb.mb_y);
         let bits = self.mode_bits(env, mb, mode) + coded.bits;
         Choice {
             cost: rdo::cost(self.coder.lambda, coded.ssd, bits),
             residual_cost: rdo::cost(self.coder.lambda, coded.ssd, coded.bits),
             kind,
-            pred,
+            pred: pred.clone(),
             residual: Some(coded.residual),
             samples: Some(coded.samples),
         }

@@ -26,7 +26,7 @@ use crate::codec::mv::mvd_bits;
 use crate::codec::mv::Mv;
 use crate::codec::mvpred::{mv_prediction, mv_prediction_into, walk_partitions};
 use crate::codec::partition::{MbVectors, Part, RefMv, Split};
-use crate::codec::recon::{predict_inter, predict_inter_blocks, predict_inter_into, MbSamples};
+use crate::codec::recon::{predict_inter_blocks_into, predict_inter_into, MbSamples};
 use crate::codec::residual::{MbResidual, ResidualCoder, ResidualSyntax};
 use crate::codec::syntax::{mb_mode, MbKind, MotionTool};
 use crate::codec::Frame;
@@ -253,6 +253,18 @@ pub(super) struct Choice {
 }
 
 impl Choice {
+    /// A record to be written (its content: nothing meaningful).
+    fn empty() -> Choice {
+        Choice {
+            cost: f64::INFINITY,
+            residual_cost: 0.0,
+            kind: MbKind::Skip,
+            pred: MbSamples::default(),
+            residual: None,
+            samples: None,
+        }
+    }
+
     /// The reconstruction the choice gives.
     pub(super) fn reconstruction(&self) -> &MbSamples {
         self.samples.as_ref().unwrap_or(&self.pred)
@@ -269,7 +281,12 @@ pub(super) struct MbAnalysis {
     pub(super) mvp: Mv,
     /// The best choice so far: skip, predicted at `mvp`, until another
     /// is considered ([`MbAnalysis::skip_pred`]).
-    pub(super) best: Choice,
+    pub(super) best: Box<Choice>,
+    /// Where an inter choice is coded before it is weighed against the
+    /// best ([`MbAnalysis::consider_trial`]): built in place and swapped
+    /// with the best by pointer, not returned and moved (the 850-byte
+    /// choice was copied twice a coded candidate).
+    pub(super) trial: Box<Choice>,
     /// Whether any choice but skip can win (see [`InterFrameCoder::analyse_skip`]).
     pub(super) exhaustive: bool,
     /// The skip prediction's squared luma error (the frame's prediction
@@ -301,14 +318,8 @@ impl MbAnalysis {
                 chroma: [[0; 64]; 2],
             },
             mvp: Mv::ZERO,
-            best: Choice {
-                cost: f64::INFINITY,
-                residual_cost: 0.0,
-                kind: MbKind::Skip,
-                pred: MbSamples::default(),
-                residual: None,
-                samples: None,
-            },
+            best: Box::new(Choice::empty()),
+            trial: Box::new(Choice::empty()),
             exhaustive: false,
             skip_luma_sse: 0,
             searched: Mv::ZERO,
@@ -321,7 +332,14 @@ impl MbAnalysis {
     /// Keeps `choice` if it costs less than the best so far.
     pub(super) fn consider(&mut self, choice: Choice) {
         if choice.cost < self.best.cost {
-            self.best = choice;
+            *self.best = choice;
+        }
+    }
+
+    /// Keeps the trial choice if it costs less than the best so far.
+    pub(super) fn consider_trial(&mut self) {
+        if self.trial.cost < self.best.cost {
+            std::mem::swap(&mut self.best, &mut self.trial);
         }
     }
 
@@ -640,14 +658,14 @@ impl InterFrameCoder<'_, '_> {
             mvd: c.mv.mv - c.mvp,
             ref_idx: c.mv.ref_idx,
         };
-        let choice = match self.candidate_pred(mb, c.pred) {
-            Some(pred) => self.coded_choice(mb, MbKind::Inter { mv: c.mv }, &mode, pred, env),
-            None => {
-                let pred = predict_inter(&self.inter_context(), mb.mb_x, mb.mb_y, c.mv);
-                self.coded_choice(mb, MbKind::Inter { mv: c.mv }, &mode, &pred, env)
-            }
-        };
-        mb.consider(choice);
+        let kind = MbKind::Inter { mv: c.mv };
+        if self.candidate_pred(mb, c.pred).is_none() {
+            predict_inter_into(&self.inter_context(), mb.mb_x, mb.mb_y, c.mv, &mut mb.trial.pred);
+            self.code_trial(mb, kind, &mode, None, env);
+        } else {
+            self.code_trial(mb, kind, &mode, Some(c.pred), env);
+        }
+        mb.consider_trial();
     }
 
     /// A candidate's prediction, to be coded: its own slot's, or the
@@ -672,7 +690,13 @@ impl InterFrameCoder<'_, '_> {
 
     /// A 16x16 inter candidate (its prediction in `slot`, or the skip's)
     /// with its SATD and its estimate ([`InterFrameCoder::inter_estimate`]).
-    pub(super) fn inter_candidate(&self, mb: &MbAnalysis, mv: RefMv, mvp: Mv, slot: Option<usize>) -> InterCandidate {
+    pub(super) fn inter_candidate(
+        &self,
+        mb: &MbAnalysis,
+        mv: RefMv,
+        mvp: Mv,
+        slot: Option<usize>,
+    ) -> InterCandidate {
         let samples = self
             .candidate_pred(mb, slot)
             .expect("a candidate's prediction or the skip's");
@@ -792,14 +816,15 @@ impl InterFrameCoder<'_, '_> {
         };
         let at = (mb.mb_x, mb.mb_y, self.seq.mb_cols());
         let mode = mb_mode(&kind, env.decided, at, self.syntax);
-        let pred = predict_inter_blocks(
+        predict_inter_blocks_into(
             &self.inter_context(),
             mb.mb_x,
             mb.mb_y,
             &split.block_vectors(&mvs.map(RefMv::previous)),
+            &mut mb.trial.pred,
         );
-        let choice = self.coded_choice(mb, kind, &mode, &pred, env);
-        mb.consider(choice);
+        self.code_trial(mb, kind, &mode, None, env);
+        mb.consider_trial();
     }
 
     /// The vectors of `split`'s partitions, each searched against its
@@ -936,28 +961,41 @@ impl InterFrameCoder<'_, '_> {
         whole
     }
 
-    /// `pred` with its residual coded, priced as `mode`.
-    pub(super) fn coded_choice(
+    /// An inter choice of `kind` coded into the trial record, priced as
+    /// `mode`: its prediction copied there from candidate slot `from`
+    /// (`Some(None)`: the skip's), or there already (`None`).
+    pub(super) fn code_trial(
         &self,
-        mb: &MbAnalysis,
+        mb: &mut MbAnalysis,
         kind: MbKind,
         mode: &MbMode,
-        pred: &MbSamples,
+        from: Option<Option<usize>>,
         env: &MbEnv<'_>,
-    ) -> Choice {
-        let intra = matches!(kind, MbKind::Intra { .. });
-        let coded = self
-            .coder
-            .code(&mb.source, pred, intra, env.residual, mb.mb_x, mb.mb_y);
-        let bits = self.mode_bits(env, mb, mode) + coded.bits;
-        Choice {
-            cost: rdo::cost(self.coder.lambda, coded.ssd, bits),
-            residual_cost: rdo::cost(self.coder.lambda, coded.ssd, coded.bits),
-            kind,
-            pred: pred.clone(),
-            residual: Some(coded.residual),
-            samples: Some(coded.samples),
+    ) {
+        let mode_bits = self.mode_bits(env, mb, mode);
+        let MbAnalysis {
+            source,
+            best,
+            trial,
+            preds,
+            ..
+        } = mb;
+        match from {
+            Some(Some(slot)) => trial.pred.clone_from(&preds[slot]),
+            Some(None) => trial.pred.clone_from(&best.pred),
+            None => {}
         }
+        let (at, coder) = ((mb.mb_x, mb.mb_y), self.coder);
+        let residual = trial
+            .residual
+            .insert(coder.levels(source, &trial.pred, false, env.residual));
+        let samples = trial.samples.get_or_insert_with(MbSamples::default);
+        samples.clone_from(&trial.pred);
+        let syntax = ResidualSyntax::of_4x4(false);
+        let (bits, ssd) = coder.reconstruct_in_place(source, residual, samples, (env.residual, syntax), at);
+        trial.kind = kind;
+        trial.cost = rdo::cost(coder.lambda, ssd, mode_bits + bits);
+        trial.residual_cost = rdo::cost(coder.lambda, ssd, bits);
     }
 }
 

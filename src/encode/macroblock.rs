@@ -286,10 +286,23 @@ impl MbCoder {
         mb_x: usize,
         mb_y: usize,
     ) -> Coded {
-        let mut residual = self.luma_residual(src, pred, intra, residual_coder);
-        self.code_chroma(src, pred, intra, residual_coder, &mut residual.chroma);
+        let residual = self.levels(src, pred, intra, residual_coder);
         let syntax = ResidualSyntax::of_4x4(intra);
         self.reconstructed(src, pred, residual, (residual_coder, syntax), (mb_x, mb_y))
+    }
+
+    /// The levels [`MbCoder::code`] codes `src - pred` with (4x4
+    /// transforms).
+    pub fn levels(
+        &self,
+        src: &MbSource,
+        pred: &MbSamples,
+        intra: bool,
+        residual_coder: &ResidualCoder,
+    ) -> Box<MbResidual> {
+        let mut residual = self.luma_residual(src, pred, intra, residual_coder);
+        self.code_chroma(src, pred, intra, residual_coder, &mut residual.chroma);
+        residual
     }
 
     /// A macroblock whose levels are all decided (an intra one's luma by a
@@ -312,15 +325,29 @@ impl MbCoder {
             ssd: 0,
             samples: pred.clone(),
         };
-        add_residual(&mut coded.samples, &coded.residual, self.qp);
-        coded.ssd = src.ssd(&coded.samples);
-        coded.bits = if self.estimated_rates {
-            (self.dsp.residual_estimate)(&coded.residual)
-        } else {
-            let (residual_coder, syntax) = coder_syntax;
-            rdo::bits(rate::residual_cost(residual_coder, at, syntax, &coded.residual))
-        };
+        (coded.bits, coded.ssd) =
+            self.reconstruct_in_place(src, &coded.residual, &mut coded.samples, coder_syntax, at);
         coded
+    }
+
+    /// `residual` added to the prediction in `samples` (as the decoder
+    /// adds it), and its bits and the reconstruction's squared error
+    /// against `src`, priced as [`MbCoder::reconstructed`] prices them.
+    pub fn reconstruct_in_place(
+        &self,
+        src: &MbSource,
+        residual: &MbResidual,
+        samples: &mut MbSamples,
+        (residual_coder, syntax): (&ResidualCoder, ResidualSyntax),
+        at: (usize, usize),
+    ) -> (f64, u64) {
+        add_residual(samples, residual, self.qp);
+        let bits = if self.estimated_rates {
+            (self.dsp.residual_estimate)(residual)
+        } else {
+            rdo::bits(rate::residual_cost(residual_coder, at, syntax, residual))
+        };
+        (bits, src.ssd(samples))
     }
 
     /// The luma levels of `src - pred` in 4x4 transforms as

@@ -185,7 +185,7 @@ pub(crate) fn code_intra(
         let (mb_x, mb_y) = (index % cols, index / cols);
         mb.source.load_into(src, mb_x, mb_y);
         prefetch_ahead(src, mb_x, mb_y);
-        mb.best = best_intra(
+        *mb.best = best_intra(
             coder,
             &mb.source,
             env.recon,

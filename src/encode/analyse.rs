@@ -3,7 +3,7 @@
 //! 4x4 blocks), sub-pel RD refinement and the transform size; each kind of
 //! candidate one method of the frame's [`InterFrameCoder`], the best by
 //! J = SSD + lambda * bits kept in the macroblock's [`MbAnalysis`]. The
-//! I frame's choice is [`best_intra`] without an inter bound.
+//! I frame's choice is [`intra_against`] without an inter bound.
 
 use super::rate;
 use super::rdo::{self, reference_bits, RD_MARGIN};
@@ -17,8 +17,9 @@ use crate::me::dsp::pixel;
 use crate::me::{ChromaBlock, Metric};
 
 use super::config::ModeDecision;
-use super::intra4x4::{self, IntraBlockSearch};
-use super::macroblock::{prefetch_ahead, prefetch_ahead_displaced, Coded, MbCoder, MbSource};
+use super::intra4x4::{self, Intra4x4Luma, IntraBlockSearch};
+use super::intra8x8::Intra8x8Luma;
+use super::macroblock::{prefetch_ahead, prefetch_ahead_displaced, MbCoder, MbSource};
 use super::partition::{PartitionSearch, SatdCache};
 use crate::codec::intra4x4::LumaIntra;
 use crate::codec::modes::{MbMode, ModeCoder, VectorSyntax};
@@ -29,6 +30,7 @@ use crate::codec::partition::{MbVectors, Part, RefMv, Split};
 use crate::codec::recon::{predict_inter_blocks_into, predict_inter_into, MbSamples};
 use crate::codec::residual::{MbResidual, ResidualCoder, ResidualSyntax};
 use crate::codec::syntax::{mb_mode, MbKind, MotionTool};
+use crate::codec::transform::Block4;
 use crate::codec::Frame;
 use crate::me::search::Neighbours;
 use crate::me::SQUARE;
@@ -71,54 +73,116 @@ pub(super) fn luma_satd(src: &MbSource, pred: &MbSamples) -> u32 {
 
 /// The best intra choice of macroblock `at` by SSD + lambda * bits: the
 /// 16x16 luma mode of least SATD, and the 8x8 and 4x4 modes of
-/// [`IntraBlockSearch`], each with the chroma mode of least SAD.
+/// [`IntraBlockSearch`], each with the chroma mode of least SAD, written
+/// into `out` (a record kept from macroblock to macroblock: coded in
+/// place, the choice and its samples were copied four or five times).
 /// `coders` are the frame's as they stand before the macroblock. With
 /// `bound` (inter's, [`InterBound`]), each luma candidate is coded only
-/// when its estimate is below inter's; `None` when none is.
-pub(super) fn best_intra(
+/// when its estimate is below inter's. Whether a candidate was coded
+/// (always without a bound), and whether the 16x16 one was (its SATD below
+/// the bound's).
+pub(super) fn intra_against(
     coder: &MbCoder,
     s: &MbSource,
     recon: &Frame,
     at: (usize, usize),
     coders: (&ModeCoder, &ResidualCoder),
     bound: Option<InterBound>,
-) -> Option<Choice> {
-    intra_against(coder, s, recon, at, coders, bound).0
+    out: &mut Choice,
+) -> (bool, bool) {
+    let (luma, satd) = best_intra_16x16(coder, s, recon, at, &mut out.pred);
+    let whole = bound.is_none_or(|b| satd < b.satd);
+    let (blocks8, blocks4) = intra_block_searches(coder, s, recon, at, coders, bound, satd);
+    if !whole && blocks8.is_none() && blocks4.is_none() {
+        return (false, false);
+    }
+    let chroma = best_intra_chroma(coder, s, recon, at, &mut out.pred);
+    let coding = IntraCoding {
+        coder,
+        s,
+        at,
+        coders,
+        inter_frame: bound.is_some(),
+        chroma,
+        // The chroma's levels are the same whatever the luma: found once.
+        chroma_levels: coder.intra_chroma_levels(s, &out.pred, coders.1),
+    };
+    if whole {
+        let levels = coder.intra16x16_luma(s, &out.pred, coders.1);
+        coding.code_into(out, LumaIntra::Whole(luma), levels, ResidualSyntax::Intra16x16);
+    }
+    // The block searches' luma levels are those [`MbCoder::code`] would
+    // find against their predictions: kept, not found again.
+    let chroma_pred = out.pred.chroma;
+    let alternatives = [
+        blocks8.map(|b| {
+            let levels = Box::new(MbResidual {
+                luma8: b.levels,
+                ..MbResidual::default()
+            });
+            (
+                LumaIntra::Blocks8(b.modes),
+                b.pred,
+                levels,
+                ResidualSyntax::Intra8x8,
+            )
+        }),
+        blocks4.map(|b| {
+            let levels = Box::new(MbResidual {
+                luma: b.levels,
+                ..MbResidual::default()
+            });
+            (LumaIntra::Blocks(b.modes), b.pred, levels, ResidualSyntax::Intra)
+        }),
+    ];
+    let mut coded = whole;
+    for (luma, luma_pred, levels, syntax) in alternatives.into_iter().flatten() {
+        let mut alt = Choice::empty();
+        alt.pred = MbSamples {
+            luma: luma_pred,
+            chroma: chroma_pred,
+        };
+        coding.code_into(&mut alt, luma, levels, syntax);
+        if !coded || alt.cost < out.cost {
+            *out = alt;
+            coded = true;
+        }
+    }
+    (coded, whole)
 }
 
-/// [`best_intra`], and whether its 16x16 luma candidate was coded (its
-/// SATD below the bound's).
-fn intra_against(
+/// The 8x8 and 4x4 intra block searches of [`intra_against`], given the
+/// 16x16 candidate's SATD.
+fn intra_block_searches(
     coder: &MbCoder,
     s: &MbSource,
     recon: &Frame,
     at: (usize, usize),
     (modes, residual_coder): (&ModeCoder, &ResidualCoder),
     bound: Option<InterBound>,
-) -> (Option<Choice>, bool) {
-    let mut pred = MbSamples::default();
-    let (luma, satd) = best_intra_16x16(coder, s, recon, at, &mut pred);
-    let whole = bound.is_none_or(|b| satd < b.satd);
+    satd: u32,
+) -> (Option<Intra8x8Luma>, Option<Intra4x4Luma>) {
     // In P frames, where inter mostly wins, blocks are searched only where
     // 16x16 intra is within the bound's margin of inter by SATD, and where
     // a block size is tried (ultrafast's and superfast's P frames: none).
     let hopeless = bound.is_some_and(|b| f64::from(satd) > b.search_margin * f64::from(b.satd));
-    let search = ((coder.intra8x8 || coder.intra4x4) && !hopeless).then(|| {
-        let (around, mode_bits) = intra4x4::pricing(modes, at);
-        IntraBlockSearch {
-            coder,
-            recon,
-            at,
-            around,
-            mode_bits,
-            residual: residual_coder,
-        }
-    });
+    if !(coder.intra8x8 || coder.intra4x4) || hopeless {
+        return (None, None);
+    }
+    let (around, mode_bits) = intra4x4::pricing(modes, at);
+    let search = IntraBlockSearch {
+        coder,
+        recon,
+        at,
+        around,
+        mode_bits,
+        residual: residual_coder,
+    };
     let estimate_bound = bound.map_or(f64::INFINITY, |b| b.estimate);
-    let blocks8 = search
-        .as_ref()
-        .filter(|_| coder.intra8x8)
-        .and_then(|search| search.run8(s, None, estimate_bound));
+    let blocks8 = coder
+        .intra8x8
+        .then(|| search.run8(s, None, estimate_bound))
+        .flatten();
     // The 4x4 search stops once it passes 10/8 of the least of the 16x16
     // SATD and the 8x8 estimate (x264's `i_satd_thresh` under RD mode
     // decision), and inter's estimate.
@@ -126,66 +190,62 @@ fn intra_against(
         .as_ref()
         .map_or(f64::from(satd), |b| b.estimate.min(f64::from(satd)));
     let bound4 = estimate_bound.min(INTRA4_MARGIN * least);
-    let blocks4 = search
-        .as_ref()
-        .filter(|_| coder.intra4x4)
-        .and_then(|search| search.run(s, None, bound4));
-    if !whole && blocks8.is_none() && blocks4.is_none() {
-        return (None, false);
-    }
-    let chroma = best_intra_chroma(coder, s, recon, at, &mut pred);
-    let inter_frame = bound.is_some();
-    let choice = |luma: LumaIntra, pred: MbSamples, c: Coded| {
-        let mode = MbMode::Intra { luma, chroma };
-        let mode_bits = rdo::bits(rate::mode_cost(modes, at, inter_frame, VectorSyntax::None, &mode));
-        Choice {
-            cost: rdo::cost(coder.lambda, c.ssd, c.bits + mode_bits),
-            residual_cost: rdo::cost(coder.lambda, c.ssd, c.bits),
-            kind: MbKind::Intra { luma, chroma },
-            pred,
-            residual: Some(c.residual),
-            samples: Some(c.samples),
-        }
-    };
-    // The chroma's levels are the same whatever the luma: found once. The
-    // block searches' luma levels are those [`MbCoder::code`] would find
-    // against their predictions: kept, not found again.
-    let chroma_levels = coder.intra_chroma_levels(s, &pred, residual_coder);
-    let code = |pred: &MbSamples, mut residual: Box<MbResidual>, syntax| {
-        residual.chroma = chroma_levels;
-        coder.reconstructed(s, pred, residual, (residual_coder, syntax), at)
-    };
-    let mut candidates = Vec::with_capacity(3);
-    if whole {
-        let luma_levels = coder.intra16x16_luma(s, &pred, residual_coder);
-        let coded = code(&pred, luma_levels, ResidualSyntax::Intra16x16);
-        candidates.push(choice(LumaIntra::Whole(luma), pred.clone(), coded));
-    }
-    if let Some(b) = blocks8 {
-        let pred8 = MbSamples {
-            luma: b.pred,
-            ..pred.clone()
+    let blocks4 = coder.intra4x4.then(|| search.run(s, None, bound4)).flatten();
+    (blocks8, blocks4)
+}
+
+/// What coding an intra candidate of one macroblock shares: the chroma's
+/// mode and levels, the same for every luma choice.
+struct IntraCoding<'a> {
+    coder: &'a MbCoder,
+    s: &'a MbSource,
+    at: (usize, usize),
+    coders: (&'a ModeCoder, &'a ResidualCoder),
+    inter_frame: bool,
+    chroma: IntraMode,
+    chroma_levels: [[Block4; 4]; 2],
+}
+
+impl IntraCoding<'_> {
+    /// The candidate of luma `luma` with its luma `levels` coded as
+    /// `syntax` into `out`, whose prediction is the candidate's.
+    fn code_into(
+        &self,
+        out: &mut Choice,
+        luma: LumaIntra,
+        mut levels: Box<MbResidual>,
+        syntax: ResidualSyntax,
+    ) {
+        let (coder, (modes, residual_coder)) = (self.coder, self.coders);
+        levels.chroma = self.chroma_levels;
+        let samples = match &mut out.samples {
+            Some(samples) => {
+                samples.clone_from(&out.pred);
+                samples
+            }
+            None => out.samples.insert(out.pred.clone()),
         };
-        let levels = Box::new(MbResidual {
-            luma8: b.levels,
-            ..MbResidual::default()
-        });
-        let coded = code(&pred8, levels, ResidualSyntax::Intra8x8);
-        candidates.push(choice(LumaIntra::Blocks8(b.modes), pred8, coded));
+        let residual = out.residual.insert(levels);
+        let (bits, ssd) =
+            coder.reconstruct_in_place(self.s, residual, samples, (residual_coder, syntax), self.at);
+        let mode = MbMode::Intra {
+            luma,
+            chroma: self.chroma,
+        };
+        let mode_bits = rdo::bits(rate::mode_cost(
+            modes,
+            self.at,
+            self.inter_frame,
+            VectorSyntax::None,
+            &mode,
+        ));
+        out.cost = rdo::cost(coder.lambda, ssd, bits + mode_bits);
+        out.residual_cost = rdo::cost(coder.lambda, ssd, bits);
+        out.kind = MbKind::Intra {
+            luma,
+            chroma: self.chroma,
+        };
     }
-    if let Some(b) = blocks4 {
-        let pred4 = MbSamples { luma: b.pred, ..pred };
-        let levels = Box::new(MbResidual {
-            luma: b.levels,
-            ..MbResidual::default()
-        });
-        let coded = code(&pred4, levels, ResidualSyntax::Intra);
-        candidates.push(choice(LumaIntra::Blocks(b.modes), pred4, coded));
-    }
-    (
-        candidates.into_iter().min_by(|a, b| a.cost.total_cmp(&b.cost)),
-        whole,
-    )
 }
 
 /// What intra must beat in a P frame: inter's least SATD and least
@@ -326,13 +386,6 @@ impl MbAnalysis {
             inter_satd: u32::MAX,
             inter_estimate: f64::INFINITY,
             preds: Vec::new(),
-        }
-    }
-
-    /// Keeps `choice` if it costs less than the best so far.
-    pub(super) fn consider(&mut self, choice: Choice) {
-        if choice.cost < self.best.cost {
-            *self.best = choice;
         }
     }
 
@@ -954,9 +1007,17 @@ impl InterFrameCoder<'_, '_> {
             },
         };
         let coders = (env.modes, env.residual);
-        let (choice, whole) = intra_against(self.coder, &mb.source, env.recon, at, coders, Some(bound));
-        if let Some(choice) = choice {
-            mb.consider(choice);
+        let (coded, whole) = intra_against(
+            self.coder,
+            &mb.source,
+            env.recon,
+            at,
+            coders,
+            Some(bound),
+            &mut mb.trial,
+        );
+        if coded {
+            mb.consider_trial();
         }
         whole
     }
@@ -1338,7 +1399,19 @@ mod tests {
             estimate: f64::INFINITY,
             search_margin,
         };
-        let at = |margin| best_intra(&coder, &s, &src, (1, 1), (&modes, &residual), Some(bound(margin)));
+        let at = |margin| {
+            let mut choice = Choice::empty();
+            let (coded, _) = intra_against(
+                &coder,
+                &s,
+                &src,
+                (1, 1),
+                (&modes, &residual),
+                Some(bound(margin)),
+                &mut choice,
+            );
+            coded.then_some(choice)
+        };
         assert!(at(INTRA_SEARCH_MARGIN).is_none());
         let likely = at(INTRA_LIKELY_SEARCH_MARGIN).expect("the blocks searched");
         assert!(

@@ -7,7 +7,7 @@
 
 use std::cell::RefCell;
 
-use super::analyse::{best_intra, MbAnalysis, MbEnv};
+use super::analyse::{intra_against, MbAnalysis, MbEnv};
 use super::progress::FrameProgress;
 use super::reference::GrowingReference;
 use super::wavefront::{self, ResidualTracking, WavefrontFrame};
@@ -185,15 +185,16 @@ pub(crate) fn code_intra(
         let (mb_x, mb_y) = (index % cols, index / cols);
         mb.source.load_into(src, mb_x, mb_y);
         prefetch_ahead(src, mb_x, mb_y);
-        *mb.best = best_intra(
+        // Without a bound, the 16x16 candidate is always coded.
+        intra_against(
             coder,
             &mb.source,
             env.recon,
             (mb_x, mb_y),
             (env.modes, env.residual),
             None,
-        )
-        .expect("without a bound, intra always has a choice");
+            &mut mb.best,
+        );
         wavefront::Decision {
             prediction_sse: visible_luma_sse(&mb.source, &mb.best.pred, mb_x, mb_y, seq),
             mvp: None,

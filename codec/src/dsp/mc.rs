@@ -214,15 +214,16 @@ fn luma_2d(
     out: &mut [u8],
     out_stride: usize,
 ) {
-    // Small blocks, the common case, use a small buffer.
+    // Small blocks, the common case, use a small buffer, not cleared
+    // first (a 736-byte memset a call): every sample is written below.
     let rows = h + 7;
-    let mut small = [0i16; 16 * 23];
+    let mut small = [std::mem::MaybeUninit::<i16>::uninit(); 16 * 23];
     let mut large = Vec::new();
-    let tmp: &mut [i16] = if w * rows <= small.len() {
+    let tmp = if w * rows <= small.len() {
         &mut small[..w * rows]
     } else {
-        large.resize(w * rows, 0);
-        &mut large
+        large.resize(w * rows, std::mem::MaybeUninit::new(0));
+        &mut large[..]
     };
     let (th, tv) = (&taps[fx], &taps[fy]);
     let mut acc = [0i32; MAX_BLOCK];
@@ -230,9 +231,12 @@ fn luma_2d(
         let src = r * stride;
         filter_row(th, |k| &data[src + k..src + k + w], &mut acc[..w]);
         for (t, &a) in tmp[r * w..(r + 1) * w].iter_mut().zip(&acc[..w]) {
-            *t = a as i16;
+            t.write(a as i16);
         }
     }
+    // SAFETY: rows 0..rows of w samples each, all of `tmp`, were written
+    // above; `MaybeUninit<i16>` has `i16`'s layout.
+    let tmp = unsafe { &*(tmp as *const [std::mem::MaybeUninit<i16>] as *const [i16]) };
     let mut acc = [0i32; MAX_BLOCK];
     for r in 0..h {
         let acc = &mut acc[..w];
@@ -325,25 +329,28 @@ unsafe fn luma_16x16<const AVX2: bool>(
         }
         return;
     }
-    let mut tmp = [[0i16; N]; N + 7];
-    for (r, t) in tmp.iter_mut().enumerate() {
+    // Not cleared first (a 736-byte memset a call): each row is written.
+    let mut rows = [std::mem::MaybeUninit::<[i16; N]>::uninit(); N + 7];
+    for (r, t) in rows.iter_mut().enumerate() {
         let src = row23(data, stride, r);
         if fx == 0 {
             // Scaled by 64 (at most 16320: still 16 bits) so that one
             // vertical pass serves both cases; its >> 6 below is then
             // exact, as the direct vertical filter's single rounding needs.
-            for (t, &v) in t.iter_mut().zip(&src[B..B + N]) {
-                *t = i16::from(v) << 6;
-            }
+            t.write(std::array::from_fn(|c| i16::from(src[B + c]) << 6));
         } else {
-            *t = hpass16(src, &taps[fx]);
+            t.write(hpass16(src, &taps[fx]));
         }
     }
+    // SAFETY: every row was written above; `MaybeUninit<T>` has `T`'s
+    // layout.
+    let tmp =
+        unsafe { &*(&rows as *const [std::mem::MaybeUninit<[i16; N]>; N + 7] as *const [[i16; N]; N + 7]) };
     let tv = &taps[fy];
     #[cfg(target_arch = "x86_64")]
     if AVX2 {
         // SAFETY: the caller's contract: AVX2 only where the CPU has it.
-        unsafe { x86::vpass16_avx2(&tmp, tv, out) };
+        unsafe { x86::vpass16_avx2(tmp, tv, out) };
         return;
     }
     for (r, window) in tmp.windows(8).enumerate() {

@@ -370,6 +370,9 @@ pub(super) struct MbAnalysis {
     /// macroblock to macroblock: a prediction returned by value was
     /// copied three or four times before it was coded).
     pub(super) preds: Vec<MbSamples>,
+    /// The luma differences coding a trial uses (kept: cleared for every
+    /// candidate, they were a kilobyte's memset).
+    pub(super) diffs: [Block4; 16],
 }
 
 impl MbAnalysis {
@@ -393,6 +396,7 @@ impl MbAnalysis {
             inter_satd: u32::MAX,
             inter_estimate: f64::INFINITY,
             preds: Vec::new(),
+            diffs: [[[0; 4]; 4]; 16],
         }
     }
 
@@ -1046,6 +1050,7 @@ impl InterFrameCoder<'_, '_> {
             best,
             trial,
             preds,
+            diffs,
             ..
         } = mb;
         match from {
@@ -1054,9 +1059,8 @@ impl InterFrameCoder<'_, '_> {
             None => {}
         }
         let (at, coder) = ((mb.mb_x, mb.mb_y), self.coder);
-        let residual = trial
-            .residual
-            .insert(coder.levels(source, &trial.pred, false, env.residual));
+        let residual = trial.residual.get_or_insert_with(Box::default);
+        coder.levels_into((source, &trial.pred), false, env.residual, residual, diffs);
         let samples = trial.samples.get_or_insert_with(MbSamples::default);
         samples.clone_from(&trial.pred);
         let syntax = ResidualSyntax::of_4x4(false);

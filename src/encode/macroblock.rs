@@ -360,36 +360,57 @@ impl MbCoder {
         residual_coder: &ResidualCoder,
     ) -> Box<MbResidual> {
         let mut residual = Box::<MbResidual>::default();
+        let mut diffs = [[[0i32; 4]; 4]; 16];
+        self.luma_levels_into(src, pred, intra, residual_coder, (&mut residual.luma, &mut diffs));
+        residual
+    }
+
+    /// [`MbCoder::levels`] into `residual` (a record reused from candidate
+    /// to candidate: every field written; a new one was a zeroed
+    /// allocation), with `diffs` as the luma's scratch.
+    pub fn levels_into(
+        &self,
+        (src, pred): (&MbSource, &MbSamples),
+        intra: bool,
+        residual_coder: &ResidualCoder,
+        residual: &mut MbResidual,
+        diffs: &mut [Block4; 16],
+    ) {
+        self.luma_levels_into(src, pred, intra, residual_coder, (&mut residual.luma, diffs));
+        (residual.luma8, residual.luma_dc) = (None, [0; 16]);
+        self.code_chroma(src, pred, intra, residual_coder, &mut residual.chroma);
+    }
+
+    /// The luma levels of [`MbCoder::luma_residual`] into `luma`, the
+    /// differences into `diffs` (both written whole).
+    fn luma_levels_into(
+        &self,
+        src: &MbSource,
+        pred: &MbSamples,
+        intra: bool,
+        residual_coder: &ResidualCoder,
+        (luma, diffs): (&mut [Block4; 16], &mut [Block4; 16]),
+    ) {
         let rounding = if intra { ROUND_INTRA } else { ROUND_INTER };
-        let mut luma_residual = [[[0i32; 4]; 4]; 16];
-        (self.dsp.quantize_blocks)(
-            &src.luma,
-            &pred.luma,
-            MB,
-            self.qp,
-            rounding,
-            &mut luma_residual,
-            &mut residual.luma,
-        );
+        (self.dsp.quantize_blocks)(&src.luma, &pred.luma, MB, self.qp, rounding, diffs, luma);
         // Inter blocks are zeroed below where their levels cost little.
         // RDOQ only lowers levels, and lowering never raises that cost, so
         // what the rule zeroes before RDOQ it zeroes after it too: it is
         // applied first, and RDOQ spends no work on those blocks.
         if !intra {
-            (self.dsp.decimate_luma)(&mut residual.luma);
+            (self.dsp.decimate_luma)(luma);
         }
         // (Pricers are made only for levels left to lower.)
         let coded = |blocks: &[Block4]| blocks.iter().any(|b| b.as_flattened().iter().any(|&v| v != 0));
-        if self.rdoq && coded(&residual.luma) {
+        if self.rdoq && coded(luma) {
             let rate = rate::block_pricer(residual_coder, BlockClass::luma(intra));
-            for (block, diff) in residual.luma.iter_mut().zip(&luma_residual) {
+            for (block, diff) in luma.iter_mut().zip(diffs.iter()) {
                 (self.dsp.rdoq_4x4)(diff, block, self.qp, self.lambda, &rate);
             }
             if !intra {
-                (self.dsp.decimate_luma)(&mut residual.luma);
+                (self.dsp.decimate_luma)(luma);
             }
         }
-        residual
     }
 
     /// An intra 16x16 macroblock predicted by `pred`: its luma's DC

@@ -1169,6 +1169,24 @@ mod tests {
 
     const SIZE: usize = 48;
 
+    #[test]
+    fn a_trial_takes_the_best_place_only_when_it_costs_less() {
+        let inter = MbKind::Inter {
+            mv: RefMv::previous(Mv::new(4, -2)),
+        };
+        let mut mb = MbAnalysis::empty();
+        (mb.best.cost, mb.best.kind) = (10.0, MbKind::Skip);
+        (mb.trial.cost, mb.trial.kind) = (10.0, inter);
+        // The first of equals stays.
+        mb.consider_trial();
+        assert_eq!((mb.best.cost, mb.best.kind), (10.0, MbKind::Skip));
+        mb.trial.cost = 9.5;
+        mb.consider_trial();
+        assert_eq!((mb.best.cost, mb.best.kind), (9.5, inter));
+        // The record it replaced is the next trial's.
+        assert_eq!((mb.trial.cost, mb.trial.kind), (10.0, MbKind::Skip));
+    }
+
     /// A texture with detail at every scale (no two blocks alike).
     fn texture(x: isize, y: isize) -> u8 {
         let (x, y) = (x as f64, y as f64);

@@ -918,5 +918,39 @@ mod tests {
                 prop_assert_eq!(coded.samples.chroma, pred.chroma);
             }
         }
+
+        /// A reused record coded into (every level, the 8x8 blocks and the
+        /// luma DC levels left over from another macroblock) holds what a
+        /// fresh one does, and reconstructs and prices the same.
+        #[test]
+        fn levels_written_into_a_used_record_are_a_fresh_records(
+            noise in prop::collection::vec(-40i8..=40, 1..40),
+            qp in 10u8..45,
+            rdoq in any::<bool>(),
+            intra in any::<bool>(),
+            junk in -99i32..99,
+        ) {
+            let coder = MbCoder::new(qp, 1.4, rdoq);
+            let residual_coder = ResidualCoder::new(1, 1);
+            let s = source();
+            let pred = perturbed(&s, &noise);
+            let mut used = MbResidual {
+                luma: [[[junk; 4]; 4]; 16],
+                chroma: [[[[junk; 4]; 4]; 4]; 2],
+                luma8: Some(Box::new([[[junk; 8]; 8]; 4])),
+                luma_dc: [junk; 16],
+            };
+            let mut diffs = [[[junk; 4]; 4]; 16];
+            coder.levels_into((&s, &pred), intra, &residual_coder, &mut used, &mut diffs);
+            let fresh = coder.levels(&s, &pred, intra, &residual_coder);
+            prop_assert_eq!(&used, &*fresh);
+            let syntax = ResidualSyntax::of_4x4(intra);
+            let coded = coder.reconstructed(&s, &pred, fresh, (&residual_coder, syntax), (0, 0));
+            let mut samples = pred.clone();
+            let (bits, ssd) = coder.reconstruct_in_place(&s, &used, &mut samples, (&residual_coder, syntax), (0, 0));
+            prop_assert_eq!(samples.luma, coded.samples.luma);
+            prop_assert_eq!(samples.chroma, coded.samples.chroma);
+            prop_assert_eq!((bits, ssd), (coded.bits, coded.ssd));
+        }
     }
 }

@@ -366,8 +366,16 @@ impl WavefrontFrame<'_> {
         w.decided[index] = vectors;
         w.modes.commit(c, r, self.inter_frame, self.syntax, &mode);
         let coded = match best.residual.take() {
-            Some(levels) => CodedMb::with_levels(best.kind, levels),
-            None => CodedMb::without_residual(best.kind),
+            Some(levels) if !levels.is_empty() => CodedMb::with_levels(best.kind, levels),
+            levels => {
+                // A record with no level stays the worker's, for the next
+                // trial to code into (a new one is a zeroed allocation).
+                let trial = &mut w.analysis.trial.residual;
+                if trial.is_none() {
+                    *trial = levels;
+                }
+                CodedMb::without_residual(best.kind)
+            }
         };
         if coded.kind != MbKind::Skip {
             let syntax = coded.kind.residual_syntax();

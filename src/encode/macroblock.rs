@@ -286,27 +286,15 @@ impl MbCoder {
         mb_x: usize,
         mb_y: usize,
     ) -> Coded {
-        let residual = self.levels(src, pred, intra, residual_coder);
+        let mut residual = Box::<MbResidual>::default();
+        let mut diffs = [[[0i32; 4]; 4]; 16];
+        self.levels_into((src, pred), intra, residual_coder, &mut residual, &mut diffs);
         let syntax = ResidualSyntax::of_4x4(intra);
         self.reconstructed(src, pred, residual, (residual_coder, syntax), (mb_x, mb_y))
     }
 
-    /// The levels [`MbCoder::code`] codes `src - pred` with (4x4
-    /// transforms).
-    pub fn levels(
-        &self,
-        src: &MbSource,
-        pred: &MbSamples,
-        intra: bool,
-        residual_coder: &ResidualCoder,
-    ) -> Box<MbResidual> {
-        let mut residual = self.luma_residual(src, pred, intra, residual_coder);
-        self.code_chroma(src, pred, intra, residual_coder, &mut residual.chroma);
-        residual
-    }
-
     /// A macroblock whose levels are all decided (an intra one's luma by a
-    /// block search or [`MbCoder::luma_residual`], its chroma by
+    /// block search or [`MbCoder::intra16x16_luma`], its chroma by
     /// [`MbCoder::intra_chroma_levels`]), reconstructed over `pred`,
     /// measured and priced as `syntax` codes it.
     pub fn reconstructed(
@@ -350,24 +338,10 @@ impl MbCoder {
         (bits, src.ssd(samples))
     }
 
-    /// The luma levels of `src - pred` in 4x4 transforms as
-    /// [`MbCoder::code`] quantises them (chroma left empty).
-    pub fn luma_residual(
-        &self,
-        src: &MbSource,
-        pred: &MbSamples,
-        intra: bool,
-        residual_coder: &ResidualCoder,
-    ) -> Box<MbResidual> {
-        let mut residual = Box::<MbResidual>::default();
-        let mut diffs = [[[0i32; 4]; 4]; 16];
-        self.luma_levels_into(src, pred, intra, residual_coder, (&mut residual.luma, &mut diffs));
-        residual
-    }
-
-    /// [`MbCoder::levels`] into `residual` (a record reused from candidate
-    /// to candidate: every field written; a new one was a zeroed
-    /// allocation), with `diffs` as the luma's scratch.
+    /// The levels [`MbCoder::code`] codes `src - pred` with (4x4
+    /// transforms) into `residual` (a record reused from candidate to
+    /// candidate: every field written; a new one was a zeroed allocation),
+    /// with `diffs` as the luma's scratch.
     pub fn levels_into(
         &self,
         (src, pred): (&MbSource, &MbSamples),
@@ -381,7 +355,7 @@ impl MbCoder {
         self.code_chroma(src, pred, intra, residual_coder, &mut residual.chroma);
     }
 
-    /// The luma levels of [`MbCoder::luma_residual`] into `luma`, the
+    /// The luma levels of `src - pred` in 4x4 transforms into `luma`, the
     /// differences into `diffs` (both written whole).
     fn luma_levels_into(
         &self,
@@ -863,7 +837,9 @@ mod tests {
             .collect();
         assert!(errors.iter().all(|&e| e <= 2.0 * step + 1.0), "{errors:?}");
         assert!(errors.iter().sum::<f64>() / 256.0 <= step / 2.0 + 1.0);
-        let blocks = coder.luma_residual(&src, &pred, true, &residual_coder);
+        // The same luma in 4x4 blocks (its chroma left out, as dc16's).
+        let mut blocks = coder.code(&src, &pred, true, &residual_coder, 0, 0).residual;
+        blocks.chroma = Default::default();
         let price = |syntax, res: &MbResidual| rate::residual_cost(&residual_coder, (0, 0), syntax, res);
         assert!(price(ResidualSyntax::Intra16x16, &dc16) < price(ResidualSyntax::Intra, &blocks));
     }
@@ -942,10 +918,9 @@ mod tests {
             };
             let mut diffs = [[[junk; 4]; 4]; 16];
             coder.levels_into((&s, &pred), intra, &residual_coder, &mut used, &mut diffs);
-            let fresh = coder.levels(&s, &pred, intra, &residual_coder);
-            prop_assert_eq!(&used, &*fresh);
+            let coded = coder.code(&s, &pred, intra, &residual_coder, 0, 0);
+            prop_assert_eq!(&used, &*coded.residual);
             let syntax = ResidualSyntax::of_4x4(intra);
-            let coded = coder.reconstructed(&s, &pred, fresh, (&residual_coder, syntax), (0, 0));
             let mut samples = pred.clone();
             let (bits, ssd) = coder.reconstruct_in_place(&s, &used, &mut samples, (&residual_coder, syntax), (0, 0));
             prop_assert_eq!(samples.luma, coded.samples.luma);

@@ -114,8 +114,11 @@ pub(super) fn intra_against(
         chroma_levels: coder.intra_chroma_levels(s, &out.pred, coders.1),
     };
     if whole {
-        let levels = coder.intra16x16_luma(s, &out.pred, coders.1);
-        coding.code_into(out, LumaIntra::Whole(luma), levels, ResidualSyntax::Intra16x16);
+        // Into the record's own levels where it has them (a new record is
+        // a zeroed allocation).
+        let levels = out.residual.get_or_insert_with(Box::default);
+        coder.intra16x16_luma_into(s, &out.pred, coders.1, levels);
+        coding.code_into(out, LumaIntra::Whole(luma), ResidualSyntax::Intra16x16);
     }
     // The block searches' luma levels are those [`MbCoder::code`] would
     // find against their predictions: kept, not found again.
@@ -148,7 +151,8 @@ pub(super) fn intra_against(
             luma: luma_pred,
             chroma: chroma_pred,
         };
-        coding.code_into(&mut alt, luma, levels, syntax);
+        alt.residual = Some(levels);
+        coding.code_into(&mut alt, luma, syntax);
         if !coded || alt.cost < out.cost {
             *out = alt;
             coded = true;
@@ -214,17 +218,12 @@ struct IntraCoding<'a> {
 }
 
 impl IntraCoding<'_> {
-    /// The candidate of luma `luma` with its luma `levels` coded as
-    /// `syntax` into `out`, whose prediction is the candidate's.
-    fn code_into(
-        &self,
-        out: &mut Choice,
-        luma: LumaIntra,
-        mut levels: Box<MbResidual>,
-        syntax: ResidualSyntax,
-    ) {
+    /// The candidate of luma `luma` coded as `syntax` into `out`, whose
+    /// prediction and luma levels are the candidate's.
+    fn code_into(&self, out: &mut Choice, luma: LumaIntra, syntax: ResidualSyntax) {
         let (coder, (modes, residual_coder)) = (self.coder, self.coders);
-        levels.chroma = self.chroma_levels;
+        let residual = out.residual.get_or_insert_with(Box::default);
+        residual.chroma = self.chroma_levels;
         let samples = match &mut out.samples {
             Some(samples) => {
                 samples.clone_from(&out.pred);
@@ -232,7 +231,6 @@ impl IntraCoding<'_> {
             }
             None => out.samples.insert(out.pred.clone()),
         };
-        let residual = out.residual.insert(levels);
         let (bits, ssd) =
             coder.reconstruct_in_place(self.s, residual, samples, (residual_coder, syntax), self.at);
         let mode = MbMode::Intra {

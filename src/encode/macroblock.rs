@@ -421,6 +421,19 @@ impl MbCoder {
         residual_coder: &ResidualCoder,
     ) -> Box<MbResidual> {
         let mut residual = Box::<MbResidual>::default();
+        self.intra16x16_luma_into(src, pred, residual_coder, &mut residual);
+        residual
+    }
+
+    /// [`MbCoder::intra16x16_luma`] into `residual`'s luma (a reused
+    /// record: its luma, DC and 8x8 levels all written, its chroma left).
+    pub fn intra16x16_luma_into(
+        &self,
+        src: &MbSource,
+        pred: &MbSamples,
+        residual_coder: &ResidualCoder,
+        residual: &mut MbResidual,
+    ) {
         let mut diffs = [[[0i32; 4]; 4]; 16];
         (self.dsp.quantize_blocks)(
             &src.luma,
@@ -431,6 +444,7 @@ impl MbCoder {
             &mut diffs,
             &mut residual.luma,
         );
+        residual.luma8 = None;
         for b in residual.luma.iter_mut() {
             b[0][0] = 0;
         }
@@ -452,7 +466,6 @@ impl MbCoder {
         // distortion, as the chroma's are, changed nothing on the 28
         // sequences (medium +0.05 %).
         residual.luma_dc = quantize_luma_dc(sums, self.qp, ROUND_INTRA);
-        residual
     }
 
     /// The chroma levels of an intra macroblock predicted by `pred`, as
@@ -917,6 +930,14 @@ mod tests {
                 luma_dc: [junk; 16],
             };
             let mut diffs = [[[junk; 4]; 4]; 16];
+            // An intra 16x16 macroblock's luma (its chroma is the caller's).
+            let mut used16 = used.clone();
+            coder.intra16x16_luma_into(&s, &pred, &residual_coder, &mut used16);
+            let fresh16 = coder.intra16x16_luma(&s, &pred, &residual_coder);
+            prop_assert_eq!(
+                (used16.luma, used16.luma_dc, &used16.luma8),
+                (fresh16.luma, fresh16.luma_dc, &fresh16.luma8)
+            );
             coder.levels_into((&s, &pred), intra, &residual_coder, &mut used, &mut diffs);
             let coded = coder.code(&s, &pred, intra, &residual_coder, 0, 0);
             prop_assert_eq!(&used, &*coded.residual);

@@ -121,34 +121,14 @@ pub(super) fn intra_against(
         coding.code_into(out, LumaIntra::Whole(luma), ResidualSyntax::Intra16x16);
     }
     // The block searches' luma levels are those [`MbCoder::code`] would
-    // find against their predictions: kept, not found again.
+    // find against their predictions: kept, not found again (moved into
+    // the candidate's record where they are, not through a list).
     let chroma_pred = out.pred.chroma;
-    let alternatives = [
-        blocks8.map(|b| {
-            let levels = Box::new(MbResidual {
-                luma8: b.levels,
-                ..MbResidual::default()
-            });
-            (
-                LumaIntra::Blocks8(b.modes),
-                b.pred,
-                levels,
-                ResidualSyntax::Intra8x8,
-            )
-        }),
-        blocks4.map(|b| {
-            let levels = Box::new(MbResidual {
-                luma: b.levels,
-                ..MbResidual::default()
-            });
-            (LumaIntra::Blocks(b.modes), b.pred, levels, ResidualSyntax::Intra)
-        }),
-    ];
     let mut coded = whole;
-    for (luma, luma_pred, levels, syntax) in alternatives.into_iter().flatten() {
+    let mut alternative = |luma_pred: &[u8; 256], luma, syntax, levels: Box<MbResidual>| {
         let mut alt = Choice::empty();
         alt.pred = MbSamples {
-            luma: luma_pred,
+            luma: *luma_pred,
             chroma: chroma_pred,
         };
         alt.residual = Some(levels);
@@ -157,6 +137,21 @@ pub(super) fn intra_against(
             *out = alt;
             coded = true;
         }
+    };
+    if let Some(b) = blocks8 {
+        let mut levels = Box::<MbResidual>::default();
+        levels.luma8 = b.levels;
+        alternative(
+            &b.pred,
+            LumaIntra::Blocks8(b.modes),
+            ResidualSyntax::Intra8x8,
+            levels,
+        );
+    }
+    if let Some(b) = blocks4 {
+        let mut levels = Box::<MbResidual>::default();
+        levels.luma = b.levels;
+        alternative(&b.pred, LumaIntra::Blocks(b.modes), ResidualSyntax::Intra, levels);
     }
     (coded, whole)
 }

@@ -552,22 +552,22 @@ impl<'a> SearchContext<'a> {
         if self.cfg.subpel == Subpel::None {
             return best;
         }
-        let mut scratch = [0u8; 32 * 32];
-        let b = self.cfg.block;
-        for (i, &mv) in candidates.iter().enumerate() {
-            let on_grid = mv.x & 3 == 0 && mv.y & 3 == 0;
-            if on_grid || mv == best.mv || candidates[..i].contains(&mv) || !mv.in_range() {
-                continue;
+        with_scratch(self.cfg.block, |scratch| {
+            for (i, &mv) in candidates.iter().enumerate() {
+                let on_grid = mv.x & 3 == 0 && mv.y & 3 == 0;
+                if on_grid || mv == best.mv || candidates[..i].contains(&mv) || !mv.in_range() {
+                    continue;
+                }
+                let c = Candidate {
+                    cost: self.sub_pel_cost(mv, scratch),
+                    mv,
+                };
+                if c.beats(&best) {
+                    best = c;
+                }
             }
-            let c = Candidate {
-                cost: self.sub_pel_cost(mv, &mut scratch[..b * b]),
-                mv,
-            };
-            if c.beats(&best) {
-                best = c;
-            }
-        }
-        best
+            best
+        })
     }
 
     /// `best` of the full-pel search with its cost in the measure of the
@@ -577,10 +577,8 @@ impl<'a> SearchContext<'a> {
         if self.cfg.subpel == Subpel::None || (same_measure && self.chroma.is_none()) {
             return best;
         }
-        let mut scratch = [0u8; 32 * 32];
-        let b = self.cfg.block;
         Candidate {
-            cost: self.sub_pel_cost(best.mv, &mut scratch[..b * b]),
+            cost: with_scratch(self.cfg.block, |scratch| self.sub_pel_cost(best.mv, scratch)),
             mv: best.mv,
         }
     }
@@ -1000,9 +998,8 @@ pub fn search_around(
         origin: nearest_full_pel(seed),
         ..SearchContext::new(cur, reference, (x, y), cfg)
     };
-    let mut scratch = [0u8; 32 * 32];
     let at_seed = Candidate {
-        cost: s.sub_pel_cost(seed, &mut scratch[..b * b]),
+        cost: with_scratch(b, |scratch| s.sub_pel_cost(seed, scratch)),
         mv: seed,
     };
     let full = s.in_sub_pel_measure(search::full_pel(&s, &search::Neighbours::single(mvp)));
@@ -1010,6 +1007,16 @@ pub fn search_around(
         &s,
         if at_seed.beats(&full) { at_seed } else { full },
     ))
+}
+
+/// `f` given a block's scratch samples (`b x b`, at most 32 x 32,
+/// checked with the config): a macroblock's 256 cleared, not 1024.
+fn with_scratch<T>(b: usize, f: impl FnOnce(&mut [u8]) -> T) -> T {
+    if b <= 16 {
+        f(&mut [0u8; 16 * 16][..b * b])
+    } else {
+        f(&mut [0u8; 32 * 32][..b * b])
+    }
 }
 
 #[cfg(test)]

@@ -50,6 +50,17 @@ pub(super) struct InterCandidate {
     pub(super) pred: Option<usize>,
 }
 
+/// Where a trial's prediction comes from ([`InterFrameCoder::code_trial`]).
+#[derive(Debug, Clone, Copy)]
+pub(super) enum TrialPred {
+    /// A candidate's slot of [`MbAnalysis::preds`].
+    Slot(usize),
+    /// The skip's (the best while skip is).
+    Skip,
+    /// The trial record's own, made there already.
+    InPlace,
+}
+
 /// What one macroblock's analysis reads besides the frame's inputs: the
 /// decisions before it and the coders that price it. In raster order these
 /// are the frame's own; on a wavefront each row's worker holds copies
@@ -217,15 +228,8 @@ impl IntraCoding<'_> {
     /// prediction and luma levels are the candidate's.
     fn code_into(&self, out: &mut Choice, luma: LumaIntra, syntax: ResidualSyntax) {
         let (coder, (modes, residual_coder)) = (self.coder, self.coders);
-        let residual = out.residual.get_or_insert_with(Box::default);
+        let (_, residual, samples) = out.records_over_pred();
         residual.chroma = self.chroma_levels;
-        let samples = match &mut out.samples {
-            Some(samples) => {
-                samples.clone_from(&out.pred);
-                samples
-            }
-            None => out.samples.insert(out.pred.clone()),
-        };
         let (bits, ssd) =
             coder.reconstruct_in_place(self.s, residual, samples, (residual_coder, syntax), self.at);
         let mode = MbMode::Intra {
@@ -323,6 +327,23 @@ impl Choice {
             residual: None,
             samples: None,
         }
+    }
+
+    /// Its prediction, its levels' record (a new one where it has none)
+    /// and its samples set to the prediction, for a residual to be coded
+    /// and added over it.
+    fn records_over_pred(&mut self) -> (&MbSamples, &mut MbResidual, &mut MbSamples) {
+        let Choice {
+            pred,
+            residual,
+            samples,
+            ..
+        } = self;
+        if let Some(samples) = samples {
+            samples.clone_from(pred);
+        }
+        let samples = samples.get_or_insert_with(|| pred.clone());
+        (pred, residual.get_or_insert_with(Box::default), samples)
     }
 
     /// The reconstruction the choice gives.
@@ -718,9 +739,10 @@ impl InterFrameCoder<'_, '_> {
         let kind = MbKind::Inter { mv: c.mv };
         if self.candidate_pred(mb, c.pred).is_none() {
             predict_inter_into(&self.inter_context(), mb.mb_x, mb.mb_y, c.mv, &mut mb.trial.pred);
-            self.code_trial(mb, kind, &mode, None, env);
+            self.code_trial(mb, kind, &mode, TrialPred::InPlace, env);
         } else {
-            self.code_trial(mb, kind, &mode, Some(c.pred), env);
+            let from = c.pred.map_or(TrialPred::Skip, TrialPred::Slot);
+            self.code_trial(mb, kind, &mode, from, env);
         }
         mb.consider_trial();
     }
@@ -880,7 +902,7 @@ impl InterFrameCoder<'_, '_> {
             &split.block_vectors(&mvs.map(RefMv::previous)),
             &mut mb.trial.pred,
         );
-        self.code_trial(mb, kind, &mode, None, env);
+        self.code_trial(mb, kind, &mode, TrialPred::InPlace, env);
         mb.consider_trial();
     }
 
@@ -1027,14 +1049,13 @@ impl InterFrameCoder<'_, '_> {
     }
 
     /// An inter choice of `kind` coded into the trial record, priced as
-    /// `mode`: its prediction copied there from candidate slot `from`
-    /// (`Some(None)`: the skip's), or there already (`None`).
+    /// `mode`, its prediction where `from` says.
     pub(super) fn code_trial(
         &self,
         mb: &mut MbAnalysis,
         kind: MbKind,
         mode: &MbMode,
-        from: Option<Option<usize>>,
+        from: TrialPred,
         env: &MbEnv<'_>,
     ) {
         let mode_bits = self.mode_bits(env, mb, mode);
@@ -1047,15 +1068,13 @@ impl InterFrameCoder<'_, '_> {
             ..
         } = mb;
         match from {
-            Some(Some(slot)) => trial.pred.clone_from(&preds[slot]),
-            Some(None) => trial.pred.clone_from(&best.pred),
-            None => {}
+            TrialPred::Slot(slot) => trial.pred.clone_from(&preds[slot]),
+            TrialPred::Skip => trial.pred.clone_from(&best.pred),
+            TrialPred::InPlace => {}
         }
         let (at, coder) = ((mb.mb_x, mb.mb_y), self.coder);
-        let residual = trial.residual.get_or_insert_with(Box::default);
-        coder.levels_into((source, &trial.pred), false, env.residual, residual, diffs);
-        let samples = trial.samples.get_or_insert_with(MbSamples::default);
-        samples.clone_from(&trial.pred);
+        let (pred, residual, samples) = trial.records_over_pred();
+        coder.levels_into((source, pred), false, env.residual, residual, diffs);
         let syntax = ResidualSyntax::of_4x4(false);
         let (bits, ssd) = coder.reconstruct_in_place(source, residual, samples, (env.residual, syntax), at);
         trial.kind = kind;

@@ -186,7 +186,7 @@ pub(crate) fn code_intra(
         mb.source.load_into(src, mb_x, mb_y);
         prefetch_ahead(src, mb_x, mb_y);
         // Without a bound, the 16x16 candidate is always coded.
-        intra_against(
+        let (coded, _) = intra_against(
             coder,
             &mb.source,
             env.recon,
@@ -195,6 +195,7 @@ pub(crate) fn code_intra(
             None,
             &mut mb.best,
         );
+        debug_assert!(coded, "an I frame's macroblock coded as 16x16 intra at least");
         wavefront::Decision {
             prediction_sse: visible_luma_sse(&mb.source, &mb.best.pred, mb_x, mb_y, seq),
             mvp: None,

@@ -638,17 +638,18 @@ impl Refinement {
             Subpel::Half => &[2],
             Subpel::Quarter => &[2, 1],
         };
-        // On the stack: blocks are at most 32 x 32 (checked with the config);
-        // a macroblock's 256 samples cleared, not 1024.
-        let b = s.cfg.block;
-        let (mut small, mut large);
-        let scratch: &mut [u8] = if b <= 16 {
-            small = [0u8; 16 * 16];
-            &mut small[..b * b]
-        } else {
-            large = [0u8; 32 * 32];
-            &mut large[..b * b]
-        };
+        super::with_scratch(s.cfg.block, |scratch| self.steps(s, steps, centre, scratch))
+    }
+
+    /// [`Refinement::run`]'s walk through `steps`, its candidates
+    /// predicted into `scratch` where they need it.
+    fn steps(
+        &mut self,
+        s: &SearchContext<'_>,
+        steps: &[i32],
+        centre: Option<(i32, i32)>,
+        scratch: &mut [u8],
+    ) -> bool {
         while let Some(&step) = steps.get(self.step) {
             if self.moves < s.cfg.subpel_moves {
                 let fits = |v: i32, c: i32| {

@@ -2,6 +2,7 @@
 """The speed/compression front: mocomp's presets beside x264's.
 
     python3 benches/front.py OUT_DIR SEQ.y4m [SEQ.y4m ...]
+    python3 benches/front.py OUT_DIR --coverage   # the coverage table of a run again
 
 Every sequence is encoded at QP 22/27/32/37 by every mocomp preset and by
 x264's own command line at every x264 preset from ultrafast to slower
@@ -21,7 +22,9 @@ Per sequence: BD-rate (luma PSNR, mean over frames, cubic, `mocomp
 bdrate`) of every preset against x264 medium and x264 superfast. Over the
 set: the mean BD-rate and the mean time per encode, and the time as a
 ratio to x264 medium's (ratio of the sums: every encode of the set counts
-once). Written to OUT_DIR: points.csv (every encode), front.md (the
+once). Then each x264 preset but ultrafast beside the mocomp preset no
+slower per encode with the lowest BD-rate measured against it directly
+(`covered` where that is <= 0: issue 35's goal). Written to OUT_DIR: points.csv (every encode), front.md (the
 table), front.json, front.svg (time per encode against BD-rate).
 
 Threads: with THREADS_PRESET (e.g. medium), every sequence of at least
@@ -297,6 +300,56 @@ def svg_plot(summary):
     return "\n".join(parts) + "\n"
 
 
+def coverage(binary, out_dir, rows, names):
+    """For each x264 preset but ultrafast (the issue's goal: superfast to
+    slow), the mocomp preset no slower per encode (the mean over the set)
+    with the lowest BD-rate measured against that x264 preset directly
+    (the mean over the sequences of each one's BD-rate), or, where no
+    mocomp preset is as fast, the fastest one."""
+    times = {}
+    for r in rows:
+        times.setdefault(r["codec"], []).append(r["seconds"])
+    per_encode = {c: sum(v) / len(v) for c, v in times.items()}
+    mocomp = [f"mocomp:{p}" for p in MOCOMP_PRESETS if f"mocomp:{p}" in per_encode]
+
+    def bd_against(anchor, test):
+        values = [bd_rate(binary, os.path.join(out_dir, f"points_{n}.csv"), anchor, test) for n in names]
+        return mean(values), sum(v is None for v in values)
+
+    lines = ["Each x264 preset against the mocomp preset no slower per encode with the fewest bits "
+             "(BD-rate measured against that x264 preset, mean over the sequences; where none is as "
+             "fast, the fastest mocomp preset):", "",
+             "| x264 preset | time per encode | mocomp preset | time per encode | time ratio | BD-rate vs the x264 preset | covered |",
+             "|---|---:|---|---:|---:|---:|---|"]
+    for p in X264_PRESETS:
+        x = f"x264:{p}"
+        if p == "ultrafast" or x not in per_encode or not mocomp:
+            continue
+        no_slower = [c for c in mocomp if per_encode[c] <= per_encode[x]]
+        scored = [(c, *bd_against(x, c)) for c in (no_slower or [min(mocomp, key=per_encode.get)])]
+        scored = [t for t in scored if t[1] is not None]
+        if not scored:
+            continue
+        c, bd, missing = min(scored, key=lambda t: t[1])
+        covered = "yes" if no_slower and bd <= 0 else "no"
+        note = f" ({missing} sequences without a BD-rate)" if missing else ""
+        lines.append(f"| {x} | {per_encode[x]:.3f} s | {c} | {per_encode[c]:.3f} s | "
+                     f"{per_encode[c] / per_encode[x]:.2f}x | {bd:+.1f} %{note} | {covered} |")
+    return "\n".join(lines) + "\n"
+
+
+def coverage_of_run(out_dir):
+    """`front.py OUT --coverage`: the coverage table of a finished run, from
+    its points files (an older run, or one whose sequences took long)."""
+    rows = []
+    with open(os.path.join(out_dir, "points.csv")) as f:
+        for r in csv.DictReader(f):
+            r["seconds"] = float(r["seconds"])
+            rows.append(r)
+    names = list(dict.fromkeys(r["sequence"] for r in rows))
+    print(coverage(mocomp_binary(), out_dir, rows, names))
+
+
 def y4m_width(path):
     with open(path, "rb") as f:
         header = f.readline().decode("ascii", "replace").split()
@@ -343,6 +396,8 @@ def main():
     if len(sys.argv) < 3:
         raise SystemExit(__doc__)
     out_dir, seqs = sys.argv[1], sys.argv[2:]
+    if seqs == ["--coverage"]:
+        return coverage_of_run(out_dir)
     if "medium" not in X264_PRESETS:
         # Checked before any encode: the table's times and BD-rates are
         # against x264 medium.
@@ -367,6 +422,7 @@ def main():
         writer.writerows(rows)
     summary = summarise(rows, bds, names)
     table = markdown(summary, bds, names)
+    table += "\n" + coverage(binary, out_dir, rows, names)
     table += "\n" + time_table(rows, names)
     table += "\n" + thread_scaling(binary, seqs, out_dir)
     open(os.path.join(out_dir, "front.md"), "w").write(table)

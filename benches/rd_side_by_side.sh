@@ -76,7 +76,7 @@ fi
 [ "${SPEED:-1}" = 0 ] && exit 0
 # Speed: every preset and the two x264 settings, whole process, one
 # thread, QP 28 on pan_cif, interleaved over RUNS rounds (default 10);
-# the median of each (the README's preset table).
+# the median of each (the preset table of docs/results/encoder.md).
 IN="$SHARED/data/pan_cif.y4m"
 X264="ffmpeg -hide_banner -nostdin -loglevel error -y -i $IN -c:v libx264 -preset medium -tune psnr -qp 28 -threads 1"
 for i in $(seq "${RUNS:-10}"); do

@@ -15,7 +15,7 @@ static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 /// touched 92 MiB (67 without) and spent from 0.02 to 0.3 s in the kernel
 /// from one run to the next, most after another process's encode; without
 /// them 0.03-0.05 s. One-thread encodes: within the machine's noise
-/// (README, "the front").
+/// (`docs/results/encoder.md`, the front's record).
 ///
 /// Run by the loader, before the standard library's start-up makes the
 /// first allocation: called from `main`, that allocation's page (the

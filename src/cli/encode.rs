@@ -284,24 +284,12 @@ pub fn run(args: &Args) -> Result<()> {
         None => None,
     };
     let with_vmaf = config.metrics.has(Metric::Vmaf);
-    if with_vmaf && args.input.as_os_str() == "-" {
-        anyhow::bail!("--metrics vmaf needs the source as a file (it is read again after the encode)");
-    }
-    if with_vmaf && vmaf::ffmpeg_with_libvmaf().is_none() {
-        anyhow::bail!(vmaf::VmafError::NoLibvmaf);
+    if with_vmaf {
+        check_vmaf(args)?;
     }
     let mut frame_stats: Vec<FrameStats> = Vec::new();
     let mut recons = Vec::new();
-    let bar = if args.quiet || args.json || !std::io::stderr().is_terminal() {
-        ProgressBar::hidden()
-    } else {
-        let b = ProgressBar::new(args.frames.map_or(0, |n| n as u64));
-        b.set_style(
-            ProgressStyle::with_template("{spinner} {pos} frames  {per_sec}  {msg}")
-                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
-        );
-        b
-    };
+    let bar = progress_bar(args);
     let summary = pool.install(|| {
         let sequence = SequenceInfo {
             width: info.width,
@@ -336,15 +324,7 @@ pub fn run(args: &Args) -> Result<()> {
     bar.finish_and_clear();
     let mut summary = summary.with_context(|| input.clone())?;
     if with_vmaf {
-        let sources: Vec<_> = Y4mReader::open(&args.input)
-            .with_context(|| input.clone())?
-            .read_all()
-            .with_context(|| input.clone())?;
-        let scores = vmaf::vmaf(&sources[..recons.len()], &recons)?;
-        for (f, v) in frame_stats.iter_mut().zip(&scores) {
-            f.quality.vmaf = *v;
-        }
-        summary.quality.vmaf = scores.iter().sum::<f64>() / scores.len().max(1) as f64;
+        add_vmaf(args, &recons, &mut frame_stats, &mut summary)?;
     }
     out.commit().with_context(|| args.output.display().to_string())?;
     drop(recon);
@@ -352,14 +332,68 @@ pub fn run(args: &Args) -> Result<()> {
         f.commit().with_context(|| path.display().to_string())?;
     }
     if let Some(path) = &args.stats {
-        let mut f = OutputFile::create(path).with_context(|| path.display().to_string())?;
-        writeln!(f, "{}", FrameStats::CSV_HEADER)?;
-        for s in &frame_stats {
-            writeln!(f, "{}", s.csv_row())?;
-        }
-        f.commit()?;
+        write_stats(path, &frame_stats).with_context(|| path.display().to_string())?;
     }
     print_summary(args, &config, &summary)
+}
+
+/// Refuses VMAF where it cannot be measured: the source read from
+/// standard input (it is read again after the encode), or no ffmpeg with
+/// libvmaf.
+fn check_vmaf(args: &Args) -> Result<()> {
+    if args.input.as_os_str() == "-" {
+        anyhow::bail!("--metrics vmaf needs the source as a file (it is read again after the encode)");
+    }
+    if vmaf::ffmpeg_with_libvmaf().is_none() {
+        anyhow::bail!(vmaf::VmafError::NoLibvmaf);
+    }
+    Ok(())
+}
+
+/// The encode's progress on a terminal, hidden when quiet, for JSON, or
+/// when standard error is not a terminal.
+fn progress_bar(args: &Args) -> ProgressBar {
+    if args.quiet || args.json || !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(args.frames.map_or(0, |n| n as u64));
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} {pos} frames  {per_sec}  {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+    );
+    bar
+}
+
+/// Each frame's VMAF (the source read again, the reconstructions kept)
+/// into its statistics, and their mean into the summary's.
+fn add_vmaf(
+    args: &Args,
+    recons: &[crate::codec::Frame],
+    frame_stats: &mut [FrameStats],
+    summary: &mut Summary,
+) -> Result<()> {
+    let input = args.input.display().to_string();
+    let sources: Vec<_> = Y4mReader::open(&args.input)
+        .with_context(|| input.clone())?
+        .read_all()
+        .with_context(|| input.clone())?;
+    let scores = vmaf::vmaf(&sources[..recons.len()], recons)?;
+    for (f, v) in frame_stats.iter_mut().zip(&scores) {
+        f.quality.vmaf = *v;
+    }
+    summary.quality.vmaf = scores.iter().sum::<f64>() / scores.len().max(1) as f64;
+    Ok(())
+}
+
+/// The per-frame statistics as CSV, written whole or not at all.
+fn write_stats(path: &std::path::Path, frame_stats: &[FrameStats]) -> Result<()> {
+    let mut f = OutputFile::create(path)?;
+    writeln!(f, "{}", FrameStats::CSV_HEADER)?;
+    for s in frame_stats {
+        writeln!(f, "{}", s.csv_row())?;
+    }
+    f.commit()?;
+    Ok(())
 }
 
 fn print_summary(args: &Args, config: &EncoderConfig, s: &Summary) -> Result<()> {

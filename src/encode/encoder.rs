@@ -34,6 +34,10 @@ use crate::codec::weight::Weights;
 use crate::codec::{Frame, PictureError};
 use crate::metrics::{psnr_from_mse, FrameQuality};
 
+/// A row frame's references: the one it predicts from as it grows, and the
+/// older ones.
+type RowReferences = (GrowingReference, Vec<Arc<Frame>>);
+
 /// Encodes a sequence frame by frame. See the [module](super) example.
 pub struct Encoder {
     seq: SequenceHeader,
@@ -588,22 +592,8 @@ impl Encoder {
         // The frame before is not among the references while in flight;
         // finished, it is the first, read as it is.
         let in_flight = self.in_flight();
-        let (reference, older): (GrowingReference, Vec<Arc<Frame>>) = match in_flight {
-            true => (
-                GrowingReference::new(self.coded_frame(Spare::Plain)?),
-                self.references
-                    .iter()
-                    .take(usize::from(self.seq.max_refs) - 1)
-                    .cloned()
-                    .collect(),
-            ),
-            false => match self.references.first() {
-                Some(before) => (
-                    GrowingReference::finished(Arc::clone(before)),
-                    self.references.iter().skip(1).cloned().collect(),
-                ),
-                None => return Ok(Err((source, src))),
-            },
+        let Some((reference, older)) = self.row_references(in_flight)? else {
+            return Ok(Err((source, src)));
         };
         let t = Instant::now();
         let older_frames: Vec<&Frame> = older.iter().map(|f| &**f).collect();
@@ -633,20 +623,7 @@ impl Encoder {
             false => self.pricing.clone(),
         };
         let (after, next) = mpsc::channel();
-        let before = match self.handoff.take().filter(|_| in_flight) {
-            Some(before) => before,
-            None => {
-                let (now, before) = mpsc::channel();
-                let written = Written {
-                    entropy: self.entropy.clone(),
-                    filter: self.filter,
-                    deblock: self.deblock,
-                };
-                // The receiver is right here.
-                let _ = now.send(written);
-                before
-            }
-        };
+        let before = self.handoff_from_before(in_flight);
         self.handoff = Some(next);
         Ok(Ok(RowFrame {
             sequence: self.frame_sequence(),
@@ -667,6 +644,45 @@ impl Encoder {
             before,
             after,
         }))
+    }
+
+    /// A row frame's growing reference and its older references: the frame
+    /// in flight, growing as its rows are published, and the finished ones
+    /// before it; or, none in flight, the last finished frame and the ones
+    /// older than it. `None` where there is no reference yet.
+    fn row_references(&mut self, in_flight: bool) -> Result<Option<RowReferences>, EncodeError> {
+        if in_flight {
+            let refs = usize::from(self.seq.max_refs) - 1;
+            let older = self.references.iter().take(refs).cloned().collect();
+            return Ok(Some((
+                GrowingReference::new(self.coded_frame(Spare::Plain)?),
+                older,
+            )));
+        }
+        Ok(self.references.first().map(|before| {
+            (
+                GrowingReference::finished(Arc::clone(before)),
+                self.references.iter().skip(1).cloned().collect(),
+            )
+        }))
+    }
+
+    /// Where a row frame receives what the frame before it leaves to the
+    /// writer (contexts, filter, deblocking): the frame in flight's handoff,
+    /// or, none in flight, what the encoder holds now, sent at once.
+    fn handoff_from_before(&mut self, in_flight: bool) -> mpsc::Receiver<Written> {
+        if let Some(before) = self.handoff.take().filter(|_| in_flight) {
+            return before;
+        }
+        let (now, before) = mpsc::channel();
+        let written = Written {
+            entropy: self.entropy.clone(),
+            filter: self.filter,
+            deblock: self.deblock,
+        };
+        // The receiver is right here.
+        let _ = now.send(written);
+        before
     }
 
     /// What a frame thread's frame has of the sequence.

@@ -34,7 +34,7 @@ use crate::codec::syntax::{
     mb_mode, mb_vectors, vector_syntax, write_decided_frame, BitCounts, CodedMb, EntropyState, FrameHeader,
     FrameSyntax, FrameType, FrameWriter, MbKind, MotionTool, SequenceHeader,
 };
-use crate::codec::warp::warp_frame;
+use crate::codec::warp::{warp_frame, MotionGrid};
 use crate::codec::weight::Weights;
 use crate::codec::{Frame, PictureError, Plane};
 use crate::me::halfpel::HalfPel;
@@ -223,6 +223,21 @@ pub(crate) fn code_intra(
 }
 
 impl CodedFrame {
+    /// A frame of `syntax` not written yet, over `recon`, nothing counted.
+    fn empty(syntax: FrameSyntax, recon: Frame) -> CodedFrame {
+        CodedFrame {
+            syntax,
+            bytes: Vec::new(),
+            bits: BitCounts::default(),
+            recon,
+            prediction_sse: 0,
+            kinds: [0; 3],
+            vectors: Vec::new(),
+            deblocked: false,
+            deblock_effect: None,
+        }
+    }
+
     /// Writes the frame (its macroblocks decided) and finishes its
     /// reconstruction at once: the range coder on one thread, the
     /// deblocking on others, and `beside` (given the frame's vectors)
@@ -390,6 +405,47 @@ pub(super) struct InterFrameCoder<'a, 'r> {
     pub(super) frame: CodedFrame,
 }
 
+/// A P frame's motion as the coder takes it: block vectors (searched, or
+/// to be searched in the decision), or a grid with the reference warped by
+/// it and no block vectors.
+fn motion_of(
+    seq: &SequenceHeader,
+    motion: FrameMotion,
+    reference: &Frame,
+) -> Result<(BlockMotion, Option<MotionGrid>, Option<Frame>), PictureError> {
+    match motion {
+        FrameMotion::Vectors(v) => Ok((v, None, None)),
+        FrameMotion::Grid(g) => {
+            let mut out = Frame::new(seq.coded_width(), seq.coded_height())?;
+            warp_frame(reference, &g, &mut out);
+            let none = BlockMotion {
+                mb: vec![Mv::ZERO; seq.mb_cols() * seq.mb_rows()],
+                blocks: None,
+                halfpel: None,
+                lazy: None,
+            };
+            Ok((none, Some(g), Some(out)))
+        }
+    }
+}
+
+/// The header of a P frame coded at `qp` from `inputs`.
+fn inter_header(qp: u8, inputs: &InterInputs<'_>) -> FrameHeader {
+    FrameHeader {
+        frame_type: FrameType::Inter,
+        qp,
+        tool: inputs.tool,
+        refs: inputs.references.len() as u8,
+        deblock: inputs.deblock,
+        weights: inputs.weights,
+        // Block frames choose; the others interpolate sharp.
+        luma_filter: match inputs.tool {
+            MotionTool::Block => inputs.luma_filter,
+            _ => LumaFilter::Sharp,
+        },
+    }
+}
+
 impl<'a, 'r> InterFrameCoder<'a, 'r> {
     pub(super) fn new(
         seq: &'a SequenceHeader,
@@ -400,6 +456,7 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
         recon: Frame,
     ) -> Result<InterFrameCoder<'a, 'r>, PictureError> {
         let n = seq.mb_cols() * seq.mb_rows();
+        let header = inter_header(coder.qp, &inputs);
         let (
             BlockMotion {
                 mb: searched,
@@ -409,33 +466,7 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
             },
             grid,
             warped,
-        ) = match inputs.motion {
-            FrameMotion::Vectors(v) => (v, None, None),
-            FrameMotion::Grid(g) => {
-                let mut out = Frame::new(seq.coded_width(), seq.coded_height())?;
-                warp_frame(inputs.references[0], &g, &mut out);
-                let none = BlockMotion {
-                    mb: vec![Mv::ZERO; n],
-                    blocks: None,
-                    halfpel: None,
-                    lazy: None,
-                };
-                (none, Some(g), Some(out))
-            }
-        };
-        let header = FrameHeader {
-            frame_type: FrameType::Inter,
-            qp: coder.qp,
-            tool: inputs.tool,
-            refs: inputs.references.len() as u8,
-            deblock: inputs.deblock,
-            weights: inputs.weights,
-            // Block frames choose; the others interpolate sharp.
-            luma_filter: match inputs.tool {
-                MotionTool::Block => inputs.luma_filter,
-                _ => LumaFilter::Sharp,
-            },
-        };
+        ) = motion_of(seq, inputs.motion, inputs.references[0])?;
         let obmc = inputs.tool == MotionTool::Obmc;
         // Block frames are decided on a wavefront with coders of their own
         // and written once decided ([`super::wavefront`]).
@@ -471,21 +502,14 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
             decided: Vec::with_capacity(n),
             residual_coder_at_start: obmc.then(|| sink.residual().clone()),
             sink,
-            frame: CodedFrame {
-                syntax: FrameSyntax {
+            frame: CodedFrame::empty(
+                FrameSyntax {
                     header,
                     grid,
                     mbs: Vec::with_capacity(n),
                 },
-                bytes: Vec::new(),
-                bits: BitCounts::default(),
                 recon,
-                prediction_sse: 0,
-                kinds: [0; 3],
-                vectors: Vec::new(),
-                deblocked: false,
-                deblock_effect: None,
-            },
+            ),
         })
     }
 
@@ -866,6 +890,33 @@ pub(crate) fn decide_inter_rows<'a>(
     )))
 }
 
+/// The luma prediction of an intra macroblock's blocks in the modes
+/// decided, each block predicted from the reconstruction of those before
+/// it (and the 8x8 blocks' levels, found on the way); nothing for whole
+/// 16x16 intra, which the caller predicts.
+fn intra_as_decided(
+    search: &IntraBlockSearch<'_>,
+    s: &MbSource,
+    luma: &LumaIntra,
+) -> (MbSamples, Option<Box<[crate::codec::transform8x8::Block8; 4]>>) {
+    let mut pred = MbSamples::default();
+    let mut luma8 = None;
+    match luma {
+        LumaIntra::Whole(_) => {}
+        LumaIntra::Blocks(modes) => {
+            if let Some(b) = search.run(s, Some(modes), f64::INFINITY) {
+                pred.luma = b.pred;
+            }
+        }
+        LumaIntra::Blocks8(modes) => {
+            if let Some(b) = search.run8(s, Some(modes), f64::INFINITY) {
+                (pred.luma, luma8) = (b.pred, b.levels);
+            }
+        }
+    }
+    (pred, luma8)
+}
+
 /// Codes every macroblock's residual again, keeping the decisions, against
 /// the prediction the decoder will form.
 fn recode(
@@ -901,36 +952,22 @@ fn recode(
             mode_bits: (0, 0),
             residual: &residual_coder,
         };
-        let mut pred = MbSamples::default();
-        let mut luma8 = None;
-        match mb.kind {
-            MbKind::Intra {
-                luma: LumaIntra::Whole(luma),
-                chroma,
-            } => pred = predict_intra(&recon, mb_x, mb_y, luma, chroma),
-            MbKind::Intra {
-                luma: LumaIntra::Blocks(modes),
-                ..
-            } => {
-                if let Some(b) = search.run(&s, Some(&modes), f64::INFINITY) {
-                    pred.luma = b.pred;
+        let (pred, luma8) = match mb.kind {
+            MbKind::Intra { luma, chroma } => {
+                let (mut pred, luma8) = intra_as_decided(&search, &s, &luma);
+                if let LumaIntra::Whole(luma) = luma {
+                    pred = predict_intra(&recon, mb_x, mb_y, luma, chroma);
                 }
-            }
-            MbKind::Intra {
-                luma: LumaIntra::Blocks8(modes),
-                ..
-            } => {
-                if let Some(b) = search.run8(&s, Some(&modes), f64::INFINITY) {
-                    (pred.luma, luma8) = (b.pred, b.levels);
+                for p in 0..2 {
+                    predict_intra_plane(&recon, p + 1, mb_x, mb_y, chroma, &mut pred.chroma[p]);
                 }
+                (pred, luma8)
             }
-            _ => pred = predict_inter_blocks(&ctx, mb_x, mb_y, &vectors[i].map(Option::unwrap_or_default)),
-        }
-        if let MbKind::Intra { chroma, .. } = mb.kind {
-            for p in 0..2 {
-                predict_intra_plane(&recon, p + 1, mb_x, mb_y, chroma, &mut pred.chroma[p]);
+            _ => {
+                let vectors = vectors[i].map(Option::unwrap_or_default);
+                (predict_inter_blocks(&ctx, mb_x, mb_y, &vectors), None)
             }
-        }
+        };
         frame.prediction_sse += visible_luma_sse(&s, &pred, mb_x, mb_y, seq);
         if mb.kind == MbKind::Skip {
             write_mb(&pred, &mut recon, mb_x, mb_y);

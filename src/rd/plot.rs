@@ -135,18 +135,18 @@ fn draw_rd<DB: DrawingBackend>(
     root.present().map_err(err)
 }
 
-fn draw_bits<DB: DrawingBackend>(
-    root: DrawingArea<DB, Shift>,
-    points: &[RdPoint],
-    title: &str,
-) -> PlotResult<()> {
-    root.fill(&WHITE).map_err(err)?;
-    // One bar per point, grouped by series then QP; kbit/s per category.
-    let mut bars: Vec<(String, [f64; 3])> = Vec::new();
-    // Each series' name, first bar and bar count, for the group captions.
-    let mut groups: Vec<(String, usize, usize)> = Vec::new();
-    for (name, pts) in series(points) {
-        let mut pts = pts;
+/// A bar of the bit split: its label (the QP) and kbit/s per category
+/// (header, motion, residual).
+type BitBar = (String, [f64; 3]);
+
+/// A series' bars: its name, first bar and bar count (for its caption).
+type BarGroup = (String, usize, usize);
+
+/// One bar per point, grouped by series then QP, and the groups.
+fn bit_bars(points: &[RdPoint]) -> (Vec<BitBar>, Vec<BarGroup>) {
+    let mut bars = Vec::new();
+    let mut groups = Vec::new();
+    for (name, mut pts) in series(points) {
         pts.sort_by(|a, b| a.q.total_cmp(&b.q));
         groups.push((name.clone(), bars.len(), pts.len()));
         for p in pts {
@@ -158,6 +158,16 @@ fn draw_bits<DB: DrawingBackend>(
             ));
         }
     }
+    (bars, groups)
+}
+
+fn draw_bits<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    points: &[RdPoint],
+    title: &str,
+) -> PlotResult<()> {
+    root.fill(&WHITE).map_err(err)?;
+    let (bars, groups) = bit_bars(points);
     let top = bars
         .iter()
         .map(|(_, b)| b.iter().sum::<f64>())

@@ -142,9 +142,10 @@ pub struct ToolArgs {
     /// tries its other modes even where skipping it would code no level.
     #[arg(long)]
     pub no_fast_pskip: bool,
-    /// Fast P-skip probed before the motion search too where the left and
-    /// upper neighbours were skipped, saving the search (x264's rule below
-    /// --subme 3) [default: the preset's].
+    /// Fast P-skip probed before the motion search too beside a skipped left
+    /// or upper neighbour, saving the search (x264's rule below --subme 3;
+    /// beside one, only a skip that leaves little error) [default: the
+    /// preset's].
     #[arg(long, value_name = "on|off", value_parser = on_off)]
     pub early_pskip: Option<bool>,
     /// No 8x8 transform (x264's --no-8x8dct): luma in 4x4 transforms only

@@ -282,7 +282,8 @@ const INTRA_SEARCH_MARGIN: f64 = 1.25;
 const INTRA_LIKELY_SEARCH_MARGIN: f64 = 2.0;
 
 /// The most squared luma error, in lambdas, a skip taken before the
-/// search may leave in the full decision. A still background skipped
+/// search may leave in the full decision, and beside one skipped
+/// neighbour in the fast one. A still background skipped
 /// frame after frame keeps the error it once had, and no level the skip's
 /// residual would code corrects it; x264's medium, which never skips
 /// before its search, refreshes such blocks with intra or a residual.
@@ -511,21 +512,30 @@ impl InterFrameCoder<'_, '_> {
     }
 
     /// x264's fast P-skip below `--subme 3`, before the motion search:
-    /// where the left and upper neighbours were skipped and the skip would
-    /// code no level. x264 probes beside any skipped neighbour of four;
-    /// beside either of two, ultrafast took +4.1 % bits on the
-    /// development set's mean, beside both +1.6 %, each for about 0.85x
-    /// its time. Where the two neighbours' vectors also had to equal the
+    /// beside a skipped left or upper neighbour, where the skip would code
+    /// no level. Between two skips the fast decision takes it whatever its
+    /// error; beside one, and in the full decision, only where it leaves at
+    /// most [`EARLY_SKIP_MAX_SSE`] lambdas of luma error. x264 probes
+    /// beside any skipped neighbour of four, without a bound on the error:
+    /// beside either of two, ultrafast took +2.6 % bits on the 28
+    /// sequences' mean for 0.90x its time. Against both neighbours alone
+    /// (the rule until 2026-12-06; `benches/pair.py`, the 28 at 60 frames):
+    /// ultrafast +0.6 % for 0.92-0.94x its wall time (a bound of 8 lambdas
+    /// beside one: +0.0 % for 0.95-0.98x, 64: +2.0 % for 0.91x), superfast
+    /// +0.7 % for 0.96x, veryfast +0.8 % for 0.96x, fast +0.7 % for 0.93x,
+    /// medium +0.6 % for 0.92x, slow +1.0 % for 0.95x. Where the two neighbours' vectors also had to equal the
     /// predicted one: medium +0.7 % for 0.90x, against +1.3 % for 0.82x.
-    /// In the full decision, only where the skip leaves at most
-    /// [`EARLY_SKIP_MAX_SSE`] lambdas of luma error.
     fn skips_before_search(&self, mb: &MbAnalysis, env: &MbEnv<'_>) -> bool {
-        self.fast_pskip
-            && self.early_pskip
-            && env.modes.skipped_neighbours(mb.mb_x, mb.mb_y) == 2
-            && (self.decision == ModeDecision::Fast
-                || mb.skip_luma_sse as f64 <= EARLY_SKIP_MAX_SSE * self.coder.lambda)
-            && self.skip_loses_nothing(mb, env)
+        if !(self.fast_pskip && self.early_pskip) {
+            return false;
+        }
+        let little_error = mb.skip_luma_sse as f64 <= EARLY_SKIP_MAX_SSE * self.coder.lambda;
+        let beside = match env.modes.skipped_neighbours(mb.mb_x, mb.mb_y) {
+            2 => self.decision == ModeDecision::Fast || little_error,
+            1 => little_error,
+            _ => false,
+        };
+        beside && self.skip_loses_nothing(mb, env)
     }
 
     /// The macroblock's chroma and `reference`'s, for the search's
@@ -1559,6 +1569,47 @@ mod tests {
             after[4]
         );
         assert_eq!(before[4].0, MbKind::Skip);
+    }
+
+    #[test]
+    fn early_pskip_beside_one_skipped_neighbour_takes_only_a_skip_with_little_error() {
+        let fast = |src: &Frame, reference: &Frame, mb: Vec<Mv>, early| {
+            decide_motion(
+                src,
+                reference,
+                mb,
+                None,
+                ((false, true, early), ModeDecision::Fast),
+            )
+        };
+        // The top row's middle macroblock (its left neighbour skipped, none
+        // above) moved half a pel, as in the test between two skips: the
+        // skip leaves little error (under 24 lambdas) and codes nothing.
+        let smooth = |x: f64, y: f64| (128.0 + 15.0 * (0.3 * x + 0.13 * y).sin()) as u8;
+        let reference = frame(|x, y| smooth(x as f64, y as f64));
+        let moved = |x: isize, y: isize| (16..32).contains(&x) && y < 16;
+        let src = frame(|x, y| smooth(x as f64 + if moved(x, y) { 0.5 } else { 0.0 }, y as f64));
+        let mut mb = vec![Mv::ZERO; 9];
+        mb[1] = Mv::new(2, 0);
+        let after = fast(&src, &reference, mb.clone(), false);
+        assert_eq!(after[0].0, MbKind::Skip);
+        assert!(
+            matches!(after[1].0, MbKind::Inter { mv } if mv.mv == Mv::new(2, 0)),
+            "{:?}",
+            after[1]
+        );
+        assert_eq!(fast(&src, &reference, mb, true)[1].0, MbKind::Skip);
+        // The same macroblock 3 too bright in the reference: the skip codes
+        // nothing but leaves 2304 of squared error, over 24 lambdas; beside
+        // one skipped neighbour it is analysed, and intra (DC from the left
+        // neighbour, exact) refreshes it.
+        let src = frame(|_, _| 100);
+        let reference = frame(|x, y| if moved(x, y) { 103 } else { 100 });
+        let mut mb = vec![Mv::ZERO; 9];
+        mb[1] = Mv::new(4, 0);
+        let before = fast(&src, &reference, mb, true);
+        assert_eq!(before[0].0, MbKind::Skip);
+        assert!(matches!(before[1].0, MbKind::Intra { .. }), "{:?}", before[1]);
     }
 
     #[test]

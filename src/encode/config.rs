@@ -463,8 +463,9 @@ pub struct EncoderConfig {
     /// predicted vector, or one within a quarter pel of it beside a skipped
     /// neighbour (left or above).
     pub fast_pskip: bool,
-    /// Fast P-skip probed before the motion search too, where the left and
-    /// upper neighbours were both skipped: the search is saved where the
+    /// Fast P-skip probed before the motion search too, beside a skipped
+    /// left or upper neighbour (beside one, and in the full decision, only
+    /// where the skip leaves little error): the search is saved where the
     /// skip holds (x264's rule below `--subme 3`, which probes beside any
     /// skipped neighbour of four). Needs `fast_pskip`.
     pub early_pskip: bool,
@@ -687,9 +688,10 @@ impl EncoderConfig {
         // ultrafast +1.6 % for about 0.88x its time, superfast +1.7 % for
         // 0.93x, veryfast +1.9 % for 0.87-0.92x, medium +1.3 % for
         // 0.79-0.82x, slow +1.0 % for 0.75x (the 28 sequences, one run).
-        // Slower keeps the search on every macroblock. In the full
-        // decision (fast to slow) only skips that leave little error are
-        // taken so (`EARLY_SKIP_MAX_SSE` in the analysis).
+        // Slower keeps the search on every macroblock. Beside one skipped
+        // neighbour (since 2026-12-06), and in the full decision (fast to
+        // slow), only skips that leave little error are taken so
+        // (`EARLY_SKIP_MAX_SSE` in the analysis).
         self.early_pskip = preset <= Slow;
         // The 8x8 transform from superfast: -5.4 against ultrafast, for
         // 1.10x its time.

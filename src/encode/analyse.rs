@@ -523,8 +523,9 @@ impl InterFrameCoder<'_, '_> {
     /// ultrafast +0.6 % for 0.92-0.94x its wall time (a bound of 8 lambdas
     /// beside one: +0.0 % for 0.95-0.98x, 64: +2.0 % for 0.91x), superfast
     /// +0.7 % for 0.96x, veryfast +0.8 % for 0.96x, fast +0.7 % for 0.93x,
-    /// medium +0.6 % for 0.92x, slow +1.0 % for 0.95x. Where the two neighbours' vectors also had to equal the
-    /// predicted one: medium +0.7 % for 0.90x, against +1.3 % for 0.82x.
+    /// medium +0.6 % for 0.92x, slow +1.0 % for 0.95x. Where the two
+    /// neighbours' vectors also had to equal the predicted one (an earlier
+    /// trial): medium +0.7 % for 0.90x, against +1.3 % for 0.82x.
     fn skips_before_search(&self, mb: &MbAnalysis, env: &MbEnv<'_>) -> bool {
         if !(self.fast_pskip && self.early_pskip) {
             return false;

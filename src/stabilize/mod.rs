@@ -74,7 +74,8 @@ pub struct StabilizeParams {
     pub coverage: f64,
     /// Where the motion comes from. [`Source::Auto`] (the default): block
     /// vectors, a pair where they fit no motion tried again with flow: on
-    /// nine still-camera clips under a known shake (README) blocks left
+    /// nine still-camera clips under a known shake
+    /// (`docs/results/applications.md`) blocks left
     /// less jitter than flow on seven and took less time, but a fish
     /// tank's flat water left most of its pairs unfitted.
     pub source: Source,

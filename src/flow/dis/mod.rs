@@ -81,8 +81,8 @@ pub struct DisParams {
     /// halving quarters the variance of the picture's noise, so the data
     /// earn four times the weight against the start; with full size's
     /// damping at quarter size, patches on moving real footage kept the
-    /// coarser level's error (the README's side-by-side, room_400
-    /// ultrafast: EPE 1.22 against 0.64). On mostly still footage the
+    /// coarser level's error (the side-by-side's record in
+    /// `docs/results/flow.md`, room_400 ultrafast: EPE 1.22 against 0.64). On mostly still footage the
     /// weaker damping lets flat, noisy areas drift: the encoder's flow
     /// predictor, which uses the finer mode, took 5.6 % more bits with it
     /// on fish_1160 at CIF, so the finer mode keeps the full damping.
@@ -130,7 +130,8 @@ impl DisParams {
     /// The settings of a preset: OpenCV's pyramid levels at every size
     /// (its finest level 2 for ultrafast and fast, 1 for medium), so that
     /// each preset takes no more than OpenCV's preset of the same name on
-    /// small pictures too (see the README's side-by-side).
+    /// small pictures too (the README's side-by-side; the finer levels'
+    /// cost on small pictures is in `docs/results/flow.md`).
     pub fn preset(preset: DisPreset) -> DisParams {
         let base = DisParams {
             finest: 2,

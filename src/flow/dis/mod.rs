@@ -411,6 +411,35 @@ impl Dis {
             Array2::zeros(self.p1.levels[top].dim()),
             Array2::zeros(self.p1.levels[top].dim()),
         );
+        let (hints, hinted_from) = self.hints(i1, i2, initial, finest);
+        for level in (finest..=top).rev() {
+            let (h, w) = self.p1.levels[level].dim();
+            if u.dim() != (h, w) {
+                u = upsample2(&u, h, w, 2.0);
+                v = upsample2(&v, h, w, 2.0);
+            }
+            let hint = hints
+                .as_ref()
+                .filter(|_| level >= hinted_from)
+                .map(|hs| &hs[level - hinted_from]);
+            self.solve_level(level, hint, (&mut u, &mut v));
+        }
+        (u, v, finest)
+    }
+
+    /// The start flows per level from the finest hinted up, and that
+    /// level: the caller's `initial` at every level, or the feature
+    /// matches' (where the parameters seed them) from `seed_finest`.
+    fn hints(
+        &self,
+        i1: Luma<'_>,
+        i2: Luma<'_>,
+        initial: Option<&Flow>,
+        finest: usize,
+    ) -> (Option<Vec<(Array2<f32>, Array2<f32>)>>, usize) {
+        let p = &self.params;
+        let (h0, w0) = i1.dim();
+        let top = self.p1.levels.len() - 1;
         let seed = match initial {
             None if p.seed_matches => {
                 let (a, b) = (i1.to_f32(), i2.to_f32());
@@ -420,7 +449,6 @@ impl Dis {
             }
             _ => None,
         };
-        // The caller's start at every level, the matches' from `seed_finest`.
         let hinted_from = if initial.is_some() {
             finest
         } else {
@@ -429,42 +457,44 @@ impl Dis {
         let hints = initial
             .or(seed.as_ref())
             .map(|f| hint_pyramid(f, &self.p1.levels, hinted_from));
-        for level in (finest..=top).rev() {
-            let (a1, a2) = (&self.p1.levels[level], &self.p2.levels[level]);
-            let (h, w) = a1.dim();
-            if u.dim() != (h, w) {
-                u = upsample2(&u, h, w, 2.0);
-                v = upsample2(&v, h, w, 2.0);
-            }
-            let hint = hints
-                .as_ref()
-                .filter(|_| level >= hinted_from)
-                .map(|hs| &hs[level - hinted_from]);
-            let patch = p.patch.min(w).min(h);
-            let exhaustive = p.global_search && level == top;
-            let padded = search::Padded::new(a2.as_slice().expect("standard"), w, h, patch + 2);
-            let input = search::LevelSearch {
-                a1,
-                a2: &padded,
-                u: &u,
-                v: &v,
-                hint,
-                params: &p,
-                exhaustive,
-                damping: match (level == top, p.damping_falls) {
-                    (true, _) => COARSEST_DAMPING,
-                    (false, true) => p.damping / 4f32.powi(level as i32),
-                    (false, false) => p.damping,
-                },
-                refines: level < top,
-            };
-            let sparse = search::search_level(&input, patch);
-            densify::densify(a1, &padded, &sparse, &mut u, &mut v);
-            if p.refine.iterations > 0 {
-                self.refiner.refine(a1, a2, &mut u, &mut v, &p.refine);
-            }
+        (hints, hinted_from)
+    }
+
+    /// One level's flow into `u`, `v` (the coarser level's, upsampled to
+    /// this level's size): its patches searched from it (and from `hint`),
+    /// densified, refined.
+    fn solve_level(
+        &mut self,
+        level: usize,
+        hint: Option<&(Array2<f32>, Array2<f32>)>,
+        (u, v): (&mut Array2<f32>, &mut Array2<f32>),
+    ) {
+        let p = self.params;
+        let top = self.p1.levels.len() - 1;
+        let (a1, a2) = (&self.p1.levels[level], &self.p2.levels[level]);
+        let (h, w) = a1.dim();
+        let patch = p.patch.min(w).min(h);
+        let padded = search::Padded::new(a2.as_slice().expect("standard"), w, h, patch + 2);
+        let input = search::LevelSearch {
+            a1,
+            a2: &padded,
+            u: &*u,
+            v: &*v,
+            hint,
+            params: &p,
+            exhaustive: p.global_search && level == top,
+            damping: match (level == top, p.damping_falls) {
+                (true, _) => COARSEST_DAMPING,
+                (false, true) => p.damping / 4f32.powi(level as i32),
+                (false, false) => p.damping,
+            },
+            refines: level < top,
+        };
+        let sparse = search::search_level(&input, patch);
+        densify::densify(a1, &padded, &sparse, u, v);
+        if p.refine.iterations > 0 {
+            self.refiner.refine(a1, a2, u, v, &p.refine);
         }
-        (u, v, finest)
     }
 }
 

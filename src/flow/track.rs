@@ -124,83 +124,138 @@ fn track_one_way(
     points: &[(f32, f32)],
     p: &TrackParams,
 ) -> Vec<Track> {
-    let r = p.radius as isize;
-    let n = ((2 * r + 1) * (2 * r + 1)) as f32;
     // Points in parallel, each on its own: the same result for any number
     // of threads.
     points
         .par_iter()
-        .map(|&(x0, y0)| {
-            let (mut dx, mut dy) = (0f32, 0f32); // motion at the current level
-            let mut found = true;
-            for level in (0..p1.len()).rev() {
-                let scale = (1u32 << level) as f32;
-                let (cx, cy) = (x0 / scale, y0 / scale);
-                let (img1, img2) = (&p1[level], &p2[level]);
-                let (gx, gy) = (&g1[level].0, &g1[level].1);
-                // Patch tensor (fixed on the first picture).
-                let (mut a, mut b, mut c) = (0f32, 0f32, 0f32);
-                let mut patch = Vec::with_capacity(n as usize);
-                for j in -r..=r {
-                    for i in -r..=r {
-                        let (px, py) = (cx + i as f32, cy + j as f32);
-                        let (ix, iy) = (sample_bilinear(gx, px, py), sample_bilinear(gy, px, py));
-                        patch.push((sample_bilinear(img1, px, py), ix, iy));
-                        a += ix * ix;
-                        b += ix * iy;
-                        c += iy * iy;
-                    }
-                }
-                let det = a * c - b * b;
-                let min_eig = (0.5 * (a + c) - (0.25 * (a - c) * (a - c) + b * b).sqrt()) / n;
-                if min_eig < p.min_eigen || det.abs() < f32::EPSILON {
-                    found = false;
-                    break;
-                }
-                for _ in 0..p.iterations {
-                    let (mut ex, mut ey) = (0f32, 0f32);
-                    let mut k = 0;
-                    for j in -r..=r {
-                        for i in -r..=r {
-                            let (v1, ix, iy) = patch[k];
-                            k += 1;
-                            let diff = sample_bilinear(img2, cx + dx + i as f32, cy + dy + j as f32) - v1;
-                            ex += ix * diff;
-                            ey += iy * diff;
-                        }
-                    }
-                    let (sx, sy) = (-(c * ex - b * ey) / det, -(a * ey - b * ex) / det);
-                    dx += sx;
-                    dy += sy;
-                    if sx * sx + sy * sy < p.epsilon * p.epsilon {
-                        break;
-                    }
-                }
-                if level > 0 {
-                    dx *= 2.0;
-                    dy *= 2.0;
-                }
-            }
-            let (x, y) = (x0 + dx, y0 + dy);
-            let (h, w) = p2[0].dim();
-            if found && (x < 0.0 || y < 0.0 || x > (w - 1) as f32 || y > (h - 1) as f32) {
-                found = false;
-            }
-            let mut error = 0f32;
-            if found {
-                for j in -r..=r {
-                    for i in -r..=r {
-                        let (ox, oy) = (i as f32, j as f32);
-                        error += (sample_bilinear(&p2[0], x + ox, y + oy)
-                            - sample_bilinear(&p1[0], x0 + ox, y0 + oy))
-                        .abs();
-                    }
-                }
-                error /= n;
-            }
-            Track { x, y, found, error }
-        })
+        .map(|&point| track_point((p1, g1, p2), point, p))
         .collect()
+}
+
+/// One point followed from the coarsest level to the finest; lost where a
+/// level's patch has too little texture or it leaves the picture.
+fn track_point(
+    (p1, g1, p2): (&[Array2<f32>], &[(Array2<f32>, Array2<f32>)], &[Array2<f32>]),
+    (x0, y0): (f32, f32),
+    p: &TrackParams,
+) -> Track {
+    let r = p.radius as isize;
+    let n = ((2 * r + 1) * (2 * r + 1)) as f32;
+    let (mut dx, mut dy) = (0f32, 0f32); // motion at the current level
+    let mut found = true;
+    for level in (0..p1.len()).rev() {
+        let scale = (1u32 << level) as f32;
+        let centre = (x0 / scale, y0 / scale);
+        let tensor = PatchTensor::of(&p1[level], &g1[level], centre, r);
+        let (a, b, c) = (tensor.a, tensor.b, tensor.c);
+        let det = a * c - b * b;
+        let min_eig = (0.5 * (a + c) - (0.25 * (a - c) * (a - c) + b * b).sqrt()) / n;
+        if min_eig < p.min_eigen || det.abs() < f32::EPSILON {
+            found = false;
+            break;
+        }
+        (dx, dy) = tensor.iterate(&p2[level], centre, (dx, dy), p);
+        if level > 0 {
+            dx *= 2.0;
+            dy *= 2.0;
+        }
+    }
+    let (x, y) = (x0 + dx, y0 + dy);
+    let (h, w) = p2[0].dim();
+    if found && (x < 0.0 || y < 0.0 || x > (w - 1) as f32 || y > (h - 1) as f32) {
+        found = false;
+    }
+    let error = match found {
+        true => patch_error((&p1[0], &p2[0]), (x0, y0), (x, y), r) / n,
+        false => 0.0,
+    };
+    Track { x, y, found, error }
+}
+
+/// A patch of the first picture at one level: its samples and gradients,
+/// and the sums of its structure tensor (fixed through the iterations).
+struct PatchTensor {
+    samples: Vec<(f32, f32, f32)>,
+    a: f32,
+    b: f32,
+    c: f32,
+}
+
+impl PatchTensor {
+    /// The patch of radius `r` around (cx, cy) of `img1` with its
+    /// gradients `(gx, gy)`.
+    fn of(
+        img1: &Array2<f32>,
+        (gx, gy): &(Array2<f32>, Array2<f32>),
+        (cx, cy): (f32, f32),
+        r: isize,
+    ) -> PatchTensor {
+        let (mut a, mut b, mut c) = (0f32, 0f32, 0f32);
+        let mut samples = Vec::with_capacity(((2 * r + 1) * (2 * r + 1)) as usize);
+        for j in -r..=r {
+            for i in -r..=r {
+                let (px, py) = (cx + i as f32, cy + j as f32);
+                let (ix, iy) = (sample_bilinear(gx, px, py), sample_bilinear(gy, px, py));
+                samples.push((sample_bilinear(img1, px, py), ix, iy));
+                a += ix * ix;
+                b += ix * iy;
+                c += iy * iy;
+            }
+        }
+        PatchTensor { samples, a, b, c }
+    }
+
+    /// Lucas-Kanade's iterations on `img2` from the motion (dx, dy) until
+    /// a step is under `p.epsilon` (at most `p.iterations`): the motion.
+    fn iterate(
+        &self,
+        img2: &Array2<f32>,
+        (cx, cy): (f32, f32),
+        (mut dx, mut dy): (f32, f32),
+        p: &TrackParams,
+    ) -> (f32, f32) {
+        let r = p.radius as isize;
+        let (a, b, c) = (self.a, self.b, self.c);
+        let det = a * c - b * b;
+        for _ in 0..p.iterations {
+            let (mut ex, mut ey) = (0f32, 0f32);
+            let mut k = 0;
+            for j in -r..=r {
+                for i in -r..=r {
+                    let (v1, ix, iy) = self.samples[k];
+                    k += 1;
+                    let diff = sample_bilinear(img2, cx + dx + i as f32, cy + dy + j as f32) - v1;
+                    ex += ix * diff;
+                    ey += iy * diff;
+                }
+            }
+            let (sx, sy) = (-(c * ex - b * ey) / det, -(a * ey - b * ex) / det);
+            dx += sx;
+            dy += sy;
+            if sx * sx + sy * sy < p.epsilon * p.epsilon {
+                break;
+            }
+        }
+        (dx, dy)
+    }
+}
+
+/// The sum of absolute differences between the patches of radius `r` at
+/// (x0, y0) of `i1` and at (x, y) of `i2`.
+fn patch_error(
+    (i1, i2): (&Array2<f32>, &Array2<f32>),
+    (x0, y0): (f32, f32),
+    (x, y): (f32, f32),
+    r: isize,
+) -> f32 {
+    let mut error = 0f32;
+    for j in -r..=r {
+        for i in -r..=r {
+            let (ox, oy) = (i as f32, j as f32);
+            error += (sample_bilinear(i2, x + ox, y + oy) - sample_bilinear(i1, x0 + ox, y0 + oy)).abs();
+        }
+    }
+    error
 }
 
 /// Follows `points` from `i1` to `i2`.

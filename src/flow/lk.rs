@@ -344,51 +344,26 @@ impl Lk {
         let buf = self.scratch.as_mut().expect("just made");
         let mut lambda = Array2::zeros(p1[coarsest].dim());
         for level in (finest..=coarsest).rev() {
-            let (a1, a2) = (&p1[level], &p2[level]);
-            let (h, w) = a1.dim();
-            let n = h * w;
+            let (h, w) = p1[level].dim();
             if u.dim() != (h, w) {
                 u = upsample2(&u, h, w, 2.0);
                 v = upsample2(&v, h, w, 2.0);
             }
-            let s1 = a1.as_slice().expect("standard");
-            buf.prepare(s1, h, w);
             lambda = Array2::zeros((h, w));
-            let mut tensor_unmasked = false;
-            for _ in 0..p.iterations {
-                let any_outside = buf.temporal(
-                    s1,
-                    a2,
-                    u.as_slice().expect("standard"),
-                    v.as_slice().expect("standard"),
-                    h,
-                    w,
-                );
-                // The window tensor, without the pixels whose warped position
-                // left the picture (they see only the repeated edge); filtered
-                // once while no pixel is out.
-                if any_outside || !tensor_unmasked {
-                    buf.window_tensor(h, w, &window, any_outside);
-                    tensor_unmasked = !any_outside;
-                }
-                buf.window_mismatch(h, w, &window);
-                buf.solve(
-                    n,
-                    u.as_slice_mut().expect("standard"),
-                    v.as_slice_mut().expect("standard"),
-                    lambda.as_slice_mut().expect("standard"),
-                    p.min_eigen,
-                );
-            }
+            refine_level(
+                buf,
+                (&p1[level], &p2[level]),
+                (&mut u, &mut v),
+                &mut lambda,
+                (&window, &p),
+            );
         }
         // From the finest level computed up to full size.
         let (h0, w0) = i1.dim();
-        let mut level = finest;
-        while level > 0 {
+        for level in (1..=finest).rev() {
             let (h, w) = p1[level - 1].dim();
             u = upsample2(&u, h, w, 2.0);
             v = upsample2(&v, h, w, 2.0);
-            level -= 1;
         }
         let confidence = nearest_upscaled(&lambda, 1 << finest, (h0, w0));
         let fallback = confidence.mapv(|l| l < p.min_eigen);
@@ -397,5 +372,46 @@ impl Lk {
             confidence,
             fallback,
         }
+    }
+}
+
+/// One level's iterations: the flow `u`, `v` (the level's size, the
+/// coarser level's upsampled) refined in place, and each pixel's smaller
+/// eigenvalue of its window tensor into `lambda` (the level's size).
+fn refine_level(
+    buf: &mut Scratch,
+    (a1, a2): (&Array2<f32>, &Array2<f32>),
+    (u, v): (&mut Array2<f32>, &mut Array2<f32>),
+    lambda: &mut Array2<f32>,
+    (window, p): (&[f32], &LkParams),
+) {
+    let (h, w) = a1.dim();
+    let s1 = a1.as_slice().expect("standard");
+    buf.prepare(s1, h, w);
+    let mut tensor_unmasked = false;
+    for _ in 0..p.iterations {
+        let any_outside = buf.temporal(
+            s1,
+            a2,
+            u.as_slice().expect("standard"),
+            v.as_slice().expect("standard"),
+            h,
+            w,
+        );
+        // The window tensor, without the pixels whose warped position
+        // left the picture (they see only the repeated edge); filtered
+        // once while no pixel is out.
+        if any_outside || !tensor_unmasked {
+            buf.window_tensor(h, w, window, any_outside);
+            tensor_unmasked = !any_outside;
+        }
+        buf.window_mismatch(h, w, window);
+        buf.solve(
+            h * w,
+            u.as_slice_mut().expect("standard"),
+            v.as_slice_mut().expect("standard"),
+            lambda.as_slice_mut().expect("standard"),
+            p.min_eigen,
+        );
     }
 }

@@ -135,7 +135,7 @@ fn track_one_way(
 /// One point followed from the coarsest level to the finest; lost where a
 /// level's patch has too little texture or it leaves the picture.
 fn track_point(
-    (p1, g1, p2): (&[Array2<f32>], &[(Array2<f32>, Array2<f32>)], &[Array2<f32>]),
+    (p1, g1, p2): (&[Array2<f32>], &[Gradients], &[Array2<f32>]),
     (x0, y0): (f32, f32),
     p: &TrackParams,
 ) -> Track {
@@ -171,6 +171,9 @@ fn track_point(
     };
     Track { x, y, found, error }
 }
+
+/// A level's horizontal and vertical gradients.
+type Gradients = (Array2<f32>, Array2<f32>);
 
 /// A patch of the first picture at one level: its samples and gradients,
 /// and the sums of its structure tensor (fixed through the iterations).

@@ -436,7 +436,7 @@ impl Dis {
         i2: Luma<'_>,
         initial: Option<&Flow>,
         finest: usize,
-    ) -> (Option<Vec<(Array2<f32>, Array2<f32>)>>, usize) {
+    ) -> (Option<Vec<LevelFlow>>, usize) {
         let p = &self.params;
         let (h0, w0) = i1.dim();
         let top = self.p1.levels.len() - 1;
@@ -466,7 +466,7 @@ impl Dis {
     fn solve_level(
         &mut self,
         level: usize,
-        hint: Option<&(Array2<f32>, Array2<f32>)>,
+        hint: Option<&LevelFlow>,
         (u, v): (&mut Array2<f32>, &mut Array2<f32>),
     ) {
         let p = self.params;
@@ -512,7 +512,10 @@ fn both<A: Send, B: Send>(
 }
 
 /// The initial flow at every level from `finest` up, scaled to each level.
-fn hint_pyramid(flow: &Flow, levels: &[Array2<f32>], finest: usize) -> Vec<(Array2<f32>, Array2<f32>)> {
+/// A flow's two components at one level of the pyramid.
+type LevelFlow = (Array2<f32>, Array2<f32>);
+
+fn hint_pyramid(flow: &Flow, levels: &[Array2<f32>], finest: usize) -> Vec<LevelFlow> {
     let mut out = Vec::new();
     let (mut u, mut v) = (flow.u().clone(), flow.v().clone());
     for (level, img) in levels.iter().enumerate() {

@@ -432,83 +432,109 @@ pub enum CsvError {
 pub fn read_csv(input: impl Read) -> Result<Vec<RdPoint>, CsvError> {
     let mut r = csv::Reader::from_reader(input);
     let headers = r.headers()?.clone();
-    let col = |name: &str| headers.iter().position(|h| h.trim() == name);
-    if let Some(missing) = CSV_COLUMNS[..6].iter().find(|c| col(c).is_none()) {
+    if let Some(missing) = CSV_COLUMNS[..6]
+        .iter()
+        .find(|c| !headers.iter().any(|h| h.trim() == **c))
+    {
         return Err(CsvError::MissingColumn(missing));
     }
     let mut out = Vec::new();
     for (line, record) in r.records().enumerate() {
         let record = record?;
-        let text = |name: &str| {
-            col(name)
-                .and_then(|i| record.get(i))
-                .unwrap_or("")
-                .trim()
-                .to_string()
+        let row = CsvRow {
+            headers: &headers,
+            record: &record,
+            number: line + 2,
         };
-        let num = |name: &'static str| -> Result<f64, CsvError> {
-            let t = text(name);
-            if t.is_empty() && !CSV_COLUMNS[..6].contains(&name) {
-                return Ok(0.0);
-            }
-            t.parse::<f64>().map_err(|_| CsvError::NotANumber {
-                row: line + 2,
-                column: name,
-                text: t,
-            })
-        };
-        // Columns that may be absent or empty: NaN, not 0.
-        let optional = |name: &'static str| -> Result<f64, CsvError> {
-            if text(name).is_empty() {
-                Ok(f64::NAN)
-            } else {
-                num(name)
-            }
-        };
-        out.push(RdPoint {
-            codec: text("codec"),
-            q: num("q")?,
-            bytes: num("bytes")? as u64,
-            kbps: num("kbps")?,
-            quality: SequenceQuality {
-                psnr_y: num("psnr_y")?,
-                psnr_u: num("psnr_u")?,
-                psnr_v: num("psnr_v")?,
-                ssim: num("ssim")?,
-                psnr_y_mse: optional("psnr_y_mse")?,
-                ms_ssim: optional("ms_ssim")?,
-                psnr_hvs: optional("psnr_hvs")?,
-                ciede2000: optional("ciede2000")?,
-                vmaf: optional("vmaf")?,
-                ..SequenceQuality::unknown(num("frames")? as usize)
-            },
-            sequence: text("sequence"),
-            bits_header: num("bits_header")? as u64,
-            bits_motion: num("bits_motion")? as u64,
-            bits_residual: num("bits_residual")? as u64,
-            encode_ms: num("encode_ms")?,
-            me_ms: num("me_ms")?,
-            decode_ms: optional("decode_ms")?,
-            study: text("study"),
-            job: match text("job") {
-                t if t.is_empty() => None,
-                t => Some(parse_job(&t).ok_or(CsvError::NotANumber {
-                    row: line + 2,
-                    column: "job",
-                    text: t,
-                })?),
-            },
-            shard: match text("shard") {
-                t if t.is_empty() => None,
-                t => Some(parse_shard(&t).ok_or(CsvError::NotANumber {
-                    row: line + 2,
-                    column: "shard",
-                    text: t,
-                })?),
-            },
-        });
+        out.push(row.point()?);
     }
     Ok(out)
+}
+
+/// One record of a peer-format CSV, its fields read by column name.
+struct CsvRow<'r> {
+    headers: &'r csv::StringRecord,
+    record: &'r csv::StringRecord,
+    /// Its row in the file (the header is row 1).
+    number: usize,
+}
+
+impl CsvRow<'_> {
+    /// The field of column `name`, trimmed; empty where the column or the
+    /// field is missing.
+    fn text(&self, name: &str) -> String {
+        self.headers
+            .iter()
+            .position(|h| h.trim() == name)
+            .and_then(|i| self.record.get(i))
+            .unwrap_or("")
+            .trim()
+            .to_string()
+    }
+
+    fn not_a_number(&self, column: &'static str, text: String) -> CsvError {
+        CsvError::NotANumber {
+            row: self.number,
+            column,
+            text,
+        }
+    }
+
+    /// A number; 0 where an optional column is missing or empty.
+    fn num(&self, name: &'static str) -> Result<f64, CsvError> {
+        let t = self.text(name);
+        if t.is_empty() && !CSV_COLUMNS[..6].contains(&name) {
+            return Ok(0.0);
+        }
+        t.parse::<f64>().map_err(|_| self.not_a_number(name, t))
+    }
+
+    /// A number of a column that may be absent or empty: NaN, not 0.
+    fn optional(&self, name: &'static str) -> Result<f64, CsvError> {
+        match self.text(name).is_empty() {
+            true => Ok(f64::NAN),
+            false => self.num(name),
+        }
+    }
+
+    /// A field read by `parse`; `None` where empty.
+    fn parsed<T>(&self, name: &'static str, parse: fn(&str) -> Option<T>) -> Result<Option<T>, CsvError> {
+        match self.text(name) {
+            t if t.is_empty() => Ok(None),
+            t => parse(&t).map(Some).ok_or_else(|| self.not_a_number(name, t)),
+        }
+    }
+
+    fn point(&self) -> Result<RdPoint, CsvError> {
+        Ok(RdPoint {
+            codec: self.text("codec"),
+            q: self.num("q")?,
+            bytes: self.num("bytes")? as u64,
+            kbps: self.num("kbps")?,
+            quality: SequenceQuality {
+                psnr_y: self.num("psnr_y")?,
+                psnr_u: self.num("psnr_u")?,
+                psnr_v: self.num("psnr_v")?,
+                ssim: self.num("ssim")?,
+                psnr_y_mse: self.optional("psnr_y_mse")?,
+                ms_ssim: self.optional("ms_ssim")?,
+                psnr_hvs: self.optional("psnr_hvs")?,
+                ciede2000: self.optional("ciede2000")?,
+                vmaf: self.optional("vmaf")?,
+                ..SequenceQuality::unknown(self.num("frames")? as usize)
+            },
+            sequence: self.text("sequence"),
+            bits_header: self.num("bits_header")? as u64,
+            bits_motion: self.num("bits_motion")? as u64,
+            bits_residual: self.num("bits_residual")? as u64,
+            encode_ms: self.num("encode_ms")?,
+            me_ms: self.num("me_ms")?,
+            decode_ms: self.optional("decode_ms")?,
+            study: self.text("study"),
+            job: self.parsed("job", parse_job)?,
+            shard: self.parsed("shard", parse_shard)?,
+        })
+    }
 }
 
 /// `I/N` with 1 <= I <= N.
@@ -693,4 +719,52 @@ pub fn markdown(rows: &[Comparison], anchor_name: &str) -> String {
         table(&format!("mean over {} sequences", by_seq.len()), &avg);
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_peer_csv_reads_by_name_in_any_order_with_optional_columns_empty_or_absent() {
+        let text = "psnr_y,codec,kbps,q,frames,bytes,ms_ssim,job\n\
+                    38.5, x264 ,120.5,27,30,4500,,2/3\n\
+                    41.0,x264,240,22,30,9000,0.99,\n";
+        let points = read_csv(text.as_bytes()).expect("a valid CSV");
+        assert_eq!(points.len(), 2);
+        let p = &points[0];
+        assert_eq!(
+            (p.codec.as_str(), p.q, p.bytes, p.kbps),
+            ("x264", 27.0, 4500, 120.5)
+        );
+        assert_eq!((p.quality.psnr_y, p.quality.frames), (38.5, 30));
+        // Absent optional columns: 0 where a number, NaN where a metric.
+        assert_eq!((p.quality.psnr_u, p.encode_ms, p.bits_motion), (0.0, 0.0, 0));
+        assert!(p.quality.vmaf.is_nan() && p.quality.ms_ssim.is_nan() && p.decode_ms.is_nan());
+        assert_eq!((p.job, p.shard), (Some((2, 3)), None));
+        assert_eq!(points[1].quality.ms_ssim, 0.99);
+        assert_eq!(points[1].job, None);
+    }
+
+    #[test]
+    fn a_bad_field_names_its_row_and_column_and_a_missing_leading_column_is_named() {
+        let header = "codec,q,bytes,frames,kbps,psnr_y,shard\n";
+        let bad_number = format!("{header}x264,27,4500,30,120,38.5,\nx264,22,many,30,240,41,\n");
+        match read_csv(bad_number.as_bytes()) {
+            Err(CsvError::NotANumber { row, column, text }) => {
+                assert_eq!((row, column, text.as_str()), (3, "bytes", "many"))
+            }
+            other => panic!("expected a bad number, got {other:?}"),
+        }
+        let bad_shard = format!("{header}x264,27,4500,30,120,38.5,4/3\n");
+        match read_csv(bad_shard.as_bytes()) {
+            Err(CsvError::NotANumber { row, column, .. }) => assert_eq!((row, column), (2, "shard")),
+            other => panic!("expected a bad shard, got {other:?}"),
+        }
+        let no_psnr = "codec,q,bytes,frames,kbps\nx264,27,4500,30,120\n";
+        assert!(matches!(
+            read_csv(no_psnr.as_bytes()),
+            Err(CsvError::MissingColumn("psnr_y"))
+        ));
+    }
 }

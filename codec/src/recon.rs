@@ -17,7 +17,7 @@ use crate::obmc::{self, Neighbourhood};
 use crate::partition::{MbVectors, RefMv};
 use crate::picture::{Frame, PictureError, Plane};
 use crate::residual::MbResidual;
-use crate::syntax::{mb_vectors, FrameSyntax, FrameType, MbKind, MotionTool, SequenceHeader, MB};
+use crate::syntax::{mb_vectors, CodedMb, FrameSyntax, FrameType, MbKind, MotionTool, SequenceHeader, MB};
 use crate::transform::{dequantize_chroma_dc, dequantize_luma_dc, Block4};
 use crate::transform8x8::Block8;
 use crate::warp::warp_frame;
@@ -563,43 +563,17 @@ pub fn reconstruct_frame(
         }
         _ => None,
     };
+    let inter = reference.map(|_| InterContext {
+        references: &list,
+        tool: header.tool,
+        luma_filter: header.luma_filter,
+        vectors: &vectors,
+        warped: warped.as_ref(),
+        mb_cols: cols,
+    });
     for (i, mb) in frame.mbs.iter().enumerate() {
         let (mb_x, mb_y) = (i % cols, i / cols);
-        let pred = match (mb.kind, reference) {
-            (
-                MbKind::Intra {
-                    luma: LumaIntra::Whole(luma),
-                    chroma,
-                },
-                _,
-            ) => predict_intra(&recon, mb_x, mb_y, luma, chroma),
-            (
-                MbKind::Intra {
-                    luma: LumaIntra::Blocks(modes),
-                    chroma,
-                },
-                _,
-            ) => predict_intra4x4(&recon, (mb_x, mb_y), &modes, chroma, mb.residual(), header.qp),
-            (
-                MbKind::Intra {
-                    luma: LumaIntra::Blocks8(modes),
-                    chroma,
-                },
-                _,
-            ) => predict_intra8x8(&recon, (mb_x, mb_y), &modes, chroma, mb.residual(), header.qp),
-            (_, Some(_)) => {
-                let ctx = InterContext {
-                    references: &list,
-                    tool: header.tool,
-                    luma_filter: header.luma_filter,
-                    vectors: &vectors,
-                    warped: warped.as_ref(),
-                    mb_cols: cols,
-                };
-                predict_inter_blocks(&ctx, mb_x, mb_y, &vectors[i].map(Option::unwrap_or_default))
-            }
-            (_, None) => MbSamples::default(),
-        };
+        let pred = predict_mb(mb, (mb_x, mb_y), &recon, inter.as_ref(), header.qp);
         reconstruct_mb(&pred, mb.residual(), header.qp, &mut recon, mb_x, mb_y);
     }
     if header.deblock {
@@ -607,6 +581,46 @@ pub fn reconstruct_frame(
     }
     recon.extend_borders();
     Ok(recon)
+}
+
+/// Macroblock (mb_x, mb_y)'s prediction as [`reconstruct_frame`] makes
+/// it: intra from `recon` (the macroblocks before it reconstructed), inter
+/// from `inter` (none in an I frame, where every macroblock is intra).
+fn predict_mb(
+    mb: &CodedMb,
+    (mb_x, mb_y): (usize, usize),
+    recon: &Frame,
+    inter: Option<&InterContext<'_>>,
+    qp: u8,
+) -> MbSamples {
+    match (mb.kind, inter) {
+        (
+            MbKind::Intra {
+                luma: LumaIntra::Whole(luma),
+                chroma,
+            },
+            _,
+        ) => predict_intra(recon, mb_x, mb_y, luma, chroma),
+        (
+            MbKind::Intra {
+                luma: LumaIntra::Blocks(modes),
+                chroma,
+            },
+            _,
+        ) => predict_intra4x4(recon, (mb_x, mb_y), &modes, chroma, mb.residual(), qp),
+        (
+            MbKind::Intra {
+                luma: LumaIntra::Blocks8(modes),
+                chroma,
+            },
+            _,
+        ) => predict_intra8x8(recon, (mb_x, mb_y), &modes, chroma, mb.residual(), qp),
+        (_, Some(ctx)) => {
+            let i = mb_y * ctx.mb_cols + mb_x;
+            predict_inter_blocks(ctx, mb_x, mb_y, &ctx.vectors[i].map(Option::unwrap_or_default))
+        }
+        (_, None) => MbSamples::default(),
+    }
 }
 
 /// A coded-size frame's visible `width x height` part.

@@ -119,7 +119,7 @@ pub fn good_features(img: &Array2<f32>, max: usize, quality: f32, min_distance: 
 /// picture) to `p2`.
 fn track_one_way(
     p1: &[Array2<f32>],
-    g1: &[(Array2<f32>, Array2<f32>)],
+    g1: &[Gradients],
     p2: &[Array2<f32>],
     points: &[(f32, f32)],
     p: &TrackParams,
@@ -148,9 +148,8 @@ fn track_point(
         let centre = (x0 / scale, y0 / scale);
         let tensor = PatchTensor::of(&p1[level], &g1[level], centre, r);
         let (a, b, c) = (tensor.a, tensor.b, tensor.c);
-        let det = a * c - b * b;
         let min_eig = (0.5 * (a + c) - (0.25 * (a - c) * (a - c) + b * b).sqrt()) / n;
-        if min_eig < p.min_eigen || det.abs() < f32::EPSILON {
+        if min_eig < p.min_eigen || tensor.det().abs() < f32::EPSILON {
             found = false;
             break;
         }
@@ -187,12 +186,7 @@ struct PatchTensor {
 impl PatchTensor {
     /// The patch of radius `r` around (cx, cy) of `img1` with its
     /// gradients `(gx, gy)`.
-    fn of(
-        img1: &Array2<f32>,
-        (gx, gy): &(Array2<f32>, Array2<f32>),
-        (cx, cy): (f32, f32),
-        r: isize,
-    ) -> PatchTensor {
+    fn of(img1: &Array2<f32>, (gx, gy): &Gradients, (cx, cy): (f32, f32), r: isize) -> PatchTensor {
         let (mut a, mut b, mut c) = (0f32, 0f32, 0f32);
         let mut samples = Vec::with_capacity(((2 * r + 1) * (2 * r + 1)) as usize);
         for j in -r..=r {
@@ -208,6 +202,11 @@ impl PatchTensor {
         PatchTensor { samples, a, b, c }
     }
 
+    /// The tensor's determinant.
+    fn det(&self) -> f32 {
+        self.a * self.c - self.b * self.b
+    }
+
     /// Lucas-Kanade's iterations on `img2` from the motion (dx, dy) until
     /// a step is under `p.epsilon` (at most `p.iterations`): the motion.
     fn iterate(
@@ -219,7 +218,7 @@ impl PatchTensor {
     ) -> (f32, f32) {
         let r = p.radius as isize;
         let (a, b, c) = (self.a, self.b, self.c);
-        let det = a * c - b * b;
+        let det = self.det();
         for _ in 0..p.iterations {
             let (mut ex, mut ey) = (0f32, 0f32);
             let mut k = 0;

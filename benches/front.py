@@ -37,8 +37,9 @@ and the median of the rounds' 2-thread / 1-thread ratios (a pair's two
 runs see the same state of the machine, which drifts between rounds);
 every round's four times in threads.csv. x264's own ratio is the
 machine's control: a round where it is above TWO_CPU_RATIO (0.85) had,
-in effect, one processor (a virtual machine whose host is busy runs
-both encoders' two threads one after the other), and the last column
+in effect, one processor (something else was using the other: a cargo
+build beside a run gave 0.84-1.13 for both encoders while it lasted),
+and the last column
 gives mocomp's median ratio over the other rounds (how many of them
 beside it). Every round stays in the medians before it.
 
@@ -369,8 +370,9 @@ def y4m_width(path):
 
 
 # Above this, x264's own 2-thread / 1-thread time says the round ran on
-# one processor in effect (x264 medium's frame threads reach 0.55-0.73 on
-# this kind of machine when it has two).
+# one processor in effect (x264 medium's frame threads took 0.48-0.72 of
+# their one-thread time on garden_720p, cockatoo_720p and dog_1080p in a
+# quiet 15-round run on a 2-vCPU AMD EPYC, 2026-12-06).
 TWO_CPU_RATIO = 0.85
 
 

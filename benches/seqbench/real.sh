@@ -6,6 +6,10 @@
 # committed: it is fetched. Needs apt-get, dpkg-deb and ffmpeg. Safe to run
 # again: a Y4M already in DIR is kept.
 #
+# SET=kinds real.sh DIR [N]: instead, four clips of kinds that neither
+# set has, to check what the sets say on material they were not tuned on
+# (the second table below); not among the 28 of the front.
+#
 # | name | Debian package (bookworm) | file | what |
 # |---|---|---|---|
 # | dog_1080p | forensics-samples-files 1.1.4-5 | original-files/movie1/VID_20191220_170832.mp4 (H.264, 1920x1080, 29.97, 41 frames) | phone video of a dog lying in a hall, hand-held |
@@ -18,6 +22,15 @@
 # | ball_576 | python3-mecavideo 8.0~rc5-1 | pymecavideo/data/video/balle-jbart.mp4 (H.264, 720x576, 25 fps) | a ball thrown in a classroom, fixed camera |
 # Licences: see each package's copyright file. All were lossy-compressed at
 # the source.
+#
+# SET=kinds:
+#
+# | name | Debian package (bookworm) | file | what |
+# |---|---|---|---|
+# | birds_720p | wordpress-theme-twentytwentytwo 6.1.9+dfsg1-0+deb12u1 | assets/videos/birds.mp4 (H.264, 1280x720, 30 fps, 31 frames) | 2D animation: birds flying over a floral pattern |
+# | calais_214 | python-nbsphinx-doc 0.8.11+ds-1 | html/www/wikimediacommons/Shepard_Calais_1906_FrenchGP.ogv (Theora, 218x160 as ffmpeg decodes it, 15 fps) | film of 1906: grain, flicker, a moving camera |
+# | album_160 | kphotoalbum 5.9.1-1 | demo/movie.avi (MJPEG, 160x120, 15 fps) | webcam, a face in a room |
+# | anim_256 | gem-doc 1:0.94-8 | examples/data/anim-1.mov (MJPEG, 256x256, 30 fps) | rendered 3D animation: a teapot, a plane |
 set -euo pipefail
 DIR=${1:?usage: real.sh DIR [N]}
 N=${2:-90}
@@ -45,6 +58,14 @@ clip() {
     -frames:v "$N" -pix_fmt yuv420p -strict -1 "$DIR/$1.y4m"
   echo "$1: $(head -c 80 "$DIR/$1.y4m" | head -1)"
 }
+
+if [ "${SET:-cameras}" = kinds ]; then
+  clip birds_720p wordpress-theme-twentytwentytwo usr/share/wordpress/wp-content/themes/twentytwentytwo/assets/videos/birds.mp4
+  clip calais_214 python-nbsphinx-doc usr/share/doc/python-nbsphinx/html/www/wikimediacommons/Shepard_Calais_1906_FrenchGP.ogv
+  clip album_160 kphotoalbum usr/share/kphotoalbum/demo/movie.avi
+  clip anim_256 gem-doc usr/share/gem/examples/data/anim-1.mov
+  exit 0
+fi
 
 clip dog_1080p forensics-samples-files usr/share/forensics-samples/original-files/movie1/VID_20191220_170832.mp4
 clip cockatoo_720p python3-imageio usr/lib/python3/dist-packages/imageio/resources/images/cockatoo.mp4

@@ -253,6 +253,69 @@ fn streams_are_the_same_for_any_number_of_threads() {
 }
 
 #[test]
+fn older_references_are_searched_where_they_pay_and_the_choice_is_the_same_on_any_thread_count() {
+    // Two pictures taking turns (an animation drawn on alternate frames):
+    // the frame two back is this one, so the older reference pays in
+    // every frame. A pan: the frame before predicts best, the older
+    // reference saves nothing, and the frames after the first to measure
+    // it (learnt two frames later) search the first reference alone but
+    // for a probe every fourth frame. Medium chooses; the same stream on
+    // 1, 2 and 8 threads, frames pushed or coded.
+    let (w, h) = (160, 96);
+    let a = scene(w, h, 1, 0.0, 0.0).remove(0);
+    let b = Synth::new(SceneSpec::new("other", w, h, 1).seed(9).noise(1.0))
+        .unwrap()
+        .frame(0);
+    let turns: Vec<Frame> = (0..10).map(|t| [&a, &b][t % 2].clone()).collect();
+    let pan = scene(w, h, 12, 1.25, 0.5);
+    let mut seq = seq_header(w, h);
+    seq.max_refs = 2;
+    let config = EncoderConfig::new().qp(30).preset(EncoderPreset::Medium);
+    for (frames, paying) in [(&turns, true), (&pan, false)] {
+        let (one, recon, _) = encode(frames, config);
+        let refs: Vec<u8> = frames_of(&seq, &one)[1..].iter().map(|f| f.header.refs).collect();
+        let expected: Vec<u8> = (1..frames.len())
+            .map(|i| match (i, paying) {
+                // Frame 1 has one frame before it.
+                (1, _) => 1,
+                (_, true) => 2,
+                // Frames 2 and 3 take the chooser's start (every
+                // reference); from 4 on what frame 2 measured; probes.
+                (2 | 3, false) => 2,
+                (i, false) if i % 4 == 0 => 2,
+                _ => 1,
+            })
+            .collect();
+        assert_eq!(refs, expected, "references per frame (paying: {paying})");
+        if paying {
+            // And they are taken: most inter macroblocks of frame 3 on.
+            let syntax = frames_of(&seq, &one);
+            let older = syntax[3..]
+                .iter()
+                .flat_map(|f| &f.mbs)
+                .filter(|m| match m.kind {
+                    MbKind::Inter { mv } => mv.ref_idx == 1,
+                    _ => false,
+                })
+                .count();
+            assert!(older > 7 * 60 / 2, "{older} macroblocks into the older reference");
+        }
+        for threads in [2, 8] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let (coded, pushed) = pool.install(|| (encode(frames, config), encode_pushed(frames, config)));
+            assert!(
+                coded.0 == one && pushed.0 == one,
+                "{threads} threads: another stream"
+            );
+        }
+        assert!(decoder::decode(&one).unwrap().1 == recon, "the decoder differs");
+    }
+}
+
+#[test]
 fn encoders_pushing_at_once_on_both_threads_of_a_pool_finish() {
     // Two encoders push frames at once from the two threads of the pool
     // they run in, so that each waits there for its frames on their frame

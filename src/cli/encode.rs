@@ -119,6 +119,11 @@ pub struct ToolArgs {
     /// (`block` only) [default: the preset's].
     #[arg(long, value_name = "N")]
     pub refs: Option<u8>,
+    /// Older references searched only while they saved enough in the
+    /// frames before (the medium preset's), on or off (off: every
+    /// reference in every frame) [default: the preset's].
+    #[arg(long, value_name = "on|off", value_parser = on_off)]
+    pub refs_choice: Option<bool>,
     /// Sub-pel RD refinement on or off, as x264's --subme 8 (`block`
     /// only; the slow preset has it on) [default: the preset's].
     #[arg(long, value_name = "on|off", value_parser = on_off)]
@@ -198,6 +203,7 @@ impl ToolArgs {
         o.extend(self.partitions.map(|p| ("partitions", p.to_string())));
         o.extend(self.i_partitions.map(|p| ("i-partitions", p.to_string())));
         o.extend(self.refs.map(|n| ("refs", n.to_string())));
+        o.extend(self.refs_choice.map(|b| ("refs-choice", on(b))));
         o.extend(self.subpel_rd.map(|b| ("subpel-rd", on(b))));
         o.extend(self.split_margin.map(|b| ("split-margin", on(b))));
         o.extend(self.chroma_me.map(|b| ("chroma-me", on(b))));

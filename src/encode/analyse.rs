@@ -7,6 +7,7 @@
 
 use super::rate;
 use super::rdo::{self, reference_bits, RD_MARGIN};
+use super::refs_choice::OlderGain;
 use super::slice::InterFrameCoder;
 use crate::codec::bits::ue_len;
 use crate::codec::consts::MB;
@@ -381,6 +382,9 @@ pub(super) struct MbAnalysis {
     /// The lowest SATD + sqrt(lambda) * vector bits of the 16x16 inter
     /// candidates, which a split must beat to be coded.
     pub(super) inter_estimate: f64,
+    /// What the older references' candidates saved on the first's
+    /// ([`super::refs_choice`]).
+    pub(super) older_gain: OlderGain,
     /// The inter candidates' predictions, made in place (slots kept from
     /// macroblock to macroblock: a prediction returned by value was
     /// copied three or four times before it was coded).
@@ -410,6 +414,7 @@ impl MbAnalysis {
             searched: Mv::ZERO,
             inter_satd: u32::MAX,
             inter_estimate: f64::INFINITY,
+            older_gain: OlderGain::default(),
             preds: Vec::new(),
             diffs: [[[0; 4]; 4]; 16],
         }
@@ -674,6 +679,7 @@ impl InterFrameCoder<'_, '_> {
         mb.searched = mvp;
         mb.inter_satd = u32::MAX;
         mb.inter_estimate = f64::INFINITY;
+        mb.older_gain = OlderGain::default();
     }
 
     /// The 16x16 inter candidates, estimated, not yet coded: the predicted
@@ -700,10 +706,18 @@ impl InterFrameCoder<'_, '_> {
             candidates.extend(self.older_reference_candidate(mb, ref_idx, env, slot));
         }
         mb.inter_satd = candidates.iter().map(|c| c.satd).min().unwrap_or(u32::MAX);
-        mb.inter_estimate = candidates
-            .iter()
-            .map(|c| c.estimate)
-            .fold(f64::INFINITY, f64::min);
+        let least = |older: bool| {
+            candidates
+                .iter()
+                .filter(|c| (c.mv.ref_idx > 0) == older)
+                .map(|c| c.estimate)
+                .fold(f64::INFINITY, f64::min)
+        };
+        let (first, older) = (least(false), least(true));
+        mb.inter_estimate = first.min(older);
+        if self.syntax.refs() > 1 {
+            mb.older_gain = OlderGain::of(first, older);
+        }
         candidates
     }
 

@@ -322,7 +322,8 @@ pub enum EncoderPreset {
     Faster,
     /// The full mode decision.
     Fast,
-    /// RDOQ and the inter partitions. The default.
+    /// RDOQ, the inter partitions, and a second reference searched while
+    /// it pays. The default.
     #[default]
     Medium,
     /// A search range of 32, a window of 4 pels, full-pel positions
@@ -436,6 +437,10 @@ pub struct EncoderConfig {
     /// as x264's `--ref` (FORMAT.md section 4). `block` frames only: the
     /// other predictors predict from the previous frame.
     pub refs: u8,
+    /// Block P frames search their older references only while these
+    /// saved enough in the frames before ([`super::refs_choice`]); every
+    /// reference in every frame where off.
+    pub refs_choice: bool,
     /// Sub-pel RD refinement, as x264's `--subme 8`: a decided 16x16 inter
     /// vector's quarter-pel neighbours of lowest estimate are coded and
     /// weighed by rate and distortion (`block` frames).
@@ -581,7 +586,9 @@ impl Default for EncoderConfig {
             },
             i_frame_partitions: Partitions::ALL,
             transform_8x8: true,
-            refs: 1,
+            // Medium's: two, the second searched where it pays.
+            refs: 2,
+            refs_choice: true,
             subpel_rd: false,
             split_margin: false,
             chroma_me: false,
@@ -696,16 +703,24 @@ impl EncoderConfig {
         // The 8x8 transform from superfast: -5.4 against ultrafast, for
         // 1.10x its time.
         self.transform_8x8 = preset >= Superfast;
-        // One reference below slow (x264's medium has three): in medium
-        // two took -1.46 % on the 28 sequences' mean for 1.14x the wall
-        // time, three -2.24 % for 1.28x (`benches/pair.py`; fish_1160
-        // +6.0 % and +4.0 %: under a flickering light half its inter
-        // blocks took the older reference, in place of skips and intra).
+        // One reference below medium (x264's medium has three). In
+        // medium two, the second searched only while it saves 3 % of the
+        // estimates (`refs_choice`) and refined by one sub-pel move a
+        // step: against one reference -0.95 % on the 28 sequences and
+        // four of other kinds for 1.045x the wall time (birds_720p
+        // -6.3 %, album_160 -6.2 %, pan_cif -5.1 %; `benches/pair.py`,
+        // 60 frames); both searched in every frame as the first is,
+        // -1.55 % for 1.16x (fish_1160 +4.2 %: under a flickering light
+        // half its inter blocks took the older reference, and the
+        // deblocking across the two smoothed its detail). Three in slow,
+        // five in slower, every frame.
         self.refs = match preset {
             Slower => 5,
             Slow => 3,
+            Medium => 2,
             _ => 1,
         };
+        self.refs_choice = preset == Medium;
         // Sub-pel RD: 1.6 % on the set's mean for 23 % more of medium's
         // instructions (pan_cif): from slow, as x264's subme 8.
         self.subpel_rd = preset >= Slow;
@@ -1020,7 +1035,8 @@ mod tests {
             assert_eq!(c.transform_8x8, p >= Superfast);
             assert_eq!(s.full_pel_sad, p <= Medium);
             assert_eq!(s.sub_pel_sad, p <= Superfast);
-            assert_eq!(c.refs, [1, 1, 1, 1, 1, 1, 3, 5][p as usize]);
+            assert_eq!(c.refs, [1, 1, 1, 1, 1, 2, 3, 5][p as usize]);
+            assert_eq!(c.refs_choice, p == Medium);
             assert!(c.weightp);
             let i_blocks = if p >= Superfast {
                 Partitions::ALL

@@ -20,6 +20,7 @@ use super::macroblock::MbCoder;
 use super::motion::MotionAnalyser;
 use super::progress::FrameProgress;
 use super::reference::GrowingReference;
+use super::refs_choice::RefsChooser;
 use super::slice::{self, CodedFrame};
 use super::stats::FrameStats;
 use super::weights;
@@ -89,11 +90,14 @@ pub struct Encoder {
     /// What the coded frames say of the luma filters and of deblocking.
     filter: FilterChooser,
     deblock: DeblockChooser,
+    /// What they say of the older references.
+    refs: RefsChooser,
     /// The choosers as they stood a frame earlier, which give the next
-    /// block P frame's filter and deblocking (a frame thread starts before
-    /// the frame before it is learnt from).
+    /// block P frame's filter, deblocking and references (a frame thread
+    /// starts before the frame before it is learnt from).
     lagged_filter: FilterChooser,
     lagged_deblock: DeblockChooser,
+    lagged_refs: RefsChooser,
     /// The frame after whose learning the lagged choosers are the
     /// choosers (in flight when the last P frame started).
     lagged_after: Option<usize>,
@@ -107,6 +111,8 @@ pub(super) struct Chosen {
     pub luma_filter: LumaFilter,
     /// Whether it is deblocked (where the sequence is).
     pub deblock: bool,
+    /// How many older references it searches.
+    pub older_refs: usize,
 }
 
 /// A frame started: its number, kind and camera motion, and when.
@@ -202,6 +208,8 @@ impl Encoder {
             deblock: DeblockChooser::default(),
             lagged_filter: FilterChooser::default(),
             lagged_deblock: DeblockChooser::default(),
+            refs: RefsChooser::default(),
+            lagged_refs: RefsChooser::default(),
             lagged_after: None,
             index: 0,
         })
@@ -592,7 +600,9 @@ impl Encoder {
         // The frame before is not among the references while in flight;
         // finished, it is the first, read as it is.
         let in_flight = self.in_flight();
-        let Some((reference, older)) = self.row_references(in_flight)? else {
+        // What `next_chosen` gives below (nothing learnt in between).
+        let older_refs = self.older_refs(frame.index);
+        let Some((reference, older)) = self.row_references(in_flight, older_refs)? else {
             return Ok(Err((source, src)));
         };
         let t = Instant::now();
@@ -649,11 +659,15 @@ impl Encoder {
     /// A row frame's growing reference and its older references: the frame
     /// in flight, growing as its rows are published, and the finished ones
     /// before it; or, none in flight, the last finished frame and the ones
-    /// older than it. `None` where there is no reference yet.
-    fn row_references(&mut self, in_flight: bool) -> Result<Option<RowReferences>, EncodeError> {
+    /// older than it, at most `older` of those. `None` where there is no
+    /// reference yet.
+    fn row_references(
+        &mut self,
+        in_flight: bool,
+        older: usize,
+    ) -> Result<Option<RowReferences>, EncodeError> {
         if in_flight {
-            let refs = usize::from(self.seq.max_refs) - 1;
-            let older = self.references.iter().take(refs).cloned().collect();
+            let older = self.references.iter().take(older).cloned().collect();
             return Ok(Some((
                 GrowingReference::new(self.coded_frame(Spare::Plain)?),
                 older,
@@ -662,7 +676,7 @@ impl Encoder {
         Ok(self.references.first().map(|before| {
             (
                 GrowingReference::finished(Arc::clone(before)),
-                self.references.iter().skip(1).cloned().collect(),
+                self.references.iter().skip(1).take(older).cloned().collect(),
             )
         }))
     }
@@ -715,10 +729,11 @@ impl Encoder {
         let chosen = Chosen {
             luma_filter: self.lagged_filter.next(self.config.luma_filter),
             deblock: !self.config.deblock_choice || self.lagged_deblock.deblocks(index),
+            older_refs: self.older_refs(index),
         };
         match self.in_flight() {
             true => self.lagged_after = index.checked_sub(1),
-            false => (self.lagged_filter, self.lagged_deblock) = (self.filter, self.deblock),
+            false => self.lag_choosers(),
         }
         chosen
     }
@@ -729,6 +744,7 @@ impl Encoder {
         self.entropy = done.after.entropy;
         self.filter = done.after.filter;
         self.deblock = done.after.deblock;
+        self.refs.learn(done.coded.older_gain);
         self.remember_vectors(&done.coded);
         self.spare_plain = done.plain.or(self.spare_plain.take());
         self.spare_weighted = done.weighted.or(self.spare_weighted.take());
@@ -799,9 +815,29 @@ impl Encoder {
         self.references.insert(0, Arc::new(recon));
         self.spare_source = self.prev_source.replace(src);
         if self.lagged_after == Some(frame.index) {
-            (self.lagged_filter, self.lagged_deblock) = (self.filter, self.deblock);
+            self.lag_choosers();
             self.lagged_after = None;
         }
+    }
+
+    /// The lagged choosers brought up to the choosers.
+    fn lag_choosers(&mut self) {
+        (self.lagged_filter, self.lagged_deblock) = (self.filter, self.deblock);
+        self.lagged_refs = self.refs;
+    }
+
+    /// How many older references block P frame `index` searches: those
+    /// the sequence keeps, while they pay where chosen
+    /// ([`super::refs_choice`]; the lagged chooser, as
+    /// [`Encoder::next_chosen`] reads it, so the same for any number of
+    /// threads).
+    fn older_refs(&self, index: usize) -> usize {
+        let max = self.seq.max_refs;
+        let refs = match self.config.refs_choice {
+            true => self.lagged_refs.refs(index, max),
+            false => max,
+        };
+        usize::from(refs.saturating_sub(1))
     }
 
     /// Publishes a frame coded whole for the next, where the next may be
@@ -888,7 +924,11 @@ impl Encoder {
         let t = Instant::now();
         // Older references: `block` only (the list holds one frame for the
         // other predictors).
-        let older: Vec<&Frame> = self.references[1..].iter().map(|f| &**f).collect();
+        let older: Vec<&Frame> = self.references[1..]
+            .iter()
+            .take(chosen.older_refs)
+            .map(|f| &**f)
+            .collect();
         let motion = self.analyser.analyse(src, prev, reference, &older, camera);
         let me_ms = t.elapsed().as_secs_f64() * 1e3;
         let mut inputs = inter_inputs(&self.config, &self.pricing, motion, tool, (weights, chosen));
@@ -906,6 +946,7 @@ impl Encoder {
             learner(&mut self.filter, learn, src, index),
         )?;
         self.deblock.learn(coded.deblock_effect);
+        self.refs.learn(coded.older_gain);
         self.spare_weighted = weighted.or(self.spare_weighted.take());
         Ok((coded, me_ms))
     }

@@ -408,6 +408,7 @@ mod tests {
             chosen: Chosen {
                 luma_filter: LumaFilter::default(),
                 deblock: true,
+                older_refs: 0,
             },
         };
         let no_vectors: Vec<MbVectors> = vec![[None; 4]; (w / MB) * (h / MB)];

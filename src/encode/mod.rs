@@ -54,6 +54,7 @@ mod progress;
 pub mod rate;
 mod rdo;
 mod reference;
+mod refs_choice;
 mod slice;
 mod stats;
 mod transform8x8;

@@ -23,7 +23,7 @@ use crate::metrics::{Metric, Metrics};
 
 /// Every option [`EncoderConfig::set`] takes, with what its value is
 /// (names as `mocomp encode` spells them; `_` may stand for `-`).
-pub const OPTIONS: [(&str, &str); 29] = [
+pub const OPTIONS: [(&str, &str); 30] = [
     ("qp", "quantisation parameter, 0..=51"),
     ("gop", "I-frame period (0: only the first frame)"),
     (
@@ -56,6 +56,10 @@ pub const OPTIONS: [(&str, &str); 29] = [
     ),
     ("weightp", "weighted prediction, on|off"),
     ("refs", "references P frames may predict from, 1..=8 (block)"),
+    (
+        "refs-choice",
+        "older references searched only while they saved enough before, on|off",
+    ),
     ("subpel-rd", "sub-pel RD refinement (x264's subme 8), on|off"),
     (
         "split-margin",
@@ -152,6 +156,7 @@ impl EncoderConfig {
             "deblock-choice" => self.deblock_choice = switch(value).map_err(bad)?,
             "weightp" => self.weightp = switch(value).map_err(bad)?,
             "refs" => self.refs = parse(value).map_err(bad)?,
+            "refs-choice" => self.refs_choice = switch(value).map_err(bad)?,
             "subpel-rd" => self.subpel_rd = switch(value).map_err(bad)?,
             "split-margin" => self.split_margin = switch(value).map_err(bad)?,
             "chroma-me" => self.chroma_me = switch(value).map_err(bad)?,
@@ -264,6 +269,7 @@ mod tests {
             ("deblock-choice", "off"),
             ("weightp", "no"),
             ("refs", "3"),
+            ("refs-choice", "off"),
             ("subpel-rd", "1"),
             ("split-margin", "on"),
             ("chroma-me", "on"),

@@ -18,6 +18,7 @@ use super::intra4x4::IntraBlockSearch;
 use super::macroblock::{prefetch_ahead, MbCoder, MbSource};
 use super::motion::{BlockMotion, FrameMotion, LazySearch};
 use super::partition::SatdCache;
+use super::refs_choice::OlderGain;
 use super::{rate, rdo};
 use crate::codec::deblock::{FrameDeblocker, MbEdgeInfo};
 use crate::codec::interp::LumaFilter;
@@ -61,6 +62,9 @@ pub(crate) struct CodedFrame {
     /// What the filter did, where the frame's deblocking is chosen and
     /// it was deblocked ([`super::deblock_choice`]).
     pub deblock_effect: Option<DeblockEffect>,
+    /// What its older references saved, where it searched any
+    /// ([`super::refs_choice`]).
+    pub older_gain: Option<OlderGain>,
 }
 
 /// The squared luma error of `pred` against `src` over the visible part of
@@ -199,6 +203,7 @@ pub(crate) fn code_intra(
         wavefront::Decision {
             prediction_sse: visible_luma_sse(&mb.source, &mb.best.pred, mb_x, mb_y, seq),
             mvp: None,
+            older_gain: OlderGain::default(),
         }
     })?;
     let (sum, recon) = wavefront::collect(decided, cols);
@@ -217,6 +222,7 @@ pub(crate) fn code_intra(
         vectors: sum.vectors,
         deblocked: sum.deblocked,
         deblock_effect: None,
+        older_gain: None,
     };
     frame.write_and_finish(seq, state, None, |_| ());
     Ok(frame)
@@ -235,6 +241,7 @@ impl CodedFrame {
             vectors: Vec::new(),
             deblocked: false,
             deblock_effect: None,
+            older_gain: None,
         }
     }
 
@@ -611,6 +618,7 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
             // (Predicted from the decided vectors only where the frame
             // codes vectors: [`Self::analyse_skip`].)
             mvp: self.syntax.any().then_some(mb.mvp),
+            older_gain: mb.older_gain,
         }
     }
 
@@ -632,6 +640,7 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
         self.frame.vectors = sum.vectors;
         self.frame.deblocked = sum.deblocked;
         self.frame.deblock_effect = sum.deblock_effect;
+        self.frame.older_gain = (self.syntax.refs() > 1).then_some(sum.older_gain);
     }
 
     /// How many macroblock rows of the first reference, from its own on,

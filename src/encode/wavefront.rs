@@ -20,6 +20,7 @@ use super::analyse::{MbAnalysis, MbEnv};
 use super::deblock_choice::{DeblockEffect, DeblockMeter};
 use super::macroblock::prefetch_ahead;
 use super::partition::SatdCache;
+use super::refs_choice::OlderGain;
 use super::slice::kind_index;
 use crate::codec::deblock::{FrameDeblocker, MbEdgeInfo};
 use crate::codec::entropy::Context;
@@ -43,6 +44,8 @@ pub(super) struct Decided {
     samples: Option<Box<MbSamples>>,
     /// The prediction's squared luma error (visible part).
     prediction_sse: u64,
+    /// What its older references saved ([`super::refs_choice`]).
+    older_gain: OlderGain,
 }
 
 /// What a frame's decisions keep of each decided macroblock in their
@@ -72,6 +75,8 @@ pub(super) struct Decision {
     /// the decided vectors as [`mb_vectors`] does: a skip's own vector, not
     /// predicted again.
     pub(super) mvp: Option<Mv>,
+    /// What its older references saved ([`super::refs_choice`]).
+    pub(super) older_gain: OlderGain,
 }
 
 /// What the frame is decided with: its size and syntax, and the coders it
@@ -387,6 +392,7 @@ impl WavefrontFrame<'_> {
         }
         Decided {
             prediction_sse: decision.prediction_sse,
+            older_gain: decision.older_gain,
             // (Not `shared.then(..)`: its closure took the samples, a copy
             // a macroblock with one worker too.)
             samples: if shared {
@@ -568,6 +574,8 @@ pub(super) struct FrameSummary {
     pub(super) deblocked: bool,
     /// What the filter did, where deblocked already and measured.
     pub(super) deblock_effect: Option<DeblockEffect>,
+    /// What the older references saved, summed.
+    pub(super) older_gain: OlderGain,
 }
 
 /// The frame's reconstruction (every macroblock of `decided` written into
@@ -580,6 +588,7 @@ pub(super) fn collect(decided: DecidedFrame, cols: usize) -> (FrameSummary, Fram
         vectors: Vec::with_capacity(decided.mbs.len()),
         deblocked: decided.deblocked,
         deblock_effect: decided.deblock_effect,
+        older_gain: OlderGain::default(),
     };
     let mut recon = decided.recon;
     for (i, d) in decided.mbs.into_iter().enumerate() {
@@ -589,6 +598,7 @@ pub(super) fn collect(decided: DecidedFrame, cols: usize) -> (FrameSummary, Fram
             write_mb(samples, &mut recon, i % cols, i / cols);
         }
         out.prediction_sse += d.prediction_sse;
+        out.older_gain = out.older_gain.plus(d.older_gain);
         out.kinds[kind_index(&d.coded.kind)] += 1;
         out.vectors.push(d.vectors);
         out.mbs.push(d.coded);

@@ -108,8 +108,8 @@ pub(crate) struct MotionAnalyser {
     /// Whether the older references' sub-pel steps move once and start
     /// from the full-pel best alone (where sub-pel RD is off): in medium
     /// with two references, 0.94x the wall time of refining them as the
-    /// first for 0.26 % of the second's gain (`benches/pair.py`, 32
-    /// sequences).
+    /// first, for -1.31 % against one reference instead of -1.57 %
+    /// (`benches/pair.py`, 32 sequences, a scratch build of the choice).
     older_light: bool,
 }
 

@@ -8,7 +8,7 @@ import mocomp
 
 def test_analysis_agrees_with_the_encoder_and_the_decoder(synth_frames):
     source = synth_frames[:3]
-    stream, stats = mocomp.encode(source, qp=26)
+    stream, stats = mocomp.encode(source, qp=26, refs=1)
     frames = mocomp.analyze(stream)
     decoded = mocomp.decode(stream)
     assert len(frames) == 3
@@ -24,11 +24,12 @@ def test_analysis_agrees_with_the_encoder_and_the_decoder(synth_frames):
         # Intra macroblocks have no vectors; the others do, in every 8x8 block.
         intra = np.kron(f["kind"] == 2, np.ones((2, 2), bool))
         assert np.array_equal(f["has_vector"], ~intra)
-        # One reference: index 0 wherever there is a vector, -1 for intra.
+        # One reference (refs=1): index 0 wherever there is a vector, -1
+        # for intra.
         assert np.array_equal(f["refs"], np.where(intra, -1, 0))
     assert (frames[0]["kind"] == 2).all() and frames[0]["grid"] is None
     assert all(f["luma_filter"] in ("sharp", "smooth") for f in frames)
-    smooth, _ = mocomp.encode(source, qp=26, luma_filter="smooth")
+    smooth, _ = mocomp.encode(source, qp=26, refs=1, luma_filter="smooth")
     assert [f["luma_filter"] for f in mocomp.analyze(smooth)] == ["sharp", "smooth", "smooth"]
     # The sample pans: the P frames' vectors are mostly not zero.
     moving = np.abs(frames[2]["vectors"]).sum(-1)[frames[2]["has_vector"]] > 0

@@ -56,8 +56,9 @@ def test_coding_tools_by_keyword(synth_frames, samples):
     # The 8x8 transform: on in the default preset, off on request.
     assert mocomp.encode(source, qp=30, dct8x8=True)[0] == on
     assert mocomp.encode(source, qp=30, dct8x8=False)[0] != on
-    # References: one in the default preset; 0 or 9 are errors.
-    assert mocomp.encode(source, qp=30, refs=1)[0] == on
+    # References: two in the default preset (medium's); 0 or 9 are errors.
+    assert mocomp.encode(source, qp=30, refs=2)[0] == on
+    assert mocomp.encode(source, qp=30, refs=1)[0] != on
     for refs in (0, 9):
         with pytest.raises(ValueError, match="references"):
             mocomp.encode(source, refs=refs)

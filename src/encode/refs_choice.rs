@@ -54,8 +54,10 @@ impl OlderGain {
 /// +0.0 %, fastpan_cif +1.6 %), 0.02 -0.91 % for 1.062x (fish_1160
 /// +2.3 %), 0.01 -1.18 % for 1.080x (fish_1160 +5.6 %, handheld_vga
 /// +3.0 %); both searched in every frame -1.55 % for 1.16x (fish_1160
-/// +4.2 %, cartoon_cif +4.1 %), a choice that lags one frame instead of
-/// two about the same.
+/// +4.2 %, cartoon_cif +4.1 %). A choice lagging one frame (a scratch
+/// build, one thread only, 0.01) took -1.31 % for 1.067x, fish_1160
+/// +0.45 % against +5.6 % lagging two: the lag a frame thread needs costs
+/// fish_1160's flicker most, and 0.03 leaves it where one reference has it.
 const MIN_SHARE: f64 = 0.03;
 
 /// Every this many frames, a frame searches every reference whatever was

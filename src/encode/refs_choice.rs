@@ -5,11 +5,12 @@
 //! back) and not on most (a still scene under a flickering light, where
 //! the blocks that take it bring the deblocking across two references
 //! over detail). Each frame that searched the older references measures
-//! how much of its macroblocks' estimates they saved; while that is under
-//! [`MIN_SHARE`], the frames after search the first reference alone, but
-//! every [`PROBE`]-th frame searches them all to measure again. Learnt
-//! from frames two back (as the luma filter and the deblocking are), so
-//! the stream is the same for any number of threads.
+//! how much of its macroblocks' estimates they saved; once [`HOLD`]
+//! frames in a row have saved under [`MIN_SHARE`], the frames after
+//! search the first reference alone, but every [`PROBE`]-th frame
+//! searches them all to measure again. Learnt from frames two back (as
+//! the luma filter and the deblocking are), so the stream is the same for
+//! any number of threads.
 
 /// What a frame's older references saved its macroblocks' decisions:
 /// over the macroblocks analysed beyond skip, the estimates (SATD +
@@ -64,24 +65,41 @@ const MIN_SHARE: f64 = 0.03;
 /// measured before, to measure again.
 pub(super) const PROBE: usize = 4;
 
-/// Whether the older references paid in the last frame that searched
-/// them.
+/// How many frames in a row that searched the older references must
+/// find them not paying before the frames after stop searching them. A
+/// shaking camera comes back to where it was a few frames before now and
+/// then (cuts_cif's third shot: a frame of 237 bytes with its older
+/// references, 4,189 without), and the frames between save little.
+/// Medium against the one-frame rule (`benches/pair.py`, the 28
+/// sequences and the four kinds, 60 frames, one run): 3 -0.16 % for
+/// 1.001x the wall time (light_cif -2.1 %, cuts_cif -0.9 %, album_160
+/// -0.7 %; fish_1160 +0.5 %, fastpan_cif +0.4 %), 2 -0.00 % for 0.993x
+/// (handheld_vga +1.2 %), 5 -0.26 % for 1.016x (handheld_vga +2.2 %).
+/// In slow (three references every frame) the choice with 3 took +0.17 %
+/// for 0.924x (cuts_cif +1.5 %, +8.6 % with the one-frame rule): slow
+/// keeps every frame's search.
+const HOLD: u8 = 3;
+
+/// How many more frames the older references are searched for (the
+/// probes apart), from what the frames that searched them measured.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct RefsChooser {
-    older_pay: bool,
+    /// Frames that searched the older references and may still find them
+    /// not paying before they are left.
+    hold: u8,
 }
 
 impl Default for RefsChooser {
     /// Every reference until a frame says otherwise.
     fn default() -> RefsChooser {
-        RefsChooser { older_pay: true }
+        RefsChooser { hold: 1 }
     }
 }
 
 impl RefsChooser {
     /// The references frame `index` searches, of `max`.
     pub fn refs(&self, index: usize, max: u8) -> u8 {
-        match self.older_pay || index % PROBE == 0 {
+        match self.hold > 0 || index % PROBE == 0 {
             true => max,
             false => max.min(1),
         }
@@ -91,7 +109,8 @@ impl RefsChooser {
     /// searched any.
     pub fn learn(&mut self, gain: Option<OlderGain>) {
         if let Some(g) = gain {
-            self.older_pay = g.saved as f64 > MIN_SHARE * g.total as f64;
+            let paid = g.saved as f64 > MIN_SHARE * g.total as f64;
+            self.hold = if paid { HOLD } else { self.hold.saturating_sub(1) };
         }
     }
 }
@@ -142,5 +161,34 @@ mod tests {
         assert_eq!(c.refs(5, 2), 2);
         // One reference allowed: one, whatever was learnt.
         assert_eq!(c.refs(4, 1), 1);
+    }
+
+    #[test]
+    fn older_references_that_paid_are_kept_until_enough_frames_say_they_do_not() {
+        let mut c = RefsChooser::default();
+        let paid = OlderGain {
+            saved: 50,
+            total: 1000,
+        };
+        let not = OlderGain {
+            saved: 10,
+            total: 1000,
+        };
+        c.learn(Some(paid));
+        // Frames 5, 6, 7 (no probe among them) after each lesson.
+        let mut seen = Vec::new();
+        for _ in 0..usize::from(HOLD) {
+            seen.push(c.refs(5, 2));
+            c.learn(Some(not));
+        }
+        seen.push(c.refs(5, 2));
+        let mut want = vec![2; usize::from(HOLD)];
+        want.push(1);
+        assert_eq!(seen, want, "searched until {HOLD} frames in a row did not pay");
+        // One frame paying again is enough to search them again, for as
+        // long.
+        c.learn(Some(paid));
+        c.learn(Some(not));
+        assert_eq!(c.refs(5, 2), 2);
     }
 }

@@ -78,6 +78,20 @@ pub(super) struct MbEnv<'e> {
     pub(super) satd8: &'e RefCell<SatdCache>,
 }
 
+/// How many of macroblock (x, y)'s left and upper neighbours (in
+/// `decided`, raster order over `cols` columns) predicted a block from a
+/// reference other than the first.
+fn older_reference_neighbours(decided: &[MbVectors], (x, y, cols): (usize, usize, usize)) -> usize {
+    let index = y * cols + x;
+    let left = (x > 0).then(|| index - 1);
+    let up = (y > 0).then(|| index - cols);
+    [left, up]
+        .into_iter()
+        .flatten()
+        .filter(|&i| decided[i].iter().flatten().any(|m| m.ref_idx > 0))
+        .count()
+}
+
 /// Luma SATD of a prediction.
 pub(super) fn luma_satd(src: &MbSource, pred: &MbSamples) -> u32 {
     crate::me::Metric::Satd.cost(&src.luma, 16, &pred.luma, 16, 16, 16)
@@ -554,8 +568,9 @@ impl InterFrameCoder<'_, '_> {
     }
 
     /// Whether skipping loses nothing another mode would code: its
-    /// prediction codes no level, and beside an intra neighbour intra's
-    /// 16x16 prediction is no closer.
+    /// prediction codes no level, and beside an intra neighbour, or one
+    /// that predicted from an older reference, intra's 16x16 prediction
+    /// is no closer.
     fn skip_loses_nothing(&self, mb: &MbAnalysis, env: &MbEnv<'_>) -> bool {
         let Some(skip_pred) = mb.skip_pred() else {
             return false;
@@ -567,8 +582,20 @@ impl InterFrameCoder<'_, '_> {
         // nothing (rippling water under a flickering light): skipped only
         // where intra's 16x16 prediction is no closer by SATD. Without
         // this, with the search in the decision, fish_1160 took 5.8 % more
-        // bits in medium and 11 % in ultrafast.
-        if env.modes.intra_neighbours(mb.mb_x, mb.mb_y) == 0 {
+        // bits in medium and 11 % in ultrafast. A neighbour that took an
+        // older reference says the same of the first, which the skip reads:
+        // with three references most of fish_1160's intra neighbours
+        // became such, and slow took 8 % more bits than with one. Against
+        // intra neighbours alone (`benches/pair.py`, the 28 sequences and
+        // the four kinds, 60 frames): medium -0.27 % for 0.998x its wall
+        // time (fish_1160 -4.9 %; cartoon_cif +1.0 %), slow -0.63 % for
+        // 1.004x (fish_1160 -10.2 %, dark_cif -3.1 %; coin_568 +0.6 %),
+        // slower -0.48 % for 0.999x (fish_1160 -8.9 %); one reference, the
+        // same streams.
+        let at = (mb.mb_x, mb.mb_y, self.seq.mb_cols());
+        if env.modes.intra_neighbours(mb.mb_x, mb.mb_y) == 0
+            && older_reference_neighbours(env.decided, at) == 0
+        {
             return true;
         }
         let mut intra = MbSamples::default();
@@ -1625,6 +1652,28 @@ mod tests {
         let before = fast(&src, &reference, mb, true);
         assert_eq!(before[0].0, MbKind::Skip);
         assert!(matches!(before[1].0, MbKind::Intra { .. }), "{:?}", before[1]);
+    }
+
+    #[test]
+    fn neighbours_that_took_an_older_reference_are_counted_left_and_above() {
+        let first = Some(RefMv::previous(Mv::new(4, 0)));
+        let older = Some(RefMv::new(Mv::ZERO, 1));
+        // 3 x 2 macroblocks: the top middle one took an older reference in
+        // one of its blocks, the top left none (intra: no vectors).
+        let decided: Vec<MbVectors> = vec![
+            [None; 4],
+            [first, first, older, first],
+            [first; 4],
+            [first; 4],
+            [first; 4],
+            [first; 4],
+        ];
+        let count = |x, y| older_reference_neighbours(&decided, (x, y, 3));
+        assert_eq!(count(0, 0), 0, "no neighbours");
+        assert_eq!(count(2, 0), 1, "left");
+        assert_eq!(count(1, 1), 1, "above");
+        assert_eq!(count(2, 1), 0, "above-left does not count");
+        assert_eq!(count(0, 1), 0, "intra above");
     }
 
     #[test]

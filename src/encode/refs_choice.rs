@@ -68,16 +68,18 @@ pub(super) const PROBE: usize = 4;
 /// How many frames in a row that searched the older references must
 /// find them not paying before the frames after stop searching them. A
 /// shaking camera comes back to where it was a few frames before now and
-/// then (cuts_cif's third shot: a frame of 237 bytes with its older
-/// references, 4,189 without), and the frames between save little.
+/// then (cuts_cif's third shot, slow at QP 27: a frame of 237 bytes with
+/// its older references, 4,189 without), and the frames between save
+/// little.
 /// Medium against the one-frame rule (`benches/pair.py`, the 28
 /// sequences and the four kinds, 60 frames, one run): 3 -0.16 % for
 /// 1.001x the wall time (light_cif -2.1 %, cuts_cif -0.9 %, album_160
 /// -0.7 %; fish_1160 +0.5 %, fastpan_cif +0.4 %), 2 -0.00 % for 0.993x
 /// (handheld_vga +1.2 %), 5 -0.26 % for 1.016x (handheld_vga +2.2 %).
 /// In slow (three references every frame) the choice with 3 took +0.17 %
-/// for 0.924x (cuts_cif +1.5 %, +8.6 % with the one-frame rule): slow
-/// keeps every frame's search.
+/// for 0.924x (cuts_cif +1.5 %, +8.6 % with the one-frame rule; measured
+/// before the skip's check beside older references, which made slow's
+/// three pay more on fish_1160): slow keeps every frame's search.
 const HOLD: u8 = 3;
 
 /// How many more frames the older references are searched for (the
@@ -175,7 +177,7 @@ mod tests {
             total: 1000,
         };
         c.learn(Some(paid));
-        // Frames 5, 6, 7 (no probe among them) after each lesson.
+        // Frame 5 (not a probe) asked after each lesson.
         let mut seen = Vec::new();
         for _ in 0..usize::from(HOLD) {
             seen.push(c.refs(5, 2));

@@ -1221,6 +1221,14 @@ fn presets_differ_options_override_them_and_every_stream_decodes() {
         streams[3]
     );
     assert_ne!(encode("mm.mcv", &["--split-margin", "on"]), streams[2]);
+    // The splits' search margin is slow's: off there, or on in medium,
+    // the stream changes.
+    assert_ne!(
+        encode("ss.mcv", &["--preset", "slow", "--split-search-margin", "off"]),
+        streams[3]
+    );
+    assert_ne!(encode("ms.mcv", &["--split-search-margin", "on"]), streams[2]);
+    rejects("--split-search-margin", "maybe", "expected on or off");
     // Chroma motion estimation is no preset's (its effect on a sample
     // with colour: tests/encode.rs).
     assert_eq!(encode("co.mcv", &["--chroma-me", "off"]), streams[2]);

@@ -133,6 +133,11 @@ pub struct ToolArgs {
     /// it; the slower preset has it on) [default: the preset's].
     #[arg(long, value_name = "on|off", value_parser = on_off)]
     pub split_margin: Option<bool>,
+    /// Splits searched where their candidates alone come within 1.1 of the
+    /// whole macroblock's estimate, on or off (off: only below it; from
+    /// the slow preset on) [default: the preset's].
+    #[arg(long, value_name = "on|off", value_parser = on_off)]
+    pub split_search_margin: Option<bool>,
     /// Chroma priced beside luma in the search's sub-pel steps, on or off,
     /// as x264's chroma motion estimation (`block` only) [default: the
     /// preset's].
@@ -206,6 +211,7 @@ impl ToolArgs {
         o.extend(self.refs_choice.map(|b| ("refs-choice", on(b))));
         o.extend(self.subpel_rd.map(|b| ("subpel-rd", on(b))));
         o.extend(self.split_margin.map(|b| ("split-margin", on(b))));
+        o.extend(self.split_search_margin.map(|b| ("split-search-margin", on(b))));
         o.extend(self.chroma_me.map(|b| ("chroma-me", on(b))));
         o.extend(self.adaptive_pricing.map(|b| ("adaptive-pricing", on(b))));
         o.extend(self.luma_filter.map(|f| ("luma-filter", f.name().to_string())));

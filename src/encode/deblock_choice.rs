@@ -183,6 +183,7 @@ mod tests {
             partitions: false,
             subpel_rd: false,
             split_margin: false,
+            split_search_margin: false,
             chroma_me: false,
             adaptive_pricing: true,
             fast_pskip: false,

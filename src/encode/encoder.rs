@@ -1075,6 +1075,7 @@ pub(super) fn inter_inputs<'r>(
         partitions: config.partitions.p8x8,
         subpel_rd: config.subpel_rd,
         split_margin: config.split_margin,
+        split_search_margin: config.split_search_margin,
         chroma_me: config.chroma_me,
         adaptive_pricing: config.adaptive_pricing,
         fast_pskip: config.fast_pskip,

@@ -23,7 +23,7 @@ use crate::metrics::{Metric, Metrics};
 
 /// Every option [`EncoderConfig::set`] takes, with what its value is
 /// (names as `mocomp encode` spells them; `_` may stand for `-`).
-pub const OPTIONS: [(&str, &str); 30] = [
+pub const OPTIONS: [(&str, &str); 31] = [
     ("qp", "quantisation parameter, 0..=51"),
     ("gop", "I-frame period (0: only the first frame)"),
     (
@@ -64,6 +64,10 @@ pub const OPTIONS: [(&str, &str); 30] = [
     (
         "split-margin",
         "splits searched and coded within 5/4 of the 16x16 estimate, on|off",
+    ),
+    (
+        "split-search-margin",
+        "splits searched where their candidates come within 1.1 of the 16x16 estimate, on|off",
     ),
     (
         "chroma-me",
@@ -159,6 +163,7 @@ impl EncoderConfig {
             "refs-choice" => self.refs_choice = switch(value).map_err(bad)?,
             "subpel-rd" => self.subpel_rd = switch(value).map_err(bad)?,
             "split-margin" => self.split_margin = switch(value).map_err(bad)?,
+            "split-search-margin" => self.split_search_margin = switch(value).map_err(bad)?,
             "chroma-me" => self.chroma_me = switch(value).map_err(bad)?,
             "adaptive-pricing" => self.adaptive_pricing = switch(value).map_err(bad)?,
             "fast-pskip" => self.fast_pskip = switch(value).map_err(bad)?,
@@ -272,6 +277,7 @@ mod tests {
             ("refs-choice", "off"),
             ("subpel-rd", "1"),
             ("split-margin", "on"),
+            ("split-search-margin", "on"),
             ("chroma-me", "on"),
             ("adaptive-pricing", "off"),
             ("fast-pskip", "off"),

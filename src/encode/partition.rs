@@ -2,9 +2,11 @@
 //! normative): each partition's vector is the best of a few candidates
 //! (the 8x8 blocks' searched vectors under it, the macroblock's, its
 //! predicted vector) by SATD + lambda * vector bits against its own
-//! predicted vector, then refined by half- and quarter-pel steps. x264's
-//! partition analysis seeds its 16x8 and 8x16 searches from the 8x8 ones
-//! the same way, and ranks sub-pel candidates on half-pel planes as here.
+//! predicted vector, then, when refined, walked at full pel by a small
+//! diamond and refined by half- and quarter-pel steps. x264 searches each
+//! 8x8 partition on its own the same way (its candidates, a full-pel
+//! pattern, sub-pel steps), seeds its 16x8 and 8x16 searches from the 8x8
+//! ones, and ranks sub-pel candidates on half-pel planes as here.
 //!
 //! A partition's SATD is the sum of its 8x8 blocks', each kept once
 //! computed: the 16x8 and 8x16 searches meet many of the 8x8 search's.
@@ -18,7 +20,7 @@ use crate::codec::partition::Part;
 use crate::codec::syntax::MB;
 use crate::codec::Plane;
 use crate::me::halfpel::{block_or_predicted, HalfPel};
-use crate::me::Metric;
+use crate::me::{nearest_full_pel, Metric};
 
 /// One macroblock's partition search.
 pub(crate) struct PartitionSearch<'a> {
@@ -72,12 +74,33 @@ pub(crate) struct PartChoice {
 }
 
 /// Half- then quarter-pel steps around the best, and the moves each may
-/// make. (Full-pel steps and two moves a step: 0.2 % better on the
-/// development set's mean, pan_cif 0.33 s against 0.31-0.32 s.)
+/// make.
 const REFINE_STEPS: [(i32, usize); 2] = [(2, 1), (1, 1)];
+
+/// The full-pel diamond's moves before the sub-pel steps. Candidates
+/// alone keep a partition on its neighbours' motion: where a part of the
+/// macroblock moves on its own (a hand, an instrument's neck) none of them
+/// is near its vector. Against candidates and sub-pel steps alone
+/// (`benches/pair.py`, the 28 sequences and four of other kinds, 60
+/// frames, one run): medium -0.19 % for 1.004x the wall time (band_qcif
+/// -2.3 %, cartoon_cif -1.8 %; calais_214 +0.5 %).
+const FULL_PEL_MOVES: usize = 8;
+
+/// How far above the 16x16 estimate a split of candidates alone may come
+/// and still be searched (then coded where the search makes it beat the
+/// estimate), where [`crate::encode::EncoderConfig::split_search_margin`]
+/// says so: candidates alone miss the motion the walk finds. With the
+/// walk, against neither (the same run): medium -1.05 % for 1.062x
+/// (band_qcif -6.4 %, testsrc2_qcif and cartoon_cif -3.0 %, face_360p
+/// -1.8 %; webcam_cif +0.5 %), slow -0.72 % for 1.030x, slower (whose
+/// splits are searched within 5/4 already) -0.33 % for 1.037x; every split
+/// searched, medium -1.10 % for 1.149x.
+pub(crate) const ROUGH_SPLIT_MARGIN: f64 = 1.1;
 /// A diamond at each step, walked until its centre is best (x264's
 /// sub-pel refinement of partitions at its medium settings).
 const DIRECTIONS: [(i32, i32); 4] = [(0, -1), (-1, 0), (1, 0), (0, 1)];
+/// The four diagonal steps, where the full-pel walk's steps across stop.
+const DIAGONALS: [(i32, i32); 4] = [(-1, -1), (1, -1), (-1, 1), (1, 1)];
 
 impl PartitionSearch<'_> {
     /// SATD of 8x8 block `b` of the macroblock (raster order) with `mv`:
@@ -120,8 +143,11 @@ impl PartitionSearch<'_> {
                 best = PartChoice { mv, cost };
             }
         }
-        let steps = if refine { &REFINE_STEPS[..] } else { &[] };
-        for &(step, moves) in steps {
+        if !refine {
+            return best;
+        }
+        best = self.full_pel_walk(p, mvp, best);
+        for &(step, moves) in &REFINE_STEPS {
             for _ in 0..moves {
                 let centre = best.mv;
                 for (dx, dy) in DIRECTIONS {
@@ -137,6 +163,63 @@ impl PartitionSearch<'_> {
                 if best.mv == centre {
                     break;
                 }
+            }
+        }
+        best
+    }
+
+    /// `best` walked at full pel: from its nearest full-pel position, the
+    /// four neighbours a pel away, again around the best while one of
+    /// them is better (at most [`FULL_PEL_MOVES`] times).
+    fn full_pel_walk(&self, p: &Part, mvp: Mv, mut best: PartChoice) -> PartChoice {
+        let nearest = |mv: Mv| {
+            let (x, y) = nearest_full_pel(mv);
+            Mv::full_pel(x, y)
+        };
+        if nearest(best.mv) != best.mv && nearest(best.mv).in_range() {
+            let cost = self.cost(p, nearest(best.mv), mvp);
+            if cost < best.cost {
+                best = PartChoice {
+                    mv: nearest(best.mv),
+                    cost,
+                };
+            }
+        }
+        let mut centre = nearest(best.mv);
+        for _ in 0..FULL_PEL_MOVES {
+            let before = best.mv;
+            best = self.around(p, mvp, best, centre, &DIRECTIONS);
+            if best.mv == before {
+                // Smooth content leaves a valley along a diagonal (the
+                // block's mean error cancels there), where no step across
+                // lowers the cost.
+                best = self.around(p, mvp, best, centre, &DIAGONALS);
+                if best.mv == before {
+                    break;
+                }
+            }
+            centre = best.mv;
+        }
+        best
+    }
+
+    /// `best` or the best of the full-pel `steps` around `centre`.
+    fn around(
+        &self,
+        p: &Part,
+        mvp: Mv,
+        mut best: PartChoice,
+        centre: Mv,
+        steps: &[(i32, i32)],
+    ) -> PartChoice {
+        for &(dx, dy) in steps {
+            let mv = Mv::new(centre.x + 4 * dx, centre.y + 4 * dy);
+            if !mv.in_range() {
+                continue;
+            }
+            let cost = self.cost(p, mv, mvp);
+            if cost < best.cost {
+                best = PartChoice { mv, cost };
             }
         }
         best
@@ -190,5 +273,47 @@ mod tests {
         assert_eq!(bottom.mv, Mv::full_pel(0, -2));
         // The costs are the vector bits alone.
         assert_eq!(top.cost, f64::from(mvd_bits(top.mv, Mv::ZERO)));
+    }
+
+    #[test]
+    fn the_walk_finds_motion_no_candidate_is_near() {
+        // A smooth texture (no minimum within a few pels but the true one),
+        // the source macroblock (1, 1) the reference moved by (-3, +2)
+        // pixels: sample (x, y) of the source is (x + 3, y - 2) of the
+        // reference, the vector (3, -2) pels.
+        let texture = |x: isize, y: isize| {
+            let (x, y) = (x as f64, y as f64);
+            (128.0 + 50.0 * (x / 5.0).sin() + 40.0 * (y / 6.0).cos()).round() as u8
+        };
+        let mut reference = Plane::with_padding(64, 64, 32).unwrap();
+        for y in 0..64 {
+            for x in 0..64 {
+                reference.set(x, y, texture(x as isize, y as isize));
+            }
+        }
+        reference.extend_border();
+        let mut source = [0u8; 256];
+        for y in 0..16 {
+            for x in 0..16 {
+                source[y * 16 + x] = reference.at(16 + x as isize + 3, 16 + y as isize - 2);
+            }
+        }
+        let search = PartitionSearch {
+            source: &source,
+            reference: &reference,
+            halfpel: None,
+            mb: (1, 1),
+            sad_lambda: 1.0,
+            satd8: &Default::default(),
+        };
+        let truth = Mv::full_pel(3, -2);
+        for (k, part) in Split::Quad.parts().iter().enumerate() {
+            // No candidate but the predicted vector, zero: the walk goes
+            // the five pels to the vector; candidates alone stay at zero.
+            let walked = search.best(part, &[], Mv::ZERO, true);
+            assert_eq!(walked.mv, truth, "block {k}");
+            let rough = search.best(part, &[], Mv::ZERO, false);
+            assert_eq!(rough.mv, Mv::ZERO, "block {k}");
+        }
     }
 }

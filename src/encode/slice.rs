@@ -345,6 +345,8 @@ pub(crate) struct InterInputs<'a> {
     pub subpel_rd: bool,
     /// Splits within a margin of the 16x16 estimate ([`super::EncoderConfig::split_margin`]).
     pub split_margin: bool,
+    /// Splits searched within a margin ([`super::EncoderConfig::split_search_margin`]).
+    pub split_search_margin: bool,
     /// Chroma in the 16x16 searches' sub-pel cost ([`super::EncoderConfig::chroma_me`]).
     pub chroma_me: bool,
     /// The decision's residual prices adapt through the frame
@@ -382,6 +384,8 @@ pub(super) struct InterFrameCoder<'a, 'r> {
     pub(super) subpel_rd: bool,
     /// Splits within a margin of the 16x16 estimate.
     pub(super) split_margin: bool,
+    /// Splits searched within a margin of the 16x16 estimate.
+    pub(super) split_search_margin: bool,
     /// Chroma in the 16x16 searches' sub-pel cost.
     pub(super) chroma_me: bool,
     /// The decision's residual prices adapt through the frame.
@@ -498,6 +502,7 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
             partitions: inputs.partitions && inputs.tool == MotionTool::Block,
             subpel_rd: inputs.subpel_rd,
             split_margin: inputs.split_margin,
+            split_search_margin: inputs.split_search_margin,
             chroma_me: inputs.chroma_me,
             adaptive_pricing: inputs.adaptive_pricing,
             fast_pskip: inputs.fast_pskip,
@@ -535,6 +540,7 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
             partitions: self.partitions,
             subpel_rd: self.subpel_rd,
             split_margin: self.split_margin,
+            split_search_margin: self.split_search_margin,
             chroma_me: self.chroma_me,
             adaptive_pricing: self.adaptive_pricing,
             fast_pskip: self.fast_pskip,

@@ -77,24 +77,26 @@ pub(crate) struct PartChoice {
 /// make.
 const REFINE_STEPS: [(i32, usize); 2] = [(2, 1), (1, 1)];
 
-/// The full-pel diamond's moves before the sub-pel steps. Candidates
-/// alone keep a partition on its neighbours' motion: where a part of the
+/// The full-pel walk's moves before the sub-pel steps. Candidates alone
+/// keep a partition on its neighbours' motion: where a part of the
 /// macroblock moves on its own (a hand, an instrument's neck) none of them
 /// is near its vector. Against candidates and sub-pel steps alone
 /// (`benches/pair.py`, the 28 sequences and four of other kinds, 60
-/// frames, one run): medium -0.19 % for 1.004x the wall time (band_qcif
-/// -2.3 %, cartoon_cif -1.8 %; calais_214 +0.5 %).
+/// frames, one run): medium -0.09 % for 0.996x the wall time (band_qcif
+/// -2.2 %, cartoon_cif -1.8 %; fish_1160 +1.6 %); steps across alone,
+/// without the diagonals, -0.19 % for 1.004x.
 const FULL_PEL_MOVES: usize = 8;
 
 /// How far above the 16x16 estimate a split of candidates alone may come
 /// and still be searched (then coded where the search makes it beat the
 /// estimate), where [`crate::encode::EncoderConfig::split_search_margin`]
 /// says so: candidates alone miss the motion the walk finds. With the
-/// walk, against neither (the same run): medium -1.05 % for 1.062x
-/// (band_qcif -6.4 %, testsrc2_qcif and cartoon_cif -3.0 %, face_360p
-/// -1.8 %; webcam_cif +0.5 %), slow -0.72 % for 1.030x, slower (whose
-/// splits are searched within 5/4 already) -0.33 % for 1.037x; every split
-/// searched, medium -1.10 % for 1.149x.
+/// walk, against neither (the same kind of run): slow -0.81 % for 1.034x
+/// (band_qcif -6.9 %, static_noise_cif -2.9 %, testsrc2_qcif -2.6 %;
+/// fish_1160 +1.1 %); with steps across alone, medium -1.05 % for 1.062x
+/// (band_qcif -6.4 %, testsrc2_qcif and cartoon_cif -3.0 %), slower (its
+/// splits searched within 5/4 already) -0.33 % for 1.037x, and every
+/// split searched, medium -1.10 % for 1.149x.
 pub(crate) const ROUGH_SPLIT_MARGIN: f64 = 1.1;
 /// A diamond at each step, walked until its centre is best (x264's
 /// sub-pel refinement of partitions at its medium settings).

@@ -98,6 +98,7 @@ const FULL_PEL_MOVES: usize = 8;
 /// splits searched within 5/4 already) -0.33 % for 1.037x, and every
 /// split searched, medium -1.10 % for 1.149x.
 pub(crate) const ROUGH_SPLIT_MARGIN: f64 = 1.1;
+
 /// A diamond at each step, walked until its centre is best (x264's
 /// sub-pel refinement of partitions at its medium settings).
 const DIRECTIONS: [(i32, i32); 4] = [(0, -1), (-1, 0), (1, 0), (0, 1)];
@@ -152,16 +153,7 @@ impl PartitionSearch<'_> {
         for &(step, moves) in &REFINE_STEPS {
             for _ in 0..moves {
                 let centre = best.mv;
-                for (dx, dy) in DIRECTIONS {
-                    let mv = Mv::new(centre.x + dx * step, centre.y + dy * step);
-                    if !mv.in_range() {
-                        continue;
-                    }
-                    let cost = self.cost(p, mv, mvp);
-                    if cost < best.cost {
-                        best = PartChoice { mv, cost };
-                    }
-                }
+                best = self.around(p, mvp, best, (centre, step), &DIRECTIONS);
                 if best.mv == centre {
                     break;
                 }
@@ -171,31 +163,30 @@ impl PartitionSearch<'_> {
     }
 
     /// `best` walked at full pel: from its nearest full-pel position, the
-    /// four neighbours a pel away, again around the best while one of
-    /// them is better (at most [`FULL_PEL_MOVES`] times).
+    /// four neighbours a pel away, the diagonal ones where those are no
+    /// better, again around the best while one of them is (at most
+    /// [`FULL_PEL_MOVES`] times).
     fn full_pel_walk(&self, p: &Part, mvp: Mv, mut best: PartChoice) -> PartChoice {
         let nearest = |mv: Mv| {
             let (x, y) = nearest_full_pel(mv);
             Mv::full_pel(x, y)
         };
-        if nearest(best.mv) != best.mv && nearest(best.mv).in_range() {
-            let cost = self.cost(p, nearest(best.mv), mvp);
+        let rounded = nearest(best.mv);
+        if rounded != best.mv && rounded.in_range() {
+            let cost = self.cost(p, rounded, mvp);
             if cost < best.cost {
-                best = PartChoice {
-                    mv: nearest(best.mv),
-                    cost,
-                };
+                best = PartChoice { mv: rounded, cost };
             }
         }
         let mut centre = nearest(best.mv);
         for _ in 0..FULL_PEL_MOVES {
             let before = best.mv;
-            best = self.around(p, mvp, best, centre, &DIRECTIONS);
+            best = self.around(p, mvp, best, (centre, 4), &DIRECTIONS);
             if best.mv == before {
                 // Smooth content leaves a valley along a diagonal (the
                 // block's mean error cancels there), where no step across
                 // lowers the cost.
-                best = self.around(p, mvp, best, centre, &DIAGONALS);
+                best = self.around(p, mvp, best, (centre, 4), &DIAGONALS);
                 if best.mv == before {
                     break;
                 }
@@ -205,17 +196,18 @@ impl PartitionSearch<'_> {
         best
     }
 
-    /// `best` or the best of the full-pel `steps` around `centre`.
+    /// `best` or the best of `steps` (in units of `step` quarter pels)
+    /// around `centre`.
     fn around(
         &self,
         p: &Part,
         mvp: Mv,
         mut best: PartChoice,
-        centre: Mv,
+        (centre, step): (Mv, i32),
         steps: &[(i32, i32)],
     ) -> PartChoice {
         for &(dx, dy) in steps {
-            let mv = Mv::new(centre.x + 4 * dx, centre.y + 4 * dy);
+            let mv = Mv::new(centre.x + step * dx, centre.y + step * dy);
             if !mv.in_range() {
                 continue;
             }

@@ -225,18 +225,40 @@ mod tests {
     use super::*;
     use crate::codec::partition::Split;
 
+    /// A `size` x `size` plane of `texture`, borders extended.
+    fn textured(size: usize, texture: impl Fn(isize, isize) -> u8) -> Plane {
+        let mut plane = Plane::with_padding(size, size, 32).unwrap();
+        for y in 0..size {
+            for x in 0..size {
+                plane.set(x, y, texture(x as isize, y as isize));
+            }
+        }
+        plane.extend_border();
+        plane
+    }
+
+    /// The search of macroblock (1, 1) of `source` in `reference`, one bit
+    /// weighing one unit of SATD, no half-pel planes.
+    fn search_of<'a>(
+        source: &'a [u8; 256],
+        reference: &'a Plane,
+        cache: &'a RefCell<SatdCache>,
+    ) -> PartitionSearch<'a> {
+        PartitionSearch {
+            source,
+            reference,
+            halfpel: None,
+            mb: (1, 1),
+            sad_lambda: 1.0,
+            satd8: cache,
+        }
+    }
+
     #[test]
     fn each_half_finds_its_own_shift() {
         // Reference: a texture. Source macroblock (1, 1): its top half is
         // the reference moved by (+3, 0) pixels, its bottom half by (0, -2).
-        let texture = |x: isize, y: isize| ((x * 37 + y * 91 + (x * y) % 13) % 251) as u8;
-        let mut reference = Plane::with_padding(48, 48, 32).unwrap();
-        for y in 0..48 {
-            for x in 0..48 {
-                reference.set(x, y, texture(x as isize, y as isize));
-            }
-        }
-        reference.extend_border();
+        let reference = textured(48, |x, y| ((x * 37 + y * 91 + (x * y) % 13) % 251) as u8);
         let mut source = [0u8; 256];
         for y in 0..16 {
             for x in 0..16 {
@@ -248,14 +270,8 @@ mod tests {
                 };
             }
         }
-        let search = PartitionSearch {
-            source: &source,
-            reference: &reference,
-            halfpel: None,
-            mb: (1, 1),
-            sad_lambda: 1.0,
-            satd8: &Default::default(),
-        };
+        let cache = RefCell::default();
+        let search = search_of(&source, &reference, &cache);
         let parts = Split::Horizontal.parts();
         // Candidates half a pel off each true vector: the refinement lands
         // on it, with zero SATD; without refinement they stay.
@@ -275,31 +291,18 @@ mod tests {
         // the source macroblock (1, 1) the reference moved by (-3, +2)
         // pixels: sample (x, y) of the source is (x + 3, y - 2) of the
         // reference, the vector (3, -2) pels.
-        let texture = |x: isize, y: isize| {
+        let reference = textured(64, |x, y| {
             let (x, y) = (x as f64, y as f64);
             (128.0 + 50.0 * (x / 5.0).sin() + 40.0 * (y / 6.0).cos()).round() as u8
-        };
-        let mut reference = Plane::with_padding(64, 64, 32).unwrap();
-        for y in 0..64 {
-            for x in 0..64 {
-                reference.set(x, y, texture(x as isize, y as isize));
-            }
-        }
-        reference.extend_border();
+        });
         let mut source = [0u8; 256];
         for y in 0..16 {
             for x in 0..16 {
                 source[y * 16 + x] = reference.at(16 + x as isize + 3, 16 + y as isize - 2);
             }
         }
-        let search = PartitionSearch {
-            source: &source,
-            reference: &reference,
-            halfpel: None,
-            mb: (1, 1),
-            sad_lambda: 1.0,
-            satd8: &Default::default(),
-        };
+        let cache = RefCell::default();
+        let search = search_of(&source, &reference, &cache);
         let truth = Mv::full_pel(3, -2);
         for (k, part) in Split::Quad.parts().iter().enumerate() {
             // No candidate but the predicted vector, zero: the walk goes

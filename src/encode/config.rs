@@ -452,7 +452,8 @@ pub struct EncoderConfig {
     pub split_margin: bool,
     /// Splits searched where their candidates alone come within 1.1 of the
     /// 16x16 estimate, not only where they beat it (and coded where the
-    /// search makes them beat it; `block` frames with `p8x8`).
+    /// search makes them beat it; `block` frames with `p8x8`; where
+    /// [`EncoderConfig::split_margin`] is on, its margin stands instead).
     pub split_search_margin: bool,
     /// The mode decision's residual prices follow the contexts as they
     /// adapt through a P frame's macroblocks (the row above's at a row's

@@ -94,9 +94,9 @@ const FULL_PEL_MOVES: usize = 8;
 /// walk, against neither (the same kind of run): slow -0.81 % for 1.034x
 /// (band_qcif -6.9 %, static_noise_cif -2.9 %, testsrc2_qcif -2.6 %;
 /// fish_1160 +1.1 %); with steps across alone, medium -1.05 % for 1.062x
-/// (band_qcif -6.4 %, testsrc2_qcif and cartoon_cif -3.0 %), slower (its
-/// splits searched within 5/4 already) -0.33 % for 1.037x, and every
-/// split searched, medium -1.10 % for 1.149x.
+/// (band_qcif -6.4 %, testsrc2_qcif and cartoon_cif -3.0 %), and every
+/// split searched, medium -1.10 % for 1.149x. Slower keeps its own 5/4
+/// (`analyse_split`).
 pub(crate) const ROUGH_SPLIT_MARGIN: f64 = 1.1;
 
 /// A diamond at each step, walked until its centre is best (x264's

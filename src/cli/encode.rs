@@ -135,7 +135,8 @@ pub struct ToolArgs {
     pub split_margin: Option<bool>,
     /// Splits searched where their candidates alone come within 1.1 of the
     /// whole macroblock's estimate, on or off (off: only below it; from
-    /// the slow preset on) [default: the preset's].
+    /// the slow preset on; where --split-margin is on, its 5/4 stands
+    /// instead) [default: the preset's].
     #[arg(long, value_name = "on|off", value_parser = on_off)]
     pub split_search_margin: Option<bool>,
     /// Chroma priced beside luma in the search's sub-pel steps, on or off,

@@ -930,9 +930,9 @@ impl InterFrameCoder<'_, '_> {
         let bound = if self.split_margin { RD_MARGIN } else { 1.0 } * mb.inter_estimate;
         let rough = self.search_split(mb, &search, Split::Quad, None, false, env);
         // Where splits are searched within 5/4 already, that margin
-        // stands (on top of it slower took +0.05 % for 1.064x its time;
-        // with it alone -0.11 % for 1.026x, coin_568 +9.7 % either way:
-        // `benches/pair.py`, the 28 and four kinds, one run each).
+        // stands (on top of it slower took +0.05 % for 1.064x its time,
+        // coin_568 +11.3 %; with it alone -0.11 % for 1.026x, coin_568
+        // +9.7 %: `benches/pair.py`, the 28 and four kinds, one run each).
         let search_margin = if self.split_search_margin && !self.split_margin {
             ROUGH_SPLIT_MARGIN
         } else {

@@ -20,7 +20,7 @@ use crate::me::{ChromaBlock, Metric};
 use super::config::ModeDecision;
 use super::intra4x4::{self, Intra4x4Luma, IntraBlockSearch};
 use super::intra8x8::Intra8x8Luma;
-use super::macroblock::{prefetch_ahead, prefetch_ahead_displaced, MbCoder, MbSource};
+use super::macroblock::{prefetch_ahead, prefetch_ahead_displaced, Coded, MbCoder, MbSource};
 use super::partition::{PartitionSearch, SatdCache, ROUGH_SPLIT_MARGIN};
 use crate::codec::intra4x4::LumaIntra;
 use crate::codec::modes::{MbMode, ModeCoder, VectorSyntax};
@@ -313,6 +313,16 @@ const INTRA_LIKELY_SEARCH_MARGIN: f64 = 2.0;
 /// trade than its others (half-pel instead of quarter-pel, +8 % for
 /// 0.95x), not taken.
 const EARLY_SKIP_MAX_SSE: f64 = 24.0;
+
+/// How far above the 4x4 coding's cost the plainly quantised 8x8
+/// alternative of an inter macroblock may come for the 8x8 transform's
+/// RDOQ to be tried ([`InterFrameCoder::analyse_transform`]). Against
+/// RDOQ on every alternative (`benches/pair.py`, the 28 sequences and the
+/// four kinds, 60 frames, one run each): medium +0.15 % for 0.967x its
+/// wall time (dark_cif +2.8 %, cuts_cif -1.3 %), 1.05 +0.02 % for
+/// 0.987x, without the 8x8 alternative +2.33 % for 0.926x; slow +0.07 %
+/// for 0.961x, slower -0.24 % for 0.989x.
+const LUMA8_RDOQ_MARGIN: f64 = 1.0;
 
 /// How far above the 16x16 and 8x8 estimates the 4x4 search may run
 /// before it stops (x264's 10/8).
@@ -649,13 +659,24 @@ impl InterFrameCoder<'_, '_> {
             return;
         };
         let at = (mb.mb_x, mb.mb_y);
-        let Some(c8) = self.coder.luma8_alternative(
-            &mb.source,
-            &best.pred,
-            (residual, best.reconstruction()),
-            env.residual,
-            at,
-        ) else {
+        let coded4 = (&**residual, best.reconstruction());
+        let alternative =
+            |coder: &MbCoder| coder.luma8_alternative(&mb.source, &best.pred, coded4, env.residual, at);
+        // With RDOQ, the 8x8 levels are found plainly first, and RDOQ's
+        // pass (the costly part) runs only where those come within
+        // `LUMA8_RDOQ_MARGIN` of the 4x4 coding's cost: RDOQ seldom
+        // brings a transform from above its rival to below (x264's
+        // `--trellis 1` prices its transform choice without trellis too).
+        if self.coder.rdoq {
+            let plain = alternative(&self.coder.rdoq(false));
+            let near = |c: &Coded| {
+                rdo::cost(self.coder.lambda, c.ssd, c.bits) <= LUMA8_RDOQ_MARGIN * best.residual_cost
+            };
+            if !plain.as_ref().is_some_and(near) {
+                return;
+            }
+        }
+        let Some(c8) = alternative(self.coder) else {
             return;
         };
         let cost8 = rdo::cost(self.coder.lambda, c8.ssd, c8.bits);

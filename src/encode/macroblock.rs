@@ -189,6 +189,11 @@ impl MbCoder {
         }
     }
 
+    /// This coder with RDOQ on or off.
+    pub fn rdoq(self, on: bool) -> MbCoder {
+        MbCoder { rdoq: on, ..self }
+    }
+
     /// This coder with 4x4 intra on or off.
     pub fn intra4x4(self, on: bool) -> MbCoder {
         MbCoder { intra4x4: on, ..self }

@@ -314,6 +314,19 @@ const INTRA_LIKELY_SEARCH_MARGIN: f64 = 2.0;
 /// 0.95x), not taken.
 const EARLY_SKIP_MAX_SSE: f64 = 24.0;
 
+/// How far above the lowest estimate (SATD + sqrt(lambda) * vector bits)
+/// a 16x16 inter candidate of the full decision may be and still be
+/// coded. x264 codes one 16x16 vector a reference, the best of its search;
+/// mocomp took its 5/4 threshold of RD mode decision (`RD_MARGIN`), as
+/// good on the synthetic development set's mean for 2 % fewer
+/// instructions than coding all (pan_cif, callgrind). Against 5/4
+/// (`benches/pair.py`, the 28 sequences and the four kinds, 60 frames,
+/// one run each): medium -0.13 % for 0.956x its wall time (fish_1160
+/// -2.2 %; light_cif +1.4 %), 1.0 (the best alone) +0.54 % for 0.919x;
+/// fast -0.03 % for 0.993x, slow +0.23 % for 0.969x, slower +0.26 % for
+/// 0.966x.
+const CANDIDATE_MARGIN: f64 = 1.1;
+
 /// How far above the 4x4 coding's cost the plainly quantised 8x8
 /// alternative of an inter macroblock may come for the 8x8 transform's
 /// RDOQ to be tried ([`InterFrameCoder::analyse_transform`]). Against
@@ -399,6 +412,10 @@ pub(super) struct MbAnalysis {
     /// The skip prediction's squared luma error (the frame's prediction
     /// PSNR takes it where skip wins, not measured again).
     pub(super) skip_luma_sse: u64,
+    /// Whether skipping loses nothing ([`InterFrameCoder::skip_loses_nothing`]),
+    /// once asked: the checks before and after the search ask it of the
+    /// same prediction.
+    pub(super) skip_verdict: Option<bool>,
     /// Motion analysis' vector (the predicted one until it is searched).
     pub(super) searched: Mv,
     /// The lowest luma SATD of the inter candidates, for intra's early out.
@@ -435,6 +452,7 @@ impl MbAnalysis {
             trial: Box::new(Choice::empty()),
             exhaustive: false,
             skip_luma_sse: 0,
+            skip_verdict: None,
             searched: Mv::ZERO,
             inter_satd: u32::MAX,
             inter_estimate: f64::INFINITY,
@@ -536,8 +554,8 @@ impl InterFrameCoder<'_, '_> {
     /// machine could show (`benches/pair.py`, one run each); any vector
     /// beside a skipped neighbour (x264's test before its search, below
     /// subme 3): +4.7 % for 12 % (ultrafast).
-    fn skips_early(&self, mb: &MbAnalysis, env: &MbEnv<'_>) -> bool {
-        self.fast_pskip && mb.searched == mb.mvp && self.skip_loses_nothing(mb, env)
+    fn skips_early(&self, mb: &mut MbAnalysis, env: &MbEnv<'_>) -> bool {
+        self.fast_pskip && mb.searched == mb.mvp && self.skip_loses_nothing_once(mb, env)
     }
 
     /// x264's fast P-skip below `--subme 3`, before the motion search:
@@ -555,7 +573,7 @@ impl InterFrameCoder<'_, '_> {
     /// medium +0.6 % for 0.92x, slow +1.0 % for 0.95x. Where the two
     /// neighbours' vectors also had to equal the predicted one (an earlier
     /// trial): medium +0.7 % for 0.90x, against +1.3 % for 0.82x.
-    fn skips_before_search(&self, mb: &MbAnalysis, env: &MbEnv<'_>) -> bool {
+    fn skips_before_search(&self, mb: &mut MbAnalysis, env: &MbEnv<'_>) -> bool {
         if !(self.fast_pskip && self.early_pskip) {
             return false;
         }
@@ -565,7 +583,17 @@ impl InterFrameCoder<'_, '_> {
             1 => little_error,
             _ => false,
         };
-        beside && self.skip_loses_nothing(mb, env)
+        beside && self.skip_loses_nothing_once(mb, env)
+    }
+
+    /// [`InterFrameCoder::skip_loses_nothing`], found once a macroblock.
+    fn skip_loses_nothing_once(&self, mb: &mut MbAnalysis, env: &MbEnv<'_>) -> bool {
+        if let Some(verdict) = mb.skip_verdict {
+            return verdict;
+        }
+        let verdict = self.skip_loses_nothing(mb, env);
+        mb.skip_verdict = Some(verdict);
+        verdict
     }
 
     /// The macroblock's chroma and `reference`'s, for the search's
@@ -724,6 +752,7 @@ impl InterFrameCoder<'_, '_> {
         (best.samples, best.residual) = (None, None);
         mb.exhaustive = cost > rdo::cost(lambda, 0, not_skipped);
         mb.skip_luma_sse = skip_luma_sse;
+        mb.skip_verdict = None;
         mb.searched = mvp;
         mb.inter_satd = u32::MAX;
         mb.inter_estimate = f64::INFINITY;
@@ -772,7 +801,8 @@ impl InterFrameCoder<'_, '_> {
     /// The inter `candidates` ([`Self::inter_candidates`]) coded and
     /// weighed against the best choice so far: with
     /// [`ModeDecision::Fast`], only the one of lowest SATD + rate
-    /// estimate; with the full decision, those within [`RD_MARGIN`] of it.
+    /// estimate; with the full decision, those within [`CANDIDATE_MARGIN`]
+    /// of it.
     pub(super) fn code_inter(
         &self,
         mb: &mut MbAnalysis,
@@ -793,11 +823,9 @@ impl InterFrameCoder<'_, '_> {
             }
             return;
         }
-        // Only the candidates whose estimate is within a quarter of the
-        // best are coded (x264's threshold for RD mode decision): as good
-        // on the development set's mean, 2 % fewer instructions on pan_cif
-        // (callgrind).
-        candidates.retain(|c| c.estimate <= RD_MARGIN * mb.inter_estimate);
+        // Only the candidates whose estimate is near the best's are coded
+        // (`CANDIDATE_MARGIN`).
+        candidates.retain(|c| c.estimate <= CANDIDATE_MARGIN * mb.inter_estimate);
         for c in candidates {
             self.code_candidate(mb, env, c);
         }

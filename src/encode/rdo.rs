@@ -6,8 +6,9 @@
 
 use crate::me::{lambda_for_qp, Metric};
 
-/// With the full decision, an inter candidate is coded only when its
-/// SATD + rate estimate is within this factor of the best's (x264's 5/4).
+/// How far above the best's SATD + rate estimate an alternative is still
+/// coded and weighed by RD: sub-pel RD's steps and slower's splits (x264's
+/// 5/4; the 16x16 candidates take `analyse::CANDIDATE_MARGIN`).
 pub(super) const RD_MARGIN: f64 = 1.25;
 
 /// The mode decision's lambda at `qp`: the H.264 reference encoder's

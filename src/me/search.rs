@@ -76,18 +76,23 @@ impl Neighbours {
     }
 }
 
-/// One bit per position of the search window: on the stack up to range 19
-/// (a search per block would otherwise allocate and free every time).
+/// One bit per position of the search window: on the stack up to range 32,
+/// the presets' (a search per block would otherwise allocate and free every
+/// time).
+#[allow(clippy::large_enum_variant)] // the array is on the stack on purpose
 enum Seen {
-    Stack([u64; 24]),
+    Stack([u64; SEEN_STACK_WORDS]),
     Heap(Vec<u64>),
 }
+
+/// The words of a window of range 32: 65 x 65 bits.
+const SEEN_STACK_WORDS: usize = (65 * 65usize).div_ceil(64);
 
 impl Seen {
     fn new(bits: usize) -> Seen {
         let words = bits.div_ceil(64);
-        if words <= 24 {
-            Seen::Stack([0; 24])
+        if words <= SEEN_STACK_WORDS {
+            Seen::Stack([0; SEEN_STACK_WORDS])
         } else {
             Seen::Heap(vec![0; words])
         }

@@ -104,9 +104,9 @@ pub(super) fn luma_satd(src: &MbSource, pred: &MbSamples) -> u32 {
 /// place, the choice and its samples were copied four or five times).
 /// `coders` are the frame's as they stand before the macroblock. With
 /// `bound` (inter's, [`InterBound`]), each luma candidate is coded only
-/// when its estimate is below inter's. Whether a candidate was coded
-/// (always without a bound), and whether the 16x16 one was (its SATD below
-/// the bound's).
+/// when its estimate is below inter's times the bound's coding margin.
+/// Whether a candidate was coded (always without a bound), and whether
+/// the 16x16 one was (its SATD below the bound's, with the margin).
 pub(super) fn intra_against(
     coder: &MbCoder,
     s: &MbSource,
@@ -117,7 +117,7 @@ pub(super) fn intra_against(
     out: &mut Choice,
 ) -> (bool, bool) {
     let (luma, satd) = best_intra_16x16(coder, s, recon, at, &mut out.pred);
-    let whole = bound.is_none_or(|b| satd < b.satd);
+    let whole = bound.is_none_or(|b| f64::from(satd) < b.coding_margin * f64::from(b.satd));
     // (Not called where no block size is tried: its two records, returned
     // empty, were a 1.3 KB copy a macroblock.)
     let (blocks8, blocks4) = if coder.intra8x8 || coder.intra4x4 {
@@ -210,7 +210,7 @@ fn intra_block_searches(
         mode_bits,
         residual: residual_coder,
     };
-    let estimate_bound = bound.map_or(f64::INFINITY, |b| b.estimate);
+    let estimate_bound = bound.map_or(f64::INFINITY, |b| b.coding_margin * b.estimate);
     let blocks8 = coder
         .intra8x8
         .then(|| search.run8(s, None, estimate_bound))
@@ -268,14 +268,28 @@ impl IntraCoding<'_> {
 }
 
 /// What intra must beat in a P frame: inter's least SATD and least
-/// estimate (SATD + sqrt(lambda) * bits), and how far above that SATD
-/// 16x16 intra's may be for the 8x8 and 4x4 searches to run.
+/// estimate (SATD + sqrt(lambda) * bits), how far above that SATD 16x16
+/// intra's may be for the 8x8 and 4x4 searches to run, and how far above
+/// inter's SATD and estimate an intra candidate's may be to be coded.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct InterBound {
     pub satd: u32,
     pub estimate: f64,
     pub search_margin: f64,
+    pub coding_margin: f64,
 }
+
+/// How far above inter's SATD and estimate the full decision codes an
+/// intra candidate (x264's `intra_rd` under RD mode decision: within 5/4
+/// of inter's SATD); the fast decision codes it only below inter's, where
+/// a 16x16 intra coded means inter is not. Against 1.0
+/// (`benches/pair.py`, the 28 sequences and four kinds, 60 frames, one
+/// run each): medium -0.56 % for 1.013x the wall time (cartoon_cif
+/// -6.6 %, fish_1160 -4.1 %, ball_576 -2.1 %, diver_vga -2.0 %;
+/// calais_214 and handheld_vga +1.5 %), fast -0.65 % for 1.021x, slow
+/// -0.93 % (its time beside the tests); 1.5 in medium -0.78 % for about
+/// 1.02x (beside a CI run).
+const INTRA_CODING_MARGIN: f64 = 1.25;
 
 /// How far above inter's SATD a P frame's 16x16 intra SATD may be for
 /// the 8x8 and 4x4 searches to run (x264's fast-intra threshold). On the
@@ -1141,6 +1155,10 @@ impl InterFrameCoder<'_, '_> {
             } else {
                 INTRA_SEARCH_MARGIN
             },
+            coding_margin: match self.decision {
+                ModeDecision::Full => INTRA_CODING_MARGIN,
+                ModeDecision::Fast => 1.0,
+            },
         };
         let coders = (env.modes, env.residual);
         let (coded, whole) = intra_against(
@@ -1536,6 +1554,39 @@ mod tests {
     }
 
     #[test]
+    fn the_full_decision_codes_intra_within_its_margin_of_inter() {
+        // A textured macroblock whose 16x16 intra SATD is 1.1 times
+        // inter's: coded for the RD comparison within the full decision's
+        // margin (x264's 5/4 under RD mode decision), not where intra must
+        // beat inter's SATD (the fast decision's).
+        let src = frame(texture);
+        let s = MbSource::load(&src, 1, 1);
+        let coder = MbCoder::new(28, 1.0, true);
+        let (modes, residual) = (ModeCoder::new(3, 3), ResidualCoder::new(3, 3));
+        let (_, satd) = best_intra_16x16(&coder, &s, &src, (1, 1), &mut MbSamples::default());
+        let coded_at = |coding_margin| {
+            let bound = InterBound {
+                satd: (f64::from(satd) / 1.1) as u32,
+                estimate: f64::INFINITY,
+                search_margin: 1.0,
+                coding_margin,
+            };
+            let mut choice = Choice::empty();
+            intra_against(
+                &coder,
+                &s,
+                &src,
+                (1, 1),
+                (&modes, &residual),
+                Some(bound),
+                &mut choice,
+            )
+        };
+        assert_eq!(coded_at(1.0), (false, false));
+        assert_eq!(coded_at(INTRA_CODING_MARGIN), (true, true));
+    }
+
+    #[test]
     fn intra_blocks_are_searched_within_the_bounds_margin() {
         // A textured macroblock whose 16x16 intra SATD is 1.5 times
         // inter's: hopeless for the blocks at the usual margin (1.25, and
@@ -1550,6 +1601,7 @@ mod tests {
             satd: (f64::from(satd) / 1.5) as u32,
             estimate: f64::INFINITY,
             search_margin,
+            coding_margin: 1.0,
         };
         let at = |margin| {
             let mut choice = Choice::empty();

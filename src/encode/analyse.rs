@@ -1553,34 +1553,45 @@ mod tests {
         }
     }
 
+    /// [`intra_against`] of the middle macroblock of a textured frame
+    /// against an inter bound `ratio` times below its 16x16 intra SATD,
+    /// with the bound's search and coding margins: whether a candidate
+    /// and the 16x16 one were coded, and the choice.
+    fn intra_against_textured(ratio: f64, search_margin: f64, coding_margin: f64) -> (bool, bool, Choice) {
+        let src = frame(texture);
+        let s = MbSource::load(&src, 1, 1);
+        let coder = MbCoder::new(28, 1.0, true);
+        let (modes, residual) = (ModeCoder::new(3, 3), ResidualCoder::new(3, 3));
+        let (_, satd) = best_intra_16x16(&coder, &s, &src, (1, 1), &mut MbSamples::default());
+        let bound = InterBound {
+            satd: (f64::from(satd) / ratio) as u32,
+            estimate: f64::INFINITY,
+            search_margin,
+            coding_margin,
+        };
+        let mut choice = Choice::empty();
+        let at = (1, 1);
+        let (coded, whole) = intra_against(
+            &coder,
+            &s,
+            &src,
+            at,
+            (&modes, &residual),
+            Some(bound),
+            &mut choice,
+        );
+        (coded, whole, choice)
+    }
+
     #[test]
     fn the_full_decision_codes_intra_within_its_margin_of_inter() {
         // A textured macroblock whose 16x16 intra SATD is 1.1 times
         // inter's: coded for the RD comparison within the full decision's
         // margin (x264's 5/4 under RD mode decision), not where intra must
         // beat inter's SATD (the fast decision's).
-        let src = frame(texture);
-        let s = MbSource::load(&src, 1, 1);
-        let coder = MbCoder::new(28, 1.0, true);
-        let (modes, residual) = (ModeCoder::new(3, 3), ResidualCoder::new(3, 3));
-        let (_, satd) = best_intra_16x16(&coder, &s, &src, (1, 1), &mut MbSamples::default());
-        let coded_at = |coding_margin| {
-            let bound = InterBound {
-                satd: (f64::from(satd) / 1.1) as u32,
-                estimate: f64::INFINITY,
-                search_margin: 1.0,
-                coding_margin,
-            };
-            let mut choice = Choice::empty();
-            intra_against(
-                &coder,
-                &s,
-                &src,
-                (1, 1),
-                (&modes, &residual),
-                Some(bound),
-                &mut choice,
-            )
+        let coded_at = |margin| {
+            let (coded, whole, _) = intra_against_textured(1.1, 1.0, margin);
+            (coded, whole)
         };
         assert_eq!(coded_at(1.0), (false, false));
         assert_eq!(coded_at(INTRA_CODING_MARGIN), (true, true));
@@ -1592,28 +1603,8 @@ mod tests {
         // inter's: hopeless for the blocks at the usual margin (1.25, and
         // 16x16 intra does not beat inter), searched at the margin beside
         // an intra neighbour (2.0), where the 8x8 blocks are coded.
-        let src = frame(texture);
-        let s = MbSource::load(&src, 1, 1);
-        let coder = MbCoder::new(28, 1.0, true);
-        let (modes, residual) = (ModeCoder::new(3, 3), ResidualCoder::new(3, 3));
-        let (_, satd) = best_intra_16x16(&coder, &s, &src, (1, 1), &mut MbSamples::default());
-        let bound = |search_margin| InterBound {
-            satd: (f64::from(satd) / 1.5) as u32,
-            estimate: f64::INFINITY,
-            search_margin,
-            coding_margin: 1.0,
-        };
         let at = |margin| {
-            let mut choice = Choice::empty();
-            let (coded, _) = intra_against(
-                &coder,
-                &s,
-                &src,
-                (1, 1),
-                (&modes, &residual),
-                Some(bound(margin)),
-                &mut choice,
-            );
+            let (coded, _, choice) = intra_against_textured(1.5, margin, 1.0);
             coded.then_some(choice)
         };
         assert!(at(INTRA_SEARCH_MARGIN).is_none());

@@ -287,8 +287,8 @@ pub(super) struct InterBound {
 /// run each): medium -0.56 % for 1.013x the wall time (cartoon_cif
 /// -6.6 %, fish_1160 -4.1 %, ball_576 -2.1 %, diver_vga -2.0 %;
 /// calais_214 and handheld_vga +1.5 %), fast -0.65 % for 1.021x, slow
-/// -0.93 % (its time beside the tests); 1.5 in medium -0.78 % for about
-/// 1.02x (beside a CI run).
+/// -0.93 % for 1.013x the encoder's own time, slower -0.82 % for 1.00x;
+/// 1.5 in medium -0.78 % for about 1.02x (beside a CI run).
 const INTRA_CODING_MARGIN: f64 = 1.25;
 
 /// How far above inter's SATD a P frame's 16x16 intra SATD may be for

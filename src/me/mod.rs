@@ -816,7 +816,8 @@ impl<'p> FrameSearch<'p> {
     /// The searches with every window (`range` pels each way) centred on
     /// `mv` rounded to full pel instead of on zero: on the camera's motion
     /// (see the encoder's `camera.rs`), a hand-held camera's 20-40 px a
-    /// frame are within reach of a range of 16, as
+    /// frame are within reach of a range of 16 (the presets' is 32: the
+    /// picture's corners and what crosses it move further), as
     /// x264's `--merange` bounds the search around its predictors, not
     /// the vector. Centred on each block's own predictors instead, the
     /// vectors of flat areas drift from block to block and frame to frame

@@ -206,3 +206,33 @@ fn a_flat_wall_beside_a_moving_object_is_not_marked() {
         "{regions:.3} against {plain:.3} without the vote"
     );
 }
+
+/// Every frame's mask from [`Segmenter::masks`] (consistent in time).
+fn masks_in_time(frames: &[Frame]) -> Vec<Plane> {
+    let mut seg = Segmenter::new(&SegmentParams::default()).unwrap();
+    let mut out = Vec::new();
+    seg.masks(frames, |t, m| -> Result<(), ()> {
+        assert_eq!(t, out.len(), "masks come in order");
+        out.push(m);
+        Ok(())
+    })
+    .unwrap();
+    out
+}
+
+#[test]
+fn masks_in_time_find_the_object_as_frame_by_frame_masks_do() {
+    // On clean scenes the temporal median changes little: the same bar as
+    // the frame-by-frame masks, every frame given once, in order.
+    let (frames, masks) = scene(
+        Motion::translation(3.0, 1.0),
+        Motion::translation(-3.0, 2.0),
+        Shape::Ellipse { rx: 26.0, ry: 20.0 },
+        1,
+    );
+    let timed = masks_in_time(&frames);
+    assert_eq!(timed.len(), frames.len());
+    let scores: Vec<f64> = timed.iter().zip(&masks).map(|(a, b)| iou(a, b)).collect();
+    let m = scores.iter().sum::<f64>() / scores.len() as f64;
+    assert!(m >= 0.85, "mean IoU {m:.3} ({scores:?})");
+}

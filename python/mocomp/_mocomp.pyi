@@ -102,6 +102,11 @@ def motion_mask(
     preset: Literal["ultrafast", "fast", "medium", "accurate"] = "fast",
     tolerance: float = 1.0,
 ) -> npt.NDArray[np.uint8]: ...
+def motion_masks(
+    frames: list[Picture],
+    preset: Literal["ultrafast", "fast", "medium", "accurate"] = "fast",
+    tolerance: float = 1.0,
+) -> list[npt.NDArray[np.uint8]]: ...
 def warp_matrix(
     image: Picture,
     matrix: npt.NDArray[np.float64],

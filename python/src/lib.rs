@@ -56,6 +56,7 @@ fn _mocomp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(stabilize::stabilize_path, m)?)?;
     m.add_function(wrap_pyfunction!(interpolate::interpolate, m)?)?;
     m.add_function(wrap_pyfunction!(segment::motion_mask, m)?)?;
+    m.add_function(wrap_pyfunction!(segment::motion_masks, m)?)?;
     m.add_function(wrap_pyfunction!(stabilize::warp_matrix, m)?)?;
     m.add_function(wrap_pyfunction!(flow::warp, m)?)?;
     m.add_function(wrap_pyfunction!(flow::flow_to_color, m)?)?;

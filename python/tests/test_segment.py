@@ -33,3 +33,19 @@ def test_motion_mask_finds_an_object_moving_against_the_camera():
         mocomp.motion_mask(frames[1][0], [])
     with pytest.raises(ValueError, match="size"):
         mocomp.motion_mask(frames[1][0], [frames[0][0][:50]])
+
+
+def test_motion_masks_segment_a_sequence_in_time():
+    background, patch = textured(140, 200, seed=7), textured(36, 36, seed=8)
+    frames = [frame(background, patch, t) for t in range(5)]
+    found = mocomp.motion_masks([img for img, _ in frames])
+    assert len(found) == 5
+    for masks, (_, truth) in zip(found, frames):
+        assert masks.shape == (120, 160) and masks.dtype == np.uint8
+        moving = masks > 0
+        iou = (moving & truth).sum() / (moving | truth).sum()
+        assert iou > 0.75, iou
+    with pytest.raises(ValueError, match="two or more"):
+        mocomp.motion_masks([frames[0][0]])
+    with pytest.raises(ValueError, match="size"):
+        mocomp.motion_masks([frames[0][0], frames[1][0][:50]])

@@ -74,13 +74,7 @@ pub fn run(args: &Args) -> Result<()> {
         None => None,
     };
     let (start, mut scores) = (Instant::now(), Vec::new());
-    for t in 0..frames.len() {
-        let neighbours: Vec<&Frame> = [t.checked_sub(1), Some(t + 1)]
-            .into_iter()
-            .flatten()
-            .filter_map(|k| frames.get(k))
-            .collect();
-        let mask = seg.mask(&frames[t], &neighbours);
+    seg.masks(&frames, |t, mask| -> Result<()> {
         if let Some(dir) = &args.masks {
             let path = dir.join(format!("{t:05}.png"));
             write_plane(&path, &mask).with_context(|| path.display().to_string())?;
@@ -91,7 +85,8 @@ pub fn run(args: &Args) -> Result<()> {
         if let Some(dir) = &args.truth {
             scores.push((t, iou_against_truth(&mask, &read_truth(dir, t)?)));
         }
-    }
+        Ok(())
+    })?;
     drop(writer);
     if let (Some(out), Some(p)) = (overlay, &args.overlay) {
         out.commit().with_context(|| p.display().to_string())?;

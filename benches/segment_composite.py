@@ -3,7 +3,8 @@
 Test material for moving-object segmentation with known truth: REAL seen
 by a camera that pans (a window sliding 2 px right and 1 px down a frame
 over REAL's frames), with a disc cut from OBJECT's first frame pasted on
-top, moving 3 px left and 2 px down a frame across the view. The disc's
+top, moving 3 px left and 2 px down a frame across the view (its diameter a
+third of the view's smaller side; DISC=N in the environment: 2/N). The disc's
 mask is the truth: MASKS_DIR/00000.png ... (255 inside), in the labels of
 CDnet 2014. What REAL itself moves (people in the footage) is not in the
 truth: where REAL's own luma changes from the frame before or to the frame
@@ -12,6 +13,7 @@ mean of the difference above four times its noise and at least 6 levels,
 grown by 8 px), the truth says 170, "unknown motion", which CDnet and
 `mocomp segment --truth` do not score. With --no-unknown it says 0 there.
 4:2:0 8-bit Y4M in and out; numpy only (PNGs written with zlib)."""
+import os
 import re
 import struct
 import sys
@@ -96,7 +98,7 @@ def main():
     _, (donor, *_) = read_y4m(obj, 1)
     H, W = frames[0][0].shape
     w, h = (W - 2 * n - 8) & ~1, (H - n - 8) & ~1  # room for the pan
-    r = min(w, h) // 6 & ~1
+    r = min(w, h) // int(os.environ.get("DISC", "6")) & ~1  # the disc's radius
     dy_, dx_ = donor[0].shape
     patch = [p[: 2 * r, : 2 * r] if i == 0 else p[:r, :r] for i, p in enumerate(donor)]
     patch[0] = donor[0][(dy_ - 2 * r) // 2 : (dy_ + 2 * r) // 2, (dx_ - 2 * r) // 2 : (dx_ + 2 * r) // 2]

@@ -6,7 +6,8 @@
 # segment`, its masks scored against the disc's (IoU per frame). What the
 # footage itself moves (people) is labelled "unknown motion" (CDnet's 170)
 # and not scored; NO_UNKNOWN=1 labels it static instead, so that it counts
-# against the masks.
+# against the masks. DISC=14 makes the disc a seventh of the picture high
+# (a third by default).
 # Prints a Markdown table, a row per clip. Needs Python with numpy and a
 # release build. Env: BIN=target/release/mocomp  FRAMES=40
 set -euo pipefail

@@ -66,9 +66,10 @@ impl Default for SegmentParams {
     /// DIS fast, 1 pixel plus 10 % of the motion, smoothing sigma 1.5;
     /// the score capped at 1.5 and spread over half the smaller side
     /// within edges of 10 grey levels. On six real clips with a pasted
-    /// disc (benches/segment_composite.sh) the mean IoU is 0.887 with
+    /// disc (benches/segment_composite.sh) the mean IoU was 0.887 with
     /// these, 0.771 without the spreading; an edge of 5 or 20 levels
-    /// gave 0.859 and 0.849, a cap of 2 0.875, the whole side 0.877.
+    /// gave 0.859 and 0.849, a cap of 2 0.875, the whole side 0.877 (frame
+    /// by frame, before [`Segmenter::masks`]' median in time: 0.897 with it).
     fn default() -> SegmentParams {
         SegmentParams {
             preset: Preset::Fast,

@@ -4,7 +4,7 @@
 //! departs from the camera's.
 
 use mocomp::codec::{Frame, Plane};
-use mocomp::segment::{iou, SegmentParams, Segmenter};
+use mocomp::segment::{iou, neighbours, SegmentParams, Segmenter};
 use mocomp::synth::{Motion, SceneSpec, Shape, Synth};
 
 /// Frames and true masks of a scene with `camera` and one object.
@@ -46,14 +46,7 @@ fn mean_iou(frames: &[Frame], masks: &[Plane]) -> f64 {
 fn mean_iou_with(frames: &[Frame], masks: &[Plane], params: &SegmentParams) -> f64 {
     let mut seg = Segmenter::new(params).unwrap();
     let scores: Vec<f64> = (0..frames.len())
-        .map(|t| {
-            let near: Vec<&Frame> = [t.checked_sub(1), Some(t + 1)]
-                .into_iter()
-                .flatten()
-                .filter_map(|k| frames.get(k))
-                .collect();
-            iou(&seg.mask(&frames[t], &near), &masks[t])
-        })
+        .map(|t| iou(&seg.mask(&frames[t], &neighbours(frames, t)), &masks[t]))
         .collect();
     eprintln!("{scores:?}");
     scores.iter().sum::<f64>() / scores.len() as f64
@@ -121,13 +114,7 @@ fn flows_kept_from_the_frame_before_give_the_masks_of_fresh_ones() {
         Shape::Ellipse { rx: 22.0, ry: 16.0 },
         3,
     );
-    let near = |t: usize| -> Vec<&Frame> {
-        [t.checked_sub(1), Some(t + 1)]
-            .into_iter()
-            .flatten()
-            .filter_map(|k| frames.get(k))
-            .collect()
-    };
+    let near = |t: usize| neighbours(&frames, t);
     let mut kept = Segmenter::new(&SegmentParams::default()).unwrap();
     for (t, frame) in frames.iter().enumerate() {
         let mut fresh = Segmenter::new(&SegmentParams::default()).unwrap();

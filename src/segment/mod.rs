@@ -233,13 +233,7 @@ impl Segmenter {
         frames: &[Frame],
         mut each: impl FnMut(usize, Plane) -> Result<(), E>,
     ) -> Result<(), E> {
-        let neighbours = |t: usize| -> Vec<&Frame> {
-            [t.checked_sub(1), Some(t + 1)]
-                .into_iter()
-                .flatten()
-                .filter_map(|k| frames.get(k))
-                .collect()
-        };
+        let neighbours = |t: usize| neighbours(frames, t);
         let mut before: Option<Array2<f32>> = None;
         let mut now = match frames.first() {
             Some(f) => self.evidence(f, &neighbours(0)),
@@ -259,6 +253,17 @@ impl Segmenter {
         }
         Ok(())
     }
+}
+
+/// The frames either side of frame `t` of `frames` that there are, the
+/// one before first: what [`Segmenter::mask`] takes as its neighbours in
+/// a sequence.
+pub fn neighbours(frames: &[Frame], t: usize) -> Vec<&Frame> {
+    [t.checked_sub(1), Some(t + 1)]
+        .into_iter()
+        .flatten()
+        .filter_map(|k| frames.get(k))
+        .collect()
 }
 
 /// `now`'s score made consistent with the frames either side: at each

@@ -275,8 +275,16 @@ fn in_time(now: &Evidence, before: Option<&Array2<f32>>, after: Option<&Array2<f
     let (h, w) = now.score.dim();
     // The directions are the neighbours' in order: the frame before first.
     let (to_before, to_after) = (now.directions.first(), now.directions.last());
-    let b = before.zip(to_before).map(|(s, d)| Reading::new(s, &d.flow));
-    let a = after.zip(to_after).map(|(s, d)| Reading::new(s, &d.flow));
+    // (A neighbour of another size has no say.)
+    let alike = |s: &&Array2<f32>| s.dim() == (h, w);
+    let b = before
+        .filter(alike)
+        .zip(to_before)
+        .map(|(s, d)| Reading::new(s, &d.flow));
+    let a = after
+        .filter(alike)
+        .zip(to_after)
+        .map(|(s, d)| Reading::new(s, &d.flow));
     let own = now.score.as_standard_layout();
     let own = own.as_slice().expect("standard layout");
     let mut out = Vec::with_capacity(w * h);
@@ -719,6 +727,11 @@ mod tests {
         assert_eq!(score[[10, 17]], 0.75);
         assert_eq!(in_time(&now, Some(&beside.score), None), score);
         assert_eq!(in_time(&now, None, None), now.score);
+        // A neighbour of another size has no say.
+        assert_eq!(
+            in_time(&now, Some(&Array2::from_elem((5, 5), 9.0)), None),
+            now.score
+        );
     }
 
     #[test]

@@ -9,12 +9,6 @@ use pyo3::types::PyList;
 
 use crate::arrays::{luma_plane, plane_to_py, value_error};
 
-/// The mask of what moves against the camera in `img`: 255 where the flow
-/// to its neighbours departs from the camera's homography, 0 elsewhere.
-///
-/// img: uint8 H x W (or H x W x 3 RGB). neighbours: the frame before
-/// and/or after, the same size. preset: DIS preset. tolerance: residual
-/// (pixels, plus 10 % of the motion) at which a pixel counts as moving.
 /// A Python picture as a frame: its luma, grey chroma.
 fn as_frame(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Frame> {
     let y = luma_plane(name, obj, 0)?;
@@ -34,6 +28,12 @@ fn segmenter(preset: &str, tolerance: f32) -> PyResult<Segmenter> {
     Segmenter::new(&params).map_err(|e| value_error(e.to_string()))
 }
 
+/// The mask of what moves against the camera in `img`: 255 where the flow
+/// to its neighbours departs from the camera's homography, 0 elsewhere.
+///
+/// img: uint8 H x W (or H x W x 3 RGB). neighbours: the frame before
+/// and/or after, the same size. preset: DIS preset. tolerance: residual
+/// (pixels, plus 10 % of the motion) at which a pixel counts as moving.
 #[pyfunction]
 #[pyo3(signature = (img, neighbours, preset="fast", tolerance=1.0))]
 pub fn motion_mask<'py>(

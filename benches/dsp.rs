@@ -10,7 +10,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkGroup, BenchmarkId, Cr
 use mocomp::codec::cpu;
 use mocomp::codec::dsp::ipred::{Edges, Edges8, Intra4x4Mode, IntraMode, ModeSource4, Neighbours, IPRED};
 use mocomp::codec::dsp::itx::ITX;
-use mocomp::codec::dsp::lf::LF;
+use mocomp::codec::dsp::lf::{LfLevel, LF};
 use mocomp::codec::dsp::mc::{LUMA_TAPS, MC};
 use mocomp::codec::dsp::PerLevel;
 use mocomp::codec::residual::{BlockClass, MbResidual, ResidualCoder};
@@ -124,13 +124,19 @@ fn codec_tables(c: &mut Criterion) {
         .collect();
     levels(c, "lf", &LF, |g, t, l| {
         bench(g, "filter_mb_edge_luma_vertical_bs2", l, || {
-            (t.filter_mb_edge)(black_box(&mut plane), (8, 1, 24), [2; 4], 32, true)
+            (t.filter_mb_edge)(black_box(&mut plane), (8, 1, 24), [2; 4], LfLevel::at(32), true)
         });
         bench(g, "filter_mb_edge_luma_horizontal_bs4", l, || {
-            (t.filter_mb_edge)(black_box(&mut plane), (8 * 24, 24, 1), [4; 4], 32, true)
+            (t.filter_mb_edge)(
+                black_box(&mut plane),
+                (8 * 24, 24, 1),
+                [4; 4],
+                LfLevel::at(32),
+                true,
+            )
         });
         bench(g, "filter_mb_edge_chroma_vertical_bs1", l, || {
-            (t.filter_mb_edge)(black_box(&mut plane), (8, 1, 24), [1; 4], 32, false)
+            (t.filter_mb_edge)(black_box(&mut plane), (8, 1, 24), [1; 4], LfLevel::at(32), false)
         });
     });
 }

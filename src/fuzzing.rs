@@ -198,7 +198,9 @@ impl EncoderCase {
         };
         maybe(&mut b, "rdoq", &on);
         maybe(&mut b, "decision", &|b| b.pick(&["fast", "full"]).to_string());
-        maybe(&mut b, "deblock", &on);
+        maybe(&mut b, "deblock", &|b| {
+            b.pick(&["on", "off", "1:1", "-2:3", "6:-6"]).to_string()
+        });
         maybe(&mut b, "weightp", &on);
         maybe(&mut b, "subpel-rd", &on);
         maybe(&mut b, "early-pskip", &on);

@@ -14,7 +14,7 @@ use mocomp::codec::dsp::ipred::{
     Edges, Edges8, Intra4x4Mode, IntraMode, IpredDsp, ModeSource4, Neighbours, IPRED,
 };
 use mocomp::codec::dsp::itx::{ItxDsp, ITX};
-use mocomp::codec::dsp::lf::{LfDsp, LF};
+use mocomp::codec::dsp::lf::{LfDsp, LfLevel, LF};
 use mocomp::codec::dsp::mc::{McDsp, LUMA_TAPS, MC, SMOOTH_LUMA_TAPS};
 use mocomp::codec::dsp::PerLevel;
 use mocomp::codec::residual::{BlockClass, MbResidual, ResidualCoder};
@@ -259,6 +259,10 @@ fn deblocking() {
         let (mut trials, mut changed) = (0, 0);
         for (n, data) in pictures.iter().enumerate() {
             for qp in [15, 16, 22, 30, 37, 45, 51, 16 + r.below(36) as u8] {
+                // indexA and indexB apart (the header's offsets), as
+                // often as not.
+                let mut offset = || r.below(25) as i8 - 12;
+                let level = LfLevel::new(qp, (offset(), offset()));
                 let strengths = [0, 1, 2, 3].map(|_| r.below(5) as u8);
                 // Both chroma planes at once (the second plane another
                 // picture), against the scalar kernel on each.
@@ -272,13 +276,13 @@ fn deblocking() {
                         &mut v[..end],
                         (first, step, line_step),
                         strengths,
-                        qp,
+                        level,
                     );
-                    (s.filter_mb_edge)(&mut su[..end], (first, step, line_step), strengths, qp, false);
-                    (s.filter_mb_edge)(&mut sv[..end], (first, step, line_step), strengths, qp, false);
+                    (s.filter_mb_edge)(&mut su[..end], (first, step, line_step), strengths, level, false);
+                    (s.filter_mb_edge)(&mut sv[..end], (first, step, line_step), strengths, level, false);
                     assert!(
                         u == su && v == sv,
-                        "{isa} chroma pair {n} bS {strengths:?} QP {qp} step {step}"
+                        "{isa} chroma pair {n} bS {strengths:?} {level:?} step {step}"
                     );
                 }
                 for luma in [true, false] {
@@ -291,11 +295,11 @@ fn deblocking() {
                     ];
                     for (first, step, line_step, end) in edges {
                         let (mut a, mut b) = (data.clone(), data.clone());
-                        filter_mb_edge(&mut a[..end], (first, step, line_step), strengths, qp, luma);
-                        (s.filter_mb_edge)(&mut b[..end], (first, step, line_step), strengths, qp, luma);
+                        filter_mb_edge(&mut a[..end], (first, step, line_step), strengths, level, luma);
+                        (s.filter_mb_edge)(&mut b[..end], (first, step, line_step), strengths, level, luma);
                         assert_eq!(
                             a, b,
-                            "{isa} picture {n} bS {strengths:?} QP {qp} luma {luma} step {step}"
+                            "{isa} picture {n} bS {strengths:?} {level:?} luma {luma} step {step}"
                         );
                         trials += 1;
                         changed += usize::from(a != *data);

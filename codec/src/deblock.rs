@@ -11,12 +11,85 @@
 
 use std::ops::Range;
 
-use crate::dsp::lf::{lf, Edge};
+use crate::dsp::lf::{lf, Edge, LfLevel};
 use crate::partition::MbVectors;
 use crate::picture::{Frame, Plane};
 use crate::residual::MbResidual;
-use crate::syntax::{CodedMb, FrameSyntax, MbKind, MotionTool};
+use crate::syntax::{CodedMb, FrameHeader, FrameSyntax, MbKind, MotionTool};
 use crate::transform::chroma_qp;
+
+/// The frame header's offsets of the filter's thresholds (FORMAT.md
+/// section 11), H.264's FilterOffsetA and FilterOffsetB: added to the QP
+/// to index alpha and tc0 (`alpha`) and beta (`beta`). Positive offsets
+/// filter more edges and move samples further (x264's `--deblock A:B` is
+/// half of each).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub struct DeblockOffsets {
+    /// Added to the QP to index alpha and tc0.
+    pub alpha: i8,
+    /// Added to the QP to index beta.
+    pub beta: i8,
+}
+
+impl DeblockOffsets {
+    /// No offsets: the thresholds at the QP.
+    pub const ZERO: DeblockOffsets = DeblockOffsets { alpha: 0, beta: 0 };
+
+    /// The largest offset either way (H.264's range).
+    pub const MAX: i8 = 12;
+
+    /// Both offsets `offset`.
+    pub fn both(offset: i8) -> DeblockOffsets {
+        DeblockOffsets {
+            alpha: offset,
+            beta: offset,
+        }
+    }
+
+    /// Whether both lie within [`DeblockOffsets::MAX`] either way.
+    pub fn in_range(self) -> bool {
+        self.alpha.abs() <= Self::MAX && self.beta.abs() <= Self::MAX
+    }
+}
+
+/// How hard a frame is deblocked: its QP and its header's offsets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DeblockStrength {
+    /// The frame's QP.
+    pub qp: u8,
+    /// The header's offsets.
+    pub offsets: DeblockOffsets,
+}
+
+impl DeblockStrength {
+    /// The strength `header` gives.
+    pub fn of(header: &FrameHeader) -> DeblockStrength {
+        DeblockStrength {
+            qp: header.qp,
+            offsets: header.deblock_offsets,
+        }
+    }
+
+    /// The luma edges' threshold indices.
+    fn luma(self) -> LfLevel {
+        LfLevel::new(self.qp, (self.offsets.alpha, self.offsets.beta))
+    }
+
+    /// The chroma edges' (from the chroma QP).
+    fn chroma(self) -> LfLevel {
+        LfLevel::new(chroma_qp(self.qp), (self.offsets.alpha, self.offsets.beta))
+    }
+}
+
+/// A QP alone: no offsets.
+impl From<u8> for DeblockStrength {
+    fn from(qp: u8) -> DeblockStrength {
+        DeblockStrength {
+            qp,
+            offsets: DeblockOffsets::ZERO,
+        }
+    }
+}
 
 /// Bit `k` set where luma 4x4 block `k` has a level.
 fn luma_coded_bits(residual: &MbResidual) -> u16 {
@@ -325,14 +398,14 @@ fn differs(a: Option<crate::partition::RefMv>, b: Option<crate::partition::RefMv
 /// macroblock rows top to bottom, each row's vertical edges left to
 /// right and then its horizontal ones (its top edge first) top to bottom
 /// in each macroblock column.
-fn filter_plane(plane: &mut Plane, strengths: &Strengths, qp: u8, sub: usize, rows: Range<usize>) {
-    if !Edge::filters_at(qp) {
+fn filter_plane(plane: &mut Plane, strengths: &Strengths, level: LfLevel, sub: usize, rows: Range<usize>) {
+    if !Edge::filters_at(level) {
         return;
     }
     if sub == 1 {
-        filter_plane_sized::<1>(plane, strengths, qp, rows);
+        filter_plane_sized::<1>(plane, strengths, level, rows);
     } else {
-        filter_plane_sized::<2>(plane, strengths, qp, rows);
+        filter_plane_sized::<2>(plane, strengths, level, rows);
     }
 }
 
@@ -340,21 +413,27 @@ fn filter_plane(plane: &mut Plane, strengths: &Strengths, qp: u8, sub: usize, ro
 fn filter_plane_sized<const SUB: usize>(
     plane: &mut Plane,
     strengths: &Strengths,
-    qp: u8,
+    level: LfLevel,
     rows: Range<usize>,
 ) {
     let filter_mb_edge = lf().filter_mb_edge;
     let layout = Layout::of(plane);
     let data = plane.data_mut();
     each_edge::<SUB>(layout, strengths, rows, |at, bs| {
-        filter_mb_edge(data, at, bs, qp, SUB == 1)
+        filter_mb_edge(data, at, bs, level, SUB == 1)
     });
 }
 
 /// Both chroma planes' edges of macroblock rows `rows`, each edge of the
 /// two at once (a plane's edge fills half of the kernel's lanes).
-fn filter_chroma_planes(u: &mut Plane, v: &mut Plane, strengths: &Strengths, qp: u8, rows: Range<usize>) {
-    if !Edge::filters_at(qp) {
+fn filter_chroma_planes(
+    u: &mut Plane,
+    v: &mut Plane,
+    strengths: &Strengths,
+    level: LfLevel,
+    rows: Range<usize>,
+) {
+    if !Edge::filters_at(level) {
         return;
     }
     let filter_chroma_edge = lf().filter_chroma_edge;
@@ -362,7 +441,7 @@ fn filter_chroma_planes(u: &mut Plane, v: &mut Plane, strengths: &Strengths, qp:
     assert!(layout == Layout::of(v), "chroma planes laid out alike");
     let (u, v) = (u.data_mut(), v.data_mut());
     each_edge::<2>(layout, strengths, rows, |at, bs| {
-        filter_chroma_edge(u, v, at, bs, qp)
+        filter_chroma_edge(u, v, at, bs, level)
     });
 }
 
@@ -433,14 +512,19 @@ fn each_edge<const SUB: usize>(
 pub struct FrameDeblocker {
     strengths: Strengths,
     mb_cols: usize,
-    qp: u8,
+    strength: DeblockStrength,
 }
 
 impl FrameDeblocker {
-    /// The filter of a frame of coded size `width x height`, coded at `qp`
-    /// with macroblocks `info` in raster order.
-    pub fn new(info: &[MbEdgeInfo], (width, height): (usize, usize), qp: u8) -> FrameDeblocker {
-        let mut out = FrameDeblocker::progressive((width, height), qp);
+    /// The filter of a frame of coded size `width x height`, coded at
+    /// `strength` (a QP, or a QP and offsets) with macroblocks `info` in
+    /// raster order.
+    pub fn new(
+        info: &[MbEdgeInfo],
+        (width, height): (usize, usize),
+        strength: impl Into<DeblockStrength>,
+    ) -> FrameDeblocker {
+        let mut out = FrameDeblocker::progressive((width, height), strength);
         assert_eq!(
             info.len(),
             out.mb_cols * (height / 16),
@@ -454,14 +538,17 @@ impl FrameDeblocker {
         out
     }
 
-    /// The filter of a frame of coded size `width x height` coded at `qp`,
-    /// its macroblocks' records to be given row by row
+    /// The filter of a frame of coded size `width x height` coded at
+    /// `strength`, its macroblocks' records to be given row by row
     /// ([`Self::set_row`]).
-    pub fn progressive((width, height): (usize, usize), qp: u8) -> FrameDeblocker {
+    pub fn progressive(
+        (width, height): (usize, usize),
+        strength: impl Into<DeblockStrength>,
+    ) -> FrameDeblocker {
         FrameDeblocker {
             strengths: Strengths::zero((width / 4, height / 4)),
             mb_cols: width / 16,
-            qp,
+            strength: strength.into(),
         }
     }
 
@@ -488,10 +575,22 @@ impl FrameDeblocker {
     /// lines above it, and reads the row's own samples as reconstructed
     /// (so the row below must have been predicted from them first).
     pub fn filter_rows(&self, plane: &mut Plane, index: usize, rows: Range<usize>) {
+        self.filter_rows_at(plane, index, rows, self.strength);
+    }
+
+    /// [`Self::filter_rows`] at `strength` instead of the frame's (an
+    /// encoder trying other offsets on a copy).
+    pub fn filter_rows_at(
+        &self,
+        plane: &mut Plane,
+        index: usize,
+        rows: Range<usize>,
+        strength: DeblockStrength,
+    ) {
         if index == 0 {
-            filter_plane(plane, &self.strengths, self.qp, 1, rows);
+            filter_plane(plane, &self.strengths, strength.luma(), 1, rows);
         } else {
-            filter_plane(plane, &self.strengths, chroma_qp(self.qp), 2, rows);
+            filter_plane(plane, &self.strengths, strength.chroma(), 2, rows);
         }
     }
 
@@ -504,14 +603,15 @@ impl FrameDeblocker {
     /// [`Self::filter_chroma`] of macroblock rows `rows` (as
     /// [`Self::filter_rows`]).
     pub fn filter_chroma_rows(&self, u: &mut Plane, v: &mut Plane, rows: Range<usize>) {
-        filter_chroma_planes(u, v, &self.strengths, chroma_qp(self.qp), rows);
+        filter_chroma_planes(u, v, &self.strengths, self.strength.chroma(), rows);
     }
 }
 
-/// Deblocks `frame` (coded size), coded at `qp` with macroblocks `info`
-/// in raster order, in place. Borders are not extended.
-pub fn deblock_frame(frame: &mut Frame, info: &[MbEdgeInfo], qp: u8) {
-    let deblocker = FrameDeblocker::new(info, (frame.width(), frame.height()), qp);
+/// Deblocks `frame` (coded size), coded at `strength` (a QP, or a QP and
+/// offsets) with macroblocks `info` in raster order, in place. Borders
+/// are not extended.
+pub fn deblock_frame(frame: &mut Frame, info: &[MbEdgeInfo], strength: impl Into<DeblockStrength>) {
+    let deblocker = FrameDeblocker::new(info, (frame.width(), frame.height()), strength);
     let [y, u, v] = frame.planes_mut();
     deblocker.filter(y, 0);
     deblocker.filter_chroma(u, v);
@@ -604,8 +704,12 @@ mod tests {
     fn deblock_in_picture_order(frame: &mut Frame, d: &FrameDeblocker) {
         let s = &d.strengths;
         for (p, plane) in frame.planes_mut().iter_mut().enumerate() {
-            let (sub, qp) = if p == 0 { (1, d.qp) } else { (2, chroma_qp(d.qp)) };
-            if !Edge::filters_at(qp) {
+            let (sub, level) = if p == 0 {
+                (1, d.strength.luma())
+            } else {
+                (2, d.strength.chroma())
+            };
+            if !Edge::filters_at(level) {
                 continue;
             }
             let l = Layout::of(plane);
@@ -624,7 +728,7 @@ mod tests {
                         data,
                         (l.origin + y0 * l.stride + x, 1, l.stride),
                         down(y0, x),
-                        qp,
+                        level,
                         sub == 1,
                     );
                 }
@@ -635,7 +739,7 @@ mod tests {
                         data,
                         (l.origin + y * l.stride + x0, l.stride, 1),
                         along(y, x0),
-                        qp,
+                        level,
                         sub == 1,
                     );
                 }
@@ -812,23 +916,61 @@ mod tests {
         assert_ne!(blocky, before);
     }
 
+    /// One row across a vertical edge at x = 4 of an 8-wide picture,
+    /// sixteen times, filtered at `level` with strength `bs`: the row.
+    fn run_at(samples: [u8; 8], bs: u8, level: LfLevel) -> Vec<u8> {
+        let mut d = samples.repeat(16);
+        (crate::dsp::lf::LF.at(crate::cpu::CpuLevel::Scalar).filter_mb_edge)(
+            &mut d,
+            (4, 1, 8),
+            [bs; 4],
+            level,
+            true,
+        );
+        let line = d[..8].to_vec();
+        assert!(d.chunks(8).all(|l| l == line), "every line alike");
+        line
+    }
+
+    #[test]
+    fn the_headers_offsets_move_the_thresholds_as_h264s() {
+        let step = [100, 100, 100, 100, 160, 160, 160, 160];
+        // QP 36: alpha 50, a step of 60 is an edge and kept.
+        assert_eq!(run_at(step, 2, LfLevel::at(36)), step);
+        // indexA 36 + 6 (alpha 101): an artefact, smoothed.
+        let smoothed = run_at(step, 2, LfLevel::new(36, (6, 0)));
+        assert!(smoothed[3] > 100 && smoothed[4] < 160, "{smoothed:?}");
+        // The same step at QP 44 (alpha 127) kept with alpha's offset -12
+        // (indexA 32, alpha 36)...
+        assert_eq!(run_at(step, 2, LfLevel::new(44, (-12, 0))), step);
+        // ... and with beta's (indexB 32, beta 9) where the sides are not
+        // flat within it, though alpha passes.
+        let rough = [100, 100, 90, 100, 160, 170, 160, 160];
+        assert_ne!(run_at(rough, 2, LfLevel::at(44)), rough);
+        assert_eq!(run_at(rough, 2, LfLevel::new(44, (0, -12))), rough);
+        // tc0 follows indexA: at bS 1 the move is bounded by tc0 + 1 with
+        // flat sides (ap, aq both hold).
+        let small = [100, 100, 100, 100, 130, 130, 130, 130];
+        let moved = |level| {
+            let line = run_at(small, 1, level);
+            i32::from(line[3]) - 100
+        };
+        assert_eq!(moved(LfLevel::at(36)), 4, "tc0 2, plus 1 for each flat side");
+        assert_eq!(
+            moved(LfLevel::new(36, (12, 0))),
+            11,
+            "tc0 9: the step's own delta"
+        );
+        // Out of 0..=51 the indices clamp.
+        assert_eq!(LfLevel::new(50, (12, 12)), LfLevel { a: 51, b: 51 });
+        assert_eq!(LfLevel::new(5, (-12, -12)), LfLevel { a: 0, b: 0 });
+    }
+
     #[test]
     fn a_step_below_alpha_is_smoothed_and_a_real_edge_kept() {
         // One row across a vertical edge at x = 4 of an 8-wide picture.
         let line = |p: u8, q: u8| [p, p, p, p, q, q, q, q];
-        let run = |samples: [u8; 8], bs: u8, qp: u8| {
-            let mut d = samples.repeat(16);
-            (crate::dsp::lf::LF.at(crate::cpu::CpuLevel::Scalar).filter_mb_edge)(
-                &mut d,
-                (4, 1, 8),
-                [bs; 4],
-                qp,
-                true,
-            );
-            let line = d[..8].to_vec();
-            assert!(d.chunks(8).all(|l| l == line), "every line alike");
-            line
-        };
+        let run = |samples: [u8; 8], bs: u8, qp: u8| run_at(samples, bs, LfLevel::at(qp));
         // QP 36: alpha 63. A step of 10 is an artefact: smoothed into a
         // ramp that still rises, p0 and q0 moved by the same amount.
         let smoothed = run(line(100, 110), 2, 36);

@@ -6,7 +6,7 @@
 //! Pictures are reconstructed at the coded size (a whole number of
 //! macroblocks); [`crop`] gives the visible picture.
 
-use crate::deblock::{deblock_frame, MbEdgeInfo};
+use crate::deblock::{deblock_frame, DeblockStrength, MbEdgeInfo};
 use crate::dsp::itx::itx;
 use crate::interp::{predict_chroma, predict_luma, LumaFilter};
 use crate::intra::{self, Neighbours};
@@ -577,7 +577,11 @@ pub fn reconstruct_frame(
         reconstruct_mb(&pred, mb.residual(), header.qp, &mut recon, mb_x, mb_y);
     }
     if header.deblock {
-        deblock_frame(&mut recon, &MbEdgeInfo::of_frame(frame, &vectors), header.qp);
+        deblock_frame(
+            &mut recon,
+            &MbEdgeInfo::of_frame(frame, &vectors),
+            DeblockStrength::of(header),
+        );
     }
     recon.extend_borders();
     Ok(recon)

@@ -3,7 +3,7 @@
 //! made for every motion tool, and malformed input: clear errors, never a
 //! panic, over more than 10,000 mutated, truncated and random streams.
 
-use mocomp_codec::deblock::{deblock_frame, MbEdgeInfo};
+use mocomp_codec::deblock::{deblock_frame, DeblockOffsets, DeblockStrength, MbEdgeInfo};
 use mocomp_codec::decoder::{decode, DecodeError};
 use mocomp_codec::entropy::RangeEncoder;
 use mocomp_codec::interp::LumaFilter;
@@ -171,6 +171,7 @@ fn i_header(qp: u8) -> FrameHeader {
         tool: MotionTool::Block,
         refs: 1,
         deblock: false,
+        deblock_offsets: DeblockOffsets::ZERO,
         weights: Weights::NONE,
         luma_filter: LumaFilter::Sharp,
     }
@@ -183,6 +184,7 @@ fn p_header(qp: u8, tool: MotionTool) -> FrameHeader {
         tool,
         refs: 1,
         deblock: false,
+        deblock_offsets: DeblockOffsets::ZERO,
         weights: Weights::NONE,
         luma_filter: LumaFilter::Sharp,
     }
@@ -521,7 +523,7 @@ fn code_frame(
     }
     if header.deblock {
         let info = MbEdgeInfo::of_frame(&syntax, &vectors);
-        deblock_frame(&mut recon, &info, header.qp);
+        deblock_frame(&mut recon, &info, DeblockStrength::of(&header));
     }
     recon.extend_borders();
     (syntax, recon)
@@ -572,6 +574,12 @@ fn coded_stream(width: usize, height: usize, qp: u8) -> (Vec<u8>, Vec<Frame>) {
             tool,
             refs,
             deblock: t % 2 == 1,
+            // The deblocked frames with offsets each way.
+            deblock_offsets: match t {
+                1 => DeblockOffsets { alpha: 4, beta: -2 },
+                3 => DeblockOffsets { alpha: -6, beta: 12 },
+                _ => DeblockOffsets::ZERO,
+            },
             // Frames 2 to 4 weight some planes (an offset that clips, a
             // scale that darkens).
             weights: match t {

@@ -104,8 +104,14 @@ pub struct ToolArgs {
     #[arg(long, default_value_t = DEFAULT_IPRATIO)]
     pub ipratio: f64,
     /// No in-loop deblocking filter.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "deblock")]
     pub no_deblock: bool,
+    /// The deblocking filter's offsets, as x264's `--deblock A:B`: A moves
+    /// alpha and tc0 (how large a step is taken for blocking, how far
+    /// samples move), B beta (how flat either side must be), each -6..=6;
+    /// positive filters more [default: 0:0].
+    #[arg(long, value_name = "A:B", allow_hyphen_values = true)]
+    pub deblock: Option<String>,
     /// Block P frames deblocked only where the filter lowered the error
     /// of the frames before, on or off (off: every frame deblocked, as
     /// x264 does) [default: on].
@@ -201,6 +207,7 @@ impl ToolArgs {
         o.extend(self.decision.map(|d| ("decision", d.name().to_string())));
         o.extend(self.no_rdoq.then(|| ("rdoq", on(false))));
         o.extend(self.no_deblock.then(|| ("deblock", on(false))));
+        o.extend(self.deblock.clone().map(|d| ("deblock", d)));
         o.extend(self.deblock_choice.map(|b| ("deblock-choice", on(b))));
         o.extend(self.no_weightp.then(|| ("weightp", on(false))));
         o.extend(self.no_8x8dct.then(|| ("8x8dct", on(false))));

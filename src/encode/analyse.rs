@@ -1397,6 +1397,7 @@ mod tests {
             tool: MotionTool::Block,
             decision,
             deblock: true,
+            deblock_offsets: crate::codec::deblock::DeblockOffsets::ZERO,
             measure_deblock: false,
             weights: Weights::NONE,
             luma_filter: crate::codec::interp::LumaFilter::Sharp,

@@ -3,6 +3,7 @@
 use std::fmt;
 use std::str::FromStr;
 
+use crate::codec::deblock::DeblockOffsets;
 use crate::codec::interp::LumaFilter;
 use crate::codec::modes::MAX_REFS;
 use crate::codec::transform::MAX_QP;
@@ -421,6 +422,9 @@ pub struct EncoderConfig {
     pub ipratio: f64,
     /// The in-loop deblocking filter (FORMAT.md section 11).
     pub deblock: bool,
+    /// The filter's offsets in every frame it runs on (x264's `--deblock`
+    /// twice over: FORMAT.md section 11).
+    pub deblock_offsets: DeblockOffsets,
     /// Block P frames deblocked or not as the filter did on the frames
     /// before ([`super::deblock_choice`]); every frame where off.
     pub deblock_choice: bool,
@@ -586,6 +590,7 @@ impl Default for EncoderConfig {
             metrics: Metrics::default(),
             ipratio: DEFAULT_IPRATIO,
             deblock: true,
+            deblock_offsets: DeblockOffsets::ZERO,
             deblock_choice: true,
             weightp: true,
             // Medium's: 4x4 intra blocks in P frames from slow.
@@ -664,6 +669,12 @@ impl EncoderConfig {
     /// Turns the in-loop deblocking filter on or off.
     pub fn deblock(mut self, on: bool) -> EncoderConfig {
         self.deblock = on;
+        self
+    }
+
+    /// The deblocking filter's offsets ([`EncoderConfig::deblock_offsets`]).
+    pub fn deblock_offsets(mut self, offsets: DeblockOffsets) -> EncoderConfig {
+        self.deblock_offsets = offsets;
         self
     }
 

@@ -177,6 +177,7 @@ mod tests {
             tool: MotionTool::Block,
             decision: ModeDecision::Full,
             deblock,
+            deblock_offsets: crate::codec::deblock::DeblockOffsets::ZERO,
             measure_deblock: true,
             weights: Weights::NONE,
             luma_filter: crate::codec::interp::LumaFilter::Sharp,

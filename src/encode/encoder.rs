@@ -774,7 +774,7 @@ impl Encoder {
                     &self.seq,
                     &self.intra_coder,
                     src,
-                    self.config.deblock,
+                    self.config.deblock.then_some(self.config.deblock_offsets),
                     &mut self.entropy,
                     recon,
                 )?;
@@ -1070,6 +1070,7 @@ pub(super) fn inter_inputs<'r>(
         tool,
         decision: config.decision,
         deblock: config.deblock && chosen.deblock,
+        deblock_offsets: config.deblock_offsets,
         measure_deblock: config.deblock_choice && tool == MotionTool::Block,
         weights,
         partitions: config.partitions.p8x8,

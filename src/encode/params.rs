@@ -19,6 +19,7 @@
 use std::str::FromStr;
 
 use super::config::{EncoderConfig, EncoderPreset, Partitions, Predictor};
+use crate::codec::deblock::DeblockOffsets;
 use crate::metrics::{Metric, Metrics};
 
 /// Every option [`EncoderConfig::set`] takes, with what its value is
@@ -49,7 +50,10 @@ pub const OPTIONS: [(&str, &str); 31] = [
     ("rdoq", "rate-distortion optimised quantisation, on|off"),
     ("decision", "inter mode decision, fast|full"),
     ("ipratio", "quantiser step of P frames over I frames (> 0)"),
-    ("deblock", "the in-loop deblocking filter, on|off"),
+    (
+        "deblock",
+        "the in-loop deblocking filter, on|off, or on with offsets A:B (x264's, each -6..=6)",
+    ),
     (
         "deblock-choice",
         "block P frames deblocked only where the filter lowered the error before, on|off",
@@ -156,7 +160,7 @@ impl EncoderConfig {
             "rdoq" => self.rdoq = switch(value).map_err(bad)?,
             "decision" => self.decision = parse(value).map_err(bad)?,
             "ipratio" => self.ipratio = positive(parse(value).map_err(bad)?, &key)?,
-            "deblock" => self.deblock = switch(value).map_err(bad)?,
+            "deblock" => self.set_deblock(value).map_err(bad)?,
             "deblock-choice" => self.deblock_choice = switch(value).map_err(bad)?,
             "weightp" => self.weightp = switch(value).map_err(bad)?,
             "refs" => self.refs = parse(value).map_err(bad)?,
@@ -179,6 +183,28 @@ impl EncoderConfig {
                 return Err(format!("unknown option '{name}' (options: {})", names.join(", ")));
             }
         }
+        Ok(())
+    }
+
+    /// `deblock`: on, off, or on with x264's `A:B` (alpha/tc0 and beta
+    /// offsets in its units: the frame header's are twice them).
+    fn set_deblock(&mut self, value: &str) -> Result<(), String> {
+        let Some((a, b)) = value.split_once(':') else {
+            self.deblock = switch(value)?;
+            return Ok(());
+        };
+        let half = |v: &str| -> Result<i8, String> {
+            let v: i8 = parse(v)?;
+            if v.abs() > DeblockOffsets::MAX / 2 {
+                return Err(format!("offset {v} outside -6..=6"));
+            }
+            Ok(2 * v)
+        };
+        self.deblock = true;
+        self.deblock_offsets = DeblockOffsets {
+            alpha: half(a)?,
+            beta: half(b)?,
+        };
         Ok(())
     }
 
@@ -315,11 +341,25 @@ mod tests {
             ("ipratio", "-1", "positive"),
             ("grid", "5", "4, 8 or 16"),
             ("luma-filter", "soft", "auto, sharp or smooth"),
+            ("deblock", "7:0", "offset 7 outside -6..=6"),
+            ("deblock", "1:x", "deblock"),
             ("colour", "red", "unknown option 'colour'"),
         ] {
             let err = c.clone().set(k, v).unwrap_err();
             assert!(err.contains(says), "{k}={v}: {err}");
         }
         assert!(EncoderConfig::from_preset("placebo").is_err());
+    }
+
+    #[test]
+    fn deblock_takes_x264s_offsets_and_turns_the_filter_on() {
+        let mut c = EncoderConfig::from_preset("medium").unwrap();
+        c.set("deblock", "off").unwrap();
+        c.set("deblock", "2:-1").unwrap();
+        assert!(c.deblock);
+        assert_eq!(c.deblock_offsets, DeblockOffsets { alpha: 4, beta: -2 });
+        // on/off leave the offsets as they are.
+        c.set("deblock", "on").unwrap();
+        assert_eq!(c.deblock_offsets, DeblockOffsets { alpha: 4, beta: -2 });
     }
 }

@@ -20,7 +20,7 @@ use super::motion::{BlockMotion, FrameMotion, LazySearch};
 use super::partition::SatdCache;
 use super::refs_choice::OlderGain;
 use super::{rate, rdo};
-use crate::codec::deblock::{FrameDeblocker, MbEdgeInfo};
+use crate::codec::deblock::{DeblockOffsets, DeblockStrength, FrameDeblocker, MbEdgeInfo};
 use crate::codec::interp::LumaFilter;
 use crate::codec::intra4x4::LumaIntra;
 use crate::codec::modes::{MbMode, ModeCoder, VectorSyntax};
@@ -154,7 +154,7 @@ pub(crate) fn code_intra(
     seq: &SequenceHeader,
     coder: &MbCoder,
     src: &Frame,
-    deblock: bool,
+    deblock: Option<DeblockOffsets>,
     state: &mut EntropyState,
     recon: Frame,
 ) -> Result<CodedFrame, PictureError> {
@@ -164,7 +164,8 @@ pub(crate) fn code_intra(
         qp: coder.qp,
         tool: MotionTool::Block,
         refs: 1,
-        deblock,
+        deblock: deblock.is_some(),
+        deblock_offsets: deblock.unwrap_or_default(),
         weights: Weights::NONE,
         luma_filter: LumaFilter::Sharp,
     };
@@ -182,7 +183,9 @@ pub(crate) fn code_intra(
         lead: cols / 2,
         // Untrained at an I frame's start: they adapt.
         tracking: ResidualTracking::Adapt,
-        deblock: deblock.then_some((header.qp, header.tool)),
+        deblock: header
+            .deblock
+            .then_some((DeblockStrength::of(&header), header.tool)),
         measure: None,
     };
     let decided = frame.decide(recon, &|env, index, mb| {
@@ -295,7 +298,11 @@ fn finish_recon(
     let deblocker = (header.deblock && !deblocked).then(|| {
         debug_assert_eq!(vectors, frame_vectors(seq, syntax));
         let info = MbEdgeInfo::of_frame(syntax, vectors);
-        FrameDeblocker::new(&info, (recon.width(), recon.height()), header.qp)
+        FrameDeblocker::new(
+            &info,
+            (recon.width(), recon.height()),
+            DeblockStrength::of(header),
+        )
     });
     let luma = |y: &mut Plane| {
         let effect = match (&deblocker, measure) {
@@ -332,6 +339,8 @@ pub(crate) struct InterInputs<'a> {
     pub decision: ModeDecision,
     /// Whether the frame is deblocked.
     pub deblock: bool,
+    /// The filter's offsets, where it is.
+    pub deblock_offsets: DeblockOffsets,
     /// Whether the filter's effect is measured, where deblocked
     /// ([`super::deblock_choice`]).
     pub measure_deblock: bool,
@@ -448,6 +457,11 @@ fn inter_header(qp: u8, inputs: &InterInputs<'_>) -> FrameHeader {
         tool: inputs.tool,
         refs: inputs.references.len() as u8,
         deblock: inputs.deblock,
+        deblock_offsets: if inputs.deblock {
+            inputs.deblock_offsets
+        } else {
+            DeblockOffsets::ZERO
+        },
         weights: inputs.weights,
         // Block frames choose; the others interpolate sharp.
         luma_filter: match inputs.tool {
@@ -605,7 +619,9 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
             } else {
                 ResidualTracking::CodedBlocks
             },
-            deblock: header.deblock.then_some((header.qp, header.tool)),
+            deblock: header
+                .deblock
+                .then_some((DeblockStrength::of(header), header.tool)),
             measure: self.deblock_measured().then(|| self.src.y()),
         }
     }

@@ -22,7 +22,7 @@ use super::macroblock::prefetch_ahead;
 use super::partition::SatdCache;
 use super::refs_choice::OlderGain;
 use super::slice::kind_index;
-use crate::codec::deblock::{FrameDeblocker, MbEdgeInfo};
+use crate::codec::deblock::{DeblockStrength, FrameDeblocker, MbEdgeInfo};
 use crate::codec::entropy::Context;
 use crate::codec::modes::{MbMode, ModeCoder, VectorSyntax};
 use crate::codec::mv::Mv;
@@ -97,7 +97,7 @@ pub(super) struct WavefrontFrame<'a> {
     /// worker deblocks each row as soon as the row below is decided,
     /// while the rows are in its caches (several workers leave it to the
     /// frame's end, [`DecidedFrame::deblocked`]).
-    pub(super) deblock: Option<(u8, MotionTool)>,
+    pub(super) deblock: Option<(DeblockStrength, MotionTool)>,
     /// The source (luma) the filter's effect is measured against, where
     /// the frame's deblocking is chosen ([`super::deblock_choice`]).
     pub(super) measure: Option<&'a Plane>,
@@ -323,10 +323,10 @@ impl WavefrontFrame<'_> {
             analysis: Box::new(MbAnalysis::empty()),
             last_row: None,
             held: vec![false; rows],
-            deblocking: self.deblock.filter(|_| !shared).map(|(qp, tool)| {
+            deblocking: self.deblock.filter(|_| !shared).map(|(strength, tool)| {
                 let size = (self.seq.coded_width(), self.seq.coded_height());
                 RowDeblocking {
-                    deblocker: FrameDeblocker::progressive(size, qp),
+                    deblocker: FrameDeblocker::progressive(size, strength),
                     tool,
                     above: Vec::with_capacity(cols),
                     row: Vec::with_capacity(cols),

@@ -7,17 +7,17 @@
 use super::PerLevel;
 
 /// One macroblock's length of an edge: `(data, (first, step, line_step),
-/// strengths, qp, luma)`, 16 luma lines (8 chroma) across the edge in
+/// strengths, level, luma)`, 16 luma lines (8 chroma) across the edge in
 /// four pieces of 4 lines (2 chroma), piece `k` filtered with boundary
-/// strength `strengths[k]` (0: left as it is) at `qp`. The first line has
+/// strength `strengths[k]` (0: left as it is) at `level`. The first line has
 /// `q0` at `data[first]` and `p0` at `data[first - step]`, each next line
 /// lies `line_step` further on. Every line reads 4 samples on each side.
-pub type FilterMbEdgeFn = fn(&mut [u8], (usize, usize, usize), [u8; 4], u8, bool);
+pub type FilterMbEdgeFn = fn(&mut [u8], (usize, usize, usize), [u8; 4], LfLevel, bool);
 
 /// The same chroma edge of both chroma planes (laid out alike): `(u, v,
-/// (first, step, line_step), strengths, qp)`, [`FilterMbEdgeFn`] on each
-/// (`luma` false).
-pub type FilterChromaEdgeFn = fn(&mut [u8], &mut [u8], (usize, usize, usize), [u8; 4], u8);
+/// (first, step, line_step), strengths, level)`, [`FilterMbEdgeFn`] on
+/// each (`luma` false).
+pub type FilterChromaEdgeFn = fn(&mut [u8], &mut [u8], (usize, usize, usize), [u8; 4], LfLevel);
 
 /// The deblocking kernels of one CPU level.
 #[derive(Debug, Clone, Copy)]
@@ -66,7 +66,7 @@ pub fn filter_mb_edge(
     d: &mut [u8],
     (first, step, line_step): (usize, usize, usize),
     strengths: [u8; 4],
-    qp: u8,
+    level: LfLevel,
     luma: bool,
 ) {
     let (_, piece) = mb_edge_lines(luma);
@@ -74,7 +74,7 @@ pub fn filter_mb_edge(
         if bs == 0 {
             continue;
         }
-        let e = Edge::new(bs, qp);
+        let e = Edge::new(bs, level);
         for line in k * piece..(k + 1) * piece {
             filter_line(d, first + line * line_step, step, e, luma);
         }
@@ -82,9 +82,15 @@ pub fn filter_mb_edge(
 }
 
 /// [`FilterChromaEdgeFn`], a plane at a time.
-pub fn filter_chroma_edge(u: &mut [u8], v: &mut [u8], at: (usize, usize, usize), strengths: [u8; 4], qp: u8) {
-    filter_mb_edge(u, at, strengths, qp, false);
-    filter_mb_edge(v, at, strengths, qp, false);
+pub fn filter_chroma_edge(
+    u: &mut [u8],
+    v: &mut [u8],
+    at: (usize, usize, usize),
+    strengths: [u8; 4],
+    level: LfLevel,
+) {
+    filter_mb_edge(u, at, strengths, level, false);
+    filter_mb_edge(v, at, strengths, level, false);
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -96,7 +102,7 @@ mod x86 {
 
     use std::arch::x86_64::*;
 
-    use super::{filter_chroma_edge, filter_mb_edge, mb_edge_lines, Edge, ALPHA, BETA, TC0};
+    use super::{filter_chroma_edge, filter_mb_edge, mb_edge_lines, Edge, LfLevel, ALPHA, BETA, TC0};
 
     /// [`super::FilterMbEdgeFn`] with AVX2 (the scalar twin where the
     /// edge is neither along rows nor along columns, or reaches past the
@@ -105,10 +111,10 @@ mod x86 {
         d: &mut [u8],
         (first, step, line_step): (usize, usize, usize),
         strengths: [u8; 4],
-        qp: u8,
+        level: LfLevel,
         luma: bool,
     ) {
-        if strengths == [0; 4] || !Edge::filters_at(qp) {
+        if strengths == [0; 4] || !Edge::filters_at(level) {
             return;
         }
         let (lines, _) = mb_edge_lines(luma);
@@ -119,11 +125,11 @@ mod x86 {
         // and every sample read or written lies in the ranges checked just
         // above.
         if vertical {
-            unsafe { across_columns(d.as_mut_ptr().add(first - 4), line_step, strengths, qp, luma) };
+            unsafe { across_columns(d.as_mut_ptr().add(first - 4), line_step, strengths, level, luma) };
         } else if horizontal {
-            unsafe { across_rows(d.as_mut_ptr().add(first - 4 * step), step, strengths, qp, luma) };
+            unsafe { across_rows(d.as_mut_ptr().add(first - 4 * step), step, strengths, level, luma) };
         } else {
-            filter_mb_edge(d, (first, step, line_step), strengths, qp, luma);
+            filter_mb_edge(d, (first, step, line_step), strengths, level, luma);
         }
     }
 
@@ -136,9 +142,9 @@ mod x86 {
         v: &mut [u8],
         (first, step, line_step): (usize, usize, usize),
         strengths: [u8; 4],
-        qp: u8,
+        level: LfLevel,
     ) {
-        if strengths == [0; 4] || !Edge::filters_at(qp) {
+        if strengths == [0; 4] || !Edge::filters_at(level) {
             return;
         }
         let len = u.len().min(v.len());
@@ -149,20 +155,32 @@ mod x86 {
         // the AVX2 table), and every sample read or written lies in the
         // ranges checked just above, in both planes.
         if vertical {
-            unsafe { across_columns_pair((pu.add(first - 4), pv.add(first - 4)), line_step, strengths, qp) };
+            unsafe {
+                across_columns_pair(
+                    (pu.add(first - 4), pv.add(first - 4)),
+                    line_step,
+                    strengths,
+                    level,
+                )
+            };
         } else if horizontal {
             let back = first - 4 * step;
-            unsafe { across_rows_pair((pu.add(back), pv.add(back)), step, strengths, qp) };
+            unsafe { across_rows_pair((pu.add(back), pv.add(back)), step, strengths, level) };
         } else {
-            filter_chroma_edge(u, v, (first, step, line_step), strengths, qp);
+            filter_chroma_edge(u, v, (first, step, line_step), strengths, level);
         }
     }
 
     /// A horizontal chroma edge of both planes: each of the rows p3 ... q3
     /// (from `base`, `stride` apart) holds Cb's eight columns, then Cr's.
     #[target_feature(enable = "avx2")]
-    unsafe fn across_rows_pair((u, v): (*mut u8, *mut u8), stride: usize, strengths: [u8; 4], qp: u8) {
-        let lanes = &Lanes::chroma_pair(strengths, qp);
+    unsafe fn across_rows_pair(
+        (u, v): (*mut u8, *mut u8),
+        stride: usize,
+        strengths: [u8; 4],
+        level: LfLevel,
+    ) {
+        let lanes = &Lanes::chroma_pair(strengths, level);
         let mut x = [_mm256_setzero_si256(); 8];
         for (r, x) in x.iter_mut().enumerate() {
             let (a, b) = (
@@ -184,8 +202,13 @@ mod x86 {
     /// `stride` apart, each p3 ... q3) as the first eight of sixteen, Cr's
     /// as the last.
     #[target_feature(enable = "avx2")]
-    unsafe fn across_columns_pair((u, v): (*mut u8, *mut u8), stride: usize, strengths: [u8; 4], qp: u8) {
-        let lanes = &Lanes::chroma_pair(strengths, qp);
+    unsafe fn across_columns_pair(
+        (u, v): (*mut u8, *mut u8),
+        stride: usize,
+        strengths: [u8; 4],
+        level: LfLevel,
+    ) {
+        let lanes = &Lanes::chroma_pair(strengths, level);
         let line = |k: usize| {
             if k < 8 {
                 u.add(k * stride)
@@ -225,8 +248,8 @@ mod x86 {
         /// Chroma's thresholds in both 128-bit halves: the same edge of
         /// the two chroma planes.
         #[target_feature(enable = "avx2")]
-        fn chroma_pair(strengths: [u8; 4], qp: u8) -> Lanes {
-            let one = Lanes::new(strengths, qp, false);
+        fn chroma_pair(strengths: [u8; 4], level: LfLevel) -> Lanes {
+            let one = Lanes::new(strengths, level, false);
             let both = |x: __m256i| _mm256_broadcastsi128_si256(_mm256_castsi256_si128(x));
             Lanes {
                 alpha: both(one.alpha),
@@ -237,11 +260,11 @@ mod x86 {
         }
 
         #[target_feature(enable = "avx2")]
-        fn new(strengths: [u8; 4], qp: u8, luma: bool) -> Lanes {
-            let q = usize::from(qp);
+        fn new(strengths: [u8; 4], level: LfLevel, luma: bool) -> Lanes {
+            let (a, b) = (usize::from(level.a), usize::from(level.b));
             let per_piece = |f: fn(u8, usize) -> i16| {
                 // Each piece's 16 bits repeated (no carry: x < 2^16).
-                let v = strengths.map(|bs| u64::from(f(bs, q) as u16));
+                let v = strengths.map(|bs| u64::from(f(bs, a) as u16));
                 if luma {
                     // Four lanes a piece.
                     let four = |x: u64| (x * 0x0001_0001_0001_0001) as i64;
@@ -254,7 +277,7 @@ mod x86 {
             };
             Lanes {
                 alpha: per_piece(|bs, q| if bs > 0 { i16::from(ALPHA[q]) } else { 0 }),
-                beta: _mm256_set1_epi16(i16::from(BETA[q])),
+                beta: _mm256_set1_epi16(i16::from(BETA[b])),
                 tc0: per_piece(|bs, q| {
                     if (1..4).contains(&bs) {
                         i16::from(TC0[usize::from(bs) - 1][q])
@@ -270,7 +293,7 @@ mod x86 {
     /// A horizontal edge: lines run down the columns, the eight rows
     /// p3 ... q3 from `base` on, `stride` apart.
     #[target_feature(enable = "avx2")]
-    unsafe fn across_rows(base: *mut u8, stride: usize, strengths: [u8; 4], qp: u8, luma: bool) {
+    unsafe fn across_rows(base: *mut u8, stride: usize, strengths: [u8; 4], level: LfLevel, luma: bool) {
         let mut v = [_mm256_setzero_si256(); 8];
         for (r, x) in v.iter_mut().enumerate() {
             let at = base.add(r * stride) as *const __m128i;
@@ -280,7 +303,7 @@ mod x86 {
                 _mm_loadl_epi64(at)
             });
         }
-        filter(&mut v, &Lanes::new(strengths, qp, luma), luma);
+        filter(&mut v, &Lanes::new(strengths, level, luma), luma);
         let changed = if luma { 1..7 } else { 3..5 };
         for r in changed {
             let at = base.add(r * stride) as *mut __m128i;
@@ -295,7 +318,7 @@ mod x86 {
     /// A vertical edge: lines run along the rows, each line's eight samples
     /// p3 ... q3 from `base` on, the lines `stride` apart.
     #[target_feature(enable = "avx2")]
-    unsafe fn across_columns(base: *mut u8, stride: usize, strengths: [u8; 4], qp: u8, luma: bool) {
+    unsafe fn across_columns(base: *mut u8, stride: usize, strengths: [u8; 4], level: LfLevel, luma: bool) {
         let (lines, _) = mb_edge_lines(luma);
         let mut rows = [_mm_setzero_si128(); 16];
         for (k, r) in rows.iter_mut().enumerate().take(lines) {
@@ -306,7 +329,7 @@ mod x86 {
         for (x, c) in v.iter_mut().zip(columns) {
             *x = _mm256_cvtepu8_epi16(c);
         }
-        filter(&mut v, &Lanes::new(strengths, qp, luma), luma);
+        filter(&mut v, &Lanes::new(strengths, level, luma), luma);
         let mut columns = [_mm_setzero_si128(); 8];
         for (c, x) in columns.iter_mut().zip(v) {
             *c = narrow(x);
@@ -574,24 +597,53 @@ pub struct Edge {
 }
 
 impl Edge {
-    /// The thresholds of an edge of boundary strength `bs` (1..=4) at `qp`.
-    pub fn new(bs: u8, qp: u8) -> Edge {
-        let q = usize::from(qp);
+    /// The thresholds of an edge of boundary strength `bs` (1..=4) at
+    /// `level`.
+    pub fn new(bs: u8, level: LfLevel) -> Edge {
+        let (a, b) = (usize::from(level.a), usize::from(level.b));
         Edge {
             bs,
-            alpha: i32::from(ALPHA[q]),
-            beta: i32::from(BETA[q]),
+            alpha: i32::from(ALPHA[a]),
+            beta: i32::from(BETA[b]),
             tc0: if (1..4).contains(&bs) {
-                i32::from(TC0[usize::from(bs) - 1][q])
+                i32::from(TC0[usize::from(bs) - 1][a])
             } else {
                 0
             },
         }
     }
 
-    /// Whether any edge is filtered at `qp` (below QP 16 alpha is 0).
-    pub fn filters_at(qp: u8) -> bool {
-        ALPHA[usize::from(qp)] > 0
+    /// Whether any edge is filtered at `level` (below index 16 alpha and
+    /// beta are 0).
+    pub fn filters_at(level: LfLevel) -> bool {
+        ALPHA[usize::from(level.a)] > 0 && BETA[usize::from(level.b)] > 0
+    }
+}
+
+/// The indices of an edge's thresholds (H.264 8.7.2.2): `a` of alpha and
+/// tc0 (indexA), `b` of beta (indexB), each the QP plus the frame
+/// header's offset, within 0..=51.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LfLevel {
+    /// indexA: alpha's and tc0's.
+    pub a: u8,
+    /// indexB: beta's.
+    pub b: u8,
+}
+
+impl LfLevel {
+    /// The level at `qp` with offsets `(alpha, beta)` added.
+    pub fn new(qp: u8, (alpha, beta): (i8, i8)) -> LfLevel {
+        let index = |offset: i8| (i32::from(qp) + i32::from(offset)).clamp(0, 51) as u8;
+        LfLevel {
+            a: index(alpha),
+            b: index(beta),
+        }
+    }
+
+    /// The level at `qp`, no offsets.
+    pub fn at(qp: u8) -> LfLevel {
+        LfLevel::new(qp, (0, 0))
     }
 }
 

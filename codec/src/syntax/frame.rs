@@ -8,6 +8,7 @@ use super::macroblock::{check_kind, check_vector, mb_mode, mb_vectors, CodedMb, 
 use super::sequence::SequenceHeader;
 use crate::bits::{BitReader, BitWriter};
 use crate::consts::{FRAME_START, SEQUENCE_HEADER_LEN, STREAM_END};
+use crate::deblock::DeblockOffsets;
 use crate::entropy::{RangeDecoder, RangeEncoder};
 use crate::interp::LumaFilter;
 use crate::modes::{ModeCoder, VectorSyntax, MAX_REFS};
@@ -53,6 +54,8 @@ pub struct FrameHeader {
     pub refs: u8,
     /// The in-loop deblocking filter runs on the frame.
     pub deblock: bool,
+    /// Its thresholds' offsets (zero where it does not run).
+    pub deblock_offsets: DeblockOffsets,
     /// How the reference's planes are weighted before prediction (P
     /// frames; none in I frames).
     pub weights: Weights,
@@ -232,6 +235,15 @@ fn write_frame_header(h: &FrameHeader) -> Vec<u8> {
         w.put(h.luma_filter.code(), 1);
     }
     w.put(u64::from(h.deblock), 1);
+    assert!(
+        h.deblock_offsets.in_range() && (h.deblock || h.deblock_offsets == DeblockOffsets::ZERO),
+        "deblocking offsets {:?} out of range or without the filter",
+        h.deblock_offsets
+    );
+    if h.deblock {
+        w.put_se(i32::from(h.deblock_offsets.alpha));
+        w.put_se(i32::from(h.deblock_offsets.beta));
+    }
     w.align();
     w.into_bytes()
 }
@@ -252,6 +264,7 @@ fn write_frame_header(h: &FrameHeader) -> Vec<u8> {
 ///     tool: MotionTool::Block,
 ///     refs: 1,
 ///     deblock: true,
+///     deblock_offsets: mocomp_codec::deblock::DeblockOffsets::ZERO,
 ///     weights: mocomp_codec::weight::Weights::NONE,
 ///     luma_filter: mocomp_codec::interp::LumaFilter::Sharp,
 /// };
@@ -482,6 +495,22 @@ fn read_frame_header(payload: &[u8]) -> Result<(FrameHeader, usize), SyntaxError
     };
     let deblock = r.get(1)? == 1;
     let pos = r.position();
+    let deblock_offsets = if deblock {
+        let mut offset = || -> Result<i8, SyntaxError> {
+            let v = r.get_se()?;
+            if v.abs() > i32::from(DeblockOffsets::MAX) {
+                return Err(invalid(format!("deblocking offset {v} outside -12..=12"), pos));
+            }
+            Ok(v as i8)
+        };
+        DeblockOffsets {
+            alpha: offset()?,
+            beta: offset()?,
+        }
+    } else {
+        DeblockOffsets::ZERO
+    };
+    let pos = r.position();
     let pad = (8 - pos % 8) % 8;
     if r.get(pad as u32)? != 0 {
         return Err(invalid("non-zero bits after the frame header".into(), pos));
@@ -493,6 +522,7 @@ fn read_frame_header(payload: &[u8]) -> Result<(FrameHeader, usize), SyntaxError
             tool,
             refs,
             deblock,
+            deblock_offsets,
             weights,
             luma_filter,
         },
@@ -577,6 +607,7 @@ mod tests {
             tool: MotionTool::Block,
             refs: 1,
             deblock: false,
+            deblock_offsets: DeblockOffsets::ZERO,
             weights: Weights::NONE,
             luma_filter: LumaFilter::Sharp,
         };
@@ -597,6 +628,7 @@ mod tests {
             FrameHeader {
                 qp: 51,
                 deblock: true,
+                deblock_offsets: DeblockOffsets::ZERO,
                 ..intra
             },
         ];
@@ -616,6 +648,7 @@ mod tests {
             out.push(FrameHeader {
                 tool,
                 deblock: true,
+                deblock_offsets: DeblockOffsets::ZERO,
                 ..inter
             });
         }
@@ -627,8 +660,16 @@ mod tests {
         out.push(FrameHeader {
             luma_filter: LumaFilter::Smooth,
             deblock: true,
+            deblock_offsets: DeblockOffsets::ZERO,
             ..inter
         });
+        for (alpha, beta) in [(12, -12), (-1, 5)] {
+            out.push(FrameHeader {
+                deblock: true,
+                deblock_offsets: DeblockOffsets { alpha, beta },
+                ..inter
+            });
+        }
         out
     }
 
@@ -659,6 +700,10 @@ mod tests {
             .what
             .contains("non-zero bits"));
         assert!(read_frame_header(&[]).is_err());
+        // A deblocking offset of 13: the bits of an I frame at QP 0,
+        // deblocked, then se(13) = ue(25) = 0000 11010.
+        let e = read_frame_header(&[0b0000_0000, 0b0100_0011, 0b0100_0000]).unwrap_err();
+        assert!(e.what.contains("deblocking offset 13") && e.bit == 10, "{e:?}");
     }
 
     #[test]

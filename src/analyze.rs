@@ -79,6 +79,8 @@ pub struct FrameAnalysis {
     pub tool: &'static str,
     /// Whether the deblocking filter ran.
     pub deblock: bool,
+    /// Its offsets (alpha's and tc0's, beta's; FORMAT.md section 11).
+    pub deblock_offsets: (i8, i8),
     /// The luma interpolation filter, `sharp` or `smooth` (block P
     /// frames choose; the others are sharp).
     pub luma_filter: &'static str,
@@ -160,6 +162,7 @@ impl<R: Read> Analyzer<R> {
                 MotionTool::Grid(_) => "grid",
             },
             deblock: h.deblock,
+            deblock_offsets: (h.deblock_offsets.alpha, h.deblock_offsets.beta),
             luma_filter: match h.luma_filter {
                 LumaFilter::Sharp => "sharp",
                 LumaFilter::Smooth => "smooth",

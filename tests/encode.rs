@@ -742,6 +742,30 @@ fn deblocking_offsets_change_the_stream_and_the_decoder_follows() {
 }
 
 #[test]
+fn block_p_frames_choose_their_deblocking_offsets_and_the_decoder_follows() {
+    // The bundled tree at QP 22 (the default configuration): the filter
+    // one step weaker leaves less error on its fine branches, and the P
+    // frames' offsets step down from zero (the I frame's stay zero).
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/tree_qcif.y4m");
+    let frames = mocomp::io::y4m::Y4mReader::open(&path)
+        .unwrap()
+        .read_all()
+        .unwrap();
+    let (stream, recon, _) = encode(&frames, EncoderConfig::new().qp(22));
+    let mut d = decoder::Decoder::new(&stream[..]).unwrap();
+    let (mut offsets, mut decoded) = (Vec::new(), Vec::new());
+    while let Some((syntax, frame)) = d.next_frame_with_syntax().unwrap() {
+        let o = syntax.header.deblock_offsets;
+        assert_eq!(o.alpha, o.beta, "both moved alike");
+        offsets.push(o.alpha);
+        decoded.push(frame);
+    }
+    assert_eq!(decoded, recon);
+    assert_eq!(offsets[0], 0, "the I frame");
+    assert!(offsets.iter().any(|&o| o < 0), "{offsets:?}");
+}
+
+#[test]
 fn weighted_prediction_follows_a_change_of_light_and_only_then() {
     let lit = |step: f64| {
         let s = Synth::new(

@@ -552,6 +552,11 @@ impl FrameDeblocker {
         }
     }
 
+    /// The strength it filters at.
+    pub fn strength(&self) -> DeblockStrength {
+        self.strength
+    }
+
     /// Macroblock row `my`'s records `row` (raster order), below `above`
     /// (row `my - 1`'s; none for the top row).
     pub fn set_row(&mut self, my: usize, row: &[MbEdgeInfo], above: Option<&[MbEdgeInfo]>) {

@@ -173,7 +173,7 @@ def encode(
     rdoq: Optional[bool] = None,
     decision: Optional[Literal["fast", "full"]] = None,
     ipratio: Optional[float] = None,
-    deblock: Optional[bool] = None,
+    deblock: Optional[Union[bool, str]] = None,
     deblock_choice: Optional[bool] = None,
     weightp: Optional[bool] = None,
     refs: Optional[int] = None,

@@ -14,7 +14,8 @@ const KINDS: [&str; 3] = ["skip", "inter", "intra"];
 const PARTITIONS: [&str; 5] = ["16x16", "16x8", "8x16", "8x8", "4x4"];
 
 /// Analyses a mocomp stream (bytes): one dict per frame with `type`, `qp`,
-/// `tool`, `luma_filter` (`sharp` or `smooth`), `bytes`, `bits_header`, `bits_motion`, `bits_residual` (as the
+/// `tool`, `luma_filter` (`sharp` or `smooth`), `deblock` (whether the
+/// filter ran), `deblock_offsets` (its (alpha, beta) offsets), `bytes`, `bits_header`, `bits_motion`, `bits_residual` (as the
 /// encoder counts them), `picture` (the decoded (Y, U, V)), and per
 /// macroblock arrays of shape (mb_rows, mb_cols): `kind` (0 skip, 1 inter,
 /// 2 intra), `partition` (0 16x16, 1 16x8, 2 8x16, 3 8x8, 4 intra 4x4),
@@ -68,6 +69,8 @@ pub fn analyze<'py>(py: Python<'py>, stream: &[u8]) -> PyResult<Bound<'py, PyLis
         d.set_item("qp", f.qp)?;
         d.set_item("tool", f.tool)?;
         d.set_item("luma_filter", f.luma_filter)?;
+        d.set_item("deblock", f.deblock)?;
+        d.set_item("deblock_offsets", f.deblock_offsets)?;
         d.set_item("bytes", f.bytes)?;
         d.set_item("bits_header", f.bits.header)?;
         d.set_item("bits_motion", f.bits.motion)?;

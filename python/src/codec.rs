@@ -153,8 +153,8 @@ fn encode_all(frames: &[Frame], fps: (u32, u32), config: EncoderConfig, keep: bo
 ///     `mocomp encode --preset`; every other keyword argument is one of
 ///     the encoder's options by name, overriding the preset where given,
 ///     as `mocomp encode`'s: gop, me, range, subpel, flow, refine, grid,
-///     lambda_scale, rdoq, decision ("fast" or "full"), ipratio, deblock,
-///     deblock_choice, weightp, refs, subpel_rd, split_margin, split_search_margin,
+///     lambda_scale, rdoq, decision ("fast" or "full"), ipratio, deblock
+///     (True, False, or x264's offsets "A:B", each -6..=6), deblock_choice, weightp, refs, subpel_rd, split_margin, split_search_margin,
 ///     chroma_me, adaptive_pricing, fast_pskip, early_pskip, dct8x8 (or 8x8dct),
 ///     luma_filter ("auto", "sharp" or "smooth"), partitions (True,
 ///     False, or x264's names: "p8x8,i8x8,i4x4"), i_partitions (I

@@ -36,6 +36,16 @@ def test_analysis_agrees_with_the_encoder_and_the_decoder(synth_frames):
     assert moving.mean() > 0.5
 
 
+def test_deblocking_offsets_as_x264s_reach_every_header(synth_frames):
+    stream, _ = mocomp.encode(synth_frames[:3], qp=30, deblock="2:-1")
+    frames = mocomp.analyze(stream)
+    assert all(f["deblock"] and f["deblock_offsets"] == (4, -2) for f in frames)
+    off, _ = mocomp.encode(synth_frames[:3], qp=30, deblock=False)
+    assert all(not f["deblock"] and f["deblock_offsets"] == (0, 0) for f in mocomp.analyze(off))
+    with pytest.raises(ValueError):
+        mocomp.encode(synth_frames[:2], qp=30, deblock="7:0")
+
+
 def test_grid_frames_carry_their_grid(synth_frames):
     stream, _ = mocomp.encode(synth_frames[:2], qp=30, predictor="dense-hs")
     frames = mocomp.analyze(stream)

@@ -137,7 +137,8 @@ fn frame_json(f: &FrameAnalysis) -> serde_json::Value {
     let [skip, inter, intra] = f.kinds();
     json!({
         "frame": f.index, "type": f.frame_type.to_string(), "qp": f.qp, "tool": f.tool,
-        "deblock": f.deblock, "luma_filter": f.luma_filter, "bytes": f.bytes,
+        "deblock": f.deblock, "deblock_offsets": [f.deblock_offsets.0, f.deblock_offsets.1],
+        "luma_filter": f.luma_filter, "bytes": f.bytes,
         "bits_header": f.bits.header, "bits_motion": f.bits.motion, "bits_residual": f.bits.residual,
         "skip_mbs": skip, "inter_mbs": inter, "intra_mbs": intra,
         "grid": f.grid.as_ref().map(|g| json!({

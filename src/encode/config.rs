@@ -423,8 +423,10 @@ pub struct EncoderConfig {
     /// The in-loop deblocking filter (FORMAT.md section 11).
     pub deblock: bool,
     /// The filter's offsets in every frame it runs on (x264's `--deblock`
-    /// twice over: FORMAT.md section 11).
-    pub deblock_offsets: DeblockOffsets,
+    /// twice over: FORMAT.md section 11); none: block P frames' chosen
+    /// with their deblocking ([`EncoderConfig::deblock_choice`]), the
+    /// others' zero.
+    pub deblock_offsets: Option<DeblockOffsets>,
     /// Block P frames deblocked or not as the filter did on the frames
     /// before ([`super::deblock_choice`]); every frame where off.
     pub deblock_choice: bool,
@@ -590,7 +592,7 @@ impl Default for EncoderConfig {
             metrics: Metrics::default(),
             ipratio: DEFAULT_IPRATIO,
             deblock: true,
-            deblock_offsets: DeblockOffsets::ZERO,
+            deblock_offsets: None,
             deblock_choice: true,
             weightp: true,
             // Medium's: 4x4 intra blocks in P frames from slow.
@@ -674,7 +676,7 @@ impl EncoderConfig {
 
     /// The deblocking filter's offsets ([`EncoderConfig::deblock_offsets`]).
     pub fn deblock_offsets(mut self, offsets: DeblockOffsets) -> EncoderConfig {
-        self.deblock_offsets = offsets;
+        self.deblock_offsets = Some(offsets);
         self
     }
 

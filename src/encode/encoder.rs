@@ -25,6 +25,7 @@ use super::slice::{self, CodedFrame};
 use super::stats::FrameStats;
 use super::weights;
 use super::{EncodeError, EncodedFrame};
+use crate::codec::deblock::DeblockOffsets;
 use crate::codec::interp::LumaFilter;
 use crate::codec::mv::Mv;
 use crate::codec::partition::MbVectors;
@@ -111,6 +112,8 @@ pub(super) struct Chosen {
     pub luma_filter: LumaFilter,
     /// Whether it is deblocked (where the sequence is).
     pub deblock: bool,
+    /// The filter's offsets where they are chosen.
+    pub deblock_offsets: DeblockOffsets,
     /// How many older references it searches.
     pub older_refs: usize,
 }
@@ -729,6 +732,7 @@ impl Encoder {
         let chosen = Chosen {
             luma_filter: self.lagged_filter.next(self.config.luma_filter),
             deblock: !self.config.deblock_choice || self.lagged_deblock.deblocks(index),
+            deblock_offsets: self.lagged_deblock.offsets(),
             older_refs: self.older_refs(index),
         };
         match self.in_flight() {
@@ -774,7 +778,9 @@ impl Encoder {
                     &self.seq,
                     &self.intra_coder,
                     src,
-                    self.config.deblock.then_some(self.config.deblock_offsets),
+                    self.config
+                        .deblock
+                        .then_some(self.config.deblock_offsets.unwrap_or_default()),
                     &mut self.entropy,
                     recon,
                 )?;
@@ -1070,7 +1076,12 @@ pub(super) fn inter_inputs<'r>(
         tool,
         decision: config.decision,
         deblock: config.deblock && chosen.deblock,
-        deblock_offsets: config.deblock_offsets,
+        // Fixed by the caller, or chosen where the deblocking is.
+        deblock_offsets: match (config.deblock_offsets, config.deblock_choice) {
+            (Some(fixed), _) => fixed,
+            (None, true) => chosen.deblock_offsets,
+            (None, false) => DeblockOffsets::ZERO,
+        },
         measure_deblock: config.deblock_choice && tool == MotionTool::Block,
         weights,
         partitions: config.partitions.p8x8,

@@ -408,6 +408,7 @@ mod tests {
             chosen: Chosen {
                 luma_filter: LumaFilter::default(),
                 deblock: true,
+                deblock_offsets: crate::codec::deblock::DeblockOffsets::ZERO,
                 older_refs: 0,
             },
         };

@@ -201,10 +201,10 @@ impl EncoderConfig {
             Ok(2 * v)
         };
         self.deblock = true;
-        self.deblock_offsets = DeblockOffsets {
+        self.deblock_offsets = Some(DeblockOffsets {
             alpha: half(a)?,
             beta: half(b)?,
-        };
+        });
         Ok(())
     }
 
@@ -357,9 +357,9 @@ mod tests {
         c.set("deblock", "off").unwrap();
         c.set("deblock", "2:-1").unwrap();
         assert!(c.deblock);
-        assert_eq!(c.deblock_offsets, DeblockOffsets { alpha: 4, beta: -2 });
+        assert_eq!(c.deblock_offsets, Some(DeblockOffsets { alpha: 4, beta: -2 }));
         // on/off leave the offsets as they are.
         c.set("deblock", "on").unwrap();
-        assert_eq!(c.deblock_offsets, DeblockOffsets { alpha: 4, beta: -2 });
+        assert_eq!(c.deblock_offsets, Some(DeblockOffsets { alpha: 4, beta: -2 }));
     }
 }

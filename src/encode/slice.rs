@@ -306,7 +306,7 @@ fn finish_recon(
     });
     let luma = |y: &mut Plane| {
         let effect = match (&deblocker, measure) {
-            (Some(d), Some(source)) => Some(measured_around(source, y, |y| d.filter(y, 0))),
+            (Some(d), Some(source)) => Some(measured_around(source, y, d)),
             (Some(d), None) => {
                 d.filter(y, 0);
                 None

@@ -17,7 +17,7 @@ use std::cell::RefCell;
 use std::sync::{Mutex, OnceLock};
 
 use super::analyse::{MbAnalysis, MbEnv};
-use super::deblock_choice::{DeblockEffect, DeblockMeter};
+use super::deblock_choice::{filter_row_trying, DeblockEffect, DeblockMeter, StrengthTrial};
 use super::macroblock::prefetch_ahead;
 use super::partition::SatdCache;
 use super::refs_choice::OlderGain;
@@ -144,13 +144,17 @@ struct RowDeblocking {
     /// The records of the row decided last, and the buffer of the next.
     above: Vec<MbEdgeInfo>,
     row: Vec<MbEdgeInfo>,
-    /// The filter's effect so far, where measured.
-    meter: Option<DeblockMeter>,
+    /// The filter's effect so far, where measured, and the strengths
+    /// tried beside the frame's.
+    meter: Option<(DeblockMeter, StrengthTrial)>,
 }
 
 impl RowDeblocking {
     fn effect(&self) -> Option<DeblockEffect> {
-        self.meter.as_ref().map(DeblockMeter::effect)
+        self.meter.as_ref().map(|(meter, trial)| DeblockEffect {
+            tried: trial.tried(),
+            ..meter.effect()
+        })
     }
 }
 
@@ -330,7 +334,9 @@ impl WavefrontFrame<'_> {
                     tool,
                     above: Vec::with_capacity(cols),
                     row: Vec::with_capacity(cols),
-                    meter: self.measure.map(|_| DeblockMeter::default()),
+                    meter: self
+                        .measure
+                        .map(|source| (DeblockMeter::default(), StrengthTrial::like(source))),
                 }
             }),
         }
@@ -443,9 +449,11 @@ impl WavefrontFrame<'_> {
             rows.end.saturating_sub(1)
         };
         let meter = d.meter.as_mut().zip(self.measure);
-        if let Some((meter, source)) = meter {
+        if let Some(((meter, trial), source)) = meter {
             meter.before(source, y, rows.clone());
-            d.deblocker.filter_rows(y, 0, rows.clone());
+            for k in rows.clone() {
+                filter_row_trying(&d.deblocker, y, k, Some((source, &mut *trial)));
+            }
             meter.after(source, y, settled);
         } else {
             d.deblocker.filter_rows(y, 0, rows.clone());

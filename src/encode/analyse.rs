@@ -1399,6 +1399,7 @@ mod tests {
             deblock: true,
             deblock_offsets: crate::codec::deblock::DeblockOffsets::ZERO,
             measure_deblock: false,
+            try_deblock_offsets: true,
             weights: Weights::NONE,
             luma_filter: crate::codec::interp::LumaFilter::Sharp,
             partitions,

@@ -117,6 +117,15 @@ pub(crate) fn filter_row_trying(
     t.tried[1] += error(y);
 }
 
+/// What a frame's filter is measured against: the source's luma (coded
+/// size), and whether the strengths beside the frame's are tried (where
+/// the offsets are chosen).
+#[derive(Clone, Copy)]
+pub(crate) struct DeblockMeasure<'s> {
+    pub source: &'s Plane,
+    pub try_strengths: bool,
+}
+
 /// What [`filter_row_trying`] sums, and a plane of the frame's size to
 /// filter copies in.
 pub(crate) struct StrengthTrial {
@@ -172,19 +181,19 @@ impl DeblockMeter {
 }
 
 /// The effect of deblocking `recon` whole with `d` (in place, a row at a
-/// time, the strengths tried on the measured rows), against `source`
-/// (luma, coded size): what the rows' filter measures.
-pub(crate) fn measured_around(source: &Plane, recon: &mut Plane, d: &FrameDeblocker) -> DeblockEffect {
+/// time, other strengths tried where `m` says), against `m`'s source:
+/// what the rows' filter measures.
+pub(crate) fn measured_around(m: DeblockMeasure<'_>, recon: &mut Plane, d: &FrameDeblocker) -> DeblockEffect {
     let rows = recon.height() / MB;
     let mut meter = DeblockMeter::default();
-    let mut trial = StrengthTrial::like(recon);
-    meter.before(source, recon, 0..rows);
+    let mut trial = m.try_strengths.then(|| StrengthTrial::like(recon));
+    meter.before(m.source, recon, 0..rows);
     for k in 0..rows {
-        filter_row_trying(d, recon, k, Some((source, &mut trial)));
+        filter_row_trying(d, recon, k, trial.as_mut().map(|t| (m.source, t)));
     }
-    meter.after(source, recon, rows);
+    meter.after(m.source, recon, rows);
     DeblockEffect {
-        tried: trial.tried,
+        tried: trial.map_or([0; 3], |t| t.tried),
         ..meter.effect()
     }
 }
@@ -320,6 +329,7 @@ mod tests {
             deblock,
             deblock_offsets: crate::codec::deblock::DeblockOffsets::ZERO,
             measure_deblock: true,
+            try_deblock_offsets: true,
             weights: Weights::NONE,
             luma_filter: crate::codec::interp::LumaFilter::Sharp,
             partitions: false,

@@ -1083,6 +1083,7 @@ pub(super) fn inter_inputs<'r>(
             (None, false) => DeblockOffsets::ZERO,
         },
         measure_deblock: config.deblock_choice && tool == MotionTool::Block,
+        try_deblock_offsets: config.deblock_offsets.is_none(),
         weights,
         partitions: config.partitions.p8x8,
         subpel_rd: config.subpel_rd,

@@ -13,7 +13,7 @@ use super::reference::GrowingReference;
 use super::wavefront::{self, ResidualTracking, WavefrontFrame};
 
 use super::config::ModeDecision;
-use super::deblock_choice::{measured_around, DeblockEffect};
+use super::deblock_choice::{measured_around, DeblockEffect, DeblockMeasure};
 use super::intra4x4::IntraBlockSearch;
 use super::macroblock::{prefetch_ahead, MbCoder, MbSource};
 use super::motion::{BlockMotion, FrameMotion, LazySearch};
@@ -257,7 +257,7 @@ impl CodedFrame {
         &mut self,
         seq: &SequenceHeader,
         state: &mut EntropyState,
-        measure: Option<&Plane>,
+        measure: Option<DeblockMeasure<'_>>,
         beside: impl FnOnce(&[MbVectors]) + Send,
     ) {
         let ((written, ()), effect) = rayon::join(
@@ -292,7 +292,7 @@ fn finish_recon(
     syntax: &FrameSyntax,
     vectors: &[MbVectors],
     recon: &mut Frame,
-    (deblocked, measure): (bool, Option<&Plane>),
+    (deblocked, measure): (bool, Option<DeblockMeasure<'_>>),
 ) -> Option<DeblockEffect> {
     let header = &syntax.header;
     let deblocker = (header.deblock && !deblocked).then(|| {
@@ -306,7 +306,7 @@ fn finish_recon(
     });
     let luma = |y: &mut Plane| {
         let effect = match (&deblocker, measure) {
-            (Some(d), Some(source)) => Some(measured_around(source, y, d)),
+            (Some(d), Some(m)) => Some(measured_around(m, y, d)),
             (Some(d), None) => {
                 d.filter(y, 0);
                 None
@@ -341,6 +341,9 @@ pub(crate) struct InterInputs<'a> {
     pub deblock: bool,
     /// The filter's offsets, where it is.
     pub deblock_offsets: DeblockOffsets,
+    /// Whether, where the filter's effect is measured, it is also tried
+    /// at other offsets (where the offsets are chosen).
+    pub try_deblock_offsets: bool,
     /// Whether the filter's effect is measured, where deblocked
     /// ([`super::deblock_choice`]).
     pub measure_deblock: bool,
@@ -405,6 +408,8 @@ pub(super) struct InterFrameCoder<'a, 'r> {
     pub(super) early_pskip: bool,
     /// The deblocking filter's effect measured ([`InterInputs::measure_deblock`]).
     pub(super) measure_deblock: bool,
+    /// [`InterInputs::try_deblock_offsets`].
+    pub(super) try_deblock_offsets: bool,
     /// A vector per 8x8 block, when motion analysis has one (flows).
     pub(super) blocks: Option<Vec<Mv>>,
     /// The reference's half-pel planes, for the partitions' search.
@@ -522,6 +527,7 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
             fast_pskip: inputs.fast_pskip,
             early_pskip: inputs.early_pskip,
             measure_deblock: inputs.measure_deblock,
+            try_deblock_offsets: inputs.try_deblock_offsets,
             halfpel,
             blocks,
             warped,
@@ -560,6 +566,7 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
             fast_pskip: self.fast_pskip,
             early_pskip: self.early_pskip,
             measure_deblock: self.measure_deblock,
+            try_deblock_offsets: self.try_deblock_offsets,
             blocks: self.blocks,
             halfpel: self.halfpel,
             warped: self.warped,
@@ -595,8 +602,11 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
 
     /// Whether the filter's effect on this frame is measured: deblocked,
     /// and its deblocking chosen.
-    fn deblock_measured(&self) -> bool {
-        self.measure_deblock && self.frame.syntax.header.deblock
+    fn deblock_measured(&self) -> Option<DeblockMeasure<'a>> {
+        (self.measure_deblock && self.frame.syntax.header.deblock).then(|| DeblockMeasure {
+            source: self.src.y(),
+            try_strengths: self.try_deblock_offsets,
+        })
     }
 
     /// How the frame's macroblocks are decided on a wavefront (block
@@ -622,7 +632,7 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
             deblock: header
                 .deblock
                 .then_some((DeblockStrength::of(header), header.tool)),
-            measure: self.deblock_measured().then(|| self.src.y()),
+            measure: self.deblock_measured(),
         }
     }
 
@@ -733,7 +743,7 @@ impl<'a, 'r> InterFrameCoder<'a, 'r> {
     ) -> Result<CodedFrame, PictureError> {
         let references = &self.references;
         let beside = |vectors: &[MbVectors]| beside(vectors, references);
-        let measure = self.deblock_measured().then(|| self.src.y());
+        let measure = self.deblock_measured();
         let mut frame = self.frame;
         if frame.vectors.is_empty() {
             // Decided in raster order: the frame's own record.

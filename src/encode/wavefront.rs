@@ -17,7 +17,7 @@ use std::cell::RefCell;
 use std::sync::{Mutex, OnceLock};
 
 use super::analyse::{MbAnalysis, MbEnv};
-use super::deblock_choice::{filter_row_trying, DeblockEffect, DeblockMeter, StrengthTrial};
+use super::deblock_choice::{filter_row_trying, DeblockEffect, DeblockMeasure, DeblockMeter, StrengthTrial};
 use super::macroblock::prefetch_ahead;
 use super::partition::SatdCache;
 use super::refs_choice::OlderGain;
@@ -30,7 +30,7 @@ use crate::codec::partition::{MbVectors, RefMv};
 use crate::codec::recon::{write_mb, MbSamples};
 use crate::codec::residual::ResidualCoder;
 use crate::codec::syntax::{mb_mode, mb_vectors, CodedMb, MbKind, MotionTool, SequenceHeader};
-use crate::codec::{Frame, PictureError, Plane};
+use crate::codec::{Frame, PictureError};
 use crate::me::pipeline::wavefront;
 
 /// A decided macroblock, as the rows below and the frame read it.
@@ -100,7 +100,7 @@ pub(super) struct WavefrontFrame<'a> {
     pub(super) deblock: Option<(DeblockStrength, MotionTool)>,
     /// The source (luma) the filter's effect is measured against, where
     /// the frame's deblocking is chosen ([`super::deblock_choice`]).
-    pub(super) measure: Option<&'a Plane>,
+    pub(super) measure: Option<DeblockMeasure<'a>>,
 }
 
 /// The pricing contexts a row starts from.
@@ -146,13 +146,13 @@ struct RowDeblocking {
     row: Vec<MbEdgeInfo>,
     /// The filter's effect so far, where measured, and the strengths
     /// tried beside the frame's.
-    meter: Option<(DeblockMeter, StrengthTrial)>,
+    meter: Option<(DeblockMeter, Option<StrengthTrial>)>,
 }
 
 impl RowDeblocking {
     fn effect(&self) -> Option<DeblockEffect> {
         self.meter.as_ref().map(|(meter, trial)| DeblockEffect {
-            tried: trial.tried(),
+            tried: trial.as_ref().map_or([0; 3], StrengthTrial::tried),
             ..meter.effect()
         })
     }
@@ -334,9 +334,10 @@ impl WavefrontFrame<'_> {
                     tool,
                     above: Vec::with_capacity(cols),
                     row: Vec::with_capacity(cols),
-                    meter: self
-                        .measure
-                        .map(|source| (DeblockMeter::default(), StrengthTrial::like(source))),
+                    meter: self.measure.map(|m| {
+                        let trial = m.try_strengths.then(|| StrengthTrial::like(m.source));
+                        (DeblockMeter::default(), trial)
+                    }),
                 }
             }),
         }
@@ -449,12 +450,12 @@ impl WavefrontFrame<'_> {
             rows.end.saturating_sub(1)
         };
         let meter = d.meter.as_mut().zip(self.measure);
-        if let Some(((meter, trial), source)) = meter {
-            meter.before(source, y, rows.clone());
+        if let Some(((meter, trial), m)) = meter {
+            meter.before(m.source, y, rows.clone());
             for k in rows.clone() {
-                filter_row_trying(&d.deblocker, y, k, Some((source, &mut *trial)));
+                filter_row_trying(&d.deblocker, y, k, trial.as_mut().map(|t| (m.source, t)));
             }
-            meter.after(source, y, settled);
+            meter.after(m.source, y, settled);
         } else {
             d.deblocker.filter_rows(y, 0, rows.clone());
         }

@@ -763,6 +763,18 @@ fn block_p_frames_choose_their_deblocking_offsets_and_the_decoder_follows() {
     assert_eq!(decoded, recon);
     assert_eq!(offsets[0], 0, "the I frame");
     assert!(offsets.iter().any(|&o| o < 0), "{offsets:?}");
+    // Chosen from medium; zero below (nothing tried), unless given.
+    use mocomp::encode::EncoderPreset;
+    for p in EncoderPreset::ALL {
+        let chosen = EncoderConfig::new().preset(p).deblock_offsets.is_none();
+        assert_eq!(chosen, p >= EncoderPreset::Medium, "{p:?}");
+    }
+    let mut c = EncoderConfig::from_preset("ultrafast").unwrap();
+    c.set("deblock", "1:1").unwrap();
+    assert_eq!(
+        c.deblock_offsets,
+        Some(mocomp::codec::deblock::DeblockOffsets::both(2))
+    );
 }
 
 #[test]

@@ -723,19 +723,7 @@ impl EncoderConfig {
         // slow), only skips that leave little error are taken so
         // (`EARLY_SKIP_MAX_SSE` in the analysis).
         self.early_pskip = preset <= Slow;
-        // The deblocking offsets chosen per frame from medium (against
-        // zero, the 32 sequences, `benches/pair.py`, 60 frames, one run
-        // each): medium -0.28 % for 1.006x its encode time, slow +0.01 %
-        // for 1.003x (cockatoo_720p -3.4 and -3.8 %, static_noise_cif
-        // -3.4 and -1.5 %, the others within about 1 % either way);
-        // ultrafast -0.05 % for 1.027x, superfast -0.08 % for 1.025x,
-        // veryfast -0.03 % for 1.014x, fast -0.14 % for 1.013x: off the
-        // front there, zero without the trial.
-        self.deblock_offsets = if preset >= Medium {
-            None
-        } else {
-            Some(DeblockOffsets::ZERO)
-        };
+        self.preset_deblock(preset);
         // The 8x8 transform from superfast: -5.4 against ultrafast, for
         // 1.10x its time.
         self.transform_8x8 = preset >= Superfast;
@@ -802,6 +790,25 @@ impl EncoderConfig {
         };
         self.preset_search(preset);
         self
+    }
+
+    /// The deblocking offsets of `preset`: a part of
+    /// [`EncoderConfig::preset`].
+    fn preset_deblock(&mut self, preset: EncoderPreset) {
+        use EncoderPreset::*;
+        // The deblocking offsets chosen per frame from medium (against
+        // zero, the 32 sequences, `benches/pair.py`, 60 frames, one run
+        // each): medium -0.28 % for 1.006x its encode time, slow +0.01 %
+        // for 1.003x (cockatoo_720p -3.4 and -3.8 %, static_noise_cif
+        // -3.4 and -1.5 %, the others within about 1 % either way);
+        // ultrafast -0.05 % for 1.027x, superfast -0.08 % for 1.025x,
+        // veryfast -0.03 % for 1.014x, fast -0.14 % for 1.013x: off the
+        // front there, zero without the trial.
+        self.deblock_offsets = if preset >= Medium {
+            None
+        } else {
+            Some(DeblockOffsets::ZERO)
+        };
     }
 
     /// The intra blocks and inter partitions of `preset`: a part of

@@ -48,9 +48,10 @@ const OFFSET_STEP: i8 = 2;
 const MAX_CHOSEN_OFFSET: i8 = 8;
 
 /// The luma's squared error against the source on the measured rows,
-/// before the frame's filter and after it; and, each measured row just
-/// after its own filter pass (before the row below's), at the frame's
-/// offsets one step weaker, as they are, and one step stronger
+/// before the frame's filter and after it; and, where the offsets are
+/// chosen, on the tried rows (one in [`TRIED_ROW_EVERY`]) just after each
+/// one's own filter pass (before the row below's), at the frame's offsets
+/// one step weaker, as they are, and one step stronger
 /// ([`filter_row_trying`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub(crate) struct DeblockEffect {

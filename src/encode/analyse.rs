@@ -116,7 +116,10 @@ pub(super) fn intra_against(
     bound: Option<InterBound>,
     out: &mut Choice,
 ) -> (bool, bool) {
-    let (luma, satd) = best_intra_16x16(coder, s, recon, at, &mut out.pred);
+    let plane_above = bound.map_or(u32::MAX, |b| {
+        (b.plane_margin * f64::from(b.satd)).min(f64::from(u32::MAX)) as u32
+    });
+    let (luma, satd) = best_intra_16x16_under(coder, s, recon, at, &mut out.pred, plane_above);
     let whole = bound.is_none_or(|b| f64::from(satd) < b.coding_margin * f64::from(b.satd));
     // (Not called where no block size is tried: its two records, returned
     // empty, were a 1.3 KB copy a macroblock.)
@@ -277,6 +280,9 @@ pub(super) struct InterBound {
     pub estimate: f64,
     pub search_margin: f64,
     pub coding_margin: f64,
+    /// How far above `satd` the best of the vertical, horizontal and DC
+    /// predictions may be for the plane prediction to be tried.
+    pub plane_margin: f64,
 }
 
 /// How far above inter's SATD and estimate the full decision codes an
@@ -309,6 +315,17 @@ const INTRA_SEARCH_MARGIN: f64 = 1.25;
 /// band_qcif -1.3 %, coin_568 -1.2 %; ball_576 +0.6 %, garden_720p
 /// +0.4 %); ultrafast 0.00 % on the mean (its streams may differ).
 const INTRA_LIKELY_SEARCH_MARGIN: f64 = 2.0;
+
+/// How far above inter's SATD, times the coding margin, the best of a
+/// P frame's vertical, horizontal and DC 16x16 predictions may be for
+/// the plane prediction to be tried, away from intra neighbours (x264's
+/// fast intra in P frames: twice inter's SATD from subme 5, where it
+/// tries plane only under that). Against the plane always tried
+/// (`benches/pair.py`, the 28 sequences and the four kinds, 60 frames,
+/// one run each): ultrafast +0.03 % for 0.986x the encoder's time
+/// (0.969x the wall time), medium -0.04 % for 1.003x (its margin of
+/// 2.5 rarely leaves the plane out).
+const PLANE_MARGIN: f64 = 2.0;
 
 /// The most squared luma error, in lambdas, a skip taken before the
 /// search may leave in the full decision, and beside one skipped
@@ -1147,17 +1164,24 @@ impl InterFrameCoder<'_, '_> {
     /// cost, where it stops early). Whether the 16x16 one was coded.
     pub(super) fn analyse_intra(&self, mb: &mut MbAnalysis, env: &MbEnv<'_>) -> bool {
         let at = (mb.mb_x, mb.mb_y);
+        let intra_likely = env.modes.intra_neighbours(at.0, at.1) > 0;
+        let coding_margin = match self.decision {
+            ModeDecision::Full => INTRA_CODING_MARGIN,
+            ModeDecision::Fast => 1.0,
+        };
         let bound = InterBound {
             satd: mb.inter_satd,
             estimate: mb.inter_estimate,
-            search_margin: if env.modes.intra_neighbours(at.0, at.1) > 0 {
+            search_margin: if intra_likely {
                 INTRA_LIKELY_SEARCH_MARGIN
             } else {
                 INTRA_SEARCH_MARGIN
             },
-            coding_margin: match self.decision {
-                ModeDecision::Full => INTRA_CODING_MARGIN,
-                ModeDecision::Fast => 1.0,
+            coding_margin,
+            plane_margin: if intra_likely {
+                f64::INFINITY
+            } else {
+                PLANE_MARGIN * coding_margin
             },
         };
         let coders = (env.modes, env.residual);
@@ -1219,8 +1243,23 @@ pub(super) fn best_intra_16x16(
     coder: &MbCoder,
     src: &MbSource,
     recon: &Frame,
+    at: (usize, usize),
+    pred: &mut MbSamples,
+) -> (IntraMode, u32) {
+    best_intra_16x16_under(coder, src, recon, at, pred, u32::MAX)
+}
+
+/// [`best_intra_16x16`], the plane prediction tried only where the best
+/// of the other three is at most `plane_above` (x264's fast intra: the
+/// plane costs a prediction and a SATD of its own, the others share one
+/// transform).
+fn best_intra_16x16_under(
+    coder: &MbCoder,
+    src: &MbSource,
+    recon: &Frame,
     (mb_x, mb_y): (usize, usize),
     pred: &mut MbSamples,
+    plane_above: u32,
 ) -> (IntraMode, u32) {
     let sad_lambda = coder.lambda.sqrt();
     let (mut luma, mut best_cost, mut satd) = (IntraMode::Dc, f64::INFINITY, 0);
@@ -1239,6 +1278,7 @@ pub(super) fn best_intra_16x16(
             IntraMode::Vertical => x3[0],
             IntraMode::Horizontal => x3[1],
             IntraMode::Dc => x3[2],
+            IntraMode::Plane if satd > plane_above => continue,
             IntraMode::Plane => {
                 edges.predict(m, &mut pred.luma);
                 Metric::Satd.cost(&src.luma, MB, &pred.luma, MB, MB, MB)
@@ -1570,6 +1610,7 @@ mod tests {
             estimate: f64::INFINITY,
             search_margin,
             coding_margin,
+            plane_margin: f64::INFINITY,
         };
         let mut choice = Choice::empty();
         let at = (1, 1);
@@ -1583,6 +1624,26 @@ mod tests {
             &mut choice,
         );
         (coded, whole, choice)
+    }
+
+    #[test]
+    fn the_plane_prediction_is_tried_only_under_its_bound() {
+        // A diagonal ramp: the plane fits it exactly, the other three
+        // modes do not. Under a bound below their SATD the plane is not
+        // tried (and one of them is returned); without one it wins.
+        let src = frame(|x, y| (40 + 3 * x + 2 * y) as u8);
+        let s = MbSource::load(&src, 1, 1);
+        let coder = MbCoder::new(28, 1.0, true);
+        let mut pred = MbSamples::default();
+        let (mode, satd) = best_intra_16x16(&coder, &s, &src, (1, 1), &mut pred);
+        assert_eq!((mode, satd), (IntraMode::Plane, 0));
+        let (bounded, other) = best_intra_16x16_under(&coder, &s, &src, (1, 1), &mut pred, 1);
+        assert_ne!(bounded, IntraMode::Plane);
+        assert!(other > 1, "{other}");
+        assert_eq!(
+            best_intra_16x16_under(&coder, &s, &src, (1, 1), &mut pred, other).0,
+            IntraMode::Plane
+        );
     }
 
     #[test]

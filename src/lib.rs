@@ -38,6 +38,7 @@ pub mod metrics;
 pub mod raster;
 pub mod rd;
 pub mod segment;
+mod spare_planes;
 pub mod stabilize;
 pub mod synth;
 pub mod viz;

@@ -98,6 +98,14 @@ pub(crate) fn filter_row_trying(
         d.filter_rows(y, 0, k..k + 1);
         return;
     };
+    let StrengthTrial {
+        scratch: Some(scratch),
+        tried,
+    } = t
+    else {
+        d.filter_rows(y, 0, k..k + 1);
+        return;
+    };
     let (top, bottom) = ((k * MB).saturating_sub(4), ((k + 1) * MB).min(y.height()));
     let changed = (k * MB).saturating_sub(3)..bottom;
     let error = |plane: &Plane| -> u64 {
@@ -109,13 +117,13 @@ pub(crate) fn filter_row_trying(
     let [weaker, _, stronger] = tried_strengths(d.strength());
     for (i, strength) in [(0, weaker), (2, stronger)] {
         for line in top..bottom {
-            t.scratch.row_mut(line).copy_from_slice(y.row(line));
+            scratch.row_mut(line).copy_from_slice(y.row(line));
         }
-        d.filter_rows_at(&mut t.scratch, 0, k..k + 1, strength);
-        t.tried[i] += error(&t.scratch);
+        d.filter_rows_at(scratch, 0, k..k + 1, strength);
+        tried[i] += error(scratch);
     }
     d.filter_rows(y, 0, k..k + 1);
-    t.tried[1] += error(y);
+    tried[1] += error(y);
 }
 
 /// What a frame's filter is measured against: the source's luma (coded
@@ -128,18 +136,22 @@ pub(crate) struct DeblockMeasure<'s> {
 }
 
 /// What [`filter_row_trying`] sums, and a plane of the frame's size to
-/// filter copies in.
+/// filter copies in (of which a tried row's lines are written before they
+/// are read: taken from the spare planes and given back, a new 1 MB
+/// plane a 720p frame otherwise).
 pub(crate) struct StrengthTrial {
-    scratch: Plane,
+    /// (`None` only once given back.)
+    scratch: Option<Plane>,
     tried: [u64; 3],
 }
 
 impl StrengthTrial {
     /// A trial on a luma plane like `y` (coded size).
     pub(crate) fn like(y: &Plane) -> StrengthTrial {
-        let scratch = Plane::new(y.width(), y.height()).expect("a plane's size is a plane's");
+        let scratch = crate::spare_planes::take(y.width(), y.height(), Plane::DEFAULT_PAD)
+            .expect("a plane's size is a plane's");
         StrengthTrial {
-            scratch,
+            scratch: Some(scratch),
             tried: [0; 3],
         }
     }
@@ -147,6 +159,12 @@ impl StrengthTrial {
     /// The errors summed so far.
     pub(crate) fn tried(&self) -> [u64; 3] {
         self.tried
+    }
+}
+
+impl Drop for StrengthTrial {
+    fn drop(&mut self) {
+        crate::spare_planes::give_back(self.scratch.take());
     }
 }
 

@@ -10,9 +10,6 @@
 //! it to rank candidates, and what the encoder then predicts with is the
 //! codec's exact interpolation.
 
-use std::cell::RefCell;
-use std::sync::{Mutex, MutexGuard, PoisonError};
-
 use super::dsp::{
     average_rows, copy_rows, fill_halfpel, fill_halfpel_rows, pixel, HalfpelBand, PixelDsp, PATCH18_PHASE,
     PATCH18_ROWS, PATCH18_STRIDE,
@@ -20,30 +17,7 @@ use super::dsp::{
 use crate::codec::interp::{predict_luma, LumaFilter};
 use crate::codec::mv::Mv;
 use crate::codec::Plane;
-
-/// Planes of earlier references, reused: a search per frame would
-/// otherwise zero (or fault in) three fresh planes every time. One store
-/// for every thread: an encoder's frame thread drops the planes that the
-/// encoder's own thread takes for the frame after (per thread, each frame
-/// at two threads made three new ones, 0.5-1.6 ms a 720p frame on the thread
-/// that starts the frames).
-static SPARE: Mutex<Vec<Plane>> = Mutex::new(Vec::new());
-
-/// The spare planes (a panic while they were held leaves them whole).
-fn spares() -> MutexGuard<'static, Vec<Plane>> {
-    SPARE.lock().unwrap_or_else(PoisonError::into_inner)
-}
-
-/// A plane of this size and border from the spares, or a new one.
-fn take_plane(w: usize, h: usize, pad: usize) -> Option<Plane> {
-    let reused = {
-        let mut s = spares();
-        s.iter()
-            .position(|p| (p.width(), p.height(), p.pad()) == (w, h, pad))
-            .map(|i| s.swap_remove(i))
-    };
-    reused.or_else(|| Plane::with_padding(w, h, pad).ok())
-}
+use std::cell::RefCell;
 
 /// How far beyond a sample the 8-tap filter reads (3 before, 4 after).
 const FILTER_REACH: usize = 4;
@@ -98,7 +72,7 @@ impl HalfPel {
         }
         let mut planes = Vec::with_capacity(3);
         for _ in 0..3 {
-            planes.push(take_plane(w, h, pad)?);
+            planes.push(crate::spare_planes::take(w, h, pad)?);
         }
         let dsp = pixel();
         // A band per worker: the planes are most of what a frame's motion
@@ -121,7 +95,7 @@ impl HalfPel {
             return None;
         }
         let planes = (0..3)
-            .map(|_| take_plane(w, h, pad))
+            .map(|_| crate::spare_planes::take(w, h, pad))
             .collect::<Option<Vec<_>>>()?;
         Some(HalfPel {
             store: Store::Planes(planes),
@@ -384,20 +358,9 @@ pub(crate) fn with_patch<R>(
 
 impl Drop for HalfPel {
     fn drop(&mut self) {
-        let Store::Planes(planes) = &mut self.store else {
-            return;
-        };
-        let mut s = spares();
-        s.append(planes);
-        // Enough for two frames' sets in flight, or two sizes in turn, for
-        // each thread of the pool (searches running side by side, as
-        // `mocomp rd`'s encodes do); older ones go.
-        let keep = 6 * rayon::current_num_threads().max(1);
-        let excess = s.len().saturating_sub(keep);
-        let gone: Vec<Plane> = s.drain(..excess).collect();
-        // Freed once the others can take theirs.
-        drop(s);
-        drop(gone);
+        if let Store::Planes(planes) = &mut self.store {
+            crate::spare_planes::give_back(planes.drain(..));
+        }
     }
 }
 

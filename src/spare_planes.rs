@@ -51,9 +51,10 @@ pub(crate) fn take(w: usize, h: usize, pad: usize) -> Option<Plane> {
     SPARE.take(w, h, pad)
 }
 
-/// `planes` back among the spares. Enough are kept for two frames' sets
-/// in flight, or two sizes in turn, for each thread of the pool (searches
-/// running side by side, as `mocomp rd`'s encodes do); older ones go.
+/// `planes` back among the spares. Enough are kept for two frames in
+/// flight (three half-pel planes and a trial's copy each), or two sizes
+/// in turn, for each thread of the pool (searches running side by side,
+/// as `mocomp rd`'s encodes do); older ones go.
 pub(crate) fn give_back(planes: impl IntoIterator<Item = Plane>) {
     SPARE.give_back(planes, 8 * rayon::current_num_threads().max(1));
 }

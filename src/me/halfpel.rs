@@ -10,6 +10,8 @@
 //! it to rank candidates, and what the encoder then predicts with is the
 //! codec's exact interpolation.
 
+use std::cell::RefCell;
+
 use super::dsp::{
     average_rows, copy_rows, fill_halfpel, fill_halfpel_rows, pixel, HalfpelBand, PixelDsp, PATCH18_PHASE,
     PATCH18_ROWS, PATCH18_STRIDE,
@@ -17,7 +19,6 @@ use super::dsp::{
 use crate::codec::interp::{predict_luma, LumaFilter};
 use crate::codec::mv::Mv;
 use crate::codec::Plane;
-use std::cell::RefCell;
 
 /// How far beyond a sample the 8-tap filter reads (3 before, 4 after).
 const FILTER_REACH: usize = 4;

@@ -323,8 +323,8 @@ const INTRA_LIKELY_SEARCH_MARGIN: f64 = 2.0;
 /// tries plane only under that). Against the plane always tried
 /// (`benches/pair.py`, the 28 sequences and the four kinds, 60 frames,
 /// one run each): ultrafast +0.03 % for 0.986x the encoder's time
-/// (0.969x the wall time), medium -0.04 % for 1.003x (its margin of
-/// 2.5 rarely leaves the plane out).
+/// (0.969x the wall time), medium -0.04 % for 1.003x (its margin is
+/// 2.5 times inter's SATD).
 const PLANE_MARGIN: f64 = 2.0;
 
 /// The most squared luma error, in lambdas, a skip taken before the

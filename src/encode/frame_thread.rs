@@ -243,7 +243,7 @@ impl<'j> RowsJob<'j> {
             return self.decided(growing, motion, weights, recon);
         }
         self.from.with_rows(top, |f, _| growing.copy_in(f, top));
-        growing.settle(None);
+        growing.settle(None, top);
         let weights = measure(growing.plain());
         if weights.any() {
             growing.weigh(weights, weighted_buffer()?);

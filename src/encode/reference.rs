@@ -141,9 +141,12 @@ impl GrowingReference {
     }
 
     /// Makes the rows copied in usable: their borders extended, weighted,
-    /// and `halfpel` (the weighted luma's planes) filled as far as they
-    /// reach.
-    pub(super) fn settle(&mut self, halfpel: Option<&mut HalfPel>) {
+    /// and `halfpel` (the weighted luma's planes) filled as far as the
+    /// first `reach` macroblock rows need (a finished reference's too, a
+    /// band at a time: filled whole before the first row, they held back
+    /// the frame's first published rows, which the frame after it waits
+    /// for).
+    pub(super) fn settle(&mut self, halfpel: Option<&mut HalfPel>, reach: usize) {
         if let (Plain::Copied(plain), true) = (&mut self.plain, self.copied > self.rows) {
             let luma = self.rows * MB..self.copied * MB;
             for p in 0..3 {
@@ -164,8 +167,9 @@ impl GrowingReference {
         };
         let all = self.plain().height() / MB;
         let margin = halfpel.margin();
-        let luma_in = self.rows * MB;
-        let end = if self.rows == all {
+        let usable = self.rows.min(reach);
+        let luma_in = usable * MB;
+        let end = if usable == all {
             self.plain().height() + 2 * margin
         } else {
             (luma_in + margin).saturating_sub(FILTER_BELOW + 1)
@@ -222,17 +226,20 @@ mod tests {
         let mut banded = GrowingReference::new(Frame::new(w, h).unwrap());
         let mut banded_hp = HalfPel::unfilled(recon.y(), margin).unwrap();
         banded.copy_in(Some(&recon), 1);
-        banded.settle(None);
+        banded.settle(None, 1);
         banded.weigh(weights, Frame::new(w, h).unwrap());
         for upto in 2..=h / MB {
             banded.copy_in(Some(&recon), upto);
-            banded.settle(Some(&mut banded_hp));
+            banded.settle(Some(&mut banded_hp), upto);
         }
-        // The finished reconstruction as it is.
+        // The finished reconstruction as it is, its half-pel planes filled
+        // as the rows reach further.
         let mut whole = GrowingReference::finished(Arc::new(recon.clone()));
         let mut whole_hp = HalfPel::unfilled(recon.y(), margin).unwrap();
         whole.weigh(weights, Frame::new(w, h).unwrap());
-        whole.settle(Some(&mut whole_hp));
+        for reach in 1..=h / MB {
+            whole.settle(Some(&mut whole_hp), reach);
+        }
         assert_eq!(samples(whole.plain()), samples(&recon));
         assert_eq!(samples(banded.plain()), samples(&recon), "borders extended alike");
         assert_eq!(samples(whole.frame()), samples(banded.frame()), "weighted alike");

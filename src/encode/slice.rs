@@ -910,7 +910,7 @@ pub(crate) fn decide_inter_rows<'a>(
             }
             publish.publish(rows.recon(), rows.vectors(), rows.final_rows());
         }
-        growing.settle(lazy.and_then(|l| l.search.planes_mut()));
+        growing.settle(lazy.and_then(|l| l.search.planes_mut()), upto);
         let row_coder = frame_coder.with_references(
             std::iter::once(growing.frame())
                 .chain(older.iter().copied())

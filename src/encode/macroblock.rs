@@ -15,11 +15,10 @@ use crate::codec::transform8x8::Block8;
 use crate::codec::Frame;
 use crate::metrics::squared_difference_sum;
 
-/// Quantiser rounding offsets (fractions of a step), as in the H.264
-/// reference encoder: a wider dead zone for inter residuals, which are
-/// mostly noise.
-const ROUND_INTRA: f64 = 1.0 / 3.0;
-const ROUND_INTER: f64 = 1.0 / 6.0;
+/// Quantiser rounding offsets (fractions of a step) where no RDOQ
+/// follows ([`rdo::quant_rounding`]).
+const ROUND_INTRA: f64 = rdo::quant_rounding(true, false);
+const ROUND_INTER: f64 = rdo::quant_rounding(false, false);
 
 /// The source samples of one macroblock.
 #[derive(Debug, Clone)]
@@ -231,9 +230,10 @@ impl MbCoder {
     /// Whether an inter macroblock predicted by `pred` would code no level:
     /// its luma zero after quantisation and decimation, and each chroma
     /// plane's levels cheap enough to be dropped, as [`MbCoder::code`]
-    /// leaves them before RDOQ (which only lowers levels). x264's
-    /// `macroblock_probe_pskip`: what skipping `pred` loses is then only
-    /// what the decimation drops.
+    /// leaves them without RDOQ. x264's `macroblock_probe_pskip`: what
+    /// skipping `pred` loses is then only what the decimation drops (and,
+    /// under RDOQ, whose levels start from a rounding nearer the middle, a
+    /// level the dead zone drops and RDOQ would keep).
     pub fn codes_nothing(&self, src: &MbSource, pred: &MbSamples) -> bool {
         // Quadrant by quadrant, out at the first that settles it (x264's
         // probe): the zeroing keeps a quadrant that costs 4 or more, and
@@ -275,7 +275,8 @@ impl MbCoder {
         at: (usize, usize),
         rate: Option<&BlockPricer>,
     ) -> Block4 {
-        let (diff, mut levels) = (self.dsp.quantize_4x4)(&src.luma, pred, MB, at, self.qp, ROUND_INTRA);
+        let rounding = rdo::quant_rounding(true, rate.is_some());
+        let (diff, mut levels) = (self.dsp.quantize_4x4)(&src.luma, pred, MB, at, self.qp, rounding);
         if let Some(rate) = rate {
             (self.dsp.rdoq_4x4)(&diff, &mut levels, self.qp, self.lambda, rate);
         }
@@ -370,7 +371,7 @@ impl MbCoder {
         residual_coder: &ResidualCoder,
         (luma, diffs): (&mut [Block4; 16], &mut [Block4; 16]),
     ) {
-        let rounding = if intra { ROUND_INTRA } else { ROUND_INTER };
+        let rounding = rdo::quant_rounding(intra, self.rdoq);
         (self.dsp.quantize_blocks)(&src.luma, &pred.luma, MB, self.qp, rounding, diffs, luma);
         // Inter blocks are zeroed below where their levels cost little.
         // RDOQ only lowers levels, and lowering never raises that cost, so
@@ -445,7 +446,7 @@ impl MbCoder {
             &pred.luma,
             MB,
             self.qp,
-            ROUND_INTRA,
+            rdo::quant_rounding(true, self.rdoq),
             &mut diffs,
             &mut residual.luma,
         );
@@ -894,15 +895,16 @@ mod tests {
     }
 
     proptest! {
-        /// What the probe says codes nothing, the coder codes as the
-        /// prediction itself: skipping it loses nothing the inter
-        /// macroblock would have coded.
+        /// What the probe says codes nothing, the coder without RDOQ codes
+        /// as the prediction itself: skipping it loses nothing the inter
+        /// macroblock would have coded. (Under RDOQ, whose levels start
+        /// from a rounding nearer the middle, it may.)
         #[test]
         fn what_codes_nothing_is_coded_as_its_prediction(
             noise in prop::collection::vec(-6i8..=6, 1..40),
             qp in 18u8..40,
         ) {
-            let coder = MbCoder::new(qp, 1.4, true);
+            let coder = MbCoder::new(qp, 1.4, false);
             let s = source();
             let pred = perturbed(&s, &noise);
             if coder.codes_nothing(&s, &pred) {

@@ -5,15 +5,12 @@
 //! macroblock, for its search.
 
 use super::rate::{Block8Pricer, ScanLevels};
+use super::rdo::quant_rounding;
 use crate::codec::syntax::MB;
 use crate::codec::transform8x8::{
     dequantize_level_8x8, dequantized_orthonormal, forward_8x8, orthonormal_scale, quantize_8x8, Block8,
     ZIGZAG8,
 };
-
-/// Quantiser rounding of inter and intra residuals (as the 4x4 blocks').
-const ROUND_INTER: f64 = 1.0 / 6.0;
-const ROUND_INTRA: f64 = 1.0 / 3.0;
 
 /// Zeroing cost of a lone ±1 after a run of `r` zeros in scan order: the
 /// 4x4 rule's (3 right after another level, nothing after 6 zeros) with
@@ -153,7 +150,7 @@ pub(crate) fn inter_luma8(
             *s = f64::from(w[k / 8][k % 8]) * orthonormal_scale(k / 8, k % 8);
         }
         *levels = w;
-        quantize_8x8(levels, qp, ROUND_INTER);
+        quantize_8x8(levels, qp, quant_rounding(false, rate.is_some()));
     }
     drop_costly_small(&mut blocks);
     if let Some(rate) = rate {
@@ -180,7 +177,7 @@ pub(crate) fn intra_block8(
 ) -> Block8 {
     let w = forward_8x8(&quadrant_residual(src, pred, q));
     let mut levels = w;
-    quantize_8x8(&mut levels, qp, ROUND_INTRA);
+    quantize_8x8(&mut levels, qp, quant_rounding(true, rate.is_some()));
     if let Some(rate) = rate {
         let source: [f64; 64] =
             std::array::from_fn(|k| f64::from(w[k / 8][k % 8]) * orthonormal_scale(k / 8, k % 8));
@@ -248,19 +245,27 @@ mod tests {
                 let bits: u32 = b.iter().map(|x| rate.block_cost(x)).sum();
                 sse(&src, &reconstruct(&pred, b, qp)) as f64 + lambda * f64::from(bits) / 256.0
             };
+            // RDOQ's levels start from a rounding nearer the middle.
+            let mut start = Box::new([[[0; 8]; 8]; 4]);
+            for (q, levels) in start.iter_mut().enumerate() {
+                *levels = forward_8x8(&quadrant_residual(&src, &pred, q));
+                quantize_8x8(levels, qp, quant_rounding(false, true));
+            }
+            drop_costly_small(&mut start);
             let lowered = inter_luma8(&src, &pred, qp, lambda, Some(&rate));
             if let Some(l) = &lowered {
                 for (a, b) in l
                     .as_flattened()
                     .as_flattened()
                     .iter()
-                    .zip(plain.as_flattened().as_flattened())
+                    .zip(start.as_flattened().as_flattened())
                 {
                     assert!(a.abs() <= b.abs() && (a.signum() == b.signum() || *a == 0));
                 }
             }
             // The decisions use the transform domain's error: the true
             // cost may differ by the integer transform's rounding.
+            assert!(cost(&lowered) <= cost(&Some(start)) * 1.02, "qp {qp}");
             assert!(cost(&lowered) <= cost(&Some(plain.clone())) * 1.02, "qp {qp}");
         }
     }

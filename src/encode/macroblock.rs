@@ -531,7 +531,10 @@ impl MbCoder {
         chroma: &mut [[Block4; 4]; 2],
     ) {
         let cqp = chroma_qp(self.qp);
-        let rounding = if intra { ROUND_INTRA } else { ROUND_INTER };
+        // Chroma keeps the dead zones under RDOQ too: rounded as luma, it
+        // bought chroma's quality with luma's bits (encoder.md, "RDOQ from
+        // levels rounded nearer the middle").
+        let rounding = rdo::quant_rounding(intra, false);
         let (mut ac_rate, mut dc_rate) = (None, None);
         for (p, blocks) in chroma.iter_mut().enumerate() {
             let mut diffs = [[[0i32; 4]; 4]; 4];

@@ -718,9 +718,13 @@ impl Encoder {
             Spare::Plain => self.spare_plain.take(),
             Spare::Rows => self.spare_rows.take(),
         };
-        match kept {
-            Some(f) => Ok(f),
-            None => Frame::new(self.seq.coded_width(), self.seq.coded_height()),
+        let (w, h) = (self.seq.coded_width(), self.seq.coded_height());
+        match (kept, spare) {
+            (Some(f), _) => Ok(f),
+            // Published rows are copied out row by row, never read beyond
+            // the picture: no borders (a third less memory at 720p).
+            (None, Spare::Rows) => Frame::with_padding(w, h, 0),
+            (None, _) => Frame::new(w, h),
         }
     }
 

@@ -47,6 +47,7 @@ fn encode(frames: &[Frame], config: EncoderConfig) -> (Vec<u8>, Vec<Frame>, Vec<
     let (mut recon, mut stats) = (Vec::new(), Vec::new());
     for f in frames {
         let coded = enc.encode(f).unwrap();
+        assert_eq!(coded.stats.bytes, coded.bytes.len(), "a frame's bytes counted");
         stream.extend_from_slice(&coded.bytes);
         recon.push(coded.recon.expect("a reconstruction by default"));
         stats.push(coded.stats);
@@ -72,6 +73,11 @@ fn encode_pushed(frames: &[Frame], config: EncoderConfig) -> (Vec<u8>, Vec<Frame
     );
     for (i, coded) in back.into_iter().enumerate() {
         assert_eq!(coded.stats.index, i, "frames back in order");
+        assert_eq!(
+            coded.stats.bytes,
+            coded.bytes.len(),
+            "a pushed frame's bytes counted"
+        );
         stream.extend_from_slice(&coded.bytes);
         recon.push(coded.recon.expect("a reconstruction by default"));
         stats.push(coded.stats);
@@ -159,6 +165,28 @@ fn decoder_output_equals_the_encoder_reconstruction_for_every_predictor() {
     }
 }
 
+/// What frames' statistics count (not their times), frame by frame.
+fn counts(stats: &[FrameStats]) -> Vec<[u64; 8]> {
+    stats
+        .iter()
+        .map(|s| {
+            let mbs = [s.skip_mbs, s.inter_mbs, s.intra_mbs].map(|n| n as u64);
+            let bits = [s.bits_header, s.bits_motion, s.bits_residual];
+            let psnr = s.prediction_psnr_y.to_bits();
+            [
+                s.index as u64,
+                s.bytes as u64,
+                bits[0],
+                bits[1],
+                bits[2],
+                mbs[0],
+                mbs[1],
+                psnr,
+            ]
+        })
+        .collect()
+}
+
 /// The sequence header of a `w x h` stream at 25 fps.
 fn seq_header(w: usize, h: usize) -> SequenceHeader {
     SequenceHeader {
@@ -220,9 +248,9 @@ fn streams_are_the_same_for_any_number_of_threads() {
                 .unwrap();
             pool.install(|| (encode(frames, config), encode_pushed(frames, config)))
         };
-        let ((one, recon, _), pushed) = run(1);
+        let ((one, recon, one_stats), pushed) = run(1);
         assert!(
-            pushed.0 == one && pushed.1 == recon,
+            pushed.0 == one && pushed.1 == recon && counts(&pushed.2) == counts(&one_stats),
             "pushed frames differ on one thread"
         );
         if std::ptr::eq(frames, &scenes[1]) && preset == EncoderPreset::Medium {
@@ -235,9 +263,9 @@ fn streams_are_the_same_for_any_number_of_threads() {
             // The reconstructions too: the last frame's is no reference
             // that a later frame's stream would show wrong.
             let (coded, pushed) = run(threads);
-            for (how, (stream, reconstructed, _)) in [("coded", coded), ("pushed", pushed)] {
+            for (how, (stream, reconstructed, stats)) in [("coded", coded), ("pushed", pushed)] {
                 assert!(
-                    stream == one && reconstructed == recon,
+                    stream == one && reconstructed == recon && counts(&stats) == counts(&one_stats),
                     "{} threads, preset {}, {how}: another stream or reconstruction than one thread's",
                     threads,
                     preset.name()

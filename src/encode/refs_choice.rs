@@ -76,10 +76,11 @@ pub(super) const PROBE: usize = 4;
 /// 1.001x the wall time (light_cif -2.1 %, cuts_cif -0.9 %, album_160
 /// -0.7 %; fish_1160 +0.5 %, fastpan_cif +0.4 %), 2 -0.00 % for 0.993x
 /// (handheld_vga +1.2 %), 5 -0.26 % for 1.016x (handheld_vga +2.2 %).
-/// In slow (three references every frame) the choice with 3 took +0.17 %
-/// for 0.924x (cuts_cif +1.5 %, +8.6 % with the one-frame rule; measured
-/// before the skip's check beside older references, which made slow's
-/// three pay more on fish_1160): slow keeps every frame's search.
+/// In slow (three references) the choice with 3 took +0.17 % for 0.924x
+/// (cuts_cif +1.5 %, +8.6 % with the one-frame rule), measured again
+/// after the skip's check beside older references +0.09 % (pchip
+/// +0.04 %) for 0.931x (coin_568 -6.2 %; static_noise_cif +2.8 %): slow
+/// chooses as medium does.
 const HOLD: u8 = 3;
 
 /// How many more frames the older references are searched for (the

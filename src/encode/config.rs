@@ -1102,7 +1102,7 @@ mod tests {
             assert_eq!(s.full_pel_sad, p <= Medium);
             assert_eq!(s.sub_pel_sad, p <= Superfast);
             assert_eq!(c.refs, [1, 1, 1, 1, 1, 2, 3, 5][p as usize]);
-            assert_eq!(c.refs_choice, p == Medium);
+            assert_eq!(c.refs_choice, matches!(p, Medium | Slow));
             assert!(c.weightp);
             let i_blocks = if p >= Superfast {
                 Partitions::ALL

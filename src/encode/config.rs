@@ -737,9 +737,7 @@ impl EncoderConfig {
         // -1.55 % for 1.16x (fish_1160 +4.2 %: under a flickering light
         // half its inter blocks took the older reference, and the
         // deblocking across the two smoothed its detail). Three in slow,
-        // chosen as medium's (against every frame: +0.09 %, pchip +0.04 %,
-        // for 0.931x the wall time, the 32 sequences); five in slower,
-        // every frame.
+        // chosen alike (`refs_choice` has the figures); five in slower.
         self.refs = match preset {
             Slower => 5,
             Slow => 3,

@@ -78,9 +78,9 @@ pub(super) const PROBE: usize = 4;
 /// (handheld_vga +1.2 %), 5 -0.26 % for 1.016x (handheld_vga +2.2 %).
 /// In slow (three references) the choice with 3 took +0.17 % for 0.924x
 /// (cuts_cif +1.5 %, +8.6 % with the one-frame rule), measured again
-/// after the skip's check beside older references +0.09 % (pchip
-/// +0.04 %) for 0.931x (coin_568 -6.2 %; static_noise_cif +2.8 %): slow
-/// chooses as medium does.
+/// after the skip's check beside older references (the same command)
+/// +0.09 % (pchip +0.04 %) for 0.931x (coin_568 -6.2 %; static_noise_cif
+/// +2.8 %): slow chooses as medium does.
 const HOLD: u8 = 3;
 
 /// How many more frames the older references are searched for (the

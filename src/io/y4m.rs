@@ -375,6 +375,13 @@ impl<R: Read> Read for Counting<R> {
         self.count += n as u64;
         Ok(n)
     }
+
+    // Passed on, so that a frame's rows go to the file in one `readv`.
+    fn read_vectored(&mut self, bufs: &mut [io::IoSliceMut<'_>]) -> io::Result<usize> {
+        let n = self.inner.read_vectored(bufs)?;
+        self.count += n as u64;
+        Ok(n)
+    }
 }
 
 impl<R: BufRead> BufRead for Counting<R> {
@@ -388,9 +395,10 @@ impl<R: BufRead> BufRead for Counting<R> {
     }
 }
 
-/// The input's buffer: rows are read through it, so that each lands in
-/// the frame from a buffer still in cache (a frame's worth read whole
-/// first went through memory twice).
+/// The input's buffer: `FRAME` lines, and frames smaller than it, are
+/// read through it (a frame's worth read whole into a buffer of its own
+/// went through memory twice); larger frames' rows past it are read
+/// straight from the input (`read_rows`).
 const READ_BUFFER: usize = 64 << 10;
 
 /// A `FRAME` line's longest (its parameters are not used).
@@ -502,16 +510,13 @@ impl<R: Read> Y4mReader<R> {
             FrameLine::Bad => return Err(Y4mError::BadFrameHeader { frame: index }),
             FrameLine::Frame => {}
         }
-        for plane in frame.planes_mut() {
-            for row in plane.rows_mut() {
-                match self.reader.read_exact(row) {
-                    Ok(()) => {}
-                    Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => {
-                        return Err(truncated(&self.reader, &self.info))
-                    }
-                    Err(e) => return Err(Y4mError::Io(e)),
-                }
+        let rows = frame.planes_mut().iter_mut().flat_map(|p| p.rows_mut());
+        match read_rows(&mut self.reader, rows.collect()) {
+            Ok(()) => {}
+            Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => {
+                return Err(truncated(&self.reader, &self.info))
             }
+            Err(e) => return Err(Y4mError::Io(e)),
         }
         self.frames_read += 1;
         Ok(true)
@@ -525,6 +530,41 @@ impl<R: Read> Y4mReader<R> {
         }
         Ok(frames)
     }
+}
+
+/// Fills `rows` from the input: what the buffer holds first, the rest
+/// read straight into the rows (`readv`), past the buffer whenever the
+/// rest is at least the buffer's size. Through the buffer, a frame was
+/// copied twice, by the kernel into the buffer and from it into the rows:
+/// the second copy was 2 % of a 1080p ultrafast encode's samples.
+fn read_rows<R: Read>(reader: &mut Counting<BufReader<R>>, mut rows: Vec<&mut [u8]>) -> io::Result<()> {
+    let mut first = 0;
+    while let Some(row) = rows.get_mut(first) {
+        let buffered = reader.inner.buffer();
+        if buffered.is_empty() {
+            break;
+        }
+        let n = buffered.len().min(row.len());
+        row[..n].copy_from_slice(&buffered[..n]);
+        reader.consume(n);
+        let rest = &mut std::mem::take(row)[n..];
+        if rest.is_empty() {
+            first += 1;
+        } else {
+            *row = rest;
+        }
+    }
+    let mut slices: Vec<io::IoSliceMut> = rows[first..].iter_mut().map(|r| io::IoSliceMut::new(r)).collect();
+    let mut left = &mut slices[..];
+    while !left.is_empty() {
+        match reader.read_vectored(left) {
+            Ok(0) => return Err(io::ErrorKind::UnexpectedEof.into()),
+            Ok(n) => io::IoSliceMut::advance_slices(&mut left, n),
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(())
 }
 
 /// What a `FRAME` line read up to its newline (or the end of the input)
@@ -663,8 +703,72 @@ impl From<PictureError> for Y4mError {
 
 #[cfg(test)]
 mod tests {
-    use super::{frame_line, FrameLine, Y4mInfo, Y4mReader, Y4mWriter, MAX_FRAME_LINE};
-    use crate::codec::Frame;
+    use super::{
+        frame_line, FrameLine, Y4mError, Y4mInfo, Y4mReader, Y4mWriter, MAX_FRAME_LINE, READ_BUFFER,
+    };
+    use crate::codec::{Frame, Plane};
+    use std::io::{self, Read};
+
+    /// An input handing out at most 5 bytes a call (a pipe at its
+    /// slowest), one buffer at a time.
+    struct Trickle<'a>(&'a [u8]);
+
+    impl Read for Trickle<'_> {
+        fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+            let n = buf.len().min(self.0.len()).min(5);
+            buf[..n].copy_from_slice(&self.0[..n]);
+            self.0 = &self.0[n..];
+            Ok(n)
+        }
+    }
+
+    #[test]
+    fn frames_larger_than_the_buffer_are_read_whole_from_a_file_and_a_trickle() {
+        // Each frame over 1.5 buffers, so that its rows are read partly from
+        // the buffer and partly past it, a row cut at the buffer's end.
+        let (w, h) = (254, 260);
+        let info = Y4mInfo::new(w, h, (25, 1));
+        assert!(info.frame_bytes() as usize > READ_BUFFER * 3 / 2);
+        let frames: Vec<Frame> = (0..3)
+            .map(|k| {
+                let plane = |pw, ph, salt: usize| {
+                    Plane::from_fn(pw, ph, |x, y| ((x * 7 + y * 13 + k * 29 + salt) % 251) as u8).unwrap()
+                };
+                Frame::from_planes(plane(w, h, 0), plane(w / 2, h / 2, 1), plane(w / 2, h / 2, 2)).unwrap()
+            })
+            .collect();
+        let mut bytes = Vec::new();
+        let mut writer = Y4mWriter::new(&mut bytes, &info).unwrap();
+        frames.iter().for_each(|f| writer.write_frame(f).unwrap());
+        drop(writer);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("big.y4m");
+        std::fs::write(&path, &bytes).unwrap();
+        assert_eq!(Y4mReader::open(&path).unwrap().read_all().unwrap(), frames);
+        assert_eq!(
+            Y4mReader::new(Trickle(&bytes)).unwrap().read_all().unwrap(),
+            frames
+        );
+        // Cut inside the last frame's rows past the buffer: an error that
+        // counts the bytes there were.
+        let frame_bytes = info.frame_bytes() as usize + 6;
+        let cut = bytes.len() - 1000;
+        std::fs::write(&path, &bytes[..cut]).unwrap();
+        let mut reader = Y4mReader::open(&path).unwrap();
+        let mut frame = Frame::new(w, h).unwrap();
+        assert!(reader.read_frame_into(&mut frame).unwrap());
+        assert!(reader.read_frame_into(&mut frame).unwrap());
+        match reader.read_frame_into(&mut frame) {
+            Err(Y4mError::Truncated {
+                frame: 2,
+                got,
+                expected,
+            }) => {
+                assert_eq!((got, expected), ((frame_bytes - 1000) as u64, frame_bytes as u64))
+            }
+            other => panic!("{other:?}"),
+        }
+    }
 
     #[test]
     fn pictures_read_alone_leave_the_borders_as_they_were() {

@@ -376,7 +376,8 @@ impl<R: Read> Read for Counting<R> {
         Ok(n)
     }
 
-    // Passed on, so that a frame's rows go to the file in one `readv`.
+    // Passed on: the default reads into the first buffer alone, a row a
+    // call; passed on, a frame's rows are asked of the file by `readv`.
     fn read_vectored(&mut self, bufs: &mut [io::IoSliceMut<'_>]) -> io::Result<usize> {
         let n = self.inner.read_vectored(bufs)?;
         self.count += n as u64;
@@ -536,7 +537,8 @@ impl<R: Read> Y4mReader<R> {
 /// read straight into the rows (`readv`), past the buffer whenever the
 /// rest is at least the buffer's size. Through the buffer, a frame was
 /// copied twice, by the kernel into the buffer and from it into the rows:
-/// the second copy was 2 % of a 1080p ultrafast encode's samples.
+/// the second copy was 2 % of the samples of an ultrafast encode of
+/// dog_1080p.
 fn read_rows<R: Read>(reader: &mut Counting<BufReader<R>>, mut rows: Vec<&mut [u8]>) -> io::Result<()> {
     let mut first = 0;
     while let Some(row) = rows.get_mut(first) {

@@ -31,6 +31,7 @@
 # | calais_214 | python-nbsphinx-doc 0.8.11+ds-1 | html/www/wikimediacommons/Shepard_Calais_1906_FrenchGP.ogv (Theora, 218x160 as ffmpeg decodes it, 15 fps) | film of 1906: grain, flicker, a moving camera |
 # | album_160 | kphotoalbum 5.9.1-1 | demo/movie.avi (MJPEG, 160x120, 15 fps) | webcam, a face in a room |
 # | anim_256 | gem-doc 1:0.94-8 | examples/data/anim-1.mov (MJPEG, 256x256, 30 fps) | rendered 3D animation: a teapot, a plane |
+# | screen_720p | forensics-samples-files 1.1.4-5 | original-files/movie2/movie-hello.mp4 (H.264, 1280x720, 30 fps, 250 frames) | a screen recording: a terminal typed into, a webcam's picture of the typist inset |
 set -euo pipefail
 DIR=${1:?usage: real.sh DIR [N]}
 N=${2:-90}
@@ -64,6 +65,7 @@ if [ "${SET:-cameras}" = kinds ]; then
   clip calais_214 python-nbsphinx-doc usr/share/doc/python-nbsphinx/html/www/wikimediacommons/Shepard_Calais_1906_FrenchGP.ogv
   clip album_160 kphotoalbum usr/share/kphotoalbum/demo/movie.avi
   clip anim_256 gem-doc usr/share/gem/examples/data/anim-1.mov
+  clip screen_720p forensics-samples-files usr/share/forensics-samples/original-files/movie2/movie-hello.mp4
   exit 0
 fi
 

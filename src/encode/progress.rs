@@ -33,6 +33,10 @@ struct Published {
     /// vectors into its first reference (zero where none), an I frame's
     /// those it was given; none before the first P frame.
     prior: Option<Vec<Mv>>,
+    /// Readers waiting for rows: the condition is signalled only where
+    /// one is (a signal is a system call whether anyone waits or not, and
+    /// rows are published a macroblock row at a time).
+    waiting: usize,
 }
 
 impl FrameProgress {
@@ -48,6 +52,7 @@ impl FrameProgress {
                 samples,
                 rows: 0,
                 prior,
+                waiting: 0,
             }),
             more: Condvar::new(),
             mb_rows: height / MB,
@@ -89,8 +94,7 @@ impl FrameProgress {
             }
         }
         Self::copy_rows(&mut published, from, rows);
-        drop(published);
-        self.more.notify_all();
+        self.wake(published);
     }
 
     /// Publishes the whole of `from` (final) with the co-located
@@ -102,8 +106,7 @@ impl FrameProgress {
         }
         let rows = published.rows..self.mb_rows;
         Self::copy_rows(&mut published, from, rows);
-        drop(published);
-        self.more.notify_all();
+        self.wake(published);
     }
 
     /// Gives up: every row counts as published, whatever it holds, so that
@@ -112,8 +115,16 @@ impl FrameProgress {
     pub(super) fn abandon(&self) {
         let mut published = self.lock();
         published.rows = self.mb_rows;
+        self.wake(published);
+    }
+
+    /// Releases the lock and wakes the readers waiting, if any.
+    fn wake(&self, published: MutexGuard<'_, Published>) {
+        let waiting = published.waiting > 0;
         drop(published);
-        self.more.notify_all();
+        if waiting {
+            self.more.notify_all();
+        }
     }
 
     fn copy_rows(published: &mut Published, from: &Frame, rows: std::ops::Range<usize>) {
@@ -144,7 +155,9 @@ impl FrameProgress {
         let mut published = self.lock();
         let rows = rows.min(self.mb_rows);
         while published.rows < rows {
+            published.waiting += 1;
             published = self.more.wait(published).unwrap_or_else(PoisonError::into_inner);
+            published.waiting -= 1;
         }
         f(published.samples.as_ref(), published.prior.as_deref())
     }

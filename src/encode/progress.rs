@@ -229,6 +229,32 @@ mod tests {
     }
 
     #[test]
+    fn a_reader_already_waiting_is_woken_by_the_rows_and_by_an_abandon() {
+        // The rows published only once the reader waits: the signal sent
+        // where one waits must reach it (a lost one leaves it waiting).
+        let (w, h) = (32, 48);
+        let recon = Frame::new(w, h).unwrap();
+        let progress = FrameProgress::new((w, h), Some(Frame::new(w, h).unwrap()), false);
+        let wait_for_reader = || {
+            while progress.lock().waiting == 0 {
+                std::thread::yield_now();
+            }
+        };
+        std::thread::scope(|s| {
+            let reader = s.spawn(|| progress.with_rows(2, |f, _| f.is_some()));
+            wait_for_reader();
+            progress.publish(&recon, &[], 2);
+            assert!(reader.join().unwrap());
+            assert_eq!(progress.rows(), 2);
+            let reader = s.spawn(|| progress.with_rows(3, |_, _| ()));
+            wait_for_reader();
+            progress.abandon();
+            reader.join().unwrap();
+        });
+        assert_eq!(progress.lock().waiting, 0, "no reader left counted");
+    }
+
+    #[test]
     fn an_abandoned_frame_keeps_no_one_waiting() {
         let progress = FrameProgress::new((32, 48), Some(Frame::new(32, 48).unwrap()), false);
         std::thread::scope(|s| {

@@ -11,7 +11,9 @@
 //! arithmetic and the same floating-point operations without FMA: the
 //! same levels.
 
-use super::rate::{residual_estimate, Block8Pricer, BlockPricer, ScanLevels};
+use super::rate::{
+    few_levels, residual_estimate, Block8Pricer, BlockPricer, ScanLevels, TrialPrices, WholeTrials,
+};
 use super::transform8x8::{inter_luma8, intra_block8};
 use crate::codec::dsp::PerLevel;
 use crate::codec::residual::{MbResidual, ZIGZAG};
@@ -583,13 +585,6 @@ pub fn quantize_4x4(
     (b, c)
 }
 
-/// Bits `levels` add over an empty block, priced for its class (chroma or
-/// luma, intra or inter) in the frame's residual coder as it stands.
-#[inline(always)]
-fn block_bits(rate: &BlockPricer, scan: &ScanLevels<16>) -> f64 {
-    f64::from(rate.scan_cost(scan)) / 256.0
-}
-
 /// The inverse transform's basis doubled: row `k` is twice the weight of
 /// coefficient `k` on each of the four samples in one butterfly pass.
 const INVERSE_BASIS_X2: [[i32; 4]; 4] = [[2, 2, 2, 2], [2, 1, -1, -2], [2, -2, -2, 2], [1, -2, 2, -1]];
@@ -622,12 +617,38 @@ pub fn rdoq_4x4(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rat
     if levels.as_flattened().iter().all(|&v| v == 0) {
         return;
     }
+    let scan = ScanLevels::gather(levels.as_flattened(), &ZIGZAG);
+    // Bits the levels add over an empty block, priced for its class
+    // (chroma or luma, intra or inter) in the frame's residual coder as it
+    // stands.
+    let bits = f64::from(rate.scan_cost(&scan)) / 256.0;
+    let quant = (qp, lambda);
+    if few_levels(scan.mask) {
+        lower_4x4(
+            residual,
+            levels,
+            quant,
+            (&scan, bits),
+            WholeTrials::new(rate, scan),
+        );
+    } else {
+        lower_4x4(residual, levels, quant, (&scan, bits), rate.trials(&scan));
+    }
+}
+
+/// [`rdoq_4x4`]'s descent over the levels of `scan`, priced by `trials`.
+#[inline(always)]
+fn lower_4x4(
+    residual: &Block4,
+    levels: &mut Block4,
+    (qp, lambda): (u8, f64),
+    (scan, mut bits): (&ScanLevels<16>, f64),
+    mut trials: impl TrialPrices,
+) {
     let mut coeffs = *levels;
     dequantize(&mut coeffs, qp);
     let mut unrounded = inverse_4x4_unrounded(&coeffs);
     let mut error = rounded_error(residual, &unrounded);
-    let mut scan = ScanLevels::gather(levels.as_flattened(), &ZIGZAG);
-    let mut bits = block_bits(rate, &scan);
     // The non-zero levels from the last: a trial changes only its own.
     let mut untried = scan.mask;
     while untried != 0 {
@@ -655,13 +676,14 @@ pub fn rdoq_4x4(residual: &Block4, levels: &mut Block4, qp: u8, lambda: f64, rat
         let e = rounded_error(residual, &moved);
         // Fewer bits than none cannot pay for more error than this.
         if (e - error) as f64 >= lambda * bits {
+            trials.keep(i, v);
             continue;
         }
-        scan.set(i, lowered);
-        let b = block_bits(rate, &scan);
+        let b = f64::from(trials.cost_with(i, lowered)) / 256.0;
         if (e - error) as f64 + lambda * (b - bits) >= 0.0 {
-            scan.set(i, v);
+            trials.keep(i, v);
         } else {
+            trials.keep(i, lowered);
             levels[r][c] = lowered;
             coeffs[r][c] = coeff;
             unrounded = moved;

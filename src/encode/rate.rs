@@ -9,11 +9,14 @@
 use crate::codec::entropy::{cost_table, Context, Pricer, BYPASS_COST};
 use crate::codec::modes::{MbMode, ModeCoder, VectorSyntax};
 use crate::codec::residual::{
-    chroma_dc_base, chroma_dc_flag_context, class8_base, code_block, level_contexts, magnitude_bins,
-    BlockClass, MbResidual, ResidualCoder, ResidualSyntax, ScanContexts, SCAN4, SCAN8, SCAN_DC, ZIGZAG,
+    chroma_dc_base, chroma_dc_flag_context, class8_base, code_block, magnitude_bins, BlockClass, MbResidual,
+    ResidualCoder, ResidualSyntax, ScanContexts, SCAN4, SCAN8, SCAN_DC, ZIGZAG,
 };
 use crate::codec::transform::Block4;
 use crate::codec::transform8x8::{Block8, ZIGZAG8};
+
+mod trials;
+pub use trials::{few_levels, TrialPrices, WholeTrials};
 
 /// The bits of coding `mode` as macroblock (mb_x, mb_y) now
 /// (`inter_frame`: a P frame; `vectors`: which vectors the frame codes).
@@ -152,10 +155,13 @@ struct ScanPrices<const N: usize> {
     nonzero: [u32; N],
     /// What the last flag costs more as one than as zero, per position.
     last_gain: [u32; N],
-    /// "> 1" bins by context, `[zero, one]`.
-    gt1: [[u32; 2]; 5],
-    /// Magnitude bins by context, `[zero, one]`.
-    abs: [[u32; 2]; 5],
+    /// By [`LevelState`]: a level of 1 (its "> 1" bin and sign), a level
+    /// above 1 before its magnitude bins, and a magnitude bin of one and
+    /// of zero.
+    one: [u32; LevelState::COUNT],
+    big: [u32; LevelState::COUNT],
+    abs_one: [u32; LevelState::COUNT],
+    abs_zero: [u32; LevelState::COUNT],
 }
 
 impl<const N: usize> ScanPrices<N> {
@@ -172,12 +178,17 @@ impl<const N: usize> ScanPrices<N> {
             nonzero[i] = (sig[1] + last[0]).wrapping_sub(sig[0]);
             last_gain[i] = last[1].wrapping_sub(last[0]);
         }
+        let gt1: [[u32; 2]; 5] = std::array::from_fn(|k| price(scan.gt1 + k));
+        let abs: [[u32; 2]; 5] = std::array::from_fn(|k| price(scan.abs + k));
+        let (first, magnitude) = (LevelState::FIRST, LevelState::MAGNITUDE);
         ScanPrices {
             zero_run,
             nonzero,
             last_gain,
-            gt1: std::array::from_fn(|k| price(scan.gt1 + k)),
-            abs: std::array::from_fn(|k| price(scan.abs + k)),
+            one: std::array::from_fn(|s| gt1[first[s]][0] + BYPASS_COST),
+            big: std::array::from_fn(|s| gt1[first[s]][1] + BYPASS_COST),
+            abs_one: std::array::from_fn(|s| abs[magnitude[s]][1]),
+            abs_zero: std::array::from_fn(|s| abs[magnitude[s]][0]),
         }
     }
 
@@ -186,37 +197,108 @@ impl<const N: usize> ScanPrices<N> {
     #[inline]
     fn cost(&self, mask: u64, level: impl Fn(usize) -> i32) -> u32 {
         let last = 63 - mask.leading_zeros() as usize;
-        // Significance and last flags: positions 0..=last, but the final
-        // position has none.
-        let mut cost = if last < N - 1 {
-            self.zero_run[last + 1].wrapping_add(self.last_gain[last])
-        } else {
-            self.zero_run[N - 1]
-        };
+        let mut cost = self.last_at(last);
+        // (The final position has no flags.)
         let mut flagged = mask & !(1 << (N - 1));
         while flagged != 0 {
             cost = cost.wrapping_add(self.nonzero[flagged.trailing_zeros() as usize]);
             flagged &= flagged - 1;
         }
         // The levels in reverse scan order.
-        let (mut eq1, mut gt1) = (0, 0);
+        let mut state = LevelState::START;
         let mut rest = mask;
         while rest != 0 {
             let i = 63 - rest.leading_zeros() as usize;
             rest &= !(1 << i);
             let a = level(i).unsigned_abs();
-            let (first, magnitude) = level_contexts(eq1, gt1);
-            cost += self.gt1[first][usize::from(a > 1)] + BYPASS_COST;
-            if a > 1 {
-                let (ones, zero, bypass) = magnitude_bins(a - 2);
-                let [p0, p1] = self.abs[magnitude];
-                cost += ones * p1 + if zero { p0 } else { 0 } + bypass * BYPASS_COST;
-                gt1 += 1;
-            } else {
-                eq1 += 1;
-            }
+            cost = cost.wrapping_add(self.level_cost(a, state));
+            state = state.after(a);
         }
         cost
+    }
+
+    /// The significance and last flags of the positions up to the last
+    /// non-zero one, `last`, all as zeros but its own (the final position
+    /// has none), before [`ScanPrices::flag_of`] each non-zero one.
+    #[inline(always)]
+    fn last_at(&self, last: usize) -> u32 {
+        if last < N - 1 {
+            self.zero_run[last + 1].wrapping_add(self.last_gain[last])
+        } else {
+            self.zero_run[N - 1]
+        }
+    }
+
+    /// What a non-zero level at position `i` adds to the flags (wrapping:
+    /// it may be less).
+    #[inline(always)]
+    fn flag_of(&self, i: usize) -> u32 {
+        if i < N - 1 {
+            self.nonzero[i]
+        } else {
+            0
+        }
+    }
+
+    /// The bins of a level of magnitude `a` (not 0) coded in `state`.
+    #[inline(always)]
+    fn level_cost(&self, a: u32, state: LevelState) -> u32 {
+        let s = usize::from(state.0);
+        if a > 1 {
+            let (ones, zero, bypass) = magnitude_bins(a - 2);
+            self.big[s] + ones * self.abs_one[s] + u32::from(zero) * self.abs_zero[s] + bypass * BYPASS_COST
+        } else {
+            self.one[s]
+        }
+    }
+
+    /// [`ScanPrices::level_cost`] of a level of magnitude `a` in each
+    /// state, beside `then`'s cost of what follows it from the state
+    /// after it: the bins of `a` and the levels after, from each state.
+    #[inline(always)]
+    fn level_then(&self, a: u32, then: &[u32; LevelState::COUNT]) -> [u32; LevelState::COUNT] {
+        if a > 1 {
+            let (ones, zero, bypass) = magnitude_bins(a - 2);
+            let (zero, bypass) = (u32::from(zero), bypass * BYPASS_COST);
+            std::array::from_fn(|s| {
+                let own = self.big[s] + ones * self.abs_one[s] + zero * self.abs_zero[s] + bypass;
+                own.wrapping_add(then[LevelState::AFTER_BIG[s]])
+            })
+        } else {
+            std::array::from_fn(|s| self.one[s].wrapping_add(then[LevelState::AFTER_ONE[s]]))
+        }
+    }
+}
+
+/// What the level bins' contexts depend on after some of a block's levels
+/// in reverse scan order (the residual syntax's `level_contexts`): the
+/// count of levels equal to 1 (up to 3) while none is above 1, then the
+/// count of those above 1 (up to 4). Eight states, 0-3 and 4-7.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct LevelState(u8);
+
+impl LevelState {
+    const START: LevelState = LevelState(0);
+    const COUNT: usize = 8;
+    /// The state after a level of 1, and after one above 1, by state: a
+    /// 1 counts while none is above 1 (up to 3), a level above 1 counts
+    /// from then on (up to 4).
+    const AFTER_ONE: [usize; 8] = [1, 2, 3, 3, 4, 5, 6, 7];
+    const AFTER_BIG: [usize; 8] = [4, 4, 4, 4, 5, 6, 7, 7];
+    /// The contexts of the next level's first bin and of its magnitude,
+    /// by state.
+    const FIRST: [usize; 8] = [1, 2, 3, 4, 0, 0, 0, 0];
+    const MAGNITUDE: [usize; 8] = [0, 0, 0, 0, 1, 2, 3, 4];
+
+    /// The state after a level of magnitude `a` (not 0).
+    #[inline(always)]
+    fn after(self, a: u32) -> LevelState {
+        let s = usize::from(self.0);
+        LevelState(if a > 1 {
+            Self::AFTER_BIG[s]
+        } else {
+            Self::AFTER_ONE[s]
+        } as u8)
     }
 }
 
@@ -538,6 +620,33 @@ mod tests {
                 ResidualSyntax::Inter
             };
             coder.commit(round % 4, round / 4 % 4, syntax, &res);
+        }
+    }
+
+    #[test]
+    fn level_states_give_the_contexts_of_the_levels_counted() {
+        // Every run of up to 10 levels of 1 and above 1 (as bits), the
+        // counts kept whole beside the eight states.
+        for len in 0..=10u32 {
+            for run in 0..1u32 << len {
+                let (mut eq1, mut gt1, mut state) = (0, 0, LevelState::START);
+                for k in 0..len {
+                    let big = run >> k & 1 == 1;
+                    state = state.after(if big { 2 } else { 1 });
+                    if big {
+                        gt1 += 1;
+                    } else {
+                        eq1 += 1;
+                    }
+                    let s = usize::from(state.0);
+                    let want = crate::codec::residual::level_contexts(eq1, gt1);
+                    assert_eq!(
+                        (LevelState::FIRST[s], LevelState::MAGNITUDE[s]),
+                        want,
+                        "{eq1} {gt1}"
+                    );
+                }
+            }
         }
     }
 

@@ -4,7 +4,7 @@
 //! 4x4 transforms per quadrant; and those of one block of an 8x8 intra
 //! macroblock, for its search.
 
-use super::rate::{Block8Pricer, ScanLevels};
+use super::rate::{few_levels, Block8Pricer, ScanLevels, TrialPrices, WholeTrials};
 use super::rdo::quant_rounding;
 use crate::codec::syntax::MB;
 use crate::codec::transform8x8::{
@@ -90,14 +90,37 @@ fn quadrant_residual(src: &[u8; 256], pred: &[u8; 256], q: usize) -> Block8 {
 /// rounding), so a trial costs no inverse transform.
 #[inline(always)]
 fn lower_levels8(source: &[f64; 64], levels: &mut Block8, qp: u8, lambda: f64, rate: &Block8Pricer) {
-    let recon =
-        |v: i32, k: usize| dequantized_orthonormal(dequantize_level_8x8(v, qp, k / 8, k % 8), k / 8, k % 8);
-    let sq = |x: f64| x * x;
-    let mut scan = ScanLevels::gather(levels.as_flattened(), &ZIGZAG8);
-    let mut bits = f64::from(rate.scan_cost(&scan)) / 256.0;
+    let scan = ScanLevels::gather(levels.as_flattened(), &ZIGZAG8);
+    let bits = f64::from(rate.scan_cost(&scan)) / 256.0;
     if bits == 0.0 {
         return;
     }
+    if few_levels(scan.mask) {
+        descend8(
+            source,
+            levels,
+            (qp, lambda),
+            (&scan, bits),
+            WholeTrials::new(rate, scan),
+        );
+    } else {
+        descend8(source, levels, (qp, lambda), (&scan, bits), rate.trials(&scan));
+    }
+}
+
+/// [`lower_levels8`]'s descent over the levels of `scan`, priced by
+/// `trials`.
+#[inline(always)]
+fn descend8(
+    source: &[f64; 64],
+    levels: &mut Block8,
+    (qp, lambda): (u8, f64),
+    (scan, mut bits): (&ScanLevels<64>, f64),
+    mut trials: impl TrialPrices,
+) {
+    let recon =
+        |v: i32, k: usize| dequantized_orthonormal(dequantize_level_8x8(v, qp, k / 8, k % 8), k / 8, k % 8);
+    let sq = |x: f64| x * x;
     let mut error: f64 = (0..64)
         .map(|k| sq(source[k] - recon(levels[k / 8][k % 8], k)))
         .sum();
@@ -113,13 +136,14 @@ fn lower_levels8(source: &[f64; 64], levels: &mut Block8, qp: u8, lambda: f64, r
         let delta = sq(source[k] - recon(lowered, k)) - sq(source[k] - recon(v, k));
         // Fewer bits than none cannot pay for more error than this.
         if delta >= lambda * bits {
+            trials.keep(i, v);
             continue;
         }
-        scan.set(i, lowered);
-        let b = f64::from(rate.scan_cost(&scan)) / 256.0;
+        let b = f64::from(trials.cost_with(i, lowered)) / 256.0;
         if delta + lambda * (b - bits) >= 0.0 {
-            scan.set(i, v);
+            trials.keep(i, v);
         } else {
+            trials.keep(i, lowered);
             levels[r][c] = lowered;
             error += delta;
             bits = b;

@@ -259,20 +259,21 @@ mod tests {
         coder
     }
 
-    /// Every trial of a descent (each position lowered by `steps[k]` toward
-    /// zero, then kept lowered where `keeps[k]`) priced as the whole block.
-    fn descend<const N: usize>(
+    /// Every trial of a descent over `levels` (scan order; each position
+    /// lowered by `steps[k]` toward zero, then kept lowered where
+    /// `keeps[k]`) priced by the trials `make` gives as `pricer` prices the
+    /// whole block.
+    fn descend<const N: usize, T: TrialPrices>(
         levels: [i32; N],
-        steps: &[i32],
-        keeps: &[bool],
-        whole: impl Fn(&ScanLevels<N>) -> u32,
-        mut trial: impl FnMut(usize, i32) -> u32,
-        mut keep: impl FnMut(usize, i32),
+        (steps, keeps): (&[i32], &[bool]),
+        pricer: &impl ScanCost<N>,
+        make: impl FnOnce(&ScanLevels<N>) -> T,
     ) -> Result<(), TestCaseError> {
         let mut scan = ScanLevels { levels, mask: 0 };
         for (k, &v) in levels.iter().enumerate() {
             scan.set(k, v);
         }
+        let mut trials = make(&scan);
         let mut untried = scan.mask;
         let mut n = 0;
         while untried != 0 {
@@ -283,17 +284,11 @@ mod tests {
             let tried = v - v.signum() * step;
             let mut changed = scan;
             changed.set(i, tried);
-            prop_assert_eq!(
-                trial(i, tried),
-                whole(&changed),
-                "position {} level {} -> {}",
-                i,
-                v,
-                tried
-            );
+            let (got, want) = (trials.cost_with(i, tried), pricer.scan_cost(&changed));
+            prop_assert_eq!(got, want, "position {} level {} -> {}", i, v, tried);
             let kept = if keeps[n % keeps.len()] { tried } else { v };
             scan.set(i, kept);
-            keep(i, kept);
+            trials.keep(i, kept);
             n += 1;
         }
         Ok(())
@@ -312,19 +307,8 @@ mod tests {
             let levels: [i32; 16] = std::array::from_fn(|k| if sparse[k] == 0 { levels[k] } else { 0 });
             let coder = warmed(&warm);
             let pricer = block_pricer(&coder, BlockClass::luma(true));
-            let mut scan = ScanLevels { levels, mask: 0 };
-            for (k, &v) in levels.iter().enumerate() {
-                scan.set(k, v);
-            }
-            let trials = std::cell::RefCell::new(pricer.trials(&scan));
-            descend(
-                levels,
-                &steps,
-                &keeps,
-                |s| pricer.scan_cost(s),
-                |i, v| trials.borrow_mut().cost_with(i, v),
-                |i, v| trials.borrow_mut().keep(i, v),
-            )?;
+            descend(levels, (&steps, &keeps), &pricer, |scan| pricer.trials(scan))?;
+            descend(levels, (&steps, &keeps), &pricer, |scan| WholeTrials::new(&pricer, *scan))?;
         }
 
         #[test]
@@ -339,19 +323,8 @@ mod tests {
             let levels: [i32; 64] = std::array::from_fn(|k| if sparse[k] == 0 { levels[k] } else { 0 });
             let coder = warmed(&warm);
             let pricer = block8_pricer(&coder, intra);
-            let mut scan = ScanLevels { levels, mask: 0 };
-            for (k, &v) in levels.iter().enumerate() {
-                scan.set(k, v);
-            }
-            let trials = std::cell::RefCell::new(pricer.trials(&scan));
-            descend(
-                levels,
-                &steps,
-                &keeps,
-                |s| pricer.scan_cost(s),
-                |i, v| trials.borrow_mut().cost_with(i, v),
-                |i, v| trials.borrow_mut().keep(i, v),
-            )?;
+            descend(levels, (&steps, &keeps), &pricer, |scan| pricer.trials(scan))?;
+            descend(levels, (&steps, &keeps), &pricer, |scan| WholeTrials::new(&pricer, *scan))?;
         }
     }
 }

@@ -134,7 +134,10 @@ impl<'p, const N: usize> Descent<'p, N> {
     /// [`ScanPrices::cost`] of the block with `level` at position `i`, the
     /// highest undecided non-zero one (`None` where no level is left).
     fn cost_with(&self, i: usize, level: i32) -> Option<u32> {
-        debug_assert!(self.undecided > 0 && 63 - (self.mask & ((2 << i) - 1)).leading_zeros() as usize == i);
+        debug_assert!(
+            self.undecided > 0 && self.mask >> i & 1 == 1,
+            "a level at {i} to try"
+        );
         let below = &self.below[self.undecided - 1];
         let a = level.unsigned_abs();
         let (mask, flags, levels) = if a == 0 {

@@ -255,6 +255,9 @@ impl<const N: usize> ScanPrices<N> {
     /// [`ScanPrices::level_cost`] of a level of magnitude `a` in each
     /// state, beside `then`'s cost of what follows it from the state
     /// after it: the bins of `a` and the levels after, from each state.
+    /// (Written out, the magnitude's bins found once for the eight states:
+    /// through `level_cost` birds_720p's I frame at QP 22 took 1.59 G
+    /// instructions against 1.44 G.)
     #[inline(always)]
     fn level_then(&self, a: u32, then: &[u32; LevelState::COUNT]) -> [u32; LevelState::COUNT] {
         if a > 1 {

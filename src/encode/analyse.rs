@@ -997,6 +997,7 @@ impl InterFrameCoder<'_, '_> {
             mb: (mb.mb_x, mb.mb_y),
             sad_lambda: self.coder.lambda.sqrt(),
             satd8: env.satd8,
+            windows: Default::default(),
         };
         env.satd8.borrow_mut().clear();
         // The candidates alone first: when they do not come within

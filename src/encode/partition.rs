@@ -11,15 +11,13 @@
 //! A partition's SATD is the sum of its 8x8 blocks', each kept once
 //! computed: the 16x8 and 8x16 searches meet many of the 8x8 search's.
 
-use std::cell::RefCell;
-use std::collections::HashMap;
-use std::hash::{BuildHasherDefault, Hasher};
+use std::cell::{OnceCell, RefCell};
 
 use crate::codec::mv::{mvd_bits, Mv};
 use crate::codec::partition::Part;
 use crate::codec::syntax::MB;
 use crate::codec::Plane;
-use crate::me::halfpel::{block_or_predicted, HalfPel};
+use crate::me::halfpel::{block_or_predicted, HalfPel, PhaseWindow};
 use crate::me::{nearest_full_pel, Metric};
 
 /// One macroblock's partition search.
@@ -37,27 +35,67 @@ pub(crate) struct PartitionSearch<'a> {
     /// SATD of (8x8 block, vector) pairs measured so far, keyed by
     /// [`block_key`]; emptied per macroblock.
     pub satd8: &'a RefCell<SatdCache>,
+    /// Each 8x8 block's view of `halfpel`, found at its first candidate.
+    pub windows: [OnceCell<Option<PhaseWindow<'a>>>; 4],
 }
 
-/// SATDs of a macroblock's 8x8 blocks by (block, vector).
-pub(crate) type SatdCache = HashMap<u64, u32, BuildHasherDefault<MulHasher>>;
+/// SATDs of a macroblock's 8x8 blocks by (block, vector): about half the
+/// lookups of a search find one. Direct-mapped, each slot tagged with the
+/// macroblock it was filled for, so that emptying it per macroblock is one
+/// increment (a hash map's lookups and inserts cost as much as the SATDs
+/// they saved). A slot taken by another key is measured again: the same
+/// value, so the search is the same.
+pub(crate) struct SatdCache {
+    slots: Box<[SatdSlot; SATD_SLOTS]>,
+    generation: u32,
+}
 
-/// A multiplicative hash of one `u64` (the keys are small packed integers:
-/// std's SipHash would cost more than the lookups save).
-#[derive(Default)]
-pub(crate) struct MulHasher(u64);
+/// A [`SatdCache`] entry: the key, its SATD, and the macroblock it is of.
+#[derive(Clone, Copy, Default)]
+struct SatdSlot {
+    key: u64,
+    satd: u32,
+    generation: u32,
+}
 
-impl Hasher for MulHasher {
-    fn finish(&self) -> u64 {
-        self.0
-    }
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.write_u64(u64::from(b));
+/// The cache's slots (a macroblock's search meets a few dozen keys).
+const SATD_SLOTS: usize = 256;
+
+impl Default for SatdCache {
+    fn default() -> SatdCache {
+        SatdCache {
+            slots: Box::new([SatdSlot::default(); SATD_SLOTS]),
+            generation: 1,
         }
     }
-    fn write_u64(&mut self, v: u64) {
-        self.0 = (self.0 ^ v).wrapping_mul(0x9E37_79B9_7F4A_7C15).rotate_left(29);
+}
+
+impl SatdCache {
+    /// Forgets every entry (a new macroblock).
+    pub(crate) fn clear(&mut self) {
+        self.generation = self.generation.wrapping_add(1);
+        if self.generation == 0 {
+            // Slots of 2^32 macroblocks ago would look current.
+            *self = SatdCache::default();
+        }
+    }
+
+    fn slot(key: u64) -> usize {
+        (key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - SATD_SLOTS.trailing_zeros())) as usize
+    }
+
+    fn get(&self, key: u64) -> Option<u32> {
+        let s = &self.slots[Self::slot(key)];
+        (s.generation == self.generation && s.key == key).then_some(s.satd)
+    }
+
+    fn insert(&mut self, key: u64, satd: u32) {
+        let generation = self.generation;
+        self.slots[Self::slot(key)] = SatdSlot {
+            key,
+            satd,
+            generation,
+        };
     }
 }
 
@@ -110,14 +148,20 @@ impl PartitionSearch<'_> {
     /// on the half-pel planes when they reach, else the codec's filter.
     fn block_satd(&self, b: usize, mv: Mv) -> u32 {
         let key = block_key(b, mv);
-        if let Some(&satd) = self.satd8.borrow().get(&key) {
+        if let Some(satd) = self.satd8.borrow().get(key) {
             return satd;
         }
         let (bx, by) = (8 * (b % 2), 8 * (b / 2));
         let x = (self.mb.0 * MB + bx) as isize;
         let y = (self.mb.1 * MB + by) as isize;
         let mut pred = [0u8; 64];
-        let (samples, stride) = block_or_predicted(self.halfpel, self.reference, (x, y), mv, 8, &mut pred);
+        let window = self.windows[b]
+            .get_or_init(|| self.halfpel.and_then(|h| h.window(self.reference, (x, y), 8)))
+            .as_ref();
+        let (samples, stride) = match window {
+            Some(w) if w.holds(mv) => w.block(mv, &mut pred),
+            _ => block_or_predicted(self.halfpel, self.reference, (x, y), mv, 8, &mut pred),
+        };
         let satd = Metric::Satd.cost(&self.source[by * MB + bx..], MB, samples, stride, 8, 8);
         self.satd8.borrow_mut().insert(key, satd);
         satd
@@ -251,6 +295,7 @@ mod tests {
             mb: (1, 1),
             sad_lambda: 1.0,
             satd8: cache,
+            windows: Default::default(),
         }
     }
 

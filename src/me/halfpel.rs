@@ -292,6 +292,103 @@ impl HalfPel {
     }
 }
 
+/// The four phases of a [`HalfPel`] (whole pel, then the horizontal,
+/// vertical and diagonal half-pel ones) as one `b x b` block's sub-pel
+/// candidates read them: the phases and the range of full-pel
+/// displacements within reach found once, so that each candidate costs an
+/// offset, a bounds check and at most one average (the many candidates of
+/// a block's sub-pel steps went through [`block_or_predicted`] each, and
+/// finding the phase and its reach again was as much work as averaging).
+/// It gives the samples [`block_or_predicted`] gives, or `None` where
+/// that would take the codec's filter.
+pub(crate) struct PhaseWindow<'a> {
+    /// Each phase's samples from the block displaced by `lo` on, and
+    /// their stride.
+    phases: [(&'a [u8], usize); 4],
+    /// The least and greatest full-pel displacements (dx, dy) within
+    /// reach: the block and a sample after it inside what is filled.
+    lo: (isize, isize),
+    hi: (isize, isize),
+    b: usize,
+    dsp: &'static PixelDsp,
+}
+
+impl HalfPel {
+    /// The window of the `b x b` block at (x, y); `None` where no
+    /// displacement is within reach.
+    pub(crate) fn window<'a>(
+        &'a self,
+        reference: &'a Plane,
+        (x, y): (isize, isize),
+        b: usize,
+    ) -> Option<PhaseWindow<'a>> {
+        let (w, h) = (reference.width() as isize, reference.height() as isize);
+        let (b_i, m) = (b as isize, self.margin);
+        // `reaches`: bx > -m and bx + b < w + m, by alike (bx = x + dx).
+        let mut lo = (1 - m - x, 1 - m - y);
+        let mut hi = (w + m - b_i - 1 - x, h + m - b_i - 1 - y);
+        if let Store::Patch { origin, size, .. } = self.store {
+            lo = (lo.0.max(origin.0 - x), lo.1.max(origin.1 - y));
+            hi = (
+                hi.0.min(origin.0 + size.0 as isize - b_i - 1 - x),
+                hi.1.min(origin.1 + size.1 as isize - b_i - 1 - y),
+            );
+        }
+        if lo.0 > hi.0 || lo.1 > hi.1 {
+            return None;
+        }
+        let (x0, y0) = (x + lo.0, y + lo.1);
+        let phases = [(0, 0), (2, 0), (0, 2), (2, 2)].map(|phase| self.phase_at(reference, phase, x0, y0));
+        Some(PhaseWindow {
+            phases,
+            lo,
+            hi,
+            b,
+            dsp: self.dsp,
+        })
+    }
+}
+
+impl<'a> PhaseWindow<'a> {
+    /// Whether the phases hold the block displaced by quarter-pel `mv`.
+    #[inline]
+    pub(crate) fn holds(&self, mv: Mv) -> bool {
+        let (dx, dy) = ((mv.x >> 2) as isize, (mv.y >> 2) as isize);
+        (self.lo.0..=self.hi.0).contains(&dx) && (self.lo.1..=self.hi.1).contains(&dy)
+    }
+
+    /// The block displaced by quarter-pel `mv`, which the phases hold
+    /// ([`PhaseWindow::holds`]), as [`block_or_predicted`] gives it: in
+    /// place on the half-pel grid, else averaged into `scratch` (`b * b`
+    /// samples).
+    #[inline]
+    pub(crate) fn block<'s>(&'s self, mv: Mv, scratch: &'s mut [u8]) -> (&'s [u8], usize) {
+        debug_assert!(self.holds(mv));
+        let (dx, dy) = ((mv.x >> 2) as isize, (mv.y >> 2) as isize);
+        let (rx, ry) = ((dx - self.lo.0) as usize, (dy - self.lo.1) as usize);
+        // A point of the half-pel grid in quarter pels (0, 2 or 4 each way)
+        // from the displaced block: its phase's samples.
+        let point = |px: i32, py: i32| {
+            let (samples, stride) = self.phases[((px & 2) >> 1 | (py & 2)) as usize];
+            let at = (ry + (py >> 2) as usize) * stride + rx + (px >> 2) as usize;
+            (&samples[at..], stride)
+        };
+        let (fx, fy) = (mv.x & 3, mv.y & 3);
+        let (from, to) = match (fx & 1, fy & 1) {
+            (0, 0) => return point(fx, fy),
+            (1, 0) => (point(fx - 1, fy), point(fx + 1, fy)),
+            (0, 1) => (point(fx, fy - 1), point(fx, fy + 1)),
+            _ => (point(2, 4 * (fy / 2)), point(4 * (fx / 2), 2)),
+        };
+        match self.b {
+            16 => (self.dsp.average_16x16)(from, to, scratch),
+            8 => (self.dsp.average_8x8)(from, to, scratch),
+            b => average_rows(b, from, to, scratch),
+        }
+        (scratch, self.b)
+    }
+}
+
 /// The `b x b` block of `reference` at (x, y) displaced by the
 /// quarter-pel vector `mv`, and its stride: where it lies on the half-pel
 /// grid, in place ([`HalfPel::block_in_place`]); else predicted into
@@ -510,6 +607,104 @@ mod tests {
         }
         // Larger blocks keep whole planes.
         with_patch(&r, margin, (0, 0), 32, |patch| assert!(patch.is_none()));
+    }
+
+    /// The rows of a `b x b` block given as samples and stride.
+    fn rows_of((samples, stride): (&[u8], usize), b: usize) -> Vec<u8> {
+        (0..b)
+            .flat_map(|row| samples[row * stride..][..b].to_vec())
+            .collect()
+    }
+
+    /// Checks `h`'s window of the `b x b` block at `at` against
+    /// [`block_or_predicted`] for every vector in `range` (quarter pels
+    /// each way, every `step`th): held exactly where the phases reach
+    /// (else the codec's filter is the answer), the same samples there.
+    fn check_window(h: &HalfPel, r: &Plane, at: (isize, isize), b: usize, range: i32, step: usize) {
+        let window = h.window(r, at, b);
+        let (mut a, mut by_phases) = ([0u8; 256], [0u8; 256]);
+        for mvy in (-range..=range).step_by(step) {
+            for mvx in (-range..=range).step_by(step) {
+                let mv = Mv::new(mvx, mvy);
+                let reaches = h.block_in_place(r, at, (mvx, mvy), b).is_some()
+                    || h.predict(r, at.0, at.1, mvx, mvy, b, &mut by_phases);
+                let held = window.as_ref().is_some_and(|w| w.holds(mv));
+                assert_eq!(held, reaches, "{b}x{b} at {at:?}, ({mvx}, {mvy})");
+                if let Some(w) = window.as_ref().filter(|_| held) {
+                    let mut scratch = [0u8; 256];
+                    let expected = rows_of(block_or_predicted(Some(h), r, at, mv, b, &mut a), b);
+                    assert_eq!(
+                        rows_of(w.block(mv, &mut scratch), b),
+                        expected,
+                        "{b}x{b} at {at:?}, ({mvx}, {mvy})"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_window_gives_what_the_phases_give() {
+        // Whole planes: blocks of each size inside, at the edges and in
+        // the margin, vectors out past the margin each way.
+        let r = textured(64, 48);
+        let margin = 24;
+        let planes = HalfPel::new(&r, margin).unwrap();
+        for b in [16, 8, 4] {
+            for at in [
+                (16, 16),
+                (0, 0),
+                (48, 32),
+                (60, 44),
+                (-20, 5),
+                (-24, -24),
+                (70, 50),
+            ] {
+                check_window(&planes, &r, at, b, 4 * 36, 3);
+            }
+        }
+        // Patches: the steps near their full-pel centre, as in
+        // `a_patch_gives_every_sub_pel_step_what_the_planes_give`.
+        let (ox, oy) = (16isize, 16isize);
+        for (x, y) in [
+            (16, 16),
+            (0, 0),
+            (48, 32),
+            (-20, 5),
+            (-28, -30),
+            (60, 40),
+            (70, 50),
+            (45, -25),
+        ] {
+            with_patch(&r, margin, (x, y), 16, |patch| {
+                let patch = patch.expect("a patch for a 16x16 block");
+                let window = patch.window(&r, (ox, oy), 16);
+                // Rows are filtered 32 wide where the border holds them:
+                // steps to 15 pels right of the centre may be held.
+                for mvy in -8..=7 {
+                    for mvx in -8..=4 * 16 {
+                        let mv = Mv::new(4 * (x - ox) as i32 + mvx, 4 * (y - oy) as i32 + mvy);
+                        let held = window.as_ref().is_some_and(|w| w.holds(mv));
+                        // Within the patch's reach (a pel before its centre
+                        // to three quarters after) held exactly where the
+                        // planes reach; wherever held (rows are filtered
+                        // wider than that), the planes' samples.
+                        let near = (-4..=3).contains(&mvx) && (-4..=3).contains(&mvy);
+                        let in_planes = planes.block_in_place(&r, (ox, oy), (mv.x, mv.y), 16).is_some()
+                            || planes.predict(&r, ox, oy, mv.x, mv.y, 16, &mut [0u8; 256]);
+                        assert!(!near || held == in_planes, "patch at ({x}, {y}), ({mvx}, {mvy})");
+                        if let Some(w) = window.as_ref().filter(|_| held) {
+                            let (mut a, mut scratch) = ([0u8; 256], [0u8; 256]);
+                            let expected = rows_of(
+                                block_or_predicted(Some(&planes), &r, (ox, oy), mv, 16, &mut a),
+                                16,
+                            );
+                            assert_eq!(rows_of(w.block(mv, &mut scratch), 16), expected, "({mvx}, {mvy})");
+                        }
+                    }
+                }
+            });
+        }
     }
 
     #[test]

@@ -436,6 +436,9 @@ pub(crate) struct SearchContext<'a> {
     in_place: [i32; 4],
     /// The capped kernel where the full-pel metric is SATD on 16x16 blocks.
     capped: Option<CappedFn>,
+    /// The same kernel where the sub-pel metric is SATD on 16x16 blocks
+    /// (uncapped: past the size dispatch of [`Metric::cost`]).
+    sub_pel_satd16: Option<CappedFn>,
     /// The reference's quadrant sums, for successive elimination.
     sums: Option<&'a sea::QuadrantSums>,
     /// The block's chroma, priced beside its luma in the sub-pel steps.
@@ -481,6 +484,8 @@ impl<'a> SearchContext<'a> {
             block: &cur.data()[cur.index(x, y)..],
             in_place: [x0, x1, y0, y1],
             capped: (cfg.block == 16 && cfg.full_pel_metric() == Metric::Satd)
+                .then(|| dsp::pixel().satd_16x16_capped),
+            sub_pel_satd16: (cfg.block == 16 && cfg.metric == Metric::Satd)
                 .then(|| dsp::pixel().satd_16x16_capped),
             sums: None,
             chroma: None,
@@ -595,14 +600,25 @@ impl<'a> SearchContext<'a> {
     /// Full cost of a quarter-pel vector: on the reference's half-pel
     /// planes where they reach (quarter-pel positions approximated), else on
     /// the decoder's prediction.
-    fn sub_pel_cost(&self, mv: Mv, scratch: &mut [u8]) -> u64 {
+    pub(crate) fn sub_pel_cost(&self, mv: Mv, scratch: &mut [u8]) -> u64 {
+        self.sub_pel_cost_in(None, mv, scratch)
+    }
+
+    /// [`SearchContext::sub_pel_cost`], read through `window` (of this
+    /// block on this context's half-pel phases) where it holds `mv`.
+    fn sub_pel_cost_in(&self, window: Option<&halfpel::PhaseWindow<'_>>, mv: Mv, scratch: &mut [u8]) -> u64 {
         let b = self.cfg.block;
-        let (samples, stride) =
-            halfpel::block_or_predicted(self.halfpel, self.reference, (self.x, self.y), mv, b, scratch);
-        let luma = self
-            .cfg
-            .metric
-            .cost(self.block, self.cur.stride(), samples, stride, b, b);
+        let (samples, stride) = match window {
+            Some(w) if w.holds(mv) => w.block(mv, scratch),
+            _ => halfpel::block_or_predicted(self.halfpel, self.reference, (self.x, self.y), mv, b, scratch),
+        };
+        let luma = match self.sub_pel_satd16 {
+            Some(satd16) => satd16(self.block, self.cur.stride(), samples, stride, u32::MAX),
+            None => self
+                .cfg
+                .metric
+                .cost(self.block, self.cur.stride(), samples, stride, b, b),
+        };
         u64::from(luma) + self.chroma_cost(mv) + self.rate(mv)
     }
 

@@ -1,5 +1,6 @@
 //! The search patterns: full-pel search per method, then sub-pel refinement.
 
+use super::halfpel::PhaseWindow;
 use super::pipeline::SharedGrid;
 use super::sea::max_diff;
 use super::{Candidate, Method, Metric, MotionField, SearchContext, Subpel};
@@ -643,7 +644,12 @@ impl Refinement {
             Subpel::Half => &[2],
             Subpel::Quarter => &[2, 1],
         };
-        super::with_scratch(s.cfg.block, |scratch| self.steps(s, steps, centre, scratch))
+        let window = s
+            .halfpel
+            .and_then(|h| h.window(s.reference, (s.x, s.y), s.cfg.block));
+        super::with_scratch(s.cfg.block, |scratch| {
+            self.steps(s, steps, centre, window.as_ref(), scratch)
+        })
     }
 
     /// [`Refinement::run`]'s walk through `steps`, its candidates
@@ -653,6 +659,7 @@ impl Refinement {
         s: &SearchContext<'_>,
         steps: &[i32],
         centre: Option<(i32, i32)>,
+        window: Option<&PhaseWindow<'_>>,
         scratch: &mut [u8],
     ) -> bool {
         while let Some(&step) = steps.get(self.step) {
@@ -665,7 +672,7 @@ impl Refinement {
                     return false;
                 }
                 let before = self.best.mv;
-                sub_pel_step(s, step, &mut self.best, scratch);
+                sub_pel_step(s, step, &mut self.best, window, scratch);
                 self.moves += 1;
                 if self.best.mv != before {
                     continue;
@@ -678,12 +685,18 @@ impl Refinement {
 }
 
 /// One sub-pel step of `step` quarter pels around `best` (see [`refine`]).
-fn sub_pel_step(s: &SearchContext<'_>, step: i32, best: &mut Candidate, scratch: &mut [u8]) {
+fn sub_pel_step(
+    s: &SearchContext<'_>,
+    step: i32,
+    best: &mut Candidate,
+    window: Option<&PhaseWindow<'_>>,
+    scratch: &mut [u8],
+) {
     let centre = best.mv;
     let mut try_offset = |(ox, oy): (i32, i32), best: &mut Candidate| -> u64 {
         let mv = Mv::new(centre.x + ox * step, centre.y + oy * step);
         let c = Candidate {
-            cost: s.sub_pel_cost(mv, scratch),
+            cost: s.sub_pel_cost_in(window, mv, scratch),
             mv,
         };
         if c.beats(best) {

@@ -589,16 +589,39 @@ pub fn quantize_4x4(
 /// coefficient `k` on each of the four samples in one butterfly pass.
 const INVERSE_BASIS_X2: [[i32; 4]; 4] = [[2, 2, 2, 2], [2, 1, -1, -2], [2, -2, -2, 2], [1, -2, 2, -1]];
 
+/// The basis block of each coefficient (raster position 4r + c) before
+/// the inverse transform's final rounding, doubled:
+/// `INVERSE_BASIS_X2[r][rr] * INVERSE_BASIS_X2[c][cc]` at (rr, cc),
+/// flattened, so that a step's move is one multiply-add over the block.
+const INVERSE_BASIS_BLOCKS: [[i32; 16]; 16] = {
+    let mut out = [[0; 16]; 16];
+    let mut k = 0;
+    while k < 16 {
+        let mut j = 0;
+        while j < 16 {
+            out[k][j] = INVERSE_BASIS_X2[k / 4][j / 4] * INVERSE_BASIS_X2[k % 4][j % 4];
+            j += 1;
+        }
+        k += 1;
+    }
+    out
+};
+
 /// Squared error between a residual and the reconstruction whose inverse
-/// transform before the final rounding is `unrounded`.
+/// transform before the final rounding is `unrounded`. Each difference is
+/// within 2^15 (dequantised coefficients are within 16 bits, so the
+/// unrounded transform is within 20), so its square fits 32 bits: squares
+/// in 32-bit lanes, summed in 64 (a sum of 64-bit products did not
+/// vectorise).
 #[inline(always)]
 fn rounded_error(residual: &Block4, unrounded: &Block4) -> i64 {
-    let mut e = 0i64;
-    for (a, u) in residual.as_flattened().iter().zip(unrounded.as_flattened()) {
-        let x = i64::from(a - ((u + 32) >> 6));
-        e += x * x;
+    let (a, u) = (residual.as_flattened(), unrounded.as_flattened());
+    let mut squares = [0u32; 16];
+    for j in 0..16 {
+        let x = a[j] - ((u[j] + 32) >> 6);
+        squares[j] = x.unsigned_abs() * x.unsigned_abs();
     }
-    e
+    squares.iter().map(|&s| u64::from(s)).sum::<u64>() as i64
 }
 
 /// The scalar [`RdoqFn`]: rate-distortion optimised quantisation, greedy: from the last level in
@@ -662,10 +685,9 @@ fn lower_4x4(
         let delta = coeff - coeffs[r][c];
         let moved = if delta % 4 == 0 {
             let mut u = unrounded;
-            for (rr, row) in u.iter_mut().enumerate() {
-                for (cc, x) in row.iter_mut().enumerate() {
-                    *x += delta / 4 * INVERSE_BASIS_X2[r][rr] * INVERSE_BASIS_X2[c][cc];
-                }
+            let step = delta / 4;
+            for (x, &b) in u.as_flattened_mut().iter_mut().zip(&INVERSE_BASIS_BLOCKS[k]) {
+                *x += step * b;
             }
             u
         } else {

@@ -556,6 +556,20 @@ mod tests {
         assert!(hp.block_in_place(&r, (0, 0), (-4 * 40, 0), 16).is_none());
     }
 
+    /// Full-pel centres of patches for a block at (16, 16) of a 64x48
+    /// picture with a margin of 24: inside, at the edges, out in the
+    /// margin (where the patch is cut, or empty).
+    const PATCH_CENTRES: [(isize, isize); 8] = [
+        (16, 16),
+        (0, 0),
+        (48, 32),
+        (-20, 5),
+        (-28, -30),
+        (60, 40),
+        (70, 50),
+        (45, -25),
+    ];
+
     #[test]
     fn a_patch_gives_every_sub_pel_step_what_the_planes_give() {
         // Blocks inside, at the edges and out in the margin (where the
@@ -568,16 +582,7 @@ mod tests {
         let (mut a, mut b) = ([0u8; 256], [0u8; 256]);
         // The block at (ox, oy), its full-pel best at (x, y).
         let (ox, oy) = (16isize, 16isize);
-        for (x, y) in [
-            (16, 16),
-            (0, 0),
-            (48, 32),
-            (-20, 5),
-            (-28, -30),
-            (60, 40),
-            (70, 50),
-            (45, -25),
-        ] {
+        for (x, y) in PATCH_CENTRES {
             with_patch(&r, margin, (x, y), 16, |patch| {
                 let patch = patch.expect("a patch for a 16x16 block");
                 for mvy in -4..=3 {
@@ -666,16 +671,7 @@ mod tests {
         // Patches: the steps near their full-pel centre, as in
         // `a_patch_gives_every_sub_pel_step_what_the_planes_give`.
         let (ox, oy) = (16isize, 16isize);
-        for (x, y) in [
-            (16, 16),
-            (0, 0),
-            (48, 32),
-            (-20, 5),
-            (-28, -30),
-            (60, 40),
-            (70, 50),
-            (45, -25),
-        ] {
+        for (x, y) in PATCH_CENTRES {
             with_patch(&r, margin, (x, y), 16, |patch| {
                 let patch = patch.expect("a patch for a 16x16 block");
                 let window = patch.window(&r, (ox, oy), 16);

@@ -611,8 +611,9 @@ const INVERSE_BASIS_BLOCKS: [[i32; 16]; 16] = {
 /// transform before the final rounding is `unrounded`. Each difference is
 /// within 2^15 (dequantised coefficients are within 16 bits, so the
 /// unrounded transform is within 20), so its square fits 32 bits: squares
-/// in 32-bit lanes, summed in 64 (a sum of 64-bit products did not
-/// vectorise).
+/// in 32-bit lanes, summed in 64 (against 64-bit products, birds_720p's
+/// I frame at QP 22 took 0.996x the instructions, with the flattened
+/// basis blocks below).
 #[inline(always)]
 fn rounded_error(residual: &Block4, unrounded: &Block4) -> i64 {
     let (a, u) = (residual.as_flattened(), unrounded.as_flattened());

@@ -299,8 +299,9 @@ impl HalfPel {
 /// offset, a bounds check and at most one average (the many candidates of
 /// a block's sub-pel steps went through [`block_or_predicted`] each, and
 /// finding the phase and its reach again was as much work as averaging).
-/// It gives the samples [`block_or_predicted`] gives, or `None` where
-/// that would take the codec's filter.
+/// It gives the samples [`block_or_predicted`] gives wherever it holds
+/// the block ([`PhaseWindow::holds`]); elsewhere that takes the codec's
+/// filter.
 pub(crate) struct PhaseWindow<'a> {
     /// Each phase's samples from the block displaced by `lo` on, and
     /// their stride.

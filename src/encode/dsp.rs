@@ -613,7 +613,7 @@ const INVERSE_BASIS_BLOCKS: [[i32; 16]; 16] = {
 /// unrounded transform is within 20), so its square fits 32 bits: squares
 /// in 32-bit lanes, summed in 64 (against 64-bit products, birds_720p's
 /// I frame at QP 22 took 0.996x the instructions, with the flattened
-/// basis blocks below).
+/// basis blocks above).
 #[inline(always)]
 fn rounded_error(residual: &Block4, unrounded: &Block4) -> i64 {
     let (a, u) = (residual.as_flattened(), unrounded.as_flattened());

@@ -298,7 +298,8 @@ impl HalfPel {
 /// displacements within reach found once, so that each candidate costs an
 /// offset, a bounds check and at most one average (the many candidates of
 /// a block's sub-pel steps went through [`block_or_predicted`] each, and
-/// finding the phase and its reach again was as much work as averaging).
+/// finding the phase and its reach again took more instructions than the
+/// 16x16 average: about 160 against 110 in birds_720p's profile).
 /// It gives the samples [`block_or_predicted`] gives wherever it holds
 /// the block ([`PhaseWindow::holds`]); elsewhere that takes the codec's
 /// filter.

@@ -263,7 +263,15 @@ fn deblocking() {
                 // often as not.
                 let mut offset = || r.below(25) as i8 - 12;
                 let level = LfLevel::new(qp, (offset(), offset()));
-                let strengths = [0, 1, 2, 3].map(|_| r.below(5) as u8);
+                // Mixed strengths, and (a third each) one strength on all
+                // four pieces or only 1-3 (the kernels compute only the
+                // filters some piece takes: an intra edge's 4s alone, an
+                // inter edge's 0-2).
+                let strengths = match r.below(3) {
+                    0 => [0, 1, 2, 3].map(|_| r.below(5) as u8),
+                    1 => [1 + r.below(4) as u8; 4],
+                    _ => [0, 1, 2, 3].map(|_| r.below(4) as u8),
+                };
                 // Both chroma planes at once (the second plane another
                 // picture), against the scalar kernel on each.
                 let other = &pictures[(n + 7) % pictures.len()];

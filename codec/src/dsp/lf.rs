@@ -236,12 +236,17 @@ mod x86 {
     }
 
     /// Each lane's thresholds: alpha (0 in a lane not filtered), beta,
-    /// tc0, and whether its strength is 4.
+    /// tc0, and whether its strength is 4; and whether any lane has a
+    /// strength of 1-3 (`normal`) or of 4 (`any_strong`), so that the
+    /// kernel computes only the filters some lane takes (an inter edge
+    /// has no strength 4, an intra macroblock's edge only 4).
     struct Lanes {
         alpha: __m256i,
         beta: __m256i,
         tc0: __m256i,
         strong: __m256i,
+        normal: bool,
+        any_strong: bool,
     }
 
     impl Lanes {
@@ -253,39 +258,35 @@ mod x86 {
             let both = |x: __m256i| _mm256_broadcastsi128_si256(_mm256_castsi256_si128(x));
             Lanes {
                 alpha: both(one.alpha),
-                beta: one.beta,
                 tc0: both(one.tc0),
                 strong: both(one.strong),
+                ..one
             }
         }
 
+        /// Each lane's strength looked up in byte tables indexed by
+        /// strength (a shuffle), four lanes a piece for luma, two for
+        /// chroma (its upper eight lanes 0).
         #[target_feature(enable = "avx2")]
         fn new(strengths: [u8; 4], level: LfLevel, luma: bool) -> Lanes {
             let (a, b) = (usize::from(level.a), usize::from(level.b));
-            let per_piece = |f: fn(u8, usize) -> i16| {
-                // Each piece's 16 bits repeated (no carry: x < 2^16).
-                let v = strengths.map(|bs| u64::from(f(bs, a) as u16));
-                if luma {
-                    // Four lanes a piece.
-                    let four = |x: u64| (x * 0x0001_0001_0001_0001) as i64;
-                    _mm256_set_epi64x(four(v[3]), four(v[2]), four(v[1]), four(v[0]))
-                } else {
-                    // Two lanes a piece, the upper eight lanes unused.
-                    let two = |x: u64| (x * 0x0001_0001) as u32 as i32;
-                    _mm256_set_epi32(0, 0, 0, 0, two(v[3]), two(v[2]), two(v[1]), two(v[0]))
-                }
+            let spread = if luma {
+                _mm_setr_epi8(0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3)
+            } else {
+                _mm_setr_epi8(0, 0, 1, 1, 2, 2, 3, 3, -1, -1, -1, -1, -1, -1, -1, -1)
             };
+            let bs = _mm_shuffle_epi8(_mm_cvtsi32_si128(i32::from_le_bytes(strengths)), spread);
+            // By strength 0 ... 4 (bytes 5-15 unused: strengths are <= 4).
+            let (alpha, tc) = (ALPHA[a] as i8, |s: usize| TC0[s][a] as i8);
+            let alpha_by = _mm_setr_epi8(0, alpha, alpha, alpha, alpha, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0);
+            let tc0_by = _mm_setr_epi8(0, tc(0), tc(1), tc(2), 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0);
             Lanes {
-                alpha: per_piece(|bs, q| if bs > 0 { i16::from(ALPHA[q]) } else { 0 }),
+                alpha: _mm256_cvtepu8_epi16(_mm_shuffle_epi8(alpha_by, bs)),
                 beta: _mm256_set1_epi16(i16::from(BETA[b])),
-                tc0: per_piece(|bs, q| {
-                    if (1..4).contains(&bs) {
-                        i16::from(TC0[usize::from(bs) - 1][q])
-                    } else {
-                        0
-                    }
-                }),
-                strong: per_piece(|bs, _| if bs == 4 { -1 } else { 0 }),
+                tc0: _mm256_cvtepu8_epi16(_mm_shuffle_epi8(tc0_by, bs)),
+                strong: _mm256_cvtepi8_epi16(_mm_cmpeq_epi8(bs, _mm_set1_epi8(4))),
+                normal: strengths.iter().any(|s| (1..4).contains(s)),
+                any_strong: strengths.contains(&4),
             }
         }
     }
@@ -499,41 +500,86 @@ mod x86 {
     #[inline]
     #[target_feature(enable = "avx2")]
     fn filter(v: &mut [__m256i; 8], l: &Lanes, luma: bool) {
-        let [p3, p2, p1, p0, q0, q1, q2, q3] = *v;
+        let [_, p2, p1, p0, q0, q1, q2, _] = *v;
         let filtered = and(
             below(dist(p0, q0), l.alpha),
             and(below(dist(p1, p0), l.beta), below(dist(q1, q0), l.beta)),
         );
+        // Each changed sample by the strength's filter: the lanes of
+        // strength 4 take `strong`'s, the others `normal`'s.
+        let choose = |normal: __m256i, strong: __m256i| match (l.normal, l.any_strong) {
+            (true, true) => pick(l.strong, normal, strong),
+            (false, true) => strong,
+            _ => normal,
+        };
         if !luma {
-            let dl = delta(p1, p0, q0, q1, add(l.tc0, k(1)));
-            v[3] = pick(filtered, p0, pick(l.strong, add(p0, dl), soft(p1, p0, q1)));
-            v[4] = pick(filtered, q0, pick(l.strong, sub(q0, dl), soft(q1, q0, p1)));
+            let dl = if l.normal {
+                delta(p1, p0, q0, q1, add(l.tc0, k(1)))
+            } else {
+                k(0)
+            };
+            let (sp, sq) = if l.any_strong {
+                (soft(p1, p0, q1), soft(q1, q0, p1))
+            } else {
+                (p0, q0)
+            };
+            v[3] = pick(filtered, p0, choose(add(p0, dl), sp));
+            v[4] = pick(filtered, q0, choose(sub(q0, dl), sq));
             return;
         }
         let (ap, aq) = (below(dist(p2, p0), l.beta), below(dist(q2, q0), l.beta));
-        // Strengths 1-3 (ap and aq are -1 where set).
-        let dl = delta(p1, p0, q0, q1, sub(sub(l.tc0, ap), aq));
+        let normal = if l.normal {
+            normal_luma([p2, p1, p0, q0, q1, q2], (ap, aq), l.tc0)
+        } else {
+            [p2, p1, p0, q0, q1, q2]
+        };
+        let strong = if l.any_strong {
+            strong_luma(v, (ap, aq), l.alpha)
+        } else {
+            normal
+        };
+        for i in 0..6 {
+            v[i + 1] = pick(filtered, v[i + 1], choose(normal[i], strong[i]));
+        }
+    }
+
+    /// p2 ... q2 of luma lanes at strengths 1-3 (`ap` and `aq` -1 where
+    /// the side is flat).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn normal_luma(
+        [p2, p1, p0, q0, q1, q2]: [__m256i; 6],
+        (ap, aq): (__m256i, __m256i),
+        tc0: __m256i,
+    ) -> [__m256i; 6] {
+        let dl = delta(p1, p0, q0, q1, sub(sub(tc0, ap), aq));
         let mid = _mm256_srai_epi16::<1>(add(add(p0, q0), k(1)));
         let p1n = add(
             p1,
-            within(_mm256_srai_epi16::<1>(sub(add(p2, mid), add(p1, p1))), l.tc0),
+            within(_mm256_srai_epi16::<1>(sub(add(p2, mid), add(p1, p1))), tc0),
         );
         let q1n = add(
             q1,
-            within(_mm256_srai_epi16::<1>(sub(add(q2, mid), add(q1, q1))), l.tc0),
+            within(_mm256_srai_epi16::<1>(sub(add(q2, mid), add(q1, q1))), tc0),
         );
-        let normal = [
+        [
             p2,
             pick(ap, p1, p1n),
             add(p0, dl),
             sub(q0, dl),
             pick(aq, q1, q1n),
             q2,
-        ];
-        // Strength 4.
-        let steep = below(dist(p0, q0), add(_mm256_srai_epi16::<2>(l.alpha), k(2)));
+        ]
+    }
+
+    /// p2 ... q2 of luma lanes at strength 4.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn strong_luma(v: &[__m256i; 8], (ap, aq): (__m256i, __m256i), alpha: __m256i) -> [__m256i; 6] {
+        let [p3, p2, p1, p0, q0, q1, q2, q3] = *v;
+        let steep = below(dist(p0, q0), add(_mm256_srai_epi16::<2>(alpha), k(2)));
         let (sp, sq) = (and(ap, steep), and(aq, steep));
-        let strong = [
+        [
             pick(sp, p2, sum_shr::<3>(&[p3, p3, p2, p2, p2, p1, p0, q0, k(4)])),
             pick(sp, p1, sum_shr::<2>(&[p2, p1, p0, q0, k(2)])),
             pick(
@@ -548,10 +594,7 @@ mod x86 {
             ),
             pick(sq, q1, sum_shr::<2>(&[p0, q0, q1, q2, k(2)])),
             pick(sq, q2, sum_shr::<3>(&[q3, q3, q2, q2, q2, q1, q0, p0, k(4)])),
-        ];
-        for i in 0..6 {
-            v[i + 1] = pick(filtered, v[i + 1], pick(l.strong, normal[i], strong[i]));
-        }
+        ]
     }
 }
 

@@ -216,11 +216,14 @@ fn strength_between(
 }
 
 /// The boundary strength of every luma 4x4 block edge of a frame, found
-/// once for its three planes: `vertical[by * cols + bx]` of the edge left
-/// of block (bx, by), `horizontal` of the edge above it (0 on the
-/// picture's border, which is not an edge).
+/// once for its three planes: `vertical[bx * rows + by]` of the edge left
+/// of block (bx, by), `horizontal[by * cols + bx]` of the edge above it
+/// (0 on the picture's border, which is not an edge). Each is laid out
+/// along its edges, so that the four strengths of a macroblock's length
+/// of edge are one read ([`Strengths::down`], [`Strengths::along`]).
 struct Strengths {
     cols: usize,
+    rows: usize,
     vertical: Vec<u8>,
     horizontal: Vec<u8>,
 }
@@ -230,9 +233,38 @@ impl Strengths {
     fn zero((cols, rows): (usize, usize)) -> Strengths {
         Strengths {
             cols,
+            rows,
             vertical: vec![0; cols * rows],
             horizontal: vec![0; cols * rows],
         }
+    }
+
+    /// The strength of the edge left of block (bx, by).
+    #[cfg(test)]
+    fn vertical_at(&self, bx: usize, by: usize) -> u8 {
+        self.vertical[bx * self.rows + by]
+    }
+
+    /// The strength of the edge above block (bx, by).
+    #[cfg(test)]
+    fn horizontal_at(&self, bx: usize, by: usize) -> u8 {
+        self.horizontal[by * self.cols + bx]
+    }
+
+    /// The strengths of the vertical edge left of blocks (bx, by) ...
+    /// (bx, by + 3).
+    #[inline]
+    fn down(&self, bx: usize, by: usize) -> [u8; 4] {
+        let at = bx * self.rows + by;
+        self.vertical[at..at + 4].try_into().expect("four strengths")
+    }
+
+    /// The strengths of the horizontal edge above blocks (bx, by) ...
+    /// (bx + 3, by).
+    #[inline]
+    fn along(&self, bx: usize, by: usize) -> [u8; 4] {
+        let at = by * self.cols + bx;
+        self.horizontal[at..at + 4].try_into().expect("four strengths")
     }
 
     /// The strengths of the edges left of and above the blocks of
@@ -250,10 +282,13 @@ impl Strengths {
             } else {
                 masks.strengths()
             };
-            for y in 0..4 {
-                let at = corner + y * cols;
-                self.vertical[at..at + 4].copy_from_slice(&vertical[4 * y..4 * y + 4]);
-                self.horizontal[at..at + 4].copy_from_slice(&horizontal[4 * y..4 * y + 4]);
+            for k in 0..4 {
+                let at = corner + k * cols;
+                self.horizontal[at..at + 4].copy_from_slice(&horizontal[4 * k..4 * k + 4]);
+                // Column k of the macroblock's blocks, down.
+                let at = (4 * mx + k) * self.rows + 4 * my;
+                let column = [0, 1, 2, 3].map(|y| vertical[4 * y + k]);
+                self.vertical[at..at + 4].copy_from_slice(&column);
             }
         }
     }
@@ -477,8 +512,7 @@ fn each_edge<const SUB: usize>(
     rows: Range<usize>,
     mut edge: impl FnMut((usize, usize, usize), [u8; 4]),
 ) {
-    let (piece, mb) = (4 / SUB, 16 / SUB);
-    let cols = strengths.cols;
+    let mb = 16 / SUB;
     let (top, bottom) = (
         rows.start.saturating_mul(mb).min(l.height),
         rows.end.saturating_mul(mb).min(l.height),
@@ -486,7 +520,9 @@ fn each_edge<const SUB: usize>(
     for y0 in (top..bottom).step_by(mb) {
         for x in (4..l.width).step_by(4) {
             let bx = x * SUB / 4;
-            let bs = std::array::from_fn(|k| strengths.vertical[((y0 + k * piece) * SUB / 4) * cols + bx]);
+            // The four pieces' strengths are those of four luma blocks
+            // down (a chroma piece is a luma block's half).
+            let bs = strengths.down(bx, y0 * SUB / 4);
             if bs != [0; 4] {
                 edge((l.origin + y0 * l.stride + x, 1, l.stride), bs);
             }
@@ -494,8 +530,7 @@ fn each_edge<const SUB: usize>(
         for x0 in (0..l.width).step_by(mb) {
             // The picture's top is no edge.
             for y in (y0.max(4)..y0 + mb).step_by(4) {
-                let row = (y * SUB / 4) * cols;
-                let bs = std::array::from_fn(|k| strengths.horizontal[row + (x0 + k * piece) * SUB / 4]);
+                let bs = strengths.along(x0 * SUB / 4, y * SUB / 4);
                 if bs != [0; 4] {
                     edge((l.origin + y * l.stride + x0, l.stride, 1), bs);
                 }
@@ -722,10 +757,10 @@ mod tests {
             let (piece, mb) = (4 / sub, 16 / sub);
             // Four pieces down a vertical edge, along a horizontal one.
             let down = |y: usize, x: usize| -> [u8; 4] {
-                std::array::from_fn(|k| s.vertical[((y + k * piece) * sub / 4) * s.cols + x * sub / 4])
+                std::array::from_fn(|k| s.vertical_at(x * sub / 4, (y + k * piece) * sub / 4))
             };
             let along = |y: usize, x: usize| -> [u8; 4] {
-                std::array::from_fn(|k| s.horizontal[(y * sub / 4) * s.cols + (x + k * piece) * sub / 4])
+                std::array::from_fn(|k| s.horizontal_at((x + k * piece) * sub / 4, y * sub / 4))
             };
             for y0 in (0..l.height).step_by(mb) {
                 for x in (4..l.width).step_by(4) {
@@ -793,7 +828,6 @@ mod tests {
         let s = FrameDeblocker::new(&info, (16 * cols, 16 * rows), 30).strengths;
         for by in 0..4 * rows {
             for bx in 0..4 * cols {
-                let at = by * 4 * cols + bx;
                 let v = if bx > 0 {
                     strength(&info, cols, (bx - 1, by), (bx, by))
                 } else {
@@ -804,7 +838,11 @@ mod tests {
                 } else {
                     0
                 };
-                assert_eq!((s.vertical[at], s.horizontal[at]), (v, h), "block ({bx}, {by})");
+                assert_eq!(
+                    (s.vertical_at(bx, by), s.horizontal_at(bx, by)),
+                    (v, h),
+                    "block ({bx}, {by})"
+                );
             }
         }
     }

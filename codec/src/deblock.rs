@@ -256,7 +256,8 @@ impl Strengths {
     #[inline]
     fn down(&self, bx: usize, by: usize) -> [u8; 4] {
         let at = bx * self.rows + by;
-        self.vertical[at..at + 4].try_into().expect("four strengths")
+        let four = &self.vertical[at..at + 4];
+        [four[0], four[1], four[2], four[3]]
     }
 
     /// The strengths of the horizontal edge above blocks (bx, by) ...
@@ -264,7 +265,8 @@ impl Strengths {
     #[inline]
     fn along(&self, bx: usize, by: usize) -> [u8; 4] {
         let at = by * self.cols + bx;
-        self.horizontal[at..at + 4].try_into().expect("four strengths")
+        let four = &self.horizontal[at..at + 4];
+        [four[0], four[1], four[2], four[3]]
     }
 
     /// The strengths of the edges left of and above the blocks of

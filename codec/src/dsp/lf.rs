@@ -120,16 +120,22 @@ mod x86 {
         let (lines, _) = mb_edge_lines(luma);
         let vertical = step == 1 && first >= 4 && first + (lines - 1) * line_step + 4 <= d.len();
         let horizontal = line_step == 1 && first >= 4 * step && first + 3 * step + lines <= d.len();
-        // SAFETY (both calls): AVX2 is in force (this kernel sits only in
+        if !vertical && !horizontal {
+            return filter_mb_edge(d, (first, step, line_step), strengths, level, luma);
+        }
+        let p = d.as_mut_ptr();
+        // SAFETY (every call): AVX2 is in force (this kernel sits only in
         // the AVX2 table, which is handed out only where the CPU has it),
         // and every sample read or written lies in the ranges checked just
-        // above.
-        if vertical {
-            unsafe { across_columns(d.as_mut_ptr().add(first - 4), line_step, strengths, level, luma) };
-        } else if horizontal {
-            unsafe { across_rows(d.as_mut_ptr().add(first - 4 * step), step, strengths, level, luma) };
-        } else {
-            filter_mb_edge(d, (first, step, line_step), strengths, level, luma);
+        // above. Luma and chroma are kernels of their own (the lines and
+        // filters known when compiled).
+        unsafe {
+            match (vertical, luma) {
+                (true, true) => across_columns::<true>(p.add(first - 4), line_step, strengths, level),
+                (true, false) => across_columns::<false>(p.add(first - 4), line_step, strengths, level),
+                (false, true) => across_rows::<true>(p.add(first - 4 * step), step, strengths, level),
+                (false, false) => across_rows::<false>(p.add(first - 4 * step), step, strengths, level),
+            }
         }
     }
 
@@ -189,7 +195,7 @@ mod x86 {
             );
             *x = _mm256_cvtepu8_epi16(_mm_unpacklo_epi64(_mm_loadl_epi64(a), _mm_loadl_epi64(b)));
         }
-        filter(&mut x, lanes, false);
+        filter::<false>(&mut x, lanes);
         // Only p0 and q0 change.
         for (r, &row) in x.iter().enumerate().take(5).skip(3) {
             let both = narrow(row);
@@ -225,7 +231,7 @@ mod x86 {
         for (x, c) in x.iter_mut().zip(columns) {
             *x = _mm256_cvtepu8_epi16(c);
         }
-        filter(&mut x, lanes, false);
+        filter::<false>(&mut x, lanes);
         let mut columns = [_mm_setzero_si128(); 8];
         for (c, x) in columns.iter_mut().zip(x) {
             *c = narrow(x);
@@ -294,7 +300,13 @@ mod x86 {
     /// A horizontal edge: lines run down the columns, the eight rows
     /// p3 ... q3 from `base` on, `stride` apart.
     #[target_feature(enable = "avx2")]
-    unsafe fn across_rows(base: *mut u8, stride: usize, strengths: [u8; 4], level: LfLevel, luma: bool) {
+    unsafe fn across_rows<const LUMA: bool>(
+        base: *mut u8,
+        stride: usize,
+        strengths: [u8; 4],
+        level: LfLevel,
+    ) {
+        let luma = LUMA;
         let mut v = [_mm256_setzero_si256(); 8];
         for (r, x) in v.iter_mut().enumerate() {
             let at = base.add(r * stride) as *const __m128i;
@@ -304,7 +316,7 @@ mod x86 {
                 _mm_loadl_epi64(at)
             });
         }
-        filter(&mut v, &Lanes::new(strengths, level, luma), luma);
+        filter::<LUMA>(&mut v, &Lanes::new(strengths, level, luma));
         let changed = if luma { 1..7 } else { 3..5 };
         for r in changed {
             let at = base.add(r * stride) as *mut __m128i;
@@ -319,7 +331,13 @@ mod x86 {
     /// A vertical edge: lines run along the rows, each line's eight samples
     /// p3 ... q3 from `base` on, the lines `stride` apart.
     #[target_feature(enable = "avx2")]
-    unsafe fn across_columns(base: *mut u8, stride: usize, strengths: [u8; 4], level: LfLevel, luma: bool) {
+    unsafe fn across_columns<const LUMA: bool>(
+        base: *mut u8,
+        stride: usize,
+        strengths: [u8; 4],
+        level: LfLevel,
+    ) {
+        let luma = LUMA;
         let (lines, _) = mb_edge_lines(luma);
         let mut rows = [_mm_setzero_si128(); 16];
         for (k, r) in rows.iter_mut().enumerate().take(lines) {
@@ -330,7 +348,7 @@ mod x86 {
         for (x, c) in v.iter_mut().zip(columns) {
             *x = _mm256_cvtepu8_epi16(c);
         }
-        filter(&mut v, &Lanes::new(strengths, level, luma), luma);
+        filter::<LUMA>(&mut v, &Lanes::new(strengths, level, luma));
         let mut columns = [_mm_setzero_si128(); 8];
         for (c, x) in columns.iter_mut().zip(v) {
             *c = narrow(x);
@@ -499,7 +517,7 @@ mod x86 {
     /// [`super::filter_line`] on every lane of `v` (p3 ... q3).
     #[inline]
     #[target_feature(enable = "avx2")]
-    fn filter(v: &mut [__m256i; 8], l: &Lanes, luma: bool) {
+    fn filter<const LUMA: bool>(v: &mut [__m256i; 8], l: &Lanes) {
         let [_, p2, p1, p0, q0, q1, q2, _] = *v;
         let filtered = and(
             below(dist(p0, q0), l.alpha),
@@ -512,7 +530,7 @@ mod x86 {
             (false, true) => strong,
             _ => normal,
         };
-        if !luma {
+        if !LUMA {
             let dl = if l.normal {
                 delta(p1, p0, q0, q1, add(l.tc0, k(1)))
             } else {

@@ -306,21 +306,20 @@ mod x86 {
         strengths: [u8; 4],
         level: LfLevel,
     ) {
-        let luma = LUMA;
         let mut v = [_mm256_setzero_si256(); 8];
         for (r, x) in v.iter_mut().enumerate() {
             let at = base.add(r * stride) as *const __m128i;
-            *x = _mm256_cvtepu8_epi16(if luma {
+            *x = _mm256_cvtepu8_epi16(if LUMA {
                 _mm_loadu_si128(at)
             } else {
                 _mm_loadl_epi64(at)
             });
         }
-        filter::<LUMA>(&mut v, &Lanes::new(strengths, level, luma));
-        let changed = if luma { 1..7 } else { 3..5 };
+        filter::<LUMA>(&mut v, &Lanes::new(strengths, level, LUMA));
+        let changed = if LUMA { 1..7 } else { 3..5 };
         for r in changed {
             let at = base.add(r * stride) as *mut __m128i;
-            if luma {
+            if LUMA {
                 _mm_storeu_si128(at, narrow(v[r]));
             } else {
                 _mm_storel_epi64(at, narrow(v[r]));
@@ -337,8 +336,7 @@ mod x86 {
         strengths: [u8; 4],
         level: LfLevel,
     ) {
-        let luma = LUMA;
-        let (lines, _) = mb_edge_lines(luma);
+        let (lines, _) = mb_edge_lines(LUMA);
         let mut rows = [_mm_setzero_si128(); 16];
         for (k, r) in rows.iter_mut().enumerate().take(lines) {
             *r = _mm_loadl_epi64(base.add(k * stride) as *const __m128i);
@@ -348,7 +346,7 @@ mod x86 {
         for (x, c) in v.iter_mut().zip(columns) {
             *x = _mm256_cvtepu8_epi16(c);
         }
-        filter::<LUMA>(&mut v, &Lanes::new(strengths, level, luma));
+        filter::<LUMA>(&mut v, &Lanes::new(strengths, level, LUMA));
         let mut columns = [_mm_setzero_si128(); 8];
         for (c, x) in columns.iter_mut().zip(v) {
             *c = narrow(x);

@@ -327,6 +327,10 @@ fn coder_table(c: &mut Criterion) {
         bench(g, "residual_estimate", l, || {
             (t.residual_estimate)(black_box(&coded))
         });
+        bench(g, "forward_8x8", l, || (t.forward_8x8)(black_box(&src), &pred, 2));
+        bench(g, "inter_luma8_plain", l, || {
+            (t.inter_luma8)(black_box(&src), &pred, 28, lambda, None)
+        });
         bench(g, "inter_luma8_rdoq", l, || {
             (t.inter_luma8)(black_box(&src), &pred, 28, lambda, Some(&rate8))
         });

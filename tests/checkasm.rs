@@ -717,6 +717,7 @@ fn macroblock_coder() {
             residual_estimate,
             inter_luma8,
             intra_block8,
+            forward_8x8,
         } = *t;
         let sources = sample_sets(256, 10);
         for src in &sources {
@@ -744,6 +745,11 @@ fn macroblock_coder() {
                     let (src, pred): (&[u8; 256], [u8; 256]) =
                         (src[..].try_into().unwrap(), pred.clone().try_into().unwrap());
                     for q in 0..4 {
+                        assert_eq!(
+                            forward_8x8(src, &pred, q),
+                            (s.forward_8x8)(src, &pred, q),
+                            "{isa} 8x8 transform of quadrant {q}"
+                        );
                         for rounding in [1.0 / 3.0, 1.0 / 6.0] {
                             assert_eq!(
                                 quadrant_levels(src, &pred, q, qp, rounding),

@@ -169,7 +169,7 @@ const QUANT8_32: [[u32; 64]; 6] = {
 #[inline]
 pub fn dequantize_level_8x8(level: i32, qp: u8, r: usize, c: usize) -> i32 {
     debug_assert!(qp <= MAX_QP);
-    let v = i64::from(DEQUANT8[usize::from(qp % 6)][class8(r, c)]);
+    let v = i64::from(DEQUANT8_BY_POSITION[usize::from(qp % 6)][r * 8 + c]);
     // i64: |level| <= 2^31, V < 2^6, qp / 6 <= 8: within 46 bits.
     let value = (((i64::from(level) * v) << (qp / 6)) + 2) >> 2;
     value.clamp(-32768, 32767) as i32
@@ -265,14 +265,38 @@ const INVERSE_ROW_NORM: [f64; 8] = {
 /// an encoder weighing single levels needs (not normative).
 #[inline]
 pub fn orthonormal_scale(r: usize, c: usize) -> f64 {
-    INVERSE_ROW_NORM[r] * INVERSE_ROW_NORM[c]
+    ORTHONORMAL_SCALE8[r * 8 + c]
 }
+
+/// [`orthonormal_scale`] of every position, row by row (the same
+/// products, taken once).
+pub const ORTHONORMAL_SCALE8: [f64; 64] = {
+    let mut t = [0.0; 64];
+    let mut k = 0;
+    while k < 64 {
+        t[k] = INVERSE_ROW_NORM[k / 8] * INVERSE_ROW_NORM[k % 8];
+        k += 1;
+    }
+    t
+};
+
+/// `4096` times [`ORTHONORMAL_SCALE8`]: what [`dequantized_orthonormal`]
+/// divides by.
+const DEQUANTIZED_DIVISOR8: [f64; 64] = {
+    let mut t = [0.0; 64];
+    let mut k = 0;
+    while k < 64 {
+        t[k] = 4096.0 * ORTHONORMAL_SCALE8[k];
+        k += 1;
+    }
+    t
+};
 
 /// The orthonormal coefficient a dequantised value at (r, c) stands for:
 /// `D sqrt(n_r n_c) / 4096` (not normative).
 #[inline]
 pub fn dequantized_orthonormal(d: i32, r: usize, c: usize) -> f64 {
-    f64::from(d) / (4096.0 * orthonormal_scale(r, c))
+    f64::from(d) / DEQUANTIZED_DIVISOR8[r * 8 + c]
 }
 
 #[cfg(test)]

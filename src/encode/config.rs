@@ -319,7 +319,7 @@ pub enum EncoderPreset {
     /// The 8x8 transform, and I frames' intra in 4x4 and 8x8 blocks.
     Superfast,
     /// 8x8 intra in P frames; sub-pel compared by SATD, four moves a
-    /// step and sub-pel starts.
+    /// step.
     Veryfast,
     /// EPZS's exhaustive window of 3 pels.
     Faster,
@@ -329,8 +329,9 @@ pub enum EncoderPreset {
     /// pays, and the deblocking offsets chosen per frame. The default.
     #[default]
     Medium,
-    /// A window of 4 pels, full-pel positions
-    /// compared by SATD, three references, sub-pel RD refinement, 4x4
+    /// A window of 4 pels, full-pel positions compared by SATD, the
+    /// candidates' sub-pel positions as starts of the sub-pel steps,
+    /// three references, sub-pel RD refinement, 4x4
     /// intra in P frames, and splits searched where their candidates come
     /// within 1.1 of the whole macroblock's estimate.
     Slow,

@@ -5,7 +5,10 @@
 //! zeroing and RDOQ; intra: one block). The quantisers' AVX2 kernels are
 //! intrinsics (two blocks' rows in the eight 32-bit lanes: 0.58x the
 //! instructions of the scalar source compiled for AVX2, talk_vga
-//! ultrafast); the other AVX2 builds are the scalar source compiled for
+//! ultrafast), and so is the 8x8 transform (a row in the eight lanes:
+//! the scalar source's transposes were element by element, and it was
+//! not inlined into its AVX2 callers); the other AVX2 builds are the
+//! scalar source compiled for
 //! AVX2 (the baseline x86-64 build has no 32-bit vector multiply, so
 //! RDOQ's error updates would run a coefficient at a time); integer
 //! arithmetic and the same floating-point operations without FMA: the
@@ -14,7 +17,7 @@
 use super::rate::{
     few_levels, residual_estimate, Block8Pricer, BlockPricer, ScanLevels, TrialPrices, WholeTrials,
 };
-use super::transform8x8::{inter_luma8, intra_block8};
+use super::transform8x8::{inter_luma8, intra_block8, quadrant_forward8};
 use crate::codec::dsp::PerLevel;
 use crate::codec::residual::{MbResidual, ZIGZAG};
 use crate::codec::transform::{
@@ -51,6 +54,11 @@ pub type InterLuma8Fn =
 /// One intra 8x8 block's levels: `(src, pred, quadrant, (qp, lambda), rate)`.
 pub type IntraBlock8Fn = fn(&[u8; 256], &[u8; 256], usize, (u8, f64), Option<&Block8Pricer>) -> Block8;
 
+/// The 8x8 transform of one quadrant of a macroblock's luma `s - p`:
+/// `(s, p, quadrant)` (the quadrant's index in raster order), the
+/// coefficients of [`crate::codec::transform8x8::forward_8x8`].
+pub type Forward8Fn = fn(&[u8; 256], &[u8; 256], usize) -> Block8;
+
 /// Inter luma's zeroing of costly lone levels ([`decimate_luma`]).
 pub type DecimateLumaFn = fn(&mut [Block4; 16]);
 
@@ -83,6 +91,8 @@ pub struct CoderDsp {
     pub inter_luma8: InterLuma8Fn,
     /// An intra 8x8 block's levels.
     pub intra_block8: IntraBlock8Fn,
+    /// A luma quadrant's 8x8 transform (what the two above use).
+    pub forward_8x8: Forward8Fn,
 }
 
 const SCALAR: CoderDsp = CoderDsp {
@@ -95,6 +105,7 @@ const SCALAR: CoderDsp = CoderDsp {
     residual_estimate,
     inter_luma8,
     intra_block8,
+    forward_8x8: quadrant_forward8,
 };
 
 /// The tables, lowest level first.
@@ -112,6 +123,7 @@ pub static CODER: PerLevel<CoderDsp> = PerLevel([
         residual_estimate: avx2::residual_estimate,
         inter_luma8: avx2::inter_luma8,
         intra_block8: avx2::intra_block8,
+        forward_8x8: x86::forward_8x8_avx2,
     },
     #[cfg(not(target_arch = "x86_64"))]
     SCALAR,
@@ -137,9 +149,9 @@ mod avx2 {
         fn decimate_luma(luma: &mut [Block4; 16]) => super::decimate_luma;
         fn decimate_score(blocks: &[Block4]) -> u32 => super::decimate_score;
         fn inter_luma8(src: &[u8; 256], pred: &[u8; 256], qp: u8, lambda: f64, rate: Option<&Block8Pricer>) -> Option<Box<[Block8; 4]>>
-            => super::inter_luma8;
+            => super::x86::inter_luma8_in_avx2;
         fn intra_block8(src: &[u8; 256], pred: &[u8; 256], q: usize, qp_lambda: (u8, f64), rate: Option<&Block8Pricer>) -> Block8
-            => super::intra_block8;
+            => super::x86::intra_block8_in_avx2;
     }
     // The counts of non-zero levels are masks counted by POPCNT (which the
     // AVX2 level requires too): without it, bit by bit.
@@ -197,8 +209,132 @@ pub(crate) fn small_levels_scalar(b: &Block4) -> Option<usize> {
 
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod x86 {
+    use crate::codec::syntax::MB;
     use crate::codec::transform::{Block4, Quantizer4x4};
+    use crate::codec::transform8x8::Block8;
+    use crate::encode::rate::Block8Pricer;
+    use crate::encode::transform8x8::{inter_luma8_with, intra_block8_with};
     use std::arch::x86_64::*;
+
+    /// The AVX2 [`super::Forward8Fn`].
+    #[inline(always)]
+    pub(crate) fn forward_8x8_avx2(s: &[u8; 256], p: &[u8; 256], quadrant: usize) -> Block8 {
+        // SAFETY: this kernel sits only in the AVX2 table, handed out only
+        // where the CPU has AVX2, and is called by the AVX2 builds below.
+        unsafe { forward_8x8_body(s, p, quadrant) }
+    }
+
+    /// [`super::inter_luma8`] with [`forward_8x8_avx2`], for the AVX2 build.
+    #[inline(always)]
+    pub(crate) fn inter_luma8_in_avx2(
+        src: &[u8; 256],
+        pred: &[u8; 256],
+        qp: u8,
+        lambda: f64,
+        rate: Option<&Block8Pricer>,
+    ) -> Option<Box<[Block8; 4]>> {
+        inter_luma8_with(forward_8x8_avx2, src, pred, (qp, lambda), rate)
+    }
+
+    /// [`super::intra_block8`] with [`forward_8x8_avx2`], for the AVX2 build.
+    #[inline(always)]
+    pub(crate) fn intra_block8_in_avx2(
+        src: &[u8; 256],
+        pred: &[u8; 256],
+        q: usize,
+        qp_lambda: (u8, f64),
+        rate: Option<&Block8Pricer>,
+    ) -> Block8 {
+        intra_block8_with(forward_8x8_avx2, src, pred, q, qp_lambda, rate)
+    }
+
+    /// The quadrant's eight rows of residual, one in each register's eight
+    /// 32-bit lanes; the butterflies between the rows, a transpose, the
+    /// butterflies again and the transpose back: the scalar transform's
+    /// passes in its order (exact integer arithmetic, so the same values).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn forward_8x8_body(s: &[u8; 256], p: &[u8; 256], quadrant: usize) -> Block8 {
+        let at = (quadrant / 2) * 8 * MB + (quadrant % 2) * 8;
+        let (s, p) = (&s[at..at + 7 * MB + 8], &p[at..at + 7 * MB + 8]);
+        let mut rows = [_mm256_setzero_si256(); 8];
+        for (r, row) in rows.iter_mut().enumerate() {
+            // SAFETY: 8 bytes from r * MB, r < 8: inside both slices.
+            unsafe {
+                let x = _mm256_cvtepu8_epi32(_mm_loadl_epi64(s.as_ptr().add(r * MB) as *const __m128i));
+                let y = _mm256_cvtepu8_epi32(_mm_loadl_epi64(p.as_ptr().add(r * MB) as *const __m128i));
+                *row = _mm256_sub_epi32(x, y);
+            }
+        }
+        let w = transpose8(butterflies8(transpose8(butterflies8(rows))));
+        let mut out = [[0; 8]; 8];
+        for (row, &v) in out.iter_mut().zip(&w) {
+            // SAFETY: a row of a Block8 is 32 contiguous bytes.
+            unsafe { _mm256_storeu_si256(row.as_mut_ptr() as *mut __m256i, v) };
+        }
+        out
+    }
+
+    /// `T X` of the 8x8 transform between eight rows (each step row-wide,
+    /// as [`crate::codec::transform8x8::forward_8x8`]'s columns).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn butterflies8(x: [__m256i; 8]) -> [__m256i; 8] {
+        let (add, sub) = (_mm256_add_epi32, _mm256_sub_epi32);
+        let times = |v: __m256i, k: i32| _mm256_mullo_epi32(v, _mm256_set1_epi32(k));
+        let (s0, s1, s2, s3) = (add(x[0], x[7]), add(x[1], x[6]), add(x[2], x[5]), add(x[3], x[4]));
+        let (d0, d1, d2, d3) = (sub(x[0], x[7]), sub(x[1], x[6]), sub(x[2], x[5]), sub(x[3], x[4]));
+        let (a, b) = (add(s0, s3), add(s1, s2));
+        let (c, e) = (sub(s0, s3), sub(s1, s2));
+        [
+            _mm256_slli_epi32::<3>(add(a, b)),
+            add(add(times(d0, 12), times(d1, 10)), add(times(d2, 6), times(d3, 3))),
+            add(_mm256_slli_epi32::<3>(c), _mm256_slli_epi32::<2>(e)),
+            sub(sub(times(d0, 10), times(d1, 3)), add(times(d2, 12), times(d3, 6))),
+            _mm256_slli_epi32::<3>(sub(a, b)),
+            add(sub(times(d0, 6), times(d1, 12)), add(times(d2, 3), times(d3, 10))),
+            sub(_mm256_slli_epi32::<2>(c), _mm256_slli_epi32::<3>(e)),
+            add(sub(times(d0, 3), times(d1, 6)), sub(times(d2, 10), times(d3, 12))),
+        ]
+    }
+
+    /// An 8x8 block of 32-bit values (a row a register) transposed.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn transpose8(r: [__m256i; 8]) -> [__m256i; 8] {
+        // Pairs of rows interleaved, then pairs of pairs: each 128-bit half
+        // holds a 4x4 corner transposed; the halves then swap across.
+        let t: [__m256i; 8] = [
+            _mm256_unpacklo_epi32(r[0], r[1]),
+            _mm256_unpackhi_epi32(r[0], r[1]),
+            _mm256_unpacklo_epi32(r[2], r[3]),
+            _mm256_unpackhi_epi32(r[2], r[3]),
+            _mm256_unpacklo_epi32(r[4], r[5]),
+            _mm256_unpackhi_epi32(r[4], r[5]),
+            _mm256_unpacklo_epi32(r[6], r[7]),
+            _mm256_unpackhi_epi32(r[6], r[7]),
+        ];
+        let u: [__m256i; 8] = [
+            _mm256_unpacklo_epi64(t[0], t[2]),
+            _mm256_unpackhi_epi64(t[0], t[2]),
+            _mm256_unpacklo_epi64(t[1], t[3]),
+            _mm256_unpackhi_epi64(t[1], t[3]),
+            _mm256_unpacklo_epi64(t[4], t[6]),
+            _mm256_unpackhi_epi64(t[4], t[6]),
+            _mm256_unpacklo_epi64(t[5], t[7]),
+            _mm256_unpackhi_epi64(t[5], t[7]),
+        ];
+        [
+            _mm256_permute2x128_si256::<0x20>(u[0], u[4]),
+            _mm256_permute2x128_si256::<0x20>(u[1], u[5]),
+            _mm256_permute2x128_si256::<0x20>(u[2], u[6]),
+            _mm256_permute2x128_si256::<0x20>(u[3], u[7]),
+            _mm256_permute2x128_si256::<0x31>(u[0], u[4]),
+            _mm256_permute2x128_si256::<0x31>(u[1], u[5]),
+            _mm256_permute2x128_si256::<0x31>(u[2], u[6]),
+            _mm256_permute2x128_si256::<0x31>(u[3], u[7]),
+        ]
+    }
 
     /// The AVX2 [`super::QuantizeBlocksFn`]: a macroblock's luma (16) or a
     /// chroma plane (8) two side-by-side blocks at a time, one row of

@@ -8,7 +8,7 @@ use super::rate::{few_levels, Block8Pricer, ScanLevels, TrialPrices, WholeTrials
 use super::rdo::quant_rounding;
 use crate::codec::syntax::MB;
 use crate::codec::transform8x8::{
-    dequantize_level_8x8, dequantized_orthonormal, forward_8x8, orthonormal_scale, quantize_8x8, Block8,
+    dequantize_level_8x8, dequantized_orthonormal, forward_8x8, quantize_8x8, Block8, ORTHONORMAL_SCALE8,
     ZIGZAG8,
 };
 
@@ -83,6 +83,21 @@ fn quadrant_residual(src: &[u8; 256], pred: &[u8; 256], q: usize) -> Block8 {
     })
 }
 
+/// The 8x8 transform of quadrant `q` of `src - pred` (16x16 luma): the
+/// scalar kernel ([`super::dsp::Forward8Fn`]).
+#[inline(always)]
+pub(crate) fn quadrant_forward8(src: &[u8; 256], pred: &[u8; 256], q: usize) -> Block8 {
+    forward_8x8(&quadrant_residual(src, pred, q))
+}
+
+/// The coefficients of [`forward_8x8`] on the orthonormal basis (what
+/// RDOQ measures its error on).
+#[inline(always)]
+fn orthonormal(w: &Block8) -> [f64; 64] {
+    let w = w.as_flattened();
+    std::array::from_fn(|k| f64::from(w[k]) * ORTHONORMAL_SCALE8[k])
+}
+
 /// Rate-distortion optimised quantisation of one block, greedy from the
 /// last level to the first: a level steps toward zero where that lowers
 /// squared error + lambda * bits. The error is measured on the orthonormal
@@ -121,9 +136,18 @@ fn descend8(
     let recon =
         |v: i32, k: usize| dequantized_orthonormal(dequantize_level_8x8(v, qp, k / 8, k % 8), k / 8, k % 8);
     let sq = |x: f64| x * x;
-    let mut error: f64 = (0..64)
-        .map(|k| sq(source[k] - recon(levels[k / 8][k % 8], k)))
-        .sum();
+    // Each position's squared error, summed in raster order. A level of 0
+    // stands for 0, so its term is the source's own square: only the
+    // non-zero levels are dequantised.
+    let mut terms: [f64; 64] = std::array::from_fn(|k| sq(source[k]));
+    let zero_error: f64 = terms.iter().sum();
+    let mut nonzero = scan.mask;
+    while nonzero != 0 {
+        let k = ZIGZAG8[nonzero.trailing_zeros() as usize];
+        nonzero &= nonzero - 1;
+        terms[k] = sq(source[k] - recon(levels[k / 8][k % 8], k));
+    }
+    let mut error: f64 = terms.iter().sum();
     // The non-zero levels from the last: a trial changes only its own.
     let mut untried = scan.mask;
     while untried != 0 {
@@ -150,7 +174,6 @@ fn descend8(
         }
     }
     // Last, the whole block against none of it.
-    let zero_error: f64 = source.iter().map(|&a| sq(a)).sum();
     if bits > 0.0 && zero_error - error <= lambda * bits {
         *levels = [[0; 8]; 8];
     }
@@ -166,14 +189,27 @@ pub(crate) fn inter_luma8(
     lambda: f64,
     rate: Option<&Block8Pricer>,
 ) -> Option<Box<[Block8; 4]>> {
+    inter_luma8_with(quadrant_forward8, src, pred, (qp, lambda), rate)
+}
+
+/// [`inter_luma8`] with the quadrants transformed by `forward` (a
+/// [`super::dsp::Forward8Fn`] of the CPU level it is compiled for).
+#[inline(always)]
+pub(crate) fn inter_luma8_with(
+    forward: impl Fn(&[u8; 256], &[u8; 256], usize) -> Block8,
+    src: &[u8; 256],
+    pred: &[u8; 256],
+    (qp, lambda): (u8, f64),
+    rate: Option<&Block8Pricer>,
+) -> Option<Box<[Block8; 4]>> {
     let mut blocks = Box::new([[[0; 8]; 8]; 4]);
+    // The orthonormal coefficients only where RDOQ weighs them.
     let mut sources = [[0.0; 64]; 4];
     for (q, (levels, source)) in blocks.iter_mut().zip(&mut sources).enumerate() {
-        let w = forward_8x8(&quadrant_residual(src, pred, q));
-        for (k, s) in source.iter_mut().enumerate() {
-            *s = f64::from(w[k / 8][k % 8]) * orthonormal_scale(k / 8, k % 8);
+        *levels = forward(src, pred, q);
+        if rate.is_some() {
+            *source = orthonormal(levels);
         }
-        *levels = w;
         quantize_8x8(levels, qp, quant_rounding(false, rate.is_some()));
     }
     drop_costly_small(&mut blocks);
@@ -196,16 +232,28 @@ pub(crate) fn intra_block8(
     src: &[u8; 256],
     pred: &[u8; 256],
     q: usize,
+    qp_lambda: (u8, f64),
+    rate: Option<&Block8Pricer>,
+) -> Block8 {
+    intra_block8_with(quadrant_forward8, src, pred, q, qp_lambda, rate)
+}
+
+/// [`intra_block8`] with the block transformed by `forward`, as
+/// [`inter_luma8_with`].
+#[inline(always)]
+pub(crate) fn intra_block8_with(
+    forward: impl Fn(&[u8; 256], &[u8; 256], usize) -> Block8,
+    src: &[u8; 256],
+    pred: &[u8; 256],
+    q: usize,
     (qp, lambda): (u8, f64),
     rate: Option<&Block8Pricer>,
 ) -> Block8 {
-    let w = forward_8x8(&quadrant_residual(src, pred, q));
+    let w = forward(src, pred, q);
     let mut levels = w;
     quantize_8x8(&mut levels, qp, quant_rounding(true, rate.is_some()));
     if let Some(rate) = rate {
-        let source: [f64; 64] =
-            std::array::from_fn(|k| f64::from(w[k / 8][k % 8]) * orthonormal_scale(k / 8, k % 8));
-        lower_levels8(&source, &mut levels, qp, lambda, rate);
+        lower_levels8(&orthonormal(&w), &mut levels, qp, lambda, rate);
     }
     levels
 }

@@ -153,12 +153,19 @@ fn inverse_transforms() {
                         assert_eq!(a, b, "{isa} 4x4 with DC {dc} at QP {qp}");
                     }
                 }
-                for levels in level_blocks::<8>(qp as u64 + 9) {
-                    let mut a: [u8; 256] = pred.clone().try_into().unwrap();
-                    let mut b = a;
-                    add_8x8(&levels, qp, &mut a, (8, 0));
-                    (s.add_8x8)(&levels, qp, &mut b, (8, 0));
-                    assert_eq!(a, b, "{isa} 8x8 at QP {qp}");
+                // Past 12 bits (the scalar build's 64-bit path) and 16.
+                let extreme8 = [
+                    [[i32::MAX, i32::MIN, 40_000, -40_000, 5_000, -5_000, 70_000, 1]; 8],
+                    [[4_096, 0, 0, -4_097, 0, 0, 0, 0]; 8],
+                ];
+                for levels in level_blocks::<8>(qp as u64 + 9).into_iter().chain(extreme8) {
+                    for at in [(0, 0), (8, 0), (0, 8), (8, 8)] {
+                        let mut a: [u8; 256] = pred.clone().try_into().unwrap();
+                        let mut b = a;
+                        add_8x8(&levels, qp, &mut a, at);
+                        (s.add_8x8)(&levels, qp, &mut b, at);
+                        assert_eq!(a, b, "{isa} 8x8 at {at:?}, QP {qp}");
+                    }
                 }
             }
         }

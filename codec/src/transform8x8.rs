@@ -195,7 +195,7 @@ pub fn dequantize_8x8(coeffs: &mut Block8, qp: u8) {
 }
 
 /// [`DEQUANT8`] spread over the 64 positions, row by row.
-const DEQUANT8_BY_POSITION: [[i32; 64]; 6] = {
+pub(crate) const DEQUANT8_BY_POSITION: [[i32; 64]; 6] = {
     let mut t = [[0i32; 64]; 6];
     let mut m = 0;
     while m < 6 {

@@ -209,6 +209,7 @@ pub(crate) fn small_levels_scalar(b: &Block4) -> Option<usize> {
 
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod x86 {
+    use crate::codec::dsp::x86::transpose8x8_epi32 as transpose8;
     use crate::codec::syntax::MB;
     use crate::codec::transform::{Block4, Quantizer4x4};
     use crate::codec::transform8x8::Block8;
@@ -295,44 +296,6 @@ pub(crate) mod x86 {
             add(sub(times(d0, 6), times(d1, 12)), add(times(d2, 3), times(d3, 10))),
             sub(_mm256_slli_epi32::<2>(c), _mm256_slli_epi32::<3>(e)),
             add(sub(times(d0, 3), times(d1, 6)), sub(times(d2, 10), times(d3, 12))),
-        ]
-    }
-
-    /// An 8x8 block of 32-bit values (a row a register) transposed.
-    #[inline]
-    #[target_feature(enable = "avx2")]
-    fn transpose8(r: [__m256i; 8]) -> [__m256i; 8] {
-        // Pairs of rows interleaved, then pairs of pairs: each 128-bit half
-        // holds a 4x4 corner transposed; the halves then swap across.
-        let t: [__m256i; 8] = [
-            _mm256_unpacklo_epi32(r[0], r[1]),
-            _mm256_unpackhi_epi32(r[0], r[1]),
-            _mm256_unpacklo_epi32(r[2], r[3]),
-            _mm256_unpackhi_epi32(r[2], r[3]),
-            _mm256_unpacklo_epi32(r[4], r[5]),
-            _mm256_unpackhi_epi32(r[4], r[5]),
-            _mm256_unpacklo_epi32(r[6], r[7]),
-            _mm256_unpackhi_epi32(r[6], r[7]),
-        ];
-        let u: [__m256i; 8] = [
-            _mm256_unpacklo_epi64(t[0], t[2]),
-            _mm256_unpackhi_epi64(t[0], t[2]),
-            _mm256_unpacklo_epi64(t[1], t[3]),
-            _mm256_unpackhi_epi64(t[1], t[3]),
-            _mm256_unpacklo_epi64(t[4], t[6]),
-            _mm256_unpackhi_epi64(t[4], t[6]),
-            _mm256_unpacklo_epi64(t[5], t[7]),
-            _mm256_unpackhi_epi64(t[5], t[7]),
-        ];
-        [
-            _mm256_permute2x128_si256::<0x20>(u[0], u[4]),
-            _mm256_permute2x128_si256::<0x20>(u[1], u[5]),
-            _mm256_permute2x128_si256::<0x20>(u[2], u[6]),
-            _mm256_permute2x128_si256::<0x20>(u[3], u[7]),
-            _mm256_permute2x128_si256::<0x31>(u[0], u[4]),
-            _mm256_permute2x128_si256::<0x31>(u[1], u[5]),
-            _mm256_permute2x128_si256::<0x31>(u[2], u[6]),
-            _mm256_permute2x128_si256::<0x31>(u[3], u[7]),
         ]
     }
 

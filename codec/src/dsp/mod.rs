@@ -24,6 +24,8 @@ pub mod ipred;
 pub mod itx;
 pub mod lf;
 pub mod mc;
+#[cfg(target_arch = "x86_64")]
+pub mod x86;
 
 use crate::cpu::{self, CpuLevel};
 

@@ -8,7 +8,9 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BenchmarkGroup, BenchmarkId, Criterion};
 use mocomp::codec::cpu;
-use mocomp::codec::dsp::ipred::{Edges, Edges8, Intra4x4Mode, IntraMode, ModeSource4, Neighbours, IPRED};
+use mocomp::codec::dsp::ipred::{
+    Edges, Edges8, Intra4x4Mode, IntraMode, ModeSource, ModeSource4, Neighbours, IPRED,
+};
 use mocomp::codec::dsp::itx::ITX;
 use mocomp::codec::dsp::lf::{LfLevel, LF};
 use mocomp::codec::dsp::mc::{LUMA_TAPS, MC};
@@ -114,6 +116,10 @@ fn codec_tables(c: &mut Criterion) {
         let (source, mut o32) = (ModeSource4::new(&e4), [0u8; 32]);
         bench(g, "pred_4x4_pair_nine_modes", l, || {
             Intra4x4Mode::ALL.map(|m| (t.pred_4x4_pair)(black_box(&source), m, Intra4x4Mode::Dc, &mut o32))
+        });
+        let source8 = ModeSource::new(&e8);
+        bench(g, "pred_8x8_gather_nine_modes", l, || {
+            Intra4x4Mode::ALL.map(|m| (t.pred_8x8_gather)(black_box(&source8), m, &mut o8))
         });
     });
     // Near-flat with a step across the edges: most lines are filtered.

@@ -11,7 +11,7 @@
 
 use mocomp::codec::cpu::{self, CpuLevel};
 use mocomp::codec::dsp::ipred::{
-    Edges, Edges8, Intra4x4Mode, IntraMode, IpredDsp, ModeSource4, Neighbours, IPRED,
+    Edges, Edges8, Intra4x4Mode, IntraMode, IpredDsp, ModeSource, ModeSource4, Neighbours, IPRED,
 };
 use mocomp::codec::dsp::itx::{ItxDsp, ITX};
 use mocomp::codec::dsp::lf::{LfDsp, LfLevel, LF};
@@ -181,6 +181,7 @@ fn intra_prediction() {
             pred_4x4,
             pred_8x8,
             pred_4x4_pair,
+            pred_8x8_gather,
         } = *t;
         for edge in sample_sets(32, 3) {
             for (top, left) in [(true, true), (true, false), (false, true), (false, false)] {
@@ -231,6 +232,13 @@ fn intra_prediction() {
                         (s.pred_4x4_pair)(&source, a_mode, b_mode, &mut b);
                         assert_eq!(a, b, "{isa} 4x4 pair {a_mode:?} {b_mode:?}");
                     }
+                }
+                let source = ModeSource::new(&e8);
+                for mode in Intra4x4Mode::ALL {
+                    let (mut a, mut b) = ([0u8; 64], [0u8; 64]);
+                    pred_8x8_gather(&source, mode, &mut a);
+                    (s.pred_8x8_gather)(&source, mode, &mut b);
+                    assert_eq!(a, b, "{isa} 8x8 gather {mode:?}");
                 }
             }
         }

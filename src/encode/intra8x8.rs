@@ -48,6 +48,7 @@ impl IntraBlockSearch<'_> {
         let mut levels = Box::new([[[0; 8]; 8]; 4]);
         let mut own = [0u8; 256];
         let mode_costs = self.mode_costs();
+        let predict = crate::codec::dsp::ipred::ipred().pred_8x8_gather;
         for q in 0..4 {
             let edges = intra8x8::filtered(&intra8x8::edges(self.recon.y(), &own, mb_x, mb_y, q));
             let modes = ModeSource::new(&edges);
@@ -62,7 +63,7 @@ impl IntraBlockSearch<'_> {
                 if fixed.is_some_and(|f| f[q] != m) || !m.is_available(above, left) {
                     continue;
                 }
-                modes.predict(m, &mut block);
+                predict(&modes, m, &mut block);
                 let satd = Metric::Satd.cost(source, MB, &block, 8, 8, 8);
                 let cost = f64::from(satd) + mode_costs[usize::from(m == probable)];
                 if cost < best.0 {

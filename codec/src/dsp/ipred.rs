@@ -21,6 +21,11 @@ pub type Pred8x8Fn = fn(Intra4x4Mode, &Edges8, &mut [u8; 64]);
 /// `b`'s (the layout of a paired 4x4 SATD).
 pub type Pred4x4PairFn = fn(&ModeSource4, Intra4x4Mode, Intra4x4Mode, &mut [u8; 32]);
 
+/// One 8x8 mode gathered from a block's [`ModeSource`]: `(source, mode,
+/// out)`, `out` row-major (an encoder trying the nine modes builds the
+/// source once).
+pub type Pred8x8GatherFn = fn(&ModeSource, Intra4x4Mode, &mut [u8; 64]);
+
 /// The intra prediction kernels of one CPU level.
 #[derive(Debug, Clone, Copy)]
 pub struct IpredDsp {
@@ -34,6 +39,8 @@ pub struct IpredDsp {
     pub pred_8x8: Pred8x8Fn,
     /// Two of a 4x4 block's modes at once, for an encoder trying them.
     pub pred_4x4_pair: Pred4x4PairFn,
+    /// One of an 8x8 block's modes from its source.
+    pub pred_8x8_gather: Pred8x8GatherFn,
 }
 
 const SCALAR: IpredDsp = IpredDsp {
@@ -42,6 +49,7 @@ const SCALAR: IpredDsp = IpredDsp {
     pred_4x4,
     pred_8x8,
     pred_4x4_pair,
+    pred_8x8_gather,
 };
 
 /// The tables, lowest level first.
@@ -57,11 +65,16 @@ pub static IPRED: PerLevel<IpredDsp> = PerLevel([
         // Its AVX2 build ran 25 % more instructions (the modes' per-sample
         // formulas do not vectorise): the scalar one at every level.
         pred_4x4,
+        // The source built by the scalar source compiled for AVX2, each
+        // mode a byte shuffle from it (the decoder's blocks too).
         pred_8x8: avx2::pred_8x8,
         // A byte shuffle a mode instead of sixteen indexed loads: with it
         // ultrafast ran 0.982x the instructions on dog_1080p over 10
         // frames (`benches/instructions.py`; the I frame's 4x4 search).
         pred_4x4_pair: avx2::pred_4x4_pair,
+        // The same for 8x8 blocks: 64 indexed loads a mode were 1.8 % of
+        // medium's instructions on diver_vga.
+        pred_8x8_gather: avx2::pred_8x8_gather,
     },
     #[cfg(not(target_arch = "x86_64"))]
     SCALAR,
@@ -75,10 +88,23 @@ pub fn ipred() -> &'static IpredDsp {
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    use super::{Edges8, Intra4x4Mode, IntraMode, ModeSource4, Neighbours};
+    use super::{Edges8, Intra4x4Mode, IntraMode, ModeSource, ModeSource4, Neighbours};
     crate::compiled_for! { "avx2":
         fn pred_8x8_chroma(mode: IntraMode, n: &Neighbours<'_>, out: &mut [u8], stride: usize) => super::predict_sized::<8>;
-        fn pred_8x8(mode: Intra4x4Mode, e: &Edges8, out: &mut [u8; 64]) => super::pred_8x8;
+        fn mode_source(e: &Edges8) -> ModeSource => ModeSource::new;
+    }
+
+    /// The AVX2 [`super::Pred8x8Fn`]: the block's source, then its mode's
+    /// gather.
+    pub(super) fn pred_8x8(mode: Intra4x4Mode, e: &Edges8, out: &mut [u8; 64]) {
+        pred_8x8_gather(&mode_source(e), mode, out)
+    }
+
+    /// The AVX2 [`super::Pred8x8GatherFn`].
+    pub(super) fn pred_8x8_gather(source: &ModeSource, mode: Intra4x4Mode, out: &mut [u8; 64]) {
+        // SAFETY: this kernel sits only in the AVX2 table, handed out only
+        // where the CPU has AVX2.
+        unsafe { super::x86::pred_8x8_gather_avx2(&source.0, mode as usize, out) }
     }
 
     /// The AVX2 [`super::Pred4x4PairFn`].
@@ -93,7 +119,35 @@ mod avx2 {
 mod x86 {
     use std::arch::x86_64::*;
 
-    use super::{MODE_SHUFFLE4, SOURCE4_STORE};
+    use super::{MODE_SHUFFLE4, MODE_SHUFFLE8, SOURCE4_STORE, SOURCE_STORE};
+
+    /// Mode `m` of an 8x8 block, row-major, from its source's five
+    /// 16-byte chunks, each in both halves of a register: each half of
+    /// the output shuffled from every chunk by the mode's masks (lanes
+    /// taken from other chunks zeroed) and OR-ed.
+    ///
+    /// # Safety
+    /// AVX2 is there; `m` is a mode's code (below 9).
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn pred_8x8_gather_avx2(source: &[u8; SOURCE_STORE], m: usize, out: &mut [u8; 64]) {
+        let p = source.as_ptr() as *const __m128i;
+        let mut chunks = [_mm256_setzero_si256(); SOURCE_STORE / 16];
+        for (k, chunk) in chunks.iter_mut().enumerate() {
+            // SAFETY: the source holds five chunks of 16 bytes.
+            *chunk = _mm256_broadcastsi128_si256(unsafe { _mm_loadu_si128(p.add(k)) });
+        }
+        let o = out.as_mut_ptr() as *mut __m256i;
+        for (half, masks) in MODE_SHUFFLE8[m].iter().enumerate() {
+            let mut v = _mm256_setzero_si256();
+            for (chunk, mask) in chunks.iter().zip(masks) {
+                // SAFETY: a mask is 32 bytes.
+                let mask = unsafe { _mm256_loadu_si256(mask.as_ptr() as *const __m256i) };
+                v = _mm256_or_si256(v, _mm256_shuffle_epi8(*chunk, mask));
+            }
+            // SAFETY: `out` holds two halves of 32 bytes.
+            unsafe { _mm256_storeu_si256(o.add(half), v) };
+        }
+    }
 
     /// Mode `m` of a 4x4 block, row-major, from its source's three
     /// 16-byte `chunks`: each chunk shuffled by the mode's mask for it
@@ -544,7 +598,7 @@ pub struct Edges8 {
 /// their own. Each mode is then a fixed gather ([`MODE_INDEX`]), which is
 /// how an encoder trying the nine modes shares the arithmetic.
 #[derive(Debug, Clone)]
-pub struct ModeSource([u8; SOURCE_LEN]);
+pub struct ModeSource([u8; SOURCE_STORE]);
 
 const LINE: usize = 0; // 25 samples
 const F3: usize = 25; // 25: (a + 2b + c + 2) >> 2 centred on line[i], i = 1..=23
@@ -553,6 +607,8 @@ const DDL_CORNER: usize = 74; // diagonal down-left at (7, 7)
 const HU_END: usize = 75; // horizontal-up where x + 2y = 13
 const DC_VALUE: usize = 76;
 const SOURCE_LEN: usize = 77;
+/// Its storage: five chunks of 16 bytes, for a byte shuffle's gathers.
+const SOURCE_STORE: usize = 80;
 
 impl ModeSource {
     /// The source of a block whose filtered edges are `e`.
@@ -562,8 +618,8 @@ impl ModeSource {
             e.top_left,
             e.top.as_ref().map(|t| &t[..]),
         );
-        let mut v = [0u8; SOURCE_LEN];
-        fill_source(&line, &LAYOUT8, &mut v);
+        let mut v = [0u8; SOURCE_STORE];
+        fill_source(&line, &LAYOUT8, &mut v[..SOURCE_LEN]);
         v[DC_VALUE] = dc8(e);
         ModeSource(v)
     }
@@ -580,6 +636,31 @@ impl ModeSource {
 /// Where sample (x, y) of each mode comes from in a [`ModeSource`]
 /// (FORMAT.md section 9.2's formulas).
 const MODE_INDEX: [[u8; 64]; 9] = mode_table(8, &LAYOUT8);
+
+/// [`MODE_INDEX`] as byte-shuffle masks: for each half of the block (32
+/// samples) and each 16-byte chunk of the source, a sample's index within
+/// the chunk it lies in, and 0x80 (the shuffle's zero) in the other
+/// chunks' masks.
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+const MODE_SHUFFLE8: [[[[u8; 32]; SOURCE_STORE / 16]; 2]; 9] = {
+    let mut masks = [[[[0x80u8; 32]; SOURCE_STORE / 16]; 2]; 9];
+    let mut m = 0;
+    while m < 9 {
+        let mut i = 0;
+        while i < 64 {
+            let at = MODE_INDEX[m][i] as usize;
+            masks[m][i / 32][at / 16][i % 32] = (at % 16) as u8;
+            i += 1;
+        }
+        m += 1;
+    }
+    masks
+};
+
+/// The scalar [`Pred8x8GatherFn`].
+fn pred_8x8_gather(source: &ModeSource, mode: Intra4x4Mode, out: &mut [u8; 64]) {
+    source.predict(mode, out)
+}
 
 /// Where a [`ModeSource`]'s parts lie.
 const LAYOUT8: SourceLayout = SourceLayout {
